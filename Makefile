@@ -1,0 +1,44 @@
+# somo-sweep chores. `make help` lists them.
+PYTHON ?= python3
+VENV   ?= .venv
+BIN    := $(VENV)/bin
+STAMP  := $(VENV)/.installed-stamp
+
+.DEFAULT_GOAL := help
+.PHONY: help install demo test test-slow lint format bench clean
+
+help: ## List the targets
+	@grep -E '^[a-zA-Z0-9_-]+:.*?## ' $(MAKEFILE_LIST) | awk 'BEGIN {FS = ":.*?## "}; {printf "  make %-12s %s\n", $$1, $$2}'
+
+$(STAMP): pyproject.toml
+	$(PYTHON) -m venv $(VENV)
+	$(BIN)/python -m pip install --quiet --upgrade pip
+	$(BIN)/python -m pip install --quiet -e ".[dev]"
+	@touch $(STAMP)
+
+install: $(STAMP) ## Create .venv and install somo-sweep with its dev tools
+
+demo: $(STAMP) ## Install, then run the main job on the bundled example
+	$(BIN)/somo-sweep check studies/models/pinch_gripper.yaml
+	$(BIN)/somo-sweep measure studies/models/ihm_finger.yaml --test blocked_force --values 0,50,100,150,200,240 --csv results/demo_blocked_force.csv
+
+test: $(STAMP) ## Install, then run the default test suite
+	$(BIN)/python -m pytest
+
+test-slow: $(STAMP) ## Run the long physics tests too
+	$(BIN)/python -m pytest -m "slow or not slow"
+
+lint: $(STAMP) ## ruff (lint + format check) and mypy
+	$(BIN)/ruff check somo_sweep tests
+	$(BIN)/ruff format --check somo_sweep tests
+	$(BIN)/mypy
+
+format: $(STAMP) ## Format the code with ruff
+	$(BIN)/ruff format somo_sweep tests
+	$(BIN)/ruff check --fix somo_sweep tests
+
+bench: $(STAMP) ## Speed benchmark: ms per step of the two-finger grasp, Bullet vs Python
+	$(BIN)/python -m somo_sweep.benchmark
+
+clean: ## Remove the virtual environment and caches
+	rm -rf $(VENV) .pytest_cache .mypy_cache .ruff_cache

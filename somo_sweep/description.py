@@ -1,0 +1,398 @@
+"""Typed, frozen descriptions of links, joints, actuators, manipulators and assemblies.
+
+Everything is in SI units and the unit is part of every field name. Chains are
+built along the local +z axis: an actuator of ``n_segments`` links of length
+``length_m / n_segments`` whose joints cycle through the actuator's joint
+definitions (two definitions alternate a grasp and a side axis, as in SoMo).
+"""
+
+from __future__ import annotations
+
+import math
+from typing import Literal
+
+import numpy as np
+from pydantic import BaseModel, ConfigDict, Field, field_validator, model_validator
+
+__all__ = [
+    "LENGTH_REL_TOL",
+    "Actuation",
+    "Actuator",
+    "Assembly",
+    "Base",
+    "Friction",
+    "Joint",
+    "Link",
+    "Manipulator",
+    "Mount",
+    "Pose",
+    "RigidBody",
+    "Spec",
+]
+
+#: Relative tolerance when a length must be a whole number of segments.
+LENGTH_REL_TOL = 1e-6
+
+Vec3 = tuple[float, float, float]
+
+
+class Spec(BaseModel):
+    """Base of every description: unknown keys fail, instances are immutable."""
+
+    model_config = ConfigDict(extra="forbid", frozen=True)
+
+
+class Friction(Spec):
+    """PyBullet friction values of a link (the pair coefficient is their product).
+
+    ``anisotropic`` scales the lateral friction along the link's x, y, z axes.
+    """
+
+    lateral: float = Field(1.0, ge=0)
+    spinning: float = Field(0.0, ge=0)
+    rolling: float = Field(0.0, ge=0)
+    anisotropic: Vec3 | None = None
+
+
+SHAPES = ("box", "cylinder", "sphere", "capsule", "stadium")
+
+
+class Link(Spec):
+    """A rigid link.
+
+    Shapes and their dimensions (z is the chain axis):
+      * ``box``: ``size_m = [x, y, z]``;
+      * ``stadium``: right prism on a stadium base, ``size_m = [width_x, thickness_y, z]``
+        (the round ends have radius ``thickness_y / 2``);
+      * ``cylinder`` / ``capsule``: ``radius_m`` and ``length_m`` along z (overall
+        length for capsules, caps included);
+      * ``sphere``: ``radius_m``.
+    In an actuator the z extent is taken from the segment length and may be omitted.
+    ``added_inertia_kg_m2`` is added to each principal moment (inertia shaping: it
+    lowers a chain's highest natural frequency so larger time steps stay stable,
+    and leaves every static equilibrium unchanged).
+    """
+
+    shape: Literal["box", "cylinder", "sphere", "capsule", "stadium"]
+    size_m: tuple[float, ...] | None = None
+    radius_m: float | None = Field(None, gt=0)
+    length_m: float | None = Field(None, gt=0)
+    mass_kg: float = Field(gt=0)
+    inertia_kg_m2: Vec3 | None = None
+    added_inertia_kg_m2: float = Field(0.0, ge=0)
+    friction: Friction = Friction()
+    restitution: float = Field(0.0, ge=0, le=1)
+    color_rgba: tuple[float, float, float, float] = (0.55, 0.6, 0.7, 1.0)
+
+    @model_validator(mode="after")
+    def _dimensions_fit_shape(self) -> Link:
+        needs_size = self.shape in ("box", "stadium")
+        if needs_size:
+            if self.size_m is None or len(self.size_m) not in (2, 3):
+                raise ValueError(f"shape '{self.shape}' needs size_m = [x, y] or [x, y, z] in m")
+            if any(v <= 0 for v in self.size_m):
+                raise ValueError(f"size_m entries must be > 0, got {list(self.size_m)}")
+            if self.shape == "stadium" and self.size_m[0] < self.size_m[1]:
+                raise ValueError("stadium needs width_x >= thickness_y (size_m[0] >= size_m[1])")
+        elif self.size_m is not None:
+            raise ValueError(f"shape '{self.shape}' takes radius_m, not size_m")
+        if not needs_size and self.radius_m is None:
+            raise ValueError(f"shape '{self.shape}' needs radius_m")
+        if self.shape == "capsule" and self.length_m is not None and self.length_m < 2 * (self.radius_m or 0):
+            raise ValueError("capsule length_m (overall) must be >= 2 * radius_m")
+        if self.shape in ("sphere",) and self.length_m is not None:
+            raise ValueError("shape 'sphere' takes no length_m")
+        return self
+
+    @property
+    def length_z_m(self) -> float | None:
+        """Extent along z in m, or None when it is left to the actuator."""
+        if self.shape in ("box", "stadium"):
+            return self.size_m[2] if self.size_m and len(self.size_m) == 3 else None
+        if self.shape == "sphere":
+            return 2 * (self.radius_m or 0.0)
+        return self.length_m
+
+    def with_length_z(self, length_m: float) -> Link:
+        """A copy whose extent along z is ``length_m`` (spheres keep their radius)."""
+        if self.shape in ("box", "stadium"):
+            assert self.size_m is not None
+            return self.model_copy(update={"size_m": (self.size_m[0], self.size_m[1], length_m)})
+        if self.shape in ("cylinder", "capsule"):
+            return self.model_copy(update={"length_m": length_m})
+        return self
+
+    def principal_inertia_kg_m2(self) -> np.ndarray:
+        """Principal inertia about the centre of mass, in kg·m² (given or from the shape)."""
+        return self._shape_inertia_kg_m2() + self.added_inertia_kg_m2
+
+    def _shape_inertia_kg_m2(self) -> np.ndarray:
+        if self.inertia_kg_m2 is not None:
+            return np.asarray(self.inertia_kg_m2, dtype=float)
+        m = self.mass_kg
+        z = self.length_z_m or 0.0
+        if self.shape in ("box", "stadium"):
+            assert self.size_m is not None
+            x, y = self.size_m[0], self.size_m[1]
+            return m / 12 * np.array([y * y + z * z, x * x + z * z, x * x + y * y])
+        r = self.radius_m or 0.0
+        if self.shape == "sphere":
+            return np.full(3, 0.4 * m * r * r)
+        # Cylinder and capsule (a capsule is approximated by its bounding cylinder).
+        ixx = m * (3 * r * r + z * z) / 12
+        return np.array([ixx, ixx, 0.5 * m * r * r])
+
+    def half_extent_m(self, axis: int) -> float:
+        """Half the link's extent along local axis 0 (x), 1 (y) or 2 (z), in m."""
+        if self.shape in ("box", "stadium"):
+            assert self.size_m is not None
+            if axis < 2:
+                return self.size_m[axis] / 2
+            return (self.length_z_m or 0.0) / 2
+        r = self.radius_m or 0.0
+        if axis < 2 or self.shape == "sphere":
+            return r
+        return (self.length_z_m or 0.0) / 2
+
+
+class Joint(Spec):
+    """A spring-loaded joint definition (one bending, torsion or sliding axis).
+
+    Revolute joints use the ``*_rad`` / ``*_n_m*`` fields, prismatic joints the
+    ``*_m`` / ``*_n*`` ones. ``offset_m`` moves the joint off the link centre
+    line (the neutral-axis offset of a bending actuator). The Coulomb motor
+    limit is SoMo's ``joint_control_limit_force``; ``damping`` is viscous.
+    """
+
+    name: str | None = None
+    type: Literal["revolute", "prismatic"] = "revolute"
+    axis: Vec3
+    offset_m: Vec3 = (0.0, 0.0, 0.0)
+    actuated: bool = True
+    stiffness_n_m_per_rad: float | None = Field(None, ge=0)
+    stiffness_n_per_m: float | None = Field(None, ge=0)
+    neutral_rad: float = 0.0
+    neutral_m: float = 0.0
+    damping_n_m_s_per_rad: float | None = Field(None, ge=0)
+    damping_n_s_per_m: float | None = Field(None, ge=0)
+    motor_limit_n_m: float | None = Field(None, ge=0)
+    motor_limit_n: float | None = Field(None, ge=0)
+    limits_rad: tuple[float, float] | None = None
+    limits_m: tuple[float, float] | None = None
+
+    @field_validator("axis")
+    @classmethod
+    def _axis_nonzero(cls, v: Vec3) -> Vec3:
+        norm = math.sqrt(sum(c * c for c in v))
+        if norm < 1e-12:
+            raise ValueError("axis must be a non-zero vector [x, y, z]")
+        return (v[0] / norm, v[1] / norm, v[2] / norm)
+
+    @model_validator(mode="after")
+    def _fields_match_type(self) -> Joint:
+        rev = {"stiffness_n_m_per_rad", "damping_n_m_s_per_rad", "motor_limit_n_m", "limits_rad"}
+        pri = {"stiffness_n_per_m", "damping_n_s_per_m", "motor_limit_n", "limits_m"}
+        wrong = pri if self.type == "revolute" else rev
+        given = {name for name in wrong if getattr(self, name) is not None}
+        if self.type == "revolute" and self.neutral_m != 0.0:
+            given.add("neutral_m")
+        if self.type == "prismatic" and self.neutral_rad != 0.0:
+            given.add("neutral_rad")
+        if given:
+            raise ValueError(f"{self.type} joint does not take {', '.join(sorted(given))}")
+        if self.stiffness is None:
+            need = "stiffness_n_m_per_rad" if self.type == "revolute" else "stiffness_n_per_m"
+            raise ValueError(f"{self.type} joint needs {need}")
+        lim = self.limits
+        if lim is not None and lim[0] >= lim[1]:
+            raise ValueError(f"limits must be [lower, upper] with lower < upper, got {list(lim)}")
+        return self
+
+    @property
+    def stiffness(self) -> float:
+        """Spring constant in N·m/rad (revolute) or N/m (prismatic)."""
+        value = self.stiffness_n_m_per_rad if self.type == "revolute" else self.stiffness_n_per_m
+        return value  # type: ignore[return-value]
+
+    @property
+    def neutral(self) -> float:
+        """Spring rest position in rad or m."""
+        return self.neutral_rad if self.type == "revolute" else self.neutral_m
+
+    @property
+    def damping(self) -> float:
+        """Viscous damping in N·m·s/rad or N·s/m (0 when not given)."""
+        value = self.damping_n_m_s_per_rad if self.type == "revolute" else self.damping_n_s_per_m
+        return value or 0.0
+
+    @property
+    def motor_limit(self) -> float:
+        """Coulomb limit of the zero-velocity motor in N·m or N (0 when not given)."""
+        value = self.motor_limit_n_m if self.type == "revolute" else self.motor_limit_n
+        return value or 0.0
+
+    @property
+    def limits(self) -> tuple[float, float] | None:
+        """Joint limits in rad or m, or None."""
+        return self.limits_rad if self.type == "revolute" else self.limits_m
+
+
+class Actuator(Spec):
+    """A continuum actuator: ``n_segments`` equal links joined by spring joints.
+
+    Give either ``n_segments`` or ``segment_length_m``; a length that is not a
+    whole number of segments (within ``LENGTH_REL_TOL``) is rejected.
+    ``stiffness_profile`` multiplies the stiffness of each segment's joint.
+    """
+
+    name: str | None = None
+    length_m: float = Field(gt=0)
+    n_segments: int | None = Field(None, ge=1)
+    segment_length_m: float | None = Field(None, gt=0)
+    link: Link
+    joints: list[Joint] = Field(min_length=1, max_length=3)
+    stiffness_profile: list[float] | None = None
+
+    @model_validator(mode="after")
+    def _segments_consistent(self) -> Actuator:
+        if (self.n_segments is None) == (self.segment_length_m is None):
+            raise ValueError("give exactly one of n_segments or segment_length_m")
+        if self.segment_length_m is not None:
+            ratio = self.length_m / self.segment_length_m
+            if abs(ratio - round(ratio)) > LENGTH_REL_TOL * ratio or round(ratio) < 1:
+                raise ValueError(
+                    f"length_m = {self.length_m} is not a whole number of segments of "
+                    f"{self.segment_length_m} m ({ratio:.6g}); allowed: a multiple within "
+                    f"relative tolerance {LENGTH_REL_TOL:g}"
+                )
+        n = self.segments
+        lz = self.link.length_z_m
+        if lz is not None and self.link.shape != "sphere":
+            seg = self.length_m / n
+            if abs(lz - seg) > LENGTH_REL_TOL * seg:
+                raise ValueError(
+                    f"link length along z ({lz} m) differs from length_m / segments = {seg:.6g} m; "
+                    "omit it or make it agree"
+                )
+        if self.stiffness_profile is not None:
+            if len(self.stiffness_profile) != n:
+                raise ValueError(
+                    f"stiffness_profile needs {n} entries (one per segment), "
+                    f"got {len(self.stiffness_profile)}"
+                )
+            if any(v <= 0 for v in self.stiffness_profile):
+                raise ValueError("stiffness_profile entries must be > 0")
+        return self
+
+    @property
+    def segments(self) -> int:
+        """Number of links (and joints) of the actuator."""
+        if self.n_segments is not None:
+            return self.n_segments
+        assert self.segment_length_m is not None
+        return round(self.length_m / self.segment_length_m)
+
+    @property
+    def segment_m(self) -> float:
+        """Length of one segment in m."""
+        return self.length_m / self.segments
+
+    def segment_link(self) -> Link:
+        """The link with its z extent set to the segment length."""
+        return self.link.with_length_z(self.segment_m)
+
+    def joint_of_segment(self, i: int) -> Joint:
+        """Joint definition used at the base of segment ``i`` (axes alternate)."""
+        return self.joints[i % len(self.joints)]
+
+    def stiffness_factor(self, i: int) -> float:
+        """Stiffness multiplier of segment ``i``."""
+        return self.stiffness_profile[i] if self.stiffness_profile else 1.0
+
+    @property
+    def actuated_axes(self) -> list[int]:
+        """Indices of joint definitions that take a control input."""
+        return [i for i, j in enumerate(self.joints) if j.actuated]
+
+
+class Base(Spec):
+    """How a manipulator or assembly is held: ``fixed``, ``free`` or ``driven`` (by a trajectory)."""
+
+    mode: Literal["fixed", "free", "driven"] = "fixed"
+    link: Link | None = None
+
+
+class Actuation(Spec):
+    """How pressure maps to actuation torque: u = gain · p on each actuated first axis."""
+
+    pressure_gain_n_m_per_kpa: float = Field(gt=0)
+
+
+class Manipulator(Spec):
+    """Actuators in series with optional base link and tip links."""
+
+    name: str = "manipulator"
+    base: Base = Base()
+    actuators: list[Actuator] = Field(min_length=1)
+    tip_links: list[Link] = []
+    actuation: Actuation | None = None
+
+    @property
+    def n_inputs(self) -> int:
+        """Number of control inputs (actuated axes over all actuators)."""
+        return sum(len(a.actuated_axes) for a in self.actuators)
+
+    @property
+    def length_m(self) -> float:
+        """Sum of actuator lengths in m (tip links excluded)."""
+        return sum(a.length_m for a in self.actuators)
+
+
+class Pose(Spec):
+    """A pose: position in m and roll-pitch-yaw in rad (extrinsic x, y, z)."""
+
+    position_m: Vec3 = (0.0, 0.0, 0.0)
+    rpy_rad: Vec3 = (0.0, 0.0, 0.0)
+
+
+class Mount(Spec):
+    """A manipulator placed in an assembly (pose relative to the assembly base)."""
+
+    name: str
+    manipulator: Manipulator
+    pose: Pose = Pose()
+
+
+class RigidBody(Spec):
+    """A rigid body of an assembly or scene."""
+
+    name: str
+    link: Link
+    pose: Pose = Pose()
+    fixed: bool = False
+
+
+class Assembly(Spec):
+    """Manipulators (and rigid bodies) arranged around an optional common base.
+
+    With a base link, the base and all mounted manipulators form one multibody
+    (held by ``base.mode``); without one, each manipulator is its own body.
+    """
+
+    name: str = "assembly"
+    base: Base = Base()
+    manipulators: list[Mount] = Field(min_length=1)
+    bodies: list[RigidBody] = []
+
+    @model_validator(mode="after")
+    def _unique_names(self) -> Assembly:
+        names = [m.name for m in self.manipulators] + [b.name for b in self.bodies]
+        dupes = sorted({n for n in names if names.count(n) > 1})
+        if dupes:
+            raise ValueError(f"names must be unique, repeated: {', '.join(dupes)}")
+        return self
+
+    @property
+    def n_inputs(self) -> int:
+        """Total number of control inputs, manipulators in order."""
+        return sum(m.manipulator.n_inputs for m in self.manipulators)

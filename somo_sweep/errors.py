@@ -1,0 +1,103 @@
+"""The exception tree of somo-sweep.
+
+Every error a user can cause derives from :class:`SomoError`; the CLI prints its
+message and exits with code 2. Errors carry structured fields so that callers
+(and tests) can inspect them without parsing text.
+"""
+
+from __future__ import annotations
+
+import difflib
+from collections.abc import Iterable, Sequence
+from dataclasses import dataclass
+from pathlib import Path
+
+__all__ = [
+    "DescriptionError",
+    "MeasurementError",
+    "Problem",
+    "SimulationError",
+    "SomoError",
+    "UnstableSimulation",
+    "did_you_mean",
+]
+
+
+class SomoError(Exception):
+    """Base class of every error somo-sweep raises on purpose."""
+
+
+@dataclass(frozen=True)
+class Problem:
+    """One problem found in a user file.
+
+    Attributes:
+        path: Key path inside the file, e.g. ``manipulator.actuators[0].length_m``.
+        message: What is wrong and what is allowed.
+        line: 1-based line number in the file, when known.
+    """
+
+    path: str
+    message: str
+    line: int | None = None
+
+    def render(self) -> str:
+        where = self.path or "<top level>"
+        if self.line is not None:
+            where = f"line {self.line}: {where}"
+        return f"{where}: {self.message}"
+
+
+class DescriptionError(SomoError):
+    """A description or study file is invalid; lists every problem at once.
+
+    Args:
+        source: File name (or ``<dict>`` for Python input).
+        problems: All problems found, in file order.
+    """
+
+    def __init__(self, source: str | Path, problems: Sequence[Problem]):
+        self.source = str(source)
+        self.problems = list(problems)
+        head = f"{self.source}: {len(self.problems)} problem(s)"
+        body = "\n".join(f"  - {p.render()}" for p in self.problems)
+        super().__init__(f"{head}\n{body}")
+
+
+class MeasurementError(SomoError):
+    """A measurement CSV is invalid (missing columns, bad cells, unknown tests).
+
+    Args:
+        source: CSV file name.
+        problems: Human-readable problems, each naming row and column.
+    """
+
+    def __init__(self, source: str | Path, problems: Sequence[str]):
+        self.source = str(source)
+        self.problems = list(problems)
+        body = "\n".join(f"  - {p}" for p in self.problems)
+        super().__init__(f"{self.source}: {len(self.problems)} problem(s)\n{body}")
+
+
+class SimulationError(SomoError):
+    """A simulation could not be set up or run."""
+
+
+class UnstableSimulation(SimulationError):
+    """The integration blew up (speeds at Bullet's cap, NaN, or bodies thrown).
+
+    Attributes:
+        reason: Short machine-readable reason (``speed_cap``, ``nan``, ``thrown``).
+        time_s: Simulated time at which it was detected, in s.
+    """
+
+    def __init__(self, reason: str, time_s: float, detail: str = ""):
+        self.reason = reason
+        self.time_s = time_s
+        super().__init__(f"simulation unstable at t={time_s:.4f} s ({reason}) {detail}".strip())
+
+
+def did_you_mean(word: str, choices: Iterable[str]) -> str:
+    """Return a ``" (did you mean 'x'?)"`` hint, or an empty string."""
+    close = difflib.get_close_matches(word, list(choices), n=1, cutoff=0.6)
+    return f" (did you mean '{close[0]}'?)" if close else ""

@@ -1,0 +1,63 @@
+"""Piecewise-linear setpoint tables (time → values) for actuation and base motion."""
+
+from __future__ import annotations
+
+from bisect import bisect_right
+from collections.abc import Sequence
+
+import numpy as np
+
+__all__ = ["SetpointTable"]
+
+
+class SetpointTable:
+    """Linear interpolation between ``(time_s, values)`` rows; held constant outside.
+
+    Args:
+        times_s: Strictly increasing times in s, shape ``(n,)``.
+        values: Values at those times, shape ``(n,)`` or ``(n, m)``.
+
+    Raises:
+        ValueError: Times not strictly increasing, or shapes disagree.
+    """
+
+    def __init__(self, times_s: Sequence[float] | np.ndarray, values: Sequence | np.ndarray):
+        t = np.asarray(times_s, dtype=float)
+        v = np.asarray(values, dtype=float)
+        if v.ndim == 1:
+            v = v[:, None]
+        if t.ndim != 1 or len(t) == 0 or v.shape[0] != len(t):
+            raise ValueError(f"need one row of values per time; got {len(t)} times, {v.shape[0]} rows")
+        if np.any(np.diff(t) <= 0):
+            raise ValueError("times_s must be strictly increasing")
+        if not (np.isfinite(t).all() and np.isfinite(v).all()):
+            raise ValueError("times and values must be finite")
+        self.times_s = t
+        self._times = t.tolist()  # bisect on a list is far cheaper per call than searchsorted
+        self.values = v
+        self._slopes = np.diff(v, axis=0) / np.diff(t)[:, None] if len(t) > 1 else np.zeros((0, v.shape[1]))
+
+    @property
+    def width(self) -> int:
+        """Number of value columns."""
+        return int(self.values.shape[1])
+
+    @property
+    def end_time_s(self) -> float:
+        """Time of the last row in s."""
+        return float(self.times_s[-1])
+
+    def __call__(self, time_s: float) -> np.ndarray:
+        """Values at ``time_s`` (a new array of length :attr:`width`)."""
+        t = self._times
+        if time_s <= t[0]:
+            return self.values[0].copy()
+        if time_s >= t[-1]:
+            return self.values[-1].copy()
+        i = bisect_right(t, time_s) - 1
+        return self.values[i] + self._slopes[i] * (time_s - t[i])
+
+    @classmethod
+    def constant(cls, values: Sequence[float]) -> SetpointTable:
+        """A table holding ``values`` at all times."""
+        return cls([0.0], [list(values)])

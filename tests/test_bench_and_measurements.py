@@ -1,0 +1,173 @@
+"""Bench protocols, the measurement CSV schema and `somo-sweep measure`."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+import pandas as pd
+import pytest
+from conftest import MODELS, ihm_finger_dict
+from typer.testing import CliRunner
+
+from somo_sweep.bench import BenchSettings, run_bench
+from somo_sweep.cli import app
+from somo_sweep.errors import MeasurementError, SimulationError
+from somo_sweep.measurements import (
+    COLUMNS,
+    read_measurements,
+    simulate_measurements,
+    write_measurements,
+)
+from somo_sweep.models import load_model, model_from_dict
+
+runner = CliRunner()
+
+
+def test_measure_prints_schema_rows_that_round_trip(tmp_path: Path) -> None:
+    out = tmp_path / "rows.csv"
+    res = runner.invoke(
+        app,
+        [
+            "measure",
+            str(MODELS / "ihm_finger.yaml"),
+            "--test",
+            "blocked_force",
+            "--values",
+            "0,50,100",
+            "--csv",
+            str(out),
+        ],
+    )
+    assert res.exit_code == 0, res.output
+    assert ",".join(COLUMNS) in res.stdout
+    rows = read_measurements(out)
+    assert list(rows["pressure_kpa"]) == [0.0, 50.0, 100.0]
+    force = rows["blocked_force_n"].to_numpy()
+    assert np.all(np.diff(force) > 0)  # more pressure, more force
+    # the round trip reproduces the simulation
+    again = simulate_measurements(load_model(MODELS / "ihm_finger.yaml"), rows)
+    np.testing.assert_allclose(again["blocked_force_n"], force, rtol=1e-5)
+
+
+def test_measure_tip_load_and_free_bending_cli() -> None:
+    res = runner.invoke(
+        app,
+        ["measure", str(MODELS / "ihm_finger.yaml"), "--test", "tip_load", "--values", "0.02,0.05"],
+    )
+    assert res.exit_code == 0, res.output
+    assert "tip_load,0,0.02," in res.stdout
+    res = runner.invoke(
+        app,
+        ["measure", str(MODELS / "ihm_finger.yaml"), "--test", "free_bending", "--values", "100"],
+    )
+    assert res.exit_code == 0
+    x_mm, z_mm = (float(v) for v in res.stdout.strip().splitlines()[-1].split(",")[-2:])
+    assert z_mm < -20 and 0 < x_mm < 130  # curled toward -z
+
+
+def test_measure_rejects_unknown_test_and_negative_load() -> None:
+    res = runner.invoke(
+        app, ["measure", str(MODELS / "ihm_finger.yaml"), "--test", "tipload", "--values", "1"]
+    )
+    assert res.exit_code == 2 and "allowed: tip_load, blocked_force, free_bending" in res.output
+    res = runner.invoke(
+        app, ["measure", str(MODELS / "ihm_finger.yaml"), "--test", "tip_load", "--values", "-1"]
+    )
+    assert res.exit_code == 2 and ">= 0" in res.output
+
+
+def test_free_bending_curls_down_and_tip_load_deflects_down() -> None:
+    model = model_from_dict(ihm_finger_dict(motor_limit=0.0))
+    weightless = run_bench(model, "free_bending", 0.0, settings=BenchSettings(gravity_m_s2=0.0)).value
+    sagging = run_bench(model, "free_bending", 0.0).value
+    bent = run_bench(model, "free_bending", 150.0).value
+    assert isinstance(weightless, tuple) and isinstance(sagging, tuple) and isinstance(bent, tuple)
+    assert weightless == pytest.approx((130.0, 0.0), abs=1e-4)  # 100 mm chain + 30 mm sphere
+    assert sagging[1] < -5 and np.hypot(*sagging) == pytest.approx(130.0, abs=2.0)  # sags, rigid links
+    assert bent[1] < sagging[1] - 20
+    small, large = (run_bench(model, "tip_load", 0.0, f).value for f in (0.02, 0.04))
+    assert 0 < small < large
+
+
+def test_blocked_force_at_zero_pressure_is_part_of_the_finger_weight() -> None:
+    model = model_from_dict(ihm_finger_dict(motor_limit=0.0))
+    force = run_bench(model, "blocked_force", 0.0).value
+    weight_n = 9.81 * (10 * 0.00294 + 0.015)
+    assert 0 < force < weight_n
+
+
+def test_pressure_without_actuation_map_is_an_error() -> None:
+    data = ihm_finger_dict()
+    del data["manipulator"]["actuation"]
+    with pytest.raises(SimulationError, match="no 'actuation'"):
+        run_bench(model_from_dict(data), "free_bending", 10.0)
+
+
+def _write(tmp_path: Path, text: str) -> Path:
+    path = tmp_path / "m.csv"
+    path.write_text(text)
+    return path
+
+
+HEADER = ",".join(COLUMNS)
+
+
+def test_reader_names_row_and_column_of_every_problem(tmp_path: Path) -> None:
+    path = _write(
+        tmp_path,
+        f"# a comment line\n{HEADER}\n"
+        "tip_load,0,0.05,abc,,,\n"
+        "tipload,0,0.05,1.0,,,\n"
+        "tip_load,0,-0.1,1.0,,,\n"
+        "blocked_force,100,,,,,\n",
+    )
+    with pytest.raises(MeasurementError) as err:
+        read_measurements(path)
+    text = str(err.value)
+    assert "line 3, column tip_deflection_mm: 'abc' is not a number" in text
+    assert "line 4, column test: unknown test 'tipload' (did you mean 'tip_load'?)" in text
+    assert "line 5, column tip_load_n: -0.1 < 0" in text
+    assert "line 6, column blocked_force_n: empty" in text
+
+
+def test_reader_rejects_missing_and_unknown_columns(tmp_path: Path) -> None:
+    path = _write(tmp_path, "test,pressure_kpa,tip_load_n,tip_deflecton_mm\n")
+    with pytest.raises(MeasurementError) as err:
+        read_measurements(path)
+    assert "missing column(s)" in str(err.value)
+    assert "did you mean 'tip_deflection_mm'" in str(err.value)
+
+
+def test_reader_keeps_optional_axis_and_direction(tmp_path: Path) -> None:
+    path = _write(tmp_path, f"{HEADER},axis,direction\ntip_load,0,0.05,3.0,,,,grasp,loading\n")
+    rows = read_measurements(path)
+    assert rows.loc[0, "axis"] == "grasp" and rows.loc[0, "direction"] == "loading"
+    bad = _write(tmp_path, f"{HEADER},axis\ntip_load,0,0.05,3.0,,,,sideways\n")
+    with pytest.raises(MeasurementError, match="allowed: grasp, side"):
+        read_measurements(bad)
+
+
+def test_writer_header_comment_is_read_back(tmp_path: Path) -> None:
+    rows = pd.DataFrame(
+        [
+            {
+                "test": "blocked_force",
+                "pressure_kpa": 100.0,
+                "tip_load_n": np.nan,
+                "tip_deflection_mm": np.nan,
+                "blocked_force_n": 0.75,
+                "tip_x_mm": np.nan,
+                "tip_z_mm": np.nan,
+            }
+        ]
+    )
+    path = tmp_path / "w.csv"
+    write_measurements(rows, path, header="derived from published values\nnot measured")
+    assert path.read_text().startswith("# derived from published values\n# not measured\n")
+    assert read_measurements(path).loc[0, "blocked_force_n"] == 0.75
+
+
+def test_missing_file_is_a_measurement_error(tmp_path: Path) -> None:
+    with pytest.raises(MeasurementError, match="file not found"):
+        read_measurements(tmp_path / "nope.csv")

@@ -1,0 +1,216 @@
+"""Descriptions: the schema accepts what SoMo describes and rejects broken files clearly."""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import pytest
+import yaml
+from conftest import MODELS, load_yaml
+
+from somo_sweep.description import Actuator, Link
+from somo_sweep.errors import DescriptionError
+from somo_sweep.models import load_model, model_from_dict
+from somo_sweep.urdf import plan_assembly
+
+
+def test_gripper_assembly_has_expected_links_and_joints() -> None:
+    model = load_model(MODELS / "pinch_gripper.yaml")
+    plans = plan_assembly(model.as_assembly(), 20.0)
+    assert len(plans) == 1  # palm + two fingers form one multibody
+    plan = plans[0]
+    # palm + 2 x (finger base + 20 segments + fingertip)
+    assert len(plan.links) == 1 + 2 * (1 + 20 + 1)
+    assert len(plan.joints) == 2 * 20
+    assert plan.inputs == ["left/proximal/grasp", "right/proximal/grasp"]
+    assert plan.mode == "driven"
+    # joints alternate grasp (axis 0) and side (axis 1) along each finger
+    left = [j for j in plan.joints if j.manipulator == "left"]
+    assert [j.axis for j in left[:4]] == [0, 1, 0, 1]
+    assert sum(j.input_index >= 0 for j in plan.joints) == 2 * 8  # 8 driven grasp joints per finger
+
+
+def test_yaml_json_and_dict_give_the_same_model(tmp_path: Path) -> None:
+    data = load_yaml("ihm_finger.yaml")
+    path = tmp_path / "finger.json"
+    path.write_text(json.dumps(data))
+    assert load_model(path) == load_model(MODELS / "ihm_finger.yaml") == model_from_dict(data)
+
+
+def test_all_link_shapes_are_accepted() -> None:
+    shapes = [
+        {"shape": "box", "size_m": [0.02, 0.01]},
+        {"shape": "stadium", "size_m": [0.03, 0.01]},
+        {"shape": "cylinder", "radius_m": 0.01},
+        {"shape": "capsule", "radius_m": 0.004},
+        {"shape": "sphere", "radius_m": 0.005},
+    ]
+    for shape in shapes:
+        act = Actuator.model_validate(
+            {
+                "length_m": 0.1,
+                "n_segments": 10,
+                "link": {**shape, "mass_kg": 0.01},
+                "joints": [{"axis": [1, 0, 0], "stiffness_n_m_per_rad": 1.0}],
+            }
+        )
+        # every shape spans one 10 mm segment (a sphere of radius 5 mm fills it too)
+        assert act.segment_link().length_z_m == pytest.approx(0.01)
+
+
+def test_segment_length_rounds_within_tolerance() -> None:
+    # 0.1 / 0.005 is 20.000000000000004 in floating point: must not trip an exact comparison
+    act = Actuator.model_validate(
+        {
+            "length_m": 0.1,
+            "segment_length_m": 0.005,
+            "link": {"shape": "box", "size_m": [0.02, 0.01], "mass_kg": 0.01},
+            "joints": [{"axis": [1, 0, 0], "stiffness_n_m_per_rad": 1.0}],
+        }
+    )
+    assert act.segments == 20
+    for ratio in [i * 0.05 for i in range(15)]:  # every DSR of the study splits 20 links cleanly
+        distal = round(20 * ratio)
+        assert Actuator.model_validate(
+            {
+                "length_m": 0.005 * distal or 0.005,
+                "segment_length_m": 0.005,
+                "link": {"shape": "box", "size_m": [0.02, 0.01], "mass_kg": 0.01},
+                "joints": [{"axis": [1, 0, 0], "stiffness_n_m_per_rad": 1.0}],
+            }
+        )
+
+
+def test_length_not_whole_number_of_segments_is_rejected_clearly() -> None:
+    data = load_yaml("ihm_finger.yaml")
+    act = data["manipulator"]["actuators"][0]
+    del act["n_segments"]
+    act["segment_length_m"] = 0.0075
+    with pytest.raises(DescriptionError) as err:
+        model_from_dict(data, "finger.yaml")
+    text = str(err.value)
+    assert "finger.yaml" in text and "manipulator.actuators[0]" in text
+    assert "not a whole number of segments" in text and "13.3333" in text
+
+
+def test_unknown_key_gets_did_you_mean_and_allowed_keys() -> None:
+    data = load_yaml("ihm_finger.yaml")
+    data["manipulator"]["actuators"][0]["joints"][0]["stifness_n_m_per_rad"] = 1.0
+    with pytest.raises(DescriptionError) as err:
+        model_from_dict(data, "f.yaml")
+    text = str(err.value)
+    assert "manipulator.actuators[0].joints[0].stifness_n_m_per_rad: unknown key" in text
+    assert "did you mean 'stiffness_n_m_per_rad'?" in text
+
+
+def test_all_problems_are_reported_at_once_with_lines(tmp_path: Path) -> None:
+    text = (MODELS / "ihm_finger.yaml").read_text()
+    text = text.replace("mass_kg: 0.00294", "mass_kg: -1").replace("shape: box\n", "shape: cube\n")
+    text = text.replace("length_m: 0.100", "lenght_m: 0.100")
+    path = tmp_path / "broken.yaml"
+    path.write_text(text)
+    with pytest.raises(DescriptionError) as err:
+        load_model(path)
+    problems = err.value.problems
+    rendered = str(err.value)
+    assert str(path) in rendered
+    assert len(problems) >= 3
+    assert any("shape" in p.path and "'box'" in p.message for p in problems)  # allowed values listed
+    assert any(
+        p.path.endswith("mass_kg") and "greater than 0" in p.message and "-1" in p.message for p in problems
+    )
+    assert any("lenght_m" in p.message and "did you mean 'length_m'" in p.message for p in problems)
+    assert all(p.line is not None for p in problems)
+
+
+def test_joint_fields_must_match_joint_type() -> None:
+    with pytest.raises(DescriptionError, match="prismatic joint does not take stiffness_n_m_per_rad"):
+        model_from_dict(
+            {
+                "manipulator": {
+                    "actuators": [
+                        {
+                            "length_m": 0.1,
+                            "n_segments": 2,
+                            "link": {"shape": "box", "size_m": [0.02, 0.01], "mass_kg": 0.01},
+                            "joints": [
+                                {
+                                    "type": "prismatic",
+                                    "axis": [0, 0, 1],
+                                    "stiffness_n_m_per_rad": 1.0,
+                                }
+                            ],
+                        }
+                    ]
+                }
+            }
+        )
+
+
+def test_zero_axis_and_bad_limits_are_rejected() -> None:
+    base = {
+        "length_m": 0.1,
+        "n_segments": 2,
+        "link": {"shape": "box", "size_m": [0.02, 0.01], "mass_kg": 0.01},
+    }
+    with pytest.raises(DescriptionError, match="non-zero vector"):
+        model_from_dict(
+            {
+                "manipulator": {
+                    "actuators": [{**base, "joints": [{"axis": [0, 0, 0], "stiffness_n_m_per_rad": 1.0}]}]
+                }
+            }
+        )
+    with pytest.raises(DescriptionError, match="lower < upper"):
+        model_from_dict(
+            {
+                "manipulator": {
+                    "actuators": [
+                        {
+                            **base,
+                            "joints": [
+                                {
+                                    "axis": [1, 0, 0],
+                                    "stiffness_n_m_per_rad": 1.0,
+                                    "limits_rad": [1.0, -1.0],
+                                }
+                            ],
+                        }
+                    ]
+                }
+            }
+        )
+
+
+def test_missing_include_names_the_key(tmp_path: Path) -> None:
+    data = load_yaml("pinch_gripper.yaml")
+    data["assembly"]["manipulators"][0]["file"] = "nope.yaml"
+    with pytest.raises(DescriptionError, match=r"assembly.manipulators\[0\].file: cannot include"):
+        model_from_dict(data, "g.yaml", MODELS)
+
+
+def test_unparsable_yaml_names_the_line(tmp_path: Path) -> None:
+    path = tmp_path / "bad.yaml"
+    path.write_text("manipulator:\n  name: [unclosed\n")
+    with pytest.raises(DescriptionError, match="line"):
+        load_model(path)
+
+
+def test_stadium_inertia_and_extent() -> None:
+    link = Link(shape="stadium", size_m=(0.03, 0.01, 0.02), mass_kg=0.01)
+    assert link.half_extent_m(0) == pytest.approx(0.015)
+    assert link.principal_inertia_kg_m2().shape == (3,)
+    with pytest.raises(ValueError):
+        Link(shape="stadium", size_m=(0.01, 0.03, 0.02), mass_kg=0.01)
+
+
+def test_stiffness_profile_scales_joints() -> None:
+    data = load_yaml("ihm_finger.yaml")
+    data["manipulator"]["actuators"][0]["stiffness_profile"] = [1.0 + 0.1 * i for i in range(10)]
+    plan = plan_assembly(model_from_dict(data).as_assembly(), 1.0)[0]
+    assert plan.joints[4].stiffness == pytest.approx(0.2186 * 1.4)
+    bad = yaml.safe_load(yaml.safe_dump(data))
+    bad["manipulator"]["actuators"][0]["stiffness_profile"] = [1.0] * 3
+    with pytest.raises(DescriptionError, match="needs 10 entries"):
+        model_from_dict(bad)
