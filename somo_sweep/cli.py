@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import sys
 from pathlib import Path
-from typing import Annotated
+from typing import Annotated, NoReturn
 
 import pandas as pd
 import typer
@@ -26,7 +26,8 @@ def _main(
     _state["debug"] = debug
 
 
-def _fail(exc: BaseException) -> None:
+def fail(exc: BaseException) -> NoReturn:
+    """Print a user error (traceback only with ``--debug``) and exit with code 2."""
     if _state["debug"]:
         raise exc
     typer.echo(f"error: {exc}", err=True)
@@ -49,7 +50,7 @@ def check(model: Annotated[Path, typer.Argument(help="Model file (YAML or JSON).
     try:
         m = load_model(model)
     except SomoError as exc:
-        _fail(exc)
+        fail(exc)
     for plan in plan_assembly(m.as_assembly(), 1.0):
         typer.echo(
             f"{plan.name}: base {plan.mode}, {len(plan.links)} links, {len(plan.joints)} spring joints, "
@@ -73,22 +74,22 @@ def measure(
     from somo_sweep.models import load_model
 
     if test not in TESTS:
-        _fail(SomoError(f"--test '{test}' is not a bench test; allowed: {', '.join(TESTS)}"))
+        fail(SomoError(f"--test '{test}' is not a bench test; allowed: {', '.join(TESTS)}"))
     vals = _floats(values, "--values")
     if not vals:
-        _fail(SomoError("--values needs at least one number"))
+        fail(SomoError("--values needs at least one number"))
     rows = pd.DataFrame({c: [float("nan")] * len(vals) for c in COLUMNS})
     rows["test"] = test
     if test == "tip_load":
         if any(v < 0 for v in vals):
-            _fail(SomoError(f"tip loads must be >= 0 N, got {vals}"))
+            fail(SomoError(f"tip loads must be >= 0 N, got {vals}"))
         rows["pressure_kpa"], rows["tip_load_n"] = pressure_kpa, vals
     else:
         rows["pressure_kpa"] = vals
     try:
         sim = simulate_measurements(load_model(model), rows)
     except SomoError as exc:
-        _fail(exc)
+        fail(exc)
     text = write_measurements(sim, csv, header=f"simulated with somo-sweep measure from {model}")
     sys.stdout.write(text)
 
@@ -97,6 +98,9 @@ def main() -> None:
     """Console-script entry point."""
     app()
 
+
+# Sub-commands living in their own modules (one per pipeline stage) register on import.
+import somo_sweep.commands  # noqa: E402, F401
 
 if __name__ == "__main__":
     main()

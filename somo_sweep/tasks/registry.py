@@ -1,0 +1,99 @@
+"""The task registry: a task is a pure function of (model, parameters, settings, seed)."""
+
+from __future__ import annotations
+
+import importlib
+import pkgutil
+from collections.abc import Callable, Mapping
+from dataclasses import dataclass, field
+from typing import Any, Literal
+
+from pydantic import BaseModel
+
+from somo_sweep.errors import SomoError, did_you_mean
+from somo_sweep.models import Model
+from somo_sweep.world import WorldSettings
+
+__all__ = ["TaskResult", "TaskSpec", "all_tasks", "get_task", "register"]
+
+Status = Literal["ok", "unstable", "error"]
+
+
+@dataclass(frozen=True)
+class TaskResult:
+    """What one trial returns.
+
+    Attributes:
+        status: ``ok``, ``unstable`` (the integration blew up) or ``error``.
+        metrics: Numbers (and flags) with the unit in every name, e.g. ``lift_height_m``.
+        labels: Categorical outcomes, e.g. ``{"grasp": "pinch"}``.
+        message: Why the status is not ``ok``.
+    """
+
+    status: Status = "ok"
+    metrics: Mapping[str, float | int | bool | str] = field(default_factory=dict)
+    labels: Mapping[str, str] = field(default_factory=dict)
+    message: str = ""
+
+
+TaskFn = Callable[[Model, Any, WorldSettings, int], TaskResult]
+
+
+@dataclass(frozen=True)
+class TaskSpec:
+    """A registered task.
+
+    Attributes:
+        name: Name used in study files.
+        run: ``run(model, params, settings, seed) -> TaskResult``; ``params`` is an
+            instance of ``params_model``. Must be pure: same inputs, same result.
+        params_model: Pydantic model of the task's parameters (defaults included).
+        description: One line for listings.
+        tags: Free-form tags (``bench``, ``grasp``, ``paper``...).
+    """
+
+    name: str
+    run: TaskFn
+    params_model: type[BaseModel]
+    description: str = ""
+    tags: tuple[str, ...] = ()
+
+
+_TASKS: dict[str, TaskSpec] = {}
+_loaded = False
+
+
+def register(spec: TaskSpec) -> TaskSpec:
+    """Register a task (re-registering the same name replaces it)."""
+    _TASKS[spec.name] = spec
+    return spec
+
+
+def _load_all() -> None:
+    global _loaded
+    if _loaded:
+        return
+    import somo_sweep.tasks as pkg
+
+    for info in pkgutil.iter_modules(pkg.__path__):
+        if info.name != "registry":
+            importlib.import_module(f"somo_sweep.tasks.{info.name}")
+    _loaded = True
+
+
+def all_tasks() -> dict[str, TaskSpec]:
+    """Every registered task by name."""
+    _load_all()
+    return dict(sorted(_TASKS.items()))
+
+
+def get_task(name: str) -> TaskSpec:
+    """The task called ``name``.
+
+    Raises:
+        SomoError: Unknown name; the message lists the valid ones.
+    """
+    tasks = all_tasks()
+    if name not in tasks:
+        raise SomoError(f"unknown task '{name}'{did_you_mean(name, tasks)}; allowed: {', '.join(tasks)}")
+    return tasks[name]
