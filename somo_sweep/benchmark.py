@@ -38,16 +38,14 @@ def gripper_step_timing(
         )
         obj = world.load_plan(plan_rigid_body(box, world.scale))
         hand = world.add_model(model, Pose(position_m=(0.10, 0.0, 0.035)))
-        palm = hand.bodies[0]
         torque = SetpointTable([0.0, 0.3, 1.3], [[0.0, 0.0], [0.0, 0.0], [0.15, 0.15]])
-        lift = SetpointTable([0.0, 1.4, 2.4], [[0.10, 0.0, 0.035], [0.10, 0.0, 0.035], [0.10, 0.0, 0.11]])
+        start_pose, lifted = [0.10, 0.0, 0.035, 0.0, 0.0, 0.0], [0.10, 0.0, 0.11, 0.0, 0.0, 0.0]
+        world.follow(
+            hand, inputs=torque, base=SetpointTable([0.0, 1.4, 2.4], [start_pose, start_pose, lifted])
+        )
         steps = round(duration_s / time_step_s)
         start = perf_counter()
-        for _ in range(steps):
-            t = world.time_s
-            hand.set_inputs(torque(t))
-            world.drive_base(palm, lift(t), (0.0, 0.0, 0.0))
-            world.step()
+        world.step(steps)
         total = perf_counter() - start
         z_obj = float(world.base_pose(obj.id)[0][2])
     bullet = world.bullet_time_s

@@ -19,6 +19,7 @@ from somo_sweep.description import Link, Pose
 from somo_sweep.errors import SimulationError, UnstableSimulation
 from somo_sweep.layout import BodyPlan
 from somo_sweep.models import Model
+from somo_sweep.setpoints import SetpointTable
 from somo_sweep.springs import SpringDrive
 from somo_sweep.urdf import plan_assembly, write_urdf
 
@@ -248,16 +249,19 @@ class World:
     def drive_base(
         self,
         body: Body,
-        position_m: npt.ArrayLike,
-        rpy_rad: npt.ArrayLike,
+        position_m: Sequence[float] | np.ndarray,
+        rpy_rad: Sequence[float] | np.ndarray,
         max_force_n: float = 200.0,
     ) -> None:
         """Move a driven body's base target to a world pose (SI); the mount offset is kept."""
         if body.constraint is None:
             raise SimulationError(f"body '{body.plan.name}' is not driven (base mode {body.plan.mode})")
-        orn = p.getQuaternionFromEuler(np.asarray(rpy_rad, dtype=float).tolist())
+        orn = p.getQuaternionFromEuler([float(a) for a in rpy_rad])
         pos, orn = p.multiplyTransforms(
-            np.asarray(position_m, dtype=float).tolist(), orn, body.offset[0], body.offset[1]
+            [float(c) for c in position_m],
+            orn,
+            body.offset[0],
+            body.offset[1],
         )
         p.changeConstraint(
             body.constraint,
@@ -267,8 +271,47 @@ class World:
             physicsClientId=self.client,
         )
 
+    def follow(
+        self,
+        handle: ModelHandle,
+        inputs: SetpointTable | None = None,
+        base: SetpointTable | None = None,
+        max_force_n: float = 200.0,
+    ) -> None:
+        """Drive a model from setpoint tables at every step.
+
+        Args:
+            handle: The loaded model.
+            inputs: Control inputs against time (N·m / N), one column per input.
+            base: Base pose against time, columns x, y, z (m), roll, pitch, yaw (rad);
+                applied to every driven body of the model (mount offsets kept).
+            max_force_n: Force limit of the base-holding constraint, in N.
+        """
+        driven = [b for b in handle.bodies if b.constraint is not None]
+        if inputs is not None and inputs.width != len(handle.input_names):
+            raise SimulationError(
+                f"{handle.name}: input table has {inputs.width} columns, the model has "
+                f"{len(handle.input_names)} inputs ({', '.join(handle.input_names)})"
+            )
+        if base is not None and (base.width != 6 or not driven):
+            raise SimulationError(
+                f"{handle.name}: a base table needs 6 columns (x, y, z, roll, pitch, yaw) "
+                f"and a driven base; got {base.width} columns, {len(driven)} driven bodies"
+            )
+
+        def hook(world: World) -> None:
+            t = world.time_s
+            if inputs is not None:
+                handle.set_inputs(inputs(t))
+            if base is not None:
+                pose = base(t)
+                for body in driven:
+                    world.drive_base(body, pose[:3], pose[3:], max_force_n)
+
+        self.pre_step.append(hook)
+
     def step(self, n: int = 1) -> None:
-        """Advance ``n`` steps: springs once per step, pre-step hooks, Bullet.
+        """Advance ``n`` steps: pre-step hooks (setpoints, loads), springs once, Bullet.
 
         Raises:
             UnstableSimulation: Joint speeds at Bullet's cap, NaN, or a body thrown.
@@ -276,6 +319,8 @@ class World:
         cap = 0.99 * MAX_JOINT_SPEED_RAD_S
         dt = self.settings.time_step_s
         for _ in range(n):
+            for hook in self.pre_step:
+                hook(self)
             for body in self.bodies:
                 drive = body.drive
                 drive.apply()
@@ -284,8 +329,6 @@ class World:
                     if not (q_max < cap):  # also catches NaN
                         reason = "nan" if not np.isfinite(drive.qd).all() else "speed_cap"
                         raise UnstableSimulation(reason, self.time_s, f"in body '{body.plan.name}'")
-            for hook in self.pre_step:
-                hook(self)
             t0 = perf_counter()
             p.stepSimulation(physicsClientId=self.client)
             self.bullet_time_s += perf_counter() - t0
