@@ -40,6 +40,7 @@ __all__ = [
     "classify",
     "contact_position",
     "distal_force_fractions",
+    "find_column",
     "is_held",
     "reclassify",
 ]
@@ -178,11 +179,16 @@ def classify(evidence: GraspEvidence, rule: str = "contacts", **options: float) 
     raise SomoError(f"unknown grasp rule '{rule}'{did_you_mean(rule, RULES)}; allowed: {', '.join(RULES)}")
 
 
-def _find_column(columns: list[str], name: str) -> str | None:
-    """The column holding ``name``: exact, or the one name ending in ``.name``, ``/name`` or ``__name``."""
-    if name in columns:
-        return name
-    hits = [c for c in columns if any(c.endswith(sep + name) for sep in (".", "/", "__", ":"))]
+def find_column(columns: list[str], name: str) -> str | None:
+    """The column holding ``name`` in a results table, or None.
+
+    Tried in order: ``name`` itself, the sweep engine's ``task_<name>`` (task parameters)
+    and ``label_<name>``, then the one column ending in ``.name``, ``/name`` or ``:name``.
+    """
+    for candidate in (name, f"task_{name}", f"label_{name}"):
+        if candidate in columns:
+            return candidate
+    hits = [c for c in columns if any(c.endswith(sep + name) for sep in (".", "/", ":"))]
     return hits[0] if len(hits) == 1 else None
 
 
@@ -214,15 +220,15 @@ def reclassify(table: Any, rule: str = "contacts", **options: float) -> Any:
         "final_mean_contact_link",
         *link_columns("hold_normal_force_n"),
     ]
-    found = {n: _find_column(cols, n) for n in needed}
+    found = {n: find_column(cols, n) for n in needed}
     missing = [n for n, c in found.items() if c is None]
     if missing:
         raise SomoError(
             f"results table lacks the columns needed to classify grasps: {', '.join(missing)} "
             "(was it made by the pinch_grasp task?)"
         )
-    lift_col = _find_column(cols, "lift_m")
-    status_col = _find_column(cols, "status")
+    lift_col = find_column(cols, "lift_m")
+    status_col = find_column(cols, "status")
     labels: list[str | None] = []
     for _, row in table.iterrows():
         if status_col is not None and row[status_col] != "ok":

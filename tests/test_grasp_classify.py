@@ -106,7 +106,7 @@ def test_unknown_rule_or_option_is_a_clear_error() -> None:
 
 def _row(per_link: dict[int, float], dsr: float, prefix: str = "") -> dict[str, object]:
     row: dict[str, object] = {
-        "task.distal_segment_ratio": dsr,
+        "task_distal_segment_ratio": dsr,
         "status": "ok",
         f"{prefix}object_x_m": 0.0,
         f"{prefix}object_y_m": 0.0,

@@ -15,6 +15,8 @@ fingers' bases (the start of their chains), once the approach is over.
 
 from __future__ import annotations
 
+from collections.abc import Callable, Sequence
+
 import numpy as np
 from pydantic import BaseModel, ConfigDict, Field
 
@@ -44,6 +46,7 @@ OBJECT_DEPTH_M = 0.060
 OBJECT_MASS_KG = 0.020
 OBJECT_FRICTION = 2.0
 GROUND_FRICTION = 1.0
+OBJECT_COLOR_RGBA = (0.95, 0.55, 0.15, 1.0)
 #: Gap between the object and the ground at spawn, m.
 SPAWN_GAP_M = 0.0005
 
@@ -163,9 +166,25 @@ def _gripper(model: Model, params: PinchGraspParams) -> Model:
 
 
 def run_pinch_grasp(
-    model: Model, params: PinchGraspParams, settings: WorldSettings, seed: int = 0
+    model: Model,
+    params: PinchGraspParams,
+    settings: WorldSettings,
+    seed: int = 0,
+    *,
+    observe: Callable[[World, float], None] | None = None,
+    observe_at_s: Sequence[float] = (),
 ) -> TaskResult:
-    """Run one trial; see the module docstring. ``seed`` is unused: the trial is deterministic."""
+    """Run one trial; see the module docstring.
+
+    Args:
+        model: The gripper model (two two-actuator fingers on a driven palm).
+        params: Trial parameters.
+        settings: World settings (time step, scale, solver iterations).
+        seed: Unused: the trial is deterministic.
+        observe: Called as ``observe(world, time_s)`` before the steps nearest ``observe_at_s``
+            (for snapshots); it must not change the simulation.
+        observe_at_s: Times of the observations, s.
+    """
     del seed
     gripper = _gripper(model, params)
     p = params
@@ -179,6 +198,7 @@ def run_pinch_grasp(
                 size_m=(p.object_width_m, OBJECT_DEPTH_M, OBJECT_HEIGHT_M),
                 mass_kg=OBJECT_MASS_KG,
                 friction={"lateral": OBJECT_FRICTION},
+                color_rgba=OBJECT_COLOR_RGBA,
             ),
             pose=Pose(position_m=tuple(obj_start)),
         )
@@ -212,10 +232,13 @@ def run_pinch_grasp(
         n_steps = round(t4 / dt)
         sample_every = max(1, round(p.sample_period_s / dt))
         i_lift, i_hold = round(t2 / dt), round(t3 / dt)
-        z_obj = {}
+        z_obj: dict[int, float] = {}
+        observe_steps = {min(round(t / dt), n_steps - 1) for t in observe_at_s}
         try:
             for i in range(n_steps):
                 t = i * dt
+                if observe is not None and i in observe_steps:
+                    observe(world, t)
                 hand.set_inputs(torque(t))
                 world.drive_base(palm, path(t), (0.0, 0.0, 0.0))
                 if i in (i_lift, i_hold):

@@ -1,0 +1,123 @@
+"""Pinch-grasp studies after (or outside) a sweep: read results, relabel them, render one trial."""
+
+from __future__ import annotations
+
+from collections import Counter
+from pathlib import Path
+from typing import Any
+
+import pandas as pd
+
+from somo_sweep.errors import SomoError
+from somo_sweep.grasp_classify import find_column, reclassify
+
+__all__ = ["find_trial", "read_results", "relabel", "render_trial"]
+
+
+def read_results(folder: str | Path) -> pd.DataFrame:
+    """The trials table of a results folder (the sweep engine's Parquet part files).
+
+    Raises:
+        SomoError: No such folder, or no Parquet data in it.
+    """
+    folder = Path(folder)
+    if not folder.is_dir():
+        raise SomoError(f"{folder}: no such results folder (run `somo-sweep run STUDY.yaml` first)")
+    try:
+        from somo_sweep import results as engine
+
+        reader = getattr(engine, "read_results", None) or getattr(engine, "read_table", None)
+    except ImportError:
+        reader = None
+    if reader is not None:
+        return pd.DataFrame(reader(folder))
+    parts = sorted(folder.rglob("*.parquet"))
+    if not parts:
+        raise SomoError(f"{folder}: no Parquet files with trial results")
+    return pd.concat([pd.read_parquet(p) for p in parts], ignore_index=True)
+
+
+def relabel(folder: str | Path, rule: str = "contacts", **options: float) -> tuple[dict[str, int], Path]:
+    """Relabel every trial of a results folder; writes ``grasp_labels_<rule>.csv`` next to the data.
+
+    Returns:
+        Counts per label (``unstable``/``error`` for trials that are not ``ok``) and the CSV path.
+    """
+    folder = Path(folder)
+    table = read_results(folder)
+    labels = reclassify(table, rule, **options)
+    cols = [str(c) for c in table.columns]
+    status_col = find_column(cols, "status")
+    if status_col is not None:
+        labels = labels.where(table[status_col] == "ok", table[status_col])
+    keep = [
+        c
+        for c in (
+            find_column(cols, n) for n in ("job_id", "distal_segment_ratio", "object_width_m", "centering_m")
+        )
+        if c is not None
+    ]
+    out = table[keep].copy()
+    out[f"grasp_{rule}"] = labels
+    path = folder / f"grasp_labels_{rule}.csv"
+    out.to_csv(path, index=False)
+    return dict(sorted(Counter(str(v) for v in labels).items())), path
+
+
+def find_trial(study: Any, trial: str) -> dict[str, Any]:
+    """The grid point of a trial given by job id or by 0-based index.
+
+    Raises:
+        SomoError: Out-of-range index or unknown id.
+    """
+    points = list(study.points())
+    if trial.isdigit():
+        index = int(trial)
+        if index >= len(points):
+            raise SomoError(f"--trial {index}: the study has {len(points)} points (0 … {len(points) - 1})")
+        return points[index]
+    try:
+        from somo_sweep import jobs as engine_jobs
+
+        for job in engine_jobs.make_jobs(study):  # type: ignore[attr-defined]
+            if str(job.job_id).startswith(trial):
+                return dict(job.point)
+    except (ImportError, AttributeError):
+        pass
+    raise SomoError(f"--trial '{trial}': no trial with this id; give a job id or a 0-based index")
+
+
+def render_trial(
+    study_path: str | Path, trial: str, times_s: list[float], out_dir: str | Path
+) -> tuple[list[Path], str]:
+    """Rerun one trial of a pinch_grasp study and write a top-view PNG at each time.
+
+    Returns:
+        The PNG paths and the trial's label.
+    """
+    from somo_sweep.render import Camera, snapshot, write_png
+    from somo_sweep.study import load_study
+    from somo_sweep.tasks.pinch_grasp import PinchGraspParams, run_pinch_grasp
+    from somo_sweep.world import World
+
+    study = load_study(study_path)
+    if study.task.name != "pinch_grasp":
+        raise SomoError(f"{study_path}: render needs a pinch_grasp study, this one runs '{study.task.name}'")
+    point = find_trial(study, trial)
+    _, model, params = study.resolve(point)
+    assert isinstance(params, PinchGraspParams)
+    images: dict[float, Any] = {}
+    camera = Camera(target_m=(params.centering_m * 0.5, 0.0, params.hand_height_m))
+
+    def observe(world: World, time_s: float) -> None:
+        images[time_s] = snapshot(world, camera)
+
+    result = run_pinch_grasp(
+        model, params, study.simulation.world_settings(), study.seed, observe=observe, observe_at_s=times_s
+    )
+    name = (
+        f"{study.name}_dsr{params.distal_segment_ratio:.2f}_w{params.object_width_m * 1e3:g}mm"
+        f"_c{params.centering_m * 1e3:g}mm"
+    )
+    paths = [write_png(img, Path(out_dir) / f"{name}_t{t:.2f}s.png") for t, img in sorted(images.items())]
+    return paths, str(result.labels.get("grasp", result.status))
