@@ -1,0 +1,171 @@
+"""``somo-sweep run / show / plot / tasks``: the sweep engine's commands."""
+
+from __future__ import annotations
+
+import os
+from pathlib import Path
+from typing import Annotated
+
+import typer
+from rich.console import Console
+from rich.progress import (
+    BarColumn,
+    MofNCompleteColumn,
+    Progress,
+    TextColumn,
+    TimeElapsedColumn,
+    TimeRemainingColumn,
+)
+
+from somo_sweep.cli import app, fail
+from somo_sweep.errors import SomoError
+
+_err = Console(stderr=True)
+_out = Console()
+
+
+@app.command()
+def run(
+    study: Annotated[Path, typer.Argument(help="Study file (YAML or JSON).")],
+    jobs: Annotated[
+        int, typer.Option("--jobs", "-j", help="Worker processes (loky); default: all cores.")
+    ] = 0,
+    dry_run: Annotated[
+        bool, typer.Option("--dry-run", help="Print the job table; simulate nothing.")
+    ] = False,
+    backend: Annotated[str, typer.Option(help="loky (this machine) or dask (a cluster).")] = "loky",
+    scheduler: Annotated[str | None, typer.Option(help="Dask scheduler address, tcp://HOST:8786.")] = None,
+    out: Annotated[
+        Path | None, typer.Option("--out", help="Results folder (default: results/<study>).")
+    ] = None,
+    plots: Annotated[bool, typer.Option("--plots/--no-plots", help="Draw summary plots at the end.")] = True,
+    timeout: Annotated[float | None, typer.Option(help="Per-trial wall-time limit, s.")] = None,
+    chunk_rows: Annotated[int, typer.Option(help="Rows per Parquet part file.", hidden=True)] = 50,
+) -> None:
+    """Run a study: every trial missing from its results folder, in parallel, into Parquet."""
+    from somo_sweep.jobs import build_jobs
+    from somo_sweep.study import load_study
+    from somo_sweep.sweep import run_study
+
+    if backend not in ("loky", "dask"):
+        fail(SomoError(f"--backend must be loky or dask, got '{backend}'"))
+    if jobs < 0:
+        fail(SomoError(f"--jobs must be >= 1, got {jobs}"))
+    if backend == "dask" and not scheduler:
+        fail(SomoError("--backend dask needs --scheduler ADDRESS (e.g. tcp://HOST:8786)"))
+    try:
+        st = load_study(study, out)
+        table = build_jobs(st)
+    except SomoError as exc:
+        fail(exc)
+    if dry_run:
+        _print_dry_run(st, table)
+        return
+    n_jobs = jobs or os.cpu_count() or 1
+    progress = Progress(
+        TextColumn("[bold]{task.description}"),
+        BarColumn(),
+        MofNCompleteColumn(),
+        TextColumn("{task.fields[rate]:.2f} trials/s"),
+        TimeElapsedColumn(),
+        TextColumn("ETA"),
+        TimeRemainingColumn(),
+        console=_err,
+    )
+    bar = progress.add_task(st.name, total=None, rate=0.0)
+
+    def started(n_todo: int, n_done: int) -> None:
+        if n_done:
+            _err.print(f"resuming {st.output}: {n_done} of {n_done + n_todo} trials already done")
+        progress.update(bar, total=n_todo)
+
+    def advanced(_: object) -> None:
+        progress.advance(bar)
+        task = progress.tasks[0]
+        progress.update(bar, rate=(task.completed / task.elapsed) if task.elapsed else 0.0)
+
+    try:
+        with progress:
+            summary = run_study(
+                st,
+                n_jobs,
+                backend,  # type: ignore[arg-type]
+                scheduler,
+                table,
+                chunk_rows=chunk_rows,
+                timeout_s=timeout,
+                on_start=started,
+                on_outcome=advanced,
+            )
+    except SomoError as exc:
+        fail(exc)
+    from somo_sweep.report import print_run_summary
+
+    print_run_summary(_out, summary)
+    if summary.interrupted is not None:
+        _err.print(f"interrupted: {summary.run} finished trial(s) kept; run the same command again to resume")
+        raise typer.Exit(128 + summary.interrupted)
+    if plots and summary.run:
+        _save_plots(st.output)
+
+
+def _print_dry_run(st: object, table: object) -> None:
+    from somo_sweep.jobs import JobTable
+    from somo_sweep.study import Study
+
+    assert isinstance(st, Study) and isinstance(table, JobTable)
+    frame = table.frame()
+    typer.echo(
+        f"{st.name}: task {st.task.name}, {len(frame)} trials "
+        f"({st.n_points} grid points x {st.repeats} repeat(s)), study hash {table.study_hash}, "
+        f"output {st.output}"
+    )
+    typer.echo(frame.head(10).to_string(index=False))
+    if len(frame) > 10:
+        typer.echo(f"... {len(frame) - 10} more")
+
+
+def _save_plots(folder: Path) -> None:
+    import matplotlib
+
+    matplotlib.use("Agg")
+    from somo_sweep.plots import summary_figure
+    from somo_sweep.results import read_manifest, read_results
+
+    fig = summary_figure(read_results(folder), read_manifest(folder))
+    target = folder / "plots"
+    target.mkdir(exist_ok=True)
+    for ext in ("png", "svg"):
+        fig.savefig(target / f"summary.{ext}", dpi=120)
+    _out.print(f"plots: {target / 'summary.png'} (and .svg)")
+
+
+@app.command()
+def show(results: Annotated[Path, typer.Argument(help="Results folder, e.g. results/<study>.")]) -> None:
+    """Print a results folder's summary: counts by status and label, per-axis breakdown."""
+    from somo_sweep.report import print_results
+    from somo_sweep.results import read_manifest, read_results
+
+    try:
+        print_results(_out, read_results(results), read_manifest(results))
+    except SomoError as exc:
+        fail(exc)
+
+
+@app.command()
+def plot(results: Annotated[Path, typer.Argument(help="Results folder, e.g. results/<study>.")]) -> None:
+    """Draw a results folder's summary plots (PNG and SVG in <folder>/plots)."""
+    try:
+        _save_plots(results)
+    except SomoError as exc:
+        fail(exc)
+
+
+@app.command()
+def tasks() -> None:
+    """List the registered tasks (study files name them in ``task:``)."""
+    from somo_sweep.tasks import all_tasks
+
+    for name, spec in all_tasks().items():
+        tags = f" [{', '.join(spec.tags)}]" if spec.tags else ""
+        typer.echo(f"{name}{tags}: {spec.description}")

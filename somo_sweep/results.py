@@ -1,0 +1,338 @@
+"""The results folder of a study: a Parquet dataset of trials, a manifest, and a lock.
+
+Layout of ``results/<study>/``::
+
+    trials/part-*.parquet   one row per finished trial; read with pd.read_parquet(".../trials")
+    manifest.json           study hash, resolved study, versions, hosts, runs, columns with units
+    study.yaml              copy of the study file as last run
+    plots/                  summary plots (PNG and SVG)
+    .lock                   held (flock) while a run writes here
+
+Part files are written atomically (temporary name starting with ``.``, which readers
+skip, then renamed), so an interrupted run never leaves a half-written file in the
+dataset. Every part has the same schema: when a new metric appears, earlier parts are
+rewritten with the new (null) column.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import fcntl
+import json
+import os
+import platform
+import socket
+import sys
+from dataclasses import dataclass
+from datetime import UTC, datetime
+from importlib.metadata import PackageNotFoundError, version
+from pathlib import Path
+from typing import Any
+
+import pandas as pd
+import pyarrow as pa
+import pyarrow.parquet as pq
+
+from somo_sweep.errors import SomoError
+
+__all__ = ["COLUMNS", "Column", "ResultStore", "read_manifest", "read_results", "unit_of"]
+
+
+@dataclass(frozen=True)
+class Column:
+    """A fixed column of the trials table: name, Arrow type, unit and meaning."""
+
+    name: str
+    type: str
+    unit: str
+    description: str
+
+
+#: The fixed columns of every trials table. Besides them: ``task_*`` (task parameters),
+#: ``model_*`` (model overrides), the task's metrics under their own names, and
+#: ``label_*`` (the task's labels); their units come from their name suffix (:func:`unit_of`).
+COLUMNS: tuple[Column, ...] = (
+    Column(
+        "job_id", "string", "", "stable id: hash of task, parameters, model content, settings, seed, code"
+    ),
+    Column("trial", "int64", "", "position in the study's grid order"),
+    Column("repeat", "int64", "", "repeat number at this grid point"),
+    Column("seed", "int64", "", "random seed given to the task"),
+    Column("status", "string", "", "ok, unstable (integration blew up) or error"),
+    Column("message", "string", "", "why the status is not ok"),
+    Column("wall_time_s", "double", "s", "wall time of the trial"),
+    Column("host", "string", "", "host that ran the trial"),
+    Column("model_file", "string", "", "model file, relative to the study file"),
+    Column("model_hash", "string", "", "hash of the model content after overrides"),
+    Column("study_hash", "string", "", "hash of the study the row belongs to"),
+)
+FIXED = {c.name for c in COLUMNS}
+
+_UNITS = {
+    "n_m_s_per_rad": "N·m·s/rad",
+    "n_m_per_rad": "N·m/rad",
+    "n_m_per_kpa": "N·m/kPa",
+    "n_per_m": "N/m",
+    "n_s_per_m": "N·s/m",
+    "kg_m2": "kg·m²",
+    "m_s2": "m/s²",
+    "rad_s": "rad/s",
+    "m_s": "m/s",
+    "n_m": "N·m",
+    "kpa": "kPa",
+    "psi": "psi",
+    "deg": "deg",
+    "rad": "rad",
+    "mm": "mm",
+    "kg": "kg",
+    "m": "m",
+    "n": "N",
+    "s": "s",
+    "g": "g",
+}
+
+
+def unit_of(name: str) -> str:
+    """The unit a column name ends with (``tip_force_n`` → ``N``), or ``""``."""
+    for suffix in sorted(_UNITS, key=len, reverse=True):
+        if name.endswith(f"_{suffix}"):
+            return _UNITS[suffix]
+    return ""
+
+
+def _versions() -> dict[str, str]:
+    out = {"python": platform.python_version()}
+    for pkg in ("somo-sweep", "pybullet", "numpy", "pandas", "pyarrow", "joblib", "dask", "distributed"):
+        with contextlib.suppress(PackageNotFoundError):
+            out[pkg] = version(pkg)
+    return out
+
+
+def _now() -> str:
+    return datetime.now(UTC).isoformat(timespec="seconds")
+
+
+def _arrow_type(values: list[Any]) -> pa.DataType:
+    kinds = {type(v) for v in values if v is not None}
+    if not kinds:
+        return pa.null()
+    if kinds <= {bool}:
+        return pa.bool_()
+    if kinds <= {int}:
+        return pa.int64()
+    if kinds <= {int, float, bool}:
+        return pa.float64()
+    return pa.string()
+
+
+def _merge(a: pa.DataType, b: pa.DataType) -> pa.DataType:
+    if a == b or b == pa.null():
+        return a
+    if a == pa.null():
+        return b
+    if {a, b} <= {pa.bool_(), pa.int64(), pa.float64()}:
+        return pa.float64()
+    return pa.string()
+
+
+def read_manifest(folder: str | Path) -> dict[str, Any]:
+    """The manifest of a results folder.
+
+    Raises:
+        SomoError: No manifest (not a somo-sweep results folder).
+    """
+    path = Path(folder) / "manifest.json"
+    if not path.is_file():
+        raise SomoError(f"{folder} is not a somo-sweep results folder (no manifest.json)")
+    return dict(json.loads(path.read_text()))
+
+
+def read_results(folder: str | Path) -> pd.DataFrame:
+    """Every trial of a results folder, in grid order (one pandas call underneath).
+
+    Raises:
+        SomoError: Not a results folder, or rows of another study in it.
+    """
+    folder = Path(folder)
+    manifest = read_manifest(folder)
+    trials = folder / "trials"
+    if not trials.is_dir() or not any(trials.glob("*.parquet")):
+        return pd.DataFrame(columns=[c.name for c in COLUMNS])
+    df = pd.read_parquet(trials)
+    foreign = df[df["study_hash"] != manifest["study_hash"]]
+    if len(foreign):
+        raise SomoError(
+            f"{folder}: {len(foreign)} row(s) belong to another study (hash {foreign['study_hash'].iloc[0]})"
+        )
+    return df.sort_values("trial", kind="stable").reset_index(drop=True)
+
+
+class ResultStore:
+    """Write access to a results folder for one run: lock, resume, parts, manifest.
+
+    Args:
+        folder: The results folder (created if missing).
+        study_hash: Hash of the study being run.
+        resolved: The resolved study (stored; used to say what changed).
+        axes: Axis key path → column name.
+        param_types: Column name → example values (to fix parameter column types up front).
+
+    Raises:
+        SomoError: Another run holds the folder, or it holds rows of a different study.
+    """
+
+    def __init__(
+        self,
+        folder: str | Path,
+        study_hash: str,
+        resolved: dict[str, Any],
+        axes: dict[str, str],
+        param_types: dict[str, list[Any]],
+    ):
+        self.folder = Path(folder)
+        self.trials = self.folder / "trials"
+        self.folder.mkdir(parents=True, exist_ok=True)
+        self._lock = _acquire(self.folder / ".lock")
+        try:
+            self.manifest = self._open(study_hash, resolved, axes)
+        except BaseException:
+            self.close()
+            raise
+        self.trials.mkdir(exist_ok=True)
+        for tmp in self.trials.glob(".*.tmp"):
+            tmp.unlink()
+        self.types: dict[str, pa.DataType] = {
+            name: pa.type_for_alias(info["type"]) for name, info in self.manifest["columns"].items()
+        }
+        for c in COLUMNS:
+            self.types.setdefault(c.name, pa.type_for_alias(c.type))
+        for name, values in param_types.items():
+            self.types[name] = _merge(self.types.get(name, pa.null()), _arrow_type(values))
+        self.run_id = f"{datetime.now(UTC):%Y%m%dT%H%M%S}-{os.getpid()}"
+        self.seq = 0
+
+    def _open(self, study_hash: str, resolved: dict[str, Any], axes: dict[str, str]) -> dict[str, Any]:
+        has_rows = self.trials.is_dir() and any(self.trials.glob("*.parquet"))
+        path = self.folder / "manifest.json"
+        if has_rows and not path.is_file():
+            raise SomoError(f"{self.folder} holds trials but no manifest.json; use another --out folder")
+        if path.is_file() and has_rows:
+            old = read_manifest(self.folder)
+            if old["study_hash"] != study_hash:
+                changed = _diff(old.get("study", {}), resolved)
+                raise SomoError(
+                    f"{self.folder} holds results of a different study (hash {old['study_hash']}, "
+                    f"this one is {study_hash}); changed: {changed}. Results are never mixed: "
+                    f"run with --out NEW_FOLDER, or delete {self.folder} to start over"
+                )
+            return old
+        return {
+            "study_name": resolved.get("name"),
+            "study_hash": study_hash,
+            "study": resolved,
+            "axes": axes,
+            "n_trials": resolved.get("n_trials"),
+            "versions": _versions(),
+            "hosts": [],
+            "runs": [],
+            "columns": {},
+        }
+
+    def done_ids(self) -> set[str]:
+        """Ids of the trials already stored."""
+        if not self.trials.is_dir() or not any(self.trials.glob("*.parquet")):
+            return set()
+        return set(pq.read_table(self.trials, columns=["job_id"]).column("job_id").to_pylist())
+
+    def start_run(self, info: dict[str, Any]) -> None:
+        """Record the start of a run (backend, workers, trials to run) in the manifest."""
+        self.manifest["runs"].append({"start_utc": _now(), "end_utc": None, "status": "running", **info})
+        self.manifest["versions"] = _versions()
+        self._write_manifest()
+
+    def end_run(self, status: str, n_done: int) -> None:
+        """Record the end of the current run (``completed`` or ``interrupted``)."""
+        run = self.manifest["runs"][-1]
+        run.update(end_utc=_now(), status=status, trials_written=n_done)
+        self._write_manifest()
+
+    def write(self, rows: list[dict[str, Any]]) -> None:
+        """Append rows as one new part file (atomically); widen the schema if needed."""
+        if not rows:
+            return
+        names = list(dict.fromkeys(k for r in rows for k in r))
+        widened = False
+        for name in names:
+            new = _merge(self.types.get(name, pa.null()), _arrow_type([r.get(name) for r in rows]))
+            if new != self.types.get(name):
+                widened = True
+                self.types[name] = new
+        schema = self._schema()
+        if widened and self._has_parts():
+            for part in sorted(self.trials.glob("*.parquet")):
+                self._atomic(pq.read_table(part), part, schema)
+        table = pa.Table.from_pylist([{k: r.get(k) for k in schema.names} for r in rows], schema=schema)
+        self._atomic(table, self.trials / f"part-{self.run_id}-{self.seq:05d}.parquet", schema)
+        self.seq += 1
+        hosts = sorted({*self.manifest["hosts"], *(str(r.get("host", "")) for r in rows)} - {""})
+        self.manifest["hosts"] = hosts
+        self._write_manifest()
+
+    def _has_parts(self) -> bool:
+        return any(self.trials.glob("*.parquet"))
+
+    def _schema(self) -> pa.Schema:
+        order = [c.name for c in COLUMNS] + sorted(n for n in self.types if n not in FIXED)
+        fields = []
+        for name in order:
+            t = self.types[name]
+            t = pa.string() if t == pa.null() else t  # all-null columns are stored as strings
+            fields.append(pa.field(name, t, metadata={"unit": unit_of(name)}))
+        return pa.schema(fields)
+
+    def _atomic(self, table: pa.Table, path: Path, schema: pa.Schema) -> None:
+        for name in schema.names:
+            if name not in table.column_names:
+                table = table.append_column(name, pa.nulls(len(table), schema.field(name).type))
+        table = table.select(schema.names).cast(schema)
+        tmp = path.parent / f".{path.name}.tmp"
+        pq.write_table(table, tmp)
+        os.replace(tmp, path)
+
+    def _write_manifest(self) -> None:
+        schema = self._schema() if hasattr(self, "types") else pa.schema([])
+        self.manifest["columns"] = {f.name: {"type": str(f.type), "unit": unit_of(f.name)} for f in schema}
+        self.manifest["python"] = sys.version.split()[0]
+        tmp = self.folder / ".manifest.json.tmp"
+        tmp.write_text(json.dumps(self.manifest, indent=2, default=str) + "\n")
+        os.replace(tmp, self.folder / "manifest.json")
+
+    def close(self) -> None:
+        """Release the lock (safe to call twice)."""
+        if self._lock is not None:
+            fcntl.flock(self._lock, fcntl.LOCK_UN)
+            os.close(self._lock)
+            self._lock = None  # type: ignore[assignment]
+
+
+def _acquire(path: Path) -> int:
+    fd = os.open(path, os.O_RDWR | os.O_CREAT, 0o644)
+    try:
+        fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
+    except BlockingIOError:
+        holder = os.pread(fd, 400, 0).decode(errors="replace").strip() or "another process"
+        os.close(fd)
+        raise SomoError(
+            f"{path.parent} is in use by another somo-sweep run ({holder}); "
+            "wait for it to finish or stop it, or use another --out folder"
+        ) from None
+    os.ftruncate(fd, 0)
+    os.pwrite(fd, f"pid {os.getpid()} on {socket.gethostname()} since {_now()}".encode(), 0)
+    return fd
+
+
+def _diff(old: dict[str, Any], new: dict[str, Any]) -> str:
+    keys = sorted(k for k in {*old, *new} if old.get(k) != new.get(k))
+    if not keys:
+        return "the code version or the model files"
+    return ", ".join(f"{k} ({old.get(k)!r} -> {new.get(k)!r})" if k != "sweep" else "sweep" for k in keys)

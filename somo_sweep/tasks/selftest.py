@@ -1,0 +1,85 @@
+"""Tasks that exercise the sweep engine itself (tag ``selftest``); they simulate nothing.
+
+* ``selftest_sleep``: sleeps ``sleep_s`` and returns metrics computed from ``x`` and the seed.
+* ``selftest_crash``: like ``selftest_sleep``, but the process running the trial dies when
+  ``x`` is in ``crash_x`` (``how``: ``exit`` = ``os._exit(3)``, ``segfault``, ``kill`` = SIGKILL).
+* ``selftest_unstable``: like ``selftest_sleep``, but reports a blow-up when ``x`` is in
+  ``unstable_x`` (raises :class:`~somo_sweep.errors.UnstableSimulation`, as the core does).
+
+They let the robustness tests run in real loky and Dask worker processes in milliseconds.
+"""
+
+from __future__ import annotations
+
+import ctypes
+import os
+import signal
+import time
+from typing import Literal
+
+import numpy as np
+from pydantic import BaseModel, ConfigDict, Field
+
+from somo_sweep.errors import UnstableSimulation
+from somo_sweep.models import Model
+from somo_sweep.tasks.registry import TaskResult, TaskSpec, register
+from somo_sweep.world import WorldSettings
+
+__all__ = ["SelftestParams"]
+
+
+class SelftestParams(BaseModel):
+    """Parameters of the selftest tasks.
+
+    Attributes:
+        x: Input value (dimensionless).
+        sleep_s: Wall time to sleep per trial, s.
+        crash_x: Values of ``x`` whose trial kills its process (``selftest_crash``).
+        how: How to die: ``exit``, ``segfault`` or ``kill``.
+        unstable_x: Values of ``x`` reported unstable (``selftest_unstable``).
+    """
+
+    model_config = ConfigDict(extra="forbid", frozen=True)
+
+    x: float = 0.0
+    sleep_s: float = Field(0.0, ge=0)
+    crash_x: list[float] = Field(default_factory=list)
+    how: Literal["exit", "segfault", "kill"] = "exit"
+    unstable_x: list[float] = Field(default_factory=list)
+
+
+def _result(params: SelftestParams, seed: int) -> TaskResult:
+    time.sleep(params.sleep_s)
+    noise = float(np.random.default_rng(seed).normal())
+    return TaskResult(
+        metrics={"y": params.x**2, "noise": noise, "time_s": params.sleep_s},
+        labels={"sign": "positive" if params.x > 0 else "non_positive"},
+    )
+
+
+def _sleep(model: Model, params: SelftestParams, settings: WorldSettings, seed: int) -> TaskResult:
+    return _result(params, seed)
+
+
+def _crash(model: Model, params: SelftestParams, settings: WorldSettings, seed: int) -> TaskResult:
+    if params.x in params.crash_x:
+        if params.how == "segfault":
+            ctypes.string_at(0)
+        elif params.how == "kill":
+            os.kill(os.getpid(), signal.SIGKILL)
+        os._exit(3)
+    return _result(params, seed)
+
+
+def _unstable(model: Model, params: SelftestParams, settings: WorldSettings, seed: int) -> TaskResult:
+    if params.x in params.unstable_x:
+        raise UnstableSimulation("speed_cap", 0.123, "(selftest)")
+    return _result(params, seed)
+
+
+for _name, _fn, _text in (
+    ("selftest_sleep", _sleep, "Sleeps and returns y = x² (engine tests)."),
+    ("selftest_crash", _crash, "Kills its process for chosen x (engine tests)."),
+    ("selftest_unstable", _unstable, "Reports a blow-up for chosen x (engine tests)."),
+):
+    register(TaskSpec(_name, _fn, SelftestParams, _text, ("selftest",)))
