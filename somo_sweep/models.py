@@ -27,6 +27,8 @@ class Model(Spec):
 
     manipulator: Manipulator | None = None
     assembly: Assembly | None = None
+    #: Free-form record of where the model's values came from (e.g. a calibration).
+    provenance: dict[str, Any] | None = None
 
     @model_validator(mode="after")
     def _exactly_one(self) -> Model:
@@ -48,7 +50,7 @@ class Model(Spec):
 
     def content_hash(self) -> str:
         """Stable hash of the resolved model content (for job ids and caches)."""
-        text = json.dumps(self.model_dump(mode="json"), sort_keys=True)
+        text = json.dumps(self.model_dump(mode="json", exclude={"provenance"}), sort_keys=True)
         return hashlib.sha256(text.encode()).hexdigest()[:16]
 
 
