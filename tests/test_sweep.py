@@ -1,0 +1,240 @@
+"""The sweep engine: results table, resume, crash, blow-up, lock, changed study, bad input.
+
+Most tests use the ``selftest_*`` tasks (milliseconds per trial, real worker processes);
+the determinism tests sweep the ``bench`` task's free-bending protocol over pressure.
+"""
+
+from __future__ import annotations
+
+import shutil
+import textwrap
+import time
+from pathlib import Path
+
+import pandas as pd
+import pyarrow.parquet as pq
+import pytest
+from typer.testing import CliRunner
+
+from somo_sweep.cli import app
+from somo_sweep.errors import SomoError
+from somo_sweep.jobs import build_jobs
+from somo_sweep.results import ResultStore, read_manifest, read_results
+from somo_sweep.study import load_study
+from somo_sweep.sweep import run_study
+from tests.conftest import MODELS
+
+#: Columns that legitimately differ between runs of the same study.
+RUN_COLUMNS = ["wall_time_s", "host"]
+
+
+def make_study(folder: Path, body: str, name: str = "study.yaml") -> Path:
+    """A study file in ``folder`` (next to a copy of the bundled models)."""
+    if not (folder / "models").exists():
+        shutil.copytree(MODELS, folder / "models")
+    path = folder / name
+    path.write_text(textwrap.dedent(body))
+    return path
+
+
+def selftest_study(folder: Path, task: str = "selftest_sleep", extra: str = "", n: int = 8) -> Path:
+    """A study of ``n`` trials x = 1..n of a selftest task; ``extra`` lines go at the end."""
+    body = (
+        f"name: st\ntask: {task}\nmodel: models/ihm_finger.yaml\nparams: {{sleep_s: 0.0}}\n"
+        f"sweep:\n  task.x: {{start: 1, stop: {n}, step: 1}}\n{extra}\n"
+    )
+    return make_study(folder, body)
+
+
+def results_only(df: pd.DataFrame) -> pd.DataFrame:
+    return df.drop(columns=RUN_COLUMNS).sort_values("job_id").reset_index(drop=True)
+
+
+def test_run_writes_one_row_per_trial_with_params_metrics_labels_and_provenance(tmp_path: Path) -> None:
+    study = load_study(selftest_study(tmp_path), tmp_path / "out")
+    summary = run_study(study, n_jobs=1)
+    assert summary.run == 8 and summary.by_status == {"ok": 8}
+    df = pd.read_parquet(tmp_path / "out" / "trials")  # one pandas call
+    assert len(df) == 8 and set(df["status"]) == {"ok"}
+    assert {"job_id", "seed", "task_x", "task_sleep_s", "y", "noise", "label_sign", "wall_time_s"} <= set(
+        df.columns
+    )
+    assert (df["y"] == df["task_x"] ** 2).all()
+    manifest = read_manifest(tmp_path / "out")
+    assert manifest["study_hash"] == df["study_hash"].iloc[0]
+    assert {"python", "pybullet", "somo-sweep"} <= set(manifest["versions"])
+    assert manifest["hosts"] and manifest["runs"][0]["status"] == "completed"
+    assert manifest["runs"][0]["start_utc"] and manifest["runs"][0]["end_utc"]
+    schema = pq.read_schema(next((tmp_path / "out" / "trials").glob("*.parquet")))
+    assert schema.field("wall_time_s").metadata == {b"unit": b"s"}
+
+
+def test_dry_run_prints_the_job_table_and_writes_nothing(tmp_path: Path) -> None:
+    path = selftest_study(tmp_path)
+    res = CliRunner().invoke(app, ["run", str(path), "--dry-run", "--out", str(tmp_path / "out")])
+    assert res.exit_code == 0, res.output
+    assert "8 trials" in res.output and "job_id" in res.output
+    assert not (tmp_path / "out").exists()
+
+
+def test_job_ids_are_stable_and_follow_the_model_content(tmp_path: Path) -> None:
+    path = selftest_study(tmp_path)
+    a, b = build_jobs(load_study(path)), build_jobs(load_study(path))
+    assert [j.job_id for j in a.jobs] == [j.job_id for j in b.jobs] and a.study_hash == b.study_hash
+    path.write_text(path.read_text() + "set:\n  model.manipulator.actuators[0].length_m: 0.11\n")
+    c = build_jobs(load_study(path))
+    assert not {j.job_id for j in a.jobs} & {j.job_id for j in c.jobs}
+
+
+def test_resume_runs_only_missing_trials_and_gives_the_same_table(tmp_path: Path) -> None:
+    path = selftest_study(tmp_path, extra="repeats: 2")
+    full = load_study(path, tmp_path / "full")
+    run_study(full, n_jobs=1)
+    reference = read_results(tmp_path / "full")
+    part = load_study(path, tmp_path / "part")
+    run_study(part, n_jobs=1, chunk_rows=4)
+    parts = sorted((tmp_path / "part" / "trials").glob("*.parquet"))
+    assert len(parts) == 4
+    for p in parts[1:3]:
+        p.unlink()
+    summary = run_study(load_study(path, tmp_path / "part"), n_jobs=1)
+    assert (summary.skipped, summary.run) == (8, 8)
+    pd.testing.assert_frame_equal(results_only(read_results(tmp_path / "part")), results_only(reference))
+    again = run_study(load_study(path, tmp_path / "part"), n_jobs=1)
+    assert again.run == 0
+
+
+def test_a_dying_trial_process_is_an_error_and_the_sweep_goes_on(tmp_path: Path) -> None:
+    path = selftest_study(
+        tmp_path,
+        task="selftest_crash",
+        extra="  task.how: [exit, segfault, kill]\nset: {task.crash_x: [2.0]}",
+        n=3,
+    )
+    summary = run_study(load_study(path, tmp_path / "out"), n_jobs=2)
+    assert summary.run == 9 and summary.by_status == {"ok": 6, "error": 3}
+    df = read_results(tmp_path / "out").set_index(["task_x", "task_how"])
+    assert df.loc[(1.0, "kill"), "status"] == "ok"
+    assert "died (exit code 3)" in df.loc[(2.0, "exit"), "message"]
+    assert "SIGSEGV" in df.loc[(2.0, "segfault"), "message"]
+    assert "SIGKILL" in df.loc[(2.0, "kill"), "message"]
+    assert df.loc[(3.0, "segfault"), "y"] == 9.0
+
+
+def test_first_rows_without_metrics_still_give_one_readable_schema(tmp_path: Path) -> None:
+    path = selftest_study(tmp_path, task="selftest_crash", extra="set: {task.crash_x: [1.0, 2.0]}", n=4)
+    run_study(load_study(path, tmp_path / "out"), n_jobs=1, chunk_rows=1)
+    df = pd.read_parquet(tmp_path / "out" / "trials").sort_values("trial")
+    assert list(df["status"]) == ["error", "error", "ok", "ok"]
+    assert df["y"].isna().tolist() == [True, True, False, False]
+
+
+def test_a_blow_up_is_stored_as_unstable_not_as_an_outcome(tmp_path: Path) -> None:
+    path = selftest_study(tmp_path, task="selftest_unstable", extra="set: {task.unstable_x: [3.0]}", n=4)
+    summary = run_study(load_study(path, tmp_path / "out"), n_jobs=1)
+    assert summary.by_status == {"ok": 3, "unstable": 1}
+    row = read_results(tmp_path / "out").set_index("task_x").loc[3.0]
+    assert row["status"] == "unstable" and "unstable" in row["message"]
+    assert pd.isna(row["y"]) and pd.isna(row["label_sign"])
+
+
+def test_a_second_run_on_a_locked_folder_refuses_clearly(tmp_path: Path) -> None:
+    path = selftest_study(tmp_path)
+    study = load_study(path, tmp_path / "out")
+    table = build_jobs(study)
+    holder = ResultStore(study.output, table.study_hash, table.resolved, table.axes, {})
+    try:
+        res = CliRunner().invoke(app, ["run", str(path), "--out", str(tmp_path / "out"), "-j", "1"])
+        assert res.exit_code == 2
+        assert "is in use by another somo-sweep run (pid" in res.output
+        assert "Traceback" not in res.output
+        assert not list((tmp_path / "out" / "trials").glob("*.parquet"))
+    finally:
+        holder.close()
+    res = CliRunner().invoke(app, ["run", str(path), "--out", str(tmp_path / "out"), "-j", "1", "--no-plots"])
+    assert res.exit_code == 0, res.output
+
+
+def test_results_of_a_changed_study_are_never_mixed_in(tmp_path: Path) -> None:
+    path = selftest_study(tmp_path)
+    run_study(load_study(path, tmp_path / "out"), n_jobs=1)
+    before = read_results(tmp_path / "out")
+    path.write_text(path.read_text().replace("stop: 8", "stop: 9"))
+    with pytest.raises(SomoError, match="holds results of a different study") as info:
+        run_study(load_study(path, tmp_path / "out"), n_jobs=1)
+    assert "changed: " in str(info.value) and "sweep" in str(info.value) and "--out" in str(info.value)
+    pd.testing.assert_frame_equal(read_results(tmp_path / "out"), before)
+
+
+def test_a_trial_over_its_time_limit_is_an_error(tmp_path: Path) -> None:
+    path = selftest_study(tmp_path, extra="set: {task.sleep_s: 30.0}", n=1)
+    start = time.perf_counter()
+    summary = run_study(load_study(path, tmp_path / "out"), n_jobs=1, timeout_s=0.5)
+    assert time.perf_counter() - start < 10
+    assert summary.by_status == {"error": 1}
+    assert read_results(tmp_path / "out")["message"].iloc[0] == "timed out after 0.5 s"
+
+
+def test_dask_backend_needs_a_scheduler(tmp_path: Path) -> None:
+    res = CliRunner().invoke(app, ["run", str(selftest_study(tmp_path)), "--backend", "dask"])
+    assert res.exit_code == 2 and "--backend dask needs --scheduler" in res.output
+
+
+@pytest.mark.parametrize(
+    ("body", "expected"),
+    [
+        (None, "file not found"),
+        ("task: bench\nmodel: models/ihm_finger.yaml\nsweep: {task.pressure_kpa: [0, 1}\n", "cannot parse"),
+        ("task: bnch\nmodel: models/ihm_finger.yaml\n", "unknown task 'bnch' (did you mean 'bench'?)"),
+        (
+            "task: bench\nmodel: models/ihm_finger.yaml\nrepeat: 2\n",
+            "unknown key 'repeat' (did you mean 'repeats'?)",
+        ),
+        (
+            "task: bench\nmodel: models/ihm_finger.yaml\n"
+            "sweep: {task.pressure_kpa: {start: 0, stop: 9, step: -1}}\n",
+            "line 3: sweep.task.pressure_kpa.step: must be > 0, got -1",
+        ),
+        (
+            "task: bench\nmodel: models/ihm_finger.yaml\nsweep: {task.pressure_kpa: []}\n",
+            "at least one value",
+        ),
+        (
+            "task: bench\nmodel: models/ihm_finger.yaml\nseed: abc\n",
+            "line 3: seed: Input should be a valid integer",
+        ),
+    ],
+    ids=[
+        "missing-file",
+        "yaml-syntax",
+        "unknown-task",
+        "unknown-key",
+        "negative-step",
+        "empty-axis",
+        "wrong-type",
+    ],
+)
+def test_bad_input_exits_2_with_one_message_and_writes_nothing(
+    tmp_path: Path, body: str | None, expected: str
+) -> None:
+    path = tmp_path / "missing.yaml" if body is None else make_study(tmp_path, body)
+    res = CliRunner().invoke(app, ["run", str(path), "--out", str(tmp_path / "out")])
+    assert res.exit_code == 2
+    assert expected in res.output and res.output.startswith("error: ")
+    assert "Traceback" not in res.output
+    assert not (tmp_path / "out").exists()
+
+
+def test_show_and_plot_summarise_a_results_folder(tmp_path: Path) -> None:
+    run_study(load_study(selftest_study(tmp_path), tmp_path / "out"), n_jobs=1)
+    res = CliRunner().invoke(app, ["show", str(tmp_path / "out")])
+    assert res.exit_code == 0, res.output
+    assert (
+        "8 of 8 trials stored" in res.output and "by task.x" in res.output and "sign=positive" in res.output
+    )
+    res = CliRunner().invoke(app, ["plot", str(tmp_path / "out")])
+    assert res.exit_code == 0, res.output
+    assert (tmp_path / "out" / "plots" / "summary.png").stat().st_size > 0
+    assert (tmp_path / "out" / "plots" / "summary.svg").stat().st_size > 0
+    res = CliRunner().invoke(app, ["show", str(tmp_path)])
+    assert res.exit_code == 2 and "not a somo-sweep results folder" in res.output

@@ -1,0 +1,143 @@
+"""The sweep engine across real processes: determinism over backends, and interrupts.
+
+Determinism sweeps the ``bench`` task's free-bending protocol over pressure and
+stiffness with ``--jobs 1``, ``--jobs 2`` and a Dask ``LocalCluster``; the interrupt
+tests send SIGINT / SIGTERM to a real ``somo-sweep run`` mid-sweep, then resume.
+"""
+
+from __future__ import annotations
+
+import os
+import signal
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import pandas as pd
+import pytest
+
+from somo_sweep.results import read_manifest, read_results
+from somo_sweep.study import load_study
+from somo_sweep.sweep import run_study
+from tests.test_sweep import make_study, results_only, selftest_study
+
+CLI = Path(sys.executable).parent / "somo-sweep"
+BENCH_STUDY = """\
+name: bench_small
+task: bench
+model: models/ihm_finger.yaml
+params: {test: free_bending}
+sweep:
+  task.pressure_kpa: {start: 0, stop: 150, step: 50}
+  model.manipulator.actuators[0].joints[0].stiffness_n_m_per_rad: [0.15, 0.30]
+"""
+
+
+@pytest.fixture(scope="module")
+def bench_reference(tmp_path_factory: pytest.TempPathFactory) -> tuple[Path, pd.DataFrame]:
+    """The small bench study run serially (``--jobs 1``)."""
+    folder = tmp_path_factory.mktemp("bench")
+    path = make_study(folder, BENCH_STUDY)
+    run_study(load_study(path, folder / "jobs1"), n_jobs=1)
+    return path, read_results(folder / "jobs1")
+
+
+def test_bench_sweep_gives_the_bench_protocols_numbers(bench_reference: tuple[Path, pd.DataFrame]) -> None:
+    _, df = bench_reference
+    assert len(df) == 8 and set(df["status"]) == {"ok"}
+    straight = df[df["task_pressure_kpa"] == 0]
+    stiff = df[df["model_manipulator_actuators_0_joints_0_stiffness_n_m_per_rad"] == 0.30]
+    # More pressure curls the tip further down; a stiffer finger less so.
+    assert (straight["tip_z_mm"] < 0).all()
+    assert stiff.sort_values("task_pressure_kpa")["tip_x_mm"].is_monotonic_decreasing
+
+
+def test_same_table_with_one_and_two_loky_workers(bench_reference: tuple[Path, pd.DataFrame]) -> None:
+    path, reference = bench_reference
+    out = path.parent / "jobs2"
+    run_study(load_study(path, out), n_jobs=2)
+    pd.testing.assert_frame_equal(results_only(read_results(out)), results_only(reference))
+
+
+def test_same_table_on_a_dask_local_cluster(bench_reference: tuple[Path, pd.DataFrame]) -> None:
+    from dask.distributed import LocalCluster
+
+    path, reference = bench_reference
+    out = path.parent / "dask"
+    with LocalCluster(
+        n_workers=2, threads_per_worker=1, processes=True, host="127.0.0.1", dashboard_address=None
+    ) as cluster:
+        summary = run_study(load_study(path, out), backend="dask", scheduler=cluster.scheduler_address)
+    assert summary.by_status == {"ok": 8}
+    pd.testing.assert_frame_equal(results_only(read_results(out)), results_only(reference))
+    assert read_manifest(out)["runs"][-1]["backend"] == "dask"
+
+
+@pytest.mark.parametrize("signum", [signal.SIGINT, signal.SIGTERM], ids=["SIGINT", "SIGTERM"])
+def test_interrupt_keeps_every_finished_trial_and_resume_completes(tmp_path: Path, signum: int) -> None:
+    n = 40
+    path = selftest_study(tmp_path, extra="set: {task.sleep_s: 0.1}", n=n)
+    out = tmp_path / "out"
+    proc = subprocess.Popen(
+        [str(CLI), "run", str(path), "--jobs", "2", "--chunk-rows", "2", "--no-plots", "--out", str(out)],
+        stdout=subprocess.PIPE,
+        stderr=subprocess.PIPE,
+        text=True,
+    )
+    try:
+        deadline = time.monotonic() + 60
+        while not list((out / "trials").glob("*.parquet")) and time.monotonic() < deadline:
+            time.sleep(0.05)  # results are written in chunks while the sweep runs
+        assert proc.poll() is None, "the sweep finished before it could be interrupted"
+        proc.send_signal(signum)
+        _, stderr = proc.communicate(timeout=60)
+    finally:
+        if proc.poll() is None:
+            proc.kill()
+    assert proc.returncode == 128 + signum, stderr
+    assert "finished trial(s) kept" in stderr and "Traceback" not in stderr
+    kept = read_results(out)
+    assert 0 < len(kept) < n and set(kept["status"]) == {"ok"}
+    assert read_manifest(out)["runs"][-1]["status"] == "interrupted"
+    summary = run_study(load_study(path, out), n_jobs=2)
+    assert (summary.skipped, summary.run) == (len(kept), n - len(kept))
+    reference = tmp_path / "reference"
+    run_study(load_study(path, reference), n_jobs=2)
+    pd.testing.assert_frame_equal(results_only(read_results(out)), results_only(read_results(reference)))
+
+
+def test_no_worker_or_trial_process_outlives_an_interrupted_run(tmp_path: Path) -> None:
+    path = selftest_study(tmp_path, extra="set: {task.sleep_s: 5.0}", n=4)
+    proc = subprocess.Popen(
+        [str(CLI), "run", str(path), "--jobs", "2", "--no-plots", "--out", str(tmp_path / "out")],
+        stdout=subprocess.DEVNULL,
+        stderr=subprocess.DEVNULL,
+    )
+    time.sleep(4.0)
+    children = _descendants(proc.pid)
+    proc.send_signal(signal.SIGINT)
+    proc.wait(timeout=60)
+    time.sleep(1.0)
+    assert children, "expected worker processes while the sweep ran"
+    alive = [pid for pid in children if _alive(pid)]
+    assert not alive
+
+
+def _descendants(pid: int) -> list[int]:
+    out = subprocess.run(["ps", "-e", "-o", "pid=,ppid="], capture_output=True, text=True, check=True).stdout
+    parent = {int(a): int(b) for a, b in (line.split() for line in out.splitlines())}
+    found, frontier = [], {pid}
+    while frontier:
+        frontier = {c for c, p in parent.items() if p in frontier}
+        found.extend(frontier)
+    return found
+
+
+def _alive(pid: int) -> bool:
+    try:
+        os.kill(pid, 0)
+    except ProcessLookupError:
+        return False
+    status = Path(f"/proc/{pid}/stat")
+    return status.exists() and status.read_text().split()[2] != "Z"
