@@ -23,6 +23,7 @@ import os
 import platform
 import socket
 import sys
+import uuid
 from dataclasses import dataclass
 from datetime import UTC, datetime
 from importlib.metadata import PackageNotFoundError, version
@@ -208,7 +209,8 @@ class ResultStore:
             self.types.setdefault(c.name, pa.type_for_alias(c.type))
         for name, values in param_types.items():
             self.types[name] = _merge(self.types.get(name, pa.null()), _arrow_type(values))
-        self.run_id = f"{datetime.now(UTC):%Y%m%dT%H%M%S}-{os.getpid()}"
+        # Unique per run, so that a resumed run never overwrites an earlier part file.
+        self.run_id = f"{datetime.now(UTC):%Y%m%dT%H%M%S}-{uuid.uuid4().hex[:8]}"
         self.seq = 0
 
     def _open(self, study_hash: str, resolved: dict[str, Any], axes: dict[str, str]) -> dict[str, Any]:
