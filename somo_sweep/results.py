@@ -21,6 +21,7 @@ import fcntl
 import json
 import os
 import platform
+import shutil
 import socket
 import sys
 import uuid
@@ -173,6 +174,7 @@ class ResultStore:
 
     Args:
         folder: The results folder (created if missing).
+        overwrite: Delete results of a different study instead of refusing.
         study_hash: Hash of the study being run.
         resolved: The resolved study (stored; used to say what changed).
         axes: Axis key path → column name.
@@ -189,13 +191,14 @@ class ResultStore:
         resolved: dict[str, Any],
         axes: dict[str, str],
         param_types: dict[str, list[Any]],
+        overwrite: bool = False,
     ):
         self.folder = Path(folder)
         self.trials = self.folder / "trials"
         self.folder.mkdir(parents=True, exist_ok=True)
         self._lock = _acquire(self.folder / ".lock")
         try:
-            self.manifest = self._open(study_hash, resolved, axes)
+            self.manifest = self._open(study_hash, resolved, axes, overwrite)
         except BaseException:
             self.close()
             raise
@@ -213,21 +216,28 @@ class ResultStore:
         self.run_id = f"{datetime.now(UTC):%Y%m%dT%H%M%S}-{uuid.uuid4().hex[:8]}"
         self.seq = 0
 
-    def _open(self, study_hash: str, resolved: dict[str, Any], axes: dict[str, str]) -> dict[str, Any]:
+    def _open(
+        self, study_hash: str, resolved: dict[str, Any], axes: dict[str, str], overwrite: bool
+    ) -> dict[str, Any]:
         has_rows = self.trials.is_dir() and any(self.trials.glob("*.parquet"))
         path = self.folder / "manifest.json"
         if has_rows and not path.is_file():
             raise SomoError(f"{self.folder} holds trials but no manifest.json; use another --out folder")
         if path.is_file() and has_rows:
             old = read_manifest(self.folder)
-            if old["study_hash"] != study_hash:
+            if old["study_hash"] != study_hash and overwrite:
+                for part in self.trials.glob("*.parquet"):
+                    part.unlink()
+                shutil.rmtree(self.folder / "plots", ignore_errors=True)
+            elif old["study_hash"] != study_hash:
                 changed = _diff(old.get("study", {}), resolved)
                 raise SomoError(
                     f"{self.folder} holds results of a different study (hash {old['study_hash']}, "
                     f"this one is {study_hash}); changed: {changed}. Results are never mixed: "
-                    f"run with --out NEW_FOLDER, or delete {self.folder} to start over"
+                    f"run with --out NEW_FOLDER, or with --overwrite to delete them and start over"
                 )
-            return old
+            else:
+                return old
         return {
             "study_name": resolved.get("name"),
             "study_hash": study_hash,

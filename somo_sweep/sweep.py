@@ -112,6 +112,7 @@ def run_study(
     chunk_rows: int = CHUNK_ROWS,
     flush_interval_s: float = FLUSH_INTERVAL_S,
     timeout_s: float | None = None,
+    overwrite: bool = False,
     on_start: Callable[[int, int], None] | None = None,
     on_outcome: Callable[[Outcome], None] | None = None,
 ) -> RunSummary:
@@ -126,6 +127,7 @@ def run_study(
         chunk_rows: Rows per part file.
         flush_interval_s: Longest time finished rows wait before being written, s.
         timeout_s: Per-trial wall-time limit, s.
+        overwrite: Delete results of a different study in the folder instead of refusing.
         on_start: Called with (trials to run, trials already done).
         on_outcome: Called with every outcome as it arrives.
 
@@ -138,7 +140,7 @@ def run_study(
     for job in table.jobs:
         for k, v in job.columns.items():
             param_types.setdefault(k, []).append(v)
-    store = ResultStore(study.output, table.study_hash, table.resolved, table.axes, param_types)
+    store = ResultStore(study.output, table.study_hash, table.resolved, table.axes, param_types, overwrite)
     start = time.perf_counter()
     try:
         shutil.copyfile(study.source, study.output / "study.yaml")

@@ -164,6 +164,9 @@ def test_results_of_a_changed_study_are_never_mixed_in(tmp_path: Path) -> None:
         run_study(load_study(path, tmp_path / "out"), n_jobs=1)
     assert "changed: " in str(info.value) and "sweep" in str(info.value) and "--out" in str(info.value)
     pd.testing.assert_frame_equal(read_results(tmp_path / "out"), before)
+    summary = run_study(load_study(path, tmp_path / "out"), n_jobs=1, overwrite=True)
+    assert (summary.skipped, summary.run) == (0, 9)
+    assert len(read_results(tmp_path / "out")) == 9
 
 
 def test_a_trial_over_its_time_limit_is_an_error(tmp_path: Path) -> None:

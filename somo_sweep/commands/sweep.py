@@ -40,6 +40,9 @@ def run(
     ] = None,
     plots: Annotated[bool, typer.Option("--plots/--no-plots", help="Draw summary plots at the end.")] = True,
     timeout: Annotated[float | None, typer.Option(help="Per-trial wall-time limit, s.")] = None,
+    overwrite: Annotated[
+        bool, typer.Option("--overwrite", help="Delete results of a different (changed) study in --out.")
+    ] = False,
     chunk_rows: Annotated[int, typer.Option(help="Rows per Parquet part file.", hidden=True)] = 50,
 ) -> None:
     """Run a study: every trial missing from its results folder, in parallel, into Parquet."""
@@ -94,6 +97,7 @@ def run(
                 table,
                 chunk_rows=chunk_rows,
                 timeout_s=timeout,
+                overwrite=overwrite,
                 on_start=started,
                 on_outcome=advanced,
             )
