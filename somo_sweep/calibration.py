@@ -24,7 +24,7 @@ import pandas as pd
 from scipy.optimize import least_squares
 
 from somo_sweep.bench import BenchSettings, run_bench
-from somo_sweep.calibration_metrics import TestMetric, measured_array, test_metrics
+from somo_sweep.calibration_metrics import TestMetric, measured_array, per_test_metrics
 from somo_sweep.description import Actuation, Manipulator
 from somo_sweep.errors import MeasurementError
 from somo_sweep.models import Model
@@ -36,6 +36,9 @@ __all__ = [
     "CalibrationResult",
     "Parameter",
     "build_problem",
+    "paper_values",
+    "side_view",
+    "simulate_rows",
     "solve_fit",
     "solve_paper",
 ]
@@ -407,20 +410,20 @@ def _finish(
         values={p.name: float(v) for p, v in zip(problem.parameters, values, strict=True)},
         model=problem.base.model_copy(update={"manipulator": manip}),
         simulated=simulated,
-        metrics=test_metrics(problem.rows, simulated),
+        metrics=per_test_metrics(problem.rows, simulated),
         wall_time_s=time.perf_counter() - start_s,
         simulations=sims,
         **extra,  # type: ignore[arg-type]
     )
 
 
-def solve_paper(problem: CalibrationProblem, n_jobs: int = 1) -> CalibrationResult:
-    """Eq. (8) per axis (N = joints of that axis, L = chain length) and eq. (9) per blocked row.
+def paper_values(problem: CalibrationProblem) -> list[float]:
+    """Eq. (8) per axis (N = joints of that axis, L = chain length) and eq. (9), no simulation.
 
     The tip stiffness is the least-squares slope of load over deflection; the
-    gain the least-squares slope of M_act = F_b·L over pressure.
+    gain the least-squares slope of M_act = F_b·L over pressure. Values follow
+    ``problem.parameters``.
     """
-    start = time.perf_counter()
     manip, rows = problem.manipulator, problem.rows
     values = []
     for par in problem.parameters:
@@ -439,6 +442,13 @@ def solve_paper(problem: CalibrationProblem, n_jobs: int = 1) -> CalibrationResu
                 [actuation_torque_from_blocked_force(f, manip.length_m) for f in sel["blocked_force_n"]]
             )
             values.append(float(torque @ p / (p @ p)))
+    return values
+
+
+def solve_paper(problem: CalibrationProblem, n_jobs: int = 1) -> CalibrationResult:
+    """Calibrate with :func:`paper_values`, then simulate every row to report the agreement."""
+    start = time.perf_counter()
+    values = paper_values(problem)
     return _finish(problem, "paper", values, start, 0, n_jobs, message="eq. (8) and (9) as published")
 
 

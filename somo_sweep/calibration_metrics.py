@@ -14,7 +14,7 @@ from dataclasses import asdict, dataclass
 import numpy as np
 import pandas as pd
 
-__all__ = ["UNITS", "TestMetric", "measured_array", "row_labels", "test_metrics"]
+__all__ = ["UNITS", "TestMetric", "measured_array", "per_test_metrics", "row_labels"]
 
 #: Unit of each test's measured quantity.
 UNITS = {"tip_load": "mm", "blocked_force": "N", "free_bending": "mm"}
@@ -74,7 +74,7 @@ def _scale(label: str, measured: np.ndarray, pressure_kpa: np.ndarray) -> float:
     return float(np.sqrt(np.mean(measured[:, 0] ** 2)))
 
 
-def test_metrics(rows: pd.DataFrame, simulated: np.ndarray) -> list[TestMetric]:
+def per_test_metrics(rows: pd.DataFrame, simulated: np.ndarray) -> list[TestMetric]:
     """Per-test metrics of ``simulated`` (n, 2) against the measured rows, in first-seen test order."""
     measured = measured_array(rows)
     labels = np.array(row_labels(rows))

@@ -1,0 +1,317 @@
+"""Calibration (issue 5): the paper's eq. (8)/(9), the simulator-in-the-loop fit, the CLI and its errors."""
+
+from __future__ import annotations
+
+import time
+from pathlib import Path
+
+import numpy as np
+import pandas as pd
+import pytest
+import yaml
+from conftest import MODELS, ROOT
+from typer.testing import CliRunner
+
+from somo_sweep.bench import BenchSettings, run_bench
+from somo_sweep.calibration import build_problem, paper_values, side_view, simulate_rows, solve_fit
+from somo_sweep.calibration_metrics import per_test_metrics
+from somo_sweep.cli import app
+from somo_sweep.errors import MeasurementError
+from somo_sweep.finger_builder import planar_finger
+from somo_sweep.measurements import read_measurements, write_measurements
+from somo_sweep.models import load_model
+from somo_sweep.paper_formulas import (
+    actuation_torque_from_blocked_force,
+    chain_tip_stiffness,
+    joint_stiffness_from_tip_stiffness,
+)
+from somo_sweep.synthetic import (
+    TRUE_GAIN_N_M_PER_KPA,
+    TRUE_STIFFNESS_N_M_PER_RAD,
+    bench_plan,
+    synthetic_rows,
+)
+
+runner = CliRunner()
+DATA = ROOT / "studies" / "data"
+SYNTHETIC = DATA / "planar_finger_synthetic.csv"
+FIG3 = DATA / "ihm_fig3_published.csv"
+BUILD = ["--length-mm", "100", "--segments", "20", "--mass-g", "20"]
+
+WORKED_EXAMPLE = """test,pressure_kpa,tip_load_n,tip_deflection_mm,blocked_force_n,tip_x_mm,tip_z_mm,axis
+tip_load,0,0.0612,10,,,,grasp
+tip_load,0,0.2905,10,,,,side
+blocked_force,100,,,0.75,,,grasp
+"""
+
+
+def _csv(tmp_path: Path, text: str, name: str = "rows.csv") -> Path:
+    path = tmp_path / name
+    path.write_text(text)
+    return path
+
+
+# --- eq. (8) and (9) as published -------------------------------------------------------------
+
+
+def test_paper_method_reproduces_somo_worked_example(tmp_path: Path) -> None:
+    rows = read_measurements(_csv(tmp_path, WORKED_EXAMPLE))
+    problem = build_problem(rows, load_model(MODELS / "ihm_finger.yaml"), min_rows_per_parameter=1)
+    values = dict(zip((p.name for p in problem.parameters), paper_values(problem), strict=True))
+    assert values["stiffness_n_m_per_rad[grasp]"] == pytest.approx(0.219, abs=5e-4)
+    assert values["stiffness_n_m_per_rad[side]"] == pytest.approx(1.038, abs=5e-4)
+    # 0.75 N at 100 kPa -> M_act = 0.075 N·m
+    assert values["pressure_gain_n_m_per_kpa"] * 100 == pytest.approx(0.075, rel=1e-9)
+
+
+def test_paper_cli_writes_calibrated_model_with_provenance_and_report(tmp_path: Path) -> None:
+    out, report = tmp_path / "out" / "model.yaml", tmp_path / "report"
+    res = runner.invoke(
+        app,
+        [
+            "calibrate",
+            str(_csv(tmp_path, WORKED_EXAMPLE)),
+            "--model",
+            str(MODELS / "ihm_finger.yaml"),
+            "--method",
+            "paper",
+            "-o",
+            str(out),
+            "--report",
+            str(report),
+        ],
+    )
+    assert res.exit_code == 0, res.output
+    assert "calibration rows: blocked_force (1: lines 4); tip_load (2: lines 2, 3)" in res.stdout
+    model = load_model(out)
+    joints = model.manipulator.actuators[0].joints  # type: ignore[union-attr]
+    assert joints[0].stiffness_n_m_per_rad == pytest.approx(0.2186, rel=1e-3)
+    assert joints[1].stiffness_n_m_per_rad == pytest.approx(1.0375, rel=1e-3)
+    record = model.provenance["calibration"]  # type: ignore[index]
+    assert record["method"] == "paper" and record["calibration_lines"] == [2, 3, 4]
+    assert {t["label"] for t in record["tests"]} == {"tip_load", "tip_load[side]", "blocked_force"}
+    assert sorted(p.name for p in report.iterdir()) == [
+        "blocked_force.png",
+        "calibration.json",
+        "tip_load.png",
+        "tip_load_side.png",
+    ]
+    # provenance does not change what the model is
+    assert model.content_hash() == model.model_copy(update={"provenance": None}).content_hash()
+
+
+# --- what eq. (8) and (9) miss on a discrete chain (docs/calibration.md) ------------------------
+
+
+def test_eq8_on_every_joint_makes_the_chain_stiffer_than_measured() -> None:
+    # 20 equal joints at 0, 5, ..., 95 mm, load at the 100 mm tip, measured 10 N/m
+    length_m, n, measured = 0.1, 20, 10.0
+    kappa = joint_stiffness_from_tip_stiffness(measured, length_m, n)
+    joints_m = np.arange(n) * length_m / n
+    chain = chain_tip_stiffness([kappa] * n, joints_m, length_m)
+    assert chain / measured == pytest.approx(1.89, abs=0.01)  # eq. (8) ~1.9x too stiff at N = 20
+    # the IHM finger's 5 grasp joints (0, 20, ..., 80 mm), load at 100 mm: 1.62x
+    ihm = chain_tip_stiffness(
+        [joint_stiffness_from_tip_stiffness(6.12, 0.1, 5)] * 5, [0, 0.02, 0.04, 0.06, 0.08], 0.1
+    )
+    assert ihm / 6.12 == pytest.approx(1.62, abs=0.01)
+
+
+def test_eq9_overestimates_the_moment_a_blocked_tip_balances() -> None:
+    # Small angles, uniform torque u on every joint, tip held at zero deflection:
+    # sum_j (u - F·a_j)·a_j / k = 0  =>  F = u·Σa / Σa²  (not u / L)
+    arms_m = 0.1 - np.arange(20) * 0.005
+    force_per_torque = arms_m.sum() / (arms_m**2).sum()
+    ratio = actuation_torque_from_blocked_force(force_per_torque, 0.1)  # M_eq9 / u
+    assert ratio == pytest.approx(1.463, abs=0.005)
+
+
+def test_paper_method_lands_far_from_the_truth_on_the_bundled_planar_finger() -> None:
+    problem = build_problem(read_measurements(SYNTHETIC), _example_base(), str(SYNTHETIC))
+    stiffness, gain = paper_values(problem)
+    assert stiffness / TRUE_STIFFNESS_N_M_PER_RAD == pytest.approx(1.97, abs=0.05)
+    assert gain / TRUE_GAIN_N_M_PER_KPA == pytest.approx(1.80, abs=0.05)
+
+
+# --- the problem and the fit ------------------------------------------------------------------
+
+
+def _example_base():  # type: ignore[no-untyped-def]
+    return planar_finger(0.1, 20, 0.02)
+
+
+def test_problem_says_which_rows_calibrate_and_which_validate() -> None:
+    problem = build_problem(read_measurements(SYNTHETIC), _example_base(), str(SYNTHETIC))
+    assert set(problem.calibration_rows["test"]) == {"tip_load", "blocked_force"}
+    assert len(problem.calibration_rows) == 23
+    assert set(problem.validation_rows["test"]) == {"free_bending"} and len(problem.validation_rows) == 13
+    assert [p.name for p in problem.parameters] == [
+        "stiffness_n_m_per_rad[grasp]",
+        "pressure_gain_n_m_per_kpa",
+    ]
+    # closed-form starting values are already within 10 % of the truth
+    assert problem.parameters[0].initial == pytest.approx(TRUE_STIFFNESS_N_M_PER_RAD, rel=0.1)
+    assert problem.parameters[1].initial == pytest.approx(TRUE_GAIN_N_M_PER_KPA, rel=0.1)
+    assert "validation rows: free_bending (13: lines 28, 29" in problem.describe()
+
+
+def _small_truth():  # type: ignore[no-untyped-def]
+    return planar_finger(0.1, 8, 0.02, stiffness_n_m_per_rad=0.3, pressure_gain_n_m_per_kpa=1.5e-4)
+
+
+def test_fit_recovers_known_parameters_short() -> None:
+    """Short version of the acceptance test: 8 segments, 12 rows, 1 % noise, seed 0."""
+    plan = bench_plan([0.025, 0.05, 0.075, 0.1], [60, 120, 180, 240], [60, 120, 180, 240])
+    rows = synthetic_rows(
+        _small_truth(), plan, 0.01, np.random.default_rng(0), BenchSettings(time_step_s=1e-3)
+    )
+    rows["line"] = np.arange(len(rows)) + 2
+    base = planar_finger(0.1, 8, 0.02)
+    result = solve_fit(build_problem(rows, base), n_jobs=1)
+    assert result.values["stiffness_n_m_per_rad[grasp]"] == pytest.approx(0.3, rel=0.03)
+    assert result.values["pressure_gain_n_m_per_kpa"] == pytest.approx(1.5e-4, rel=0.03)
+    assert result.reproduces_within(0.05), result.metrics
+    assert result.metric("free_bending").role == "validation"
+
+
+@pytest.mark.slow
+def test_fit_recovers_known_parameters_on_the_bundled_36_rows(tmp_path: Path) -> None:
+    out = tmp_path / "model.yaml"
+    start = time.perf_counter()
+    res = runner.invoke(app, ["calibrate", str(SYNTHETIC), *BUILD, "-o", str(out), "--jobs", "2"])
+    wall_s = time.perf_counter() - start
+    assert res.exit_code == 0, res.output
+    record = load_model(out).provenance["calibration"]  # type: ignore[index]
+    pars = record["parameters"]
+    assert pars["stiffness_n_m_per_rad[grasp]"]["value"] == pytest.approx(
+        TRUE_STIFFNESS_N_M_PER_RAD, rel=0.03
+    )
+    assert pars["pressure_gain_n_m_per_kpa"]["value"] == pytest.approx(TRUE_GAIN_N_M_PER_KPA, rel=0.03)
+    assert all(t["relative_rmse"] <= 0.05 for t in record["tests"]), record["tests"]
+    assert wall_s < 60, f"calibration took {wall_s:.1f} s"
+
+
+@pytest.mark.slow
+def test_bundled_synthetic_file_is_what_the_generator_makes(tmp_path: Path) -> None:
+    from somo_sweep.synthetic import main
+
+    main([str(tmp_path / "again.csv")])
+    again, bundled = read_measurements(tmp_path / "again.csv"), read_measurements(SYNTHETIC)
+    cols = ["tip_deflection_mm", "blocked_force_n", "tip_x_mm", "tip_z_mm"]
+    np.testing.assert_allclose(again[cols].to_numpy(), bundled[cols].to_numpy(), rtol=1e-4)
+
+
+# --- side axis, data files, determinism --------------------------------------------------------
+
+
+def test_side_view_bends_the_side_joints_with_their_own_lever_arms() -> None:
+    manip = load_model(MODELS / "ihm_finger.yaml").manipulator
+    assert manip is not None
+    settings = BenchSettings(time_step_s=1e-3, gravity_m_s2=0.0)
+    deflection_mm = run_bench(side_view(manip), "tip_load", 0.0, 0.05, settings).value
+    # side joints at 10, 30, ..., 90 mm; the load acts at the sphere's far end, 130 mm
+    closed = chain_tip_stiffness([1.037] * 5, [0.01, 0.03, 0.05, 0.07, 0.09], 0.13)
+    assert 0.05 / (float(deflection_mm) * 1e-3) == pytest.approx(closed, rel=0.01)  # type: ignore[arg-type]
+
+
+def test_fig3_data_reproduce_the_published_values_and_say_so() -> None:
+    assert "NOT measured" in FIG3.read_text().splitlines()[0]
+    rows = read_measurements(FIG3)
+    blocked = rows[rows["test"] == "blocked_force"].set_index("pressure_kpa")["blocked_force_n"]
+    assert blocked[100.0] == pytest.approx(0.75)
+    for axis, stiffness in (("grasp", 6.12), ("side", 29.05)):
+        sel = rows[(rows["test"] == "tip_load") & (rows["axis"] == axis)]
+        k = sel["tip_load_n"] / (sel["tip_deflection_mm"] * 1e-3)
+        np.testing.assert_allclose(k, stiffness, rtol=1e-5)
+
+
+def test_rows_simulate_identically_with_one_or_two_workers() -> None:
+    plan = bench_plan([0.05], [100], [200])
+    manip = _small_truth().manipulator
+    one = simulate_rows(manip, plan, BenchSettings(time_step_s=1e-3), n_jobs=1)
+    two = simulate_rows(manip, plan, BenchSettings(time_step_s=1e-3), n_jobs=2)
+    np.testing.assert_array_equal(one, two)
+
+
+def test_free_bending_error_is_relative_to_tip_travel() -> None:
+    rows = bench_plan([], [], [0, 100])
+    rows.loc[:, "tip_x_mm"], rows.loc[:, "tip_z_mm"] = [100.0, 90.0], [0.0, -30.0]
+    rows["role"] = "validation"
+    simulated = np.array([[100.0, 0.0], [90.0, -31.0]])
+    (metric,) = per_test_metrics(rows, simulated)
+    assert metric.rmse == pytest.approx(np.sqrt(0.5))
+    # travel: 0 and sqrt(10² + 30²) mm -> RMS sqrt(500)
+    assert metric.relative_rmse == pytest.approx(np.sqrt(0.5) / np.sqrt(500.0))
+
+
+# --- bad input: exit 2, row and column named, nothing written ---------------------------------
+
+HEADER = "test,pressure_kpa,tip_load_n,tip_deflection_mm,blocked_force_n,tip_x_mm,tip_z_mm\n"
+GOOD = "tip_load,0,0.05,5,,,\ntip_load,0,0.1,10,,,\nblocked_force,100,,,0.3,,\nblocked_force,200,,,0.6,,\n"
+
+
+@pytest.mark.parametrize(
+    ("text", "expected"),
+    [
+        (None, "file not found"),
+        ("test,pressure_kpa\ntip_load,0\n", "missing column(s) tip_load_n"),
+        (HEADER + GOOD + "blocked_force,abc,,,0.3,,\n", "line 6, column pressure_kpa: 'abc' is not a number"),
+        (
+            HEADER + GOOD + "tip_lod,0,0.1,3,,,\n",
+            "line 6, column test: unknown test 'tip_lod' (did you mean 'tip_load'?)",
+        ),
+        (HEADER + GOOD + "tip_load,0,-0.1,3,,,\n", "line 6, column tip_load_n: -0.1 < 0"),
+        (
+            HEADER + "tip_load,0,0.05,5,,,\nblocked_force,100,,,0.3,,\n",
+            "column blocked_force_n: 1 blocked_force row(s)",
+        ),
+        (
+            HEADER.strip() + ",axis\ntip_load,0,0.05,5,,,,grasp\ntip_load,0,0.05,5,,,,side\n",
+            "line 3, column axis: 'side', but the model's first actuator has one axis",
+        ),
+    ],
+)
+def test_bad_input_exits_2_naming_row_and_column_and_writes_nothing(
+    tmp_path: Path, text: str | None, expected: str
+) -> None:
+    path = tmp_path / "missing.csv" if text is None else _csv(tmp_path, text)
+    out = tmp_path / "model.yaml"
+    res = runner.invoke(
+        app, ["calibrate", str(path), *BUILD, "-o", str(out), "--report", str(tmp_path / "r")]
+    )
+    assert res.exit_code == 2
+    assert expected in res.stderr
+    assert not out.exists() and not (tmp_path / "r").exists()
+
+
+def test_side_rows_with_pressure_are_rejected_naming_the_column(tmp_path: Path) -> None:
+    text = WORKED_EXAMPLE + "tip_load,50,0.1,3,,,,side\n"
+    rows = read_measurements(_csv(tmp_path, text))
+    with pytest.raises(
+        MeasurementError, match=r"line 5, column pressure_kpa: side-axis tip_load rows need 0 kPa"
+    ):
+        build_problem(rows, load_model(MODELS / "ihm_finger.yaml"), min_rows_per_parameter=1)
+
+
+def test_calibrate_needs_a_model_or_the_finger_dimensions(tmp_path: Path) -> None:
+    path = _csv(tmp_path, HEADER + GOOD)
+    res = runner.invoke(app, ["calibrate", str(path), "--length-mm", "100", "-o", str(tmp_path / "m.yaml")])
+    assert res.exit_code == 2
+    assert "--segments, --mass-g" in res.stderr
+
+
+def test_written_model_round_trips_through_the_schema(tmp_path: Path) -> None:
+    from somo_sweep.calibration_report import model_yaml
+
+    model = planar_finger(0.1, 20, 0.02).model_copy(update={"provenance": {"calibration": {"method": "fit"}}})
+    path = tmp_path / "m.yaml"
+    path.write_text(model_yaml(model, "header"))
+    assert load_model(path) == model
+    assert yaml.safe_load(path.read_text())["provenance"]["calibration"]["method"] == "fit"
+
+
+def test_synthetic_plan_writes_schema_rows(tmp_path: Path) -> None:
+    plan = bench_plan([0.1], [100], [])
+    plan.loc[0, "tip_deflection_mm"], plan.loc[1, "blocked_force_n"] = 3.0, 0.5
+    write_measurements(plan, tmp_path / "p.csv")
+    assert list(pd.read_csv(tmp_path / "p.csv")["test"]) == ["tip_load", "blocked_force"]
