@@ -5,7 +5,7 @@ BIN    := $(VENV)/bin
 STAMP  := $(VENV)/.installed-stamp
 
 .DEFAULT_GOAL := help
-.PHONY: help install demo test test-slow lint format bench clean
+.PHONY: help install demo test test-slow lint format bench clean sweep-demo
 
 help: ## List the targets
 	@grep -E '^[a-zA-Z0-9_-]+:.*?## ' $(MAKEFILE_LIST) | awk 'BEGIN {FS = ":.*?## "}; {printf "  make %-12s %s\n", $$1, $$2}'
@@ -21,6 +21,7 @@ install: $(STAMP) ## Create .venv and install somo-sweep with its dev tools
 demo: $(STAMP) ## Install, then run the main job on the bundled example
 	$(BIN)/somo-sweep check studies/models/pinch_gripper.yaml
 	$(BIN)/somo-sweep measure studies/models/ihm_finger.yaml --test blocked_force --values 0,50,100,150,200,240 --csv results/demo_blocked_force.csv
+	$(BIN)/somo-sweep run studies/finger_pressure_sweep.yaml --overwrite
 
 test: $(STAMP) ## Install, then run the default test suite
 	$(BIN)/python -m pytest
@@ -39,6 +40,10 @@ format: $(STAMP) ## Format the code with ruff
 
 bench: $(STAMP) ## Speed benchmark: ms per step of the two-finger grasp, Bullet vs Python
 	$(BIN)/python -m somo_sweep.benchmark
+
+sweep-demo: $(STAMP) ## Run the example study (27 trials) and print its summary
+	$(BIN)/somo-sweep run studies/finger_pressure_sweep.yaml --overwrite
+	$(BIN)/somo-sweep show results/finger_pressure_sweep
 
 clean: ## Remove the virtual environment and caches
 	rm -rf $(VENV) .pytest_cache .mypy_cache .ruff_cache
