@@ -41,6 +41,9 @@ format: $(STAMP) ## Format the code with ruff
 bench: $(STAMP) ## Speed benchmark: ms per step of the two-finger grasp, Bullet vs Python
 	$(BIN)/python -m somo_sweep.benchmark
 
+fig3: $(STAMP) ## Paper Fig. 3: blocked force vs pressure, eq. (8)/(9) and fit vs published values
+	$(BIN)/python -m somo_sweep.fig3 results/figures
+
 sweep-demo: $(STAMP) ## Run the example study (27 trials) and print its summary
 	$(BIN)/somo-sweep run studies/finger_pressure_sweep.yaml --overwrite
 	$(BIN)/somo-sweep show results/finger_pressure_sweep
