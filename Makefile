@@ -5,7 +5,7 @@ BIN    := $(VENV)/bin
 STAMP  := $(VENV)/.installed-stamp
 
 .DEFAULT_GOAL := help
-.PHONY: help install demo test test-slow lint format bench clean sweep-demo
+.PHONY: help install demo test test-slow lint format bench clean fig8 fig8-quick sweep-demo
 
 help: ## List the targets
 	@grep -E '^[a-zA-Z0-9_-]+:.*?## ' $(MAKEFILE_LIST) | awk 'BEGIN {FS = ":.*?## "}; {printf "  make %-12s %s\n", $$1, $$2}'
@@ -43,6 +43,12 @@ bench: $(STAMP) ## Speed benchmark: ms per step of the two-finger grasp, Bullet 
 
 fig3: $(STAMP) ## Paper Fig. 3: blocked force vs pressure, eq. (8)/(9) and fit vs published values
 	$(BIN)/python -m somo_sweep.fig3 results/figures
+
+fig8: $(STAMP) ## Paper Fig. 8: snake with isotropic vs anisotropic friction (10 s each)
+	$(BIN)/python -m somo_sweep.fig8 --out results/figures
+
+fig8-quick: $(STAMP) ## Fig. 8 with 3-s runs
+	$(BIN)/python -m somo_sweep.fig8 --out results/figures --quick
 
 sweep-demo: $(STAMP) ## Run the example study (27 trials) and print its summary
 	$(BIN)/somo-sweep run studies/finger_pressure_sweep.yaml --overwrite

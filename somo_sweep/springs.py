@@ -91,6 +91,16 @@ class SpringDrive:
             raise ValueError(f"expected {self.n_inputs} inputs, got {len(inputs_si)}")
         self._u = self._b @ np.asarray(inputs_si, dtype=float)
 
+    def set_joint_inputs(self, inputs_si: Sequence[float] | np.ndarray) -> None:
+        """Set one input per spring joint (N·m / N), bypassing the actuator axes.
+
+        For distributed actuation where every joint gets its own effort (a
+        travelling torque wave along a snake, say). Replaces the axis inputs.
+        """
+        if len(inputs_si) != len(self.joints):
+            raise ValueError(f"expected {len(self.joints)} joint inputs, got {len(inputs_si)}")
+        self._u = np.asarray(inputs_si, dtype=float) * self.effort_scale
+
     def read(self) -> None:
         """Read joint positions and velocities (scaled world) into ``q`` and ``qd``."""
         states = p.getJointStates(self.body, self.indices, physicsClientId=self.client)
