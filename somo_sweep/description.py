@@ -356,11 +356,16 @@ class Pose(Spec):
 
 
 class Mount(Spec):
-    """A manipulator placed in an assembly (pose relative to the assembly base)."""
+    """A manipulator placed in an assembly.
+
+    The pose is relative to the assembly base, or, with ``attach_to``, to the tip
+    of an earlier manipulator of the same assembly (soft fingers on a rigid arm).
+    """
 
     name: str
     manipulator: Manipulator
     pose: Pose = Pose()
+    attach_to: str | None = None
 
 
 class RigidBody(Spec):
@@ -390,6 +395,17 @@ class Assembly(Spec):
         dupes = sorted({n for n in names if names.count(n) > 1})
         if dupes:
             raise ValueError(f"names must be unique, repeated: {', '.join(dupes)}")
+        earlier: list[str] = []
+        for mount in self.manipulators:
+            if mount.attach_to is not None:
+                if self.base.link is None:
+                    raise ValueError(f"'{mount.name}' attaches to '{mount.attach_to}': needs a base link")
+                if mount.attach_to not in earlier:
+                    raise ValueError(
+                        f"'{mount.name}'.attach_to must name an earlier manipulator "
+                        f"({', '.join(earlier) or 'none'}), got '{mount.attach_to}'"
+                    )
+            earlier.append(mount.name)
         return self
 
     @property

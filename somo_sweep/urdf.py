@@ -321,7 +321,13 @@ def plan_assembly(assembly: Assembly, scale: float, pose: Pose | None = None) ->
         b.link(LinkInfo(root, base.link, "root"), np.zeros(3))
         for mount in assembly.manipulators:
             manip = mount.manipulator.model_copy(update={"name": mount.name})
-            b.add_manipulator(manip, mount.name, root, np.asarray(mount.pose.position_m), mount.pose.rpy_rad)
+            parent, offset = root, np.zeros(3)
+            if mount.attach_to is not None:  # on the tip of an earlier manipulator
+                parent, tip_point = b.tip[mount.attach_to]
+                offset = np.asarray(tip_point)
+            b.add_manipulator(
+                manip, mount.name, parent, offset + np.asarray(mount.pose.position_m), mount.pose.rpy_rad
+            )
         plans.append(
             BodyPlan(
                 assembly.name,

@@ -214,3 +214,35 @@ def test_stiffness_profile_scales_joints() -> None:
     bad["manipulator"]["actuators"][0]["stiffness_profile"] = [1.0] * 3
     with pytest.raises(DescriptionError, match="needs 10 entries"):
         model_from_dict(bad)
+
+
+def test_four_finger_hand_with_palm_loads() -> None:
+    model = load_model(MODELS / "ihm_hand.yaml")
+    plans = plan_assembly(model.as_assembly(), 20.0)
+    assert [p.name for p in plans] == ["ihm_hand", "palm"]  # hand body + the fixed palm the cube rests on
+    hand = plans[0]
+    assert len(hand.joints) == 4 * 10 and len(hand.inputs) == 8
+    assert len(hand.links) == 1 + 4 * (1 + 10 + 1)
+
+
+def test_rigid_arm_carries_soft_fingers_at_its_tip() -> None:
+    import numpy as np
+
+    from somo_sweep.world import World, WorldSettings
+
+    model = load_model(MODELS / "arm_with_fingers.yaml")
+    plan = plan_assembly(model.as_assembly(), 20.0)[0]
+    assert plan.inputs[:2] == ["arm/shoulder/pitch", "arm/elbow/pitch"] and len(plan.joints) == 2 + 2 * 10
+    with World(WorldSettings(gravity_m_s2=(0, 0, 0))) as world:
+        handle = world.add_model(model)
+        body = handle.bodies[0]
+        arm_tip = world.tip_position(body, "arm")
+        base = world.link_frame(body, "left__base")[0]
+    assert np.linalg.norm(base - arm_tip) == pytest.approx(0.02, abs=1e-6)  # mounted 20 mm off the arm tip
+
+
+def test_attach_to_must_name_an_earlier_manipulator() -> None:
+    data = load_yaml("pinch_gripper.yaml")
+    data["assembly"]["manipulators"][0]["attach_to"] = "right"
+    with pytest.raises(DescriptionError, match="attach_to must name an earlier manipulator"):
+        model_from_dict(data, "g.yaml", MODELS)
