@@ -20,6 +20,7 @@ A study file (YAML or JSON) looks like this; paths are relative to the study fil
     simulation: {time_step_s: 5.0e-4, scale: 20, solver_iterations: 50, gravity_m_s2: [0, 0, -9.81]}
     output: results/finger_pressure_sweep   # relative to the current directory
 
+In YAML flow style (``{...}``) quote keys holding ``[i]``; block style needs no quotes.
 Key paths start with ``model.`` (any field of the model file, list items as ``[i]``)
 or ``task.`` (a task parameter, nested with dots). The axis ``model`` (no path) sweeps
 over model files. An axis is a list, ``{values: [...]}``, ``{start, stop, step}``

@@ -121,6 +121,24 @@ def test_a_dying_trial_process_is_an_error_and_the_sweep_goes_on(tmp_path: Path)
     assert df.loc[(3.0, "segfault"), "y"] == 9.0
 
 
+def test_an_exception_in_a_trial_is_an_error_with_its_message(tmp_path: Path) -> None:
+    path = selftest_study(
+        tmp_path, task="selftest_crash", extra="set: {task.crash_x: [2.0], task.how: raise}", n=3
+    )
+    summary = run_study(load_study(path, tmp_path / "out"), n_jobs=1)
+    assert summary.by_status == {"ok": 2, "error": 1}
+    df = read_results(tmp_path / "out").set_index("task_x")
+    assert df.loc[2.0, "message"] == "RuntimeError: selftest failure at x=2.0"
+
+
+def test_identical_trials_are_refused(tmp_path: Path) -> None:
+    path = make_study(
+        tmp_path, "task: selftest_sleep\nmodel: models/ihm_finger.yaml\nsweep: {task.x: [1.0, 2.0, 1.0]}\n"
+    )
+    with pytest.raises(SomoError, match="trials 0 and 2 are identical"):
+        build_jobs(load_study(path))
+
+
 def test_first_rows_without_metrics_still_give_one_readable_schema(tmp_path: Path) -> None:
     path = selftest_study(tmp_path, task="selftest_crash", extra="set: {task.crash_x: [1.0, 2.0]}", n=4)
     run_study(load_study(path, tmp_path / "out"), n_jobs=1, chunk_rows=1)

@@ -2,7 +2,8 @@
 
 * ``selftest_sleep``: sleeps ``sleep_s`` and returns metrics computed from ``x`` and the seed.
 * ``selftest_crash``: like ``selftest_sleep``, but the process running the trial dies when
-  ``x`` is in ``crash_x`` (``how``: ``exit`` = ``os._exit(3)``, ``segfault``, ``kill`` = SIGKILL).
+  ``x`` is in ``crash_x`` (``how``: ``exit`` = ``os._exit(3)``, ``segfault``, ``kill`` = SIGKILL),
+  or raises an exception (``how: raise``).
 * ``selftest_unstable``: like ``selftest_sleep``, but reports a blow-up when ``x`` is in
   ``unstable_x`` (raises :class:`~somo_sweep.errors.UnstableSimulation`, as the core does).
 
@@ -35,7 +36,7 @@ class SelftestParams(BaseModel):
         x: Input value (dimensionless).
         sleep_s: Wall time to sleep per trial, s.
         crash_x: Values of ``x`` whose trial kills its process (``selftest_crash``).
-        how: How to die: ``exit``, ``segfault`` or ``kill``.
+        how: How to fail: ``exit``, ``segfault``, ``kill`` (the process dies) or ``raise``.
         unstable_x: Values of ``x`` reported unstable (``selftest_unstable``).
     """
 
@@ -44,7 +45,7 @@ class SelftestParams(BaseModel):
     x: float = 0.0
     sleep_s: float = Field(0.0, ge=0)
     crash_x: list[float] = Field(default_factory=list)
-    how: Literal["exit", "segfault", "kill"] = "exit"
+    how: Literal["exit", "segfault", "kill", "raise"] = "exit"
     unstable_x: list[float] = Field(default_factory=list)
 
 
@@ -63,6 +64,8 @@ def _sleep(model: Model, params: SelftestParams, settings: WorldSettings, seed: 
 
 def _crash(model: Model, params: SelftestParams, settings: WorldSettings, seed: int) -> TaskResult:
     if params.x in params.crash_x:
+        if params.how == "raise":
+            raise RuntimeError(f"selftest failure at x={params.x}")
         if params.how == "segfault":
             ctypes.string_at(0)
         elif params.how == "kill":
