@@ -115,12 +115,16 @@ def _now() -> str:
 
 
 def _arrow_type(values: list[Any]) -> pa.DataType:
-    kinds = {type(v) for v in values if v is not None}
+    kinds = {
+        bool if isinstance(v, bool) else int if isinstance(v, int) else float if isinstance(v, float) else str
+        for v in values
+        if v is not None
+    }
     if not kinds:
         return pa.null()
-    if kinds <= {bool}:
+    if kinds == {bool}:
         return pa.bool_()
-    if kinds <= {int}:
+    if kinds == {int}:
         return pa.int64()
     if kinds <= {int, float, bool}:
         return pa.float64()

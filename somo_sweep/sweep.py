@@ -7,6 +7,7 @@ and on SIGINT / SIGTERM writes every finished trial before returning.
 
 from __future__ import annotations
 
+import json
 import os
 import shutil
 import signal
@@ -17,6 +18,8 @@ from contextlib import contextmanager
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
+
+import numpy as np
 
 from somo_sweep.execution import Backend, Outcome, execute
 from somo_sweep.jobs import Job, JobTable, build_jobs
@@ -75,10 +78,19 @@ def outcome_row(job: Job, out: Outcome, study_hash: str) -> dict[str, Any]:
         **job.columns,
     }
     for name, value in out.metrics.items():
-        row[f"metric_{name}" if name in row or name in FIXED else name] = value
+        row[f"metric_{name}" if name in row or name in FIXED else name] = _scalar(value)
     for name, value in out.labels.items():
-        row[f"label_{name}"] = value
+        row[f"label_{name}"] = str(value)
     return row
+
+
+def _scalar(value: Any) -> Any:
+    """A plain Python scalar for a table cell (NumPy scalars unwrapped, sequences as JSON)."""
+    if isinstance(value, np.generic):
+        return value.item()
+    if isinstance(value, np.ndarray | list | tuple | dict):
+        return json.dumps(value.tolist() if isinstance(value, np.ndarray) else value, default=str)
+    return value
 
 
 class _Stop(KeyboardInterrupt):

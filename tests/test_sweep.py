@@ -60,6 +60,7 @@ def test_run_writes_one_row_per_trial_with_params_metrics_labels_and_provenance(
         df.columns
     )
     assert (df["y"] == df["task_x"] ** 2).all()
+    assert df["noise"].dtype == "float64" and df["label_sign"].eq("positive").all()
     manifest = read_manifest(tmp_path / "out")
     assert manifest["study_hash"] == df["study_hash"].iloc[0]
     assert {"python", "pybullet", "somo-sweep"} <= set(manifest["versions"])

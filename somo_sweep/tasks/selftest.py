@@ -51,7 +51,7 @@ class SelftestParams(BaseModel):
 
 def _result(params: SelftestParams, seed: int) -> TaskResult:
     time.sleep(params.sleep_s)
-    noise = float(np.random.default_rng(seed).normal())
+    noise = np.random.default_rng(seed).normal()  # a NumPy scalar, as tasks often return
     return TaskResult(
         metrics={"y": params.x**2, "noise": noise, "time_s": params.sleep_s},
         labels={"sign": "positive" if params.x > 0 else "non_positive"},
