@@ -32,6 +32,7 @@ from somo_sweep.paper_formulas import actuation_torque_from_blocked_force, joint
 
 __all__ = [
     "AXES",
+    "CALIBRATION_SETTINGS",
     "CalibrationProblem",
     "CalibrationResult",
     "Parameter",

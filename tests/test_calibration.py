@@ -225,6 +225,16 @@ def test_fig3_data_reproduce_the_published_values_and_say_so() -> None:
         np.testing.assert_allclose(k, stiffness, rtol=1e-5)
 
 
+def test_the_coarser_calibration_step_agrees_with_the_reference_step() -> None:
+    from somo_sweep.calibration import CALIBRATION_SETTINGS
+
+    plan = bench_plan([0.1], [240], [240])
+    manip = _small_truth().manipulator
+    coarse = simulate_rows(manip, plan, CALIBRATION_SETTINGS)
+    reference = simulate_rows(manip, plan, BenchSettings(time_step_s=5e-4))
+    np.testing.assert_allclose(coarse, reference, rtol=2e-4)
+
+
 def test_rows_simulate_identically_with_one_or_two_workers() -> None:
     plan = bench_plan([0.05], [100], [200])
     manip = _small_truth().manipulator

@@ -5,6 +5,7 @@ from __future__ import annotations
 import json
 import os
 import tempfile
+from dataclasses import replace
 from pathlib import Path
 from typing import Annotated
 
@@ -65,11 +66,14 @@ def calibrate(
     method: Annotated[str, typer.Option(help="fit (simulator in the loop) or paper (eq. 8 and 9).")] = "fit",
     report: Annotated[Path | None, typer.Option(help="Folder for plots and a JSON summary.")] = None,
     jobs: Annotated[int, typer.Option(help="Worker processes for the bench rows.")] = 2,
+    gravity_m_s2: Annotated[
+        float, typer.Option(help="Gravity on the bench, m/s² (0: a horizontal, weightless bench).")
+    ] = 9.81,
 ) -> None:
     """Calibrate joint stiffness and pressure→torque gain; write the calibrated model."""
     from rich.console import Console
 
-    from somo_sweep.calibration import build_problem, solve_fit, solve_paper
+    from somo_sweep.calibration import CALIBRATION_SETTINGS, build_problem, solve_fit, solve_paper
     from somo_sweep.calibration_report import model_yaml, results_table, summary, with_provenance
     from somo_sweep.finger_builder import planar_finger
     from somo_sweep.measurements import read_measurements
@@ -96,8 +100,9 @@ def calibrate(
             base = planar_finger(
                 length_mm * 1e-3, segments, mass_g * 1e-3, width_mm * 1e-3, thickness_mm * 1e-3
             )
+        settings = replace(CALIBRATION_SETTINGS, gravity_m_s2=gravity_m_s2)
         problem = build_problem(
-            rows, base, str(measurements), min_rows_per_parameter=2 if method == "fit" else 1
+            rows, base, str(measurements), settings, min_rows_per_parameter=2 if method == "fit" else 1
         )
         console.print(problem.describe(), markup=False)
         solve = solve_fit if method == "fit" else solve_paper
