@@ -168,9 +168,10 @@ def build_jobs(study: Study) -> JobTable:
     overrides = sorted({*study.fixed, *(a.key for a in study.axes)} - {"model"})
     jobs: list[Job] = []
     seen: dict[str, int] = {}
+    hashes: dict[int, str] = {}  # the study hands out one object per distinct model
     for point in study.points():
         model_path, model, params = study.resolve(point)
-        model_hash = model.content_hash()
+        model_hash = hashes.get(id(model)) or hashes.setdefault(id(model), model.content_hash())
         values = {**study.fixed, **point}
         columns: dict[str, Any] = {}
         _flatten("task", params.model_dump(mode="json"), columns)
