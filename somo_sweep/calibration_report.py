@@ -90,7 +90,7 @@ def results_table(result: CalibrationResult) -> tuple[Table, Table]:
     """Two rich tables: the calibrated parameters, and per-test agreement."""
     params = Table(title=f"calibrated parameters (method: {result.method})")
     for col in ("parameter", "value", "unit", "start", "rel. std. error"):
-        params.add_column(col, justify="left" if col in ("parameter", "unit") else "right")
+        params.add_column(col, justify="left" if col in ("parameter", "unit") else "right", no_wrap=True)
     for p in result.problem.parameters:
         err = result.relative_stderr.get(p.name)
         params.add_row(
@@ -102,7 +102,7 @@ def results_table(result: CalibrationResult) -> tuple[Table, Table]:
         )
     tests = Table(title="measured vs simulated")
     for col in ("test", "role", "rows", "RMSE", "unit", "relative RMSE"):
-        tests.add_column(col, justify="left" if col in ("test", "role", "unit") else "right")
+        tests.add_column(col, justify="left" if col in ("test", "role", "unit") else "right", no_wrap=True)
     for m in result.metrics:
         tests.add_row(escape(m.label), m.role, str(m.rows), f"{m.rmse:.4g}", m.unit, f"{m.relative_rmse:.2%}")
     return params, tests

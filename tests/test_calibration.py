@@ -155,6 +155,26 @@ def test_problem_says_which_rows_calibrate_and_which_validate() -> None:
     assert "validation rows: free_bending (13: lines 28, 29" in problem.describe()
 
 
+def test_problem_extends_with_an_extra_effect_parameter() -> None:
+    """Diagnosis (issue 6) appends parameters; residuals and solvers stay the same."""
+    from dataclasses import replace
+
+    from somo_sweep.calibration import Parameter
+
+    def set_tip_mass(manip, value):  # type: ignore[no-untyped-def]
+        link = manip.actuators[0].link.model_copy(update={"mass_kg": value})
+        return manip.model_copy(update={"actuators": [manip.actuators[0].model_copy(update={"link": link})]})
+
+    problem = build_problem(read_measurements(SYNTHETIC), _example_base(), str(SYNTHETIC))
+    extended = replace(
+        problem, parameters=(*problem.parameters, Parameter("link_mass_kg", "kg", 1e-3, set_tip_mass))
+    )
+    manip = extended.manipulator_at([0.5, 2e-4, 3e-3])
+    assert manip.actuators[0].joints[0].stiffness_n_m_per_rad == pytest.approx(0.5)
+    assert manip.actuation is not None and manip.actuation.pressure_gain_n_m_per_kpa == pytest.approx(2e-4)
+    assert manip.actuators[0].link.mass_kg == pytest.approx(3e-3)
+
+
 def _small_truth():  # type: ignore[no-untyped-def]
     return planar_finger(0.1, 8, 0.02, stiffness_n_m_per_rad=0.3, pressure_gain_n_m_per_kpa=1.5e-4)
 

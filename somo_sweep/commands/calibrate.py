@@ -83,7 +83,7 @@ def calibrate(
         fail(SomoError(f"--method '{method}' is not known; allowed: {', '.join(METHODS)}"))
     if jobs < 1:
         fail(SomoError(f"--jobs must be >= 1, got {jobs}"))
-    console = Console(stderr=False)
+    console = Console(width=max(Console().width, 100))  # tables fit when piped (default 80)
     try:
         rows = read_measurements(measurements)
         if model is not None:
