@@ -9,7 +9,7 @@ import pandas as pd
 from matplotlib.axes import Axes
 from matplotlib.figure import Figure
 
-from somo_sweep.results import FIXED, unit_of
+from somo_sweep.schema import FIXED, unit_of
 
 __all__ = ["metric_columns", "plot_metric", "plot_status", "summary_figure"]
 

@@ -25,7 +25,6 @@ import shutil
 import socket
 import sys
 import uuid
-from dataclasses import dataclass
 from datetime import UTC, datetime
 from importlib.metadata import PackageNotFoundError, version
 from pathlib import Path
@@ -36,70 +35,9 @@ import pyarrow as pa
 import pyarrow.parquet as pq
 
 from somo_sweep.errors import SomoError
+from somo_sweep.schema import COLUMNS, FIXED, arrow_type, merge_types, unit_of
 
-__all__ = ["COLUMNS", "Column", "ResultStore", "read_manifest", "read_results", "unit_of"]
-
-
-@dataclass(frozen=True)
-class Column:
-    """A fixed column of the trials table: name, Arrow type, unit and meaning."""
-
-    name: str
-    type: str
-    unit: str
-    description: str
-
-
-#: The fixed columns of every trials table. Besides them: ``task_*`` (task parameters),
-#: ``model_*`` (model overrides), the task's metrics under their own names, and
-#: ``label_*`` (the task's labels); their units come from their name suffix (:func:`unit_of`).
-COLUMNS: tuple[Column, ...] = (
-    Column(
-        "job_id", "string", "", "stable id: hash of task, parameters, model content, settings, seed, code"
-    ),
-    Column("trial", "int64", "", "position in the study's grid order"),
-    Column("repeat", "int64", "", "repeat number at this grid point"),
-    Column("seed", "int64", "", "random seed given to the task"),
-    Column("status", "string", "", "ok, unstable (integration blew up) or error"),
-    Column("message", "string", "", "why the status is not ok"),
-    Column("wall_time_s", "double", "s", "wall time of the trial"),
-    Column("host", "string", "", "host that ran the trial"),
-    Column("model_file", "string", "", "model file, relative to the study file"),
-    Column("model_hash", "string", "", "hash of the model content after overrides"),
-    Column("study_hash", "string", "", "hash of the study the row belongs to"),
-)
-FIXED = {c.name for c in COLUMNS}
-
-_UNITS = {
-    "n_m_s_per_rad": "N·m·s/rad",
-    "n_m_per_rad": "N·m/rad",
-    "n_m_per_kpa": "N·m/kPa",
-    "n_per_m": "N/m",
-    "n_s_per_m": "N·s/m",
-    "kg_m2": "kg·m²",
-    "m_s2": "m/s²",
-    "rad_s": "rad/s",
-    "m_s": "m/s",
-    "n_m": "N·m",
-    "kpa": "kPa",
-    "psi": "psi",
-    "deg": "deg",
-    "rad": "rad",
-    "mm": "mm",
-    "kg": "kg",
-    "m": "m",
-    "n": "N",
-    "s": "s",
-    "g": "g",
-}
-
-
-def unit_of(name: str) -> str:
-    """The unit a column name ends with (``tip_force_n`` → ``N``), or ``""``."""
-    for suffix in sorted(_UNITS, key=len, reverse=True):
-        if name.endswith(f"_{suffix}"):
-            return _UNITS[suffix]
-    return ""
+__all__ = ["ResultStore", "read_manifest", "read_results"]
 
 
 def _versions() -> dict[str, str]:
@@ -112,33 +50,6 @@ def _versions() -> dict[str, str]:
 
 def _now() -> str:
     return datetime.now(UTC).isoformat(timespec="seconds")
-
-
-def _arrow_type(values: list[Any]) -> pa.DataType:
-    kinds = {
-        bool if isinstance(v, bool) else int if isinstance(v, int) else float if isinstance(v, float) else str
-        for v in values
-        if v is not None
-    }
-    if not kinds:
-        return pa.null()
-    if kinds == {bool}:
-        return pa.bool_()
-    if kinds == {int}:
-        return pa.int64()
-    if kinds <= {int, float, bool}:
-        return pa.float64()
-    return pa.string()
-
-
-def _merge(a: pa.DataType, b: pa.DataType) -> pa.DataType:
-    if a == b or b == pa.null():
-        return a
-    if a == pa.null():
-        return b
-    if {a, b} <= {pa.bool_(), pa.int64(), pa.float64()}:
-        return pa.float64()
-    return pa.string()
 
 
 def read_manifest(folder: str | Path) -> dict[str, Any]:
@@ -215,7 +126,7 @@ class ResultStore:
         for c in COLUMNS:
             self.types.setdefault(c.name, pa.type_for_alias(c.type))
         for name, values in param_types.items():
-            self.types[name] = _merge(self.types.get(name, pa.null()), _arrow_type(values))
+            self.types[name] = merge_types(self.types.get(name, pa.null()), arrow_type(values))
         # Unique per run, so that a resumed run never overwrites an earlier part file.
         self.run_id = f"{datetime.now(UTC):%Y%m%dT%H%M%S}-{uuid.uuid4().hex[:8]}"
         self.seq = 0
@@ -279,7 +190,7 @@ class ResultStore:
         names = list(dict.fromkeys(k for r in rows for k in r))
         widened = False
         for name in names:
-            new = _merge(self.types.get(name, pa.null()), _arrow_type([r.get(name) for r in rows]))
+            new = merge_types(self.types.get(name, pa.null()), arrow_type([r.get(name) for r in rows]))
             if new != self.types.get(name):
                 widened = True
                 self.types[name] = new

@@ -36,7 +36,6 @@ import copy
 import itertools
 import json
 import math
-import re
 from collections.abc import Iterator
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -44,19 +43,16 @@ from typing import Any
 
 from pydantic import BaseModel, Field
 
+from somo_sweep.axes import Axis, expand_axis, link_groups, parse_key_path, set_path
 from somo_sweep.description import Spec
-from somo_sweep.errors import DescriptionError, Problem, SomoError, did_you_mean
+from somo_sweep.errors import DescriptionError, Problem, SomoError
 from somo_sweep.fileio import load_mapping
 from somo_sweep.models import Model, model_from_dict
 from somo_sweep.tasks.registry import TaskSpec, get_task
 from somo_sweep.validation import validate
 from somo_sweep.world import WorldSettings
 
-__all__ = ["Axis", "Simulation", "Study", "StudyFile", "load_study", "parse_key_path"]
-
-#: Significant digits kept when a range is expanded (kills 0.30000000000000004).
-RANGE_DIGITS = 12
-_TOKEN = re.compile(r"\.?([A-Za-z_][A-Za-z0-9_]*)|\[(\d+)\]")
+__all__ = ["Simulation", "Study", "StudyFile", "load_model_dict", "load_study"]
 
 
 class Simulation(Spec):
@@ -91,108 +87,6 @@ class StudyFile(Spec):
     seed: int = Field(0, ge=0)
     simulation: Simulation = Simulation()
     output: str | None = None
-
-
-@dataclass(frozen=True)
-class Axis:
-    """One sweep axis: a key path and its values (already expanded)."""
-
-    key: str
-    values: tuple[Any, ...]
-
-
-def parse_key_path(key: str) -> tuple[str, list[str | int]]:
-    """Split ``model.a.b[0].c`` into its root (``model`` / ``task``) and path parts.
-
-    Raises:
-        ValueError: Malformed path or unknown root; the message says what is allowed.
-    """
-    parts: list[str | int] = []
-    pos = 0
-    while pos < len(key):
-        m = _TOKEN.match(key, pos)
-        if not m or (pos == 0 and key.startswith((".", "["))):
-            raise ValueError(f"malformed key path '{key}' at character {pos + 1}; write e.g. model.a.b[0].c")
-        parts.append(m.group(1) if m.group(1) is not None else int(m.group(2)))
-        pos = m.end()
-    if not parts or parts[0] not in ("model", "task"):
-        raise ValueError(f"key path '{key}' must start with 'model.' or 'task.'")
-    if parts == ["task"]:
-        raise ValueError("key path 'task' needs a parameter, e.g. task.pressure_kpa")
-    return str(parts[0]), parts[1:]
-
-
-def _set_path(data: Any, parts: list[str | int], value: Any) -> None:
-    """Set ``data[parts...] = value`` in nested dicts / lists; missing dict keys are created."""
-    node = data
-    for i, part in enumerate(parts):
-        last = i == len(parts) - 1
-        if isinstance(part, int):
-            if not isinstance(node, list):
-                raise ValueError(f"[{part}] indexes a list, but the value there is {type(node).__name__}")
-            if part >= len(node):
-                raise ValueError(f"index [{part}] is out of range (the list has {len(node)} item(s))")
-        elif not isinstance(node, dict):
-            raise ValueError(f"'{part}' is a key, but the value there is {node!r}")
-        if last:
-            node[part] = copy.deepcopy(value)
-        else:
-            if isinstance(node, dict) and node.get(part) is None:
-                node[part] = {} if isinstance(parts[i + 1], str) else []
-            node = node[part]
-
-
-def _clean(v: float) -> float:
-    return float(f"{v:.{RANGE_DIGITS}g}")
-
-
-def expand_axis(spec: Any, where: str) -> tuple[list[Any], list[Problem]]:
-    """Values of one axis spec; problems are reported against key path ``where``."""
-    if isinstance(spec, list):
-        return (spec, []) if spec else ([], [Problem(where, "an axis needs at least one value, got []")])
-    if not isinstance(spec, dict):
-        return [], [
-            Problem(
-                where,
-                f"an axis is a list, {{values}}, {{start, stop, step}} or {{start, stop, num}}; got {spec!r}",
-            )
-        ]
-    keys = set(spec)
-    names = ["values", "start", "stop", "step", "num"]
-    if keys not in ({"values"}, {"start", "stop", "step"}, {"start", "stop", "num"}):
-        unknown = sorted(keys - set(names))
-        hint = f"unknown key '{unknown[0]}'{did_you_mean(unknown[0], names)}; " if unknown else ""
-        shape = "{values}, {start, stop, step} or {start, stop, num}"
-        got = "{" + ", ".join(sorted(keys)) + "}"
-        return [], [Problem(where, f"{hint}an axis mapping has keys {shape}; got {got}")]
-    if keys == {"values"}:
-        return expand_axis(spec["values"], f"{where}.values")
-    problems = []
-    for k in sorted(keys):
-        v = spec[k]
-        if isinstance(v, bool) or not isinstance(v, int | float) or not math.isfinite(v):
-            problems.append(Problem(f"{where}.{k}", f"must be a finite number, got {v!r}"))
-    if problems:
-        return [], problems
-    start, stop = spec["start"], spec["stop"]
-    if "num" in keys:
-        num = spec["num"]
-        if not isinstance(num, int) or num < 1:
-            return [], [Problem(f"{where}.num", f"must be an integer >= 1, got {num!r}")]
-        if num == 1:
-            return [start], []
-        return [_clean(start + (stop - start) * i / (num - 1)) for i in range(num)], []
-    step = spec["step"]
-    if step <= 0:
-        return [], [Problem(f"{where}.step", f"must be > 0, got {step!r}")]
-    if stop < start:
-        return [], [
-            Problem(f"{where}.stop", f"must be >= start ({start!r}) for an inclusive range, got {stop!r}")
-        ]
-    n = math.floor((stop - start) / step + 1e-9) + 1
-    if all(isinstance(spec[k], int) for k in ("start", "stop", "step")):
-        return [start + i * step for i in range(n)], []
-    return [_clean(start + i * step) for i in range(n)], []
 
 
 def _canonical(obj: Any) -> str:
@@ -281,7 +175,7 @@ class Study:
             problems = []
             for path, value in over.items():
                 try:
-                    _set_path(data, parse_key_path(path)[1], value)
+                    set_path(data, parse_key_path(path)[1], value)
                 except ValueError as exc:
                     problems.append(Problem(path, str(exc)))
             if problems:
@@ -302,7 +196,7 @@ class Study:
             data = copy.deepcopy(self.params)
             for path, value in over.items():
                 try:
-                    _set_path(data, parse_key_path(path)[1], value)
+                    set_path(data, parse_key_path(path)[1], value)
                 except ValueError as exc:
                     raise DescriptionError(self.source, [Problem(path, str(exc))]) from None
             self._params[key] = validate(self.task.params_model, data, str(self.source), prefix="task")
@@ -373,7 +267,9 @@ def load_study(path: str | Path, output: str | Path | None = None) -> Study:
         if len(problems) > before:
             bad.add(key)
     n_before = len(problems)
-    groups = _groups(raw.link, [a.key for a in axes], {a.key: len(a.values) for a in axes}, lines, problems)
+    groups = link_groups(
+        raw.link, [a.key for a in axes], {a.key: len(a.values) for a in axes}, lines, problems
+    )
     name = raw.name or path.stem
     out = Path(output) if output is not None else Path(raw.output or f"results/{name}")
     study = Study(
@@ -407,47 +303,6 @@ def load_study(path: str | Path, output: str | Path | None = None) -> Study:
     if problems:
         raise DescriptionError(src, problems)
     return study
-
-
-def _groups(
-    link: list[list[str]],
-    keys: list[str],
-    sizes: dict[str, int],
-    lines: dict[str, int],
-    problems: list[Problem],
-) -> list[list[str]]:
-    """Axis groups in file order: each linked list is one group, other axes their own."""
-    owner: dict[str, int] = {}
-    for i, group in enumerate(link):
-        where = f"link[{i}]"
-        for key in group:
-            if key not in sizes:
-                problems.append(
-                    Problem(
-                        where,
-                        f"'{key}' is not a sweep axis{did_you_mean(key, keys)}; axes: {', '.join(keys)}",
-                        lines.get(where),
-                    )
-                )
-            elif key in owner:
-                problems.append(Problem(where, f"axis '{key}' is linked twice", lines.get(where)))
-            else:
-                owner[key] = i
-        lengths = {k: sizes[k] for k in group if k in sizes}
-        if len(set(lengths.values())) > 1:
-            shown = ", ".join(f"{k} has {n}" for k, n in lengths.items())
-            problems.append(
-                Problem(where, f"linked axes must have the same number of values: {shown}", lines.get(where))
-            )
-    groups: list[list[str]] = []
-    seen: set[int] = set()
-    for key in keys:
-        if key not in owner:
-            groups.append([key])
-        elif owner[key] not in seen:
-            seen.add(owner[key])
-            groups.append([k for k in link[owner[key]] if k in sizes])
-    return groups
 
 
 def _check_points(study: Study, lines: dict[str, int], problems: list[Problem]) -> None:

@@ -23,7 +23,8 @@ import numpy as np
 
 from somo_sweep.execution import Backend, Outcome, execute
 from somo_sweep.jobs import Job, JobTable, build_jobs
-from somo_sweep.results import FIXED, ResultStore
+from somo_sweep.results import ResultStore
+from somo_sweep.schema import FIXED
 from somo_sweep.study import Study
 
 __all__ = ["RunSummary", "outcome_row", "run_study"]

@@ -8,8 +8,9 @@ from pathlib import Path
 
 import pytest
 
+from somo_sweep.axes import expand_axis, parse_key_path
 from somo_sweep.errors import DescriptionError
-from somo_sweep.study import expand_axis, load_study, parse_key_path
+from somo_sweep.study import load_study
 from tests.conftest import MODELS, ROOT
 
 STIFFNESS = "model.manipulator.actuators[0].joints[0].stiffness_n_m_per_rad"

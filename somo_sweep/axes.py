@@ -1,0 +1,166 @@
+"""Sweep axes: key paths into the model and the task, axis values, linked groups.
+
+A key path is ``model.<field path>`` or ``task.<parameter path>``, with list items as
+``[i]`` (``model.manipulator.actuators[0].length_m``). An axis spec is a list,
+``{values: [...]}``, an inclusive ``{start, stop, step}`` range (float round-off is
+cleaned to :data:`RANGE_DIGITS` significant digits) or ``{start, stop, num}``.
+"""
+
+from __future__ import annotations
+
+import copy
+import math
+import re
+from dataclasses import dataclass
+from typing import Any
+
+from somo_sweep.errors import Problem, did_you_mean
+
+__all__ = ["RANGE_DIGITS", "Axis", "expand_axis", "link_groups", "parse_key_path", "set_path"]
+
+#: Significant digits kept when a range is expanded (kills 0.30000000000000004).
+RANGE_DIGITS = 12
+_TOKEN = re.compile(r"\.?([A-Za-z_][A-Za-z0-9_]*)|\[(\d+)\]")
+
+
+@dataclass(frozen=True)
+class Axis:
+    """One sweep axis: a key path and its values (already expanded)."""
+
+    key: str
+    values: tuple[Any, ...]
+
+
+def parse_key_path(key: str) -> tuple[str, list[str | int]]:
+    """Split ``model.a.b[0].c`` into its root (``model`` / ``task``) and path parts.
+
+    Raises:
+        ValueError: Malformed path or unknown root; the message says what is allowed.
+    """
+    parts: list[str | int] = []
+    pos = 0
+    while pos < len(key):
+        m = _TOKEN.match(key, pos)
+        if not m or (pos == 0 and key.startswith((".", "["))):
+            raise ValueError(f"malformed key path '{key}' at character {pos + 1}; write e.g. model.a.b[0].c")
+        parts.append(m.group(1) if m.group(1) is not None else int(m.group(2)))
+        pos = m.end()
+    if not parts or parts[0] not in ("model", "task"):
+        raise ValueError(f"key path '{key}' must start with 'model.' or 'task.'")
+    if parts == ["task"]:
+        raise ValueError("key path 'task' needs a parameter, e.g. task.pressure_kpa")
+    return str(parts[0]), parts[1:]
+
+
+def set_path(data: Any, parts: list[str | int], value: Any) -> None:
+    """Set ``data[parts...] = value`` in nested dicts / lists; missing dict keys are created."""
+    node = data
+    for i, part in enumerate(parts):
+        last = i == len(parts) - 1
+        if isinstance(part, int):
+            if not isinstance(node, list):
+                raise ValueError(f"[{part}] indexes a list, but the value there is {type(node).__name__}")
+            if part >= len(node):
+                raise ValueError(f"index [{part}] is out of range (the list has {len(node)} item(s))")
+        elif not isinstance(node, dict):
+            raise ValueError(f"'{part}' is a key, but the value there is {node!r}")
+        if last:
+            node[part] = copy.deepcopy(value)
+        else:
+            if isinstance(node, dict) and node.get(part) is None:
+                node[part] = {} if isinstance(parts[i + 1], str) else []
+            node = node[part]
+
+
+def _clean(v: float) -> float:
+    return float(f"{v:.{RANGE_DIGITS}g}")
+
+
+def expand_axis(spec: Any, where: str) -> tuple[list[Any], list[Problem]]:
+    """Values of one axis spec; problems are reported against key path ``where``."""
+    if isinstance(spec, list):
+        return (spec, []) if spec else ([], [Problem(where, "an axis needs at least one value, got []")])
+    if not isinstance(spec, dict):
+        return [], [
+            Problem(
+                where,
+                f"an axis is a list, {{values}}, {{start, stop, step}} or {{start, stop, num}}; got {spec!r}",
+            )
+        ]
+    keys = set(spec)
+    names = ["values", "start", "stop", "step", "num"]
+    if keys not in ({"values"}, {"start", "stop", "step"}, {"start", "stop", "num"}):
+        unknown = sorted(keys - set(names))
+        hint = f"unknown key '{unknown[0]}'{did_you_mean(unknown[0], names)}; " if unknown else ""
+        shape = "{values}, {start, stop, step} or {start, stop, num}"
+        got = "{" + ", ".join(sorted(keys)) + "}"
+        return [], [Problem(where, f"{hint}an axis mapping has keys {shape}; got {got}")]
+    if keys == {"values"}:
+        return expand_axis(spec["values"], f"{where}.values")
+    problems = []
+    for k in sorted(keys):
+        v = spec[k]
+        if isinstance(v, bool) or not isinstance(v, int | float) or not math.isfinite(v):
+            problems.append(Problem(f"{where}.{k}", f"must be a finite number, got {v!r}"))
+    if problems:
+        return [], problems
+    start, stop = spec["start"], spec["stop"]
+    if "num" in keys:
+        num = spec["num"]
+        if not isinstance(num, int) or num < 1:
+            return [], [Problem(f"{where}.num", f"must be an integer >= 1, got {num!r}")]
+        if num == 1:
+            return [start], []
+        return [_clean(start + (stop - start) * i / (num - 1)) for i in range(num)], []
+    step = spec["step"]
+    if step <= 0:
+        return [], [Problem(f"{where}.step", f"must be > 0, got {step!r}")]
+    if stop < start:
+        return [], [
+            Problem(f"{where}.stop", f"must be >= start ({start!r}) for an inclusive range, got {stop!r}")
+        ]
+    n = math.floor((stop - start) / step + 1e-9) + 1
+    if all(isinstance(spec[k], int) for k in ("start", "stop", "step")):
+        return [start + i * step for i in range(n)], []
+    return [_clean(start + i * step) for i in range(n)], []
+
+
+def link_groups(
+    link: list[list[str]],
+    keys: list[str],
+    sizes: dict[str, int],
+    lines: dict[str, int],
+    problems: list[Problem],
+) -> list[list[str]]:
+    """Axis groups in file order: each linked list is one group, other axes their own."""
+    owner: dict[str, int] = {}
+    for i, group in enumerate(link):
+        where = f"link[{i}]"
+        for key in group:
+            if key not in sizes:
+                problems.append(
+                    Problem(
+                        where,
+                        f"'{key}' is not a sweep axis{did_you_mean(key, keys)}; axes: {', '.join(keys)}",
+                        lines.get(where),
+                    )
+                )
+            elif key in owner:
+                problems.append(Problem(where, f"axis '{key}' is linked twice", lines.get(where)))
+            else:
+                owner[key] = i
+        lengths = {k: sizes[k] for k in group if k in sizes}
+        if len(set(lengths.values())) > 1:
+            shown = ", ".join(f"{k} has {n}" for k, n in lengths.items())
+            problems.append(
+                Problem(where, f"linked axes must have the same number of values: {shown}", lines.get(where))
+            )
+    groups: list[list[str]] = []
+    seen: set[int] = set()
+    for key in keys:
+        if key not in owner:
+            groups.append([key])
+        elif owner[key] not in seen:
+            seen.add(owner[key])
+            groups.append([k for k in link[owner[key]] if k in sizes])
+    return groups

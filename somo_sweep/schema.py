@@ -1,0 +1,107 @@
+"""The columns of a trials table: fixed columns with units, unit suffixes, Arrow types.
+
+:data:`COLUMNS` is the one definition of the fixed columns. Parameter columns
+(``task_*``, ``model_*``), metrics and ``label_*`` columns depend on the study and
+the task; their unit is read from their name suffix (:func:`unit_of`), and their
+Arrow type from their values (:func:`arrow_type`, widened with :func:`merge_types`).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Any
+
+import pyarrow as pa
+
+__all__ = ["COLUMNS", "FIXED", "Column", "arrow_type", "merge_types", "unit_of"]
+
+
+@dataclass(frozen=True)
+class Column:
+    """A fixed column of the trials table: name, Arrow type, unit and meaning."""
+
+    name: str
+    type: str
+    unit: str
+    description: str
+
+
+#: The fixed columns of every trials table. Besides them: ``task_*`` (task parameters),
+#: ``model_*`` (model overrides), the task's metrics under their own names, and
+#: ``label_*`` (the task's labels); their units come from their name suffix (:func:`unit_of`).
+COLUMNS: tuple[Column, ...] = (
+    Column(
+        "job_id", "string", "", "stable id: hash of task, parameters, model content, settings, seed, code"
+    ),
+    Column("trial", "int64", "", "position in the study's grid order"),
+    Column("repeat", "int64", "", "repeat number at this grid point"),
+    Column("seed", "int64", "", "random seed given to the task"),
+    Column("status", "string", "", "ok, unstable (integration blew up) or error"),
+    Column("message", "string", "", "why the status is not ok"),
+    Column("wall_time_s", "double", "s", "wall time of the trial"),
+    Column("host", "string", "", "host that ran the trial"),
+    Column("model_file", "string", "", "model file, relative to the study file"),
+    Column("model_hash", "string", "", "hash of the model content after overrides"),
+    Column("study_hash", "string", "", "hash of the study the row belongs to"),
+)
+FIXED = {c.name for c in COLUMNS}
+
+_UNITS = {
+    "n_m_s_per_rad": "N·m·s/rad",
+    "n_m_per_rad": "N·m/rad",
+    "n_m_per_kpa": "N·m/kPa",
+    "n_per_m": "N/m",
+    "n_s_per_m": "N·s/m",
+    "kg_m2": "kg·m²",
+    "m_s2": "m/s²",
+    "rad_s": "rad/s",
+    "m_s": "m/s",
+    "n_m": "N·m",
+    "kpa": "kPa",
+    "psi": "psi",
+    "deg": "deg",
+    "rad": "rad",
+    "mm": "mm",
+    "kg": "kg",
+    "m": "m",
+    "n": "N",
+    "s": "s",
+    "g": "g",
+}
+
+
+def unit_of(name: str) -> str:
+    """The unit a column name ends with (``tip_force_n`` → ``N``), or ``""``."""
+    for suffix in sorted(_UNITS, key=len, reverse=True):
+        if name.endswith(f"_{suffix}"):
+            return _UNITS[suffix]
+    return ""
+
+
+def arrow_type(values: list[Any]) -> pa.DataType:
+    """Arrow type of a column holding ``values`` (None = missing): bool, int64, double or string."""
+    kinds = {
+        bool if isinstance(v, bool) else int if isinstance(v, int) else float if isinstance(v, float) else str
+        for v in values
+        if v is not None
+    }
+    if not kinds:
+        return pa.null()
+    if kinds == {bool}:
+        return pa.bool_()
+    if kinds == {int}:
+        return pa.int64()
+    if kinds <= {int, float, bool}:
+        return pa.float64()
+    return pa.string()
+
+
+def merge_types(a: pa.DataType, b: pa.DataType) -> pa.DataType:
+    """The narrowest type holding both (null < bool < int64 < double; anything else: string)."""
+    if a == b or b == pa.null():
+        return a
+    if a == pa.null():
+        return b
+    if {a, b} <= {pa.bool_(), pa.int64(), pa.float64()}:
+        return pa.float64()
+    return pa.string()
