@@ -13,7 +13,7 @@ import numpy as np
 import pandas as pd
 
 from somo_sweep.bench import BenchSettings
-from somo_sweep.calibration import simulate_rows
+from somo_sweep.calibration_model import simulate_rows
 from somo_sweep.finger_builder import planar_finger
 from somo_sweep.measurements import COLUMNS, write_measurements
 from somo_sweep.models import Model
