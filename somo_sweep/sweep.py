@@ -11,6 +11,7 @@ import json
 import os
 import shutil
 import signal
+import threading
 import time
 from collections import Counter
 from collections.abc import Callable, Iterator
@@ -102,15 +103,27 @@ class _Stop(KeyboardInterrupt):
 
 
 @contextmanager
-def _signals_stop() -> Iterator[None]:
-    """Turn SIGINT and SIGTERM into :class:`_Stop` inside the block (main thread only)."""
+def _signals_stop() -> Iterator[Callable[[], None]]:
+    """Turn SIGINT and SIGTERM into :class:`_Stop` inside the block (main thread only).
+
+    Yields a function that switches to ignoring them (while the last rows are written,
+    a second Ctrl-C must not lose them); the previous handlers are restored on exit.
+    """
+    signals = (signal.SIGINT, signal.SIGTERM)
+    if threading.current_thread() is not threading.main_thread():
+        yield lambda: None  # signals reach the main thread only; nothing to install here
+        return
 
     def handler(signum: int, frame: object) -> None:
         raise _Stop(signum)
 
-    old = {s: signal.signal(s, handler) for s in (signal.SIGINT, signal.SIGTERM)}
+    def hold() -> None:
+        for s in signals:
+            signal.signal(s, signal.SIG_IGN)
+
+    old = {s: signal.signal(s, handler) for s in signals}
     try:
-        yield
+        yield hold
     finally:
         for s, h in old.items():
             signal.signal(s, h)
@@ -169,7 +182,7 @@ def run_study(
         buffer: list[dict[str, Any]] = []
         last_flush = time.perf_counter()
         status = "completed"
-        with _signals_stop():
+        with _signals_stop() as hold_signals:
             try:
                 for out in execute(todo, backend, n_jobs, scheduler, timeout_s):
                     buffer.append(outcome_row(by_id[out.job_id], out, table.study_hash))
@@ -184,13 +197,10 @@ def run_study(
             except KeyboardInterrupt as exc:
                 summary.interrupted = exc.signum if isinstance(exc, _Stop) else int(signal.SIGINT)
                 status = "interrupted"
-            finally:
-                # Runs with the handlers still installed, but a second signal must not lose rows.
-                signal.signal(signal.SIGINT, signal.SIG_IGN)
-                signal.signal(signal.SIGTERM, signal.SIG_IGN)
-                store.write(buffer)
-                summary.wall_time_s = time.perf_counter() - start
-                store.end_run(status, summary.run)
+            hold_signals()
+            store.write(buffer)
+            summary.wall_time_s = time.perf_counter() - start
+            store.end_run(status, summary.run)
         return summary
     finally:
         store.close()

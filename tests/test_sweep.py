@@ -7,6 +7,7 @@ the determinism tests sweep the ``bench`` task's free-bending protocol over pres
 from __future__ import annotations
 
 import shutil
+import signal
 import textwrap
 import time
 from pathlib import Path
@@ -260,3 +261,9 @@ def test_show_and_plot_summarise_a_results_folder(tmp_path: Path) -> None:
     assert (tmp_path / "out" / "plots" / "summary.svg").stat().st_size > 0
     res = CliRunner().invoke(app, ["show", str(tmp_path)])
     assert res.exit_code == 2 and "not a somo-sweep results folder" in res.output
+
+
+def test_signal_handlers_are_restored_after_a_run(tmp_path: Path) -> None:
+    before = (signal.getsignal(signal.SIGINT), signal.getsignal(signal.SIGTERM))
+    run_study(load_study(selftest_study(tmp_path, n=2), tmp_path / "out"), n_jobs=1)
+    assert (signal.getsignal(signal.SIGINT), signal.getsignal(signal.SIGTERM)) == before
