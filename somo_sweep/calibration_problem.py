@@ -73,6 +73,7 @@ class CalibrationProblem:
 
     @property
     def manipulator(self) -> Manipulator:
+        """The base model's manipulator."""
         assert self.base.manipulator is not None
         return self.base.manipulator
 
@@ -127,7 +128,8 @@ def tip_stiffness_n_per_m(rows: pd.DataFrame) -> float:
     """Least-squares slope of load against deflection through the origin, N/m."""
     load = rows["tip_load_n"].to_numpy(float)
     defl_m = rows["tip_deflection_mm"].to_numpy(float) * 1e-3
-    return float(load @ defl_m / (defl_m @ defl_m))
+    norm = float(defl_m @ defl_m)
+    return float(load @ defl_m / norm) if norm > 0 else float("nan")
 
 
 def force_per_kpa(rows: pd.DataFrame) -> float:
@@ -202,8 +204,15 @@ def build_problem(
                 f"calibrating the {axis} stiffness needs at least {min_rows_per_parameter}"
             )
             continue
+        tip_stiffness = tip_stiffness_n_per_m(loaded)
+        if not np.isfinite(tip_stiffness) or tip_stiffness <= 0:
+            problems.append(
+                f"column tip_deflection_mm: the {axis}-axis tip_load rows (lines {_lines(loaded)}) give a "
+                f"tip stiffness of {tip_stiffness:.4g} N/m; deflections must be > 0 and grow with the load"
+            )
+            continue
         arms, rel, _ = joint_lever_arms(manip, axis_index)
-        start = tip_stiffness_n_per_m(loaded) * float(np.sum(arms**2 / rel))
+        start = tip_stiffness * float(np.sum(arms**2 / rel))
         params.append(
             Parameter(
                 f"stiffness_n_m_per_rad[{axis}]",
@@ -218,11 +227,22 @@ def build_problem(
             f"column blocked_force_n: {len(blocked)} blocked_force row(s) above 0 kPa; "
             f"calibrating the pressure gain needs at least {min_rows_per_parameter}"
         )
+    elif force_per_kpa(blocked) <= 0 or not np.isfinite(force_per_kpa(blocked)):
+        problems.append(
+            f"column blocked_force_n: the blocked force does not grow with pressure_kpa "
+            f"(lines {_lines(blocked)}, slope {force_per_kpa(blocked):.4g} N/kPa)"
+        )
+    if not any(j.actuated for j in manip.actuators[0].joints[:1]):
+        problems.append("the model's first joint definition is not actuated: no pressure gain to calibrate")
     if problems:
         raise MeasurementError(source, problems)
     seeded = functools.reduce(lambda m, p: p.apply(m, p.initial), params, manip)
     arms, rel, act = joint_lever_arms(seeded, 0)
     k = seeded.actuators[0].joints[0].stiffness * rel
     gain = force_per_kpa(blocked) * float(np.sum(arms**2 / k) / np.sum(act * arms / k))
-    params.append(Parameter("pressure_gain_n_m_per_kpa", "N·m/kPa", max(gain, 1e-9), set_pressure_gain))
+    params.append(Parameter("pressure_gain_n_m_per_kpa", "N·m/kPa", gain, set_pressure_gain))
     return CalibrationProblem(base, rows, tuple(params), settings, source)
+
+
+def _lines(rows: pd.DataFrame) -> str:
+    return ", ".join(str(n) for n in rows["line"])

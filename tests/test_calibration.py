@@ -296,6 +296,18 @@ GOOD = "tip_load,0,0.05,5,,,\ntip_load,0,0.1,10,,,\nblocked_force,100,,,0.3,,\nb
             "column blocked_force_n: 1 blocked_force row(s)",
         ),
         (
+            HEADER
+            + "tip_load,0,0.05,5,,,\ntip_load,0,0.1,10,,,\n"
+            + "blocked_force,100,,,0.6,,\nblocked_force,200,,,0.3,,\n",
+            "column blocked_force_n: the blocked force does not grow with pressure_kpa (lines 4, 5",
+        ),
+        (
+            HEADER
+            + "tip_load,0,0.05,0,,,\ntip_load,0,0.1,0,,,\n"
+            + "blocked_force,100,,,0.3,,\nblocked_force,200,,,0.6,,\n",
+            "column tip_deflection_mm: the grasp-axis tip_load rows (lines 2, 3)",
+        ),
+        (
             HEADER.strip() + ",axis\ntip_load,0,0.05,5,,,,grasp\ntip_load,0,0.05,5,,,,side\n",
             "line 3, column axis: 'side', but the model's first actuator has one axis",
         ),
