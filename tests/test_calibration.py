@@ -195,6 +195,30 @@ def test_fit_recovers_known_parameters_short() -> None:
 
 
 @pytest.mark.slow
+def test_fit_recovers_both_axes_of_a_two_axis_finger() -> None:
+    """~40 s on the shared machine; the side view itself is checked fast against a closed form below."""
+    from somo_sweep.calibration_model import set_axis_stiffness, set_pressure_gain
+
+    base = load_model(MODELS / "ihm_finger.yaml")
+    assert base.manipulator is not None
+    truth = set_axis_stiffness(set_axis_stiffness(base.manipulator, 0.26, 0), 1.2, 1)
+    truth = set_pressure_gain(truth, 6e-4)
+    side = bench_plan([0.02, 0.04, 0.06], [], [])
+    side["axis"] = "side"
+    plan = pd.concat([bench_plan([0.02, 0.04, 0.06], [50, 100, 150], []), side], ignore_index=True)
+    settings = BenchSettings(time_step_s=1e-3)
+    rows = synthetic_rows(
+        base.model_copy(update={"manipulator": truth}), plan, 0.01, np.random.default_rng(1), settings
+    )
+    rows["line"] = np.arange(len(rows)) + 2
+    result = solve_fit(build_problem(rows, base), n_jobs=2)
+    assert result.values["stiffness_n_m_per_rad[grasp]"] == pytest.approx(0.26, rel=0.03)
+    assert result.values["stiffness_n_m_per_rad[side]"] == pytest.approx(1.2, rel=0.03)
+    assert result.values["pressure_gain_n_m_per_kpa"] == pytest.approx(6e-4, rel=0.03)
+    assert {m.label for m in result.metrics} == {"tip_load", "blocked_force", "tip_load[side]"}
+
+
+@pytest.mark.slow
 def test_fit_recovers_known_parameters_on_the_bundled_36_rows(tmp_path: Path) -> None:
     out = tmp_path / "model.yaml"
     start = time.perf_counter()
