@@ -248,6 +248,31 @@ def test_bundled_synthetic_file_is_what_the_generator_makes(tmp_path: Path) -> N
 # --- side axis, data files, determinism --------------------------------------------------------
 
 
+def test_synthetic_rows_without_noise_are_what_somo_sweep_measure_prints(tmp_path: Path) -> None:
+    from somo_sweep.calibration_report import model_yaml
+    from somo_sweep.synthetic import example_finger
+
+    model_path = tmp_path / "finger.yaml"
+    model_path.write_text(model_yaml(example_finger()))
+    res = runner.invoke(
+        app,
+        [
+            "measure",
+            str(model_path),
+            "--test",
+            "blocked_force",
+            "--values",
+            "100,200",
+            "--csv",
+            str(tmp_path / "m.csv"),
+        ],
+    )
+    assert res.exit_code == 0, res.output
+    measured = read_measurements(tmp_path / "m.csv")["blocked_force_n"].to_numpy()
+    ours = synthetic_rows(example_finger(), bench_plan([], [100, 200], []), 0.0, np.random.default_rng(0))
+    np.testing.assert_allclose(ours["blocked_force_n"].to_numpy(float), measured, rtol=1e-5)
+
+
 def test_side_view_bends_the_side_joints_with_their_own_lever_arms() -> None:
     manip = load_model(MODELS / "ihm_finger.yaml").manipulator
     assert manip is not None
