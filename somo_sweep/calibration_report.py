@@ -62,6 +62,7 @@ def summary(result: CalibrationResult, source: str | Path | None = None) -> dict
         "simulations": result.simulations,
         "wall_time_s": round(result.wall_time_s, 3),
         "bench_time_step_s": result.problem.settings.time_step_s,
+        "bench_gravity_m_s2": result.problem.settings.gravity_m_s2,
         "solver": result.message,
         "somo_sweep_version": _version("somo-sweep"),
         "pybullet_version": _version("pybullet"),
@@ -80,7 +81,10 @@ def with_provenance(result: CalibrationResult, source: str | Path | None = None)
 def model_yaml(model: Model, header: str = "") -> str:
     """The model as YAML text (SI, fields at their defaults left out), with an optional comment header."""
     body = yaml.safe_dump(
-        model.model_dump(mode="json", exclude_defaults=True), sort_keys=False, default_flow_style=None
+        model.model_dump(mode="json", exclude_defaults=True),
+        sort_keys=False,
+        default_flow_style=None,
+        allow_unicode=True,
     )
     comment = "".join(f"# {line}\n" for line in header.splitlines())
     return comment + body

@@ -118,7 +118,10 @@ def calibrate(
     ]
     if report is not None:
         outputs.append(
-            (report / "calibration.json", json.dumps(summary(result, measurements), indent=2) + "\n")
+            (
+                report / "calibration.json",
+                json.dumps(summary(result, measurements), indent=2, ensure_ascii=False) + "\n",
+            )
         )
         for metric in result.metrics:
             name = metric.label.replace("[", "_").replace("]", "")
