@@ -113,7 +113,7 @@ def simulate_rows(
         (
             manip,
             r.test,
-            r.axis,
+            getattr(r, "axis", "grasp") or "grasp",
             float(r.pressure_kpa),
             0.0 if math.isnan(r.tip_load_n) else float(r.tip_load_n),
             settings,
