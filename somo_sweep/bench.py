@@ -156,15 +156,18 @@ class _Rig:
         return self.manip.actuators[-1].segment_link()
 
     def add_stop(self) -> int:
-        """A static frictionless box whose top face is at the straight tip's underside."""
+        """A static frictionless plate whose top face is at the straight tip's underside."""
         tip = self.tip_element()
         axis = np.asarray(self.manip.actuators[0].joints[0].axis)
         bend = np.cross(axis, [0.0, 0.0, 1.0])
         under = tip.half_extent_m(int(np.argmax(np.abs(bend[:2]))))
-        x_tip = float(self.tip_m()[0]) + self.origin[0]
-        reach = max(tip.half_extent_m(2), 0.002)
-        half = np.array([(reach + 0.05) / 2, 0.05, 0.01])
-        centre = np.array([x_tip - reach + half[0], 0.0, -under - half[2]])
+        # The plate spans the whole finger, from the chain start to beyond the tip: a tip
+        # that curls and slides back along x stays on it, and every link that comes to rest
+        # on it adds to the total vertical force the protocol reports.
+        x_start = float(self.origin[0])
+        x_end = float(self.tip_m()[0]) + x_start + 0.05
+        half = np.array([(x_end - x_start) / 2, 0.05, 0.01])
+        centre = np.array([x_start + half[0], 0.0, -under - half[2]])
         s = self.world.scale
         cid = self.world.client
         shape = p.createCollisionShape(p.GEOM_BOX, halfExtents=(half * s).tolist(), physicsClientId=cid)

@@ -171,3 +171,11 @@ def test_writer_header_comment_is_read_back(tmp_path: Path) -> None:
 def test_missing_file_is_a_measurement_error(tmp_path: Path) -> None:
     with pytest.raises(MeasurementError, match="file not found"):
         read_measurements(tmp_path / "nope.csv")
+
+
+def test_blocked_force_keeps_rising_when_the_tip_curls_back_along_the_stop() -> None:
+    """A strongly curled tip slides back along x; it must stay on the plate, not read 0 N."""
+    model = load_model(MODELS / "ihm_finger.yaml")
+    forces = [run_bench(model, "blocked_force", p).value for p in (200.0, 240.0, 300.0)]
+    assert all(isinstance(f, float) and f > 1.0 for f in forces)
+    assert forces[0] < forces[1] < forces[2]
