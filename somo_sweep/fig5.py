@@ -1,0 +1,196 @@
+"""Paper Fig. 5: the simulated gait against the hardware recording, before and after calibration.
+
+``python -m somo_sweep.fig5 --out results/figures [--quick]``:
+
+1. runs task ``ihm_gait`` on the recorded pressure setpoints with the default
+   (uncalibrated) pressure→torque weights and compares the cube's rotation about z
+   with the AprilTag recording: per-cycle values, final rotation and its error;
+2. fits the side weight (the one that sets how far each gait cycle turns the cube)
+   with the simulator in the loop on the first ``fit_cycles`` cycles only;
+3. reruns the whole recording with the fitted weight and reports the error on the
+   remaining (held-out) cycles and at the end.
+
+Writes ``fig5.png`` / ``fig5.svg`` (rotation against time, off-axis motion) and
+``fig5.json`` (every number reported).
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+from dataclasses import dataclass
+from pathlib import Path
+
+import matplotlib.pyplot as plt
+import numpy as np
+import pandas as pd
+from matplotlib.axes import Axes
+from scipy.optimize import minimize_scalar
+
+from somo_sweep.models import Model, load_model
+from somo_sweep.tasks.ihm_gait import ROOT, GaitParams, GaitRun, simulate_gait
+from somo_sweep.world import WorldSettings
+
+__all__ = ["Hardware", "compare", "draw_rotation", "fit_side_weight", "load_hardware", "main"]
+
+HAND = ROOT / "studies" / "models" / "ihm_hand.yaml"
+HARDWARE_POSE = ROOT / "studies" / "data" / "ihm_gait_object_pose_mm_deg.csv"
+GAIT_START_S, CYCLE_S, N_CYCLES = 2.0, 8.0, 10
+
+
+@dataclass(frozen=True)
+class Hardware:
+    """The recorded cube pose: times (s), rotation about z (deg), position (mm), tilt (deg)."""
+
+    times_s: np.ndarray
+    rot_z_deg: np.ndarray
+    position_mm: np.ndarray
+    tilt_deg: np.ndarray
+
+    def rot_z_at(self, time_s: float | np.ndarray) -> np.ndarray:
+        """Rotation about z at the given times, deg."""
+        return np.interp(time_s, self.times_s, self.rot_z_deg)
+
+
+def load_hardware(path: Path = HARDWARE_POSE) -> Hardware:
+    """Read the bundled hardware pose recording."""
+    f = pd.read_csv(path, comment="#")
+    pos = f[["obj_pos_x_mm", "obj_pos_y_mm", "obj_pos_z_mm"]].to_numpy()
+    tilt = f[["obj_ori_x_deg", "obj_ori_y_deg"]].to_numpy()
+    return Hardware(f["time_s"].to_numpy(), f["obj_ori_z_deg"].to_numpy(), pos, tilt)
+
+
+def boundaries_s(n_cycles: int = N_CYCLES) -> np.ndarray:
+    """Times of the gait-cycle boundaries, s."""
+    return GAIT_START_S + CYCLE_S * np.arange(n_cycles + 1)
+
+
+def compare(run: GaitRun, hw: Hardware, first_cycle: int = 0) -> dict[str, float]:
+    """Rotation error of a run against the hardware from cycle ``first_cycle`` to the run's end.
+
+    Returns the simulated and real rotation over that span (deg), its relative
+    error (%), and the RMS difference of the rotation curves (deg) there.
+    """
+    t0 = float(boundaries_s()[first_cycle])
+    t1 = float(min(run.times_s[-1], hw.times_s[-1], boundaries_s()[-1]))
+    sim = run.rot_z_at(t1) - run.rot_z_at(t0)
+    real = float(hw.rot_z_at(t1) - hw.rot_z_at(t0))
+    grid = np.arange(t0, t1, 0.5)
+    sim_curve = np.interp(grid, run.times_s, run.rot_z_deg) - run.rot_z_at(t0)
+    real_curve = hw.rot_z_at(grid) - hw.rot_z_at(t0)
+    return {
+        "from_s": t0,
+        "to_s": t1,
+        "sim_rot_z_deg": float(sim),
+        "real_rot_z_deg": real,
+        "error_percent": float(100 * abs(sim - real) / abs(real)),
+        "rms_curve_deg": float(np.sqrt(np.mean((sim_curve - real_curve) ** 2))),
+    }
+
+
+def fit_side_weight(
+    model: Model, settings: WorldSettings, hw: Hardware, fit_cycles: int, start: GaitParams
+) -> tuple[float, list[tuple[float, float]]]:
+    """Fit the side weight (N·m/psi) on the first ``fit_cycles`` cycles; returns it and the trials.
+
+    The objective is the RMS difference between simulated and recorded rotation
+    curves over those cycles; only their data are used.
+    """
+    end_s = float(boundaries_s()[fit_cycles])
+    trials: list[tuple[float, float]] = []
+    w0 = start.w_side_n_m_per_psi
+
+    def cost(factor: float) -> float:
+        params = start.model_copy(update={"w_side_n_m_per_psi": w0 * factor, "duration_s": end_s})
+        rms = compare(simulate_gait(model, params, settings), hw)["rms_curve_deg"]
+        trials.append((w0 * factor, rms))
+        return rms
+
+    res = minimize_scalar(cost, bounds=(0.4, 1.4), method="bounded", options={"xatol": 0.01, "maxiter": 12})
+    return float(w0 * res.x), trials
+
+
+def draw_rotation(ax: Axes, hw: Hardware, runs: dict[str, GaitRun], fit_until_s: float | None = None) -> None:
+    """Rotation about z against time: hardware and each simulated run, on ``ax``."""
+    ax.plot(hw.times_s, hw.rot_z_deg, color="black", lw=2, label="hardware (AprilTag)")
+    for (label, run), colour in zip(runs.items(), ("tab:blue", "tab:orange"), strict=False):
+        ax.plot(run.times_s, run.rot_z_deg, color=colour, lw=1.5, label=label)
+    if fit_until_s is not None:
+        ax.axvspan(GAIT_START_S, fit_until_s, color="0.9", label="calibration cycles")
+    ax.set_xlabel("time (s)")
+    ax.set_ylabel("cube rotation about z (deg)")
+    ax.legend(loc="lower left", fontsize=8)
+
+
+def _offaxis(ax: Axes, hw: Hardware, run: GaitRun) -> None:
+    for i, axis in enumerate("xyz"):
+        ax.plot(hw.times_s, hw.position_mm[:, i], lw=1, alpha=0.5, label=f"{axis} hardware")
+        ax.plot(run.times_s, run.position_m[:, i] * 1e3, lw=1.5, label=f"{axis} sim")
+    ax.set_xlabel("time (s)")
+    ax.set_ylabel("cube position (mm)")
+    ax.legend(loc="lower left", fontsize=7, ncol=3)
+
+
+def main(argv: list[str] | None = None) -> None:
+    """Run the comparison (and calibration unless ``--quick``) and write the figure and JSON."""
+    parser = argparse.ArgumentParser(description=__doc__)
+    parser.add_argument("--out", type=Path, default=Path("results/figures"))
+    parser.add_argument("--quick", action="store_true", help="first gait cycle only, no calibration")
+    parser.add_argument("--fit-cycles", type=int, default=3)
+    args = parser.parse_args(argv)
+    model, hw = load_model(HAND), load_hardware()
+    settings = WorldSettings(time_step_s=1e-3)
+    base = GaitParams()
+    n_cycles = 1 if args.quick else N_CYCLES
+    end_s = float(boundaries_s(n_cycles)[-1])
+    runs = {
+        "simulation, default weights": simulate_gait(
+            model, base.model_copy(update={"duration_s": end_s}), settings
+        )
+    }
+    summary: dict[str, object] = {
+        "default_weights": {
+            "w_grasp_n_m_per_psi": base.w_grasp_n_m_per_psi,
+            "w_side_n_m_per_psi": base.w_side_n_m_per_psi,
+        },
+        "default": compare(runs["simulation, default weights"], hw),
+    }
+    fit_until = None
+    if not args.quick:
+        w_side, trials = fit_side_weight(model, settings, hw, args.fit_cycles, base)
+        fitted = base.model_copy(update={"w_side_n_m_per_psi": w_side, "duration_s": end_s})
+        runs["simulation, calibrated"] = simulate_gait(model, fitted, settings)
+        fit_until = float(boundaries_s()[args.fit_cycles])
+        summary["calibrated_weights"] = {
+            "w_grasp_n_m_per_psi": base.w_grasp_n_m_per_psi,
+            "w_side_n_m_per_psi": w_side,
+            "fit_cycles": args.fit_cycles,
+            "trials": trials,
+        }
+        summary["calibrated"] = compare(runs["simulation, calibrated"], hw)
+        summary["calibrated_held_out"] = compare(runs["simulation, calibrated"], hw, args.fit_cycles)
+        summary["default_held_out"] = compare(runs["simulation, default weights"], hw, args.fit_cycles)
+    fig, axes = plt.subplots(1, 2, figsize=(13, 4.5), gridspec_kw={"width_ratios": [2, 1]})
+    draw_rotation(axes[0], hw, runs, fit_until)
+    _offaxis(axes[1], hw, list(runs.values())[-1])
+    axes[1].set_xlim(0, end_s)
+    axes[0].set_xlim(0, end_s)
+    fig.tight_layout()
+    args.out.mkdir(parents=True, exist_ok=True)
+    name = "fig5-quick" if args.quick else "fig5"
+    for ext in ("png", "svg"):
+        fig.savefig(args.out / f"{name}.{ext}", dpi=120)
+    (args.out / f"{name}.json").write_text(json.dumps(summary, indent=2))
+    for key in ("default", "calibrated", "default_held_out", "calibrated_held_out"):
+        if key in summary:
+            s = summary[key]
+            assert isinstance(s, dict)
+            print(
+                f"{key:20s} {s['from_s']:4.0f}-{s['to_s']:4.0f} s: sim {s['sim_rot_z_deg']:7.1f} deg, "
+                f"hardware {s['real_rot_z_deg']:7.1f} deg, error {s['error_percent']:5.1f} %, "
+                f"curve RMS {s['rms_curve_deg']:5.1f} deg"
+            )
+
+
+if __name__ == "__main__":
+    main()
