@@ -115,6 +115,9 @@ def main(argv: list[str] | None = None) -> None:
     print(f"  Python {med['python_ms_per_step']:.4f} ms/step (springs, inputs, base drive, checks)")
     print(f"  Python / Bullet = {100 * med['python_over_bullet']:.1f} % (target <= 10 %)")
     print(f"  object lifted {1e3 * med['object_lift_m']:.1f} mm")
+    from somo_sweep.pinch_numerics import print_trial_timing
+
+    print_trial_timing(args.repeats)
 
 
 if __name__ == "__main__":

@@ -11,14 +11,17 @@ can be relabelled without rerunning it):
 
 ``contacts`` (default)
     Uses where the contact *force* sits over the whole hold phase, not one step.
-    Grasped if the object was held: lifted by at least half the commanded lift at
-    the end and touched by both fingers in at least 90 % of the hold samples.
+    Grasped if the object was held: off the ground in at least 90 % of the hold
+    samples, touched by both fingers in at least 90 % of them, and higher at the
+    end than at the start by at least ``MIN_LIFT_M`` (10 mm). An object that swings
+    in the fingertips but stays off the ground is held; one left on the ground is not.
     The finger's distal zone is its last round(20·DSR) links plus the fingertip
     (the links past the driven segment, whether the distal segment is a separate
     actuator or not); the rest of the finger and the palm form the proximal zone.
-    Pinch if the proximal zone carries at most ``max_proximal_fraction`` (20 %)
+    Pinch if the proximal zone carries less than ``max_proximal_fraction`` (25 %)
     of the hold-phase normal force, power otherwise: a power grasp is one where
-    the object is pressed into the proximal finger or the palm.
+    the object is pressed into the proximal finger or the palm, while a light
+    touch of a proximal link during a fingertip grasp does not make it one.
 """
 
 from __future__ import annotations
@@ -56,6 +59,10 @@ TIP_M = 0.015
 PAPER_MIN_Z_M = 0.040
 PAPER_MAX_Z_M = 0.200
 PAPER_MAX_XY_M = 0.050
+#: Contacts rule: least rise of the object (m), least share of hold samples held, proximal share.
+MIN_LIFT_M = 0.010
+MIN_HELD_FRACTION = 0.9
+MAX_PROXIMAL_FRACTION = 0.25
 
 
 @dataclass(frozen=True)
@@ -71,6 +78,7 @@ class GraspEvidence:
             (links 1 … 20 then the fingertip; both fingers added), N.
         hold_normal_force_palm_n: Same for the palm and finger base boxes, N.
         hold_contact_fraction_both_fingers: Share of hold samples with both fingers touching.
+        hold_ground_contact_fraction: Share of hold samples with the object touching the ground.
         final_mean_contact_link: Mean link number of the final step's contacts (NaN: none).
     """
 
@@ -82,6 +90,7 @@ class GraspEvidence:
     hold_normal_force_palm_n: float
     hold_contact_fraction_both_fingers: float
     final_mean_contact_link: float
+    hold_ground_contact_fraction: float = 0.0
 
     @classmethod
     def from_metrics(
@@ -102,6 +111,7 @@ class GraspEvidence:
             hold_normal_force_palm_n=float(metrics["hold_normal_force_n_palm"]),
             hold_contact_fraction_both_fingers=float(metrics["hold_contact_fraction_both_fingers"]),
             final_mean_contact_link=float(metrics["final_mean_contact_link"]),
+            hold_ground_contact_fraction=float(metrics["hold_ground_contact_fraction"]),
         )
 
     @property
@@ -145,17 +155,21 @@ def _paper(ev: GraspEvidence) -> Label:
 
 
 def is_held(ev: GraspEvidence) -> bool:
-    """Held through the hold phase: lifted by half the commanded lift, both fingers touching 90 %."""
-    return ev.lift_height_m >= 0.5 * ev.commanded_lift_m and ev.hold_contact_fraction_both_fingers >= 0.9
+    """Held through the hold phase: off the ground, in both fingers, and lifted (see the module doc)."""
+    return (
+        ev.lift_height_m >= MIN_LIFT_M
+        and ev.hold_contact_fraction_both_fingers >= MIN_HELD_FRACTION
+        and 1.0 - ev.hold_ground_contact_fraction >= MIN_HELD_FRACTION
+    )
 
 
-def _contacts(ev: GraspEvidence, max_proximal_fraction: float = 0.2) -> Label:
+def _contacts(ev: GraspEvidence, max_proximal_fraction: float = MAX_PROXIMAL_FRACTION) -> Label:
     if not is_held(ev):
         return "no_grasp"
     shares = distal_force_fractions(ev)
     if not math.isfinite(shares["proximal"]):
         return "no_grasp"
-    return "pinch" if shares["proximal"] <= max_proximal_fraction else "power"
+    return "pinch" if shares["proximal"] < max_proximal_fraction else "power"
 
 
 def classify(evidence: GraspEvidence, rule: str = "contacts", **options: float) -> Label:
@@ -217,6 +231,7 @@ def reclassify(table: Any, rule: str = "contacts", **options: float) -> Any:
         "lift_height_m",
         "hold_normal_force_n_palm",
         "hold_contact_fraction_both_fingers",
+        "hold_ground_contact_fraction",
         "final_mean_contact_link",
         *link_columns("hold_normal_force_n"),
     ]

@@ -41,12 +41,15 @@ class HoldProbe:
         world: The world holding both.
         hand: The gripper body (palm and fingers in one multibody).
         object_id: PyBullet id of the object.
+        ground_id: PyBullet id of the ground (to tell a held object from one resting on it).
     """
 
-    def __init__(self, world: World, hand: Body, object_id: int):
+    def __init__(self, world: World, hand: Body, object_id: int, ground_id: int | None = None):
         self.world = world
         self.hand = hand
         self.object_id = object_id
+        self.ground_id = ground_id
+        self.on_ground = 0
         self.fingers = list(hand.plan.tip)
         # PyBullet link index → (finger number, link number 1..21) or palm (-1, 0).
         self._where: dict[int, tuple[int, int]] = {}
@@ -94,6 +97,8 @@ class HoldProbe:
             self.finger_force_sums_n[finger] += force
         self.samples += 1
         self.both_touching += int(touched.all())
+        if self.ground_id is not None:
+            self.on_ground += int(len(self.world.contacts(self.object_id, self.ground_id)["link_a"]) > 0)
         self.last_links = links
 
     def metrics(self) -> dict[str, float | int]:
@@ -101,6 +106,7 @@ class HoldProbe:
         n = max(self.samples, 1)
         out: dict[str, float | int] = {"hold_samples": self.samples}
         out["hold_contact_fraction_both_fingers"] = self.both_touching / n
+        out["hold_ground_contact_fraction"] = self.on_ground / n
         mean_force = self.force_sums_n / n
         for name, v in zip(link_columns("hold_contact_count"), self.counts, strict=True):
             out[name] = int(v)

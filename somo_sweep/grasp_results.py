@@ -15,26 +15,20 @@ __all__ = ["find_trial", "read_results", "relabel", "render_trial"]
 
 
 def read_results(folder: str | Path) -> pd.DataFrame:
-    """The trials table of a results folder (the sweep engine's Parquet part files).
+    """The trials table of a results folder (:func:`somo_sweep.results.read_results`).
 
     Raises:
-        SomoError: No such folder, or no Parquet data in it.
+        SomoError: Not a results folder, or no trials in it yet.
     """
+    from somo_sweep.results import read_results as read_trials
+
     folder = Path(folder)
     if not folder.is_dir():
         raise SomoError(f"{folder}: no such results folder (run `somo-sweep run STUDY.yaml` first)")
-    try:
-        from somo_sweep import results as engine
-
-        reader = getattr(engine, "read_results", None) or getattr(engine, "read_table", None)
-    except ImportError:
-        reader = None
-    if reader is not None:
-        return pd.DataFrame(reader(folder))
-    parts = sorted(folder.rglob("*.parquet"))
-    if not parts:
-        raise SomoError(f"{folder}: no Parquet files with trial results")
-    return pd.concat([pd.read_parquet(p) for p in parts], ignore_index=True)
+    table = read_trials(folder)
+    if table.empty:
+        raise SomoError(f"{folder}: no finished trials yet")
+    return table
 
 
 def relabel(folder: str | Path, rule: str = "contacts", **options: float) -> tuple[dict[str, int], Path]:
@@ -64,27 +58,22 @@ def relabel(folder: str | Path, rule: str = "contacts", **options: float) -> tup
     return dict(sorted(Counter(str(v) for v in labels).items())), path
 
 
-def find_trial(study: Any, trial: str) -> dict[str, Any]:
-    """The grid point of a trial given by job id or by 0-based index.
+def find_trial(jobs: list[Any], trial: str) -> Any:
+    """The job of a trial given by (a prefix of) its job id or by its 0-based grid index.
 
     Raises:
-        SomoError: Out-of-range index or unknown id.
+        SomoError: Out-of-range index, or an id that matches no job or several.
     """
-    points = list(study.points())
     if trial.isdigit():
         index = int(trial)
-        if index >= len(points):
-            raise SomoError(f"--trial {index}: the study has {len(points)} points (0 … {len(points) - 1})")
-        return points[index]
-    try:
-        from somo_sweep import jobs as engine_jobs
-
-        for job in engine_jobs.make_jobs(study):  # type: ignore[attr-defined]
-            if str(job.job_id).startswith(trial):
-                return dict(job.point)
-    except (ImportError, AttributeError):
-        pass
-    raise SomoError(f"--trial '{trial}': no trial with this id; give a job id or a 0-based index")
+        if index >= len(jobs):
+            raise SomoError(f"--trial {index}: the study has {len(jobs)} trials (0 … {len(jobs) - 1})")
+        return jobs[index]
+    hits = [job for job in jobs if str(job.job_id).startswith(trial)]
+    if len(hits) != 1:
+        what = "no trial" if not hits else f"{len(hits)} trials"
+        raise SomoError(f"--trial '{trial}': {what} with this id; give a job id or a 0-based index")
+    return hits[0]
 
 
 def render_trial(
@@ -95,6 +84,7 @@ def render_trial(
     Returns:
         The PNG paths and the trial's label.
     """
+    from somo_sweep.jobs import build_jobs
     from somo_sweep.render import Camera, snapshot, write_png
     from somo_sweep.study import load_study
     from somo_sweep.tasks.pinch_grasp import PinchGraspParams, run_pinch_grasp
@@ -103,8 +93,8 @@ def render_trial(
     study = load_study(study_path)
     if study.task.name != "pinch_grasp":
         raise SomoError(f"{study_path}: render needs a pinch_grasp study, this one runs '{study.task.name}'")
-    point = find_trial(study, trial)
-    _, model, params = study.resolve(point)
+    job = find_trial(build_jobs(study).jobs, trial)
+    params = job.params
     assert isinstance(params, PinchGraspParams)
     images: dict[float, Any] = {}
     camera = Camera(target_m=(params.centering_m * 0.5, 0.0, params.hand_height_m))
@@ -112,9 +102,7 @@ def render_trial(
     def observe(world: World, time_s: float) -> None:
         images[time_s] = snapshot(world, camera)
 
-    result = run_pinch_grasp(
-        model, params, study.simulation.world_settings(), study.seed, observe=observe, observe_at_s=times_s
-    )
+    result = run_pinch_grasp(job.model, params, job.settings, job.seed, observe=observe, observe_at_s=times_s)
     name = (
         f"{study.name}_dsr{params.distal_segment_ratio:.2f}_w{params.object_width_m * 1e3:g}mm"
         f"_c{params.centering_m * 1e3:g}mm"

@@ -31,8 +31,11 @@ def evidence(
     palm_n: float = 0.0,
     final_link: float = 19.0,
     position_m: tuple[float, float, float] = (0.0, 0.0, 0.10),
+    on_ground: float = 0.0,
 ) -> GraspEvidence:
-    return GraspEvidence(dsr, position_m, lift_m, 0.075, forces(per_link), palm_n, both, final_link)
+    return GraspEvidence(
+        dsr, position_m, lift_m, 0.075, forces(per_link), palm_n, both, final_link, on_ground
+    )
 
 
 def test_distal_link_count_has_no_float_trap() -> None:
@@ -56,6 +59,10 @@ def test_palm_contact_counts_as_proximal() -> None:
     assert classify(evidence({20: 1.0}, palm_n=1.0)) == "power"
 
 
+def test_an_object_swinging_low_in_the_fingertips_is_still_held() -> None:
+    assert classify(evidence({21: 1.0}, lift_m=0.03)) == "pinch"
+
+
 def test_small_proximal_share_still_pinches_and_threshold_is_an_option() -> None:
     ev = evidence({10: 0.1, 20: 0.9})
     assert classify(ev) == "pinch"
@@ -63,7 +70,8 @@ def test_small_proximal_share_still_pinches_and_threshold_is_an_option() -> None
 
 
 def test_dropped_or_one_finger_objects_are_no_grasp() -> None:
-    assert classify(evidence({20: 1.0}, lift_m=0.01)) == "no_grasp"
+    assert classify(evidence({20: 1.0}, lift_m=0.005)) == "no_grasp"
+    assert classify(evidence({20: 1.0}, on_ground=0.5)) == "no_grasp"
     assert classify(evidence({20: 1.0}, both=0.5)) == "no_grasp"
     assert classify(evidence({})) == "no_grasp"
 
@@ -114,6 +122,7 @@ def _row(per_link: dict[int, float], dsr: float, prefix: str = "") -> dict[str, 
         f"{prefix}lift_height_m": 0.07,
         f"{prefix}hold_normal_force_n_palm": 0.0,
         f"{prefix}hold_contact_fraction_both_fingers": 1.0,
+        f"{prefix}hold_ground_contact_fraction": 0.0,
         f"{prefix}final_mean_contact_link": 20.0,
     }
     for name, f in zip(link_columns(f"{prefix}hold_normal_force_n"), forces(per_link), strict=True):

@@ -63,7 +63,7 @@ class Numerics(BaseModel):
 
     model_config = ConfigDict(extra="forbid", frozen=True)
 
-    added_inertia_kg_m2: float = Field(2e-6, ge=0)
+    added_inertia_kg_m2: float = Field(3e-5, ge=0)
     damping_n_m_s_per_rad: float | None = Field(None, ge=0)
     motor_limit_n_m: float | None = Field(None, ge=0)
 
@@ -189,7 +189,7 @@ def run_pinch_grasp(
     gripper = _gripper(model, params)
     p = params
     with World(settings) as world:
-        world.add_ground(friction=GROUND_FRICTION)
+        ground = world.add_ground(friction=GROUND_FRICTION)
         obj_start = np.array([0.0, 0.0, OBJECT_HEIGHT_M / 2 + SPAWN_GAP_M])
         box = RigidBody(
             name="object",
@@ -207,7 +207,7 @@ def run_pinch_grasp(
         far = np.array([1.0, 0.0, p.hand_height_m])
         hand = world.add_model(gripper, Pose(position_m=tuple(far)))
         palm = hand.bodies[0]
-        probe = HoldProbe(world, palm, obj.id)
+        probe = HoldProbe(world, palm, obj.id, ground)
         base_to_palm_x = float(far[0] - probe.finger_base_x_m())
         x_end = obj_start[0] + p.centering_m + base_to_palm_x
         start = np.array([x_end + p.approach_m, 0.0, p.hand_height_m])

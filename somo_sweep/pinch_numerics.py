@@ -1,0 +1,190 @@
+"""Numerics of the pinch-grasp study: the chosen settings, and how to check them.
+
+The original ran 8000 steps of 0.5 ms per 4-s trial (12–13 s of wall time). Here the
+step is larger; what makes that stable is inertia shaping of the finger links (it
+lowers the chain's highest natural frequency, which the explicit springs must
+resolve, and leaves statics unchanged) on top of SoMo's Coulomb joint motor.
+:func:`compare` reruns a set of trials under two numerics and reports how often
+the labels agree and how far the metrics move; :func:`trial_seconds` times one trial.
+``python -m somo_sweep.pinch_numerics --help`` runs both.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+from dataclasses import dataclass
+from pathlib import Path
+from time import perf_counter
+from typing import Any
+
+import numpy as np
+
+from somo_sweep.models import load_model
+from somo_sweep.tasks.pinch_grasp import Numerics, PinchGraspParams, run_pinch_grasp
+from somo_sweep.world import WorldSettings
+
+__all__ = [
+    "CHOSEN",
+    "ORIGINAL_TRIAL_S",
+    "REFERENCE",
+    "Setup",
+    "compare",
+    "print_trial_timing",
+    "quick_points",
+    "trial_seconds",
+]
+
+STUDIES = Path(__file__).resolve().parent.parent / "studies"
+GRIPPER = STUDIES / "models" / "pinch_gripper.yaml"
+QUICK_STUDY = STUDIES / "pinch_grasp_quick.yaml"
+#: Wall time of one 4-s trial of the original SoMo study on one core (facts sheet), s.
+ORIGINAL_TRIAL_S = 12.5
+
+
+@dataclass(frozen=True)
+class Setup:
+    """Numerics of a run: time step (s), solver iterations and the finger regularisation."""
+
+    time_step_s: float
+    solver_iterations: int
+    numerics: Numerics
+
+    def settings(self) -> WorldSettings:
+        """World settings of this setup."""
+        return WorldSettings(time_step_s=self.time_step_s, solver_iterations=self.solver_iterations)
+
+    def describe(self) -> str:
+        """One line: dt, iterations, inertia shaping, damping, motor limit."""
+        n = self.numerics
+        return (
+            f"dt {self.time_step_s * 1e3:g} ms, {self.solver_iterations} solver iterations, "
+            f"added inertia {n.added_inertia_kg_m2:g} kg·m², damping "
+            f"{'file' if n.damping_n_m_s_per_rad is None else n.damping_n_m_s_per_rad}, motor limit "
+            f"{'file (0.005 N·m)' if n.motor_limit_n_m is None else n.motor_limit_n_m}"
+        )
+
+
+#: The study's numerics (also the defaults of :class:`PinchGraspParams.numerics`).
+CHOSEN = Setup(4e-3, 50, Numerics())
+#: The fine-step reference: the original's step and the physical finger (no inertia shaping).
+REFERENCE = Setup(5e-4, 50, Numerics(added_inertia_kg_m2=0.0))
+
+
+def quick_points(study: Path = QUICK_STUDY) -> list[dict[str, float]]:
+    """The grid points of a pinch_grasp study file (default: the quick study) as task parameters."""
+    from somo_sweep.study import load_study
+
+    return [{k.removeprefix("task."): v for k, v in pt.items()} for pt in load_study(study).points()]
+
+
+def _trial(point: dict[str, float], setup: Setup) -> dict[str, Any]:
+    params = PinchGraspParams(numerics=setup.numerics, **point)
+    start = perf_counter()
+    result = run_pinch_grasp(load_model(GRIPPER), params, setup.settings())
+    return {
+        "point": point,
+        "status": result.status,
+        "labels": dict(result.labels),
+        "metrics": dict(result.metrics),
+        "wall_time_s": perf_counter() - start,
+    }
+
+
+def trial_seconds(
+    setup: Setup = CHOSEN, repeats: int = 3, point: dict[str, float] | None = None
+) -> list[float]:
+    """Wall time (s) of one 4-s trial, ``repeats`` times, in this process (one core)."""
+    point = point or {"distal_segment_ratio": 0.2, "object_width_m": 0.040, "centering_m": 0.100}
+    return [float(_trial(point, setup)["wall_time_s"]) for _ in range(repeats)]
+
+
+def compare(
+    points: list[dict[str, float]], a: Setup, b: Setup, n_jobs: int = 2, save: Path | None = None
+) -> dict[str, Any]:
+    """Run ``points`` under setups ``a`` and ``b``; label agreement and metric differences.
+
+    Returns:
+        ``agreement`` (share of trials whose ``grasp`` label is the same in both), the
+        same for ``grasp_paper``, the disagreeing points, median and max |Δ lift| (m),
+        the mean wall time per trial of each setup (s) and statuses.
+    """
+    from joblib import Parallel, delayed
+
+    runs = Parallel(n_jobs=n_jobs)(delayed(_trial)(pt, s) for s in (a, b) for pt in points)
+    ra, rb = runs[: len(points)], runs[len(points) :]
+    if save is not None:
+        save.write_text(json.dumps({"a": ra, "b": rb}, default=str))
+    out: dict[str, Any] = {"trials": len(points)}
+    for key in ("grasp", "grasp_paper"):
+        same = [
+            x["labels"].get(key, x["status"]) == y["labels"].get(key, y["status"])
+            for x, y in zip(ra, rb, strict=True)
+        ]
+        out[f"agreement_{key}"] = float(np.mean(same))
+        out[f"differ_{key}"] = [
+            (x["point"], x["labels"].get(key, x["status"]), y["labels"].get(key, y["status"]))
+            for x, y, s in zip(ra, rb, same, strict=True)
+            if not s
+        ]
+    dl = [
+        abs(x["metrics"]["lift_height_m"] - y["metrics"]["lift_height_m"])
+        for x, y in zip(ra, rb, strict=True)
+        if x["status"] == y["status"] == "ok"
+    ]
+    out["lift_diff_median_m"] = float(np.median(dl)) if dl else float("nan")
+    out["lift_diff_max_m"] = float(np.max(dl)) if dl else float("nan")
+    out["wall_s_a"] = float(np.mean([x["wall_time_s"] for x in ra]))
+    out["wall_s_b"] = float(np.mean([x["wall_time_s"] for x in rb]))
+    out["status_a"] = sorted({x["status"] for x in ra})
+    out["status_b"] = sorted({x["status"] for x in rb})
+    return out
+
+
+def main(argv: list[str] | None = None) -> None:
+    """Time the chosen numerics, or compare them with their half step or the fine reference."""
+    parser = argparse.ArgumentParser(description=__doc__)
+    parser.add_argument("--repeats", type=int, default=3)
+    parser.add_argument(
+        "--compare", choices=("half-step", "reference"), help="label agreement on the quick grid"
+    )
+    parser.add_argument("--jobs", type=int, default=2)
+    parser.add_argument("--save", type=Path, help="write every trial's result to this JSON file")
+    parser.add_argument(
+        "--study", type=Path, default=QUICK_STUDY, help="pinch_grasp study whose grid to compare on"
+    )
+    parser.add_argument("--a", help="setup A instead of the chosen one: DT_S,ITERATIONS,INERTIA_KG_M2")
+    args = parser.parse_args(argv)
+    a = CHOSEN
+    if args.a:
+        dt, iters, inertia = args.a.split(",")
+        a = Setup(float(dt), int(iters), Numerics(added_inertia_kg_m2=float(inertia)))
+    if args.compare:
+        b = (
+            REFERENCE
+            if args.compare == "reference"
+            else Setup(a.time_step_s / 2, a.solver_iterations, a.numerics)
+        )
+        print(f"A: {a.describe()}\nB: {b.describe()}")
+        print(
+            json.dumps(compare(quick_points(args.study), a, b, args.jobs, args.save), indent=1, default=str)
+        )
+        return
+    print_trial_timing(args.repeats, a)
+
+
+def print_trial_timing(repeats: int = 3, setup: Setup = CHOSEN) -> list[float]:
+    """Time one pinch-grasp trial ``repeats`` times; print min, median and the ratio to the original."""
+    times = trial_seconds(setup, repeats)
+    median = float(np.median(times))
+    print(f"pinch-grasp trial (4 s simulated, one core), {setup.describe()}:")
+    print(f"  wall time min {min(times):.2f} s, median {median:.2f} s over {len(times)} runs")
+    print(
+        f"  {ORIGINAL_TRIAL_S / median:.1f}x faster (median) than the original's "
+        f"{ORIGINAL_TRIAL_S} s per trial (target >= 5x)"
+    )
+    return times
+
+
+if __name__ == "__main__":
+    main()
