@@ -44,6 +44,20 @@ bench: $(STAMP) ## Speed benchmark: ms per step of the two-finger grasp, Bullet 
 fig3: $(STAMP) ## Paper Fig. 3: blocked force vs pressure, eq. (8)/(9) and fit vs published values
 	$(BIN)/python -m somo_sweep.fig3 results/figures
 
+fig5: $(STAMP) ## Paper Fig. 5: gait vs the hardware recording, side weight calibrated on 3 cycles (~15 min)
+	$(BIN)/python -m somo_sweep.fig5 --out results/figures
+
+fig5-quick: $(STAMP) ## Fig. 5 on the first gait cycle, no calibration
+	$(BIN)/python -m somo_sweep.fig5 --out results/figures --quick
+
+palm: $(STAMP) ## Palm design study (Sec. V-B): palm height x radius on the IHM hand
+	$(BIN)/somo-sweep run studies/palm_design.yaml
+	$(BIN)/python -m somo_sweep.palm results/palm_design --out results/figures
+
+palm-quick: $(STAMP) ## Palm study on 2 x 2 designs, one cycle
+	$(BIN)/somo-sweep run studies/palm_design_quick.yaml
+	$(BIN)/python -m somo_sweep.palm results/palm_design_quick --out results/figures
+
 fig8: $(STAMP) ## Paper Fig. 8: snake with isotropic vs anisotropic friction (10 s each)
 	$(BIN)/python -m somo_sweep.fig8 --out results/figures
 

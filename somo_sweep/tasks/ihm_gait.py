@@ -51,6 +51,8 @@ class GaitParams(Spec):
     cube_friction: float = Field(1.2, ge=0)
     palm_height_m: float | None = Field(None, gt=0)
     palm_radius_m: float | None = Field(None, gt=0)
+    cube_offset_std_m: float = Field(0.0, ge=0)
+    cube_yaw_std_deg: float = Field(0.0, ge=0)
     record_every_s: float = Field(0.04, gt=0)
 
 
@@ -89,8 +91,11 @@ def _torques(pressures_psi: np.ndarray, w_grasp: float, w_side: float) -> np.nda
     return out
 
 
-def simulate_gait(model: Model, params: GaitParams, settings: WorldSettings) -> GaitRun:
+def simulate_gait(model: Model, params: GaitParams, settings: WorldSettings, seed: int = 0) -> GaitRun:
     """Run the hand on the pressure table and record the cube's pose.
+
+    The cube starts centred on the palm, shifted in x and y and turned about z by
+    normal draws (``cube_offset_std_m``, ``cube_yaw_std_deg``) from ``seed``.
 
     Raises:
         UnstableSimulation: If the run blows up.
@@ -110,6 +115,9 @@ def simulate_gait(model: Model, params: GaitParams, settings: WorldSettings) -> 
     palm_top_m = palm.pose.position_m[2] + (palm.link.length_m or 0.0) / 2
     table = load_pressure_table(params.pressure_table)
     end_s = params.duration_s or table.end_time_s
+    rng = np.random.default_rng(seed)
+    dx, dy = rng.normal(0.0, params.cube_offset_std_m, 2) if params.cube_offset_std_m else (0.0, 0.0)
+    yaw_deg = rng.normal(0.0, params.cube_yaw_std_deg) if params.cube_yaw_std_deg else 0.0
     with World(settings) as world:
         hand = world.add_model(model)
         half = params.cube_size_m / 2
@@ -121,7 +129,10 @@ def simulate_gait(model: Model, params: GaitParams, settings: WorldSettings) -> 
                 mass_kg=params.cube_mass_kg,
                 friction={"lateral": params.cube_friction},
             ),
-            pose=Pose(position_m=(0.0, 0.0, palm_top_m + half + 1e-4)),
+            pose=Pose(
+                position_m=(float(dx), float(dy), palm_top_m + half + 1e-4),
+                rpy_rad=(0.0, 0.0, float(np.radians(yaw_deg))),
+            ),
         )
         obj = world.load_plan(plan_rigid_body(cube, world.scale))
         w_g, w_s = params.w_grasp_n_m_per_psi, params.w_side_n_m_per_psi
@@ -142,9 +153,8 @@ def simulate_gait(model: Model, params: GaitParams, settings: WorldSettings) -> 
 
 
 def _run(model: Model, params: GaitParams, settings: WorldSettings, seed: int) -> TaskResult:
-    del seed  # deterministic
     try:
-        run = simulate_gait(model, params, settings)
+        run = simulate_gait(model, params, settings, seed)
     except UnstableSimulation as exc:
         return TaskResult(status="unstable", message=str(exc))
     t = run.times_s
