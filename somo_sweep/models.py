@@ -1,7 +1,8 @@
 """Model files: a ``manipulator:`` or an ``assembly:`` section, from YAML, JSON or a dict.
 
 Inside an assembly, a mount may say ``file: other.yaml`` instead of giving its
-``manipulator`` inline; the path is relative to the including file.
+``manipulator`` inline; the path is relative to the including file. Top-level keys
+starting with ``_`` are ignored: they hold YAML anchors reused below (``&link`` / ``*link``).
 """
 
 from __future__ import annotations
@@ -55,7 +56,8 @@ class Model(Spec):
 
 
 def _resolve_includes(data: dict[str, Any], folder: Path | None, source: str) -> dict[str, Any]:
-    data = copy.deepcopy(data)
+    # Top-level keys starting with "_" hold YAML anchors (&link ... *link) and are not part of the model.
+    data = {k: copy.deepcopy(v) for k, v in data.items() if not str(k).startswith("_")}
     assembly = data.get("assembly")
     if not isinstance(assembly, dict):
         return data
