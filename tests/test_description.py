@@ -246,3 +246,18 @@ def test_attach_to_must_name_an_earlier_manipulator() -> None:
     data["assembly"]["manipulators"][0]["attach_to"] = "right"
     with pytest.raises(DescriptionError, match="attach_to must name an earlier manipulator"):
         model_from_dict(data, "g.yaml", MODELS)
+
+
+def test_top_level_underscore_keys_hold_yaml_anchors(tmp_path: Path) -> None:
+    path = tmp_path / "anchored.yaml"
+    path.write_text(
+        "_link: &link {shape: box, size_m: [0.02, 0.01], mass_kg: 0.01}\n"
+        "_joints: &joints [{axis: [1, 0, 0], stiffness_n_m_per_rad: 1.0}]\n"
+        "manipulator:\n"
+        "  actuators:\n"
+        "    - {length_m: 0.1, n_segments: 5, link: *link, joints: *joints}\n"
+        "    - {length_m: 0.05, n_segments: 5, link: *link, joints: *joints}\n"
+    )
+    model = load_model(path)
+    assert model.manipulator is not None and len(model.manipulator.actuators) == 2
+    assert model.manipulator.actuators[1].segment_m == pytest.approx(0.01)
