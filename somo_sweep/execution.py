@@ -27,7 +27,7 @@ from somo_sweep.errors import SomoError, UnstableSimulation
 from somo_sweep.jobs import Job
 from somo_sweep.tasks.registry import TaskResult, get_task
 
-__all__ = ["Backend", "Outcome", "execute", "run_isolated"]
+__all__ = ["Backend", "Outcome", "dask_client", "execute", "run_isolated"]
 
 Backend = Literal["loky", "dask"]
 #: How often a worker restart is tried when a whole worker process (not a trial) dies.
@@ -100,12 +100,17 @@ def run_isolated(job: Job, timeout_s: float | None = None) -> Outcome:
         signal.signal(signal.SIGINT, signal.SIG_IGN)
         signal.signal(signal.SIGTERM, signal.SIG_DFL)
         _die_with_parent()
+        code = 1
         try:
-            data = pickle.dumps(_call(job))
+            try:
+                data = pickle.dumps(_call(job))
+            except BaseException as exc:  # SystemExit in a task, or metrics that cannot be pickled
+                data = pickle.dumps(TaskResult(status="error", message=f"{type(exc).__name__}: {exc}"))
             with os.fdopen(write_fd, "wb") as fh:
                 fh.write(data)
+            code = 0
         finally:
-            os._exit(0)
+            os._exit(code)
     os.close(write_fd)
     chunks: list[bytes] = []
     timed_out = finished = False
@@ -157,6 +162,7 @@ def execute(
     n_jobs: int = 1,
     scheduler: str | None = None,
     timeout_s: float | None = None,
+    client: Any = None,
 ) -> Iterator[Outcome]:
     """Run jobs and yield their outcomes as they finish (in completion order).
 
@@ -166,12 +172,15 @@ def execute(
         n_jobs: Worker processes for ``loky`` (1 runs in this process; trials are still forked).
         scheduler: Dask scheduler address, e.g. ``tcp://10.0.0.5:8786`` (``dask`` only).
         timeout_s: Per-trial wall-time limit, s.
+        client: A connected Dask client (``dask`` only; default: connect to ``scheduler``).
 
     Raises:
         SomoError: The Dask scheduler cannot be reached, or workers keep dying.
     """
     pending = {j.job_id: j for j in jobs}
-    client = _dask_client(scheduler) if backend == "dask" else None
+    own_client = backend == "dask" and client is None
+    if own_client:
+        client = dask_client(scheduler)
     restarts = 0
     try:
         while pending:
@@ -190,16 +199,25 @@ def execute(
                         f"workers died {restarts} times, giving up: {type(exc).__name__}: {exc}"
                     ) from exc
     finally:
-        if client is not None:
+        if own_client and client is not None:
             client.close()
 
 
-def _dask_client(scheduler: str | None) -> Any:
+def dask_client(scheduler: str | None, timeout_s: float = 15.0) -> Any:
+    """A ``dask.distributed.Client`` connected to ``scheduler`` (joblib's Dask backend uses it).
+
+    Args:
+        scheduler: Address, e.g. ``tcp://HOST:8786``.
+        timeout_s: How long to try to connect, s.
+
+    Raises:
+        SomoError: No address, or the scheduler cannot be reached in time.
+    """
     if not scheduler:
         raise SomoError("--backend dask needs --scheduler ADDRESS (e.g. tcp://HOST:8786)")
     from dask.distributed import Client
 
     try:
-        return Client(scheduler, timeout="15s")
+        return Client(scheduler, timeout=f"{timeout_s}s")
     except (OSError, TimeoutError) as exc:
         raise SomoError(f"cannot connect to the Dask scheduler at {scheduler}: {exc}") from None

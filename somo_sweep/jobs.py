@@ -26,7 +26,7 @@ from somo_sweep.models import Model
 from somo_sweep.study import Study
 from somo_sweep.world import WorldSettings
 
-__all__ = ["Job", "JobTable", "build_jobs", "code_version", "param_column"]
+__all__ = ["Job", "JobTable", "build_jobs", "code_version", "param_column", "trial_modules"]
 
 
 def _package_version() -> str:
@@ -45,35 +45,56 @@ def _module_file(name: str) -> Path | None:
     return None
 
 
+#: Plumbing whose own source is hashed but whose imports are not followed: the registry
+#: imports the model and world modules for type annotations only.
+_NOT_FOLLOWED = {"somo_sweep.tasks.registry", "somo_sweep.tasks"}
+
+
 def _imports(path: Path) -> set[str]:
-    """``somo_sweep`` modules a source file imports (static, from its syntax tree)."""
+    """``somo_sweep`` modules a source file imports (static; ``if TYPE_CHECKING:`` blocks skipped)."""
     found: set[str] = set()
-    for node in ast.walk(ast.parse(path.read_text(encoding="utf-8"))):
+    todo: list[ast.AST] = [ast.parse(path.read_text(encoding="utf-8"))]
+    while todo:
+        node = todo.pop()
+        if isinstance(node, ast.If) and "TYPE_CHECKING" in ast.unparse(node.test):
+            todo.extend(node.orelse)
+            continue
         if isinstance(node, ast.ImportFrom) and node.module and node.module.startswith("somo_sweep"):
             found.add(node.module)
             found.update(f"{node.module}.{a.name}" for a in node.names)
         elif isinstance(node, ast.Import):
             found.update(a.name for a in node.names if a.name.startswith("somo_sweep"))
+        todo.extend(ast.iter_child_nodes(node))
     return found
 
 
-@cache
-def code_version(task_module: str) -> str:
-    """Package version plus a hash of the task's module and every somo_sweep module it imports.
-
-    Only code a trial can run is hashed: editing the CLI, the plots or another task
-    keeps job ids, and hence finished results, valid.
-    """
+def trial_modules(task_module: str) -> list[str]:
+    """The task's module and every somo_sweep module it imports, transitively (sorted)."""
     todo, seen = [task_module], set()
-    digest = hashlib.sha256()
     while todo:
         name = todo.pop()
         path = _module_file(name)
         if name in seen or path is None:
             continue
         seen.add(name)
+        if name not in _NOT_FOLLOWED:
+            todo.extend(sorted(_imports(path) - seen))
+    return sorted(seen)
+
+
+@cache
+def code_version(task_module: str) -> str:
+    """Package version plus a hash of the sources of :func:`trial_modules`.
+
+    Only code a trial can run is hashed: editing the CLI, the plots, the sweep engine or
+    another task keeps job ids, and hence finished results, valid; editing the task or
+    the core modules it uses (world, springs, ...) changes them.
+    """
+    digest = hashlib.sha256()
+    for name in trial_modules(task_module):
+        path = _module_file(name)
+        assert path is not None
         digest.update(name.encode() + path.read_bytes())
-        todo.extend(sorted(_imports(path) - seen))
     return f"{_package_version()}+{digest.hexdigest()[:12]}"
 
 

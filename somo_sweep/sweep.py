@@ -7,6 +7,7 @@ and on SIGINT / SIGTERM writes every finished trial before returning.
 
 from __future__ import annotations
 
+import contextlib
 import json
 import os
 import shutil
@@ -22,7 +23,7 @@ from typing import Any
 
 import numpy as np
 
-from somo_sweep.execution import Backend, Outcome, execute
+from somo_sweep.execution import Backend, Outcome, dask_client, execute
 from somo_sweep.jobs import Job, JobTable, build_jobs
 from somo_sweep.results import ResultStore
 from somo_sweep.schema import FIXED
@@ -99,34 +100,52 @@ class _Stop(KeyboardInterrupt):
     """SIGINT or SIGTERM arrived (a KeyboardInterrupt, so every layer unwinds as for Ctrl-C)."""
 
     def __init__(self, signum: int):
+        super().__init__(signum)
         self.signum = signum
 
 
-@contextmanager
-def _signals_stop() -> Iterator[Callable[[], None]]:
-    """Turn SIGINT and SIGTERM into :class:`_Stop` inside the block (main thread only).
+class _SignalGuard:
+    """SIGINT / SIGTERM raise :class:`_Stop`, except inside :meth:`protect`, where they wait.
 
-    Yields a function that switches to ignoring them (while the last rows are written,
-    a second Ctrl-C must not lose them); the previous handlers are restored on exit.
+    Rows are written inside ``protect``: a signal arriving while a part file or the
+    manifest is being written is acted on once the write is complete, so a finished
+    row is never lost nor written twice. Handlers are installed in the main thread only
+    (signals reach no other) and restored on exit.
     """
-    signals = (signal.SIGINT, signal.SIGTERM)
-    if threading.current_thread() is not threading.main_thread():
-        yield lambda: None  # signals reach the main thread only; nothing to install here
-        return
 
-    def handler(signum: int, frame: object) -> None:
+    SIGNALS = (signal.SIGINT, signal.SIGTERM)
+
+    def __init__(self) -> None:
+        self.critical = False
+        self.pending: int | None = None
+        self.old: dict[int, Any] = {}
+
+    def _handler(self, signum: int, frame: object) -> None:
+        if self.critical:
+            self.pending = signum
+            return
         raise _Stop(signum)
 
-    def hold() -> None:
-        for s in signals:
-            signal.signal(s, signal.SIG_IGN)
+    def __enter__(self) -> _SignalGuard:
+        if threading.current_thread() is threading.main_thread():
+            self.old = {s: signal.signal(s, self._handler) for s in self.SIGNALS}
+        return self
 
-    old = {s: signal.signal(s, handler) for s in signals}
-    try:
-        yield hold
-    finally:
-        for s, h in old.items():
+    def __exit__(self, *exc: object) -> None:
+        for s, h in self.old.items():
             signal.signal(s, h)
+
+    @contextmanager
+    def protect(self, stop_after: bool = True) -> Iterator[None]:
+        """Defer signals inside the block; raise :class:`_Stop` after it if one came."""
+        self.critical = True
+        try:
+            yield
+        finally:
+            self.critical = False
+        if self.pending is not None and stop_after:
+            signum, self.pending = self.pending, None
+            raise _Stop(signum)
 
 
 def run_study(
@@ -166,8 +185,18 @@ def run_study(
     for job in table.jobs:
         for k, v in job.columns.items():
             param_types.setdefault(k, []).append(v)
-    store = ResultStore(study.output, table.study_hash, table.resolved, table.axes, param_types, overwrite)
+    client = dask_client(scheduler) if backend == "dask" else None  # fail before writing anything
+    try:
+        store = ResultStore(
+            study.output, table.study_hash, table.resolved, table.axes, param_types, overwrite
+        )
+    except BaseException:
+        if client is not None:
+            client.close()
+        raise
     start = time.perf_counter()
+    started = ended = False
+    buffer: list[dict[str, Any]] = []
     try:
         shutil.copyfile(study.source, study.output / "study.yaml")
         done = store.done_ids()
@@ -176,31 +205,41 @@ def run_study(
         store.start_run(
             {"backend": backend, "n_jobs": n_jobs if backend == "loky" else None, "to_run": len(todo)}
         )
+        started = True
         if on_start:
             on_start(len(todo), summary.skipped)
         by_id = {j.job_id: j for j in todo}
-        buffer: list[dict[str, Any]] = []
         last_flush = time.perf_counter()
-        status = "completed"
-        with _signals_stop() as hold_signals:
+        with _SignalGuard() as guard:
+            status = "completed"
             try:
-                for out in execute(todo, backend, n_jobs, scheduler, timeout_s):
-                    buffer.append(outcome_row(by_id[out.job_id], out, table.study_hash))
-                    summary.run += 1
-                    summary.by_status[out.status] += 1
-                    summary.by_label.update(f"{k}={v}" for k, v in out.labels.items())
-                    if on_outcome:
-                        on_outcome(out)
-                    if len(buffer) >= chunk_rows or time.perf_counter() - last_flush >= flush_interval_s:
-                        store.write(buffer)
-                        buffer, last_flush = [], time.perf_counter()
+                for out in execute(todo, backend, n_jobs, scheduler, timeout_s, client):
+                    with guard.protect():
+                        buffer.append(outcome_row(by_id[out.job_id], out, table.study_hash))
+                        summary.run += 1
+                        summary.by_status[out.status] += 1
+                        summary.by_label.update(f"{k}={v}" for k, v in out.labels.items())
+                        if on_outcome:
+                            on_outcome(out)
+                        if len(buffer) >= chunk_rows or time.perf_counter() - last_flush >= flush_interval_s:
+                            rows, buffer = buffer, []
+                            store.write(rows)
+                            last_flush = time.perf_counter()
             except KeyboardInterrupt as exc:
                 summary.interrupted = exc.signum if isinstance(exc, _Stop) else int(signal.SIGINT)
                 status = "interrupted"
-            hold_signals()
-            store.write(buffer)
-            summary.wall_time_s = time.perf_counter() - start
-            store.end_run(status, summary.run)
+            with guard.protect(stop_after=False):
+                rows, buffer = buffer, []
+                store.write(rows)
+                summary.wall_time_s = time.perf_counter() - start
+                store.end_run(status, summary.run)
+                ended = True
         return summary
     finally:
+        if started and not ended:  # an unexpected error: keep the finished rows, say so in the manifest
+            with contextlib.suppress(Exception):
+                store.write(buffer)
+                store.end_run("failed", summary.run)
         store.close()
+        if client is not None:
+            client.close()

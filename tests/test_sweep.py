@@ -19,7 +19,8 @@ from typer.testing import CliRunner
 
 from somo_sweep.cli import app
 from somo_sweep.errors import SomoError
-from somo_sweep.jobs import build_jobs
+from somo_sweep.execution import dask_client
+from somo_sweep.jobs import build_jobs, trial_modules
 from somo_sweep.results import ResultStore, read_manifest, read_results
 from somo_sweep.study import load_study
 from somo_sweep.sweep import run_study
@@ -86,6 +87,18 @@ def test_job_ids_are_stable_and_follow_the_model_content(tmp_path: Path) -> None
     path.write_text(path.read_text() + "set:\n  model.manipulator.actuators[0].length_m: 0.11\n")
     c = build_jobs(load_study(path))
     assert not {j.job_id for j in a.jobs} & {j.job_id for j in c.jobs}
+
+
+def test_code_version_covers_the_code_a_trial_runs_and_nothing_else() -> None:
+    bench = trial_modules("somo_sweep.tasks.bench_tasks")
+    assert {
+        "somo_sweep.tasks.bench_tasks",
+        "somo_sweep.bench",
+        "somo_sweep.world",
+        "somo_sweep.springs",
+    } <= set(bench)
+    assert not {"somo_sweep.cli", "somo_sweep.sweep", "somo_sweep.results", "somo_sweep.plots"} & set(bench)
+    assert "somo_sweep.world" not in trial_modules("somo_sweep.tasks.selftest")
 
 
 def test_resume_runs_only_missing_trials_and_gives_the_same_table(tmp_path: Path) -> None:
@@ -196,6 +209,11 @@ def test_a_trial_over_its_time_limit_is_an_error(tmp_path: Path) -> None:
     assert time.perf_counter() - start < 10
     assert summary.by_status == {"error": 1}
     assert read_results(tmp_path / "out")["message"].iloc[0] == "timed out after 0.5 s"
+
+
+def test_an_unreachable_dask_scheduler_is_a_clear_error() -> None:
+    with pytest.raises(SomoError, match=r"cannot connect to the Dask scheduler at tcp://127\.0\.0\.1:9"):
+        dask_client("tcp://127.0.0.1:9", timeout_s=1.0)
 
 
 def test_dask_backend_needs_a_scheduler(tmp_path: Path) -> None:

@@ -98,7 +98,7 @@ def test_interrupt_keeps_every_finished_trial_and_resume_completes(tmp_path: Pat
     assert proc.returncode == 128 + signum, stderr
     assert "finished trial(s) kept" in stderr and "Traceback" not in stderr
     kept = read_results(out)
-    assert 0 < len(kept) < n and set(kept["status"]) == {"ok"}
+    assert 0 < len(kept) < n and set(kept["status"]) == {"ok"} and kept["job_id"].is_unique
     assert read_manifest(out)["runs"][-1]["status"] == "interrupted"
     summary = run_study(load_study(path, out), n_jobs=2)
     assert (summary.skipped, summary.run) == (len(kept), n - len(kept))

@@ -16,15 +16,17 @@ import ctypes
 import os
 import signal
 import time
-from typing import Literal
+from typing import TYPE_CHECKING, Literal
 
 import numpy as np
 from pydantic import BaseModel, ConfigDict, Field
 
 from somo_sweep.errors import UnstableSimulation
-from somo_sweep.models import Model
 from somo_sweep.tasks.registry import TaskResult, TaskSpec, register
-from somo_sweep.world import WorldSettings
+
+if TYPE_CHECKING:  # annotations only: these tasks run no simulation
+    from somo_sweep.models import Model
+    from somo_sweep.world import WorldSettings
 
 __all__ = ["SelftestParams"]
 
