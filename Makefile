@@ -5,7 +5,7 @@ BIN    := $(VENV)/bin
 STAMP  := $(VENV)/.installed-stamp
 
 .DEFAULT_GOAL := help
-.PHONY: help install demo test test-slow lint format bench clean fig8 fig8-quick sweep-demo
+.PHONY: help install demo test test-slow lint format bench clean fig8 fig8-quick sweep-demo fig6 fig6-quick
 
 help: ## List the targets
 	@grep -E '^[a-zA-Z0-9_-]+:.*?## ' $(MAKEFILE_LIST) | awk 'BEGIN {FS = ":.*?## "}; {printf "  make %-12s %s\n", $$1, $$2}'
@@ -40,6 +40,16 @@ format: $(STAMP) ## Format the code with ruff
 
 bench: $(STAMP) ## Speed benchmark: ms per step of the two-finger grasp, Bullet vs Python
 	$(BIN)/python -m somo_sweep.benchmark
+
+fig6: $(STAMP) ## Paper Fig. 6: pinch-grasp study, 2310 trials (resumable), figure + smallest all-width pinch DSR
+	$(BIN)/somo-sweep run studies/pinch_grasp_dsr.yaml
+	$(BIN)/somo-sweep fig6 results/pinch_grasp_dsr --out results/figures
+	$(BIN)/somo-sweep fig6 results/pinch_grasp_dsr --out results/figures --rule paper
+
+fig6-quick: $(STAMP) ## Fig. 6 on a 192-trial subset (a few minutes on 2 cores)
+	$(BIN)/somo-sweep run studies/pinch_grasp_quick.yaml
+	$(BIN)/somo-sweep fig6 results/pinch_grasp_quick --out results/figures
+	$(BIN)/somo-sweep fig6 results/pinch_grasp_quick --out results/figures --rule paper
 
 fig3: $(STAMP) ## Paper Fig. 3: blocked force vs pressure, eq. (8)/(9) and fit vs published values
 	$(BIN)/python -m somo_sweep.fig3 results/figures

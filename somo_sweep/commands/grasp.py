@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import json
 from pathlib import Path
 from typing import Annotated
 
@@ -55,6 +56,9 @@ def fig6(
     try:
         table = grasp_table(read_results(results), rule)
         info = write_fig6(table, out or results, stem=f"fig6_{rule}", max_dsr=max_dsr)
+        if out is not None and out.resolve() != results.resolve():
+            # The headline is stored with the results too, wherever the figure goes.
+            (results / f"fig6_{rule}.json").write_text(json.dumps(info, indent=2) + "\n")
     except SomoError as exc:
         fail(exc)
     best = info["smallest_all_width_pinch_dsr"]
