@@ -7,7 +7,8 @@ from conftest import MODELS
 
 from somo_sweep.models import load_model
 from somo_sweep.tasks import get_task
-from somo_sweep.tasks.pinch_grasp import Numerics, PinchGraspParams, split_finger
+from somo_sweep.tasks.pinch_grasp import Numerics, PinchGraspParams, run_pinch_grasp, split_finger
+from somo_sweep.world import WorldSettings
 
 GRIPPER = MODELS / "pinch_gripper.yaml"
 
@@ -53,3 +54,45 @@ def test_task_is_registered_with_its_parameters() -> None:
     spec = get_task("pinch_grasp")
     assert spec.params_model is PinchGraspParams
     assert "fig6" in spec.tags
+
+
+def run(dsr: float, width_m: float, centering_m: float, time_step_s: float = 4e-3):
+    params = PinchGraspParams(distal_segment_ratio=dsr, object_width_m=width_m, centering_m=centering_m)
+    return run_pinch_grasp(load_model(GRIPPER), params, WorldSettings(time_step_s=time_step_s), seed=0)
+
+
+def test_long_distal_segment_pinches_a_wide_box_in_its_fingertips_and_lifts_it() -> None:
+    result = run(0.1, 0.080, 0.105)
+    assert result.status == "ok"
+    assert result.labels["grasp"] == "pinch"
+    m = result.metrics
+    assert 0.060 < m["lift_height_m"] < 0.080  # the hand lifts 75 mm
+    assert m["held"] is True
+    assert m["hold_force_fraction_proximal"] < 0.05
+    assert m["hold_mean_contact_position"] > 0.8
+
+
+def test_hand_close_to_a_wide_box_wraps_it_in_a_power_grasp() -> None:
+    result = run(0.5, 0.120, 0.075)
+    assert result.status == "ok"
+    assert result.labels["grasp"] == "power"
+    assert result.metrics["hold_force_fraction_proximal"] > 0.5
+    assert result.metrics["lift_height_m"] > 0.060
+
+
+def test_trial_is_deterministic() -> None:
+    a, b = run(0.2, 0.040, 0.105), run(0.2, 0.040, 0.105)
+    assert (a.status, a.labels) == (b.status, b.labels)
+    same = {
+        k: a.metrics[k] == b.metrics[k] or (a.metrics[k] != a.metrics[k] and b.metrics[k] != b.metrics[k])
+        for k in a.metrics
+    }
+    assert all(same.values()), [k for k, v in same.items() if not v]
+
+
+@pytest.mark.slow
+def test_fingers_out_of_reach_leave_a_narrow_box_on_the_ground() -> None:
+    result = run(0.2, 0.010, 0.165)
+    assert result.labels == {"grasp": "no_grasp", "grasp_paper": "no_grasp"}
+    assert abs(result.metrics["lift_height_m"]) < 0.002
+    assert result.metrics["hold_contact_count_tip"] == 0

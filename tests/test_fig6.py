@@ -1,0 +1,123 @@
+"""Fig. 6 table, headline and files; the classify and fig6 commands on a hand-made results folder."""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import pandas as pd
+from typer.testing import CliRunner
+
+from somo_sweep.cli import app
+from somo_sweep.fig6 import grasp_table, smallest_all_width_pinch_dsr, write_fig6
+from somo_sweep.grasp_contacts import link_columns
+
+
+def tidy(labels: dict[tuple[float, float], list[str]]) -> pd.DataFrame:
+    """Rows for {(dsr, width): labels over centering 70, 75, ... mm}."""
+    rows = [
+        {"distal_segment_ratio": d, "object_width_m": w, "centering_m": 0.070 + 0.005 * i, "label": lab}
+        for (d, w), labs in labels.items()
+        for i, lab in enumerate(labs)
+    ]
+    return pd.DataFrame(rows)
+
+
+def test_smallest_dsr_needs_a_pinch_at_every_width() -> None:
+    table = tidy(
+        {
+            (0.1, 0.01): ["power", "pinch"],
+            (0.1, 0.12): ["power", "no_grasp"],
+            (0.2, 0.01): ["power", "pinch"],
+            (0.2, 0.12): ["pinch", "no_grasp"],
+            (0.3, 0.01): ["pinch", "pinch"],
+            (0.3, 0.12): ["pinch", "pinch"],
+        }
+    )
+    assert smallest_all_width_pinch_dsr(table) == 0.2
+    assert smallest_all_width_pinch_dsr(table[table["distal_segment_ratio"] < 0.15]) is None
+
+
+def test_write_fig6_saves_png_svg_summary_and_headline(tmp_path: Path) -> None:
+    table = tidy(
+        {(0.1, 0.01): ["power", "pinch"], (0.1, 0.04): ["pinch", "no_grasp"], (0.6, 0.01): ["pinch"] * 2}
+    )
+    info = write_fig6(table, tmp_path)
+    assert info["smallest_all_width_pinch_dsr"] == 0.1
+    for name in ("fig6.png", "fig6.svg", "fig6_summary.csv", "fig6.json"):
+        assert (tmp_path / name).stat().st_size > 0
+    summary = pd.read_csv(tmp_path / "fig6_summary.csv")
+    assert set(summary.columns) >= {"distal_segment_ratio", "object_width_m", "pinch", "power", "no_grasp"}
+
+
+def results_folder(tmp_path: Path) -> Path:
+    """A results folder in the sweep engine's layout with two pinch_grasp rows and one blow-up."""
+    rows = []
+    for i, (per_link, final, status) in enumerate(
+        [({20: 1.0, 21: 1.0}, 20.5, "ok"), ({3: 1.0, 19: 1.0}, 20.0, "ok"), ({}, float("nan"), "unstable")]
+    ):
+        row: dict[str, object] = {
+            "job_id": f"job{i}",
+            "trial": i,
+            "status": status,
+            "study_hash": "h",
+            "task_distal_segment_ratio": 0.2,
+            "task_object_width_m": 0.04,
+            "task_centering_m": 0.1 + 0.005 * i,
+            "task_lift_m": 0.075,
+            "object_x_m": 0.0,
+            "object_y_m": 0.0,
+            "object_z_m": 0.1,
+            "lift_height_m": 0.07,
+            "hold_normal_force_n_palm": 0.0,
+            "hold_contact_fraction_both_fingers": 1.0,
+            "hold_ground_contact_fraction": 0.0,
+            "final_mean_contact_link": final,
+        }
+        for k, name in enumerate(link_columns("hold_normal_force_n"), start=1):
+            row[name] = per_link.get(k, 0.0)
+        rows.append(row)
+    folder = tmp_path / "results" / "pinch"
+    (folder / "trials").mkdir(parents=True)
+    (folder / "manifest.json").write_text(json.dumps({"study_hash": "h"}))
+    pd.DataFrame(rows).to_parquet(folder / "trials" / "part-0.parquet")
+    return folder
+
+
+def test_classify_command_relabels_from_stored_metrics(tmp_path: Path) -> None:
+    folder = results_folder(tmp_path)
+    result = CliRunner().invoke(app, ["classify", str(folder)])
+    assert result.exit_code == 0, result.output
+    labels = pd.read_csv(folder / "grasp_labels_contacts.csv")
+    assert labels["grasp_contacts"].tolist() == ["pinch", "power", "unstable"]
+    result = CliRunner().invoke(app, ["classify", str(folder), "--rule", "paper"])
+    assert pd.read_csv(folder / "grasp_labels_paper.csv")["grasp_paper"].tolist() == [
+        "pinch",
+        "pinch",
+        "unstable",
+    ]
+
+
+def test_fig6_command_prints_the_headline_and_writes_files(tmp_path: Path) -> None:
+    folder = results_folder(tmp_path)
+    result = CliRunner().invoke(app, ["fig6", str(folder), "--out", str(tmp_path / "fig")])
+    assert result.exit_code == 0, result.output
+    assert "smallest all-width pinch DSR: 0.20" in result.output
+    assert (tmp_path / "fig" / "fig6_contacts.png").exists()
+    assert json.loads((folder / "fig6_contacts.json").read_text())["smallest_all_width_pinch_dsr"] == 0.2
+
+
+def test_bad_rule_and_missing_folder_are_user_errors(tmp_path: Path) -> None:
+    folder = results_folder(tmp_path)
+    result = CliRunner().invoke(app, ["classify", str(folder), "--rule", "papr"])
+    assert result.exit_code == 2
+    assert "did you mean 'paper'" in result.output
+    result = CliRunner().invoke(app, ["classify", str(tmp_path / "nope")])
+    assert result.exit_code == 2
+
+
+def test_grasp_table_marks_blow_ups(tmp_path: Path) -> None:
+    from somo_sweep.grasp_results import read_results
+
+    table = grasp_table(read_results(results_folder(tmp_path)))
+    assert table["label"].tolist() == ["pinch", "power", "unstable"]
