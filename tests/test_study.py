@@ -7,8 +7,11 @@ import textwrap
 from pathlib import Path
 
 import pytest
+import yaml
+from typer.testing import CliRunner
 
 from somo_sweep.axes import expand_axis, parse_key_path
+from somo_sweep.cli import app
 from somo_sweep.errors import DescriptionError
 from somo_sweep.study import load_study
 from tests.conftest import MODELS, ROOT
@@ -191,3 +194,30 @@ def test_unlinked_axis_in_link_is_reported(tmp_path: Path) -> None:
         "linked axes must have the same number of values: task.pressure_kpa has 2, task.tip_load_n has 1"
         in problems_of(path)
     )
+
+
+def test_readme_shows_the_bundled_example_study() -> None:
+    readme = (ROOT / "README.md").read_text()
+    section = readme[readme.index("## Sweep a design") :]
+    block = section[
+        section.index("```yaml") + len("```yaml") : section.index("```", section.index("```yaml") + 7)
+    ]
+    bundled = yaml.safe_load((ROOT / "studies" / "finger_pressure_sweep.yaml").read_text())
+    assert yaml.safe_load(block) == bundled
+
+
+def test_bundled_example_dry_run_from_the_command_line() -> None:
+    res = CliRunner().invoke(app, ["run", str(ROOT / "studies" / "finger_pressure_sweep.yaml"), "--dry-run"])
+    assert res.exit_code == 0, res.output
+    assert "finger_pressure_sweep: task bench, 27 trials (27 grid points x 1 repeat(s))" in res.output
+
+
+@pytest.mark.slow
+def test_bundled_example_runs_from_the_command_line(tmp_path: Path) -> None:
+    res = CliRunner().invoke(
+        app,
+        ["run", str(ROOT / "studies" / "finger_pressure_sweep.yaml"), "--jobs", "2", "--out", str(tmp_path)],
+    )
+    assert res.exit_code == 0, res.output
+    assert "27 trial(s) run (ok 27)" in res.output
+    assert (tmp_path / "plots" / "summary.svg").is_file()
