@@ -38,6 +38,7 @@ import json
 import math
 from collections.abc import Iterator
 from dataclasses import dataclass, field
+from functools import cache
 from pathlib import Path
 from typing import Any
 
@@ -199,8 +200,19 @@ class Study:
                     set_path(data, parse_key_path(path)[1], value)
                 except ValueError as exc:
                     raise DescriptionError(self.source, [Problem(path, str(exc))]) from None
+            # Unknown keys fail even if the task's own model would let them through.
+            validate(_strict(self.task.params_model), data, str(self.source), prefix="task")
             self._params[key] = validate(self.task.params_model, data, str(self.source), prefix="task")
         return self._params[key]
+
+
+@cache
+def _strict(model: type[BaseModel]) -> type[BaseModel]:
+    """``model`` with unknown keys forbidden (used to check, never to build parameters)."""
+    if model.model_config.get("extra") == "forbid":
+        return model
+    config = {**model.model_config, "extra": "forbid"}
+    return type(model.__name__, (model,), {"model_config": config, "__module__": model.__module__})
 
 
 def load_model_dict(path: Path) -> dict[str, Any]:

@@ -8,12 +8,14 @@ from pathlib import Path
 
 import pytest
 import yaml
+from pydantic import BaseModel
 from typer.testing import CliRunner
 
 from somo_sweep.axes import expand_axis, parse_key_path
 from somo_sweep.cli import app
 from somo_sweep.errors import DescriptionError
 from somo_sweep.study import load_study
+from somo_sweep.tasks import TaskResult, TaskSpec, register
 from tests.conftest import MODELS, ROOT
 
 STIFFNESS = "model.manipulator.actuators[0].joints[0].stiffness_n_m_per_rad"
@@ -221,3 +223,15 @@ def test_bundled_example_runs_from_the_command_line(tmp_path: Path) -> None:
     assert res.exit_code == 0, res.output
     assert "27 trial(s) run (ok 27)" in res.output
     assert (tmp_path / "plots" / "summary.svg").is_file()
+
+
+class _LaxParams(BaseModel):
+    """A task parameter model that would accept unknown keys on its own."""
+
+    width_m: float = 0.01
+
+
+def test_unknown_task_parameters_fail_even_if_the_task_model_allows_extras(tmp_path: Path) -> None:
+    register(TaskSpec("_test_lax", lambda *a: TaskResult(), _LaxParams, "test only"))
+    path = write_study(tmp_path, "task: _test_lax\nmodel: models/ihm_finger.yaml\nparams: {widht_m: 0.02}\n")
+    assert "line 3: params.widht_m: unknown key 'widht_m' (did you mean 'width_m'?)" in problems_of(path)
