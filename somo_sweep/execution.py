@@ -16,6 +16,7 @@ import pickle
 import select
 import signal
 import socket
+import threading
 import time
 from collections.abc import Iterable, Iterator
 from dataclasses import dataclass, field
@@ -66,6 +67,28 @@ def _die_with_parent() -> None:
         pass
 
 
+_watching: list[int] = []
+
+
+def _watch_owner(owner_pid: int) -> None:
+    """In a local worker process, exit as soon as the process that started the sweep is gone.
+
+    A killed ``somo-sweep run`` (SIGKILL, OOM) then leaves no idle workers behind; their
+    trial processes follow through their parent-death signal. Not done in the sweep's own
+    process (``--jobs 1``) nor on remote (Dask) workers, which are not its children.
+    """
+    if _watching or os.getpid() == owner_pid or os.getppid() != owner_pid:
+        return
+    _watching.append(owner_pid)
+
+    def watch() -> None:
+        while os.getppid() == owner_pid:
+            time.sleep(1.0)
+        os._exit(1)
+
+    threading.Thread(target=watch, name="somo-sweep-owner-watch", daemon=True).start()
+
+
 def _call(job: Job) -> TaskResult:
     spec = get_task(job.task)
     try:
@@ -83,13 +106,16 @@ def _exit_text(status: int) -> str:
     return f"exit code {os.waitstatus_to_exitcode(status)}"
 
 
-def run_isolated(job: Job, timeout_s: float | None = None) -> Outcome:
+def run_isolated(job: Job, timeout_s: float | None = None, owner_pid: int | None = None) -> Outcome:
     """Run one job in a forked child process and return its outcome (never raises for the trial).
 
     Args:
         job: The job.
         timeout_s: Kill the trial after this wall time, s (None: no limit).
+        owner_pid: Process id of the sweep; a local worker exits when that process is gone.
     """
+    if owner_pid is not None:
+        _watch_owner(owner_pid)
     get_task(job.task)  # import task modules before forking
     start = time.perf_counter()
     host = socket.gethostname()
@@ -182,12 +208,15 @@ def execute(
     if own_client:
         client = dask_client(scheduler)
     restarts = 0
+    owner = os.getpid()
     try:
         while pending:
             todo = list(pending.values())
             try:
                 with parallel_config(backend=backend):
-                    for out in _parallel(backend, n_jobs)(delayed(run_isolated)(j, timeout_s) for j in todo):
+                    for out in _parallel(backend, n_jobs)(
+                        delayed(run_isolated)(j, timeout_s, owner) for j in todo
+                    ):
                         pending.pop(out.job_id, None)
                         yield out
             except (KeyboardInterrupt, GeneratorExit):
