@@ -11,7 +11,7 @@ from matplotlib.figure import Figure
 
 from somo_sweep.schema import FIXED, unit_of
 
-__all__ = ["metric_columns", "plot_metric", "plot_status", "summary_figure"]
+__all__ = ["metric_columns", "plot_labels", "plot_metric", "plot_status", "summary_figure"]
 
 STATUS_COLOURS = {"ok": "tab:green", "unstable": "tab:orange", "error": "tab:red"}
 #: At most this many metric panels in the summary figure.
@@ -49,6 +49,23 @@ def plot_status(ax: Axes, df: pd.DataFrame, x: str | None) -> None:
     ax.tick_params(axis="x", labelrotation=45)
 
 
+def plot_labels(ax: Axes, df: pd.DataFrame, x: str | None, label: str) -> None:
+    """Stacked bars of ``ok`` trials by the values of column ``label``, per value of ``x``."""
+    ok = df[df["status"] == "ok"]
+    values = ok[label].fillna("-")
+    counts = values.value_counts().to_frame().T if x is None else pd.crosstab(ok[x], values)
+    bottom = None
+    names = [str(v) for v in counts.index]
+    for value in counts.columns:
+        ax.bar(names, counts[value], bottom=bottom, label=str(value))
+        bottom = counts[value] if bottom is None else bottom + counts[value]
+    ax.set_xlabel(_label(x) if x else "")
+    ax.set_ylabel("ok trials")
+    ax.set_title(label.removeprefix("label_"))
+    ax.legend(fontsize="small")
+    ax.tick_params(axis="x", labelrotation=45)
+
+
 def plot_metric(
     ax: Axes, df: pd.DataFrame, x: str, y: str, hue: str | None = None, hue_title: str | None = None
 ) -> None:
@@ -72,7 +89,10 @@ def plot_metric(
 
 
 def summary_figure(df: pd.DataFrame, manifest: dict[str, Any]) -> Figure:
-    """Trials by status, then each metric against the first numeric axis (lines: the second axis)."""
+    """Trials by status, by each label, then each metric against the first numeric axis.
+
+    Metric panels draw one line per value of the second axis (if any).
+    """
     short = {c: k.rsplit(".", 1)[-1] for k, c in manifest.get("axes", {}).items()}
     axes = [c for c in short if c in df.columns]
     numeric = [c for c in axes if pd.api.types.is_numeric_dtype(df[c])]
@@ -80,14 +100,17 @@ def summary_figure(df: pd.DataFrame, manifest: dict[str, Any]) -> Figure:
     others = [c for c in axes if c != x]
     hue = others[0] if others else None
     metrics = metric_columns(df)[:MAX_METRICS] if x is not None else []
-    n = 1 + len(metrics)
+    labels = [c for c in df.columns if c.startswith("label_")][:MAX_METRICS]
+    n = 1 + len(labels) + len(metrics)
     cols = min(n, 3)
     rows = (n + cols - 1) // cols
     fig, grid = plt.subplots(rows, cols, figsize=(4.5 * cols, 3.6 * rows), squeeze=False)
     flat = list(grid.ravel())
     plot_status(flat[0], df, x)
     flat[0].set_title("trials by status")
-    for ax, metric in zip(flat[1:], metrics, strict=False):
+    for ax, label in zip(flat[1:], labels, strict=False):
+        plot_labels(ax, df, x, label)
+    for ax, metric in zip(flat[1 + len(labels) :], metrics, strict=False):
         assert x is not None
         plot_metric(ax, df, x, metric, hue, short.get(hue or ""))
     for ax in flat[n:]:

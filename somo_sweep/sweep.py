@@ -198,7 +198,7 @@ def run_study(
     started = ended = False
     buffer: list[dict[str, Any]] = []
     try:
-        shutil.copyfile(study.source, study.output / "study.yaml")
+        shutil.copyfile(study.source, study.output / f"study{study.source.suffix}")
         done = store.done_ids()
         todo = [j for j in table.jobs if j.job_id not in done]
         summary = RunSummary(study.output, len(table.jobs), len(table.jobs) - len(todo))
