@@ -105,12 +105,12 @@ def _inputs(manip: Manipulator, pressure_kpa: float) -> np.ndarray:
             raise SimulationError(
                 "the model has no 'actuation' (pressure_gain_n_m_per_kpa): it cannot be pressurised"
             )
-        gain = 0.0
+        torque = 0.0
     else:
-        gain = manip.actuation.pressure_gain_n_m_per_kpa
+        torque = manip.actuation.torque_n_m(pressure_kpa)
     u: list[float] = []
     for act in manip.actuators:
-        u.extend(gain * pressure_kpa if ax == 0 else 0.0 for ax in act.actuated_axes)
+        u.extend(torque if ax == 0 else 0.0 for ax in act.actuated_axes)
     return np.asarray(u, dtype=float)
 
 
@@ -232,6 +232,7 @@ def run_bench(
     pressure_kpa: float = 0.0,
     tip_load_n: float = 0.0,
     settings: BenchSettings | None = None,
+    direction: str | None = None,
 ) -> BenchResult:
     """Simulate one bench measurement.
 
@@ -241,6 +242,9 @@ def run_bench(
         pressure_kpa: Actuation pressure in kPa (torque = gain · p).
         tip_load_n: Downward tip force in N (``tip_load`` only), ≥ 0.
         settings: Numerics.
+        direction: ``loading`` / ``unloading``: the row was reached from below /
+            above (pressure, or tip load for ``tip_load``); joint hysteresis torques
+            then oppose that approach. None or empty: no hysteresis offset.
 
     Returns:
         ``tip_deflection_mm``, ``blocked_force_n`` or ``(tip_x_mm, tip_z_mm)``.
@@ -256,6 +260,9 @@ def run_bench(
     rig = _Rig(manip, settings or BenchSettings())
     try:
         rig.body.drive.set_inputs(_inputs(manip, pressure_kpa))
+        approach = {"loading": 1.0, "unloading": -1.0}.get(direction or "", 0.0)
+        if test != "tip_load":
+            rig.body.drive.set_approach(approach)
         if test == "blocked_force":
             stop = rig.add_stop()
             steps = rig.relax()
@@ -266,6 +273,7 @@ def run_bench(
         if test == "free_bending":
             return BenchResult((tip0[0] * 1e3, tip0[2] * 1e3), steps)
         rig.load_n = tip_load_n
+        rig.body.drive.set_approach(approach)  # the load is the varied input
         steps += rig.relax()
         return BenchResult(float(tip0[2] - rig.tip_m()[2]) * 1e3, steps)
     except UnstableSimulation as exc:

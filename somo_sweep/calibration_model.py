@@ -68,7 +68,10 @@ def set_axis_stiffness(manip: Manipulator, value: float, axis_index: int) -> Man
 
 
 def set_pressure_gain(manip: Manipulator, value: float) -> Manipulator:
-    """Set the pressure → torque gain, in N·m/kPa."""
+    """Set the pressure → torque gain, in N·m/kPa (other actuation fields are kept)."""
+    if manip.actuation is not None:
+        actuation = manip.actuation.model_copy(update={"pressure_gain_n_m_per_kpa": value})
+        return manip.model_copy(update={"actuation": actuation})
     return manip.model_copy(update={"actuation": Actuation(pressure_gain_n_m_per_kpa=value)})
 
 
@@ -97,11 +100,17 @@ def side_view(manip: Manipulator) -> Manipulator:
 
 
 def _simulate_row(
-    manip: Manipulator, test: str, axis: str, pressure_kpa: float, load_n: float, settings: BenchSettings
+    manip: Manipulator,
+    test: str,
+    axis: str,
+    pressure_kpa: float,
+    load_n: float,
+    settings: BenchSettings,
+    direction: str = "",
 ) -> tuple[float, float]:
     """One bench row: (value, nan) or (tip_x_mm, tip_z_mm)."""
     rig = side_view(manip) if axis == "side" else manip
-    value = run_bench(rig, test, pressure_kpa, load_n, settings).value
+    value = run_bench(rig, test, pressure_kpa, load_n, settings, direction).value
     return value if isinstance(value, tuple) else (float(value), math.nan)
 
 
@@ -117,6 +126,7 @@ def simulate_rows(
             float(r.pressure_kpa),
             0.0 if math.isnan(r.tip_load_n) else float(r.tip_load_n),
             settings,
+            getattr(r, "direction", "") or "",
         )
         for r in rows.itertuples()
     ]

@@ -162,6 +162,11 @@ class Joint(Spec):
     ``*_m`` / ``*_n*`` ones. ``offset_m`` moves the joint off the link centre
     line (the neutral-axis offset of a bending actuator). The Coulomb motor
     limit is SoMo's ``joint_control_limit_force``; ``damping`` is viscous.
+
+    Effects (default off, see ``docs/diagnosis.md``): ``stiffening_per_rad2`` makes the
+    restoring torque k·Δq·(1 + a·Δq²) (a > 0 stiffens, a < 0 softens; revolute only);
+    ``hysteresis_torque_n_m`` is a static friction torque that the bench protocols apply
+    against the approach direction of a ``loading`` / ``unloading`` row.
     """
 
     name: str | None = None
@@ -179,6 +184,8 @@ class Joint(Spec):
     motor_limit_n: float | None = Field(None, ge=0)
     limits_rad: tuple[float, float] | None = None
     limits_m: tuple[float, float] | None = None
+    stiffening_per_rad2: float = 0.0
+    hysteresis_torque_n_m: float = Field(0.0, ge=0)
 
     @field_validator("axis")
     @classmethod
@@ -198,6 +205,8 @@ class Joint(Spec):
             given.add("neutral_m")
         if self.type == "prismatic" and self.neutral_rad != 0.0:
             given.add("neutral_rad")
+        if self.type == "prismatic" and (self.stiffening_per_rad2 or self.hysteresis_torque_n_m):
+            given.add("stiffening_per_rad2 / hysteresis_torque_n_m")
         if given:
             raise ValueError(f"{self.type} joint does not take {', '.join(sorted(given))}")
         if self.stiffness is None:
@@ -242,7 +251,9 @@ class Actuator(Spec):
 
     Give either ``n_segments`` or ``segment_length_m``; a length that is not a
     whole number of segments (within ``LENGTH_REL_TOL``) is rejected.
-    ``stiffness_profile`` multiplies the stiffness of each segment's joint.
+    ``stiffness_profile`` multiplies the stiffness of each segment's joint;
+    ``stiffness_gradient_per_m`` (effect, default 0) multiplies it further by
+    (1 + g·s), s the joint's distance from the actuator start in m.
     """
 
     name: str | None = None
@@ -252,6 +263,7 @@ class Actuator(Spec):
     link: Link
     joints: list[Joint] = Field(min_length=1, max_length=3)
     stiffness_profile: list[float] | None = None
+    stiffness_gradient_per_m: float = 0.0
 
     @model_validator(mode="after")
     def _segments_consistent(self) -> Actuator:
@@ -282,6 +294,11 @@ class Actuator(Spec):
                 )
             if any(v <= 0 for v in self.stiffness_profile):
                 raise ValueError("stiffness_profile entries must be > 0")
+        if 1 + self.stiffness_gradient_per_m * (n - 1) * self.length_m / n <= 0:
+            raise ValueError(
+                f"stiffness_gradient_per_m = {self.stiffness_gradient_per_m} makes the last joint's "
+                f"stiffness <= 0; allowed: > {-n / ((n - 1) * self.length_m) if n > 1 else '-inf'} 1/m"
+            )
         return self
 
     @property
@@ -306,8 +323,9 @@ class Actuator(Spec):
         return self.joints[i % len(self.joints)]
 
     def stiffness_factor(self, i: int) -> float:
-        """Stiffness multiplier of segment ``i``."""
-        return self.stiffness_profile[i] if self.stiffness_profile else 1.0
+        """Stiffness multiplier of segment ``i`` (profile times the gradient factor)."""
+        profile = self.stiffness_profile[i] if self.stiffness_profile else 1.0
+        return profile * (1 + self.stiffness_gradient_per_m * i * self.segment_m)
 
     @property
     def actuated_axes(self) -> list[int]:
@@ -323,9 +341,19 @@ class Base(Spec):
 
 
 class Actuation(Spec):
-    """How pressure maps to actuation torque: u = gain · p on each actuated first axis."""
+    """How pressure maps to actuation torque: u = gain · p on each actuated first axis.
+
+    With ``saturation_pressure_kpa`` (effect, default off) the map saturates:
+    u = gain · p_sat · tanh(p / p_sat).
+    """
 
     pressure_gain_n_m_per_kpa: float = Field(gt=0)
+    saturation_pressure_kpa: float | None = Field(None, gt=0)
+
+    def torque_n_m(self, pressure_kpa: float) -> float:
+        """Actuation torque in N·m at ``pressure_kpa`` (kPa)."""
+        gain, p_sat = self.pressure_gain_n_m_per_kpa, self.saturation_pressure_kpa
+        return gain * pressure_kpa if p_sat is None else gain * p_sat * math.tanh(pressure_kpa / p_sat)
 
 
 class Manipulator(Spec):

@@ -58,6 +58,8 @@ class SpringJoint:
         damping: Viscous damping in N·m·s/rad or N·s/m.
         motor_limit: Coulomb limit of the zero-velocity motor in N·m or N.
         input_index: Index of the control input driving it in the body, or -1.
+        stiffening: Cubic stiffening coefficient a in 1/rad² (torque k·Δq·(1 + a·Δq²)).
+        hysteresis: Static friction torque in N·m applied against the approach direction.
     """
 
     name: str
@@ -71,6 +73,8 @@ class SpringJoint:
     damping: float
     motor_limit: float
     input_index: int
+    stiffening: float = 0.0
+    hysteresis: float = 0.0
 
 
 @dataclass(frozen=True)

@@ -1,5 +1,9 @@
 """The per-step spring update of one body: τ = −k·(q − q0) − c·q̇ + u, applied once.
 
+Optional effects: a cubic term −k·a·(q − q0)³ (nonlinear stiffness; computed only
+when some joint has a ≠ 0) and a constant offset against the approach direction
+(hysteresis, folded into ``u`` when set, so it costs nothing per step).
+
 This is the hot path. It makes exactly one ``getJointStates`` and one
 ``setJointMotorControlArray`` call per body per step and only vectorised numpy
 arithmetic; all SI → scaled-world conversions are folded into constants once.
@@ -67,6 +71,12 @@ class SpringDrive:
             if col >= 0:
                 self._b[row, col] = self.effort_scale[row]
         self._u = np.zeros(len(joints))
+        self._u_inputs = np.zeros(len(joints))
+        self._bias = np.zeros(len(joints))
+        self.hysteresis = np.array([j.hysteresis for j in joints], dtype=float) * self.effort_scale
+        # Cubic stiffening only on revolute joints (angles are not scaled): decided once here.
+        self.k3 = self.k * np.array([j.stiffening for j in joints], dtype=float)
+        self._cubic = bool(np.any(self.k3 != 0))
         self.motor_limit = np.array([j.motor_limit for j in joints], dtype=float) * self.effort_scale
         self.q = np.zeros(len(joints))
         self.qd = np.zeros(len(joints))
@@ -89,7 +99,8 @@ class SpringDrive:
         """Set the control inputs (N·m for revolute axes, N for prismatic ones)."""
         if len(inputs_si) != self.n_inputs:
             raise ValueError(f"expected {self.n_inputs} inputs, got {len(inputs_si)}")
-        self._u = self._b @ np.asarray(inputs_si, dtype=float)
+        self._u_inputs = self._b @ np.asarray(inputs_si, dtype=float)
+        self._u = self._u_inputs + self._bias
 
     def set_joint_inputs(self, inputs_si: Sequence[float] | np.ndarray) -> None:
         """Set one input per spring joint (N·m / N), bypassing the actuator axes.
@@ -99,7 +110,18 @@ class SpringDrive:
         """
         if len(inputs_si) != len(self.joints):
             raise ValueError(f"expected {len(self.joints)} joint inputs, got {len(inputs_si)}")
-        self._u = np.asarray(inputs_si, dtype=float) * self.effort_scale
+        self._u_inputs = np.asarray(inputs_si, dtype=float) * self.effort_scale
+        self._u = self._u_inputs + self._bias
+
+    def set_approach(self, sign: float) -> None:
+        """Apply each joint's hysteresis torque against the approach direction.
+
+        Args:
+            sign: +1 when the joint angles grow towards equilibrium (loading), −1
+                when they shrink (unloading), 0 to switch the offset off.
+        """
+        self._bias = -float(sign) * self.hysteresis
+        self._u = self._u_inputs + self._bias
 
     def read(self) -> None:
         """Read joint positions and velocities (scaled world) into ``q`` and ``qd``."""
@@ -110,7 +132,11 @@ class SpringDrive:
 
     def torques(self) -> np.ndarray:
         """Joint efforts for the current state, scaled world units."""
-        return self._u - self.k * (self.q - self.q0) - self.c * self.qd
+        dq = self.q - self.q0
+        tau = self._u - self.k * dq - self.c * self.qd
+        if self._cubic:
+            tau -= self.k3 * dq**3
+        return tau
 
     def apply(self) -> None:
         """Read the state and send this step's efforts (the one torque command per step)."""

@@ -231,6 +231,8 @@ class _Builder:
                         damping=jdef.damping,
                         motor_limit=jdef.motor_limit,
                         input_index=inp,
+                        stiffening=jdef.stiffening_per_rad2,
+                        hysteresis=jdef.hysteresis_torque_n_m,
                     )
                     assert prev is not None
                     self.spring(sj, prev, link_name, attach_point + off, jdef.axis, jdef.limits)

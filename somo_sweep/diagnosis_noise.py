@@ -1,0 +1,210 @@
+"""Residual channels, the noise level of each, and where residuals are systematic.
+
+A *channel* is one measured quantity of one test: ``tip_load`` (mm),
+``blocked_force`` (N), ``free_bending.tip_x`` and ``free_bending.tip_z`` (mm),
+``tip_load[side]``. Its noise is estimated from repeated rows (same test, inputs
+and direction) where present, else from the scatter of the residuals along the
+input: second differences cancel any residual that is linear in the input
+(a wrong stiffness or gain), so what is left is the noise the model cannot fit.
+"""
+
+from __future__ import annotations
+
+from dataclasses import asdict, dataclass
+
+import numpy as np
+import pandas as pd
+
+from somo_sweep.calibration_metrics import UNITS, measured_array, row_labels
+
+__all__ = [
+    "Channel",
+    "Disagreement",
+    "NoiseEstimate",
+    "channels",
+    "estimate_noise",
+    "find_disagreements",
+]
+
+#: A run of residuals beyond this many noise levels, all of one sign, is a disagreement.
+SYSTEMATIC_Z = 2.0
+_INPUT = {"tip_load": "tip_load_n", "blocked_force": "pressure_kpa", "free_bending": "pressure_kpa"}
+
+
+@dataclass(frozen=True)
+class Channel:
+    """One measured quantity of one test.
+
+    Attributes:
+        name: ``tip_load``, ``blocked_force``, ``free_bending.tip_x``, ...
+        label: Test label (as in the per-test metrics).
+        column: 0 or 1 in the (n, 2) measured/simulated arrays.
+        rows: Boolean mask of the rows in the channel.
+        input_column: The varied input (``pressure_kpa`` or ``tip_load_n``).
+        unit: Unit of the quantity.
+    """
+
+    name: str
+    label: str
+    column: int
+    rows: np.ndarray
+    input_column: str
+    unit: str
+
+
+@dataclass(frozen=True)
+class NoiseEstimate:
+    """Noise standard deviation of a channel, in its unit, and how it was found."""
+
+    sigma: float
+    method: str
+    samples: int
+
+
+@dataclass(frozen=True)
+class Disagreement:
+    """Residuals of one sign beyond the noise over an input range.
+
+    Attributes:
+        channel: Channel name.
+        input_column: Varied input.
+        input_from: Start of the range (input's unit).
+        input_to: End of the range.
+        direction: ``loading`` / ``unloading`` or empty.
+        rows: Rows in the run.
+        max_residual: Largest |simulated − measured| in the run, in ``unit`` (signed).
+        unit: Unit of the residual.
+        max_over_noise: Largest |residual| / noise level.
+    """
+
+    channel: str
+    input_column: str
+    input_from: float
+    input_to: float
+    direction: str
+    rows: int
+    max_residual: float
+    unit: str
+    max_over_noise: float
+
+    def as_dict(self) -> dict[str, object]:
+        """Plain data for JSON."""
+        return asdict(self)
+
+    def describe(self) -> str:
+        """One line for the terminal and the report."""
+        side = "above" if self.max_residual > 0 else "below"
+        where = f" ({self.direction})" if self.direction else ""
+        return (
+            f"{self.channel}{where}, {self.input_column} {self.input_from:g}–{self.input_to:g}: simulation "
+            f"{side} measurement by up to {abs(self.max_residual):.3g} {self.unit} "
+            f"({self.max_over_noise:.1f}× noise, {self.rows} rows)"
+        )
+
+
+def channels(rows: pd.DataFrame) -> list[Channel]:
+    """The channels present in ``rows``, in first-seen test order."""
+    labels = np.array(row_labels(rows))
+    out = []
+    for label in dict.fromkeys(labels):
+        mask = labels == label
+        test = label.split("[")[0]
+        parts = [("tip_x", 0), ("tip_z", 1)] if test == "free_bending" else [("", 0)]
+        for suffix, col in parts:
+            name = f"{label}.{suffix}" if suffix else label
+            out.append(Channel(name, label, col, mask, _INPUT[test], UNITS[test]))
+    return out
+
+
+def _groups(rows: pd.DataFrame, mask: np.ndarray) -> list[np.ndarray]:
+    """Row indices of the channel, per direction, sorted by the varied input."""
+    sub = rows[mask]
+    test = str(sub["test"].iloc[0])
+    direction = sub["direction"] if "direction" in sub.columns else pd.Series("", index=sub.index)
+    out = []
+    for _, g in sub.groupby(direction.to_numpy()):
+        out.append(g.sort_values(_INPUT[test], kind="stable").index.to_numpy())
+    return out
+
+
+def _repeats_sigma(rows: pd.DataFrame, ch: Channel, measured: np.ndarray) -> tuple[float, int]:
+    keys = [c for c in ("test", "axis", "pressure_kpa", "tip_load_n", "direction") if c in rows.columns]
+    sub = rows[ch.rows].copy()
+    sub["_value"] = measured[ch.rows, ch.column]
+    sq, dof = 0.0, 0
+    for _, g in sub.fillna({"tip_load_n": -1.0}).groupby(keys):
+        if len(g) >= 2:
+            v = g["_value"].to_numpy(float)
+            sq += float(np.sum((v - v.mean()) ** 2))
+            dof += len(v) - 1
+    return (float(np.sqrt(sq / dof)) if dof else float("nan")), dof
+
+
+def estimate_noise(rows: pd.DataFrame, residual: np.ndarray) -> dict[str, NoiseEstimate]:
+    """Noise level of every channel.
+
+    Args:
+        rows: Measured rows (``line``, ``test``, inputs, optional ``direction``).
+        residual: (n, 2) simulated − measured, in each test's unit.
+    """
+    measured = measured_array(rows)
+    out: dict[str, NoiseEstimate] = {}
+    for ch in channels(rows):
+        sigma, dof = _repeats_sigma(rows, ch, measured)
+        if dof >= 2 and sigma > 0:
+            out[ch.name] = NoiseEstimate(sigma, "repeated rows", dof)
+            continue
+        diffs = []
+        for idx in _groups(rows, ch.rows):
+            r = residual[idx, ch.column]
+            if len(r) >= 3:
+                diffs.append(r[2:] - 2 * r[1:-1] + r[:-2])
+        d = np.concatenate(diffs) if diffs else np.empty(0)
+        scale = float(np.sqrt(np.mean(measured[ch.rows, ch.column] ** 2)))
+        if len(d) >= 2:
+            # Var(r[i+1] − 2 r[i] + r[i−1]) = 6 σ² for independent noise.
+            sigma = float(np.sqrt(np.mean(d**2) / 6))
+            out[ch.name] = NoiseEstimate(
+                max(sigma, 1e-4 * scale, 1e-12), "residual second differences", len(d)
+            )
+        else:
+            out[ch.name] = NoiseEstimate(max(0.01 * scale, 1e-12), "assumed 1 % of the measured scale", 0)
+    return out
+
+
+def find_disagreements(
+    rows: pd.DataFrame, residual: np.ndarray, noise: dict[str, NoiseEstimate]
+) -> list[Disagreement]:
+    """Runs of ≥ 2 neighbouring rows (along the input) whose residuals exceed ``SYSTEMATIC_Z``
+    noise levels with one sign, largest first."""
+    found = []
+    for ch in channels(rows):
+        sigma = noise[ch.name].sigma
+        for idx in _groups(rows, ch.rows):
+            r = residual[idx, ch.column]
+            z = r / sigma
+            flag = np.where(np.abs(z) > SYSTEMATIC_Z, np.sign(z), 0.0)
+            start = 0
+            for i in range(1, len(idx) + 1):
+                if i < len(idx) and flag[i] == flag[start]:
+                    continue
+                run = slice(start, i)
+                if flag[start] != 0 and i - start >= 2:
+                    inputs = rows.loc[idx[run], ch.input_column].to_numpy(float)
+                    k = int(np.argmax(np.abs(r[run])))
+                    direction = str(rows.loc[idx[0], "direction"]) if "direction" in rows.columns else ""
+                    found.append(
+                        Disagreement(
+                            ch.name,
+                            ch.input_column,
+                            float(inputs.min()),
+                            float(inputs.max()),
+                            direction,
+                            i - start,
+                            float(r[run][k]),
+                            ch.unit,
+                            float(abs(z[run][k])),
+                        )
+                    )
+                start = i
+    return sorted(found, key=lambda d: -d.max_over_noise)

@@ -1,0 +1,222 @@
+"""Diagnosis (issue 6): effects as model features, noise and disagreements, and hidden-effect acceptance.
+
+Acceptance data come from the simulator with one effect switched on (its name and
+size known only to this file), plus relative noise; ``calibrate`` then ``diagnose``
+must name that effect, or ``none`` on effect-free data.
+"""
+
+from __future__ import annotations
+
+import json
+import time
+from pathlib import Path
+
+import numpy as np
+import pandas as pd
+import pytest
+from typer.testing import CliRunner
+
+from somo_sweep.bench import BenchSettings, run_bench
+from somo_sweep.calibration import CALIBRATION_SETTINGS, build_problem, solve_fit
+from somo_sweep.cli import app
+from somo_sweep.description import Actuation
+from somo_sweep.diagnosis import build_diagnosis, diagnose
+from somo_sweep.diagnosis_noise import estimate_noise, find_disagreements
+from somo_sweep.effects import EFFECTS, add_effect, get_effect
+from somo_sweep.errors import SomoError
+from somo_sweep.finger_builder import planar_finger
+from somo_sweep.measurements import COLUMNS
+from somo_sweep.synthetic import bench_plan, example_finger, synthetic_rows
+
+runner = CliRunner()
+SETTINGS = CALIBRATION_SETTINGS
+#: Hidden effects, sized like real soft fingers (tens of percent at the top of the range).
+HIDDEN = {
+    "none": 0.0,
+    "nonlinear_stiffness": 80.0,  # +29 % joint stiffness at 240 kPa's bend
+    "actuation_saturation": 260.0**-2,  # −21 % torque at 240 kPa
+    "stiffness_gradient": -4.0,  # tip joint 38 % softer than the base joint
+    "self_weight": 0.4,  # the finger weighs 28 g, the model says 20 g
+    "hysteresis": 0.001,  # ±3 % of the top actuation torque
+}
+
+
+def _plan(direction: bool, short: bool = False) -> pd.DataFrame:
+    """Rows of the three protocols, 0–240 kPa and 0.01–0.1 N (with loading/unloading pairs)."""
+    if direction:
+        pressures = [0.0, 60.0, 120.0, 180.0, 240.0]
+        one = bench_plan([0.02, 0.04, 0.06, 0.08, 0.1], pressures, pressures)
+        both = pd.concat([one.assign(direction="loading"), one.assign(direction="unloading")])
+        return both.reset_index(drop=True)
+    if short:
+        pressures = [0.0, 40.0, 80.0, 120.0, 160.0, 200.0, 240.0]
+        return bench_plan([0.025, 0.05, 0.075, 0.1], pressures, pressures)
+    pressures = [float(p) for p in range(0, 241, 30)]
+    return bench_plan([0.02 * i for i in range(1, 6)] + [0.01], pressures, pressures)
+
+
+def _hidden_rows(effect: str, seed: int, noise_rel: float, short: bool = False) -> pd.DataFrame:
+    true = example_finger()
+    assert true.manipulator is not None
+    manip = true.manipulator if effect == "none" else add_effect(true.manipulator, effect, HIDDEN[effect])
+    plan = _plan(effect == "hysteresis", short)
+    rows = synthetic_rows(
+        true.model_copy(update={"manipulator": manip}),
+        plan,
+        noise_rel,
+        np.random.default_rng(seed),
+        SETTINGS,
+        2,
+    )
+    rows["line"] = range(2, len(rows) + 2)
+    return rows
+
+
+def _calibrate_then_diagnose(rows: pd.DataFrame, refine_top: int = 2) -> object:
+    base = planar_finger(0.100, 20, 0.020)
+    calibrated = solve_fit(build_problem(rows, base), n_jobs=2).model
+    return diagnose(build_diagnosis(rows, calibrated, n_jobs=2), n_jobs=2, refine_top=refine_top)
+
+
+# --- effects as native model features -------------------------------------------------------
+
+
+def test_unknown_effect_lists_the_valid_ones() -> None:
+    with pytest.raises(SomoError, match=r"did you mean 'self_weight'.*allowed: nonlinear_stiffness"):
+        get_effect("self_wieght")
+
+
+def test_every_effect_is_off_at_zero_and_changes_the_bench_when_on() -> None:
+    manip = example_finger().manipulator
+    assert manip is not None
+    rows = pd.DataFrame({"pressure_kpa": [240.0], "tip_load_n": [0.1]})
+    ref = run_bench(manip, "free_bending", 240.0, settings=SETTINGS).value
+    for name, effect in EFFECTS.items():
+        par = effect.parameter(manip, rows)
+        assert par.apply(manip, 0.0) == manip, name
+        direction = "loading" if effect.needs_direction else None
+        on = run_bench(
+            par.apply(manip, 2 * par.probe), "free_bending", 240.0, settings=SETTINGS, direction=direction
+        )
+        assert np.hypot(*np.subtract(on.value, ref)) > 0.5, name  # mm
+
+
+def test_saturated_actuation_follows_tanh() -> None:
+    act = Actuation(pressure_gain_n_m_per_kpa=1e-4, saturation_pressure_kpa=200.0)
+    assert act.torque_n_m(240.0) == pytest.approx(1e-4 * 200 * np.tanh(1.2))
+    assert Actuation(pressure_gain_n_m_per_kpa=1e-4).torque_n_m(240.0) == pytest.approx(0.024)
+
+
+def test_stiffness_gradient_scales_each_joint_linearly_and_rejects_negative_stiffness() -> None:
+    act = example_finger().manipulator.actuators[0]  # type: ignore[union-attr]
+    graded = act.model_copy(update={"stiffness_gradient_per_m": -4.0})
+    assert graded.stiffness_factor(10) == pytest.approx(1 - 4.0 * 0.05)
+    with pytest.raises(ValueError, match="stiffness_gradient_per_m"):
+        type(act).model_validate({**act.model_dump(), "stiffness_gradient_per_m": -20.0})
+
+
+def test_stiffening_spring_matches_the_cubic_law_on_a_single_joint() -> None:
+    manip = planar_finger(
+        0.1, 1, 0.001, stiffness_n_m_per_rad=0.5, pressure_gain_n_m_per_kpa=1e-3
+    ).manipulator
+    assert manip is not None
+    stiff = add_effect(manip, "nonlinear_stiffness", 10.0)
+    weightless = BenchSettings(time_step_s=1e-3, gravity_m_s2=0.0)
+    x, z = run_bench(stiff, "free_bending", 200.0, settings=weightless).value  # type: ignore[misc]
+    # One joint at the clamp: angle θ with k·θ·(1 + a·θ²) = u = 0.2 N·m.
+    theta = float(np.arctan2(-z, x))
+    assert 0.5 * theta * (1 + 10.0 * theta**2) == pytest.approx(0.2, rel=2e-3)
+
+
+def test_hysteresis_makes_unloading_bend_further_than_loading() -> None:
+    manip = add_effect(example_finger().manipulator, "hysteresis", 0.001)  # type: ignore[arg-type]
+    up = run_bench(manip, "blocked_force", 120.0, settings=SETTINGS, direction="loading").value
+    down = run_bench(manip, "blocked_force", 120.0, settings=SETTINGS, direction="unloading").value
+    plain = run_bench(manip, "blocked_force", 120.0, settings=SETTINGS).value
+    assert up < plain < down  # type: ignore[operator]
+
+
+# --- noise and disagreements ----------------------------------------------------------------
+
+
+def test_noise_from_repeats_and_from_second_differences() -> None:
+    rng = np.random.default_rng(3)
+    p = np.repeat(np.arange(0.0, 241.0, 20.0), 2)
+    rows = pd.DataFrame({"test": "blocked_force", "pressure_kpa": p}).reindex(columns=COLUMNS)
+    rows["axis"] = "grasp"
+    rows["blocked_force_n"] = 0.002 * p + 0.01 * rng.standard_normal(len(p))
+    residual = np.column_stack([np.zeros(len(p)), np.full(len(p), np.nan)])
+    est = estimate_noise(rows, residual)["blocked_force"]
+    assert est.method == "repeated rows" and est.sigma == pytest.approx(0.01, rel=0.4)
+    single = rows.iloc[::2].reset_index(drop=True)
+    trend = 2e-4 * single["pressure_kpa"].to_numpy()  # a wrong gain: linear, cancels
+    res = np.column_stack([trend + 0.01 * rng.standard_normal(len(single)), np.full(len(single), np.nan)])
+    est = estimate_noise(single, res)["blocked_force"]
+    assert est.method == "residual second differences" and est.sigma == pytest.approx(0.01, rel=0.5)
+    found = find_disagreements(single, res, {"blocked_force": est})
+    assert found and found[0].input_from >= 60 and found[0].max_residual > 0
+
+
+# --- hidden effects: calibrate, then diagnose ------------------------------------------------
+
+
+def test_diagnose_names_a_hidden_saturation_and_halves_the_gap() -> None:
+    """Default-suite representative: 22 rows, 1 % noise, one hidden effect."""
+    rows = _hidden_rows("actuation_saturation", seed=5, noise_rel=0.01, short=True)
+    result = _calibrate_then_diagnose(rows, refine_top=1)
+    assert result.missing_effect == "actuation_saturation", result.verdict  # type: ignore[attr-defined]
+    assert result.combined_after <= 0.5 * result.combined_before  # type: ignore[attr-defined]
+
+
+CASES = [(e, seed, noise) for e in HIDDEN for seed, noise in ((1, 0.01), (2, 0.02))]
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize(("effect", "seed", "noise_rel"), CASES)
+def test_diagnose_names_the_hidden_effect(effect: str, seed: int, noise_rel: float) -> None:
+    start = time.perf_counter()
+    rows = _hidden_rows(effect, seed, noise_rel)
+    result = _calibrate_then_diagnose(rows)
+    record = {
+        "effect": effect,
+        "seed": seed,
+        "noise_rel": noise_rel,
+        "named": result.missing_effect,  # type: ignore[attr-defined]
+        "verdict": result.verdict,  # type: ignore[attr-defined]
+        "combined_before": result.combined_before,  # type: ignore[attr-defined]
+        "combined_after": result.combined_after,  # type: ignore[attr-defined]
+        "wall_time_s": time.perf_counter() - start,
+    }
+    log = Path(__file__).resolve().parent.parent / "results" / "diagnosis_matrix.jsonl"
+    log.parent.mkdir(exist_ok=True)
+    with log.open("a") as fh:
+        fh.write(json.dumps(record) + "\n")
+    assert result.missing_effect == effect, result.verdict  # type: ignore[attr-defined]
+    if effect != "none":
+        assert result.combined_after <= 0.5 * result.combined_before  # type: ignore[attr-defined]
+
+
+# --- command line ------------------------------------------------------------------------------
+
+
+def test_cli_bad_measurements_exit_2_naming_line_and_column_and_write_nothing(tmp_path: Path) -> None:
+    bad = tmp_path / "bad.csv"
+    bad.write_text(
+        "test,pressure_kpa,tip_load_n,tip_deflection_mm,blocked_force_n,tip_x_mm,tip_z_mm\n"
+        "tip_load,0,0.05,abc,,,\n"
+    )
+    model = tmp_path / "m.yaml"
+    model.write_text("manipulator: {}\n")
+    out = tmp_path / "out"
+    res = runner.invoke(app, ["diagnose", str(bad), "--model", str(model), "--out", str(out)])
+    assert res.exit_code == 2
+    assert "line 2, column tip_deflection_mm" in res.output
+    assert not out.exists()
+
+
+def test_cli_unknown_effect_exit_2(tmp_path: Path) -> None:
+    res = runner.invoke(
+        app,
+        ["diagnose", "x.csv", "--model", "m.yaml", "--out", str(tmp_path / "o"), "--effects", "hysterisis"],
+    )
+    assert res.exit_code == 2 and "did you mean 'hysteresis'" in res.output
