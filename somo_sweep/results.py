@@ -32,6 +32,7 @@ from typing import Any
 
 import pandas as pd
 import pyarrow as pa
+import pyarrow.compute as pc
 import pyarrow.parquet as pq
 
 from somo_sweep.errors import SomoError
@@ -170,6 +171,22 @@ class ResultStore:
         if not self.trials.is_dir() or not any(self.trials.glob("*.parquet")):
             return set()
         return set(pq.read_table(self.trials, columns=["job_id"]).column("job_id").to_pylist())
+
+    def drop_errors(self) -> int:
+        """Remove the rows of ``error`` trials (each part rewritten atomically); returns how many."""
+        dropped = 0
+        for part in sorted(self.trials.glob("*.parquet")):
+            table = pq.read_table(part)
+            keep = pc.not_equal(table.column("status"), "error")
+            n = table.num_rows - pc.sum(keep.cast(pa.int64())).as_py()
+            if not n:
+                continue
+            dropped += n
+            if n == table.num_rows:
+                part.unlink()
+            else:
+                self._atomic(table.filter(keep), part, self._schema())
+        return dropped
 
     def start_run(self, info: dict[str, Any]) -> None:
         """Record the start of a run (backend, workers, trials to run) in the manifest."""

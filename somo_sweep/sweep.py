@@ -158,6 +158,7 @@ def run_study(
     flush_interval_s: float = FLUSH_INTERVAL_S,
     timeout_s: float | None = None,
     overwrite: bool = False,
+    retry_errors: bool = False,
     on_start: Callable[[int, int], None] | None = None,
     on_outcome: Callable[[Outcome], None] | None = None,
 ) -> RunSummary:
@@ -173,6 +174,7 @@ def run_study(
         flush_interval_s: Longest time finished rows wait before being written, s.
         timeout_s: Per-trial wall-time limit, s.
         overwrite: Delete results of a different study in the folder instead of refusing.
+        retry_errors: Run again the trials stored as ``error`` (their rows are replaced).
         on_start: Called with (trials to run, trials already done).
         on_outcome: Called with every outcome as it arrives.
 
@@ -199,6 +201,8 @@ def run_study(
     buffer: list[dict[str, Any]] = []
     try:
         shutil.copyfile(study.source, study.output / f"study{study.source.suffix}")
+        if retry_errors:
+            store.drop_errors()
         done = store.done_ids()
         todo = [j for j in table.jobs if j.job_id not in done]
         summary = RunSummary(study.output, len(table.jobs), len(table.jobs) - len(todo))

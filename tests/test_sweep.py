@@ -154,6 +154,16 @@ def test_identical_trials_are_refused(tmp_path: Path) -> None:
         build_jobs(load_study(path))
 
 
+def test_resume_skips_errors_unless_asked_to_retry_them(tmp_path: Path) -> None:
+    path = selftest_study(tmp_path, task="selftest_crash", extra="set: {task.crash_x: [2.0, 5.0]}", n=6)
+    run_study(load_study(path, tmp_path / "out"), n_jobs=1, chunk_rows=4)
+    assert run_study(load_study(path, tmp_path / "out"), n_jobs=1).run == 0
+    again = run_study(load_study(path, tmp_path / "out"), n_jobs=1, retry_errors=True)
+    assert (again.skipped, again.run, again.by_status) == (4, 2, {"error": 2})
+    df = read_results(tmp_path / "out")
+    assert len(df) == 6 and df["job_id"].is_unique and (df["status"] == "error").sum() == 2
+
+
 def test_first_rows_without_metrics_still_give_one_readable_schema(tmp_path: Path) -> None:
     path = selftest_study(tmp_path, task="selftest_crash", extra="set: {task.crash_x: [1.0, 2.0]}", n=4)
     run_study(load_study(path, tmp_path / "out"), n_jobs=1, chunk_rows=1)

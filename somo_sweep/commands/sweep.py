@@ -43,6 +43,9 @@ def run(
     overwrite: Annotated[
         bool, typer.Option("--overwrite", help="Delete results of a different (changed) study in --out.")
     ] = False,
+    retry_errors: Annotated[
+        bool, typer.Option("--retry-errors", help="Run again the trials stored as error (resume skips them).")
+    ] = False,
     chunk_rows: Annotated[int, typer.Option(help="Rows per Parquet part file.", hidden=True)] = 50,
 ) -> None:
     """Run a study: every trial missing from its results folder, in parallel, into Parquet."""
@@ -98,6 +101,7 @@ def run(
                 chunk_rows=chunk_rows,
                 timeout_s=timeout,
                 overwrite=overwrite,
+                retry_errors=retry_errors,
                 on_start=started,
                 on_outcome=advanced,
             )
