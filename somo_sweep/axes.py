@@ -49,6 +49,10 @@ def parse_key_path(key: str) -> tuple[str, list[str | int]]:
         raise ValueError(f"key path '{key}' must start with 'model.' or 'task.'")
     if parts == ["task"]:
         raise ValueError("key path 'task' needs a parameter, e.g. task.pressure_kpa")
+    if parts == ["model"]:
+        raise ValueError(
+            "'model' alone is only a sweep axis (over model files); a model field is model.<path>"
+        )
     return str(parts[0]), parts[1:]
 
 

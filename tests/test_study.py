@@ -69,6 +69,8 @@ def test_key_path_parsing_with_list_indices() -> None:
     )
     with pytest.raises(ValueError, match=r"must start with 'model\.' or 'task\.'"):
         parse_key_path("params.x")
+    with pytest.raises(ValueError, match="'model' alone is only a sweep axis"):
+        parse_key_path("model")
 
 
 def test_bundled_example_is_a_grid_with_overrides_applied() -> None:
