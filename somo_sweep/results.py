@@ -276,7 +276,19 @@ def _acquire(path: Path) -> int:
 
 
 def _diff(old: dict[str, Any], new: dict[str, Any]) -> str:
-    keys = sorted(k for k in {*old, *new} if old.get(k) != new.get(k))
-    if not keys:
-        return "the code version or the model files"
-    return ", ".join(f"{k} ({old.get(k)!r} -> {new.get(k)!r})" if k != "sweep" else "sweep" for k in keys)
+    """What differs between two resolved studies, in words (for the refusal message)."""
+    parts = []
+    for key in sorted(k for k in {*old, *new} if old.get(k) != new.get(k) and k != "n_trials"):
+        if key == "sweep":
+            a, b = old.get(key) or {}, new.get(key) or {}
+            for axis in sorted(k for k in {*a, *b} if a.get(k) != b.get(k)):
+                was, now = a.get(axis), b.get(axis)
+                parts.append(
+                    f"sweep.{axis} ({'absent' if was is None else f'{len(was)} values'} -> "
+                    f"{'absent' if now is None else f'{len(now)} values'})"
+                    if was is None or now is None or len(was) != len(now)
+                    else f"sweep.{axis} (values {was} -> {now})"
+                )
+        else:
+            parts.append(f"{key} ({old.get(key)!r} -> {new.get(key)!r})")
+    return ", ".join(parts) or "the content of the model files"

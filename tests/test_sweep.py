@@ -205,7 +205,7 @@ def test_results_of_a_changed_study_are_never_mixed_in(tmp_path: Path) -> None:
     path.write_text(path.read_text().replace("stop: 8", "stop: 9"))
     with pytest.raises(SomoError, match="holds results of a different study") as info:
         run_study(load_study(path, tmp_path / "out"), n_jobs=1)
-    assert "changed: " in str(info.value) and "sweep" in str(info.value) and "--out" in str(info.value)
+    assert "changed: sweep.task.x (8 values -> 9 values)" in str(info.value) and "--out" in str(info.value)
     pd.testing.assert_frame_equal(read_results(tmp_path / "out"), before)
     summary = run_study(load_study(path, tmp_path / "out"), n_jobs=1, overwrite=True)
     assert (summary.skipped, summary.run) == (0, 9)
