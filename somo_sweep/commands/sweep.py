@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import os
 from pathlib import Path
-from typing import Annotated
+from typing import TYPE_CHECKING, Annotated
 
 import typer
 from rich.console import Console
@@ -19,6 +19,10 @@ from rich.progress import (
 
 from somo_sweep.cli import app, fail
 from somo_sweep.errors import SomoError
+
+if TYPE_CHECKING:  # the heavy modules are imported when a command runs
+    from somo_sweep.jobs import JobTable
+    from somo_sweep.study import Study
 
 _err = Console(stderr=True)
 _out = Console()
@@ -117,11 +121,7 @@ def run(
         _save_plots(st.output)
 
 
-def _print_dry_run(st: object, table: object) -> None:
-    from somo_sweep.jobs import JobTable
-    from somo_sweep.study import Study
-
-    assert isinstance(st, Study) and isinstance(table, JobTable)
+def _print_dry_run(st: Study, table: JobTable) -> None:
     frame = table.frame()
     typer.echo(
         f"{st.name}: task {st.task.name}, {len(frame)} trials "
