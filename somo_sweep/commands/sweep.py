@@ -118,7 +118,10 @@ def run(
         _err.print(f"interrupted: {summary.run} finished trial(s) kept; run the same command again to resume")
         raise typer.Exit(128 + summary.interrupted)
     if plots and summary.run:
-        _save_plots(st.output)
+        try:
+            _save_plots(st.output)
+        except Exception as exc:  # the results are safe; a plot problem must not fail the run
+            _err.print(f"warning: summary plots not drawn ({type(exc).__name__}: {exc}); try somo-sweep plot")
 
 
 def _print_dry_run(st: Study, table: JobTable) -> None:
