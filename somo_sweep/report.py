@@ -74,5 +74,13 @@ def print_results(console: Console, df: pd.DataFrame, manifest: dict[str, Any]) 
     for key, column in manifest.get("axes", {}).items():
         if column in df.columns:
             console.print(_table(f"by {key}", breakdown(df, column), column))
-    ok = df[df["status"] == "ok"]
-    console.print(f"wall time per trial: mean {df['wall_time_s'].mean():.3f} s; {len(ok)} ok")
+    bad = df[df["status"] != "ok"]
+    if len(bad):
+        counts = bad.groupby(["status", "message"]).size().sort_values(ascending=False).head(5)
+        table = Table(title="most common reasons (not ok)", title_justify="left")
+        for name in ("status", "message", "trials"):
+            table.add_column(name, justify="right" if name == "trials" else "left")
+        for (status, message), n in counts.items():
+            table.add_row(str(status), str(message), str(n))
+        console.print(table)
+    console.print(f"wall time per trial: mean {df['wall_time_s'].mean():.3f} s; {len(df) - len(bad)} ok")

@@ -133,6 +133,8 @@ def test_a_dying_trial_process_is_an_error_and_the_sweep_goes_on(tmp_path: Path)
     assert "died (exit code 3)" in df.loc[(2.0, "exit"), "message"]
     assert "SIGSEGV" in df.loc[(2.0, "segfault"), "message"]
     assert "SIGKILL" in df.loc[(2.0, "kill"), "message"]
+    res = CliRunner().invoke(app, ["show", str(tmp_path / "out")])
+    assert "most common reasons (not ok)" in res.output and "exit code 3" in res.output
     assert df.loc[(3.0, "segfault"), "y"] == 9.0
 
 
