@@ -119,7 +119,7 @@ class DiagnosisResult:
                 }
                 for c in self.candidates
             ],
-            "score": "BIC = chi2 + k ln(n) of noise-normalised residuals",
+            "score": "BIC = sum over channels n_c ln(RSS_c / n_c) + k ln(n)",
             "residual_entries": (len(self.problem.normalised(self.problem.before))),
             "rmse_before": rmse(self.problem.before),
             "rmse_after": rmse(self.after),
@@ -145,7 +145,9 @@ def _decide(candidates: list[CandidateFit]) -> tuple[str, str]:
     return best.name, f"{best.name}: ΔBIC {none.bic - best.bic:.1f} over none, {gap:.1f} over the next best"
 
 
-def diagnose(problem: DiagnosisProblem, n_jobs: int = 1, refine_top: int = 2) -> DiagnosisResult:
+def diagnose(
+    problem: DiagnosisProblem, n_jobs: int = 1, refine_top: int = 2, max_evaluations: int = 4
+) -> DiagnosisResult:
     """Refit every candidate, name the missing effect (or none), add it and re-simulate.
 
     Args:
@@ -154,6 +156,7 @@ def diagnose(problem: DiagnosisProblem, n_jobs: int = 1, refine_top: int = 2) ->
         refine_top: Effects refined by simulation beyond ``none`` (best predicted BIC first);
             any other effect whose prediction comes within ``2·DELTA_BIC_NEXT`` of the best
             refined one is refined too.
+        max_evaluations: Re-simulations of all rows per refined candidate (chord iterations).
     """
     start_s = time.perf_counter()
     jac = jacobian(problem, n_jobs)
@@ -162,12 +165,12 @@ def diagnose(problem: DiagnosisProblem, n_jobs: int = 1, refine_top: int = 2) ->
         e.name: predict(problem, jac, e.name, (*base, problem.effect_index(e.name)))
         for e, _ in problem.effects
     }
-    fits = {"none": fit_candidate(problem, jac, "none", base, n_jobs)}
+    fits = {"none": fit_candidate(problem, jac, "none", base, n_jobs, max_evaluations)}
     queue = sorted(predicted.values(), key=lambda c: c.bic)
     for i, pred in enumerate(queue):
         best = min((f.bic for n, f in fits.items() if n != "none"), default=math.inf)
         if i < refine_top or pred.bic < best + 2 * DELTA_BIC_NEXT:
-            fits[pred.name] = fit_candidate(problem, jac, pred.name, pred.columns, n_jobs)
+            fits[pred.name] = fit_candidate(problem, jac, pred.name, pred.columns, n_jobs, max_evaluations)
         else:
             fits[pred.name] = pred
     candidates = sorted(fits.values(), key=lambda c: c.bic)

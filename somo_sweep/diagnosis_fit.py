@@ -4,10 +4,15 @@ One forward-difference Jacobian of the noise-normalised residuals is taken at
 the model as given (base columns by a 0.2 % step, each effect's column by one
 probe of its parameter); every candidate then runs a bounded chord iteration
 (linear least squares on that Jacobian, re-simulate, repeat) on its own columns.
-The linear step also predicts each candidate's χ² without a simulation, which
-decides which candidates are worth refining (the best few plus any close call).
-Candidates are scored by BIC = χ² + k·ln(n): an effect must buy more than
-ln(n) of χ² per parameter.
+Each evaluation updates the candidate's Jacobian columns (Broyden), so the
+iteration follows effects that are not linear in their parameter. The linear
+step also predicts each candidate's fit without a simulation, which decides
+which candidates are worth refining (the best few plus any close call).
+
+Score: the Gaussian BIC with each channel's noise level profiled out,
+BIC = Σ_c n_c·ln(RSS_c / n_c) + k·ln(n): it does not trust the noise estimate
+(only the fit's weights use it), and an effect must buy more than ln(n) per
+parameter.
 """
 
 from __future__ import annotations
@@ -45,7 +50,7 @@ class CandidateFit:
         columns: Fit parameters used.
         z: Best fit coordinates found (all parameters; unused ones 0).
         chi2: Σ normalised residual² at ``z``.
-        bic: χ² + k·ln(n).
+        bic: Σ_c n_c·ln(RSS_c / n_c) + k·ln(n) over channels c (see module docstring).
         simulated: (n, 2) rows simulated at ``z`` (None when only predicted).
         refined: Whether ``chi2`` is simulated (True) or the linear prediction (False).
         evaluations: Residual evaluations (each simulates every row).
@@ -73,16 +78,22 @@ def jacobian(problem: DiagnosisProblem, n_jobs: int = 1) -> Jacobian:
     return Jacobian(r0, matrix, n_par * len(problem.rows))
 
 
-def _bic(chi2: float, k: int, n: int) -> float:
-    return chi2 + k * math.log(n)
+def bic(problem: DiagnosisProblem, r: np.ndarray, k: int) -> float:
+    """Channel-profiled Gaussian BIC of normalised residuals ``r`` with ``k`` fitted parameters."""
+    total, start = 0.0, 0
+    for size in problem.channel_sizes:
+        rss = float(np.sum(r[start : start + size] ** 2))
+        total += size * math.log(max(rss / size, 1e-12))
+        start += size
+    return total + k * math.log(len(r))
 
 
 def _step(
-    problem: DiagnosisProblem, jac: Jacobian, cols: tuple[int, ...], z: np.ndarray, r: np.ndarray
+    problem: DiagnosisProblem, matrix: np.ndarray, cols: tuple[int, ...], z: np.ndarray, r: np.ndarray
 ) -> np.ndarray:
     c = list(cols)
     lo, hi = problem.lower[c] - z[c], problem.upper[c] - z[c]
-    sol = lsq_linear(jac.matrix[:, c], -r, bounds=(lo, hi))
+    sol = lsq_linear(matrix[:, c], -r, bounds=(lo, hi))
     out = np.zeros_like(z)
     out[c] = sol.x
     return out
@@ -90,9 +101,9 @@ def _step(
 
 def predict(problem: DiagnosisProblem, jac: Jacobian, name: str, cols: tuple[int, ...]) -> CandidateFit:
     """The candidate's first linear step and its predicted χ², without simulating."""
-    z = _step(problem, jac, cols, np.zeros(len(problem.start)), jac.r0)
-    chi2 = float(np.sum((jac.r0 + jac.matrix @ z) ** 2))
-    return CandidateFit(name, cols, z, chi2, _bic(chi2, len(cols), len(jac.r0)), None, False, 0)
+    z = _step(problem, jac.matrix, cols, np.zeros(len(problem.start)), jac.r0)
+    r = jac.r0 + jac.matrix @ z
+    return CandidateFit(name, cols, z, float(r @ r), bic(problem, r, len(cols)), None, False, 0)
 
 
 def fit_candidate(
@@ -101,7 +112,7 @@ def fit_candidate(
     name: str,
     cols: tuple[int, ...],
     n_jobs: int = 1,
-    max_evaluations: int = 3,
+    max_evaluations: int = 4,
     rtol: float = 0.01,
 ) -> CandidateFit:
     """Chord iteration on the candidate's columns, simulator in the loop.
@@ -115,13 +126,13 @@ def fit_candidate(
         max_evaluations: Cap on re-simulations of all rows.
         rtol: Stop when χ² improves by less than this fraction.
     """
-    n = len(jac.r0)
     z = np.zeros(len(problem.start))
+    matrix = jac.matrix.copy()
     r, chi2, simulated = jac.r0, float(jac.r0 @ jac.r0), problem.before
     evaluations = 0
     damping = 1.0
     while evaluations < max_evaluations:
-        step = damping * _step(problem, jac, cols, z, r)
+        step = damping * _step(problem, matrix, cols, z, r)
         if np.max(np.abs(step)) < 1e-4:
             break
         trial = z + step
@@ -133,6 +144,10 @@ def fit_candidate(
             continue
         r_trial = problem.normalised(sim)
         chi2_trial = float(r_trial @ r_trial)
+        # Broyden: make the Jacobian reproduce the residual change along the step just taken.
+        s = step[list(cols)]
+        miss = r_trial - r - matrix[:, list(cols)] @ s
+        matrix[:, list(cols)] += np.outer(miss, s) / float(s @ s)
         if chi2_trial < chi2:
             improved = (chi2 - chi2_trial) / max(chi2, 1e-12)
             z, r, chi2, simulated = trial, r_trial, chi2_trial, sim
@@ -140,4 +155,4 @@ def fit_candidate(
                 break
         else:
             damping *= 0.5  # the chord over-shot: try half the step from the same point
-    return CandidateFit(name, cols, z, chi2, _bic(chi2, len(cols), n), simulated, True, evaluations)
+    return CandidateFit(name, cols, z, chi2, bic(problem, r, len(cols)), simulated, True, evaluations)

@@ -104,6 +104,11 @@ class DiagnosisProblem:
             parts.append(r / self.noise[ch.name].sigma)
         return np.concatenate(parts)
 
+    @property
+    def channel_sizes(self) -> list[int]:
+        """Entries of each channel in :meth:`normalised`, in order."""
+        return [int(ch.rows.sum()) for ch in channels(self.rows)]
+
     def effect_index(self, name: str) -> int:
         """Position of an effect's parameter in the fit vector."""
         for i, (effect, _) in enumerate(self.effects):

@@ -49,7 +49,7 @@ def report_markdown(result: DiagnosisResult, source: str) -> str:
         "Noise per channel: "
         + ", ".join(f"{k} {v.sigma:.3g} ({v.method})" for k, v in result.problem.noise.items()),
     ]
-    out += ["", "## Candidates (BIC = χ² + k·ln n, best first)", ""]
+    out += ["", "## Candidates (BIC = Σ_c n_c·ln(RSS_c/n_c) + k·ln n, best first)", ""]
     out += ["| candidate | χ² | BIC | ΔBIC vs none | refined | parameters |", "|---|---|---|---|---|---|"]
     for c in result.candidates:
         pars = ", ".join(f"{k} = {v:.4g}" for k, v in result.parameters(c).items())
