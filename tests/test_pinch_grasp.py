@@ -96,3 +96,13 @@ def test_fingers_out_of_reach_leave_a_narrow_box_on_the_ground() -> None:
     assert result.labels == {"grasp": "no_grasp", "grasp_paper": "no_grasp"}
     assert abs(result.metrics["lift_height_m"]) < 0.002
     assert result.metrics["hold_contact_count_tip"] == 0
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize(
+    ("dsr", "width_m", "centering_m"), [(0.1, 0.080, 0.105), (0.5, 0.120, 0.075), (0.3, 0.040, 0.105)]
+)
+def test_labels_and_lift_agree_at_half_the_time_step(dsr: float, width_m: float, centering_m: float) -> None:
+    coarse, fine = run(dsr, width_m, centering_m, 4e-3), run(dsr, width_m, centering_m, 2e-3)
+    assert coarse.labels == fine.labels
+    assert coarse.metrics["lift_height_m"] == pytest.approx(fine.metrics["lift_height_m"], abs=0.005)
