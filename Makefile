@@ -5,7 +5,7 @@ BIN    := $(VENV)/bin
 STAMP  := $(VENV)/.installed-stamp
 
 .DEFAULT_GOAL := help
-.PHONY: help install demo test test-slow lint format bench clean fig8 fig8-quick sweep-demo fig6 fig6-quick
+.PHONY: help install demo test test-slow lint format bench clean fig8 fig8-quick sweep-demo diagnose-demo fig6 fig6-quick
 
 help: ## List the targets
 	@grep -E '^[a-zA-Z0-9_-]+:.*?## ' $(MAKEFILE_LIST) | awk 'BEGIN {FS = ":.*?## "}; {printf "  make %-12s %s\n", $$1, $$2}'
@@ -73,6 +73,10 @@ fig8: $(STAMP) ## Paper Fig. 8: snake with isotropic vs anisotropic friction (10
 
 fig8-quick: $(STAMP) ## Fig. 8 with 3-s runs
 	$(BIN)/python -m somo_sweep.fig8 --out results/figures --quick
+
+diagnose-demo: $(STAMP) ## Calibrate the bundled bench file, then name what the model misses
+	$(BIN)/somo-sweep calibrate studies/data/planar_finger_bench_2.csv --length-mm 100 --segments 20 --mass-g 20 -o results/diagnose_demo/calibrated.yaml
+	$(BIN)/somo-sweep diagnose studies/data/planar_finger_bench_2.csv --model results/diagnose_demo/calibrated.yaml --out results/diagnose_demo
 
 sweep-demo: $(STAMP) ## Run the example study (27 trials) and print its summary
 	$(BIN)/somo-sweep run studies/finger_pressure_sweep.yaml --overwrite

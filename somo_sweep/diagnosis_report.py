@@ -74,7 +74,10 @@ def report_markdown(result: DiagnosisResult, source: str) -> str:
 
 
 def plot_diagnosis(ax: Axes, result: DiagnosisResult, label: str) -> None:
-    """Measured (markers), before (dashed) and after (solid) for one test label, on ``ax``."""
+    """Measured (markers), before (dashed) and after (solid) for one test label, on ``ax``.
+
+    Free bending is drawn as tip z against pressure (the x–z path hides errors along it).
+    """
     rows = result.problem.rows
     sel = np.array(row_labels(rows)) == label
     sub = rows[sel]
@@ -95,12 +98,9 @@ def plot_diagnosis(ax: Axes, result: DiagnosisResult, label: str) -> None:
         }
         for name, style in (("measured", "o"), ("before", "--"), ("after", "-")):
             y = curves[name][order]
-            if free:
-                ax.plot(y[:, 0], y[:, 1], style, label=name + tag)
-            else:
-                ax.plot(key[d][order], y[:, 0], style, label=name + tag)
+            ax.plot(key[d][order], y[:, 1 if free else 0], style, label=name + tag)
     if free:
-        ax.set_xlabel("tip x (mm)")
+        ax.set_xlabel("pressure (kPa)")
         ax.set_ylabel("tip z (mm)")
     elif label.startswith("tip_load"):
         ax.set_xlabel("tip load (N)")
