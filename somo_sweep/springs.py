@@ -132,11 +132,10 @@ class SpringDrive:
 
     def torques(self) -> np.ndarray:
         """Joint efforts for the current state, scaled world units."""
-        dq = self.q - self.q0
-        tau = self._u - self.k * dq - self.c * self.qd
         if self._cubic:
-            tau -= self.k3 * dq**3
-        return tau
+            dq = self.q - self.q0
+            return self._u - (self.k + self.k3 * dq * dq) * dq - self.c * self.qd
+        return self._u - self.k * (self.q - self.q0) - self.c * self.qd
 
     def apply(self) -> None:
         """Read the state and send this step's efforts (the one torque command per step)."""
