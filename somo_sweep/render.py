@@ -30,7 +30,7 @@ class Camera:
     """
 
     target_m: tuple[float, float, float] = (0.05, 0.0, 0.03)
-    distance_m: float = 0.35
+    distance_m: float = 0.45
     yaw_deg: float = 90.0
     pitch_deg: float = -89.0
     fov_deg: float = 40.0
