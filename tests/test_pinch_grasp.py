@@ -116,3 +116,19 @@ def test_labels_and_lift_agree_at_half_the_time_step(
     assert coarse.labels == fine.labels
     if lift_tol_m is not None:
         assert coarse.metrics["lift_height_m"] == pytest.approx(fine.metrics["lift_height_m"], abs=lift_tol_m)
+
+
+def test_bundled_studies_use_the_facts_sheet_grid_and_the_chosen_numerics() -> None:
+    from somo_sweep.pinch_numerics import CHOSEN
+    from somo_sweep.study import load_study
+
+    full = load_study(MODELS.parent / "pinch_grasp_dsr.yaml")
+    quick = load_study(MODELS.parent / "pinch_grasp_quick.yaml")
+    assert (full.n_points, quick.n_points) == (2310, 192)
+    for study in (full, quick):
+        assert study.task.name == "pinch_grasp"
+        assert study.simulation.time_step_s == CHOSEN.time_step_s
+        assert study.simulation.solver_iterations == CHOSEN.solver_iterations
+    dsrs = sorted({pt["task.distal_segment_ratio"] for pt in full.points()})
+    assert [PinchGraspParams(distal_segment_ratio=d).n_distal for d in dsrs] == list(range(15))
+    assert PinchGraspParams().numerics == CHOSEN.numerics
