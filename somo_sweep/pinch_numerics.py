@@ -159,12 +159,17 @@ def main(argv: list[str] | None = None) -> None:
     parser.add_argument(
         "--study", type=Path, default=QUICK_STUDY, help="pinch_grasp study whose grid to compare on"
     )
-    parser.add_argument("--a", help="setup A instead of the chosen one: DT_S,ITERATIONS,INERTIA_KG_M2")
+    parser.add_argument(
+        "--a", help="setup A instead of the chosen one: DT_S,ITERATIONS,INERTIA_KG_M2[,DAMPING_N_M_S_PER_RAD]"
+    )
     args = parser.parse_args(argv)
     a = CHOSEN
     if args.a:
-        dt, iters, inertia = args.a.split(",")
-        a = Setup(float(dt), int(iters), Numerics(added_inertia_kg_m2=float(inertia)))
+        dt, iters, inertia, *damping = args.a.split(",")
+        c = float(damping[0]) if damping else None
+        a = Setup(
+            float(dt), int(iters), Numerics(added_inertia_kg_m2=float(inertia), damping_n_m_s_per_rad=c)
+        )
     if args.compare:
         b = (
             REFERENCE
