@@ -299,14 +299,24 @@ class World:
                 f"and a driven base; got {base.width} columns, {len(driven)} driven bodies"
             )
 
+        # Setpoints are resent only when they change (holds cost nothing per step).
+        last: dict[str, bytes] = {}
+
         def hook(world: World) -> None:
             t = world.time_s
             if inputs is not None:
-                handle.set_inputs(inputs(t))
+                u = inputs(t)
+                key = u.tobytes()
+                if last.get("inputs") != key:
+                    handle.set_inputs(u)
+                    last["inputs"] = key
             if base is not None:
                 pose = base(t)
-                for body in driven:
-                    world.drive_base(body, pose[:3], pose[3:], max_force_n)
+                key = pose.tobytes()
+                if last.get("base") != key:
+                    for body in driven:
+                        world.drive_base(body, pose[:3], pose[3:], max_force_n)
+                    last["base"] = key
 
         self.pre_step.append(hook)
 
