@@ -5,7 +5,7 @@ BIN    := $(VENV)/bin
 STAMP  := $(VENV)/.installed-stamp
 
 .DEFAULT_GOAL := help
-.PHONY: help install demo test test-slow lint format bench clean fig8 fig8-quick sweep-demo diagnose-demo fig6 fig6-quick
+.PHONY: help install demo test test-slow lint format bench fig6 fig6-quick fig3 fig5 fig5-quick palm palm-quick fig8 fig8-quick diagnose-demo sweep-demo figures clean
 
 help: ## List the targets
 	@grep -E '^[a-zA-Z0-9_-]+:.*?## ' $(MAKEFILE_LIST) | awk 'BEGIN {FS = ":.*?## "}; {printf "  make %-12s %s\n", $$1, $$2}'
@@ -81,6 +81,8 @@ diagnose-demo: $(STAMP) ## Calibrate the bundled bench file, then name what the 
 sweep-demo: $(STAMP) ## Run the example study (27 trials) and print its summary
 	$(BIN)/somo-sweep run studies/finger_pressure_sweep.yaml --overwrite
 	$(BIN)/somo-sweep show results/finger_pressure_sweep
+
+figures: fig3 fig5 fig6 fig8 ## Every paper figure built so far into results/figures (Fig. 7 is not built yet)
 
 clean: ## Remove the virtual environment and caches
 	rm -rf $(VENV) .pytest_cache .mypy_cache .ruff_cache
