@@ -36,7 +36,6 @@ __all__ = ["GaitParams", "GaitRun", "load_pressure_table", "simulate_gait"]
 
 ROOT = Path(__file__).resolve().parents[2]
 DEFAULT_TABLE = "studies/data/ihm_gait_setpoints_psi.csv"
-PSI_TO_KPA = 6.894757
 
 
 class GaitParams(Spec):

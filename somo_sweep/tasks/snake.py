@@ -124,7 +124,7 @@ def simulate_snake(model: Model, params: SnakeParams, settings: WorldSettings) -
             if step:
                 world.step(every)
             times.append(world.time_s)
-            frames.append([world.link_frame(body, name)[0][:2] + 0.0 for name in links])
+            frames.append([world.link_frame(body, name)[0][:2] for name in links])
         xy = np.asarray(frames)
     axis0 = xy[0, -1] - xy[0, 0]
     direction = -axis0 / np.linalg.norm(axis0)
