@@ -10,7 +10,9 @@ Workflow (``docs/diagnosis.md``):
 3. the best effect is named only if its BIC beats ``none`` by ``DELTA_BIC_NONE``
    and the runner-up by ``DELTA_BIC_NEXT``; otherwise ``none`` (ambiguity reported);
 4. the winner is written into the model's schema fields, the model is re-simulated
-   from its plain-data form, and the gap before and after is reported.
+   from its plain-data form, and the gap before and after is reported, both in
+   units of the noise estimated from the residuals of that best model (the
+   scatter the best model cannot fit).
 """
 
 from __future__ import annotations
@@ -25,6 +27,7 @@ import numpy as np
 from somo_sweep.calibration_metrics import TestMetric, per_test_metrics
 from somo_sweep.calibration_model import simulate_rows
 from somo_sweep.diagnosis_fit import CandidateFit, fit_candidate, jacobian, predict
+from somo_sweep.diagnosis_noise import NoiseEstimate, estimate_noise
 from somo_sweep.diagnosis_problem import DiagnosisProblem, build_diagnosis
 from somo_sweep.models import Model, model_from_dict
 
@@ -41,6 +44,8 @@ __all__ = [
 DELTA_BIC_NONE = 10.0
 #: BIC margin the best effect needs over the next best to be named.
 DELTA_BIC_NEXT = 6.0
+#: Convergence (relative χ² change) of the fits that decide a close call.
+CLOSE_CALL_RTOL = 1e-3
 
 
 @dataclass(frozen=True)
@@ -54,6 +59,8 @@ class DiagnosisResult:
         verdict: One sentence (names the ambiguity when there is one).
         model_after: The model with the effect added (or refitted without one).
         after: (n, 2) rows re-simulated with ``model_after``.
+        noise: Noise per channel re-estimated from the residuals of ``after`` (the scale of
+            the combined score, before and after).
         wall_time_s: Wall time of the whole diagnosis, in s.
         simulations: Bench simulations run.
     """
@@ -64,6 +71,7 @@ class DiagnosisResult:
     verdict: str
     model_after: Model
     after: np.ndarray
+    noise: dict[str, NoiseEstimate]
     wall_time_s: float
     simulations: int
 
@@ -72,8 +80,12 @@ class DiagnosisResult:
         return per_test_metrics(self.problem.rows, simulated)
 
     def combined(self, simulated: np.ndarray) -> float:
-        """Noise-normalised score: RMS of (simulated − measured) / noise over every channel entry."""
-        r = self.problem.normalised(simulated)
+        """Noise-normalised score: RMS of (simulated − measured) / noise over every channel entry.
+
+        The noise is :attr:`noise` (from the best model's residuals), the same for every
+        ``simulated``; a model at the noise scores ≈ 1.
+        """
+        r = self.problem.normalised(simulated, self.noise)
         return float(np.sqrt(np.mean(r**2)))
 
     @property
@@ -123,11 +135,19 @@ class DiagnosisResult:
             "residual_entries": (len(self.problem.normalised(self.problem.before))),
             "rmse_before": rmse(self.problem.before),
             "rmse_after": rmse(self.after),
-            "noise": {k: {"sigma": v.sigma, "method": v.method} for k, v in self.problem.noise.items()},
+            "noise": _noise_dict(self.noise),
+            "noise_of_model_as_given": _noise_dict(self.problem.noise),
             "disagreements": [d.as_dict() for d in self.problem.disagreements],
             "simulations": self.simulations,
             "wall_time_s": round(self.wall_time_s, 2),
         }
+
+
+def _noise_dict(noise: dict[str, NoiseEstimate]) -> dict[str, Any]:
+    return {
+        k: {"sigma_at_rms_reading": v.sigma, "model": v.model, "method": v.method, "samples": v.samples}
+        for k, v in noise.items()
+    }
 
 
 def _decide(candidates: list[CandidateFit]) -> tuple[str, str]:
@@ -146,7 +166,11 @@ def _decide(candidates: list[CandidateFit]) -> tuple[str, str]:
 
 
 def diagnose(
-    problem: DiagnosisProblem, n_jobs: int = 1, refine_top: int = 2, max_evaluations: int = 4
+    problem: DiagnosisProblem,
+    n_jobs: int = 1,
+    refine_top: int = 2,
+    max_evaluations: int = 4,
+    close_call_evaluations: int = 4,
 ) -> DiagnosisResult:
     """Refit every candidate, name the missing effect (or none), add it and re-simulate.
 
@@ -157,6 +181,9 @@ def diagnose(
             any other effect whose prediction comes within ``2·DELTA_BIC_NEXT`` of the best
             refined one is refined too.
         max_evaluations: Re-simulations of all rows per refined candidate (chord iterations).
+        close_call_evaluations: Further re-simulations for every effect within
+            ``2·DELTA_BIC_NEXT`` of the best one: a close call is decided by converged fits,
+            not by which candidate's chord iteration happened to get further.
     """
     start_s = time.perf_counter()
     jac = jacobian(problem, n_jobs)
@@ -173,6 +200,12 @@ def diagnose(
             fits[pred.name] = fit_candidate(problem, jac, pred.name, pred.columns, n_jobs, max_evaluations)
         else:
             fits[pred.name] = pred
+    best = min((f.bic for n, f in fits.items() if n != "none"), default=math.inf)
+    for n, f in list(fits.items()):
+        if n != "none" and f.bic < best + 2 * DELTA_BIC_NEXT:
+            fits[n] = fit_candidate(
+                problem, jac, n, f.columns, n_jobs, close_call_evaluations, CLOSE_CALL_RTOL, resume=f
+            )
     candidates = sorted(fits.values(), key=lambda c: c.bic)
     name, verdict = _decide(candidates)
     chosen = fits[name]
@@ -182,6 +215,9 @@ def diagnose(
     reloaded = model_from_dict(model.model_dump(mode="json"), source="<diagnosed model>")
     assert reloaded.manipulator is not None
     after = simulate_rows(reloaded.manipulator, problem.rows, problem.fit.settings, n_jobs)
+    # The noise is what the best model cannot fit: estimated from its residuals, free of
+    # the missing effect's curvature that inflates an estimate from the model as given.
+    noise = estimate_noise(problem.rows, after - problem.measured)
     n_rows = len(problem.rows)
     sims = n_rows + jac.simulations + n_rows * (1 + sum(c.evaluations for c in candidates))
     return DiagnosisResult(
@@ -191,6 +227,7 @@ def diagnose(
         verdict=verdict,
         model_after=reloaded,
         after=after,
+        noise=noise,
         wall_time_s=time.perf_counter() - start_s,
         simulations=sims,
     )

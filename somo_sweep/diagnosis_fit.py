@@ -54,6 +54,8 @@ class CandidateFit:
         simulated: (n, 2) rows simulated at ``z`` (None when only predicted).
         refined: Whether ``chi2`` is simulated (True) or the linear prediction (False).
         evaluations: Residual evaluations (each simulates every row).
+        matrix: The Jacobian after the Broyden updates of this candidate's columns (None
+            when only predicted); lets :func:`fit_candidate` continue from ``z``.
     """
 
     name: str
@@ -64,6 +66,7 @@ class CandidateFit:
     simulated: np.ndarray | None
     refined: bool
     evaluations: int
+    matrix: np.ndarray | None = None
 
 
 def jacobian(problem: DiagnosisProblem, n_jobs: int = 1) -> Jacobian:
@@ -114,6 +117,7 @@ def fit_candidate(
     n_jobs: int = 1,
     max_evaluations: int = 4,
     rtol: float = 0.01,
+    resume: CandidateFit | None = None,
 ) -> CandidateFit:
     """Chord iteration on the candidate's columns, simulator in the loop.
 
@@ -125,10 +129,17 @@ def fit_candidate(
         n_jobs: Worker processes for the rows.
         max_evaluations: Cap on re-simulations of all rows.
         rtol: Stop when χ² improves by less than this fraction.
+        resume: A refined fit of the same candidate to continue from (its point and Jacobian);
+            ``max_evaluations`` then counts the further evaluations.
     """
     z = np.zeros(len(problem.start))
     matrix = jac.matrix.copy()
     r, chi2, simulated = jac.r0, float(jac.r0 @ jac.r0), problem.before
+    done = 0
+    if resume is not None and resume.simulated is not None and resume.matrix is not None:
+        z, matrix, simulated = resume.z.copy(), resume.matrix.copy(), resume.simulated
+        r = problem.normalised(simulated)
+        chi2, done = float(r @ r), resume.evaluations
     evaluations = 0
     damping = 1.0
     while evaluations < max_evaluations:
@@ -155,4 +166,6 @@ def fit_candidate(
                 break
         else:
             damping *= 0.5  # the chord over-shot: try half the step from the same point
-    return CandidateFit(name, cols, z, chi2, bic(problem, r, len(cols)), simulated, True, evaluations)
+    return CandidateFit(
+        name, cols, z, chi2, bic(problem, r, len(cols)), simulated, True, done + evaluations, matrix
+    )

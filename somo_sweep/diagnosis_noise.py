@@ -28,6 +28,8 @@ __all__ = [
 
 #: A run of residuals beyond this many noise levels, all of one sign, is a disagreement.
 SYSTEMATIC_Z = 2.0
+#: Floor of a proportional noise model, as a fraction of the channel's RMS reading.
+FLOOR = 0.1
 _INPUT = {"tip_load": "tip_load_n", "blocked_force": "pressure_kpa", "free_bending": "pressure_kpa"}
 
 
@@ -54,11 +56,30 @@ class Channel:
 
 @dataclass(frozen=True)
 class NoiseEstimate:
-    """Noise standard deviation of a channel, in its unit, and how it was found."""
+    """Noise of a channel and how it was found.
+
+    Attributes:
+        sigma: Standard deviation at the channel's RMS reading, in its unit.
+        method: How ``sigma`` was estimated.
+        samples: Independent pieces of evidence (second differences or repeat dof).
+        proportional: Whether the noise grows with the reading (else constant).
+        reference: RMS |reading| of the channel, in its unit.
+    """
 
     sigma: float
     method: str
     samples: int
+    proportional: bool = False
+    reference: float = 1.0
+
+    @property
+    def model(self) -> str:
+        """``constant`` or ``proportional`` (to the reading)."""
+        return "proportional" if self.proportional else "constant"
+
+    def at(self, measured: np.ndarray) -> np.ndarray:
+        """Noise standard deviation of each reading, in the channel's unit."""
+        return self.sigma * _weights(np.asarray(measured, float), self.proportional, self.reference)
 
 
 @dataclass(frozen=True)
@@ -117,12 +138,14 @@ def channels(rows: pd.DataFrame) -> list[Channel]:
 
 
 def _groups(rows: pd.DataFrame, mask: np.ndarray) -> list[np.ndarray]:
-    """Row indices of the channel, per direction, sorted by the varied input."""
+    """Row indices of the channel per direction and fixed input (the pressure of ``tip_load``
+    rows), each sorted by the varied input: a curve along which residuals are smooth."""
     sub = rows[mask]
     test = str(sub["test"].iloc[0])
     direction = sub["direction"] if "direction" in sub.columns else pd.Series("", index=sub.index)
+    fixed = sub["pressure_kpa"] if test == "tip_load" else pd.Series(0.0, index=sub.index)
     out = []
-    for _, g in sub.groupby(direction.to_numpy()):
+    for _, g in sub.groupby([direction.to_numpy(), fixed.to_numpy()]):
         out.append(g.sort_values(_INPUT[test], kind="stable").index.to_numpy())
     return out
 
@@ -140,8 +163,29 @@ def _repeats_sigma(rows: pd.DataFrame, ch: Channel, measured: np.ndarray) -> tup
     return (float(np.sqrt(sq / dof)) if dof else float("nan")), dof
 
 
+def _weights(measured: np.ndarray, proportional: bool, reference: float) -> np.ndarray:
+    """Noise of each reading relative to the noise at the RMS reading."""
+    if not proportional or reference <= 0:
+        return np.ones(len(measured))
+    return np.maximum(np.abs(measured), FLOOR * reference) / reference
+
+
+def _second_differences(
+    rows: pd.DataFrame, ch: Channel, residual: np.ndarray, weights: np.ndarray
+) -> tuple[np.ndarray, np.ndarray]:
+    """Second differences of the residual along the input, and their variance in units of σ²."""
+    d, v = [], []
+    for idx in _groups(rows, ch.rows):
+        r, w2 = residual[idx, ch.column], weights[idx] ** 2
+        if len(r) >= 3:
+            d.append(r[2:] - 2 * r[1:-1] + r[:-2])
+            # Var(r[i+1] − 2 r[i] + r[i−1]) = σ²(w[i+1]² + 4 w[i]² + w[i−1]²) for independent noise.
+            v.append(w2[2:] + 4 * w2[1:-1] + w2[:-2])
+    return (np.concatenate(d), np.concatenate(v)) if d else (np.empty(0), np.empty(0))
+
+
 def estimate_noise(rows: pd.DataFrame, residual: np.ndarray) -> dict[str, NoiseEstimate]:
-    """Noise level of every channel.
+    """Noise level and model (constant or proportional) of every channel.
 
     Args:
         rows: Measured rows (``line``, ``test``, inputs, optional ``direction``).
@@ -150,25 +194,28 @@ def estimate_noise(rows: pd.DataFrame, residual: np.ndarray) -> dict[str, NoiseE
     measured = measured_array(rows)
     out: dict[str, NoiseEstimate] = {}
     for ch in channels(rows):
+        values = measured[:, ch.column]
+        scale = float(np.sqrt(np.mean(values[ch.rows] ** 2)))
         sigma, dof = _repeats_sigma(rows, ch, measured)
         if dof >= 2 and sigma > 0:
-            out[ch.name] = NoiseEstimate(sigma, "repeated rows", dof)
+            out[ch.name] = NoiseEstimate(sigma, "repeated rows", dof, reference=scale)
             continue
-        diffs = []
-        for idx in _groups(rows, ch.rows):
-            r = residual[idx, ch.column]
-            if len(r) >= 3:
-                diffs.append(r[2:] - 2 * r[1:-1] + r[:-2])
-        d = np.concatenate(diffs) if diffs else np.empty(0)
-        scale = float(np.sqrt(np.mean(measured[ch.rows, ch.column] ** 2)))
-        if len(d) >= 2:
-            # Var(r[i+1] − 2 r[i] + r[i−1]) = 6 σ² for independent noise.
-            sigma = float(np.sqrt(np.mean(d**2) / 6))
-            out[ch.name] = NoiseEstimate(
-                max(sigma, 1e-4 * scale, 1e-12), "residual second differences", len(d)
-            )
-        else:
-            out[ch.name] = NoiseEstimate(max(0.01 * scale, 1e-12), "assumed 1 % of the measured scale", 0)
+        best: NoiseEstimate | None = None
+        best_loglik = -np.inf
+        for proportional in (False, True):
+            w = np.nan_to_num(_weights(values, proportional, scale), nan=1.0)
+            d, v = _second_differences(rows, ch, residual, w)
+            if len(d) < 2:
+                break
+            var = max(float(np.mean(d**2 / v)), 1e-24)
+            loglik = -0.5 * float(np.sum(np.log(var * v))) - 0.5 * len(d)
+            if loglik > best_loglik:
+                sigma = max(float(np.sqrt(var)), 1e-4 * scale, 1e-12)
+                best = NoiseEstimate(sigma, "residual second differences", len(d), proportional, scale)
+                best_loglik = loglik
+        out[ch.name] = best or NoiseEstimate(
+            max(0.01 * scale, 1e-12), "assumed 1 % of the measured scale", 0, reference=scale
+        )
     return out
 
 
@@ -178,11 +225,11 @@ def find_disagreements(
     """Runs of ≥ 2 neighbouring rows (along the input) whose residuals exceed ``SYSTEMATIC_Z``
     noise levels with one sign, largest first."""
     found = []
+    measured = measured_array(rows)
     for ch in channels(rows):
-        sigma = noise[ch.name].sigma
         for idx in _groups(rows, ch.rows):
             r = residual[idx, ch.column]
-            z = r / sigma
+            z = r / noise[ch.name].at(measured[idx, ch.column])
             flag = np.where(np.abs(z) > SYSTEMATIC_Z, np.sign(z), 0.0)
             start = 0
             for i in range(1, len(idx) + 1):

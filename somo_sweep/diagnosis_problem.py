@@ -96,12 +96,18 @@ class DiagnosisProblem:
         """Every row simulated at ``z``; (n, 2)."""
         return self.fit.simulate(self.values_at(z).tolist(), self.rows, n_jobs)
 
-    def normalised(self, simulated: np.ndarray) -> np.ndarray:
-        """Residuals (simulated − measured) / noise of every channel entry, concatenated."""
+    def normalised(self, simulated: np.ndarray, noise: dict[str, NoiseEstimate] | None = None) -> np.ndarray:
+        """Residuals (simulated − measured) / noise of every channel entry, concatenated.
+
+        Args:
+            simulated: (n, 2) simulated rows.
+            noise: Noise per channel (default: ``self.noise``, estimated from the model as given).
+        """
+        noise = self.noise if noise is None else noise
         parts = []
         for ch in channels(self.rows):
-            r = simulated[ch.rows, ch.column] - self.measured[ch.rows, ch.column]
-            parts.append(r / self.noise[ch.name].sigma)
+            measured = self.measured[ch.rows, ch.column]
+            parts.append((simulated[ch.rows, ch.column] - measured) / noise[ch.name].at(measured))
         return np.concatenate(parts)
 
     @property
@@ -121,7 +127,10 @@ class DiagnosisProblem:
         lines = [f"{len(self.rows)} rows from {self.source}; noise per channel:"]
         for name, est in self.noise.items():
             unit = next(ch.unit for ch in channels(self.rows) if ch.name == name)
-            lines.append(f"  {name}: {est.sigma:.3g} {unit} ({est.method}, {est.samples} samples)")
+            lines.append(
+                f"  {name}: {est.sigma:.3g} {unit} at the RMS reading, {est.model} "
+                f"({est.method}, {est.samples} samples)"
+            )
         if self.disagreements:
             lines.append("systematic disagreements of the model as given:")
             lines += [f"  {d.describe()}" for d in self.disagreements]

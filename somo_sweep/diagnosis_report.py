@@ -46,8 +46,8 @@ def report_markdown(result: DiagnosisResult, source: str) -> str:
     out += [f"- {d.describe()}" for d in result.problem.disagreements] or ["- nothing beyond the noise"]
     out += [
         "",
-        "Noise per channel: "
-        + ", ".join(f"{k} {v.sigma:.3g} ({v.method})" for k, v in result.problem.noise.items()),
+        "Noise per channel (from the residuals of the diagnosed model; σ at the RMS reading): "
+        + ", ".join(f"{k} {v.sigma:.3g} ({v.model}, {v.method})" for k, v in result.noise.items()),
     ]
     out += ["", "## Candidates (BIC = Σ_c n_c·ln(RSS_c/n_c) + k·ln n, best first)", ""]
     out += ["| candidate | χ² | BIC | ΔBIC vs none | refined | parameters |", "|---|---|---|---|---|---|"]
