@@ -180,3 +180,36 @@ def tasks() -> None:
     for name, spec in all_tasks().items():
         tags = f" [{', '.join(spec.tags)}]" if spec.tags else ""
         typer.echo(f"{name}{tags}: {spec.description}")
+
+
+@app.command()
+def recheck(
+    study: Annotated[Path, typer.Argument(help="Study file whose finished results to recheck.")],
+    trials: Annotated[int, typer.Option("--trials", "-n", help="How many stored trials to re-run.")] = 20,
+    seed: Annotated[int, typer.Option(help="Seed of the random draw of trials.")] = 0,
+    out: Annotated[
+        Path | None, typer.Option("--out", help="Results folder (default: results/<study>).")
+    ] = None,
+    report: Annotated[Path | None, typer.Option(help="Also write the comparison as JSON here.")] = None,
+) -> None:
+    """Re-run random stored trials in this process; exit 1 unless every cell is identical."""
+    from somo_sweep.recheck import recheck as run_recheck
+    from somo_sweep.recheck import write_report
+    from somo_sweep.study import load_study
+
+    try:
+        result = run_recheck(load_study(study, out), trials, seed)
+    except SomoError as exc:
+        fail(exc)
+    if report is not None:
+        write_report(result, report)
+    n_bad = len({m.trial for m in result.mismatches})
+    typer.echo(
+        f"re-ran {len(result.trials)} trial(s) {sorted(result.trials)}: "
+        f"{len(result.trials) - n_bad} identical, {n_bad} different "
+        f"({result.columns_compared} cells compared; status, labels, metrics, parameters)"
+    )
+    for m in result.mismatches[:20]:
+        typer.echo(f"  trial {m.trial}: {m.column}: stored {m.stored!r}, re-run {m.rerun!r}")
+    if not result.identical:
+        raise typer.Exit(1)
