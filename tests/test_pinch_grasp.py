@@ -2,6 +2,9 @@
 
 from __future__ import annotations
 
+import math
+from pathlib import Path
+
 import pytest
 from conftest import MODELS
 
@@ -88,6 +91,27 @@ def test_trial_is_deterministic() -> None:
         for k in a.metrics
     }
     assert all(same.values()), [k for k, v in same.items() if not v]
+
+
+def test_pad_torsional_friction_keeps_a_fingertip_pinched_box_from_pivoting(tmp_path: Path) -> None:
+    """Two point-like fingertip contacts let a pinched box pivot about the line between them.
+
+    The finger pads' spinning friction (a ~3-mm contact patch, docs/pinch_grasp.md) resists
+    that pivoting; without it, this off-centre fingertip pinch swings the box down about the
+    pinch axis (pitch ~ -90 deg) and drops it.
+    """
+    for name in ("pinch_gripper.yaml", "pinch_finger.yaml"):
+        text = (MODELS / name).read_text()
+        (tmp_path / name).write_text(text.replace("spinning: 0.004", "spinning: 0.0"))
+    assert "spinning: 0.004" in (MODELS / "pinch_finger.yaml").read_text()
+    params = PinchGraspParams(distal_segment_ratio=0.3, object_width_m=0.040, centering_m=0.115)
+    settings = WorldSettings(time_step_s=4e-3)
+    pads = run_pinch_grasp(load_model(GRIPPER), params, settings)
+    points = run_pinch_grasp(load_model(tmp_path / "pinch_gripper.yaml"), params, settings)
+    assert pads.labels["grasp"] == "pinch" and pads.metrics["lift_height_m"] > 0.060
+    assert abs(math.degrees(pads.metrics["object_pitch_rad"])) < 10
+    assert points.labels["grasp"] == "no_grasp"
+    assert abs(math.degrees(points.metrics["object_pitch_rad"])) > 45
 
 
 @pytest.mark.slow
