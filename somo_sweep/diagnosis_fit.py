@@ -129,17 +129,24 @@ def fit_candidate(
         n_jobs: Worker processes for the rows.
         max_evaluations: Cap on re-simulations of all rows.
         rtol: Stop when χ² improves by less than this fraction.
-        resume: A refined fit of the same candidate to continue from (its point and Jacobian);
-            ``max_evaluations`` then counts the further evaluations.
+        resume: A refined fit of the same candidate to continue from; its Jacobian columns
+            are first taken again by forward differences at its point (one simulation of all
+            rows per column, not counted in ``max_evaluations``), a Gauss-Newton restart that
+            the Broyden updates of a few chord steps cannot replace far from the probe.
     """
     z = np.zeros(len(problem.start))
     matrix = jac.matrix.copy()
     r, chi2, simulated = jac.r0, float(jac.r0 @ jac.r0), problem.before
     done = 0
-    if resume is not None and resume.simulated is not None and resume.matrix is not None:
-        z, matrix, simulated = resume.z.copy(), resume.matrix.copy(), resume.simulated
+    if resume is not None and resume.simulated is not None:
+        z, simulated = resume.z.copy(), resume.simulated
         r = problem.normalised(simulated)
-        chi2, done = float(r @ r), resume.evaluations
+        chi2, done = float(r @ r), resume.evaluations + len(cols)
+        for i in cols:
+            h = BASE_STEP if i < problem.n_base else (0.25 if z[i] + 0.25 <= problem.upper[i] else -0.25)
+            probe = z.copy()
+            probe[i] += h
+            matrix[:, i] = (problem.normalised(problem.simulate(probe, n_jobs)) - r) / h
     evaluations = 0
     damping = 1.0
     while evaluations < max_evaluations:
