@@ -1,0 +1,65 @@
+"""The quick variants of the paper-figure targets (make fig3 / fig5-quick / fig8-quick / palm-quick).
+
+Each runs the same entry point as its ``make`` target into a temporary folder and checks
+the files and the physical numbers written, so the targets cannot rot unseen.
+"""
+
+from __future__ import annotations
+
+import json
+import textwrap
+from pathlib import Path
+
+import pandas as pd
+import pytest
+from conftest import MODELS
+
+from somo_sweep import fig8, palm
+from somo_sweep.study import load_study
+from somo_sweep.sweep import run_study
+
+
+def test_fig8_quick_writes_the_figure_and_the_anisotropic_snake_advances(tmp_path: Path) -> None:
+    fig8.main(["--out", str(tmp_path), "--quick"])
+    assert {"fig8-quick.png", "fig8-quick.svg", "fig8-quick.json"} <= {p.name for p in tmp_path.iterdir()}
+    numbers = json.loads((tmp_path / "fig8-quick.json").read_text())
+    aniso, iso = numbers["anisotropic"], numbers["isotropic"]
+    assert aniso["duration_s"] == pytest.approx(3.0)
+    assert aniso["advance_body_widths"] > 3  # the 10-s run advances ~22 widths
+    assert abs(iso["advance_body_widths"]) < 1
+
+
+def test_palm_quick_study_and_plot_give_rotation_and_drop_rate_per_design(tmp_path: Path) -> None:
+    (tmp_path / "models").symlink_to(MODELS)
+    study_file = tmp_path / "palm_tiny.yaml"
+    study_file.write_text(
+        textwrap.dedent(
+            """\
+            name: palm_tiny
+            task: ihm_gait
+            model: models/ihm_hand.yaml
+            params: {duration_s: 3.0}
+            sweep:
+              task.palm_height_m: [0.085]
+              task.palm_radius_m: [0.015, 0.035]
+            seed: 0
+            simulation: {time_step_s: 1.0e-3, scale: 20}
+            """
+        )
+    )
+    summary = run_study(load_study(study_file, tmp_path / "palm_tiny"), n_jobs=2)
+    assert summary.by_status == {"ok": 2}
+    palm.main([str(tmp_path / "palm_tiny"), "--out", str(tmp_path / "figures")])
+    table = pd.read_csv(tmp_path / "figures" / "palm_tiny.csv")
+    assert (tmp_path / "figures" / "palm_tiny.png").is_file()
+    assert list(table["radius_mm"]) == [15.0, 35.0] and set(table["height_mm"]) == {85.0}
+    assert table["drop_rate"].between(0, 1).all() and (table["trials"] == 1).all()
+
+
+def test_fig5_quick_writes_the_first_cycle_against_the_hardware(tmp_path: Path) -> None:
+    from somo_sweep import fig5
+
+    fig5.main(["--out", str(tmp_path), "--quick"])
+    summary = json.loads((tmp_path / "fig5-quick.json").read_text())
+    assert summary["default"]["real_rot_z_deg"] == pytest.approx(-49.9, abs=1.0)
+    assert -100.0 < summary["default"]["sim_rot_z_deg"] < -30.0
