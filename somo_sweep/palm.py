@@ -36,10 +36,23 @@ def palm_table(df: pd.DataFrame) -> pd.DataFrame:
     return table.reset_index()
 
 
-def draw_grid(ax: Axes, table: pd.DataFrame, column: str, title: str, cmap: str) -> None:
-    """A heat map of ``column`` over palm radius (x) and height (y), values written in the cells."""
+def draw_grid(
+    ax: Axes,
+    table: pd.DataFrame,
+    column: str,
+    title: str,
+    cmap: str,
+    limits: tuple[float, float] | None = None,
+) -> None:
+    """A heat map of ``column`` over palm radius (x) and height (y), values written in the cells.
+
+    ``limits`` fixes the colour scale (e.g. 0–1 for a rate); by default it spans the data.
+    """
     grid = table.pivot(index="height_mm", columns="radius_mm", values=column)
-    image = ax.imshow(grid.to_numpy(dtype=float), origin="lower", cmap=cmap, aspect="auto")
+    vmin, vmax = limits if limits is not None else (None, None)
+    image = ax.imshow(
+        grid.to_numpy(dtype=float), origin="lower", cmap=cmap, aspect="auto", vmin=vmin, vmax=vmax
+    )
     ax.set_xticks(range(len(grid.columns)), [f"{v:g}" for v in grid.columns])
     ax.set_yticks(range(len(grid.index)), [f"{v:g}" for v in grid.index])
     for (i, j), value in np.ndenumerate(grid.to_numpy(dtype=float)):
@@ -59,7 +72,7 @@ def main(argv: list[str] | None = None) -> None:
     table = palm_table(read_results(args.results))
     fig, axes = plt.subplots(1, 2, figsize=(11, 4))
     draw_grid(axes[0], table, "rot_z_per_cycle_deg", "cube rotation per gait cycle (deg)", "viridis_r")
-    draw_grid(axes[1], table, "drop_rate", "drop rate", "Reds")
+    draw_grid(axes[1], table, "drop_rate", "drop rate", "Reds", (0.0, 1.0))
     fig.tight_layout()
     args.out.mkdir(parents=True, exist_ok=True)
     name = args.results.name
