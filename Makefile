@@ -5,7 +5,7 @@ BIN    := $(VENV)/bin
 STAMP  := $(VENV)/.installed-stamp
 
 .DEFAULT_GOAL := help
-.PHONY: help install demo test test-slow lint format bench fig6 fig6-quick fig3 fig5 fig5-quick palm palm-quick fig8 fig8-quick diagnose-demo sweep-demo figures clean
+.PHONY: help install demo test test-slow lint format bench fig6 fig6-quick fig3 fig5 fig5-quick palm palm-quick fig7 fig7-quick fig8 fig8-quick diagnose-demo sweep-demo figures clean
 
 help: ## List the targets
 	@grep -E '^[a-zA-Z0-9_-]+:.*?## ' $(MAKEFILE_LIST) | awk 'BEGIN {FS = ":.*?## "}; {printf "  make %-12s %s\n", $$1, $$2}'
@@ -68,6 +68,12 @@ palm-quick: $(STAMP) ## Palm study on 2 x 2 designs, one cycle
 	$(BIN)/somo-sweep run studies/palm_design_quick.yaml
 	$(BIN)/python -m somo_sweep.palm results/palm_design_quick --out results/figures
 
+fig7: $(STAMP) ## Paper Fig. 7: arm wraps a ball and drops it through a hoop (frames, GIF, half-step check)
+	$(BIN)/python -m somo_sweep.fig7 --out results/figures
+
+fig7-quick: $(STAMP) ## Fig. 7 with small frames, no GIF, no half-step rerun
+	$(BIN)/python -m somo_sweep.fig7 --out results/figures --quick
+
 fig8: $(STAMP) ## Paper Fig. 8: snake with isotropic vs anisotropic friction (10 s each)
 	$(BIN)/python -m somo_sweep.fig8 --out results/figures
 
@@ -82,7 +88,7 @@ sweep-demo: $(STAMP) ## Run the example study (27 trials) and print its summary
 	$(BIN)/somo-sweep run studies/finger_pressure_sweep.yaml --overwrite
 	$(BIN)/somo-sweep show results/finger_pressure_sweep
 
-figures: fig3 fig5 fig6 fig8 ## Every paper figure built so far into results/figures (Fig. 7 is not built yet)
+figures: fig3 fig5 fig6 fig7 fig8 ## Every paper figure (Figs. 3, 5, 6, 7, 8) into results/figures
 
 clean: ## Remove the virtual environment and caches
 	rm -rf $(VENV) .pytest_cache .mypy_cache .ruff_cache
