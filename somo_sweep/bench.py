@@ -10,7 +10,9 @@ positive pressure curls the tip toward −z:
   straight finger's tip underside; ``blocked_force_n`` is the total vertical
   contact force at ``pressure_kpa``.
 * ``free_bending``: no contact; ``tip_x_mm``, ``tip_z_mm`` are the tip position
-  relative to the base (the chain start), z up.
+  relative to the base (the chain start), z up, and ``tip_angle_deg`` the angle of the
+  tip's chain axis in the x–z plane: 0 along +x (straight), positive curling toward
+  −z, unwrapped along the chain (a finger curled past 180° reads more than 180°).
 
 Each row is its own simulation, started straight and unloaded, with the load
 applied at once and the equilibrium found by dynamic relaxation (kinetic
@@ -65,7 +67,7 @@ class BenchSettings:
 class BenchResult:
     """One simulated row: the measured quantity and the steps it took."""
 
-    value: float | tuple[float, float]
+    value: float | tuple[float, float, float]
     steps: int
 
 
@@ -149,6 +151,20 @@ class _Rig:
 
     def tip_m(self) -> np.ndarray:
         return self.world.tip_position(self.body) - self.origin
+
+    def tip_angle_deg(self) -> float:
+        """Angle of the last link's chain axis (local +z) in the x–z plane, deg, unwrapped from the base."""
+        cid, body = self.world.client, self.body.id
+        orientations = [p.getBasePositionAndOrientation(body, physicsClientId=cid)[1]]
+        n = p.getNumJoints(body, physicsClientId=cid)
+        if n:
+            states = p.getLinkStates(body, list(range(n)), computeForwardKinematics=1, physicsClientId=cid)
+            orientations += [s[5] for s in states]
+        angles = []
+        for q in orientations:
+            axis = np.asarray(p.getMatrixFromQuaternion(q)).reshape(3, 3)[:, 2]
+            angles.append(np.arctan2(-axis[2], axis[0]))
+        return float(np.degrees(np.unwrap(angles)[-1]))
 
     def tip_element(self) -> Link:
         if self.manip.tip_links:
@@ -247,7 +263,7 @@ def run_bench(
             then oppose that approach. None or empty: no hysteresis offset.
 
     Returns:
-        ``tip_deflection_mm``, ``blocked_force_n`` or ``(tip_x_mm, tip_z_mm)``.
+        ``tip_deflection_mm``, ``blocked_force_n`` or ``(tip_x_mm, tip_z_mm, tip_angle_deg)``.
 
     Raises:
         SimulationError: Unknown test, no equilibrium, or a blow-up.
@@ -271,7 +287,7 @@ def run_bench(
         steps = rig.relax()
         tip0 = rig.tip_m()
         if test == "free_bending":
-            return BenchResult((tip0[0] * 1e3, tip0[2] * 1e3), steps)
+            return BenchResult((tip0[0] * 1e3, tip0[2] * 1e3, rig.tip_angle_deg()), steps)
         rig.load_n = tip_load_n
         rig.body.drive.set_approach(approach)  # the load is the varied input
         steps += rig.relax()

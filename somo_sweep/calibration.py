@@ -22,7 +22,7 @@ from dataclasses import dataclass, field
 import numpy as np
 from scipy.optimize import least_squares
 
-from somo_sweep.calibration_metrics import TestMetric, per_test_metrics
+from somo_sweep.calibration_metrics import WIDTH, TestMetric, per_test_metrics
 from somo_sweep.calibration_model import AXES, Parameter, joint_lever_arms, side_view, simulate_rows
 from somo_sweep.calibration_problem import (
     CALIBRATION_SETTINGS,
@@ -61,7 +61,7 @@ class CalibrationResult:
         problem: The problem that was solved.
         values: Calibrated value by parameter name.
         model: The calibrated model (without provenance; see :func:`with_provenance`).
-        simulated: (n, 2) simulated values of every row (like :func:`measured_array`).
+        simulated: (n, 3) simulated values of every row (like :func:`measured_array`).
         metrics: Per-test RMSE, in the test's units and relative.
         wall_time_s: Wall time of the solve, in s.
         simulations: Number of bench simulations run.
@@ -101,7 +101,7 @@ def _finish(
 ) -> CalibrationResult:
     manip = problem.manipulator_at(values)
     calibration = (problem.rows["role"] == "calibration").to_numpy()
-    simulated = np.full((len(problem.rows), 2), np.nan)
+    simulated = np.full((len(problem.rows), WIDTH), np.nan)
     todo = np.ones(len(problem.rows), bool) if known is None else ~calibration
     if known is not None:
         simulated[calibration] = known

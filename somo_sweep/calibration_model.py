@@ -15,6 +15,7 @@ import numpy as np
 import pandas as pd
 
 from somo_sweep.bench import BenchSettings, run_bench
+from somo_sweep.calibration_metrics import WIDTH
 from somo_sweep.description import Actuation, Manipulator
 
 __all__ = [
@@ -107,17 +108,17 @@ def _simulate_row(
     load_n: float,
     settings: BenchSettings,
     direction: str = "",
-) -> tuple[float, float]:
-    """One bench row: (value, nan) or (tip_x_mm, tip_z_mm)."""
+) -> tuple[float, float, float]:
+    """One bench row: (value, nan, nan) or (tip_x_mm, tip_z_mm, tip_angle_deg)."""
     rig = side_view(manip) if axis == "side" else manip
     value = run_bench(rig, test, pressure_kpa, load_n, settings, direction).value
-    return value if isinstance(value, tuple) else (float(value), math.nan)
+    return value if isinstance(value, tuple) else (float(value), math.nan, math.nan)
 
 
 def simulate_rows(
     manip: Manipulator, rows: pd.DataFrame, settings: BenchSettings, n_jobs: int = 1
 ) -> np.ndarray:
-    """Simulate rows in parallel; returns an (n, 2) array like :func:`measured_array`."""
+    """Simulate rows in parallel; returns an (n, 3) array like :func:`measured_array`."""
     args = [
         (
             manip,
@@ -134,7 +135,7 @@ def simulate_rows(
         out = [_simulate_row(*a) for a in args]
     else:
         out = joblib.Parallel(n_jobs=n_jobs)(joblib.delayed(_simulate_row)(*a) for a in args)
-    return np.asarray(out, dtype=float).reshape(len(args), 2)
+    return np.asarray(out, dtype=float).reshape(len(args), WIDTH)
 
 
 def joint_lever_arms(manip: Manipulator, axis_index: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:

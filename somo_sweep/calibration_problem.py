@@ -97,12 +97,12 @@ class CalibrationProblem:
         return self.residuals_of(self.simulate(values, self.calibration_rows, n_jobs))
 
     def residuals_of(self, simulated: np.ndarray) -> np.ndarray:
-        """Relative residuals of already simulated calibration rows ((n, 2) array)."""
+        """Relative residuals of already simulated calibration rows ((n, 3) array)."""
         rows = self.calibration_rows
         return (simulated[:, 0] - measured_array(rows)[:, 0]) / self.residual_scales()
 
     def simulate(self, values: Sequence[float], rows: pd.DataFrame, n_jobs: int = 1) -> np.ndarray:
-        """Simulate ``rows`` with the parameters at ``values``; (n, 2) like :func:`measured_array`."""
+        """Simulate ``rows`` with the parameters at ``values``; (n, 3) like :func:`measured_array`."""
         return simulate_rows(self.manipulator_at(values), rows, self.settings, n_jobs)
 
     def describe(self) -> str:

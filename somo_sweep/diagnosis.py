@@ -58,7 +58,7 @@ class DiagnosisResult:
         missing_effect: The named effect, or ``none``.
         verdict: One sentence (names the ambiguity when there is one).
         model_after: The model with the effect added (or refitted without one).
-        after: (n, 2) rows re-simulated with ``model_after``.
+        after: (n, 3) rows re-simulated with ``model_after``.
         noise: Noise per channel re-estimated from the residuals of ``after`` (the scale of
             the combined score, before and after).
         wall_time_s: Wall time of the whole diagnosis, in s.

@@ -51,7 +51,7 @@ class CandidateFit:
         z: Best fit coordinates found (all parameters; unused ones 0).
         chi2: Σ normalised residual² at ``z``.
         bic: Σ_c n_c·ln(RSS_c / n_c) + k·ln(n) over channels c (see module docstring).
-        simulated: (n, 2) rows simulated at ``z`` (None when only predicted).
+        simulated: (n, 3) rows simulated at ``z`` (None when only predicted).
         refined: Whether ``chi2`` is simulated (True) or the linear prediction (False).
         evaluations: Residual evaluations (each simulates every row).
         matrix: The Jacobian after the Broyden updates of this candidate's columns (None

@@ -2,10 +2,11 @@
 
 A *channel* is one measured quantity of one test: ``tip_load`` (mm),
 ``blocked_force`` (N), ``free_bending.tip_x`` and ``free_bending.tip_z`` (mm),
-``tip_load[side]``. Its noise is estimated from repeated rows (same test, inputs
-and direction) where present, else from the scatter of the residuals along the
-input: second differences cancel any residual that is linear in the input
-(a wrong stiffness or gain), so what is left is the noise the model cannot fit.
+``free_bending.tip_angle`` (deg, on rows that measured it), ``tip_load[side]``.
+Its noise is estimated from repeated rows (same test, inputs and direction) where
+present, else from the scatter of the residuals along the input: second differences
+cancel any residual that is linear in the input (a wrong stiffness or gain), so what
+is left is the noise the model cannot fit.
 """
 
 from __future__ import annotations
@@ -15,7 +16,7 @@ from dataclasses import asdict, dataclass
 import numpy as np
 import pandas as pd
 
-from somo_sweep.calibration_metrics import UNITS, measured_array, row_labels
+from somo_sweep.calibration_metrics import ANGLE, UNITS, measured_array, row_labels
 
 __all__ = [
     "Channel",
@@ -40,7 +41,7 @@ class Channel:
     Attributes:
         name: ``tip_load``, ``blocked_force``, ``free_bending.tip_x``, ...
         label: Test label (as in the per-test metrics).
-        column: 0 or 1 in the (n, 2) measured/simulated arrays.
+        column: 0, 1 or 2 (tip angle) in the (n, 3) measured/simulated arrays.
         rows: Boolean mask of the rows in the channel.
         input_column: The varied input (``pressure_kpa`` or ``tip_load_n``).
         unit: Unit of the quantity.
@@ -134,6 +135,10 @@ def channels(rows: pd.DataFrame) -> list[Channel]:
         for suffix, col in parts:
             name = f"{label}.{suffix}" if suffix else label
             out.append(Channel(name, label, col, mask, _INPUT[test], UNITS[test]))
+        if test == "free_bending" and "tip_angle_deg" in rows.columns:
+            angle = mask & rows["tip_angle_deg"].notna().to_numpy()
+            if angle.any():
+                out.append(Channel(f"{label}.tip_angle", label, ANGLE, angle, _INPUT[test], "deg"))
     return out
 
 
@@ -189,7 +194,7 @@ def estimate_noise(rows: pd.DataFrame, residual: np.ndarray) -> dict[str, NoiseE
 
     Args:
         rows: Measured rows (``line``, ``test``, inputs, optional ``direction``).
-        residual: (n, 2) simulated − measured, in each test's unit.
+        residual: (n, 3) simulated − measured, in each test's unit.
     """
     measured = measured_array(rows)
     out: dict[str, NoiseEstimate] = {}

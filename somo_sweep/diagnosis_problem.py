@@ -54,8 +54,8 @@ class DiagnosisProblem:
         scale: Fit scale of every parameter (base: its value; effects: their probe).
         lower: Lower bounds of z.
         upper: Upper bounds of z.
-        measured: (n, 2) measured values.
-        before: (n, 2) values simulated with the model as given.
+        measured: (n, 3) measured values.
+        before: (n, 3) values simulated with the model as given.
         noise: Noise level per channel.
         disagreements: Systematic residuals of the model as given.
         source: Measurement file name.
@@ -93,14 +93,14 @@ class DiagnosisProblem:
         return self.fit.manipulator_at(self.values_at(z).tolist())
 
     def simulate(self, z: np.ndarray, n_jobs: int = 1) -> np.ndarray:
-        """Every row simulated at ``z``; (n, 2)."""
+        """Every row simulated at ``z``; (n, 3)."""
         return self.fit.simulate(self.values_at(z).tolist(), self.rows, n_jobs)
 
     def normalised(self, simulated: np.ndarray, noise: dict[str, NoiseEstimate] | None = None) -> np.ndarray:
         """Residuals (simulated − measured) / noise of every channel entry, concatenated.
 
         Args:
-            simulated: (n, 2) simulated rows.
+            simulated: (n, 3) simulated rows.
             noise: Noise per channel (default: ``self.noise``, estimated from the model as given).
         """
         noise = self.noise if noise is None else noise

@@ -5,16 +5,22 @@ from __future__ import annotations
 import numpy as np
 from matplotlib.axes import Axes
 
-from somo_sweep.calibration_metrics import measured_array, row_labels
+from somo_sweep.calibration_metrics import ANGLE, measured_array, row_labels
 from somo_sweep.diagnosis import DiagnosisResult
 from somo_sweep.effects import EFFECTS
 
 __all__ = ["plot_diagnosis", "report_markdown", "test_labels", "verdict_lines"]
 
 
+ANGLE_LABEL = "free_bending.tip_angle"
+
+
 def test_labels(result: DiagnosisResult) -> list[str]:
-    """Test labels of the rows, first-seen order."""
-    return list(dict.fromkeys(row_labels(result.problem.rows)))
+    """Test labels of the rows, first-seen order, plus ``free_bending.tip_angle`` when measured."""
+    labels = list(dict.fromkeys(row_labels(result.problem.rows)))
+    if "free_bending" in labels and not np.isnan(result.problem.measured[:, ANGLE]).all():
+        labels.insert(labels.index("free_bending") + 1, ANGLE_LABEL)
+    return labels
 
 
 def verdict_lines(result: DiagnosisResult) -> list[str]:
@@ -76,14 +82,19 @@ def report_markdown(result: DiagnosisResult, source: str) -> str:
 def plot_diagnosis(ax: Axes, result: DiagnosisResult, label: str) -> None:
     """Measured (markers), before (dashed) and after (solid) for one test label, on ``ax``.
 
-    Free bending is drawn as tip z against pressure (the x–z path hides errors along it).
+    Free bending is drawn as tip z against pressure (the x–z path hides errors along it),
+    ``free_bending.tip_angle`` as tip angle against pressure.
     """
     rows = result.problem.rows
-    sel = np.array(row_labels(rows)) == label
+    angle = label == ANGLE_LABEL
+    sel = np.array(row_labels(rows)) == ("free_bending" if angle else label)
+    if angle:
+        sel &= ~np.isnan(result.problem.measured[:, ANGLE])
     sub = rows[sel]
     measured = measured_array(rows)[sel]
     directions = sub["direction"].to_numpy() if "direction" in sub.columns else np.full(len(sub), "")
     free = label.startswith("free_bending")
+    column = ANGLE if angle else 1 if free else 0
     for direction in dict.fromkeys(directions):
         d = directions == direction
         tag = f" ({direction})" if direction else ""
@@ -98,8 +109,11 @@ def plot_diagnosis(ax: Axes, result: DiagnosisResult, label: str) -> None:
         }
         for name, style in (("measured", "o"), ("before", "--"), ("after", "-")):
             y = curves[name][order]
-            ax.plot(key[d][order], y[:, 1 if free else 0], style, label=name + tag)
-    if free:
+            ax.plot(key[d][order], y[:, column], style, label=name + tag)
+    if angle:
+        ax.set_xlabel("pressure (kPa)")
+        ax.set_ylabel("tip angle (deg)")
+    elif free:
         ax.set_xlabel("pressure (kPa)")
         ax.set_ylabel("tip z (mm)")
     elif label.startswith("tip_load"):

@@ -1,7 +1,9 @@
 """The measurement CSV schema: read and validate bench data, simulate it, write it.
 
 Columns: ``test,pressure_kpa,tip_load_n,tip_deflection_mm,blocked_force_n,tip_x_mm,tip_z_mm``
-(empty where not applicable), optionally ``axis`` (``grasp`` / ``side``) and
+(empty where not applicable), optionally ``tip_angle_deg`` (free bending: the tip's
+angle in the bending plane, 0 straight, positive curling with pressure; what a photo
+of the curled finger gives with its tip position), ``axis`` (``grasp`` / ``side``) and
 ``direction`` (``loading`` / ``unloading``). Lines starting with ``#`` are comments.
 """
 
@@ -21,6 +23,7 @@ __all__ = [
     "COLUMNS",
     "INPUT_COLUMNS",
     "MEASURED_COLUMNS",
+    "OPTIONAL_MEASURED",
     "read_measurements",
     "simulate_measurements",
     "write_measurements",
@@ -36,6 +39,8 @@ COLUMNS = [
     "tip_z_mm",
 ]
 OPTIONAL = {"axis": ("grasp", "side"), "direction": ("loading", "unloading")}
+#: Measured columns a file may add, and the test that fills them.
+OPTIONAL_MEASURED = {"tip_angle_deg": "free_bending"}
 NUMERIC = COLUMNS[1:]
 #: Columns a test needs as input, and the columns it measures.
 INPUT_COLUMNS = {
@@ -67,8 +72,9 @@ def read_measurements(path: str | Path, require_measured: bool = True) -> pd.Dat
         require_measured: Whether each row must carry its test's measured columns.
 
     Returns:
-        A DataFrame with the schema's columns (floats, NaN where empty), plus
-        ``axis`` / ``direction`` when present, and ``line`` (file line of each row).
+        A DataFrame with the schema's columns (floats, NaN where empty), ``tip_angle_deg``
+        (NaN where empty or when the file has no such column), ``axis`` / ``direction``
+        when present, and ``line`` (file line of each row).
 
     Raises:
         MeasurementError: Naming every bad row and column at once.
@@ -89,7 +95,7 @@ def read_measurements(path: str | Path, require_measured: bool = True) -> pd.Dat
     missing = [c for c in COLUMNS if c not in raw.columns]
     if missing:
         problems.append(f"missing column(s) {', '.join(missing)}; the header must have {','.join(COLUMNS)}")
-    allowed = COLUMNS + list(OPTIONAL)
+    allowed = COLUMNS + list(OPTIONAL_MEASURED) + list(OPTIONAL)
     for c in raw.columns:
         if c not in allowed:
             problems.append(f"unknown column '{c}'{did_you_mean(c, allowed)}; allowed: {', '.join(allowed)}")
@@ -98,7 +104,10 @@ def read_measurements(path: str | Path, require_measured: bool = True) -> pd.Dat
     if raw.empty:
         raise MeasurementError(path, ["no data rows"])
     out = pd.DataFrame({"test": raw["test"].str.strip()})
-    for c in NUMERIC:
+    for c in NUMERIC + list(OPTIONAL_MEASURED):
+        if c not in raw.columns:
+            out[c] = math.nan
+            continue
         values = []
         for i, cell in enumerate(raw[c].str.strip()):
             if cell == "":
@@ -136,6 +145,9 @@ def read_measurements(path: str | Path, require_measured: bool = True) -> pd.Dat
         for c in needed:
             if math.isnan(row[c]):
                 problems.append(f"{where}, column {c}: empty, but test '{test}' needs it")
+        for c, owner in OPTIONAL_MEASURED.items():
+            if test != owner and not math.isnan(row[c]):
+                problems.append(f"{where}, column {c}: only '{owner}' rows measure it; leave it empty")
         if test == "tip_load" and row["tip_load_n"] < 0:
             problems.append(f"{where}, column tip_load_n: {row['tip_load_n']} < 0; loads must be >= 0 N")
     if problems:
@@ -152,14 +164,14 @@ def simulate_measurements(
     columns are replaced by simulated ones, NaN where the test does not fill them.
     """
     out = rows.copy()
-    for c in ("tip_deflection_mm", "blocked_force_n", "tip_x_mm", "tip_z_mm"):
+    for c in ("tip_deflection_mm", "blocked_force_n", "tip_x_mm", "tip_z_mm", "tip_angle_deg"):
         out[c] = math.nan
     for i, row in rows.iterrows():
         load = 0.0 if math.isnan(row["tip_load_n"]) else float(row["tip_load_n"])
         res = run_bench(model, row["test"], float(row["pressure_kpa"]), load, settings)
         if row["test"] == "free_bending":
             assert isinstance(res.value, tuple)
-            out.loc[i, "tip_x_mm"], out.loc[i, "tip_z_mm"] = res.value
+            out.loc[i, "tip_x_mm"], out.loc[i, "tip_z_mm"], out.loc[i, "tip_angle_deg"] = res.value
         else:
             out.loc[i, MEASURED_COLUMNS[row["test"]][0]] = float(res.value)  # type: ignore[arg-type]
     return out
@@ -169,11 +181,13 @@ def write_measurements(rows: pd.DataFrame, path: str | Path | None = None, heade
     """Write rows in the CSV schema (to ``path`` if given); returns the CSV text.
 
     Args:
-        rows: Rows with at least the schema's columns.
+        rows: Rows with at least the schema's columns (``tip_angle_deg`` is written when it
+            has any value).
         path: Output file, or None to only return the text.
         header: Comment text written above the header (each line prefixed with ``#``).
     """
-    cols = COLUMNS + [c for c in OPTIONAL if c in rows.columns]
+    measured = [c for c in OPTIONAL_MEASURED if c in rows.columns and rows[c].notna().any()]
+    cols = COLUMNS + measured + [c for c in OPTIONAL if c in rows.columns]
     body = rows[cols].to_csv(index=False, float_format="%.6g", na_rep="")
     text = "".join(f"# {ln}\n" for ln in header.splitlines()) + body if header else body
     if path is not None:

@@ -13,6 +13,7 @@ import numpy as np
 import pandas as pd
 
 from somo_sweep.bench import BenchSettings
+from somo_sweep.calibration_metrics import ANGLE
 from somo_sweep.calibration_model import simulate_rows
 from somo_sweep.finger_builder import planar_finger
 from somo_sweep.measurements import COLUMNS, write_measurements
@@ -72,6 +73,7 @@ def synthetic_rows(
     rng: np.random.Generator,
     settings: BenchSettings | None = None,
     n_jobs: int = 1,
+    tip_angle: bool = True,
 ) -> pd.DataFrame:
     """Simulate ``plan`` with ``model`` and multiply every measured value by (1 + noise_rel·N(0, 1)).
 
@@ -82,16 +84,22 @@ def synthetic_rows(
         rng: Random generator (pass a seeded one for reproducible data).
         settings: Bench numerics (default: the 0.5 ms reference step).
         n_jobs: Worker processes.
+        tip_angle: Whether free-bending rows also report ``tip_angle_deg``. Its noise is
+            drawn after that of the other columns, so the other columns are the same
+            with and without it.
     """
     assert model.manipulator is not None
     sim = simulate_rows(model.manipulator, plan, settings or BenchSettings(), n_jobs)
-    sim = sim * (1 + noise_rel * rng.standard_normal(sim.shape))
+    sim[:, :2] *= 1 + noise_rel * rng.standard_normal((len(sim), 2))
+    sim[:, ANGLE] *= 1 + noise_rel * rng.standard_normal(len(sim))
     rows = plan.copy()
     tests = rows["test"].to_numpy()
     for test, cols in (("tip_load", ["tip_deflection_mm"]), ("blocked_force", ["blocked_force_n"])):
         rows.loc[tests == test, cols[0]] = sim[tests == test, 0]
     rows.loc[tests == "free_bending", "tip_x_mm"] = sim[tests == "free_bending", 0]
     rows.loc[tests == "free_bending", "tip_z_mm"] = sim[tests == "free_bending", 1]
+    if tip_angle:
+        rows["tip_angle_deg"] = np.where(tests == "free_bending", sim[:, ANGLE], np.nan)
     return rows
 
 

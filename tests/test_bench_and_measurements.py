@@ -13,6 +13,7 @@ from typer.testing import CliRunner
 from somo_sweep.bench import BenchSettings, run_bench
 from somo_sweep.cli import app
 from somo_sweep.errors import MeasurementError, SimulationError
+from somo_sweep.finger_builder import planar_finger
 from somo_sweep.measurements import (
     COLUMNS,
     read_measurements,
@@ -62,8 +63,11 @@ def test_measure_tip_load_and_free_bending_cli() -> None:
         ["measure", str(MODELS / "ihm_finger.yaml"), "--test", "free_bending", "--values", "100"],
     )
     assert res.exit_code == 0
-    x_mm, z_mm = (float(v) for v in res.stdout.strip().splitlines()[-1].split(",")[-2:])
+    lines = res.stdout.strip().splitlines()
+    row = dict(zip(lines[-2].split(","), lines[-1].split(","), strict=True))
+    x_mm, z_mm, angle_deg = (float(row[c]) for c in ("tip_x_mm", "tip_z_mm", "tip_angle_deg"))
     assert z_mm < -20 and 0 < x_mm < 130  # curled toward -z
+    assert 20 < angle_deg < 180
 
 
 def test_measure_rejects_unknown_test_and_negative_load() -> None:
@@ -83,11 +87,30 @@ def test_free_bending_curls_down_and_tip_load_deflects_down() -> None:
     sagging = run_bench(model, "free_bending", 0.0).value
     bent = run_bench(model, "free_bending", 150.0).value
     assert isinstance(weightless, tuple) and isinstance(sagging, tuple) and isinstance(bent, tuple)
-    assert weightless == pytest.approx((130.0, 0.0), abs=1e-4)  # 100 mm chain + 30 mm sphere
-    assert sagging[1] < -5 and np.hypot(*sagging) == pytest.approx(130.0, abs=2.0)  # sags, rigid links
+    assert weightless == pytest.approx((130.0, 0.0, 0.0), abs=1e-4)  # 100 mm chain + 30 mm sphere
+    assert sagging[1] < -5 and np.hypot(*sagging[:2]) == pytest.approx(130.0, abs=2.0)  # sags, rigid links
+    assert 0 < sagging[2] < bent[2]  # the tip tilts down under its weight, further with pressure
     assert bent[1] < sagging[1] - 20
     small, large = (run_bench(model, "tip_load", 0.0, f).value for f in (0.02, 0.04))
     assert 0 < small < large
+
+
+@pytest.mark.parametrize("pressure_kpa", [50.0, 200.0])
+def test_free_bending_tip_angle_is_the_sum_of_the_joint_angles_even_past_180_degrees(
+    pressure_kpa: float,
+) -> None:
+    """Weightless finger, uniform joint torque u = gain·p: every joint turns u/k, so the tip
+    turns N·u/k (1 rad at 50 kPa; 4 rad = 229° at 200 kPa, read unwrapped, not as −131°)."""
+    model = planar_finger(0.100, 20, 0.020, stiffness_n_m_per_rad=0.5, pressure_gain_n_m_per_kpa=5e-4)
+    weightless = BenchSettings(gravity_m_s2=0.0, time_step_s=1e-3)
+    x_mm, z_mm, angle_deg = run_bench(model, "free_bending", pressure_kpa, settings=weightless).value  # type: ignore[misc]
+    theta_rad = 20 * 5e-4 * pressure_kpa / 0.5
+    assert angle_deg == pytest.approx(np.degrees(theta_rad), rel=1e-4)
+    # The tip of a chain of 20 equal links turning θ/20 each: a polygon inscribed in a circle.
+    step = theta_rad / 20
+    phi = step * np.arange(1, 21)
+    assert x_mm == pytest.approx(5.0 * np.sum(np.cos(phi)), abs=0.05)
+    assert z_mm == pytest.approx(-5.0 * np.sum(np.sin(phi)), abs=0.05)
 
 
 def test_blocked_force_at_zero_pressure_is_part_of_the_finger_weight() -> None:
@@ -145,6 +168,23 @@ def test_reader_keeps_optional_axis_and_direction(tmp_path: Path) -> None:
     assert rows.loc[0, "axis"] == "grasp" and rows.loc[0, "direction"] == "loading"
     bad = _write(tmp_path, f"{HEADER},axis\ntip_load,0,0.05,3.0,,,,sideways\n")
     with pytest.raises(MeasurementError, match="allowed: grasp, side"):
+        read_measurements(bad)
+
+
+def test_tip_angle_column_is_optional_free_bending_only_and_round_trips(tmp_path: Path) -> None:
+    plain = read_measurements(_write(tmp_path, f"{HEADER}\nfree_bending,100,,,,90,-30\n"))
+    assert np.isnan(plain.loc[0, "tip_angle_deg"])
+    assert "tip_angle_deg" not in write_measurements(plain)
+    path = _write(
+        tmp_path, f"{HEADER},tip_angle_deg\nfree_bending,100,,,,90,-30,41.5\nblocked_force,100,,,0.7,,,\n"
+    )
+    rows = read_measurements(path)
+    assert rows.loc[0, "tip_angle_deg"] == 41.5 and np.isnan(rows.loc[1, "tip_angle_deg"])
+    again = tmp_path / "again.csv"
+    write_measurements(rows, again)
+    assert read_measurements(again).loc[0, "tip_angle_deg"] == 41.5
+    bad = _write(tmp_path, f"{HEADER},tip_angle_deg\ntip_load,0,0.05,3.0,,,,12\n")
+    with pytest.raises(MeasurementError, match="line 2, column tip_angle_deg: only 'free_bending' rows"):
         read_measurements(bad)
 
 

@@ -22,7 +22,7 @@ from somo_sweep.calibration_report import model_yaml
 from somo_sweep.cli import app
 from somo_sweep.description import Actuation
 from somo_sweep.diagnosis import build_diagnosis, diagnose
-from somo_sweep.diagnosis_noise import estimate_noise, find_disagreements
+from somo_sweep.diagnosis_noise import channels, estimate_noise, find_disagreements
 from somo_sweep.effects import EFFECTS, add_effect, get_effect
 from somo_sweep.errors import SomoError
 from somo_sweep.finger_builder import planar_finger
@@ -105,7 +105,7 @@ def test_every_effect_is_off_at_zero_and_changes_the_bench_when_on() -> None:
         on = run_bench(
             par.apply(manip, 2 * par.probe), "free_bending", 240.0, settings=SETTINGS, direction=direction
         )
-        assert np.hypot(*np.subtract(on.value, ref)) > 0.5, name  # mm
+        assert np.hypot(*np.subtract(on.value, ref)[:2]) > 0.5, name  # mm
 
 
 def test_saturated_actuation_follows_tanh() -> None:
@@ -129,10 +129,11 @@ def test_stiffening_spring_matches_the_cubic_law_on_a_single_joint() -> None:
     assert manip is not None
     stiff = add_effect(manip, "nonlinear_stiffness", 10.0)
     weightless = BenchSettings(time_step_s=1e-3, gravity_m_s2=0.0)
-    x, z = run_bench(stiff, "free_bending", 200.0, settings=weightless).value  # type: ignore[misc]
+    x, z, angle_deg = run_bench(stiff, "free_bending", 200.0, settings=weightless).value  # type: ignore[misc]
     # One joint at the clamp: angle θ with k·θ·(1 + a·θ²) = u = 0.2 N·m.
     theta = float(np.arctan2(-z, x))
     assert 0.5 * theta * (1 + 10.0 * theta**2) == pytest.approx(0.2, rel=2e-3)
+    assert angle_deg == pytest.approx(np.degrees(theta), rel=1e-6)
 
 
 def test_hysteresis_makes_unloading_bend_further_than_loading() -> None:
@@ -176,6 +177,19 @@ def test_noise_that_grows_with_the_reading_is_modelled_as_proportional() -> None
     assert est.proportional and est.model == "proportional"
     sigma = est.at(rows["blocked_force_n"].to_numpy())
     assert sigma[-1] == pytest.approx(0.02 * force[-1], rel=0.5) and sigma[1] < 0.3 * sigma[-1]
+
+
+def test_measured_tip_angles_form_their_own_channel_in_degrees() -> None:
+    plan = bench_plan([0.05], [100.0], [0.0, 80.0, 160.0, 240.0])
+    rows = synthetic_rows(example_finger(), plan, 0.0, np.random.default_rng(0), SETTINGS)
+    rows["line"] = range(2, len(rows) + 2)
+    names = {ch.name: ch for ch in channels(rows)}
+    assert names["free_bending.tip_angle"].unit == "deg"
+    assert names["free_bending.tip_angle"].rows.sum() == 4
+    angles = rows.loc[rows["test"] == "free_bending", "tip_angle_deg"].to_numpy()
+    assert np.all(np.diff(angles) > 10)  # more pressure, more curl
+    without = synthetic_rows(example_finger(), plan, 0.0, np.random.default_rng(0), SETTINGS, tip_angle=False)
+    assert "free_bending.tip_angle" not in {ch.name for ch in channels(without)}
 
 
 def test_tip_load_noise_follows_each_pressure_separately() -> None:

@@ -37,7 +37,7 @@ class BenchParams(BaseModel):
 
 
 def run_bench_task(model: Model, params: BenchParams, settings: WorldSettings, seed: int) -> TaskResult:
-    """Run one bench protocol; metrics in mm / N, ``relax_steps`` the steps it took.
+    """Run one bench protocol; metrics in mm / N / deg, ``relax_steps`` the steps it took.
 
     The bench is static and deterministic: ``seed`` is not used. The time step,
     scale and gravity magnitude come from ``settings``.
@@ -55,7 +55,8 @@ def run_bench_task(model: Model, params: BenchParams, settings: WorldSettings, s
         raise
     metrics: dict[str, float | int] = {"relax_steps": res.steps}
     if isinstance(res.value, tuple):
-        metrics["tip_x_mm"], metrics["tip_z_mm"] = (float(v) for v in res.value)
+        x_mm, z_mm, angle_deg = (float(v) for v in res.value)
+        metrics.update(tip_x_mm=x_mm, tip_z_mm=z_mm, tip_angle_deg=angle_deg)
     elif params.test == "tip_load":
         metrics["tip_deflection_mm"] = float(res.value)
     else:
