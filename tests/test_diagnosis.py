@@ -214,7 +214,7 @@ def test_diagnose_names_a_hidden_saturation_and_halves_the_gap() -> None:
 
 
 CASES = [
-    pytest.param(effect, seed, noise, id=f"{effect}-seed{seed}-{noise:.0%}")
+    pytest.param(effect, seed, noise, id=f"{effect}-seed{seed}-noise{100 * noise:.0f}pct")
     for seed in (1, 2, 3)
     for noise in (0.01, 0.02)
     for effect in HIDDEN
