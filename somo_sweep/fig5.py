@@ -2,13 +2,19 @@
 
 ``python -m somo_sweep.fig5 --out results/figures [--quick]``:
 
-1. runs task ``ihm_gait`` on the recorded pressure setpoints with the default
-   (uncalibrated) pressure→torque weights and compares the cube's rotation about z
-   with the AprilTag recording: per-cycle values, final rotation and its error;
-2. fits the side weight (the one that sets how far each gait cycle turns the cube)
-   with the simulator in the loop on the first ``fit_cycles`` cycles only;
-3. reruns the whole recording with the fitted weight and reports the error on the
-   remaining (held-out) cycles and at the end.
+1. runs task ``ihm_gait`` on the recorded pressure setpoints with the hand as the
+   facts give it (fingers from eq. (8)/(9), the repository's pressure→torque weights)
+   and compares the cube's rotation about z with the AprilTag recording: final
+   rotation and its error, RMS difference of the curves;
+2. calibrates the finger on the published bench values (``make fig3``'s data, the
+   simulator-in-the-loop fit of ``somo-sweep calibrate``), puts it in the hand and
+   derives the map from it: grasp weight = the fitted pressure gain per psi, side
+   weight in the repository's side/grasp ratio (3.25). No task data enter; this is
+   the paper's claim that a finger-level calibration carries to the task;
+3. on that hand, fits the side weight (the one that sets how far each gait cycle
+   turns the cube) with the simulator in the loop on the first ``fit_cycles`` cycles
+   only, reruns the whole recording and reports the error on the remaining
+   (held-out) cycles and at the end.
 
 Writes ``fig5.png`` / ``fig5.svg`` (rotation against time, off-axis motion) and
 ``fig5.json`` (every number reported).
@@ -27,15 +33,28 @@ import pandas as pd
 from matplotlib.axes import Axes
 from scipy.optimize import minimize_scalar
 
+from somo_sweep import fig3
+from somo_sweep.calibration import CalibrationResult, build_problem, solve_fit
+from somo_sweep.measurements import read_measurements
 from somo_sweep.models import Model, load_model
 from somo_sweep.tasks.ihm_gait import ROOT, GaitParams, GaitRun, simulate_gait
 from somo_sweep.world import WorldSettings
 
-__all__ = ["Hardware", "compare", "draw_rotation", "fit_side_weight", "load_hardware", "main"]
+__all__ = [
+    "Hardware",
+    "calibrate_finger",
+    "compare",
+    "draw_rotation",
+    "fit_side_weight",
+    "hand_with_finger",
+    "load_hardware",
+    "main",
+]
 
 HAND = ROOT / "studies" / "models" / "ihm_hand.yaml"
 HARDWARE_POSE = ROOT / "studies" / "data" / "ihm_gait_object_pose_mm_deg.csv"
 GAIT_START_S, CYCLE_S, N_CYCLES = 2.0, 8.0, 10
+KPA_PER_PSI = 6.894757
 
 
 @dataclass(frozen=True)
@@ -88,6 +107,41 @@ def compare(run: GaitRun, hw: Hardware, first_cycle: int = 0) -> dict[str, float
     }
 
 
+def calibrate_finger(n_jobs: int = 2) -> CalibrationResult:
+    """The IHM finger fitted (simulator in the loop) to the published tip stiffness and blocked force."""
+    rows = read_measurements(fig3.DATA)
+    return solve_fit(build_problem(rows, load_model(fig3.MODEL), str(fig3.DATA), fig3.SETTINGS), n_jobs)
+
+
+def hand_with_finger(hand: Model, finger: Model, default: GaitParams) -> tuple[Model, GaitParams]:
+    """``hand`` with every finger replaced by ``finger``, and the map derived from its gain.
+
+    Grasp weight = the finger's pressure gain per psi (the blocked-force calibration
+    of eq. (9), per psi); the side weight keeps ``default``'s side/grasp ratio.
+
+    Raises:
+        ValueError: If a finger of the hand is not the model ``finger`` was calibrated from.
+    """
+    assert hand.assembly is not None and finger.manipulator is not None
+    base = load_model(fig3.MODEL).manipulator
+    mounts = []
+    for mount in hand.assembly.manipulators:
+        if mount.manipulator != base:
+            raise ValueError(
+                f"hand finger '{mount.name}' is not {fig3.MODEL.name}; cannot swap in the calibrated one"
+            )
+        mounts.append(mount.model_copy(update={"manipulator": finger.manipulator}))
+    assembly = hand.assembly.model_copy(update={"manipulators": mounts})
+    act = finger.manipulator.actuation
+    assert act is not None
+    w_grasp = act.pressure_gain_n_m_per_kpa * KPA_PER_PSI
+    ratio = default.w_side_n_m_per_psi / default.w_grasp_n_m_per_psi
+    params = default.model_copy(
+        update={"w_grasp_n_m_per_psi": w_grasp, "w_side_n_m_per_psi": w_grasp * ratio}
+    )
+    return Model(assembly=assembly), params
+
+
 def fit_side_weight(
     model: Model, settings: WorldSettings, hw: Hardware, fit_cycles: int, start: GaitParams
 ) -> tuple[float, list[tuple[float, float]]]:
@@ -113,7 +167,7 @@ def fit_side_weight(
 def draw_rotation(ax: Axes, hw: Hardware, runs: dict[str, GaitRun], fit_until_s: float | None = None) -> None:
     """Rotation about z against time: hardware and each simulated run, on ``ax``."""
     ax.plot(hw.times_s, hw.rot_z_deg, color="black", lw=2, label="hardware (AprilTag)")
-    for (label, run), colour in zip(runs.items(), ("tab:blue", "tab:orange"), strict=False):
+    for (label, run), colour in zip(runs.items(), ("tab:blue", "tab:green", "tab:orange"), strict=False):
         ax.plot(run.times_s, run.rot_z_deg, color=colour, lw=1.5, label=label)
     if fit_until_s is not None:
         ax.axvspan(GAIT_START_S, fit_until_s, color="0.9", label="calibration cycles")
@@ -131,47 +185,60 @@ def _offaxis(ax: Axes, hw: Hardware, run: GaitRun) -> None:
     ax.legend(loc="lower left", fontsize=7, ncol=3)
 
 
+def _weights(params: GaitParams) -> dict[str, float]:
+    return {
+        "w_grasp_n_m_per_psi": params.w_grasp_n_m_per_psi,
+        "w_side_n_m_per_psi": params.w_side_n_m_per_psi,
+    }
+
+
 def main(argv: list[str] | None = None) -> None:
-    """Run the comparison (and calibration unless ``--quick``) and write the figure and JSON."""
+    """Run the comparisons (and the side-weight fit unless ``--quick``) and write the figure and JSON."""
     parser = argparse.ArgumentParser(description=__doc__)
     parser.add_argument("--out", type=Path, default=Path("results/figures"))
-    parser.add_argument("--quick", action="store_true", help="first gait cycle only, no calibration")
+    parser.add_argument("--quick", action="store_true", help="first gait cycle only, no side-weight fit")
     parser.add_argument("--fit-cycles", type=int, default=3)
+    parser.add_argument("--jobs", type=int, default=2, help="worker processes for the finger calibration")
     args = parser.parse_args(argv)
     model, hw = load_model(HAND), load_hardware()
     settings = WorldSettings(time_step_s=1e-3)
     base = GaitParams()
     n_cycles = 1 if args.quick else N_CYCLES
     end_s = float(boundaries_s(n_cycles)[-1])
+    finger = calibrate_finger(args.jobs)
+    hand, mapped = hand_with_finger(model, finger.model, base)
+    labels = {
+        "default": "eq. (8)/(9) fingers, repository weights",
+        "finger_calibrated": "fingers fitted to bench values, map from their gain",
+        "calibrated": f"+ side weight fitted on cycles 1-{args.fit_cycles}",
+    }
     runs = {
-        "simulation, default weights": simulate_gait(
-            model, base.model_copy(update={"duration_s": end_s}), settings
-        )
+        "default": simulate_gait(model, base.model_copy(update={"duration_s": end_s}), settings),
+        "finger_calibrated": simulate_gait(hand, mapped.model_copy(update={"duration_s": end_s}), settings),
     }
     summary: dict[str, object] = {
-        "default_weights": {
-            "w_grasp_n_m_per_psi": base.w_grasp_n_m_per_psi,
-            "w_side_n_m_per_psi": base.w_side_n_m_per_psi,
+        "default_weights": _weights(base),
+        "default": compare(runs["default"], hw),
+        "finger_calibration": {
+            "data": str(fig3.DATA.relative_to(ROOT)),
+            "values": finger.values,
+            "relative_stderr": finger.relative_stderr,
+            "weights": _weights(mapped),
         },
-        "default": compare(runs["simulation, default weights"], hw),
+        "finger_calibrated": compare(runs["finger_calibrated"], hw),
     }
     fit_until = None
     if not args.quick:
-        w_side, trials = fit_side_weight(model, settings, hw, args.fit_cycles, base)
-        fitted = base.model_copy(update={"w_side_n_m_per_psi": w_side, "duration_s": end_s})
-        runs["simulation, calibrated"] = simulate_gait(model, fitted, settings)
+        w_side, trials = fit_side_weight(hand, settings, hw, args.fit_cycles, mapped)
+        fitted = mapped.model_copy(update={"w_side_n_m_per_psi": w_side, "duration_s": end_s})
+        runs["calibrated"] = simulate_gait(hand, fitted, settings)
         fit_until = float(boundaries_s()[args.fit_cycles])
-        summary["calibrated_weights"] = {
-            "w_grasp_n_m_per_psi": base.w_grasp_n_m_per_psi,
-            "w_side_n_m_per_psi": w_side,
-            "fit_cycles": args.fit_cycles,
-            "trials": trials,
-        }
-        summary["calibrated"] = compare(runs["simulation, calibrated"], hw)
-        summary["calibrated_held_out"] = compare(runs["simulation, calibrated"], hw, args.fit_cycles)
-        summary["default_held_out"] = compare(runs["simulation, default weights"], hw, args.fit_cycles)
+        summary["calibrated_weights"] = {**_weights(fitted), "fit_cycles": args.fit_cycles, "trials": trials}
+        summary["calibrated"] = compare(runs["calibrated"], hw)
+        for key in ("calibrated", "finger_calibrated", "default"):
+            summary[f"{key}_held_out"] = compare(runs[key], hw, args.fit_cycles)
     fig, axes = plt.subplots(1, 2, figsize=(13, 4.5), gridspec_kw={"width_ratios": [2, 1]})
-    draw_rotation(axes[0], hw, runs, fit_until)
+    draw_rotation(axes[0], hw, {labels[k]: run for k, run in runs.items()}, fit_until)
     _offaxis(axes[1], hw, list(runs.values())[-1])
     axes[1].set_xlim(0, end_s)
     axes[0].set_xlim(0, end_s)
@@ -181,15 +248,15 @@ def main(argv: list[str] | None = None) -> None:
     for ext in ("png", "svg"):
         fig.savefig(args.out / f"{name}.{ext}", dpi=120)
     (args.out / f"{name}.json").write_text(json.dumps(summary, indent=2))
-    for key in ("default", "calibrated", "default_held_out", "calibrated_held_out"):
-        if key in summary:
-            s = summary[key]
-            assert isinstance(s, dict)
-            print(
-                f"{key:20s} {s['from_s']:4.0f}-{s['to_s']:4.0f} s: sim {s['sim_rot_z_deg']:7.1f} deg, "
-                f"hardware {s['real_rot_z_deg']:7.1f} deg, error {s['error_percent']:5.1f} %, "
-                f"curve RMS {s['rms_curve_deg']:5.1f} deg"
-            )
+    for key in ("default", "finger_calibrated", "calibrated"):
+        for part in (key, f"{key}_held_out"):
+            s = summary.get(part)
+            if isinstance(s, dict):
+                print(
+                    f"{part:28s} {s['from_s']:4.0f}-{s['to_s']:4.0f} s: sim {s['sim_rot_z_deg']:7.1f} deg, "
+                    f"hardware {s['real_rot_z_deg']:7.1f} deg, error {s['error_percent']:5.1f} %, "
+                    f"curve RMS {s['rms_curve_deg']:5.1f} deg"
+                )
 
 
 if __name__ == "__main__":

@@ -63,3 +63,10 @@ def test_fig5_quick_writes_the_first_cycle_against_the_hardware(tmp_path: Path) 
     summary = json.loads((tmp_path / "fig5-quick.json").read_text())
     assert summary["default"]["real_rot_z_deg"] == pytest.approx(-49.9, abs=1.0)
     assert -100.0 < summary["default"]["sim_rot_z_deg"] < -30.0
+    # The finger fitted to the published bench values (make fig3's fit) and the map derived from it.
+    values = summary["finger_calibration"]["values"]
+    assert values["stiffness_n_m_per_rad[grasp]"] == pytest.approx(0.273, rel=0.01)
+    assert values["pressure_gain_n_m_per_kpa"] == pytest.approx(6.42e-4, rel=0.01)
+    weights = summary["finger_calibration"]["weights"]
+    assert weights["w_side_n_m_per_psi"] / weights["w_grasp_n_m_per_psi"] == pytest.approx(3.25)
+    assert -100.0 < summary["finger_calibrated"]["sim_rot_z_deg"] < -30.0
