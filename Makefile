@@ -54,7 +54,7 @@ fig6-quick: $(STAMP) ## Fig. 6 on a 192-trial subset (a few minutes on 2 cores)
 fig3: $(STAMP) ## Paper Fig. 3: blocked force vs pressure, eq. (8)/(9) and fit vs published values
 	$(BIN)/python -m somo_sweep.fig3 results/figures
 
-fig5: $(STAMP) ## Paper Fig. 5: gait vs the hardware recording, side weight calibrated on 3 cycles (~15 min)
+fig5: $(STAMP) ## Paper Fig. 5: gait vs the hardware recording, fingers calibrated on bench values, side weight on 3 cycles (~20 min)
 	$(BIN)/python -m somo_sweep.fig5 --out results/figures
 
 fig5-quick: $(STAMP) ## Fig. 5 on the first gait cycle, no calibration
