@@ -46,10 +46,10 @@ fig6: $(STAMP) ## Paper Fig. 6: pinch-grasp study, 2310 trials (resumable), figu
 	$(BIN)/somo-sweep fig6 results/pinch_grasp_dsr --out results/figures
 	$(BIN)/somo-sweep fig6 results/pinch_grasp_dsr --out results/figures --rule paper
 
-fig6-quick: $(STAMP) ## Fig. 6 on a 192-trial subset (a few minutes on 2 cores)
+fig6-quick: $(STAMP) ## Fig. 6 on a 192-trial subset (a few minutes on 2 cores), into results/figures/quick
 	$(BIN)/somo-sweep run studies/pinch_grasp_quick.yaml
-	$(BIN)/somo-sweep fig6 results/pinch_grasp_quick --out results/figures
-	$(BIN)/somo-sweep fig6 results/pinch_grasp_quick --out results/figures --rule paper
+	$(BIN)/somo-sweep fig6 results/pinch_grasp_quick --out results/figures/quick
+	$(BIN)/somo-sweep fig6 results/pinch_grasp_quick --out results/figures/quick --rule paper
 
 fig3: $(STAMP) ## Paper Fig. 3: blocked force vs pressure, eq. (8)/(9) and fit vs published values
 	$(BIN)/python -m somo_sweep.fig3 results/figures
