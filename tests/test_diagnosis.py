@@ -297,6 +297,8 @@ def test_cli_writes_json_report_model_and_plot(tmp_path: Path) -> None:
     assert record["missing_effect"] == "none"
     assert {"candidates", "rmse_before", "rmse_after", "disagreements"} <= set(record)
     assert record["rmse_before"]["combined"] >= 0 and "blocked_force" in record["rmse_after"]
+    assert record["rmse_after"]["free_bending.tip_angle"]["unit"] == "deg"  # the CSV carried angles
+    assert "free_bending.tip_angle" in record["noise"]
     assert [c["name"] for c in record["candidates"]] == sorted(
         ["none", "self_weight"], key=lambda n: next(c["bic"] for c in record["candidates"] if c["name"] == n)
     )
