@@ -16,12 +16,23 @@ from dataclasses import asdict, dataclass
 import numpy as np
 import pandas as pd
 
-__all__ = ["ANGLE", "UNITS", "WIDTH", "TestMetric", "measured_array", "per_test_metrics", "row_labels"]
+__all__ = [
+    "ANGLE",
+    "ANGLE_LABEL",
+    "UNITS",
+    "WIDTH",
+    "TestMetric",
+    "measured_array",
+    "per_test_metrics",
+    "row_labels",
+]
 
 #: Unit of each test's measured quantity.
 UNITS = {"tip_load": "mm", "blocked_force": "N", "free_bending": "mm"}
 #: Columns of a measured or simulated row array, and the one holding the tip angle (deg).
 WIDTH, ANGLE = 3, 2
+#: Label of the free-bending tip angle (metric, diagnosis channel and plot panel).
+ANGLE_LABEL = "free_bending.tip_angle"
 
 
 def measured_array(rows: pd.DataFrame) -> np.ndarray:
@@ -111,7 +122,7 @@ def per_test_metrics(rows: pd.DataFrame, simulated: np.ndarray) -> list[TestMetr
             scale = _scale(label, measured[angle, ANGLE : ANGLE + 1], pressure[angle])
             out.append(
                 TestMetric(
-                    label="free_bending.tip_angle",
+                    label=ANGLE_LABEL,
                     role=str(roles[angle][0]),
                     rows=int(angle.sum()),
                     rmse=rmse,

@@ -16,7 +16,7 @@ from dataclasses import asdict, dataclass
 import numpy as np
 import pandas as pd
 
-from somo_sweep.calibration_metrics import ANGLE, UNITS, measured_array, row_labels
+from somo_sweep.calibration_metrics import ANGLE, ANGLE_LABEL, UNITS, measured_array, row_labels
 
 __all__ = [
     "Channel",
@@ -138,7 +138,7 @@ def channels(rows: pd.DataFrame) -> list[Channel]:
         if test == "free_bending" and "tip_angle_deg" in rows.columns:
             angle = mask & rows["tip_angle_deg"].notna().to_numpy()
             if angle.any():
-                out.append(Channel(f"{label}.tip_angle", label, ANGLE, angle, _INPUT[test], "deg"))
+                out.append(Channel(ANGLE_LABEL, label, ANGLE, angle, _INPUT[test], "deg"))
     return out
 
 

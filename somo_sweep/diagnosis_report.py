@@ -5,14 +5,11 @@ from __future__ import annotations
 import numpy as np
 from matplotlib.axes import Axes
 
-from somo_sweep.calibration_metrics import ANGLE, measured_array, row_labels
+from somo_sweep.calibration_metrics import ANGLE, ANGLE_LABEL, measured_array, row_labels
 from somo_sweep.diagnosis import DiagnosisResult
 from somo_sweep.effects import EFFECTS
 
 __all__ = ["plot_diagnosis", "report_markdown", "test_labels", "verdict_lines"]
-
-
-ANGLE_LABEL = "free_bending.tip_angle"
 
 
 def test_labels(result: DiagnosisResult) -> list[str]:

@@ -21,7 +21,7 @@ from somo_sweep.calibration_metrics import measured_array
 from somo_sweep.measurements import read_measurements
 from somo_sweep.models import load_model
 
-__all__ = ["DATA", "MODEL", "calibrate_both", "main", "plot_blocked_force"]
+__all__ = ["DATA", "MODEL", "calibrate_both", "calibrate_fit", "main", "plot_blocked_force"]
 
 ROOT = Path(__file__).resolve().parent.parent
 DATA = ROOT / "studies" / "data" / "ihm_fig3_published.csv"
@@ -32,18 +32,20 @@ SETTINGS = BenchSettings(time_step_s=1e-3, gravity_m_s2=0.0)
 STYLES = {"paper": ("s--", "eq. (8)/(9) as published"), "fit": ("^-", "simulator-in-the-loop fit")}
 
 
+def calibrate_fit(
+    data: Path = DATA, model: Path = MODEL, n_jobs: int = 2, settings: BenchSettings = SETTINGS
+) -> CalibrationResult:
+    """``model`` fitted to ``data`` with the simulator in the loop (``somo-sweep calibrate``'s default)."""
+    return solve_fit(build_problem(read_measurements(data), load_model(model), str(data), settings), n_jobs)
+
+
 def calibrate_both(
     data: Path = DATA, model: Path = MODEL, n_jobs: int = 2, settings: BenchSettings = SETTINGS
 ) -> dict[str, CalibrationResult]:
     """Calibrate ``model`` on ``data`` with both methods; results by method name."""
     rows = read_measurements(data)
-    base = load_model(model)
-    return {
-        "paper": solve_paper(
-            build_problem(rows, base, str(data), settings, min_rows_per_parameter=1), n_jobs
-        ),
-        "fit": solve_fit(build_problem(rows, base, str(data), settings), n_jobs),
-    }
+    problem = build_problem(rows, load_model(model), str(data), settings, min_rows_per_parameter=1)
+    return {"paper": solve_paper(problem, n_jobs), "fit": calibrate_fit(data, model, n_jobs, settings)}
 
 
 def plot_blocked_force(ax: Axes, results: Mapping[str, CalibrationResult]) -> None:

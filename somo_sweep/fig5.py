@@ -34,15 +34,12 @@ from matplotlib.axes import Axes
 from scipy.optimize import minimize_scalar
 
 from somo_sweep import fig3
-from somo_sweep.calibration import CalibrationResult, build_problem, solve_fit
-from somo_sweep.measurements import read_measurements
 from somo_sweep.models import Model, load_model
 from somo_sweep.tasks.ihm_gait import ROOT, GaitParams, GaitRun, simulate_gait
 from somo_sweep.world import WorldSettings
 
 __all__ = [
     "Hardware",
-    "calibrate_finger",
     "compare",
     "draw_rotation",
     "fit_side_weight",
@@ -105,12 +102,6 @@ def compare(run: GaitRun, hw: Hardware, first_cycle: int = 0) -> dict[str, float
         "error_percent": float(100 * abs(sim - real) / abs(real)),
         "rms_curve_deg": float(np.sqrt(np.mean((sim_curve - real_curve) ** 2))),
     }
-
-
-def calibrate_finger(n_jobs: int = 2) -> CalibrationResult:
-    """The IHM finger fitted (simulator in the loop) to the published tip stiffness and blocked force."""
-    rows = read_measurements(fig3.DATA)
-    return solve_fit(build_problem(rows, load_model(fig3.MODEL), str(fig3.DATA), fig3.SETTINGS), n_jobs)
 
 
 def hand_with_finger(hand: Model, finger: Model, default: GaitParams) -> tuple[Model, GaitParams]:
@@ -205,7 +196,7 @@ def main(argv: list[str] | None = None) -> None:
     base = GaitParams()
     n_cycles = 1 if args.quick else N_CYCLES
     end_s = float(boundaries_s(n_cycles)[-1])
-    finger = calibrate_finger(args.jobs)
+    finger = fig3.calibrate_fit(n_jobs=args.jobs)
     hand, mapped = hand_with_finger(model, finger.model, base)
     labels = {
         "default": "eq. (8)/(9) fingers, repository weights",
