@@ -63,6 +63,10 @@ class DescriptionError(SomoError):
         body = "\n".join(f"  - {p.render()}" for p in self.problems)
         super().__init__(f"{head}\n{body}")
 
+    def __reduce__(self) -> tuple[type, tuple[str, list[Problem]]]:
+        # Rebuilt from its fields when it crosses a process boundary (joblib, Dask).
+        return type(self), (self.source, self.problems)
+
 
 class MeasurementError(SomoError):
     """A measurement CSV is invalid (missing columns, bad cells, unknown tests).
@@ -77,6 +81,9 @@ class MeasurementError(SomoError):
         self.problems = list(problems)
         body = "\n".join(f"  - {p}" for p in self.problems)
         super().__init__(f"{self.source}: {len(self.problems)} problem(s)\n{body}")
+
+    def __reduce__(self) -> tuple[type, tuple[str, list[str]]]:
+        return type(self), (self.source, self.problems)
 
 
 class SimulationError(SomoError):
@@ -94,7 +101,11 @@ class UnstableSimulation(SimulationError):
     def __init__(self, reason: str, time_s: float, detail: str = ""):
         self.reason = reason
         self.time_s = time_s
+        self.detail = detail
         super().__init__(f"simulation unstable at t={time_s:.4f} s ({reason}) {detail}".strip())
+
+    def __reduce__(self) -> tuple[type, tuple[str, float, str]]:
+        return type(self), (self.reason, self.time_s, self.detail)
 
 
 def did_you_mean(word: str, choices: Iterable[str]) -> str:

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import json
+import pickle
 from pathlib import Path
 
 import pytest
@@ -10,7 +11,7 @@ import yaml
 from conftest import MODELS, load_yaml
 
 from somo_sweep.description import Actuator, Link
-from somo_sweep.errors import DescriptionError
+from somo_sweep.errors import DescriptionError, MeasurementError, Problem, UnstableSimulation
 from somo_sweep.models import load_model, model_from_dict
 from somo_sweep.urdf import plan_assembly
 
@@ -261,3 +262,18 @@ def test_top_level_underscore_keys_hold_yaml_anchors(tmp_path: Path) -> None:
     model = load_model(path)
     assert model.manipulator is not None and len(model.manipulator.actuators) == 2
     assert model.manipulator.actuators[1].segment_m == pytest.approx(0.01)
+
+
+@pytest.mark.parametrize(
+    "error",
+    [
+        DescriptionError("study.yaml", [Problem("sweep.dsr.step", "must be > 0, got -0.05", line=7)]),
+        MeasurementError("bench.csv", ["line 3, column pressure_kpa: 'abc' is not a number"]),
+        UnstableSimulation("speed_cap", 0.25, "in body 'hand'"),
+    ],
+)
+def test_errors_cross_process_boundaries_with_their_fields(error: Exception) -> None:
+    # joblib and Dask pickle an exception raised in a worker; it must arrive whole.
+    copy = pickle.loads(pickle.dumps(error))
+    assert type(copy) is type(error) and str(copy) == str(error)
+    assert vars(copy) == vars(error)
