@@ -1,8 +1,12 @@
 """Palm design study plots (paper Sec. V-B): rotation per cycle and drop rate over the grid.
 
 ``python -m somo_sweep.palm results/palm_design --out results/figures`` reads a finished
-``ihm_gait`` sweep over ``task.palm_height_m`` × ``task.palm_radius_m`` and draws two
-heat maps: the cube's mean rotation per gait cycle (held trials) and the drop rate.
+``ihm_gait`` sweep over ``task.palm_height_m`` × ``task.palm_diameter_m`` and draws two
+heat maps: the cube's mean rotation per gait cycle (held trials) and the drop rate, the
+fraction of trials that lost the cube (dropped off its seat or toppled, task ``ihm_gait``'s
+outcomes). A
+design none of whose trials ran (a palm overlapping the fingers, a blow-up) is crossed
+out, with the reason in the table's ``note`` column.
 """
 
 from __future__ import annotations
@@ -19,20 +23,34 @@ from somo_sweep.results import read_results
 
 __all__ = ["draw_grid", "main", "palm_table"]
 
-HEIGHT, RADIUS = "task_palm_height_m", "task_palm_radius_m"
+HEIGHT, DIAMETER = "task_palm_height_m", "task_palm_diameter_m"
+DESIGN = ["height_mm", "diameter_mm"]
 
 
 def palm_table(df: pd.DataFrame) -> pd.DataFrame:
-    """Per design (height, radius in mm): mean rotation per cycle of held trials (deg), drop rate."""
+    """Per design (height, diameter in mm): trials run, drop rate, rotation per cycle of held trials (deg).
+
+    ``drop_rate`` counts every lost cube (dropped or toppled); ``dropped_rate`` and
+    ``toppled_rate`` split it.
+
+    Designs with no ``ok`` trial keep a row with ``trials`` 0, NaN results and, in
+    ``note``, the message of their first failed trial.
+    """
+    df = df.assign(height_mm=(df[HEIGHT] * 1e3).round(1), diameter_mm=(df[DIAMETER] * 1e3).round(1))
     ok = df[df["status"] == "ok"].copy()
-    ok["height_mm"] = (ok[HEIGHT] * 1e3).round(1)
-    ok["radius_mm"] = (ok[RADIUS] * 1e3).round(1)
     ok["dropped"] = ok["dropped"].astype(bool)
-    held = ok[~ok["dropped"]]
-    table = ok.groupby(["height_mm", "radius_mm"]).agg(
-        trials=("dropped", "size"), drop_rate=("dropped", "mean")
-    )
-    table["rot_z_per_cycle_deg"] = held.groupby(["height_mm", "radius_mm"])["rot_z_per_cycle_deg"].mean()
+    ok["toppled"] = ok["toppled"].astype(bool) & ~ok["dropped"]
+    ok["lost"] = ok["dropped"] | ok["toppled"]
+    held = ok[~ok["lost"]]
+    table = pd.DataFrame(index=pd.MultiIndex.from_frame(df[DESIGN].drop_duplicates().sort_values(DESIGN)))
+    table["trials"] = ok.groupby(DESIGN).size()
+    table["trials"] = table["trials"].fillna(0).astype(int)
+    table["drop_rate"] = ok.groupby(DESIGN)["lost"].mean()
+    table["dropped_rate"] = ok.groupby(DESIGN)["dropped"].mean()
+    table["toppled_rate"] = ok.groupby(DESIGN)["toppled"].mean()
+    table["rot_z_per_cycle_deg"] = held.groupby(DESIGN)["rot_z_per_cycle_deg"].mean()
+    failed = df[df["status"] != "ok"].groupby(DESIGN)["message"].first()
+    table["note"] = failed.where(table["trials"] == 0).reindex(table.index).fillna("")
     return table.reset_index()
 
 
@@ -44,11 +62,13 @@ def draw_grid(
     cmap: str,
     limits: tuple[float, float] | None = None,
 ) -> None:
-    """A heat map of ``column`` over palm radius (x) and height (y), values written in the cells.
+    """A heat map of ``column`` over palm diameter (x) and height (y), values written in the cells.
 
     ``limits`` fixes the colour scale (e.g. 0–1 for a rate); by default it spans the data.
+    Designs without a result (``trials`` 0) are marked ``x``.
     """
-    grid = table.pivot(index="height_mm", columns="radius_mm", values=column)
+    grid = table.pivot(index="height_mm", columns="diameter_mm", values=column)
+    ran = table.pivot(index="height_mm", columns="diameter_mm", values="trials").to_numpy() > 0
     vmin, vmax = limits if limits is not None else (None, None)
     image = ax.imshow(
         grid.to_numpy(dtype=float), origin="lower", cmap=cmap, aspect="auto", vmin=vmin, vmax=vmax
@@ -56,8 +76,9 @@ def draw_grid(
     ax.set_xticks(range(len(grid.columns)), [f"{v:g}" for v in grid.columns])
     ax.set_yticks(range(len(grid.index)), [f"{v:g}" for v in grid.index])
     for (i, j), value in np.ndenumerate(grid.to_numpy(dtype=float)):
-        ax.text(j, i, "-" if np.isnan(value) else f"{value:.2g}", ha="center", va="center", fontsize=9)
-    ax.set_xlabel("palm radius (mm)")
+        text = "x" if not ran[i, j] else "-" if np.isnan(value) else f"{value:.2g}"
+        ax.text(j, i, text, ha="center", va="center", fontsize=9)
+    ax.set_xlabel("palm diameter (mm)")
     ax.set_ylabel("palm height (mm)")
     ax.set_title(title)
     plt.colorbar(image, ax=ax)
@@ -72,8 +93,10 @@ def main(argv: list[str] | None = None) -> None:
     table = palm_table(read_results(args.results))
     fig, axes = plt.subplots(1, 2, figsize=(11, 4))
     draw_grid(axes[0], table, "rot_z_per_cycle_deg", "cube rotation per gait cycle (deg)", "viridis_r")
-    draw_grid(axes[1], table, "drop_rate", "drop rate", "Reds", (0.0, 1.0))
-    fig.tight_layout()
+    draw_grid(axes[1], table, "drop_rate", "drop rate (cube dropped or toppled)", "Reds", (0.0, 1.0))
+    if (table["trials"] == 0).any():
+        fig.text(0.01, 0.01, "x: no trial ran (palm overlaps the fingers; see note in the CSV)", fontsize=8)
+    fig.tight_layout(rect=(0, 0.04, 1, 1))
     args.out.mkdir(parents=True, exist_ok=True)
     name = args.results.name
     for ext in ("png", "svg"):

@@ -400,6 +400,14 @@ class World:
         pos, orn = p.getBasePositionAndOrientation(body_id, physicsClientId=self.client)
         return np.asarray(pos) / self.scale, np.asarray(orn)
 
+    def closest_distance_m(self, body_a: int, body_b: int, within_m: float = 0.0) -> float:
+        """Smallest gap between two bodies' collision shapes, m (negative: they overlap by that much).
+
+        Only gaps up to ``within_m`` are searched; ``inf`` if the bodies are farther apart.
+        """
+        pts = p.getClosestPoints(body_a, body_b, within_m * self.scale, physicsClientId=self.client)
+        return min((pt[8] / self.scale for pt in pts), default=float("inf"))
+
     def contacts(self, body_a: int, body_b: int | None = None) -> dict[str, np.ndarray]:
         """Contact points of ``body_a`` (with ``body_b`` if given), in SI.
 

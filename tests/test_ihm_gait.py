@@ -6,6 +6,7 @@ import numpy as np
 import pytest
 from conftest import MODELS
 
+from somo_sweep.errors import SimulationError
 from somo_sweep.fig5 import compare, load_hardware
 from somo_sweep.models import load_model
 from somo_sweep.tasks.ihm_gait import GaitParams, _torques, load_pressure_table, simulate_gait
@@ -46,3 +47,18 @@ def test_first_gait_cycle_turns_the_cube_like_the_hardware(first_cycle) -> None:
     assert np.abs(run.tilt_xy_deg).max() < 10.0
     cmp = compare(run, load_hardware())
     assert cmp["real_rot_z_deg"] == pytest.approx(-49.9, abs=1.0)
+
+
+def test_a_palm_overlapping_the_fingers_is_an_error_naming_the_design() -> None:
+    params = GaitParams(duration_s=1.0, palm_height_m=0.085, palm_diameter_m=0.120)
+    with pytest.raises(SimulationError, match=r"diameter 120 mm with its top at 85 mm overlaps the fingers"):
+        simulate_gait(load_model(MODELS / "ihm_hand.yaml"), params, WorldSettings(time_step_s=1e-3))
+
+
+def test_a_wide_high_palm_blocks_the_fingers_and_the_cube_stops_turning(first_cycle) -> None:
+    # Paper Sec. V-B: a palm near the fingertips must not be too wide, or it obstructs the grasp.
+    params = GaitParams(duration_s=10.0, palm_height_m=0.105, palm_diameter_m=0.100)  # buildable: < 106 mm
+    blocked = simulate_gait(load_model(MODELS / "ihm_hand.yaml"), params, WorldSettings(time_step_s=1e-3))
+    free_turn = first_cycle.rot_z_at(10.0) - first_cycle.rot_z_at(2.0)
+    blocked_turn = blocked.rot_z_at(10.0) - blocked.rot_z_at(2.0)
+    assert abs(blocked_turn) < 0.2 * abs(free_turn)

@@ -29,7 +29,9 @@ def test_fig8_quick_writes_the_figure_and_the_anisotropic_snake_advances(tmp_pat
     assert abs(iso["advance_body_widths"]) < 1
 
 
-def test_palm_quick_study_and_plot_give_rotation_and_drop_rate_per_design(tmp_path: Path) -> None:
+def test_palm_study_and_plot_give_rotation_and_drop_rate_and_cross_out_unbuildable_designs(
+    tmp_path: Path,
+) -> None:
     (tmp_path / "models").symlink_to(MODELS)
     study_file = tmp_path / "palm_tiny.yaml"
     study_file.write_text(
@@ -41,19 +43,22 @@ def test_palm_quick_study_and_plot_give_rotation_and_drop_rate_per_design(tmp_pa
             params: {duration_s: 3.0}
             sweep:
               task.palm_height_m: [0.085]
-              task.palm_radius_m: [0.015, 0.035]
+              task.palm_diameter_m: [0.030, 0.120]
             seed: 0
             simulation: {time_step_s: 1.0e-3, scale: 20}
             """
         )
     )
     summary = run_study(load_study(study_file, tmp_path / "palm_tiny"), n_jobs=2)
-    assert summary.by_status == {"ok": 2}
+    # A 120 mm palm at 85 mm cuts through the fingers (inner faces ~49 mm from the axis there).
+    assert summary.by_status == {"ok": 1, "error": 1}
     palm.main([str(tmp_path / "palm_tiny"), "--out", str(tmp_path / "figures")])
-    table = pd.read_csv(tmp_path / "figures" / "palm_tiny.csv")
+    table = pd.read_csv(tmp_path / "figures" / "palm_tiny.csv").fillna({"note": ""})
     assert (tmp_path / "figures" / "palm_tiny.png").is_file()
-    assert list(table["radius_mm"]) == [15.0, 35.0] and set(table["height_mm"]) == {85.0}
-    assert table["drop_rate"].between(0, 1).all() and (table["trials"] == 1).all()
+    assert list(table["diameter_mm"]) == [30.0, 120.0] and set(table["height_mm"]) == {85.0}
+    assert list(table["trials"]) == [1, 0]
+    assert table["drop_rate"][0] == 0.0 and table["rot_z_per_cycle_deg"][0] < 0
+    assert table["note"][0] == "" and "cannot be built" in table["note"][1]
 
 
 def test_fig5_quick_writes_the_first_cycle_against_the_hardware(tmp_path: Path) -> None:

@@ -12,6 +12,10 @@ of the side weight is a convention of which chamber is ``a`` relative to our
 finger frame; it is the one that turns the cube the way the hardware turned
 (−z) on the first gait cycle. The pressures come from a recorded or designed
 table (``pressure_table``: time_s + 8 columns, psi).
+
+For design studies the palm's height (its top above the finger bases) and diameter can
+be set; a palm that overlaps the fingers before they move cannot be built and is an
+error naming the design, not a simulation.
 """
 
 from __future__ import annotations
@@ -25,16 +29,20 @@ import pybullet as p
 from pydantic import Field
 
 from somo_sweep.description import Link, Pose, RigidBody, Spec
-from somo_sweep.errors import UnstableSimulation
+from somo_sweep.errors import SimulationError, UnstableSimulation
 from somo_sweep.models import Model
 from somo_sweep.setpoints import SetpointTable
 from somo_sweep.tasks.registry import TaskResult, TaskSpec, register
 from somo_sweep.urdf import plan_rigid_body
-from somo_sweep.world import World, WorldSettings
+from somo_sweep.world import Body, World, WorldSettings
 
 __all__ = ["GaitParams", "GaitRun", "load_pressure_table", "simulate_gait"]
 
 ROOT = Path(__file__).resolve().parents[2]
+#: The cube counts as dropped once it has moved this far up or down from its seat on the palm, m.
+DROP_HEIGHT_M = 0.020
+#: ... and as toppled once it has tilted this far about x or y, deg.
+TOPPLE_TILT_DEG = 30.0
 DEFAULT_TABLE = "studies/data/ihm_gait_setpoints_psi.csv"
 
 
@@ -49,7 +57,7 @@ class GaitParams(Spec):
     cube_mass_kg: float = Field(0.020, gt=0)
     cube_friction: float = Field(1.2, ge=0)
     palm_height_m: float | None = Field(None, gt=0)
-    palm_radius_m: float | None = Field(None, gt=0)
+    palm_diameter_m: float | None = Field(None, gt=0)
     cube_offset_std_m: float = Field(0.0, ge=0)
     cube_yaw_std_deg: float = Field(0.0, ge=0)
     record_every_s: float = Field(0.04, gt=0)
@@ -90,6 +98,17 @@ def _torques(pressures_psi: np.ndarray, w_grasp: float, w_side: float) -> np.nda
     return out
 
 
+def _check_palm_clear(world: World, bodies: list[Body], palm: RigidBody) -> None:
+    palm_body = next(b for b in bodies if b.plan.name == palm.name)
+    gap_m = min(world.closest_distance_m(b.id, palm_body.id) for b in bodies if b is not palm_body)
+    if gap_m < 0:
+        top_m = palm.pose.position_m[2] + (palm.link.length_m or 0.0) / 2
+        raise SimulationError(
+            f"palm of diameter {2e3 * (palm.link.radius_m or 0):.0f} mm with its top at {top_m * 1e3:.0f} mm "
+            f"overlaps the fingers by {-gap_m * 1e3:.1f} mm before they move: this design cannot be built"
+        )
+
+
 def simulate_gait(model: Model, params: GaitParams, settings: WorldSettings, seed: int = 0) -> GaitRun:
     """Run the hand on the pressure table and record the cube's pose.
 
@@ -97,14 +116,16 @@ def simulate_gait(model: Model, params: GaitParams, settings: WorldSettings, see
     normal draws (``cube_offset_std_m``, ``cube_yaw_std_deg``) from ``seed``.
 
     Raises:
+        SimulationError: If the palm overlaps the fingers at the start.
         UnstableSimulation: If the run blows up.
     """
     assembly = model.as_assembly()
-    if params.palm_height_m is not None or params.palm_radius_m is not None:
+    if params.palm_height_m is not None or params.palm_diameter_m is not None:
         bodies = []
         for body in assembly.bodies:
             if body.name == "palm":
-                link = body.link.model_copy(update={"radius_m": params.palm_radius_m or body.link.radius_m})
+                radius_m = params.palm_diameter_m / 2 if params.palm_diameter_m else body.link.radius_m
+                link = body.link.model_copy(update={"radius_m": radius_m})
                 z = (params.palm_height_m or body.pose.position_m[2] + 0.0025) - 0.0025
                 body = body.model_copy(update={"link": link, "pose": Pose(position_m=(0.0, 0.0, z))})
             bodies.append(body)
@@ -119,6 +140,7 @@ def simulate_gait(model: Model, params: GaitParams, settings: WorldSettings, see
     yaw_deg = rng.normal(0.0, params.cube_yaw_std_deg) if params.cube_yaw_std_deg else 0.0
     with World(settings) as world:
         hand = world.add_model(model)
+        _check_palm_clear(world, hand.bodies, palm)
         half = params.cube_size_m / 2
         cube = RigidBody(
             name="cube",
@@ -158,16 +180,19 @@ def _run(model: Model, params: GaitParams, settings: WorldSettings, seed: int) -
         return TaskResult(status="unstable", message=str(exc))
     t = run.times_s
     cycles = max((t[-1] - 2.0) / 8.0, 1e-9)
-    dropped = bool(np.abs(run.position_m[:, 2]).max() > 0.02)
+    max_tilt_deg = float(np.abs(run.tilt_xy_deg).max())
+    dropped = bool(np.abs(run.position_m[:, 2]).max() > DROP_HEIGHT_M)
+    toppled = max_tilt_deg > TOPPLE_TILT_DEG
     return TaskResult(
         metrics={
             "final_rot_z_deg": float(run.rot_z_deg[-1]),
             "rot_z_per_cycle_deg": float(run.rot_z_at(t[-1]) - run.rot_z_at(2.0)) / cycles,
             "max_offaxis_position_m": float(np.abs(run.position_m[:, :2]).max()),
-            "max_tilt_deg": float(np.abs(run.tilt_xy_deg).max()),
+            "max_tilt_deg": max_tilt_deg,
             "dropped": dropped,
+            "toppled": toppled,
         },
-        labels={"outcome": "dropped" if dropped else "held"},
+        labels={"outcome": "dropped" if dropped else "toppled" if toppled else "held"},
     )
 
 
