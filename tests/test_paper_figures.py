@@ -75,3 +75,11 @@ def test_fig5_quick_writes_the_first_cycle_against_the_hardware(tmp_path: Path) 
     weights = summary["finger_calibration"]["weights"]
     assert weights["w_side_n_m_per_psi"] / weights["w_grasp_n_m_per_psi"] == pytest.approx(3.25)
     assert -100.0 < summary["finger_calibrated"]["sim_rot_z_deg"] < -30.0
+    # Off-axis motion of the same order as the hardware's (paper: x, y within 6 mm, tilt within 0.6 deg;
+    # the recording over this first cycle: 2.1 mm, 1.4 mm in z, 0.44 deg).
+    offaxis = summary["offaxis"]
+    assert offaxis["hardware"]["max_abs_x_mm"] == pytest.approx(2.1, abs=0.1)
+    for run in ("default", "finger_calibrated"):
+        o = offaxis[run]
+        assert max(o["max_abs_x_mm"], o["max_abs_y_mm"]) < 6.0 and o["max_abs_z_mm"] < 2.0
+        assert max(o["max_abs_tilt_x_deg"], o["max_abs_tilt_y_deg"]) < 1.0
