@@ -121,3 +121,30 @@ def test_grasp_table_marks_blow_ups(tmp_path: Path) -> None:
 
     table = grasp_table(read_results(results_folder(tmp_path)))
     assert table["label"].tolist() == ["pinch", "power", "unstable"]
+
+
+def test_fig6_quick_pipeline_runs_real_trials_and_draws_the_figure(tmp_path: Path) -> None:
+    # make fig6(-quick) end to end on two real trials: somo-sweep run, then somo-sweep fig6.
+    from conftest import MODELS
+
+    (tmp_path / "models").symlink_to(MODELS)
+    study = tmp_path / "pinch_tiny.yaml"
+    study.write_text(
+        "name: pinch_tiny\ntask: pinch_grasp\nmodel: models/pinch_gripper.yaml\n"
+        "sweep:\n  task.distal_segment_ratio: [0.1, 0.5]\n  task.object_width_m: [0.080, 0.120]\n"
+        "  task.centering_m: [0.105, 0.075]\n"
+        "link: [[task.distal_segment_ratio, task.object_width_m, task.centering_m]]\n"
+        "seed: 0\nsimulation: {time_step_s: 4.0e-3, scale: 20, solver_iterations: 50}\n"
+    )
+    folder = tmp_path / "results" / "pinch_tiny"
+    result = CliRunner().invoke(app, ["run", str(study), "--out", str(folder), "--jobs", "2"])
+    assert result.exit_code == 0, result.output
+    result = CliRunner().invoke(app, ["fig6", str(folder), "--out", str(tmp_path / "fig")])
+    assert result.exit_code == 0, result.output
+    assert (tmp_path / "fig" / "fig6_contacts.png").stat().st_size > 10_000
+    summary = pd.read_csv(tmp_path / "fig" / "fig6_contacts_summary.csv")
+    assert len(summary) > 0
+    # A long distal segment pinches the 80 mm box at its fingertips; a hand close to a wide box wraps it.
+    trials = pd.read_parquet(folder / "trials").sort_values("task_distal_segment_ratio")
+    assert trials["status"].tolist() == ["ok", "ok"]
+    assert trials["label_grasp"].tolist() == ["pinch", "power"]
