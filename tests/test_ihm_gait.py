@@ -10,7 +10,10 @@ from somo_sweep.errors import SimulationError
 from somo_sweep.fig5 import compare, load_hardware
 from somo_sweep.models import load_model
 from somo_sweep.tasks.ihm_gait import GaitParams, _torques, load_pressure_table, simulate_gait
+from somo_sweep.tasks.registry import get_task
 from somo_sweep.world import WorldSettings
+
+SETTINGS = WorldSettings(time_step_s=1e-3)
 
 
 def test_pressure_map_is_eq10() -> None:
@@ -62,3 +65,18 @@ def test_a_wide_high_palm_blocks_the_fingers_and_the_cube_stops_turning(first_cy
     free_turn = first_cycle.rot_z_at(10.0) - first_cycle.rot_z_at(2.0)
     blocked_turn = blocked.rot_z_at(10.0) - blocked.rot_z_at(2.0)
     assert abs(blocked_turn) < 0.2 * abs(free_turn)
+
+
+def test_a_cube_that_falls_off_a_high_small_palm_is_a_drop_not_a_blow_up() -> None:
+    # Palm study design 105 mm x 60 mm, trial 114: the cube walks off the palm's edge in the
+    # second cycle. The run ends once it has fallen, instead of reaching Bullet's speed cap.
+    params = GaitParams(
+        duration_s=18.0,
+        palm_height_m=0.105,
+        palm_diameter_m=0.060,
+        cube_offset_std_m=0.002,
+        cube_yaw_std_deg=3.0,
+    )
+    result = get_task("ihm_gait").run(load_model(MODELS / "ihm_hand.yaml"), params, SETTINGS, 3018398654)
+    assert result.status == "ok"
+    assert result.labels == {"outcome": "dropped"} and result.metrics["dropped"] is True

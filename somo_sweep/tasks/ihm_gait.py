@@ -43,6 +43,9 @@ ROOT = Path(__file__).resolve().parents[2]
 DROP_HEIGHT_M = 0.020
 #: ... and as toppled once it has tilted this far about x or y, deg.
 TOPPLE_TILT_DEG = 30.0
+#: A cube this far below its seat has fallen off the palm; the run ends there, because the
+#: scene has no floor and a cube left falling would end at Bullet's speed cap, m.
+FALLEN_BELOW_SEAT_M = 0.050
 DEFAULT_TABLE = "studies/data/ihm_gait_setpoints_psi.csv"
 
 
@@ -113,7 +116,8 @@ def simulate_gait(model: Model, params: GaitParams, settings: WorldSettings, see
     """Run the hand on the pressure table and record the cube's pose.
 
     The cube starts centred on the palm, shifted in x and y and turned about z by
-    normal draws (``cube_offset_std_m``, ``cube_yaw_std_deg``) from ``seed``.
+    normal draws (``cube_offset_std_m``, ``cube_yaw_std_deg``) from ``seed``. A cube
+    that falls off the palm ends the run early (:data:`FALLEN_BELOW_SEAT_M`).
 
     Raises:
         SimulationError: If the palm overlaps the fingers at the start.
@@ -167,6 +171,8 @@ def simulate_gait(model: Model, params: GaitParams, settings: WorldSettings, see
             times.append(world.time_s)
             pos.append(xyz)
             quats.append(q)
+            if pos[0][2] - xyz[2] > FALLEN_BELOW_SEAT_M:
+                break
     pos_arr = np.asarray(pos) - pos[0]
     eul = np.asarray([p.getEulerFromQuaternion(q) for q in quats])
     rot_z = np.degrees(np.unwrap(eul[:, 2]))
