@@ -4,9 +4,8 @@
 ``ihm_gait`` sweep over ``task.palm_height_m`` × ``task.palm_diameter_m`` and draws two
 heat maps: the cube's mean rotation per gait cycle (held trials) and the drop rate, the
 fraction of trials that lost the cube (dropped off its seat or toppled, task ``ihm_gait``'s
-outcomes). A
-design none of whose trials ran (a palm overlapping the fingers, a blow-up) is crossed
-out, with the reason in the table's ``note`` column.
+outcomes). A design none of whose trials finished (a palm overlapping the fingers, a
+blow-up) is crossed out, with the reason in the table's ``note`` column.
 """
 
 from __future__ import annotations
@@ -94,8 +93,10 @@ def main(argv: list[str] | None = None) -> None:
     fig, axes = plt.subplots(1, 2, figsize=(11, 4))
     draw_grid(axes[0], table, "rot_z_per_cycle_deg", "cube rotation per gait cycle (deg)", "viridis_r")
     draw_grid(axes[1], table, "drop_rate", "drop rate (cube dropped or toppled)", "Reds", (0.0, 1.0))
-    if (table["trials"] == 0).any():
-        fig.text(0.01, 0.01, "x: no trial ran (palm overlaps the fingers; see note in the CSV)", fontsize=8)
+    notes = table.loc[table["trials"] == 0, "note"]
+    if len(notes):
+        reasons = sorted({"palm overlaps the fingers" if "cannot be built" in n else n for n in notes})
+        fig.text(0.01, 0.01, f"x: no trial finished ({'; '.join(reasons)})", fontsize=8)
     fig.tight_layout(rect=(0, 0.04, 1, 1))
     args.out.mkdir(parents=True, exist_ok=True)
     name = args.results.name
