@@ -54,17 +54,17 @@ fig6-quick: $(STAMP) ## Fig. 6 on a 192-trial subset (a few minutes on 2 cores),
 fig3: $(STAMP) ## Paper Fig. 3: blocked force vs pressure, eq. (8)/(9) and fit vs published values
 	$(BIN)/python -m somo_sweep.fig3 results/figures
 
-fig5: $(STAMP) ## Paper Fig. 5: gait vs the hardware recording, fingers calibrated on bench values, side weight on 3 cycles (~20 min)
+fig5: $(STAMP) ## Paper Fig. 5: gait vs the hardware recording, fingers calibrated on bench values, side weight on 3 cycles (~10 min)
 	$(BIN)/python -m somo_sweep.fig5 --out results/figures
 
 fig5-quick: $(STAMP) ## Fig. 5 on the first gait cycle, no calibration
 	$(BIN)/python -m somo_sweep.fig5 --out results/figures --quick
 
-palm: $(STAMP) ## Palm design study (Sec. V-B): palm height x radius on the IHM hand
+palm: $(STAMP) ## Palm design study (Sec. V-B): palm height x diameter on the IHM hand (~15 min)
 	$(BIN)/somo-sweep run studies/palm_design.yaml
 	$(BIN)/python -m somo_sweep.palm results/palm_design --out results/figures
 
-palm-quick: $(STAMP) ## Palm study on 2 x 2 designs, one cycle
+palm-quick: $(STAMP) ## Palm study on 2 x 2 designs (one per regime), one cycle
 	$(BIN)/somo-sweep run studies/palm_design_quick.yaml
 	$(BIN)/python -m somo_sweep.palm results/palm_design_quick --out results/figures
 
