@@ -1,5 +1,7 @@
 """The quick variants of the paper-figure targets (make fig3 / fig5-quick / fig8-quick / palm-quick).
 
+(fig6-quick: tests/test_fig6.py; fig7-quick: tests/test_whole_arm.py.)
+
 Each runs the same entry point as its ``make`` target into a temporary folder and checks
 the files and the physical numbers written, so the targets cannot rot unseen.
 """
@@ -7,6 +9,7 @@ the files and the physical numbers written, so the targets cannot rot unseen.
 from __future__ import annotations
 
 import json
+import re
 import textwrap
 from pathlib import Path
 
@@ -14,9 +17,25 @@ import pandas as pd
 import pytest
 from conftest import MODELS
 
-from somo_sweep import fig8, palm
+from somo_sweep import fig3, fig8, palm
 from somo_sweep.study import load_study
 from somo_sweep.sweep import run_study
+
+
+def test_fig3_writes_the_figure_and_the_fit_beats_eq8_9_on_blocked_force(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    fig3.main([str(tmp_path)])
+    assert (tmp_path / "fig3_blocked_force.png").stat().st_size > 10_000
+    assert (tmp_path / "fig3_blocked_force.svg").is_file()
+    # Printed per method: "paper: ..." then its RMSE lines, then "fit: ...".
+    paper_text, fit_text = capsys.readouterr().out.split("\nfit: ")
+    rmse = {
+        name: float(re.search(r"blocked_force: RMSE ([0-9.e-]+) N", text).group(1))  # type: ignore[union-attr]
+        for name, text in (("paper", paper_text), ("fit", fit_text))
+    }
+    assert rmse["paper"] == pytest.approx(0.159, abs=0.005)  # eq. (8)/(9) as published
+    assert rmse["fit"] < 0.01
 
 
 def test_fig8_quick_writes_the_figure_and_the_anisotropic_snake_advances(tmp_path: Path) -> None:
