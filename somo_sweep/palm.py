@@ -60,11 +60,13 @@ def draw_grid(
     title: str,
     cmap: str,
     limits: tuple[float, float] | None = None,
+    decimals: int | None = None,
 ) -> None:
     """A heat map of ``column`` over palm diameter (x) and height (y), values written in the cells.
 
     ``limits`` fixes the colour scale (e.g. 0–1 for a rate); by default it spans the data.
-    Designs without a result (``trials`` 0) are marked ``x``.
+    Cell values are written with ``decimals`` places (default: two significant digits).
+    Designs without a result (``trials`` 0) are marked ``x``, NaN values ``-``.
     """
     grid = table.pivot(index="height_mm", columns="diameter_mm", values=column)
     ran = table.pivot(index="height_mm", columns="diameter_mm", values="trials").to_numpy() > 0
@@ -75,7 +77,8 @@ def draw_grid(
     ax.set_xticks(range(len(grid.columns)), [f"{v:g}" for v in grid.columns])
     ax.set_yticks(range(len(grid.index)), [f"{v:g}" for v in grid.index])
     for (i, j), value in np.ndenumerate(grid.to_numpy(dtype=float)):
-        text = "x" if not ran[i, j] else "-" if np.isnan(value) else f"{value:.2g}"
+        shown = f"{value:.2g}" if decimals is None else f"{round(value, decimals) + 0.0:.{decimals}f}"
+        text = "x" if not ran[i, j] else "-" if np.isnan(value) else shown
         ax.text(j, i, text, ha="center", va="center", fontsize=9)
     ax.set_xlabel("palm diameter (mm)")
     ax.set_ylabel("palm height (mm)")
@@ -91,12 +94,18 @@ def main(argv: list[str] | None = None) -> None:
     args = parser.parse_args(argv)
     table = palm_table(read_results(args.results))
     fig, axes = plt.subplots(1, 2, figsize=(11, 4))
-    draw_grid(axes[0], table, "rot_z_per_cycle_deg", "cube rotation per gait cycle (deg)", "viridis_r")
+    draw_grid(
+        axes[0], table, "rot_z_per_cycle_deg", "cube rotation per gait cycle (deg)", "viridis_r", decimals=0
+    )
     draw_grid(axes[1], table, "drop_rate", "drop rate (cube dropped or toppled)", "Reds", (0.0, 1.0))
+    legend = []
     notes = table.loc[table["trials"] == 0, "note"]
     if len(notes):
         reasons = sorted({"palm overlaps the fingers" if "cannot be built" in n else n for n in notes})
-        fig.text(0.01, 0.01, f"x: no trial finished ({'; '.join(reasons)})", fontsize=8)
+        legend.append(f"x: no trial finished ({'; '.join(reasons)})")
+    if (table["drop_rate"] == 1).any():
+        legend.append("-: every trial lost the cube")
+    fig.text(0.01, 0.01, "    ".join(legend), fontsize=8)
     fig.tight_layout(rect=(0, 0.04, 1, 1))
     args.out.mkdir(parents=True, exist_ok=True)
     name = args.results.name
