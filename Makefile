@@ -65,7 +65,7 @@ palm: $(STAMP) ## Palm design study (Sec. V-B): palm height x diameter on the IH
 	$(BIN)/python -m somo_sweep.palm results/palm_design --out results/figures
 
 palm-quick: $(STAMP) ## Palm study on 2 x 2 designs (one per regime), one cycle
-	$(BIN)/somo-sweep run studies/palm_design_quick.yaml
+	$(BIN)/somo-sweep run studies/palm_design_quick.yaml --overwrite
 	$(BIN)/python -m somo_sweep.palm results/palm_design_quick --out results/figures
 
 fig7: $(STAMP) ## Paper Fig. 7: arm wraps a ball and drops it through a hoop (frames, GIF, half-step check)
