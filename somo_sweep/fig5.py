@@ -274,10 +274,11 @@ def main(argv: list[str] | None = None) -> None:
         summary["calibrated"] = compare(runs["calibrated"], hw)
         for key in ("calibrated", "finger_calibrated", "default"):
             summary[f"{key}_held_out"] = compare(runs[key], hw, args.fit_cycles)
-    summary["offaxis"] = {
+    offaxis_rows = {
         "hardware": offaxis(hw.times_s, hw.position_mm, hw.tilt_deg, end_s),
         **{key: _run_offaxis(run, end_s) for key, run in runs.items()},
     }
+    summary["offaxis"] = offaxis_rows
     fig = plt.figure(figsize=(14, 6))
     grid = fig.add_gridspec(2, 2, width_ratios=[2, 1])
     ax_rot = fig.add_subplot(grid[:, 0])
@@ -303,8 +304,6 @@ def main(argv: list[str] | None = None) -> None:
                     f"hardware {s['real_rot_z_deg']:7.1f} deg, error {s['error_percent']:5.1f} %, "
                     f"curve RMS {s['rms_curve_deg']:5.1f} deg"
                 )
-    offaxis_rows = summary["offaxis"]
-    assert isinstance(offaxis_rows, dict)
     for key, o in offaxis_rows.items():
         print(
             f"off-axis {key:18s} max |x| {o['max_abs_x_mm']:4.1f}, |y| {o['max_abs_y_mm']:4.1f}, "

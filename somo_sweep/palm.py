@@ -19,6 +19,7 @@ import pandas as pd
 from matplotlib.axes import Axes
 
 from somo_sweep.results import read_results
+from somo_sweep.tasks.ihm_gait import UNBUILDABLE
 
 __all__ = ["draw_grid", "main", "palm_table"]
 
@@ -37,9 +38,9 @@ def palm_table(df: pd.DataFrame) -> pd.DataFrame:
     """
     df = df.assign(height_mm=(df[HEIGHT] * 1e3).round(1), diameter_mm=(df[DIAMETER] * 1e3).round(1))
     ok = df[df["status"] == "ok"].copy()
-    ok["dropped"] = ok["dropped"].astype(bool)
-    ok["toppled"] = ok["toppled"].astype(bool) & ~ok["dropped"]
-    ok["lost"] = ok["dropped"] | ok["toppled"]
+    ok["dropped"] = ok["label_outcome"] == "dropped"
+    ok["toppled"] = ok["label_outcome"] == "toppled"
+    ok["lost"] = ok["label_outcome"] != "held"
     held = ok[~ok["lost"]]
     table = pd.DataFrame(index=pd.MultiIndex.from_frame(df[DESIGN].drop_duplicates().sort_values(DESIGN)))
     table["trials"] = ok.groupby(DESIGN).size()
@@ -101,7 +102,7 @@ def main(argv: list[str] | None = None) -> None:
     legend = []
     notes = table.loc[table["trials"] == 0, "note"]
     if len(notes):
-        reasons = sorted({"palm overlaps the fingers" if "cannot be built" in n else n for n in notes})
+        reasons = sorted({"palm overlaps the fingers" if UNBUILDABLE in n else n for n in notes})
         legend.append(f"x: no trial finished ({'; '.join(reasons)})")
     if (table["drop_rate"] == 1).any():
         legend.append("-: every trial lost the cube")

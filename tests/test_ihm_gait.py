@@ -39,7 +39,7 @@ def test_hardware_recording_turns_537_degrees() -> None:
 @pytest.fixture(scope="module")
 def first_cycle():
     params = GaitParams(duration_s=10.0)
-    return simulate_gait(load_model(MODELS / "ihm_hand.yaml"), params, WorldSettings(time_step_s=1e-3))
+    return simulate_gait(load_model(MODELS / "ihm_hand.yaml"), params, SETTINGS)
 
 
 def test_first_gait_cycle_turns_the_cube_like_the_hardware(first_cycle) -> None:
@@ -55,13 +55,13 @@ def test_first_gait_cycle_turns_the_cube_like_the_hardware(first_cycle) -> None:
 def test_a_palm_overlapping_the_fingers_is_an_error_naming_the_design() -> None:
     params = GaitParams(duration_s=1.0, palm_height_m=0.085, palm_diameter_m=0.120)
     with pytest.raises(SimulationError, match=r"diameter 120 mm with its top at 85 mm overlaps the fingers"):
-        simulate_gait(load_model(MODELS / "ihm_hand.yaml"), params, WorldSettings(time_step_s=1e-3))
+        simulate_gait(load_model(MODELS / "ihm_hand.yaml"), params, SETTINGS)
 
 
 def test_a_wide_high_palm_blocks_the_fingers_and_the_cube_stops_turning(first_cycle) -> None:
     # Paper Sec. V-B: a palm near the fingertips must not be too wide, or it obstructs the grasp.
     params = GaitParams(duration_s=10.0, palm_height_m=0.105, palm_diameter_m=0.100)  # buildable: < 106 mm
-    blocked = simulate_gait(load_model(MODELS / "ihm_hand.yaml"), params, WorldSettings(time_step_s=1e-3))
+    blocked = simulate_gait(load_model(MODELS / "ihm_hand.yaml"), params, SETTINGS)
     free_turn = first_cycle.rot_z_at(10.0) - first_cycle.rot_z_at(2.0)
     blocked_turn = blocked.rot_z_at(10.0) - blocked.rot_z_at(2.0)
     assert abs(blocked_turn) < 0.2 * abs(free_turn)

@@ -36,7 +36,7 @@ from somo_sweep.tasks.registry import TaskResult, TaskSpec, register
 from somo_sweep.urdf import plan_rigid_body
 from somo_sweep.world import Body, World, WorldSettings
 
-__all__ = ["GaitParams", "GaitRun", "load_pressure_table", "simulate_gait"]
+__all__ = ["UNBUILDABLE", "GaitParams", "GaitRun", "load_pressure_table", "simulate_gait"]
 
 ROOT = Path(__file__).resolve().parents[2]
 #: The cube counts as dropped once it has moved this far up or down from its seat on the palm, m.
@@ -46,6 +46,8 @@ TOPPLE_TILT_DEG = 30.0
 #: A cube this far below its seat has fallen off the palm; the run ends there, because the
 #: scene has no floor and a cube left falling would end at Bullet's speed cap, m.
 FALLEN_BELOW_SEAT_M = 0.050
+#: Ends the message of a design whose palm overlaps the fingers (read by the palm-study plot).
+UNBUILDABLE = "this design cannot be built"
 DEFAULT_TABLE = "studies/data/ihm_gait_setpoints_psi.csv"
 
 
@@ -108,7 +110,7 @@ def _check_palm_clear(world: World, bodies: list[Body], palm: RigidBody) -> None
         top_m = palm.pose.position_m[2] + (palm.link.length_m or 0.0) / 2
         raise SimulationError(
             f"palm of diameter {2e3 * (palm.link.radius_m or 0):.0f} mm with its top at {top_m * 1e3:.0f} mm "
-            f"overlaps the fingers by {-gap_m * 1e3:.1f} mm before they move: this design cannot be built"
+            f"overlaps the fingers by {-gap_m * 1e3:.1f} mm before they move: {UNBUILDABLE}"
         )
 
 
