@@ -39,50 +39,50 @@ format: $(STAMP) ## Format the code with ruff
 	$(BIN)/ruff check --fix somo_sweep tests
 
 bench: $(STAMP) ## Speed benchmark: ms per step of the two-finger grasp, Bullet vs Python
-	$(BIN)/python -m somo_sweep.benchmark
+	$(BIN)/somo-sweep paper speed
 
 fig6: $(STAMP) ## Paper Fig. 6: pinch-grasp study, 2310 trials (resumable), figure + smallest all-width pinch DSR
 	$(BIN)/somo-sweep run studies/pinch_grasp_dsr.yaml
-	$(BIN)/somo-sweep fig6 results/pinch_grasp_dsr --out results/figures
-	$(BIN)/somo-sweep fig6 results/pinch_grasp_dsr --out results/figures --rule paper
+	$(BIN)/somo-sweep paper fig6 results/pinch_grasp_dsr --out results/figures
+	$(BIN)/somo-sweep paper fig6 results/pinch_grasp_dsr --out results/figures --rule paper
 
 fig6-quick: $(STAMP) ## Fig. 6 on a 192-trial subset (a few minutes on 2 cores), into results/figures/quick
 	$(BIN)/somo-sweep run studies/pinch_grasp_quick.yaml
-	$(BIN)/somo-sweep fig6 results/pinch_grasp_quick --out results/figures/quick
-	$(BIN)/somo-sweep fig6 results/pinch_grasp_quick --out results/figures/quick --rule paper
+	$(BIN)/somo-sweep paper fig6 results/pinch_grasp_quick --out results/figures/quick
+	$(BIN)/somo-sweep paper fig6 results/pinch_grasp_quick --out results/figures/quick --rule paper
 
 fig3: $(STAMP) ## Paper Fig. 3: blocked force vs pressure, eq. (8)/(9) and fit vs published values
-	$(BIN)/python -m somo_sweep.fig3 results/figures
+	$(BIN)/somo-sweep paper fig3 --out results/figures
 
 fig5: $(STAMP) ## Paper Fig. 5: gait vs the hardware recording, fingers calibrated on bench values, side weight on 3 cycles (~10 min)
-	$(BIN)/python -m somo_sweep.fig5 --out results/figures
+	$(BIN)/somo-sweep paper fig5 --out results/figures
 
 fig5-quick: $(STAMP) ## Fig. 5 on the first gait cycle, no calibration
-	$(BIN)/python -m somo_sweep.fig5 --out results/figures --quick
+	$(BIN)/somo-sweep paper fig5 --out results/figures --quick
 
 palm: $(STAMP) ## Palm design study (Sec. V-B): palm height x diameter on the IHM hand (~15 min)
 	$(BIN)/somo-sweep run studies/palm_design.yaml
-	$(BIN)/python -m somo_sweep.palm results/palm_design --out results/figures
+	$(BIN)/somo-sweep paper palm results/palm_design --out results/figures
 
 palm-quick: $(STAMP) ## Palm study on 2 x 2 designs (one per regime), one cycle
 	$(BIN)/somo-sweep run studies/palm_design_quick.yaml --overwrite
-	$(BIN)/python -m somo_sweep.palm results/palm_design_quick --out results/figures
+	$(BIN)/somo-sweep paper palm results/palm_design_quick --out results/figures
 
 fig7: $(STAMP) ## Paper Fig. 7: arm wraps a ball and drops it through a hoop (frames, GIF, half-step check)
-	$(BIN)/python -m somo_sweep.fig7 --out results/figures
+	$(BIN)/somo-sweep paper fig7 --out results/figures
 
 fig7-quick: $(STAMP) ## Fig. 7 with small frames, no GIF, no half-step rerun
-	$(BIN)/python -m somo_sweep.fig7 --out results/figures --quick
+	$(BIN)/somo-sweep paper fig7 --out results/figures --quick
 
 fig8: $(STAMP) ## Paper Fig. 8: snake with isotropic vs anisotropic friction (10 s each)
-	$(BIN)/python -m somo_sweep.fig8 --out results/figures
+	$(BIN)/somo-sweep paper fig8 --out results/figures
 
 fig8-quick: $(STAMP) ## Fig. 8 with 3-s runs
-	$(BIN)/python -m somo_sweep.fig8 --out results/figures --quick
+	$(BIN)/somo-sweep paper fig8 --out results/figures --quick
 
 diagnose-demo: $(STAMP) ## Calibrate the bundled bench file, then name what the model misses
-	$(BIN)/somo-sweep calibrate studies/data/planar_finger_bench_2.csv --length-mm 100 --segments 20 --mass-g 20 -o results/diagnose_demo/calibrated.yaml
-	$(BIN)/somo-sweep diagnose studies/data/planar_finger_bench_2.csv --model results/diagnose_demo/calibrated.yaml --out results/diagnose_demo
+	$(BIN)/somo-sweep calibrate studies/tables/planar_finger_bench_2.csv --length-mm 100 --segments 20 --mass-g 20 -o results/diagnose_demo/calibrated.yaml
+	$(BIN)/somo-sweep diagnose studies/tables/planar_finger_bench_2.csv --model results/diagnose_demo/calibrated.yaml --out results/diagnose_demo
 
 sweep-demo: $(STAMP) ## Run the example study (27 trials) and print its summary
 	$(BIN)/somo-sweep run studies/finger_pressure_sweep.yaml --overwrite

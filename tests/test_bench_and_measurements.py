@@ -10,17 +10,17 @@ import pytest
 from conftest import MODELS, ihm_finger_dict
 from typer.testing import CliRunner
 
-from somo_sweep.bench import BenchSettings, run_bench
-from somo_sweep.cli import app
-from somo_sweep.errors import MeasurementError, SimulationError
-from somo_sweep.finger_builder import planar_finger
-from somo_sweep.measurements import (
+from somo_sweep.calibration.measurements import (
     COLUMNS,
+    measurements_csv,
     read_measurements,
     simulate_measurements,
-    write_measurements,
 )
-from somo_sweep.models import load_model, model_from_dict
+from somo_sweep.cli.app import app
+from somo_sweep.errors import MeasurementError, SimulationError
+from somo_sweep.model.builders import planar_finger
+from somo_sweep.model.load import load_model, model_from_dict
+from somo_sweep.sim.bench import BenchSettings, run_bench
 
 runner = CliRunner()
 
@@ -174,14 +174,14 @@ def test_reader_keeps_optional_axis_and_direction(tmp_path: Path) -> None:
 def test_tip_angle_column_is_optional_free_bending_only_and_round_trips(tmp_path: Path) -> None:
     plain = read_measurements(_write(tmp_path, f"{HEADER}\nfree_bending,100,,,,90,-30\n"))
     assert np.isnan(plain.loc[0, "tip_angle_deg"])
-    assert "tip_angle_deg" not in write_measurements(plain)
+    assert "tip_angle_deg" not in measurements_csv(plain)
     path = _write(
         tmp_path, f"{HEADER},tip_angle_deg\nfree_bending,100,,,,90,-30,41.5\nblocked_force,100,,,0.7,,,\n"
     )
     rows = read_measurements(path)
     assert rows.loc[0, "tip_angle_deg"] == 41.5 and np.isnan(rows.loc[1, "tip_angle_deg"])
     again = tmp_path / "again.csv"
-    write_measurements(rows, again)
+    again.write_text(measurements_csv(rows))
     assert read_measurements(again).loc[0, "tip_angle_deg"] == 41.5
     bad = _write(tmp_path, f"{HEADER},tip_angle_deg\ntip_load,0,0.05,3.0,,,,12\n")
     with pytest.raises(MeasurementError, match="line 2, column tip_angle_deg: only 'free_bending' rows"):
@@ -203,7 +203,7 @@ def test_writer_header_comment_is_read_back(tmp_path: Path) -> None:
         ]
     )
     path = tmp_path / "w.csv"
-    write_measurements(rows, path, header="derived from published values\nnot measured")
+    path.write_text(measurements_csv(rows, header="derived from published values\nnot measured"))
     assert path.read_text().startswith("# derived from published values\n# not measured\n")
     assert read_measurements(path).loc[0, "blocked_force_n"] == 0.75
 

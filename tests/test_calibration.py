@@ -12,28 +12,28 @@ import yaml
 from conftest import MODELS, ROOT
 from typer.testing import CliRunner
 
-from somo_sweep.bench import BenchSettings, run_bench
-from somo_sweep.calibration import build_problem, paper_values, side_view, simulate_rows, solve_fit
-from somo_sweep.calibration_metrics import per_test_metrics
-from somo_sweep.cli import app
-from somo_sweep.errors import MeasurementError
-from somo_sweep.finger_builder import planar_finger
-from somo_sweep.measurements import read_measurements, write_measurements
-from somo_sweep.models import load_model
-from somo_sweep.paper_formulas import (
+from somo_sweep.calibration.formulas import (
     actuation_torque_from_blocked_force,
     chain_tip_stiffness,
     joint_stiffness_from_tip_stiffness,
 )
-from somo_sweep.synthetic import (
+from somo_sweep.calibration.measurements import measurements_csv, read_measurements
+from somo_sweep.calibration.metrics import per_test_metrics
+from somo_sweep.calibration.solve import build_problem, paper_values, side_view, simulate_rows, solve_fit
+from somo_sweep.calibration.synthetic import (
     TRUE_GAIN_N_M_PER_KPA,
     TRUE_STIFFNESS_N_M_PER_RAD,
     bench_plan,
     synthetic_rows,
 )
+from somo_sweep.cli.app import app
+from somo_sweep.errors import MeasurementError
+from somo_sweep.model.builders import planar_finger
+from somo_sweep.model.load import load_model
+from somo_sweep.sim.bench import BenchSettings, run_bench
 
 runner = CliRunner()
-DATA = ROOT / "studies" / "data"
+DATA = ROOT / "studies" / "tables"
 SYNTHETIC = DATA / "planar_finger_synthetic.csv"
 FIG3 = DATA / "ihm_fig3_published.csv"
 BUILD = ["--length-mm", "100", "--segments", "20", "--mass-g", "20"]
@@ -159,7 +159,7 @@ def test_problem_extends_with_an_extra_effect_parameter() -> None:
     """Diagnosis (issue 6) appends parameters; residuals and solvers stay the same."""
     from dataclasses import replace
 
-    from somo_sweep.calibration import Parameter
+    from somo_sweep.calibration.solve import Parameter
 
     def set_tip_mass(manip, value):  # type: ignore[no-untyped-def]
         link = manip.actuators[0].link.model_copy(update={"mass_kg": value})
@@ -197,7 +197,7 @@ def test_fit_recovers_known_parameters_short() -> None:
 @pytest.mark.slow
 def test_fit_recovers_both_axes_of_a_two_axis_finger() -> None:
     """~40 s on the shared machine; the side view itself is checked fast against a closed form below."""
-    from somo_sweep.calibration_model import set_axis_stiffness, set_pressure_gain
+    from somo_sweep.calibration.parameters import set_axis_stiffness, set_pressure_gain
 
     base = load_model(MODELS / "ihm_finger.yaml")
     assert base.manipulator is not None
@@ -237,7 +237,7 @@ def test_fit_recovers_known_parameters_on_the_bundled_36_rows(tmp_path: Path) ->
 
 @pytest.mark.slow
 def test_bundled_synthetic_file_is_what_the_generator_makes(tmp_path: Path) -> None:
-    from somo_sweep.synthetic import main
+    from somo_sweep.calibration.synthetic import main
 
     main([str(tmp_path / "again.csv")])
     again, bundled = read_measurements(tmp_path / "again.csv"), read_measurements(SYNTHETIC)
@@ -249,8 +249,8 @@ def test_bundled_synthetic_file_is_what_the_generator_makes(tmp_path: Path) -> N
 
 
 def test_synthetic_rows_without_noise_are_what_somo_sweep_measure_prints(tmp_path: Path) -> None:
-    from somo_sweep.calibration_report import model_yaml
-    from somo_sweep.synthetic import example_finger
+    from somo_sweep.calibration.report import model_yaml
+    from somo_sweep.calibration.synthetic import example_finger
 
     model_path = tmp_path / "finger.yaml"
     model_path.write_text(model_yaml(example_finger()))
@@ -295,7 +295,7 @@ def test_fig3_data_reproduce_the_published_values_and_say_so() -> None:
 
 
 def test_the_coarser_calibration_step_agrees_with_the_reference_step() -> None:
-    from somo_sweep.calibration import CALIBRATION_SETTINGS
+    from somo_sweep.calibration.solve import CALIBRATION_SETTINGS
 
     plan = bench_plan([0.1], [240], [240])
     manip = _small_truth().manipulator
@@ -392,7 +392,7 @@ def test_calibrate_needs_a_model_or_the_finger_dimensions(tmp_path: Path) -> Non
 
 
 def test_written_model_round_trips_through_the_schema(tmp_path: Path) -> None:
-    from somo_sweep.calibration_report import model_yaml
+    from somo_sweep.calibration.report import model_yaml
 
     model = planar_finger(0.1, 20, 0.02).model_copy(update={"provenance": {"calibration": {"method": "fit"}}})
     path = tmp_path / "m.yaml"
@@ -404,5 +404,5 @@ def test_written_model_round_trips_through_the_schema(tmp_path: Path) -> None:
 def test_synthetic_plan_writes_schema_rows(tmp_path: Path) -> None:
     plan = bench_plan([0.1], [100], [])
     plan.loc[0, "tip_deflection_mm"], plan.loc[1, "blocked_force_n"] = 3.0, 0.5
-    write_measurements(plan, tmp_path / "p.csv")
+    (tmp_path / "p.csv").write_text(measurements_csv(plan))
     assert list(pd.read_csv(tmp_path / "p.csv")["test"]) == ["tip_load", "blocked_force"]

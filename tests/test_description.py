@@ -10,10 +10,10 @@ import pytest
 import yaml
 from conftest import MODELS, load_yaml
 
-from somo_sweep.description import Actuator, Link
 from somo_sweep.errors import DescriptionError, MeasurementError, Problem, UnstableSimulation
-from somo_sweep.models import load_model, model_from_dict
-from somo_sweep.urdf import plan_assembly
+from somo_sweep.model.description import Actuator, Link
+from somo_sweep.model.load import load_model, model_from_dict
+from somo_sweep.sim.urdf import plan_assembly
 
 
 def test_gripper_assembly_has_expected_links_and_joints() -> None:
@@ -229,7 +229,8 @@ def test_four_finger_hand_with_palm_loads() -> None:
 def test_rigid_arm_carries_soft_fingers_at_its_tip() -> None:
     import numpy as np
 
-    from somo_sweep.world import World, WorldSettings
+    from somo_sweep.sim.settings import WorldSettings
+    from somo_sweep.sim.world import World
 
     model = load_model(MODELS / "arm_with_fingers.yaml")
     plan = plan_assembly(model.as_assembly(), 20.0)[0]

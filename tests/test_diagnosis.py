@@ -16,19 +16,19 @@ import pandas as pd
 import pytest
 from typer.testing import CliRunner
 
-from somo_sweep.bench import BenchSettings, run_bench
-from somo_sweep.calibration import CALIBRATION_SETTINGS, build_problem, solve_fit
-from somo_sweep.calibration_report import model_yaml
-from somo_sweep.cli import app
-from somo_sweep.description import Actuation
-from somo_sweep.diagnosis import build_diagnosis, diagnose
-from somo_sweep.diagnosis_noise import channels, estimate_noise, find_disagreements
-from somo_sweep.effects import EFFECTS, add_effect, get_effect
+from somo_sweep.calibration.measurements import COLUMNS, measurements_csv
+from somo_sweep.calibration.report import model_yaml
+from somo_sweep.calibration.solve import CALIBRATION_SETTINGS, build_problem, solve_fit
+from somo_sweep.calibration.synthetic import bench_plan, example_finger, synthetic_rows
+from somo_sweep.cli.app import app
+from somo_sweep.diagnosis.diagnose import build_diagnosis, diagnose
+from somo_sweep.diagnosis.effects import EFFECTS, add_effect, get_effect
+from somo_sweep.diagnosis.noise import channels, estimate_noise, find_disagreements
 from somo_sweep.errors import SomoError
-from somo_sweep.finger_builder import planar_finger
-from somo_sweep.measurements import COLUMNS, write_measurements
-from somo_sweep.models import load_model
-from somo_sweep.synthetic import bench_plan, example_finger, synthetic_rows
+from somo_sweep.model.builders import planar_finger
+from somo_sweep.model.description import Actuation
+from somo_sweep.model.load import load_model
+from somo_sweep.sim.bench import BenchSettings, run_bench
 
 runner = CliRunner()
 SETTINGS = CALIBRATION_SETTINGS
@@ -284,7 +284,7 @@ def test_cli_writes_json_report_model_and_plot(tmp_path: Path) -> None:
         SETTINGS,
     )
     csv = tmp_path / "bench.csv"
-    write_measurements(rows, csv)
+    csv.write_text(measurements_csv(rows))
     model = tmp_path / "model.yaml"
     model.write_text(model_yaml(example_finger()))
     out = tmp_path / "out"

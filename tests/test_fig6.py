@@ -8,9 +8,9 @@ from pathlib import Path
 import pandas as pd
 from typer.testing import CliRunner
 
-from somo_sweep.cli import app
-from somo_sweep.fig6 import grasp_table, smallest_all_width_pinch_dsr, write_fig6
-from somo_sweep.grasp_contacts import link_columns
+from somo_sweep.cli.app import app
+from somo_sweep.paper.fig6 import build, grasp_table, smallest_all_width_pinch_dsr
+from somo_sweep.tasks.pinch_grasp.params import link_columns
 
 
 def tidy(labels: dict[tuple[float, float], list[str]]) -> pd.DataFrame:
@@ -38,16 +38,18 @@ def test_smallest_dsr_needs_a_pinch_at_every_width() -> None:
     assert smallest_all_width_pinch_dsr(table[table["distal_segment_ratio"] < 0.15]) is None
 
 
-def test_write_fig6_saves_png_svg_summary_and_headline(tmp_path: Path) -> None:
+def test_fig6_build_returns_figure_summary_and_headline() -> None:
     table = tidy(
         {(0.1, 0.01): ["power", "pinch"], (0.1, 0.04): ["pinch", "no_grasp"], (0.6, 0.01): ["pinch"] * 2}
     )
-    info = write_fig6(table, tmp_path)
+    out = build(table)
+    info = out.json["fig6.json"]
     assert info["smallest_all_width_pinch_dsr"] == 0.1
-    for name in ("fig6.png", "fig6.svg", "fig6_summary.csv", "fig6.json"):
-        assert (tmp_path / name).stat().st_size > 0
-    summary = pd.read_csv(tmp_path / "fig6_summary.csv")
+    assert info["labels"] == {"pinch": 4, "power": 1, "no_grasp": 1}
+    assert list(out.figures) == ["fig6"] and out.formats == ("png", "svg")
+    summary = out.tables["fig6_summary.csv"]
     assert set(summary.columns) >= {"distal_segment_ratio", "object_width_m", "pinch", "power", "no_grasp"}
+    assert out.lines[-1] == "smallest all-width pinch DSR: 0.10"
 
 
 def results_folder(tmp_path: Path) -> Path:
@@ -100,7 +102,7 @@ def test_classify_command_relabels_from_stored_metrics(tmp_path: Path) -> None:
 
 def test_fig6_command_prints_the_headline_and_writes_files(tmp_path: Path) -> None:
     folder = results_folder(tmp_path)
-    result = CliRunner().invoke(app, ["fig6", str(folder), "--out", str(tmp_path / "fig")])
+    result = CliRunner().invoke(app, ["paper", "fig6", str(folder), "--out", str(tmp_path / "fig")])
     assert result.exit_code == 0, result.output
     assert "smallest all-width pinch DSR: 0.20" in result.output
     assert (tmp_path / "fig" / "fig6_contacts.png").exists()
@@ -117,7 +119,7 @@ def test_bad_rule_and_missing_folder_are_user_errors(tmp_path: Path) -> None:
 
 
 def test_grasp_table_marks_blow_ups(tmp_path: Path) -> None:
-    from somo_sweep.grasp_results import read_results
+    from somo_sweep.paper.grasp_trials import read_results
 
     table = grasp_table(read_results(results_folder(tmp_path)))
     assert table["label"].tolist() == ["pinch", "power", "unstable"]
@@ -139,7 +141,7 @@ def test_fig6_quick_pipeline_runs_real_trials_and_draws_the_figure(tmp_path: Pat
     folder = tmp_path / "results" / "pinch_tiny"
     result = CliRunner().invoke(app, ["run", str(study), "--out", str(folder), "--jobs", "2"])
     assert result.exit_code == 0, result.output
-    result = CliRunner().invoke(app, ["fig6", str(folder), "--out", str(tmp_path / "fig")])
+    result = CliRunner().invoke(app, ["paper", "fig6", str(folder), "--out", str(tmp_path / "fig")])
     assert result.exit_code == 0, result.output
     assert (tmp_path / "fig" / "fig6_contacts.png").stat().st_size > 10_000
     summary = pd.read_csv(tmp_path / "fig" / "fig6_contacts_summary.csv")

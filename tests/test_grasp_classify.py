@@ -8,14 +8,14 @@ import pandas as pd
 import pytest
 
 from somo_sweep.errors import SomoError
-from somo_sweep.grasp_classify import (
+from somo_sweep.tasks.pinch_grasp.classify import (
     GraspEvidence,
     classify,
     contact_position,
     distal_force_fractions,
     reclassify,
 )
-from somo_sweep.grasp_contacts import distal_link_count, link_columns
+from somo_sweep.tasks.pinch_grasp.params import distal_link_count, link_columns
 
 
 def forces(per_link: dict[int, float]) -> tuple[float, ...]:

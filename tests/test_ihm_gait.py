@@ -7,11 +7,12 @@ import pytest
 from conftest import MODELS
 
 from somo_sweep.errors import SimulationError
-from somo_sweep.fig5 import compare, load_hardware
-from somo_sweep.models import load_model
-from somo_sweep.tasks.ihm_gait import GaitParams, _torques, load_pressure_table, simulate_gait
+from somo_sweep.model.load import load_model
+from somo_sweep.paper.fig5 import compare, load_hardware
+from somo_sweep.sim.settings import WorldSettings
+from somo_sweep.tasks.ihm_gait.params import GaitParams
+from somo_sweep.tasks.ihm_gait.task import _torques, load_pressure_table, simulate_gait
 from somo_sweep.tasks.registry import get_task
-from somo_sweep.world import WorldSettings
 
 SETTINGS = WorldSettings(time_step_s=1e-3)
 

@@ -17,20 +17,33 @@ import pandas as pd
 import pytest
 from conftest import MODELS
 
-from somo_sweep import fig3, fig8, palm
-from somo_sweep.study import load_study
-from somo_sweep.sweep import run_study
-from somo_sweep.tasks.ihm_gait import UNBUILDABLE
+from typer.testing import CliRunner
+
+from somo_sweep.cli import app
+from somo_sweep.sweep.runner import run_study
+from somo_sweep.sweep.study import load_study
+from somo_sweep.tasks.ihm_gait.task import UNBUILDABLE
 
 
-def test_fig3_writes_the_figure_and_the_fit_beats_eq8_9_on_blocked_force(
-    tmp_path: Path, capsys: pytest.CaptureFixture[str]
-) -> None:
-    fig3.main([str(tmp_path)])
+def paper(*args: str) -> str:
+    """Run ``somo-sweep paper ARGS`` and return what it printed (asserting exit code 0)."""
+    result = CliRunner().invoke(app, ["paper", *args])
+    assert result.exit_code == 0, result.output
+    return result.output
+
+
+def test_paper_help_lists_every_figure() -> None:
+    text = CliRunner().invoke(app, ["paper", "--help"]).output
+    for name in ("fig3", "fig5", "fig6", "fig7", "fig8", "palm"):
+        assert f" {name} " in text
+
+
+def test_fig3_writes_the_figure_and_the_fit_beats_eq8_9_on_blocked_force(tmp_path: Path) -> None:
+    out = paper("fig3", "--out", str(tmp_path))
     assert (tmp_path / "fig3_blocked_force.png").stat().st_size > 10_000
-    assert (tmp_path / "fig3_blocked_force.svg").is_file()
+    assert (tmp_path / "fig3_blocked_force.svg").read_text().startswith("<?xml")
     # Printed per method: "paper: ..." then its RMSE lines, then "fit: ...".
-    paper_text, fit_text = capsys.readouterr().out.split("\nfit: ")
+    paper_text, fit_text = out.split("\nfit: ")
     rmse = {
         name: float(re.search(r"blocked_force: RMSE ([0-9.e-]+) N", text).group(1))  # type: ignore[union-attr]
         for name, text in (("paper", paper_text), ("fit", fit_text))
@@ -40,7 +53,7 @@ def test_fig3_writes_the_figure_and_the_fit_beats_eq8_9_on_blocked_force(
 
 
 def test_fig8_quick_writes_the_figure_and_the_anisotropic_snake_advances(tmp_path: Path) -> None:
-    fig8.main(["--out", str(tmp_path), "--quick"])
+    paper("fig8", "--out", str(tmp_path), "--quick")
     assert {"fig8-quick.png", "fig8-quick.svg", "fig8-quick.json"} <= {p.name for p in tmp_path.iterdir()}
     numbers = json.loads((tmp_path / "fig8-quick.json").read_text())
     aniso, iso = numbers["anisotropic"], numbers["isotropic"]
@@ -72,7 +85,7 @@ def test_palm_study_and_plot_give_rotation_and_drop_rate_and_cross_out_unbuildab
     summary = run_study(load_study(study_file, tmp_path / "palm_tiny"), n_jobs=2)
     # A 120 mm palm at 85 mm cuts through the fingers (inner faces ~49 mm from the axis there).
     assert summary.by_status == {"ok": 1, "error": 1}
-    palm.main([str(tmp_path / "palm_tiny"), "--out", str(tmp_path / "figures")])
+    paper("palm", str(tmp_path / "palm_tiny"), "--out", str(tmp_path / "figures"))
     table = pd.read_csv(tmp_path / "figures" / "palm_tiny.csv").fillna({"note": ""})
     assert (tmp_path / "figures" / "palm_tiny.png").is_file()
     assert list(table["diameter_mm"]) == [30.0, 120.0] and set(table["height_mm"]) == {85.0}
@@ -82,9 +95,7 @@ def test_palm_study_and_plot_give_rotation_and_drop_rate_and_cross_out_unbuildab
 
 
 def test_fig5_quick_writes_the_first_cycle_against_the_hardware(tmp_path: Path) -> None:
-    from somo_sweep import fig5
-
-    fig5.main(["--out", str(tmp_path), "--quick"])
+    paper("fig5", "--out", str(tmp_path), "--quick")
     summary = json.loads((tmp_path / "fig5-quick.json").read_text())
     assert summary["default"]["real_rot_z_deg"] == pytest.approx(-49.9, abs=1.0)
     assert -100.0 < summary["default"]["sim_rot_z_deg"] < -30.0

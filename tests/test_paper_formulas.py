@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import pytest
 
-from somo_sweep.paper_formulas import (
+from somo_sweep.calibration.formulas import (
     actuation_torque_from_blocked_force,
     chain_tip_stiffness,
     friction_values_from_pairs,

@@ -7,13 +7,14 @@ import pybullet as p
 import pytest
 from conftest import ihm_finger_dict
 
-from somo_sweep.bench import BenchSettings, run_bench
-from somo_sweep.description import Link, Pose, RigidBody
+from somo_sweep.calibration.formulas import chain_tip_stiffness
 from somo_sweep.errors import UnstableSimulation
-from somo_sweep.models import model_from_dict
-from somo_sweep.paper_formulas import chain_tip_stiffness
-from somo_sweep.urdf import plan_rigid_body
-from somo_sweep.world import World, WorldSettings
+from somo_sweep.model.description import Link, Pose, RigidBody
+from somo_sweep.model.load import model_from_dict
+from somo_sweep.sim.bench import BenchSettings, run_bench
+from somo_sweep.sim.settings import WorldSettings
+from somo_sweep.sim.urdf import plan_rigid_body
+from somo_sweep.sim.world import World
 
 K_GRASP = 0.2186  # N·m/rad, IHM finger grasp axis
 SEGMENT_M = 0.010

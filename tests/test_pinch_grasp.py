@@ -8,10 +8,11 @@ from pathlib import Path
 import pytest
 from conftest import MODELS
 
-from somo_sweep.models import load_model
+from somo_sweep.model.load import load_model
+from somo_sweep.sim.settings import WorldSettings
 from somo_sweep.tasks import get_task
-from somo_sweep.tasks.pinch_grasp import Numerics, PinchGraspParams, run_pinch_grasp, split_finger
-from somo_sweep.world import WorldSettings
+from somo_sweep.tasks.pinch_grasp.params import Numerics, PinchGraspParams
+from somo_sweep.tasks.pinch_grasp.task import run_pinch_grasp, split_finger
 
 GRIPPER = MODELS / "pinch_gripper.yaml"
 
@@ -143,8 +144,8 @@ def test_labels_and_lift_agree_at_half_the_time_step(
 
 
 def test_bundled_studies_use_the_facts_sheet_grid_and_the_chosen_numerics() -> None:
-    from somo_sweep.pinch_numerics import CHOSEN
-    from somo_sweep.study import load_study
+    from somo_sweep.sweep.study import load_study
+    from somo_sweep.tasks.pinch_grasp.numerics import CHOSEN
 
     full = load_study(MODELS.parent / "pinch_grasp_dsr.yaml")
     quick = load_study(MODELS.parent / "pinch_grasp_quick.yaml")

@@ -10,11 +10,11 @@ import pyarrow.parquet as pq
 import pytest
 from typer.testing import CliRunner
 
-from somo_sweep.cli import app
+from somo_sweep.cli.app import app
 from somo_sweep.errors import SomoError
-from somo_sweep.recheck import recheck
-from somo_sweep.study import load_study
-from somo_sweep.sweep import run_study
+from somo_sweep.sweep.recheck import recheck
+from somo_sweep.sweep.runner import run_study
+from somo_sweep.sweep.study import load_study
 from tests.test_sweep import selftest_study
 
 runner = CliRunner()

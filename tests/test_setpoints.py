@@ -5,7 +5,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from somo_sweep.setpoints import SetpointTable
+from somo_sweep.model.setpoints import SetpointTable
 
 
 def test_interpolates_and_holds_ends() -> None:

@@ -5,10 +5,10 @@ from __future__ import annotations
 import pytest
 from conftest import MODELS
 
-from somo_sweep.models import load_model
+from somo_sweep.model.load import load_model
+from somo_sweep.sim.settings import WorldSettings
 from somo_sweep.tasks import get_task
-from somo_sweep.tasks.snake import SnakeParams
-from somo_sweep.world import WorldSettings
+from somo_sweep.tasks.snake.params import SnakeParams
 
 
 @pytest.fixture(scope="module")

@@ -11,11 +11,11 @@ import yaml
 from pydantic import BaseModel
 from typer.testing import CliRunner
 
-from somo_sweep.axes import expand_axis, parse_key_path
-from somo_sweep.cli import app
+from somo_sweep.cli.app import app
 from somo_sweep.errors import DescriptionError
-from somo_sweep.study import load_study
-from somo_sweep.tasks import TaskResult, TaskSpec, all_tasks, registry
+from somo_sweep.sweep.axes import expand_axis, parse_key_path
+from somo_sweep.sweep.study import load_study
+from somo_sweep.tasks import TaskSpec, all_tasks, registry
 from tests.conftest import MODELS, ROOT
 
 STIFFNESS = "model.manipulator.actuators[0].joints[0].stiffness_n_m_per_rad"
@@ -238,7 +238,7 @@ def test_unknown_task_parameters_fail_even_if_the_task_model_allows_extras(
 ) -> None:
     all_tasks()  # load the registry first, then add a test-only task for this test alone
     monkeypatch.setitem(
-        registry._TASKS, "_test_lax", TaskSpec("_test_lax", lambda *a: TaskResult(), _LaxParams)
+        registry._TASKS, "_test_lax", TaskSpec("_test_lax", "somo_sweep.tasks.selftest:_sleep", _LaxParams)
     )
     path = write_study(tmp_path, "task: _test_lax\nmodel: models/ihm_finger.yaml\nparams: {widht_m: 0.02}\n")
     assert "line 3: params.widht_m: unknown key 'widht_m' (did you mean 'width_m'?)" in problems_of(path)

@@ -17,13 +17,13 @@ import pyarrow.parquet as pq
 import pytest
 from typer.testing import CliRunner
 
-from somo_sweep.cli import app
+from somo_sweep.cli.app import app
 from somo_sweep.errors import SomoError
-from somo_sweep.execution import dask_client
-from somo_sweep.jobs import build_jobs, trial_modules
-from somo_sweep.results import ResultStore, read_manifest, read_results
-from somo_sweep.study import load_study
-from somo_sweep.sweep import run_study
+from somo_sweep.sweep.execution import dask_client
+from somo_sweep.sweep.jobs import build_jobs, trial_modules
+from somo_sweep.sweep.runner import run_study
+from somo_sweep.sweep.store import ResultStore, read_manifest, read_results
+from somo_sweep.sweep.study import load_study
 from tests.conftest import MODELS
 
 #: Columns that legitimately differ between runs of the same study.
@@ -90,15 +90,20 @@ def test_job_ids_are_stable_and_follow_the_model_content(tmp_path: Path) -> None
 
 
 def test_code_version_covers_the_code_a_trial_runs_and_nothing_else() -> None:
-    bench = trial_modules("somo_sweep.tasks.bench_tasks")
+    bench = trial_modules("somo_sweep.tasks.bench.task")
     assert {
-        "somo_sweep.tasks.bench_tasks",
-        "somo_sweep.bench",
-        "somo_sweep.world",
-        "somo_sweep.springs",
+        "somo_sweep.tasks.bench.task",
+        "somo_sweep.sim.bench",
+        "somo_sweep.sim.world",
+        "somo_sweep.sim.springs",
     } <= set(bench)
-    assert not {"somo_sweep.cli", "somo_sweep.sweep", "somo_sweep.results", "somo_sweep.plots"} & set(bench)
-    assert "somo_sweep.world" not in trial_modules("somo_sweep.tasks.selftest")
+    assert not {
+        "somo_sweep.cli.app",
+        "somo_sweep.sweep.runner",
+        "somo_sweep.sweep.store",
+        "somo_sweep.sweep.plots",
+    } & set(bench)
+    assert "somo_sweep.sim.world" not in trial_modules("somo_sweep.tasks.selftest")
 
 
 def test_resume_runs_only_missing_trials_and_gives_the_same_table(tmp_path: Path) -> None:

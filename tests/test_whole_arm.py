@@ -9,12 +9,15 @@ import numpy as np
 import pytest
 from conftest import MODELS
 
-from somo_sweep import fig7
 from somo_sweep.errors import SomoError
-from somo_sweep.models import load_model
+from somo_sweep.model.load import load_model
+from typer.testing import CliRunner
+
+from somo_sweep.cli import app
+from somo_sweep.sim.settings import WorldSettings
 from somo_sweep.tasks import TaskResult, get_task
-from somo_sweep.tasks.whole_arm import DEFAULT_TABLE, WholeArmParams, WholeArmRun, load_torque_table
-from somo_sweep.world import WorldSettings
+from somo_sweep.tasks.whole_arm.params import DEFAULT_TABLE, WholeArmParams
+from somo_sweep.tasks.whole_arm.task import WholeArmRun, load_torque_table
 
 SETTINGS = WorldSettings(time_step_s=1e-3)
 
@@ -90,7 +93,8 @@ def test_torque_table_must_name_the_model_inputs() -> None:
 
 
 def test_fig7_quick_writes_frames_and_numbers(tmp_path: Path, scripted: TaskResult) -> None:
-    fig7.main(["--out", str(tmp_path), "--quick"])
+    result = CliRunner().invoke(app, ["paper", "fig7", "--out", str(tmp_path), "--quick"])
+    assert result.exit_code == 0, result.output
     assert (tmp_path / "fig7-quick.png").stat().st_size > 10_000
     frames = sorted((tmp_path / "fig7-quick_frames").glob("*.png"))
     assert [f.stem[-1] for f in frames] == list("abcdefgh")

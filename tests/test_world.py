@@ -8,12 +8,13 @@ import numpy as np
 import pytest
 from conftest import MODELS, ihm_finger_dict, load_yaml
 
-from somo_sweep.description import Pose
 from somo_sweep.errors import SimulationError
-from somo_sweep.models import load_model, model_from_dict
-from somo_sweep.setpoints import SetpointTable
-from somo_sweep.urdf import cache_dir, plan_assembly, write_urdf
-from somo_sweep.world import World, WorldSettings
+from somo_sweep.model.description import Pose
+from somo_sweep.model.load import load_model, model_from_dict
+from somo_sweep.model.setpoints import SetpointTable
+from somo_sweep.sim.settings import WorldSettings
+from somo_sweep.sim.urdf import cache_dir, plan_assembly, write_urdf
+from somo_sweep.sim.world import World
 
 
 def _snake(n: int = 8) -> dict:

@@ -1,4 +1,10 @@
-"""The task registry: a task is a pure function of (model, parameters, settings, seed)."""
+"""The task registry: a task is a pure function of (model, parameters, settings, seed).
+
+Each task lives in its own subpackage: ``params.py`` declares the parameters and
+registers the task (light: pydantic only), ``task.py`` simulates. The registry
+names the run function by its import path and imports it only when a trial runs,
+so loading and expanding a study never imports PyBullet.
+"""
 
 from __future__ import annotations
 
@@ -11,8 +17,8 @@ from typing import Any, Literal
 from pydantic import BaseModel
 
 from somo_sweep.errors import SomoError, did_you_mean
-from somo_sweep.models import Model
-from somo_sweep.world import WorldSettings
+from somo_sweep.model.load import Model
+from somo_sweep.sim.settings import WorldSettings
 
 __all__ = ["TaskResult", "TaskSpec", "all_tasks", "get_task", "register"]
 
@@ -45,18 +51,26 @@ class TaskSpec:
 
     Attributes:
         name: Name used in study files.
-        run: ``run(model, params, settings, seed) -> TaskResult``; ``params`` is an
-            instance of ``params_model``. Must be pure: same inputs, same result.
+        run_path: ``"package.module:function"`` of ``run(model, params, settings, seed) ->
+            TaskResult``; ``params`` is an instance of ``params_model``. Must be pure:
+            same inputs, same result.
         params_model: Pydantic model of the task's parameters (defaults included).
         description: One line for listings.
-        tags: Free-form tags (``bench``, ``grasp``, ``paper``...).
+        tags: Free-form tags (``bench``, ``grasp``, ``paper``...; ``selftest`` tasks are hidden).
     """
 
     name: str
-    run: TaskFn
+    run_path: str
     params_model: type[BaseModel]
     description: str = ""
     tags: tuple[str, ...] = ()
+
+    @property
+    def run(self) -> TaskFn:
+        """The run function, imported on first use."""
+        module, _, attr = self.run_path.partition(":")
+        fn: TaskFn = getattr(importlib.import_module(module), attr)
+        return fn
 
 
 _TASKS: dict[str, TaskSpec] = {}
@@ -76,8 +90,10 @@ def _load_all() -> None:
     import somo_sweep.tasks as pkg
 
     for info in pkgutil.iter_modules(pkg.__path__):
-        if info.name != "registry":
-            importlib.import_module(f"somo_sweep.tasks.{info.name}")
+        if info.name == "registry":
+            continue
+        suffix = ".params" if info.ispkg else ""
+        importlib.import_module(f"somo_sweep.tasks.{info.name}{suffix}")
     _loaded = True
 
 

@@ -25,8 +25,8 @@ from somo_sweep.errors import UnstableSimulation
 from somo_sweep.tasks.registry import TaskResult, TaskSpec, register
 
 if TYPE_CHECKING:  # annotations only: these tasks run no simulation
-    from somo_sweep.models import Model
-    from somo_sweep.world import WorldSettings
+    from somo_sweep.model.load import Model
+    from somo_sweep.sim.settings import WorldSettings
 
 __all__ = ["SelftestParams"]
 
@@ -83,8 +83,8 @@ def _unstable(model: Model, params: SelftestParams, settings: WorldSettings, see
 
 
 for _name, _fn, _text in (
-    ("selftest_sleep", _sleep, "Sleeps and returns y = x² (engine tests)."),
-    ("selftest_crash", _crash, "Kills its process for chosen x (engine tests)."),
-    ("selftest_unstable", _unstable, "Reports a blow-up for chosen x (engine tests)."),
+    ("selftest_sleep", "_sleep", "Sleeps and returns y = x² (engine tests)."),
+    ("selftest_crash", "_crash", "Kills its process for chosen x (engine tests)."),
+    ("selftest_unstable", "_unstable", "Reports a blow-up for chosen x (engine tests)."),
 ):
-    register(TaskSpec(_name, _fn, SelftestParams, _text, ("selftest",)))
+    register(TaskSpec(_name, f"{__name__}:{_fn}", SelftestParams, _text, ("selftest",)))

@@ -1,0 +1,192 @@
+"""The measurement CSV schema: read and validate bench data, simulate it, write it.
+
+Columns: ``test,pressure_kpa,tip_load_n,tip_deflection_mm,blocked_force_n,tip_x_mm,tip_z_mm``
+(empty where not applicable), optionally ``tip_angle_deg`` (free bending: the tip's
+angle in the bending plane, 0 straight, positive curling with pressure; what a photo
+of the curled finger gives with its tip position), ``axis`` (``grasp`` / ``side``) and
+``direction`` (``loading`` / ``unloading``). Lines starting with ``#`` are comments.
+"""
+
+from __future__ import annotations
+
+import io
+import math
+from pathlib import Path
+
+import pandas as pd
+
+from somo_sweep.errors import MeasurementError, did_you_mean
+from somo_sweep.model.load import Model
+from somo_sweep.sim.bench import TESTS, BenchSettings, run_bench
+
+__all__ = [
+    "COLUMNS",
+    "INPUT_COLUMNS",
+    "MEASURED_COLUMNS",
+    "OPTIONAL_MEASURED",
+    "measurements_csv",
+    "read_measurements",
+    "simulate_measurements",
+]
+
+COLUMNS = [
+    "test",
+    "pressure_kpa",
+    "tip_load_n",
+    "tip_deflection_mm",
+    "blocked_force_n",
+    "tip_x_mm",
+    "tip_z_mm",
+]
+OPTIONAL = {"axis": ("grasp", "side"), "direction": ("loading", "unloading")}
+#: Measured columns a file may add, and the test that fills them.
+OPTIONAL_MEASURED = {"tip_angle_deg": "free_bending"}
+NUMERIC = COLUMNS[1:]
+#: Columns a test needs as input, and the columns it measures.
+INPUT_COLUMNS = {
+    "tip_load": ["pressure_kpa", "tip_load_n"],
+    "blocked_force": ["pressure_kpa"],
+    "free_bending": ["pressure_kpa"],
+}
+MEASURED_COLUMNS = {
+    "tip_load": ["tip_deflection_mm"],
+    "blocked_force": ["blocked_force_n"],
+    "free_bending": ["tip_x_mm", "tip_z_mm"],
+}
+
+
+def _line_of(row: int, comment_lines: list[int]) -> int:
+    """File line (1-based) of data row ``row`` (0-based), skipping comment lines."""
+    line = row + 2  # header is line 1 before comments are counted
+    for c in comment_lines:
+        if c <= line:
+            line += 1
+    return line
+
+
+def read_measurements(path: str | Path, require_measured: bool = True) -> pd.DataFrame:
+    """Read and validate a measurement CSV.
+
+    Args:
+        path: CSV file.
+        require_measured: Whether each row must carry its test's measured columns.
+
+    Returns:
+        A DataFrame with the schema's columns (floats, NaN where empty), ``tip_angle_deg``
+        (NaN where empty or when the file has no such column), ``axis`` / ``direction``
+        when present, and ``line`` (file line of each row).
+
+    Raises:
+        MeasurementError: Naming every bad row and column at once.
+    """
+    path = Path(path)
+    if not path.is_file():
+        raise MeasurementError(path, ["file not found"])
+    text = path.read_text(encoding="utf-8")
+    comment_lines = [i + 1 for i, ln in enumerate(text.splitlines()) if ln.lstrip().startswith("#")]
+    try:
+        raw = pd.read_csv(
+            io.StringIO(text), comment="#", dtype=str, keep_default_na=False, skip_blank_lines=True
+        )
+    except (pd.errors.ParserError, pd.errors.EmptyDataError) as exc:
+        raise MeasurementError(path, [f"cannot parse CSV: {exc}"]) from None
+    raw.columns = [c.strip() for c in raw.columns]
+    problems: list[str] = []
+    missing = [c for c in COLUMNS if c not in raw.columns]
+    if missing:
+        problems.append(f"missing column(s) {', '.join(missing)}; the header must have {','.join(COLUMNS)}")
+    allowed = COLUMNS + list(OPTIONAL_MEASURED) + list(OPTIONAL)
+    for c in raw.columns:
+        if c not in allowed:
+            problems.append(f"unknown column '{c}'{did_you_mean(c, allowed)}; allowed: {', '.join(allowed)}")
+    if problems:
+        raise MeasurementError(path, problems)
+    if raw.empty:
+        raise MeasurementError(path, ["no data rows"])
+    out = pd.DataFrame({"test": raw["test"].str.strip()})
+    for c in NUMERIC + list(OPTIONAL_MEASURED):
+        if c not in raw.columns:
+            out[c] = math.nan
+            continue
+        values = []
+        for i, cell in enumerate(raw[c].str.strip()):
+            if cell == "":
+                values.append(math.nan)
+                continue
+            try:
+                v = float(cell)
+            except ValueError:
+                problems.append(f"line {_line_of(i, comment_lines)}, column {c}: '{cell}' is not a number")
+                v = math.nan
+            if not math.isnan(v) and not math.isfinite(v):
+                problems.append(f"line {_line_of(i, comment_lines)}, column {c}: {cell} is not finite")
+            values.append(v)
+        out[c] = values
+    for c, choices in OPTIONAL.items():
+        if c in raw.columns:
+            out[c] = raw[c].str.strip()
+            for i, cell in enumerate(out[c]):
+                if cell not in choices and cell != "":
+                    problems.append(
+                        f"line {_line_of(i, comment_lines)}, column {c}: '{cell}' "
+                        f"{did_you_mean(cell, choices)}; allowed: {', '.join(choices)}"
+                    )
+    out["line"] = [_line_of(i, comment_lines) for i in range(len(out))]
+    for _, row in out.iterrows():
+        where = f"line {row['line']}"
+        test = row["test"]
+        if test not in TESTS:
+            problems.append(
+                f"{where}, column test: unknown test '{test}'{did_you_mean(test, TESTS)}; "
+                f"allowed: {', '.join(TESTS)}"
+            )
+            continue
+        needed = INPUT_COLUMNS[test] + (MEASURED_COLUMNS[test] if require_measured else [])
+        for c in needed:
+            if math.isnan(row[c]):
+                problems.append(f"{where}, column {c}: empty, but test '{test}' needs it")
+        for c, owner in OPTIONAL_MEASURED.items():
+            if test != owner and not math.isnan(row[c]):
+                problems.append(f"{where}, column {c}: only '{owner}' rows measure it; leave it empty")
+        if test == "tip_load" and row["tip_load_n"] < 0:
+            problems.append(f"{where}, column tip_load_n: {row['tip_load_n']} < 0; loads must be >= 0 N")
+    if problems:
+        raise MeasurementError(path, problems)
+    return out.reset_index(drop=True)
+
+
+def simulate_measurements(
+    model: Model, rows: pd.DataFrame, settings: BenchSettings | None = None
+) -> pd.DataFrame:
+    """Simulate every row's protocol with ``model``; returns the rows with simulated values.
+
+    Input columns (test, pressure, tip load, axis, direction) are kept; measured
+    columns are replaced by simulated ones, NaN where the test does not fill them.
+    """
+    out = rows.copy()
+    for c in ("tip_deflection_mm", "blocked_force_n", "tip_x_mm", "tip_z_mm", "tip_angle_deg"):
+        out[c] = math.nan
+    for i, row in rows.iterrows():
+        load = 0.0 if math.isnan(row["tip_load_n"]) else float(row["tip_load_n"])
+        res = run_bench(model, row["test"], float(row["pressure_kpa"]), load, settings)
+        if row["test"] == "free_bending":
+            assert isinstance(res.value, tuple)
+            out.loc[i, "tip_x_mm"], out.loc[i, "tip_z_mm"], out.loc[i, "tip_angle_deg"] = res.value
+        else:
+            out.loc[i, MEASURED_COLUMNS[row["test"]][0]] = float(res.value)  # type: ignore[arg-type]
+    return out
+
+
+def measurements_csv(rows: pd.DataFrame, header: str | None = None) -> str:
+    """Rows in the measurement CSV schema, as text.
+
+    Args:
+        rows: Rows with at least the schema's columns (``tip_angle_deg`` is written when it
+            has any value).
+        header: Comment text written above the header (each line prefixed with ``#``).
+    """
+    measured = [c for c in OPTIONAL_MEASURED if c in rows.columns and rows[c].notna().any()]
+    cols = COLUMNS + measured + [c for c in OPTIONAL if c in rows.columns]
+    body = rows[cols].to_csv(index=False, float_format="%.6g", na_rep="")
+    text = "".join(f"# {ln}\n" for ln in header.splitlines()) + body if header else body
+    return text

@@ -1,0 +1,154 @@
+"""How calibrated values enter a manipulator, and bench rows simulated in parallel.
+
+Each calibrated quantity is a :class:`Parameter` whose ``apply`` writes its value
+into a manipulator; side-axis rows are simulated on :func:`side_view`.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Callable
+from dataclasses import dataclass
+
+import joblib
+import numpy as np
+import pandas as pd
+
+from somo_sweep.calibration.metrics import WIDTH
+from somo_sweep.model.description import Actuation, Manipulator
+from somo_sweep.sim.bench import BenchSettings, run_bench
+
+__all__ = [
+    "AXES",
+    "Parameter",
+    "joint_lever_arms",
+    "set_axis_stiffness",
+    "set_pressure_gain",
+    "side_view",
+    "simulate_rows",
+]
+
+#: Joint definition 0 is the grasp axis, 1 the side axis (SoMo's alternating joints).
+AXES = ("grasp", "side")
+
+
+@dataclass(frozen=True)
+class Parameter:
+    """One calibrated quantity and how it enters the model.
+
+    Attributes:
+        name: Name with unit, e.g. ``stiffness_n_m_per_rad[grasp]``.
+        unit: Unit for tables.
+        initial: Starting value (> 0), in ``unit``.
+        apply: ``apply(manipulator, value)`` returns the manipulator with the value set
+            (picklable: a module-level function or a partial of one).
+    """
+
+    name: str
+    unit: str
+    initial: float
+    apply: Callable[[Manipulator, float], Manipulator]
+
+
+def set_axis_stiffness(manip: Manipulator, value: float, axis_index: int) -> Manipulator:
+    """Set the first actuator's stiffness of joint definition ``axis_index`` to ``value``.
+
+    The same factor scales that axis in every actuator, so ratios between
+    actuators and stiffness profiles are kept. ``value`` in N·m/rad (or N/m).
+    """
+    factor = value / manip.actuators[0].joints[axis_index].stiffness
+    acts = []
+    for act in manip.actuators:
+        joints = list(act.joints)
+        if axis_index < len(joints):
+            j = joints[axis_index]
+            key = "stiffness_n_m_per_rad" if j.type == "revolute" else "stiffness_n_per_m"
+            joints[axis_index] = j.model_copy(update={key: j.stiffness * factor})
+        acts.append(act.model_copy(update={"joints": joints}))
+    return manip.model_copy(update={"actuators": acts})
+
+
+def set_pressure_gain(manip: Manipulator, value: float) -> Manipulator:
+    """Set the pressure → torque gain, in N·m/kPa (other actuation fields are kept)."""
+    if manip.actuation is not None:
+        actuation = manip.actuation.model_copy(update={"pressure_gain_n_m_per_kpa": value})
+        return manip.model_copy(update={"actuation": actuation})
+    return manip.model_copy(update={"actuation": Actuation(pressure_gain_n_m_per_kpa=value)})
+
+
+def side_view(manip: Manipulator) -> Manipulator:
+    """The manipulator as the bench sees a side-axis (second joint) bending test.
+
+    The bench bends the first joint definition toward −z. At zero pressure a
+    side load puts no torque on the grasp joints, so the first segment (whose
+    joint is a grasp joint) can be dropped: the remaining chain starts with a
+    side joint, and every joint keeps its lever arm to the tip.
+    """
+    first = manip.actuators[0]
+    n = first.segments
+    joints = [first.joints[(i + 1) % len(first.joints)] for i in range(len(first.joints))]
+    profile = first.stiffness_profile[1:] if first.stiffness_profile else None
+    act = first.model_copy(
+        update={
+            "length_m": first.length_m - first.segment_m,
+            "n_segments": n - 1,
+            "segment_length_m": None,
+            "joints": joints,
+            "stiffness_profile": profile,
+        }
+    )
+    return manip.model_copy(update={"actuators": [act, *manip.actuators[1:]]})
+
+
+def _simulate_row(
+    manip: Manipulator,
+    test: str,
+    axis: str,
+    pressure_kpa: float,
+    load_n: float,
+    settings: BenchSettings,
+    direction: str = "",
+) -> tuple[float, float, float]:
+    """One bench row: (value, nan, nan) or (tip_x_mm, tip_z_mm, tip_angle_deg)."""
+    rig = side_view(manip) if axis == "side" else manip
+    value = run_bench(rig, test, pressure_kpa, load_n, settings, direction).value
+    return value if isinstance(value, tuple) else (float(value), math.nan, math.nan)
+
+
+def simulate_rows(
+    manip: Manipulator, rows: pd.DataFrame, settings: BenchSettings, n_jobs: int = 1
+) -> np.ndarray:
+    """Simulate rows in parallel; returns an (n, 3) array like :func:`measured_array`."""
+    args = [
+        (
+            manip,
+            r.test,
+            getattr(r, "axis", "grasp") or "grasp",
+            float(r.pressure_kpa),
+            0.0 if math.isnan(r.tip_load_n) else float(r.tip_load_n),
+            settings,
+            getattr(r, "direction", "") or "",
+        )
+        for r in rows.itertuples()
+    ]
+    if n_jobs == 1 or len(args) < 2:
+        out = [_simulate_row(*a) for a in args]
+    else:
+        out = joblib.Parallel(n_jobs=n_jobs)(joblib.delayed(_simulate_row)(*a) for a in args)
+    return np.asarray(out, dtype=float).reshape(len(args), WIDTH)
+
+
+def joint_lever_arms(manip: Manipulator, axis_index: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Lever arms to the chain end (m), relative stiffness and actuation flags of one axis's joints."""
+    arms, rel, actuated = [], [], []
+    start, total = 0.0, manip.length_m
+    k0 = manip.actuators[0].joints[axis_index].stiffness
+    for act in manip.actuators:
+        for i in range(act.segments):
+            if i % len(act.joints) == axis_index:
+                j = act.joints[axis_index]
+                arms.append(total - (start + i * act.segment_m))
+                rel.append(j.stiffness * act.stiffness_factor(i) / k0)
+                actuated.append(1.0 if j.actuated and axis_index == 0 else 0.0)
+        start += act.length_m
+    return np.array(arms), np.array(rel), np.array(actuated)

@@ -1,0 +1,230 @@
+"""Calibration from bench measurements: build an inspectable problem, then solve it.
+
+The ``tip_load`` and ``blocked_force`` rows calibrate (the paper's calibration
+measurements); every other row is kept for validation. Parameters are a list of
+:class:`Parameter` objects, each knowing how to write its value into a
+manipulator, so a later stage (diagnosis) can append effect parameters to the
+same problem. The problem is built in :mod:`somo_sweep.calibration.problem`, the
+parameters live in :mod:`somo_sweep.calibration.parameters`; this module solves it
+(and re-exports the names a user needs):
+
+* :func:`solve_paper`: eq. (8) and (9) of the SoMo paper as published;
+* :func:`solve_fit`: least squares with the bench simulator in the loop.
+"""
+
+from __future__ import annotations
+
+import math
+import time
+from collections.abc import Sequence
+from dataclasses import dataclass, field
+
+import numpy as np
+from scipy.optimize import least_squares
+
+from somo_sweep.calibration.formulas import (
+    actuation_torque_from_blocked_force,
+    joint_stiffness_from_tip_stiffness,
+)
+from somo_sweep.calibration.metrics import WIDTH, TestMetric, per_test_metrics
+from somo_sweep.calibration.parameters import AXES, Parameter, joint_lever_arms, side_view, simulate_rows
+from somo_sweep.calibration.problem import (
+    CALIBRATION_SETTINGS,
+    CalibrationProblem,
+    build_problem,
+    tip_stiffness_n_per_m,
+)
+from somo_sweep.model.load import Model
+
+__all__ = [
+    "AXES",
+    "CALIBRATION_SETTINGS",
+    "CalibrationProblem",
+    "CalibrationResult",
+    "Parameter",
+    "build_problem",
+    "paper_values",
+    "side_view",
+    "simulate_rows",
+    "solve_fit",
+    "solve_paper",
+]
+
+
+#: Forward-difference step on the parameter multipliers (bench results are repeatable to ~1e-5).
+_DIFF_STEP = 1e-3
+
+
+@dataclass(frozen=True)
+class CalibrationResult:
+    """A solved calibration: values, the calibrated model and how well it reproduces every test.
+
+    Attributes:
+        method: ``paper`` or ``fit``.
+        problem: The problem that was solved.
+        values: Calibrated value by parameter name.
+        model: The calibrated model (without provenance; see :func:`with_provenance`).
+        simulated: (n, 3) simulated values of every row (like :func:`measured_array`).
+        metrics: Per-test RMSE, in the test's units and relative.
+        wall_time_s: Wall time of the solve, in s.
+        simulations: Number of bench simulations run.
+        relative_stderr: Relative standard error by parameter (fit only).
+        message: Solver message.
+    """
+
+    method: str
+    problem: CalibrationProblem
+    values: dict[str, float]
+    model: Model
+    simulated: np.ndarray
+    metrics: list[TestMetric]
+    wall_time_s: float
+    simulations: int
+    relative_stderr: dict[str, float] = field(default_factory=dict)
+    message: str = ""
+
+    def metric(self, label: str) -> TestMetric:
+        """The metric of one test label (``tip_load``, ``tip_load[side]``, ``blocked_force``, ...)."""
+        return next(m for m in self.metrics if m.label == label)
+
+    def reproduces_within(self, relative_rmse: float) -> bool:
+        """Whether every test's relative RMSE is at most ``relative_rmse``."""
+        return all(m.relative_rmse <= relative_rmse for m in self.metrics)
+
+
+def _finish(
+    problem: CalibrationProblem,
+    method: str,
+    values: Sequence[float],
+    start_s: float,
+    sims: int,
+    n_jobs: int,
+    known: np.ndarray | None = None,
+    **extra: object,
+) -> CalibrationResult:
+    manip = problem.manipulator_at(values)
+    calibration = (problem.rows["role"] == "calibration").to_numpy()
+    simulated = np.full((len(problem.rows), WIDTH), np.nan)
+    todo = np.ones(len(problem.rows), bool) if known is None else ~calibration
+    if known is not None:
+        simulated[calibration] = known
+    if todo.any():
+        simulated[todo] = simulate_rows(manip, problem.rows[todo], problem.settings, n_jobs)
+    sims += int(todo.sum())
+    return CalibrationResult(
+        method=method,
+        problem=problem,
+        values={p.name: float(v) for p, v in zip(problem.parameters, values, strict=True)},
+        model=problem.base.model_copy(update={"manipulator": manip}),
+        simulated=simulated,
+        metrics=per_test_metrics(problem.rows, simulated),
+        wall_time_s=time.perf_counter() - start_s,
+        simulations=sims,
+        **extra,  # type: ignore[arg-type]
+    )
+
+
+def paper_values(problem: CalibrationProblem) -> list[float]:
+    """Eq. (8) per axis (N = joints of that axis, L = chain length) and eq. (9), no simulation.
+
+    The tip stiffness is the least-squares slope of load over deflection; the
+    gain the least-squares slope of M_act = F_b·L over pressure. Values follow
+    ``problem.parameters``.
+    """
+    manip, rows = problem.manipulator, problem.rows
+    values = []
+    for par in problem.parameters:
+        if par.name.startswith("stiffness"):
+            axis = par.name[par.name.index("[") + 1 : -1]
+            axis_index = AXES.index(axis)
+            sel = rows[(rows["test"] == "tip_load") & (rows["axis"] == axis) & (rows["tip_load_n"] > 0)]
+            n_joints = len(joint_lever_arms(manip, axis_index)[0])
+            values.append(
+                joint_stiffness_from_tip_stiffness(tip_stiffness_n_per_m(sel), manip.length_m, n_joints)
+            )
+        else:
+            sel = rows[(rows["test"] == "blocked_force") & (rows["pressure_kpa"] != 0)]
+            p = sel["pressure_kpa"].to_numpy(float)
+            torque = np.array(
+                [actuation_torque_from_blocked_force(f, manip.length_m) for f in sel["blocked_force_n"]]
+            )
+            values.append(float(torque @ p / (p @ p)))
+    return values
+
+
+def solve_paper(problem: CalibrationProblem, n_jobs: int = 1) -> CalibrationResult:
+    """Calibrate with :func:`paper_values`, then simulate every row to report the agreement."""
+    start = time.perf_counter()
+    values = paper_values(problem)
+    return _finish(problem, "paper", values, start, 0, n_jobs, message="eq. (8) and (9) as published")
+
+
+def solve_fit(problem: CalibrationProblem, n_jobs: int = 1, max_evaluations: int = 40) -> CalibrationResult:
+    """Least squares of the relative residuals of the calibration rows, simulator in the loop.
+
+    Parameters are fitted as multiples of their starting values (bounded to
+    [1e-3, 1e3]); the Jacobian is taken once, by forward differences of 0.1 %,
+    at the start (chord method), and also gives the standard errors.
+
+    Args:
+        problem: From :func:`build_problem`.
+        n_jobs: Worker processes for the rows (joblib).
+        max_evaluations: Cap on residual evaluations.
+    """
+    start = time.perf_counter()
+    initial = np.array([p.initial for p in problem.parameters])
+    sims = [0]
+
+    memo: dict[bytes, np.ndarray] = {}
+
+    def fun(x: np.ndarray) -> np.ndarray:
+        sims[0] += len(problem.calibration_rows)
+        simulated = problem.simulate(x * initial, problem.calibration_rows, n_jobs)
+        memo[x.tobytes()] = simulated
+        return problem.residuals_of(simulated)
+
+    x0 = np.ones_like(initial)
+    r0 = fun(x0)
+    # Chord method: the bench responses are close to linear in the parameters' multipliers,
+    # so one forward-difference Jacobian at the start serves every iteration (each then costs
+    # one evaluation instead of 1 + n_parameters).
+    jac0 = np.empty((len(r0), len(x0)))
+    for i in range(len(x0)):
+        step = x0.copy()
+        step[i] += _DIFF_STEP
+        jac0[:, i] = (fun(step) - r0) / _DIFF_STEP
+    cache = {x0.tobytes(): r0}
+
+    def cached(x: np.ndarray) -> np.ndarray:
+        known = cache.pop(x.tobytes(), None)
+        return fun(x) if known is None else known
+
+    sol = least_squares(
+        cached,
+        x0,
+        jac=lambda x: jac0.copy(),
+        bounds=(1e-3, 1e3),
+        xtol=1e-4,
+        ftol=1e-6,
+        max_nfev=max_evaluations,
+    )
+    dof = max(len(sol.fun) - len(initial), 1)
+    stderr: dict[str, float] = {}
+    try:
+        cov = np.linalg.inv(sol.jac.T @ sol.jac) * (2 * sol.cost / dof)
+        stderr = {
+            p.name: float(math.sqrt(max(cov[i, i], 0.0)) / sol.x[i]) for i, p in enumerate(problem.parameters)
+        }
+    except np.linalg.LinAlgError:
+        pass
+    return _finish(
+        problem,
+        "fit",
+        sol.x * initial,
+        start,
+        sims[0],
+        n_jobs,
+        known=memo.get(sol.x.tobytes()),
+        relative_stderr=stderr,
+        message=str(sol.message),
+    )

@@ -1,0 +1,69 @@
+"""The ``somo-sweep`` command line: one Typer app, every command registered here.
+
+Command modules hold plain functions (parse options, call one library function,
+map errors to exit codes); this module alone assembles them, so there is no
+import-for-side-effect and no cycle between the app and its commands.
+"""
+
+from __future__ import annotations
+
+import os
+from typing import Annotated
+
+import typer
+
+from somo_sweep.cli import calibrate, diagnose, grasp, model, paper, sweep
+from somo_sweep.cli.output import state
+
+__all__ = ["app", "main"]
+
+app = typer.Typer(
+    no_args_is_help=True,
+    help="Simulate soft continuum robots in PyBullet: describe, measure, calibrate, sweep.",
+    rich_markup_mode="rich",
+)
+
+
+def _version(value: bool) -> None:
+    if value:
+        from importlib.metadata import PackageNotFoundError, version
+
+        try:
+            typer.echo(f"somo-sweep {version('somo-sweep')}")
+        except PackageNotFoundError:
+            typer.echo("somo-sweep (not installed)")
+        raise typer.Exit()
+
+
+@app.callback()
+def _main(
+    debug: Annotated[bool, typer.Option("--debug", help="Show tracebacks on errors.")] = False,
+    quiet: Annotated[bool, typer.Option("--quiet", "-q", help="Print only results and errors.")] = False,
+    verbose: Annotated[bool, typer.Option("--verbose", "-v", help="Print more detail.")] = False,
+    version: Annotated[
+        bool,
+        typer.Option("--version", callback=_version, is_eager=True, help="Print the version and exit."),
+    ] = False,
+) -> None:
+    state["debug"] = debug
+    state["verbosity"] = 0 if quiet else 2 if verbose else 1
+
+
+app.command()(model.check)
+app.command()(model.measure)
+app.command()(sweep.run)
+app.command()(sweep.show)
+app.command()(sweep.plot)
+app.command()(sweep.tasks)
+app.command()(sweep.recheck)
+app.command()(calibrate.calibrate)
+app.command()(diagnose.diagnose)
+app.command()(grasp.classify)
+app.command()(grasp.render)
+app.add_typer(paper.app, name="paper")
+
+
+def main() -> None:
+    """Console-script entry point (figures drawn off-screen)."""
+    os.environ.setdefault("MPLBACKEND", "Agg")
+    app()

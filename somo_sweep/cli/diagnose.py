@@ -1,0 +1,98 @@
+"""``somo-sweep diagnose``: name the effect a calibrated model misses, add it, show the gap shrink."""
+
+from __future__ import annotations
+
+import json
+import time
+from dataclasses import replace
+from pathlib import Path
+from typing import Annotated
+
+import typer
+
+from somo_sweep.cli.output import fail, figure_bytes, write_atomic
+from somo_sweep.errors import SomoError
+
+
+def _figure_png(result: object) -> bytes:
+    import matplotlib.pyplot as plt
+
+    from somo_sweep.diagnosis.report import plot_diagnosis, test_labels
+
+    labels = test_labels(result)  # type: ignore[arg-type]
+    fig, axes = plt.subplots(1, len(labels), figsize=(5 * len(labels), 4.5), squeeze=False)
+    for ax, label in zip(axes[0], labels, strict=True):
+        plot_diagnosis(ax, result, label)  # type: ignore[arg-type]
+    fig.tight_layout()
+    return figure_bytes(fig, "png", 110)
+
+
+def diagnose(
+    measurements: Annotated[
+        Path, typer.Argument(help="Measurement CSV (tip_load / blocked_force / free_bending).")
+    ],
+    model: Annotated[
+        Path, typer.Option(help="Calibrated manipulator model (e.g. from somo-sweep calibrate).")
+    ],
+    out: Annotated[
+        Path, typer.Option(help="Folder for diagnosis.json, report.md, model.yaml, diagnosis.png.")
+    ],
+    effects: Annotated[
+        str | None, typer.Option(help="Comma-separated effects to try (default: every registered one).")
+    ] = None,
+    jobs: Annotated[int, typer.Option(help="Worker processes for the bench rows.")] = 2,
+    gravity_m_s2: Annotated[float, typer.Option(help="Gravity on the bench, m/s².")] = 9.81,
+) -> None:
+    """Find where simulation and measurement disagree, name the missing effect, add it to the model."""
+    from somo_sweep.calibration.measurements import read_measurements
+    from somo_sweep.calibration.report import model_yaml
+    from somo_sweep.calibration.solve import CALIBRATION_SETTINGS
+    from somo_sweep.diagnosis.diagnose import build_diagnosis
+    from somo_sweep.diagnosis.diagnose import diagnose as run_diagnosis
+    from somo_sweep.diagnosis.effects import get_effect
+    from somo_sweep.diagnosis.report import report_markdown, verdict_lines
+    from somo_sweep.model.load import load_model
+
+    start = time.perf_counter()
+    try:
+        names = [e.strip() for e in effects.split(",") if e.strip()] if effects is not None else None
+        for name in names or []:
+            get_effect(name)
+        if jobs < 1:
+            raise SomoError(f"--jobs must be >= 1, got {jobs}")
+        rows = read_measurements(measurements)
+        base = load_model(model)
+        settings = replace(CALIBRATION_SETTINGS, gravity_m_s2=gravity_m_s2)
+        problem = build_diagnosis(rows, base, str(measurements), settings, names, n_jobs=jobs)
+        typer.echo(problem.describe())
+        result = run_diagnosis(problem, n_jobs=jobs)
+    except SomoError as exc:
+        fail(exc)
+    wall_s = time.perf_counter() - start
+    record = result.as_dict()
+    record["measurements"] = str(measurements)
+    record["model"] = str(model)
+    record["command_wall_time_s"] = round(wall_s, 2)
+    diagnosed = result.model_after.model_copy(
+        update={
+            "provenance": {
+                **(base.provenance or {}),
+                "diagnosis": {k: record[k] for k in ("missing_effect", "verdict")},
+            }
+        }
+    )
+    header = f"diagnosed by somo-sweep diagnose from {measurements} and {model}: {result.missing_effect}"
+    outputs: list[tuple[Path, str | bytes]] = [
+        (out / "diagnosis.json", json.dumps(record, indent=2, ensure_ascii=False) + "\n"),
+        (out / "report.md", report_markdown(result, str(measurements))),
+        (out / "model.yaml", model_yaml(diagnosed, header)),
+        (out / "diagnosis.png", _figure_png(result)),
+    ]
+    for path, data in outputs:
+        write_atomic(path, data)
+    for line in verdict_lines(result):
+        typer.echo(line)
+    typer.echo(
+        f"{result.simulations} bench simulations, {wall_s:.0f} s; "
+        f"wrote {', '.join(str(p) for p, _ in outputs)}"
+    )

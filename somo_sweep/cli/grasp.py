@@ -1,0 +1,64 @@
+"""Pinch-grasp commands: ``classify`` a finished sweep, ``render`` a trial (Fig. 6 is ``paper fig6``)."""
+
+from __future__ import annotations
+
+from pathlib import Path
+from typing import Annotated
+
+import typer
+
+from somo_sweep.cli.output import fail, write_artifacts, write_atomic
+from somo_sweep.errors import SomoError
+
+__all__ = ["classify", "render"]
+
+
+def _read(results: Path) -> object:
+    """The results table of a study folder (the sweep engine's Parquet dataset)."""
+    from somo_sweep.paper.grasp_trials import read_results
+
+    return read_results(results)
+
+
+def classify(
+    results: Annotated[Path, typer.Argument(help="Results folder of a pinch_grasp study (results/<study>).")],
+    rule: Annotated[str, typer.Option(help="contacts (hold-phase contacts, default) or paper.")] = "contacts",
+    max_proximal_fraction: Annotated[
+        float | None, typer.Option(help="contacts rule: largest proximal share of force for a pinch.")
+    ] = None,
+) -> None:
+    """Relabel a finished sweep from its stored metrics (no re-run); writes grasp_labels_RULE.csv."""
+    from somo_sweep.paper.grasp_trials import relabel
+
+    options = {} if max_proximal_fraction is None else {"max_proximal_fraction": max_proximal_fraction}
+    try:
+        counts, table = relabel(results, rule, **options)
+    except SomoError as exc:
+        fail(exc)
+    path = write_atomic(results / f"grasp_labels_{rule}.csv", table.to_csv(index=False))
+    for label, n in counts.items():
+        typer.echo(f"{label:>10s}  {n}")
+    typer.echo(f"labels written to {path}")
+
+
+def render(
+    study: Annotated[Path, typer.Argument(help="Study file of a pinch_grasp sweep.")],
+    trial: Annotated[str, typer.Option(help="Trial: its job id, or its 0-based index in the study's grid.")],
+    at_s: Annotated[str, typer.Option(help="Comma-separated snapshot times, s.")] = "4.0",
+    out: Annotated[Path, typer.Option(help="Folder for the PNG files.")] = Path("results/renders"),
+) -> None:
+    """Render finger-shape snapshots of one trial headless (TinyRenderer) as PNG files."""
+    from somo_sweep.paper.grasp_trials import render_trial
+
+    try:
+        times = [float(v) for v in at_s.split(",") if v.strip()]
+    except ValueError:
+        fail(SomoError(f"--at-s must be comma-separated numbers, got '{at_s}'"))
+    try:
+        images, label = render_trial(study, trial, times)
+    except SomoError as exc:
+        fail(exc)
+    paths = write_artifacts(images, out)
+    typer.echo(f"trial {trial}: {label}")
+    for path in paths:
+        typer.echo(f"wrote {path}")

@@ -1,0 +1,75 @@
+"""``somo-sweep check`` and ``measure``: a model file validated, and its bench protocols simulated."""
+
+from __future__ import annotations
+
+import sys
+from pathlib import Path
+from typing import Annotated
+
+import pandas as pd
+import typer
+
+from somo_sweep.cli.output import fail, write_atomic
+from somo_sweep.errors import SomoError
+
+__all__ = ["check", "measure"]
+
+
+def _floats(text: str, option: str) -> list[float]:
+    try:
+        return [float(v) for v in text.split(",") if v.strip()]
+    except ValueError:
+        raise typer.BadParameter(f"{option} must be comma-separated numbers, got '{text}'") from None
+
+
+def check(model: Annotated[Path, typer.Argument(help="Model file (YAML or JSON).")]) -> None:
+    """Validate a model file and print its bodies, links, joints and inputs."""
+    from somo_sweep.model.load import load_model
+    from somo_sweep.sim.urdf import plan_assembly
+
+    try:
+        m = load_model(model)
+    except SomoError as exc:
+        fail(exc)
+    for plan in plan_assembly(m.as_assembly(), 1.0):
+        typer.echo(
+            f"{plan.name}: base {plan.mode}, {len(plan.links)} links, {len(plan.joints)} spring joints, "
+            f"inputs: {', '.join(plan.inputs) or 'none'}"
+        )
+
+
+def measure(
+    model: Annotated[Path, typer.Argument(help="Manipulator model file.")],
+    test: Annotated[str, typer.Option(help="tip_load, blocked_force or free_bending.")],
+    values: Annotated[
+        str, typer.Option(help="Comma-separated pressures in kPa (tip loads in N for tip_load).")
+    ],
+    pressure_kpa: Annotated[float, typer.Option(help="Pressure for tip_load rows, kPa.")] = 0.0,
+    csv: Annotated[Path | None, typer.Option(help="Also write the rows to this CSV file.")] = None,
+) -> None:
+    """Simulate bench protocols and print rows in the measurement CSV schema."""
+    from somo_sweep.calibration.measurements import COLUMNS, measurements_csv, simulate_measurements
+    from somo_sweep.model.load import load_model
+    from somo_sweep.sim.bench import TESTS
+
+    if test not in TESTS:
+        fail(SomoError(f"--test '{test}' is not a bench test; allowed: {', '.join(TESTS)}"))
+    vals = _floats(values, "--values")
+    if not vals:
+        fail(SomoError("--values needs at least one number"))
+    rows = pd.DataFrame({c: [float("nan")] * len(vals) for c in COLUMNS})
+    rows["test"] = test
+    if test == "tip_load":
+        if any(v < 0 for v in vals):
+            fail(SomoError(f"tip loads must be >= 0 N, got {vals}"))
+        rows["pressure_kpa"], rows["tip_load_n"] = pressure_kpa, vals
+    else:
+        rows["pressure_kpa"] = vals
+    try:
+        sim = simulate_measurements(load_model(model), rows)
+    except SomoError as exc:
+        fail(exc)
+    text = measurements_csv(sim, header=f"simulated with somo-sweep measure from {model}")
+    if csv is not None:
+        write_atomic(csv, text)
+    sys.stdout.write(text)

@@ -1,0 +1,100 @@
+"""The command line's only ways to end: print an error, or write a file atomically.
+
+Every file the tool writes outside a sweep's result store goes through
+:func:`write_atomic` (a temporary file in the same folder, then a rename, so a
+reader never sees half a file), and every figure through :func:`figure_bytes`.
+"""
+
+from __future__ import annotations
+
+import io
+import json
+import os
+import tempfile
+from pathlib import Path
+from typing import TYPE_CHECKING, Any, NoReturn
+
+import typer
+
+if TYPE_CHECKING:
+    from matplotlib.figure import Figure
+
+    from somo_sweep.paper.artifacts import Artifacts
+
+__all__ = ["fail", "figure_bytes", "state", "write_artifacts", "write_atomic"]
+
+#: Options of the top-level callback (``--debug``, verbosity) that every command reads.
+state: dict[str, Any] = {"debug": False, "verbosity": 1}
+
+
+def fail(exc: BaseException, code: int = 2) -> NoReturn:
+    """Print a user error (traceback only with ``--debug``) and exit with ``code``."""
+    if state["debug"]:
+        raise exc
+    typer.echo(f"error: {exc}", err=True)
+    raise typer.Exit(code)
+
+
+def write_atomic(path: Path, data: str | bytes) -> Path:
+    """Write through a temporary file in the same folder, then rename; returns ``path``."""
+    path.parent.mkdir(parents=True, exist_ok=True)
+    fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=f".{path.name}.", suffix=".tmp")
+    try:
+        with os.fdopen(fd, "wb") as fh:
+            fh.write(data.encode("utf-8") if isinstance(data, str) else data)
+        os.replace(tmp, path)
+    except BaseException:
+        Path(tmp).unlink(missing_ok=True)
+        raise
+    return path
+
+
+def figure_bytes(fig: Figure, fmt: str = "png", dpi: int = 120) -> bytes:
+    """A figure rendered to bytes (PNG, SVG, …); the figure is closed."""
+    import matplotlib.pyplot as plt
+
+    buf = io.BytesIO()
+    fig.savefig(buf, format=fmt, dpi=dpi)
+    plt.close(fig)
+    return buf.getvalue()
+
+
+def _png(image: Any) -> bytes:
+    import matplotlib.image
+
+    buf = io.BytesIO()
+    matplotlib.image.imsave(buf, image, format="png")
+    return buf.getvalue()
+
+
+def _gif(frames: list[Any]) -> bytes:
+    from PIL import Image
+
+    buf = io.BytesIO()
+    first, *rest = (Image.fromarray(f) for f in frames)
+    first.save(buf, format="gif", save_all=True, append_images=rest, duration=100, loop=0)
+    return buf.getvalue()
+
+
+def write_artifacts(artifacts: Artifacts, out: Path) -> list[Path]:
+    """Write every output of a paper figure into ``out``; returns the paths written."""
+    written: list[Path] = []
+    for stem, fig in artifacts.figures.items():
+        for i, fmt in enumerate(artifacts.formats):
+            last = i == len(artifacts.formats) - 1
+            buf = io.BytesIO()
+            fig.savefig(buf, format=fmt, dpi=artifacts.dpi)
+            if last:
+                import matplotlib.pyplot as plt
+
+                plt.close(fig)
+            written.append(write_atomic(out / f"{stem}.{fmt}", buf.getvalue()))
+    for name, data in artifacts.json.items():
+        written.append(write_atomic(out / name, json.dumps(data, indent=2, default=str) + "\n"))
+    for name, frame in artifacts.tables.items():
+        written.append(write_atomic(out / name, frame.to_csv(index=False)))
+    for name, image in artifacts.images.items():
+        written.append(write_atomic(out / name, _png(image)))
+    for name, frames in artifacts.animations.items():
+        written.append(write_atomic(out / name, _gif(frames)))
+    return written

@@ -1,0 +1,199 @@
+"""``somo-sweep paper …``: every figure of the SoMo paper, plus the benchmark and the bundled data.
+
+Each command calls one ``build`` function of :mod:`somo_sweep.paper` (which returns
+figures, numbers and tables) and writes what it returns into ``--out``.
+"""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+from typing import TYPE_CHECKING, Annotated
+
+import typer
+
+from somo_sweep.cli.output import fail, write_artifacts, write_atomic
+from somo_sweep.errors import SomoError
+
+if TYPE_CHECKING:
+    from somo_sweep.paper.artifacts import Artifacts
+
+__all__ = ["app"]
+
+app = typer.Typer(no_args_is_help=True, help="Reproduce the SoMo paper's figures (Figs. 3, 5-8, palm study).")
+
+OUT = Annotated[Path, typer.Option("--out", help="Folder for the figure files.")]
+QUICK = Annotated[bool, typer.Option("--quick", help="A short version (seconds to a minute).")]
+DEFAULT_OUT = Path("results/figures")
+
+
+def _finish(artifacts: Artifacts, out: Path) -> None:
+    if out.exists() and not out.is_dir():
+        fail(SomoError(f"--out {out} is a file, not a folder"))
+    for line in artifacts.lines:
+        typer.echo(line)
+    for path in write_artifacts(artifacts, out):
+        typer.echo(f"wrote {path}")
+
+
+@app.command()
+def fig3(out: OUT = DEFAULT_OUT, jobs: Annotated[int, typer.Option(help="Worker processes.")] = 2) -> None:
+    """Fig. 3: blocked force vs pressure, eq. (8)/(9) and the simulator-in-the-loop fit vs published."""
+    from somo_sweep.paper.fig3 import build
+
+    _finish(build(n_jobs=jobs), out)
+
+
+@app.command()
+def fig5(
+    out: OUT = DEFAULT_OUT,
+    quick: QUICK = False,
+    fit_cycles: Annotated[int, typer.Option(help="Gait cycles the side weight is fitted on.")] = 3,
+    jobs: Annotated[int, typer.Option(help="Worker processes for the finger calibration.")] = 2,
+) -> None:
+    """Fig. 5: the in-hand gait against the hardware recording (about 10 min; --quick: one cycle)."""
+    from somo_sweep.paper.fig5 import build
+
+    _finish(build(quick=quick, fit_cycles=fit_cycles, n_jobs=jobs), out)
+
+
+@app.command()
+def fig6(
+    results: Annotated[Path, typer.Argument(help="Results folder of a pinch_grasp study.")],
+    rule: Annotated[str, typer.Option(help="Grasp rule: contacts or paper.")] = "contacts",
+    max_dsr: Annotated[float, typer.Option(help="Largest DSR drawn.")] = 0.5,
+    out: Annotated[Path | None, typer.Option(help="Output folder (default: the results folder).")] = None,
+) -> None:
+    """Fig. 6: pinch / power / no grasp over centering and width per DSR; the smallest all-width pinch DSR."""
+    from somo_sweep.paper.fig6 import build, grasp_table
+    from somo_sweep.paper.grasp_trials import read_results
+
+    stem = f"fig6_{rule}"
+    try:
+        artifacts = build(grasp_table(read_results(results), rule), stem=stem, max_dsr=max_dsr)
+    except SomoError as exc:
+        fail(exc)
+    target = out or results
+    _finish(artifacts, target)
+    if target.resolve() != results.resolve():
+        # The headline is stored with the results too, wherever the figure goes.
+        write_atomic(results / f"{stem}.json", json.dumps(artifacts.json[f"{stem}.json"], indent=2) + "\n")
+
+
+@app.command()
+def fig7(out: OUT = DEFAULT_OUT, quick: QUICK = False) -> None:
+    """Fig. 7: a continuum arm wraps a ball and drops it through a hoop (frames, GIF, half-step check)."""
+    from somo_sweep.paper.fig7 import build
+
+    _finish(build(quick=quick), out)
+
+
+@app.command()
+def fig8(out: OUT = DEFAULT_OUT, quick: QUICK = False) -> None:
+    """Fig. 8: a snake with isotropic vs anisotropic friction (10 s each; --quick: 3 s)."""
+    from somo_sweep.paper.fig8 import build
+
+    _finish(build(quick=quick), out)
+
+
+@app.command()
+def palm(
+    results: Annotated[Path, typer.Argument(help="Results folder of a palm-design study.")],
+    out: OUT = DEFAULT_OUT,
+) -> None:
+    """Palm design study (Sec. V-B): rotation per cycle and drop rate over palm height x diameter."""
+    from somo_sweep.paper.palm import build
+    from somo_sweep.sweep.store import read_results
+
+    try:
+        artifacts = build(read_results(results), name=results.name)
+    except SomoError as exc:
+        fail(exc)
+    _finish(artifacts, out)
+
+
+@app.command()
+def speed(
+    repeats: Annotated[int, typer.Option(help="Timed runs per measurement.")] = 3,
+    convergence: Annotated[
+        bool, typer.Option("--convergence", help="The time-step convergence table.")
+    ] = False,
+) -> None:
+    """The benchmark (make bench): ms per step, Bullet vs Python, and one trial against the original."""
+    from somo_sweep.paper.speed import convergence_lines, speed_lines
+
+    for line in convergence_lines() if convergence else speed_lines(repeats):
+        typer.echo(line)
+
+
+@app.command()
+def numerics(
+    compare: Annotated[
+        str | None, typer.Option(help="half-step or reference: label agreement on a study's grid.")
+    ] = None,
+    repeats: Annotated[int, typer.Option(help="Timed runs.")] = 3,
+    jobs: Annotated[int, typer.Option(help="Worker processes.")] = 2,
+    save: Annotated[Path | None, typer.Option(help="Write every trial's result to this JSON file.")] = None,
+    study: Annotated[Path | None, typer.Option(help="pinch_grasp study whose grid to compare on.")] = None,
+    a: Annotated[
+        str | None, typer.Option(help="Setup A: DT_S,ITERATIONS,INERTIA_KG_M2[,DAMPING_N_M_S_PER_RAD].")
+    ] = None,
+) -> None:
+    """Pinch-grasp numerics: time the chosen setup, or compare it with its half step or the fine reference."""
+    from somo_sweep.tasks.pinch_grasp.numerics import (
+        CHOSEN,
+        QUICK_STUDY,
+        REFERENCE,
+        Setup,
+        quick_points,
+        trial_timing_lines,
+    )
+    from somo_sweep.tasks.pinch_grasp.numerics import compare as run_compare
+    from somo_sweep.tasks.pinch_grasp.params import Numerics
+
+    setup = CHOSEN
+    if a:
+        try:
+            dt, iters, inertia, *damping = a.split(",")
+            c = float(damping[0]) if damping else None
+            setup = Setup(
+                float(dt), int(iters), Numerics(added_inertia_kg_m2=float(inertia), damping_n_m_s_per_rad=c)
+            )
+        except ValueError:
+            fail(SomoError(f"--a must be DT_S,ITERATIONS,INERTIA_KG_M2[,DAMPING], got '{a}'"))
+    if compare is None:
+        for line in trial_timing_lines(repeats, setup):
+            typer.echo(line)
+        return
+    if compare not in ("half-step", "reference"):
+        fail(SomoError(f"--compare must be half-step or reference, got '{compare}'"))
+    b = (
+        REFERENCE
+        if compare == "reference"
+        else Setup(setup.time_step_s / 2, setup.solver_iterations, setup.numerics)
+    )
+    typer.echo(f"A: {setup.describe()}\nB: {b.describe()}")
+    result = run_compare(quick_points(study or QUICK_STUDY), setup, b, jobs)
+    runs = result.pop("runs")
+    if save is not None:
+        write_atomic(save, json.dumps(runs, default=str))
+    typer.echo(json.dumps(result, indent=1, default=str))
+
+
+@app.command()
+def data(
+    which: Annotated[str, typer.Argument(help="synthetic or diagnosis-example.")],
+    out: Annotated[Path | None, typer.Argument(help="CSV file to write (default: print).")] = None,
+) -> None:
+    """Regenerate a bundled synthetic bench table (simulated, not measured)."""
+    if which == "synthetic":
+        from somo_sweep.calibration.synthetic import example_csv
+    elif which == "diagnosis-example":
+        from somo_sweep.diagnosis.example import example_csv
+    else:
+        fail(SomoError(f"unknown data set '{which}'; allowed: synthetic, diagnosis-example"))
+    text = example_csv()
+    if out is None:
+        typer.echo(text, nl=False)
+    else:
+        typer.echo(f"wrote {write_atomic(out, text)}")

@@ -1,0 +1,233 @@
+"""Diagnosis: find where simulation and measurement disagree, name the missing effect, add it.
+
+Workflow (``docs/diagnosis.md``):
+
+1. :func:`~somo_sweep.diagnosis.problem.build_diagnosis` simulates every row with
+   the model, estimates the noise and lists systematic disagreements;
+2. :func:`diagnose` refits the base parameters alone (``none``) and together with
+   each registered effect (:mod:`somo_sweep.diagnosis.effects`), simulator in the loop, and
+   scores each with BIC;
+3. the best effect is named only if its BIC beats ``none`` by ``DELTA_BIC_NONE``
+   and the runner-up by ``DELTA_BIC_NEXT``; otherwise ``none`` (ambiguity reported);
+4. the winner is written into the model's schema fields, the model is re-simulated
+   from its plain-data form, and the gap before and after is reported, both in
+   units of the noise estimated from the residuals of that best model (the
+   scatter the best model cannot fit).
+"""
+
+from __future__ import annotations
+
+import math
+import time
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+
+from somo_sweep.calibration.metrics import TestMetric, per_test_metrics
+from somo_sweep.calibration.parameters import simulate_rows
+from somo_sweep.diagnosis.fit import CandidateFit, fit_candidate, jacobian, predict
+from somo_sweep.diagnosis.noise import NoiseEstimate, estimate_noise
+from somo_sweep.diagnosis.problem import DiagnosisProblem, build_diagnosis
+from somo_sweep.model.load import Model, model_from_dict
+
+__all__ = [
+    "DELTA_BIC_NEXT",
+    "DELTA_BIC_NONE",
+    "DiagnosisProblem",
+    "DiagnosisResult",
+    "build_diagnosis",
+    "diagnose",
+]
+
+#: BIC margin an effect needs over plain refitting ("very strong" evidence, Kass & Raftery).
+DELTA_BIC_NONE = 10.0
+#: BIC margin the best effect needs over the next best to be named.
+DELTA_BIC_NEXT = 6.0
+#: Convergence (relative χ² change) of the fits that decide a close call.
+CLOSE_CALL_RTOL = 1e-3
+
+
+@dataclass(frozen=True)
+class DiagnosisResult:
+    """A solved diagnosis.
+
+    Attributes:
+        problem: The problem solved.
+        candidates: Every candidate, best BIC first (``none`` included).
+        missing_effect: The named effect, or ``none``.
+        verdict: One sentence (names the ambiguity when there is one).
+        model_after: The model with the effect added (or refitted without one).
+        after: (n, 3) rows re-simulated with ``model_after``.
+        noise: Noise per channel re-estimated from the residuals of ``after`` (the scale of
+            the combined score, before and after).
+        wall_time_s: Wall time of the whole diagnosis, in s.
+        simulations: Bench simulations run.
+    """
+
+    problem: DiagnosisProblem
+    candidates: list[CandidateFit]
+    missing_effect: str
+    verdict: str
+    model_after: Model
+    after: np.ndarray
+    noise: dict[str, NoiseEstimate]
+    wall_time_s: float
+    simulations: int
+
+    def metrics(self, simulated: np.ndarray) -> list[TestMetric]:
+        """Per-test RMSE of simulated rows."""
+        return per_test_metrics(self.problem.rows, simulated)
+
+    def combined(self, simulated: np.ndarray) -> float:
+        """Noise-normalised score: RMS of (simulated − measured) / noise over every channel entry.
+
+        The noise is :attr:`noise` (from the best model's residuals), the same for every
+        ``simulated``; a model at the noise scores ≈ 1.
+        """
+        r = self.problem.normalised(simulated, self.noise)
+        return float(np.sqrt(np.mean(r**2)))
+
+    @property
+    def combined_before(self) -> float:
+        """Combined score of the model as given."""
+        return self.combined(self.problem.before)
+
+    @property
+    def combined_after(self) -> float:
+        """Combined score of the model with the effect added."""
+        return self.combined(self.after)
+
+    def candidate(self, name: str) -> CandidateFit:
+        """The candidate called ``name``."""
+        return next(c for c in self.candidates if c.name == name)
+
+    def parameters(self, fit: CandidateFit) -> dict[str, float]:
+        """Fitted values (fit units) of a candidate's parameters."""
+        values = self.problem.values_at(fit.z)
+        names = self.problem.parameter_names
+        return {names[i]: float(values[i]) for i in fit.columns}
+
+    def as_dict(self) -> dict[str, Any]:
+        """The ``diagnosis.json`` content."""
+
+        def rmse(simulated: np.ndarray) -> dict[str, Any]:
+            out: dict[str, Any] = {m.label: {"rmse": m.rmse, "unit": m.unit} for m in self.metrics(simulated)}
+            out["combined"] = self.combined(simulated)
+            return out
+
+        return {
+            "missing_effect": self.missing_effect,
+            "verdict": self.verdict,
+            "candidates": [
+                {
+                    "name": c.name,
+                    "parameters": self.parameters(c),
+                    "chi2": c.chi2,
+                    "bic": c.bic,
+                    "delta_bic_to_none": c.bic - self.candidate("none").bic,
+                    "refined_by_simulation": c.refined,
+                    "rmse": rmse(c.simulated) if c.simulated is not None else None,
+                }
+                for c in self.candidates
+            ],
+            "score": "BIC = sum over channels n_c ln(RSS_c / n_c) + k ln(n)",
+            "residual_entries": (len(self.problem.normalised(self.problem.before))),
+            "rmse_before": rmse(self.problem.before),
+            "rmse_after": rmse(self.after),
+            "noise": _noise_dict(self.noise),
+            "noise_of_model_as_given": _noise_dict(self.problem.noise),
+            "disagreements": [d.as_dict() for d in self.problem.disagreements],
+            "simulations": self.simulations,
+            "wall_time_s": round(self.wall_time_s, 2),
+        }
+
+
+def _noise_dict(noise: dict[str, NoiseEstimate]) -> dict[str, Any]:
+    return {
+        k: {"sigma_at_rms_reading": v.sigma, "model": v.model, "method": v.method, "samples": v.samples}
+        for k, v in noise.items()
+    }
+
+
+def _decide(candidates: list[CandidateFit]) -> tuple[str, str]:
+    none = next(c for c in candidates if c.name == "none")
+    effects = sorted((c for c in candidates if c.name != "none"), key=lambda c: c.bic)
+    if not effects or none.bic - effects[0].bic < DELTA_BIC_NONE:
+        return "none", "no effect beats refitting the base model by the BIC margin"
+    best = effects[0]
+    if len(effects) > 1 and effects[1].bic - best.bic < DELTA_BIC_NEXT:
+        return "none", (
+            f"ambiguous: {best.name} and {effects[1].name} fit about equally well "
+            f"(ΔBIC {effects[1].bic - best.bic:.1f} < {DELTA_BIC_NEXT:g})"
+        )
+    gap = effects[1].bic - best.bic if len(effects) > 1 else math.inf
+    return best.name, f"{best.name}: ΔBIC {none.bic - best.bic:.1f} over none, {gap:.1f} over the next best"
+
+
+def diagnose(
+    problem: DiagnosisProblem,
+    n_jobs: int = 1,
+    refine_top: int = 2,
+    max_evaluations: int = 4,
+    close_call_evaluations: int = 4,
+) -> DiagnosisResult:
+    """Refit every candidate, name the missing effect (or none), add it and re-simulate.
+
+    Args:
+        problem: From :func:`build_diagnosis`.
+        n_jobs: Worker processes for the rows.
+        refine_top: Effects refined by simulation beyond ``none`` (best predicted BIC first);
+            any other effect whose prediction comes within ``2·DELTA_BIC_NEXT`` of the best
+            refined one is refined too.
+        max_evaluations: Re-simulations of all rows per refined candidate (chord iterations).
+        close_call_evaluations: Further re-simulations for every effect within
+            ``2·DELTA_BIC_NEXT`` of the best one: a close call is decided by converged fits,
+            not by which candidate's chord iteration happened to get further.
+    """
+    start_s = time.perf_counter()
+    jac = jacobian(problem, n_jobs)
+    base = tuple(range(problem.n_base))
+    predicted = {
+        e.name: predict(problem, jac, e.name, (*base, problem.effect_index(e.name)))
+        for e, _ in problem.effects
+    }
+    fits = {"none": fit_candidate(problem, jac, "none", base, n_jobs, max_evaluations)}
+    queue = sorted(predicted.values(), key=lambda c: c.bic)
+    for i, pred in enumerate(queue):
+        best = min((f.bic for n, f in fits.items() if n != "none"), default=math.inf)
+        if i < refine_top or pred.bic < best + 2 * DELTA_BIC_NEXT:
+            fits[pred.name] = fit_candidate(problem, jac, pred.name, pred.columns, n_jobs, max_evaluations)
+        else:
+            fits[pred.name] = pred
+    best = min((f.bic for n, f in fits.items() if n != "none"), default=math.inf)
+    for n, f in list(fits.items()):
+        if n != "none" and f.bic < best + 2 * DELTA_BIC_NEXT:
+            fits[n] = fit_candidate(
+                problem, jac, n, f.columns, n_jobs, close_call_evaluations, CLOSE_CALL_RTOL, resume=f
+            )
+    candidates = sorted(fits.values(), key=lambda c: c.bic)
+    name, verdict = _decide(candidates)
+    chosen = fits[name]
+    manip = problem.manipulator_at(chosen.z)
+    model = problem.fit.base.model_copy(update={"manipulator": manip})
+    # Re-simulate from the model's plain-data form: the effect must live in the schema.
+    reloaded = model_from_dict(model.model_dump(mode="json"), source="<diagnosed model>")
+    assert reloaded.manipulator is not None
+    after = simulate_rows(reloaded.manipulator, problem.rows, problem.fit.settings, n_jobs)
+    # The noise is what the best model cannot fit: estimated from its residuals, free of
+    # the missing effect's curvature that inflates an estimate from the model as given.
+    noise = estimate_noise(problem.rows, after - problem.measured)
+    n_rows = len(problem.rows)
+    sims = n_rows + jac.simulations + n_rows * (1 + sum(c.evaluations for c in candidates))
+    return DiagnosisResult(
+        problem=problem,
+        candidates=candidates,
+        missing_effect=name,
+        verdict=verdict,
+        model_after=reloaded,
+        after=after,
+        noise=noise,
+        wall_time_s=time.perf_counter() - start_s,
+        simulations=sims,
+    )

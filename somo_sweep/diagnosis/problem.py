@@ -1,0 +1,196 @@
+"""The diagnosis problem: measured rows, the model as given, its residuals and noise, the effects to try.
+
+Building it runs step 1 of the workflow (simulate every row with the model,
+residuals per channel, noise levels, systematic disagreements); the result can
+be inspected (``describe()``) before any effect is fitted. The fit space
+extends the calibration problem with one :class:`~somo_sweep.calibration.solve.Parameter`
+per effect (the calibration's extension hook), so every candidate is a point
+``z`` of one problem: value = start + z·scale, z = 0 is the model as given.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from dataclasses import dataclass, replace
+
+import numpy as np
+import pandas as pd
+
+from somo_sweep.calibration.metrics import measured_array
+from somo_sweep.calibration.solve import CALIBRATION_SETTINGS, CalibrationProblem, Parameter, build_problem
+from somo_sweep.diagnosis.effects import EFFECTS, Effect, EffectParameter, get_effect
+from somo_sweep.diagnosis.noise import (
+    Disagreement,
+    NoiseEstimate,
+    channels,
+    estimate_noise,
+    find_disagreements,
+)
+from somo_sweep.model.description import Manipulator
+from somo_sweep.model.load import Model
+from somo_sweep.sim.bench import BenchSettings
+
+__all__ = ["DiagnosisProblem", "build_diagnosis"]
+
+
+def _current(manip: Manipulator, name: str) -> float:
+    """The model's value of a base calibration parameter."""
+    if name.startswith("stiffness"):
+        return manip.actuators[0].joints[1 if name.endswith("[side]") else 0].stiffness
+    assert manip.actuation is not None
+    return manip.actuation.pressure_gain_n_m_per_kpa
+
+
+@dataclass(frozen=True)
+class DiagnosisProblem:
+    """Everything the effect fits need, built once.
+
+    Attributes:
+        fit: Calibration problem over *all* rows whose parameters are the base ones
+            (stiffness, gain) followed by one per effect.
+        n_base: Number of base parameters at the front of ``fit.parameters``.
+        effects: The effects tried, with their sized parameters (same order as after ``n_base``).
+        start: Value of every parameter in the model as given (fit units).
+        scale: Fit scale of every parameter (base: its value; effects: their probe).
+        lower: Lower bounds of z.
+        upper: Upper bounds of z.
+        measured: (n, 3) measured values.
+        before: (n, 3) values simulated with the model as given.
+        noise: Noise level per channel.
+        disagreements: Systematic residuals of the model as given.
+        source: Measurement file name.
+    """
+
+    fit: CalibrationProblem
+    n_base: int
+    effects: tuple[tuple[Effect, EffectParameter], ...]
+    start: np.ndarray
+    scale: np.ndarray
+    lower: np.ndarray
+    upper: np.ndarray
+    measured: np.ndarray
+    before: np.ndarray
+    noise: dict[str, NoiseEstimate]
+    disagreements: list[Disagreement]
+    source: str = "<rows>"
+
+    @property
+    def rows(self) -> pd.DataFrame:
+        """The measured rows (with ``axis`` and ``role``)."""
+        return self.fit.rows
+
+    @property
+    def parameter_names(self) -> list[str]:
+        """Names of every fit parameter."""
+        return [p.name for p in self.fit.parameters]
+
+    def values_at(self, z: np.ndarray) -> np.ndarray:
+        """Parameter values (fit units) at fit coordinates ``z``."""
+        return self.start + z * self.scale
+
+    def manipulator_at(self, z: np.ndarray) -> Manipulator:
+        """The model at fit coordinates ``z`` (effects written into its schema fields)."""
+        return self.fit.manipulator_at(self.values_at(z).tolist())
+
+    def simulate(self, z: np.ndarray, n_jobs: int = 1) -> np.ndarray:
+        """Every row simulated at ``z``; (n, 3)."""
+        return self.fit.simulate(self.values_at(z).tolist(), self.rows, n_jobs)
+
+    def normalised(self, simulated: np.ndarray, noise: dict[str, NoiseEstimate] | None = None) -> np.ndarray:
+        """Residuals (simulated − measured) / noise of every channel entry, concatenated.
+
+        Args:
+            simulated: (n, 3) simulated rows.
+            noise: Noise per channel (default: ``self.noise``, estimated from the model as given).
+        """
+        noise = self.noise if noise is None else noise
+        parts = []
+        for ch in channels(self.rows):
+            measured = self.measured[ch.rows, ch.column]
+            parts.append((simulated[ch.rows, ch.column] - measured) / noise[ch.name].at(measured))
+        return np.concatenate(parts)
+
+    @property
+    def channel_sizes(self) -> list[int]:
+        """Entries of each channel in :meth:`normalised`, in order."""
+        return [int(ch.rows.sum()) for ch in channels(self.rows)]
+
+    def effect_index(self, name: str) -> int:
+        """Position of an effect's parameter in the fit vector."""
+        for i, (effect, _) in enumerate(self.effects):
+            if effect.name == name:
+                return self.n_base + i
+        raise KeyError(name)
+
+    def describe(self) -> str:
+        """Noise levels, disagreements and the effects to try (for the terminal)."""
+        lines = [f"{len(self.rows)} rows from {self.source}; noise per channel:"]
+        for name, est in self.noise.items():
+            unit = next(ch.unit for ch in channels(self.rows) if ch.name == name)
+            lines.append(
+                f"  {name}: {est.sigma:.3g} {unit} at the RMS reading, {est.model} "
+                f"({est.method}, {est.samples} samples)"
+            )
+        if self.disagreements:
+            lines.append("systematic disagreements of the model as given:")
+            lines += [f"  {d.describe()}" for d in self.disagreements]
+        else:
+            lines.append("no systematic disagreement beyond the noise")
+        lines.append("effects tried: " + ", ".join(e.name for e, _ in self.effects))
+        return "\n".join(lines)
+
+
+def build_diagnosis(
+    rows: pd.DataFrame,
+    model: Model,
+    source: str = "<rows>",
+    settings: BenchSettings = CALIBRATION_SETTINGS,
+    effects: Sequence[str] | None = None,
+    n_jobs: int = 1,
+) -> DiagnosisProblem:
+    """Simulate the rows with ``model``, estimate the noise and set up the effect fits.
+
+    Args:
+        rows: Output of :func:`~somo_sweep.calibration.measurements.read_measurements`.
+        model: The (calibrated) manipulator model to diagnose.
+        source: Measurement file name, for messages.
+        settings: Bench numerics.
+        effects: Effect names to try (default: every registered effect the rows can reveal).
+        n_jobs: Worker processes for the bench rows.
+
+    Raises:
+        MeasurementError: Rows the calibration cannot use (too few, wrong columns).
+        SomoError: An unknown effect name.
+    """
+    chosen = [get_effect(n) for n in effects] if effects is not None else list(EFFECTS.values())
+    base_problem = build_problem(rows, model, source, settings)
+    manip = base_problem.manipulator
+    base = [replace(p, initial=_current(manip, p.name)) for p in base_problem.parameters]
+    sized = tuple(
+        (e, e.parameter(manip, base_problem.rows)) for e in chosen if e.applies_to(base_problem.rows)
+    )
+    extra = [Parameter(ep.name, ep.unit, abs(ep.probe), ep.apply) for _, ep in sized]
+    fit = replace(base_problem, parameters=(*base, *extra))
+    start = np.array([p.initial for p in base] + [ep.current for _, ep in sized])
+    scale = np.array([p.initial for p in base] + [ep.probe for _, ep in sized])
+    lo = [-0.9] * len(base) + [(ep.lower - ep.current) / ep.probe for _, ep in sized]
+    hi = [9.0] * len(base) + [(ep.upper - ep.current) / ep.probe for _, ep in sized]
+    # A negative probe (a softening gradient) flips the bounds in z.
+    lower, upper = np.minimum(lo, hi), np.maximum(lo, hi)
+    measured = measured_array(fit.rows)
+    before = fit.simulate(start.tolist(), fit.rows, n_jobs)
+    noise = estimate_noise(fit.rows, before - measured)
+    return DiagnosisProblem(
+        fit=fit,
+        n_base=len(base),
+        effects=sized,
+        start=start,
+        scale=scale,
+        lower=lower,
+        upper=upper,
+        measured=measured,
+        before=before,
+        noise=noise,
+        disagreements=find_disagreements(fit.rows, before - measured, noise),
+        source=source,
+    )

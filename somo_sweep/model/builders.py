@@ -1,0 +1,83 @@
+"""A planar finger built from a few bench numbers (length, segment count, mass).
+
+Used by ``somo-sweep calibrate`` when no base model is given: the calibration
+then sets the joint stiffness and the pressure gain, so the values given here
+are only starting points.
+"""
+
+from __future__ import annotations
+
+from somo_sweep.model.load import Model, model_from_dict
+
+__all__ = ["DEFAULT_THICKNESS_M", "DEFAULT_WIDTH_M", "planar_finger"]
+
+#: Link width along the joint axis, m (a typical pneumatic finger).
+DEFAULT_WIDTH_M = 0.020
+#: Link thickness in the bending direction, m.
+DEFAULT_THICKNESS_M = 0.015
+#: The clamp block the finger is mounted on (x, y, z in m) and its mass in kg.
+CLAMP_SIZE_M = (0.030, 0.030, 0.010)
+CLAMP_MASS_KG = 0.05
+#: SoMo's Coulomb motor limit, N·m: numerical friction for dynamic studies (off on the bench).
+MOTOR_LIMIT_N_M = 0.001
+
+
+def planar_finger(
+    length_m: float,
+    segments: int,
+    mass_kg: float,
+    width_m: float = DEFAULT_WIDTH_M,
+    thickness_m: float = DEFAULT_THICKNESS_M,
+    stiffness_n_m_per_rad: float = 0.5,
+    pressure_gain_n_m_per_kpa: float = 5e-4,
+    name: str = "finger",
+) -> Model:
+    """A one-axis finger of equal box links on a fixed clamp block.
+
+    The joints bend about the link x axis (the width direction), so the finger
+    curls toward local −y, the thickness direction, as in the bench protocols.
+
+    Args:
+        length_m: Bending length of the finger, in m.
+        segments: Number of links (and joints), ≥ 1.
+        mass_kg: Total mass of the links, in kg (spread evenly).
+        width_m: Link extent along the joint axis, in m.
+        thickness_m: Link extent in the bending direction, in m.
+        stiffness_n_m_per_rad: Joint stiffness, in N·m/rad.
+        pressure_gain_n_m_per_kpa: Actuation torque per pressure, in N·m/kPa.
+        name: Manipulator name.
+
+    Raises:
+        DescriptionError: When a value is out of range (message names the key).
+    """
+    data = {
+        "manipulator": {
+            "name": name,
+            "base": {
+                "mode": "fixed",
+                "link": {"shape": "box", "size_m": list(CLAMP_SIZE_M), "mass_kg": CLAMP_MASS_KG},
+            },
+            "actuators": [
+                {
+                    "name": name,
+                    "length_m": length_m,
+                    "n_segments": segments,
+                    "link": {
+                        "shape": "box",
+                        "size_m": [width_m, thickness_m],
+                        "mass_kg": mass_kg / max(segments, 1),
+                    },
+                    "joints": [
+                        {
+                            "name": "grasp",
+                            "axis": [1.0, 0.0, 0.0],
+                            "stiffness_n_m_per_rad": stiffness_n_m_per_rad,
+                            "motor_limit_n_m": MOTOR_LIMIT_N_M,
+                        }
+                    ],
+                }
+            ],
+            "actuation": {"pressure_gain_n_m_per_kpa": pressure_gain_n_m_per_kpa},
+        }
+    }
+    return model_from_dict(data, source="<planar finger>")

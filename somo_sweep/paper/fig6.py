@@ -1,0 +1,157 @@
+"""Paper Fig. 6: grasp type over centering position × object width, one panel per DSR.
+
+Works on a tidy table with one row per trial and the columns
+``distal_segment_ratio``, ``centering_m``, ``object_width_m`` and ``label``;
+:func:`grasp_table` makes it from a results table (any column prefix), relabelling
+with a chosen rule. Plot helpers draw on given axes; only the CLI saves files.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Sequence
+from typing import Any
+
+import numpy as np
+import pandas as pd
+
+from somo_sweep.errors import SomoError
+from somo_sweep.paper.artifacts import Artifacts
+from somo_sweep.tasks.pinch_grasp.classify import LABELS, find_column, reclassify
+
+__all__ = [
+    "COLORS",
+    "build",
+    "draw_dsr_panel",
+    "draw_fig6",
+    "grasp_table",
+    "label_summary",
+    "smallest_all_width_pinch_dsr",
+]
+
+#: Label colours: pinch dark, power light (as in the paper), no grasp white-ish; unstable red.
+COLORS = {"pinch": "#1f3a5f", "power": "#9ec5e8", "no_grasp": "#f2f2f2", "unstable": "#d62728"}
+#: DSR values are grouped after rounding to this many decimals.
+DSR_DECIMALS = 6
+
+
+def grasp_table(results: pd.DataFrame, rule: str = "contacts") -> pd.DataFrame:
+    """Tidy (DSR, centering, width, label) table of a pinch-grasp results table.
+
+    Rows that are not ``ok`` get the label ``unstable`` (or ``error``) from their status.
+    """
+    cols = [str(c) for c in results.columns]
+    found = {n: find_column(cols, n) for n in ("distal_segment_ratio", "centering_m", "object_width_m")}
+    missing = [n for n, c in found.items() if c is None]
+    if missing:
+        raise SomoError(f"results table lacks {', '.join(missing)}: not a pinch_grasp study?")
+    labels = reclassify(results, rule)
+    status_col = find_column(cols, "status")
+    if status_col is not None:
+        labels = labels.where(results[status_col] == "ok", results[status_col])
+    out = pd.DataFrame({n: results[c].astype(float).to_numpy() for n, c in found.items() if c is not None})
+    out["distal_segment_ratio"] = out["distal_segment_ratio"].round(DSR_DECIMALS)
+    out["label"] = labels.to_numpy()
+    return out
+
+
+def smallest_all_width_pinch_dsr(table: pd.DataFrame) -> float | None:
+    """The smallest DSR at which every object width is pinch-grasped at some centering, or None."""
+    widths = set(table["object_width_m"].round(9))
+    for dsr, group in sorted(table.groupby("distal_segment_ratio"), key=lambda kv: kv[0]):
+        pinched = set(group.loc[group["label"] == "pinch", "object_width_m"].round(9))
+        if pinched >= widths:
+            return float(dsr)
+    return None
+
+
+def label_summary(table: pd.DataFrame) -> pd.DataFrame:
+    """Trial counts per DSR, width and label (the small reference table)."""
+    counts = table.groupby(["distal_segment_ratio", "object_width_m", "label"]).size().unstack(fill_value=0)
+    for label in LABELS:
+        if label not in counts.columns:
+            counts[label] = 0
+    return counts.reset_index()
+
+
+def draw_dsr_panel(ax: Any, table: pd.DataFrame, dsr: float) -> None:
+    """One panel: centering (mm) on x, width (mm) on y, one coloured cell per trial of this DSR."""
+    rows = table[np.isclose(table["distal_segment_ratio"], dsr)]
+    cents = np.sort(rows["centering_m"].unique())
+    widths = np.sort(rows["object_width_m"].unique())
+    dc = float(np.min(np.diff(cents))) if len(cents) > 1 else 0.005
+    for _, r in rows.iterrows():
+        ax.add_patch(
+            _rect(r["centering_m"] * 1e3 - dc * 5e2, widths, r["object_width_m"], dc * 1e3, r["label"])
+        )
+    if len(cents):
+        ax.set_xlim((cents[0] - dc / 2) * 1e3, (cents[-1] + dc / 2) * 1e3)
+    ax.set_ylim(-0.5, len(widths) - 0.5)
+    ax.set_yticks(range(len(widths)), [f"{w * 1e3:g}" for w in widths])
+    ax.set_title(f"DSR {dsr:.2f}")
+
+
+def _rect(x0_mm: float, widths: np.ndarray, width_m: float, dx_mm: float, label: str) -> Any:
+    from matplotlib.patches import Rectangle
+
+    row = int(np.argmin(np.abs(widths - width_m)))
+    color = COLORS.get(label, "#7f7f7f")
+    return Rectangle((x0_mm, row - 0.5), dx_mm, 1.0, facecolor=color, edgecolor="white", linewidth=0.5)
+
+
+def draw_fig6(axes: Sequence[Any], table: pd.DataFrame, max_dsr: float = 0.5) -> list[float]:
+    """Draw one panel per DSR ≤ ``max_dsr`` on ``axes`` (extra axes are hidden); returns the DSRs."""
+    dsrs = [float(d) for d in sorted(table["distal_segment_ratio"].unique()) if d <= max_dsr + 1e-9]
+    if len(axes) < len(dsrs):
+        raise ValueError(f"need {len(dsrs)} axes, got {len(axes)}")
+    for ax, dsr in zip(axes, dsrs, strict=False):
+        draw_dsr_panel(ax, table, dsr)
+    for ax in axes[len(dsrs) :]:
+        ax.set_visible(False)
+    return dsrs
+
+
+def build(table: pd.DataFrame, stem: str = "fig6", max_dsr: float = 0.5) -> Artifacts:
+    """The figure, the summary table (CSV) and the headline (JSON, also in ``lines``)."""
+    import matplotlib.pyplot as plt
+    from matplotlib.patches import Patch
+
+    n = sum(1 for d in table["distal_segment_ratio"].unique() if d <= max_dsr + 1e-9)
+    cols = min(max(n, 1), 4)
+    fig, axes = plt.subplots(
+        math.ceil(max(n, 1) / cols),
+        cols,
+        figsize=(3.2 * cols, 2.6 * math.ceil(max(n, 1) / cols)),
+        squeeze=False,
+    )
+    flat = list(axes.ravel())
+    draw_fig6(flat, table, max_dsr)
+    for ax in axes[-1]:
+        ax.set_xlabel("centering position (mm)")
+    for ax in axes[:, 0]:
+        ax.set_ylabel("object width (mm)")
+    best = smallest_all_width_pinch_dsr(table)
+    present = [lab for lab in COLORS if lab in set(table["label"])]
+    fig.legend(
+        handles=[Patch(facecolor=COLORS[lab], edgecolor="0.5", label=lab) for lab in present],
+        loc="lower center",
+        ncol=len(present),
+    )
+    headline = (
+        "no DSR pinch-grasps every width" if best is None else f"smallest all-width pinch DSR: {best:.2f}"
+    )
+    fig.suptitle(headline)
+    fig.tight_layout(rect=(0, 0.06, 1, 0.95))
+    summary = label_summary(table)
+    info = {
+        "smallest_all_width_pinch_dsr": best,
+        "trials": len(table),
+        "labels": {str(k): int(v) for k, v in table["label"].value_counts().items()},
+    }
+    return Artifacts(
+        figures={stem: fig},
+        dpi=150,
+        json={f"{stem}.json": info},
+        tables={f"{stem}_summary.csv": summary},
+        lines=[f"{info['trials']} trials, labels: {info['labels']}", headline],
+    )

@@ -1,0 +1,112 @@
+"""Pinch-grasp studies after (or outside) a sweep: read results, relabel them, render one trial."""
+
+from __future__ import annotations
+
+from collections import Counter
+from pathlib import Path
+from typing import Any
+
+import pandas as pd
+
+from somo_sweep.errors import SomoError
+from somo_sweep.paper.artifacts import Artifacts
+from somo_sweep.tasks.pinch_grasp.classify import find_column, reclassify
+
+__all__ = ["find_trial", "read_results", "relabel", "render_trial"]
+
+
+def read_results(folder: str | Path) -> pd.DataFrame:
+    """The trials table of a results folder (:func:`somo_sweep.sweep.store.read_results`).
+
+    Raises:
+        SomoError: Not a results folder, or no trials in it yet.
+    """
+    from somo_sweep.sweep.store import read_results as read_trials
+
+    folder = Path(folder)
+    if not folder.is_dir():
+        raise SomoError(f"{folder}: no such results folder (run `somo-sweep run STUDY.yaml` first)")
+    table = read_trials(folder)
+    if table.empty:
+        raise SomoError(f"{folder}: no finished trials yet")
+    return table
+
+
+def relabel(
+    folder: str | Path, rule: str = "contacts", **options: float
+) -> tuple[dict[str, int], pd.DataFrame]:
+    """Relabel every trial of a results folder.
+
+    Returns:
+        Counts per label (``unstable``/``error`` for trials that are not ``ok``) and the table
+        (job id, the three sweep parameters, ``grasp_<rule>``).
+    """
+    folder = Path(folder)
+    table = read_results(folder)
+    labels = reclassify(table, rule, **options)
+    cols = [str(c) for c in table.columns]
+    status_col = find_column(cols, "status")
+    if status_col is not None:
+        labels = labels.where(table[status_col] == "ok", table[status_col])
+    keep = [
+        c
+        for c in (
+            find_column(cols, n) for n in ("job_id", "distal_segment_ratio", "object_width_m", "centering_m")
+        )
+        if c is not None
+    ]
+    out = table[keep].copy()
+    out[f"grasp_{rule}"] = labels
+    return dict(sorted(Counter(str(v) for v in labels).items())), out
+
+
+def find_trial(jobs: list[Any], trial: str) -> Any:
+    """The job of a trial given by (a prefix of) its job id or by its 0-based grid index.
+
+    Raises:
+        SomoError: Out-of-range index, or an id that matches no job or several.
+    """
+    if trial.isdigit():
+        index = int(trial)
+        if index >= len(jobs):
+            raise SomoError(f"--trial {index}: the study has {len(jobs)} trials (0 … {len(jobs) - 1})")
+        return jobs[index]
+    hits = [job for job in jobs if str(job.job_id).startswith(trial)]
+    if len(hits) != 1:
+        what = "no trial" if not hits else f"{len(hits)} trials"
+        raise SomoError(f"--trial '{trial}': {what} with this id; give a job id or a 0-based index")
+    return hits[0]
+
+
+def render_trial(study_path: str | Path, trial: str, times_s: list[float]) -> tuple[Artifacts, str]:
+    """Rerun one trial of a pinch_grasp study with a top-view snapshot at each time.
+
+    Returns:
+        The images (one PNG each) and the trial's label.
+    """
+    from somo_sweep.sim.render import Camera, snapshot
+    from somo_sweep.sim.world import World
+    from somo_sweep.sweep.jobs import build_jobs
+    from somo_sweep.sweep.study import load_study
+    from somo_sweep.tasks.pinch_grasp.params import PinchGraspParams
+    from somo_sweep.tasks.pinch_grasp.task import run_pinch_grasp
+
+    study = load_study(study_path)
+    if study.task.name != "pinch_grasp":
+        raise SomoError(f"{study_path}: render needs a pinch_grasp study, this one runs '{study.task.name}'")
+    job = find_trial(build_jobs(study).jobs, trial)
+    params = job.params
+    assert isinstance(params, PinchGraspParams)
+    images: dict[float, Any] = {}
+    camera = Camera(target_m=(params.centering_m * 0.5, 0.0, params.hand_height_m))
+
+    def observe(world: World, time_s: float) -> None:
+        images[time_s] = snapshot(world, camera)
+
+    result = run_pinch_grasp(job.model, params, job.settings, job.seed, observe=observe, observe_at_s=times_s)
+    name = (
+        f"{study.name}_dsr{params.distal_segment_ratio:.2f}_w{params.object_width_m * 1e3:g}mm"
+        f"_c{params.centering_m * 1e3:g}mm"
+    )
+    out = Artifacts(images={f"{name}_t{t:.2f}s.png": img for t, img in sorted(images.items())})
+    return out, str(result.labels.get("grasp", result.status))

@@ -1,0 +1,304 @@
+"""Bench tests as simulated protocols: ``tip_load``, ``blocked_force``, ``free_bending``.
+
+The finger is clamped at its base pointing +x, gravity −z (9.81 m/s²), and
+positive pressure curls the tip toward −z:
+
+* ``tip_load``: a dead-weight tip force ``tip_load_n`` (downward) at
+  ``pressure_kpa``; ``tip_deflection_mm`` is the extra downward tip
+  displacement relative to the unloaded finger at the same pressure.
+* ``blocked_force``: a frictionless horizontal stop at the height of the
+  straight finger's tip underside; ``blocked_force_n`` is the total vertical
+  contact force at ``pressure_kpa``.
+* ``free_bending``: no contact; ``tip_x_mm``, ``tip_z_mm`` are the tip position
+  relative to the base (the chain start), z up, and ``tip_angle_deg`` the angle of the
+  tip's chain axis in the x–z plane: 0 along +x (straight), positive curling toward
+  −z, unwrapped along the chain (a finger curled past 180° reads more than 180°).
+
+Each row is its own simulation, started straight and unloaded, with the load
+applied at once and the equilibrium found by dynamic relaxation (kinetic
+damping: velocities are zeroed whenever the kinetic energy peaks). Rotational
+inertia is added to the links for this; it changes the path, not the
+equilibrium, which is all a static protocol reports. The joints' Coulomb
+motor limit is switched off on the bench: in SoMo it is a numerical damper,
+and PyBullet's velocity motor lets a loaded joint creep rather than stick, so
+with it the reported equilibrium would depend on how long one waits.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+import pybullet as p
+
+from somo_sweep.errors import SimulationError, UnstableSimulation
+from somo_sweep.model.description import Link, Manipulator, Pose
+from somo_sweep.model.load import Model
+from somo_sweep.sim.settings import WorldSettings
+from somo_sweep.sim.urdf import plan_manipulator
+from somo_sweep.sim.world import Body, World
+
+__all__ = ["TESTS", "BenchResult", "BenchSettings", "bench_frame", "run_bench"]
+
+TESTS = ("tip_load", "blocked_force", "free_bending")
+
+
+@dataclass(frozen=True)
+class BenchSettings:
+    """Numerics of the static protocols.
+
+    Attributes:
+        time_step_s: Integration step in s.
+        scale: World scale factor.
+        added_inertia_kg_m2: Rotational inertia added to every chain link (statics only).
+        tolerance_m: Converged when the tip moves less than this between energy peaks, in m.
+        max_steps: Give up (error) after this many steps.
+        gravity_m_s2: Magnitude of gravity (along −z), m/s².
+    """
+
+    time_step_s: float = 5e-4
+    scale: float = 20.0
+    added_inertia_kg_m2: float = 1e-5
+    tolerance_m: float = 1e-8
+    max_steps: int = 40_000
+    gravity_m_s2: float = 9.81
+
+
+@dataclass(frozen=True)
+class BenchResult:
+    """One simulated row: the measured quantity and the steps it took."""
+
+    value: float | tuple[float, float, float]
+    steps: int
+
+
+def bench_frame(manip: Manipulator) -> Pose:
+    """Base pose that points the chain along +x and bends the first axis toward −z."""
+    axis = np.asarray(manip.actuators[0].joints[0].axis)
+    z = np.array([0.0, 0.0, 1.0])
+    bend = np.cross(axis, z)
+    if np.linalg.norm(bend) < 1e-9:
+        raise SimulationError("the first joint axis of the first actuator must not be the chain axis (z)")
+    bend /= np.linalg.norm(bend)
+    local = np.column_stack([z, bend, np.cross(z, bend)])
+    world = np.column_stack([[1.0, 0, 0], [0, 0, -1.0], [0, 1.0, 0]])
+    rot = world @ local.T
+    # Roll-pitch-yaw (extrinsic x, y, z) of the rotation matrix.
+    pitch = float(np.arcsin(-np.clip(rot[2, 0], -1, 1)))
+    roll = float(np.arctan2(rot[2, 1], rot[2, 2]))
+    yaw = float(np.arctan2(rot[1, 0], rot[0, 0]))
+    return Pose(position_m=(0.0, 0.0, 0.0), rpy_rad=(roll, pitch, yaw))
+
+
+def _static_rig(manip: Manipulator, extra: float) -> Manipulator:
+    """The manipulator as clamped on the bench: fixed base, added link inertia, no motor limit."""
+    acts = []
+    for act in manip.actuators:
+        link = act.link.model_copy(update={"added_inertia_kg_m2": act.link.added_inertia_kg_m2 + extra})
+        joints = [j.model_copy(update={"motor_limit_n_m": None, "motor_limit_n": None}) for j in act.joints]
+        acts.append(act.model_copy(update={"link": link, "joints": joints}))
+    return manip.model_copy(
+        update={"actuators": acts, "base": manip.base.model_copy(update={"mode": "fixed"})}
+    )
+
+
+def _inputs(manip: Manipulator, pressure_kpa: float) -> np.ndarray:
+    if manip.actuation is None:
+        if pressure_kpa != 0:
+            raise SimulationError(
+                "the model has no 'actuation' (pressure_gain_n_m_per_kpa): it cannot be pressurised"
+            )
+        torque = 0.0
+    else:
+        torque = manip.actuation.torque_n_m(pressure_kpa)
+    u: list[float] = []
+    for act in manip.actuators:
+        u.extend(torque if ax == 0 else 0.0 for ax in act.actuated_axes)
+    return np.asarray(u, dtype=float)
+
+
+class _Rig:
+    """A finger clamped in the bench frame, with optional stop and tip load."""
+
+    def __init__(self, manip: Manipulator, settings: BenchSettings):
+        self.settings = settings
+        self.manip = manip
+        self.world = World(
+            WorldSettings(
+                time_step_s=settings.time_step_s,
+                scale=settings.scale,
+                gravity_m_s2=(0.0, 0.0, -settings.gravity_m_s2),
+            )
+        )
+        rig = _static_rig(manip, settings.added_inertia_kg_m2)
+        self.body: Body = self.world.load_plan(plan_manipulator(rig, settings.scale), bench_frame(manip))
+        base = manip.base.link
+        self.origin = np.array([base.half_extent_m(2) if base else 0.0, 0.0, 0.0])
+        self.load_n = 0.0
+        self.world.pre_step.append(self._apply_load)
+
+    def close(self) -> None:
+        self.world.close()
+
+    def _apply_load(self, world: World) -> None:
+        if self.load_n:
+            world.apply_force(
+                self.body, self.tip_link, (0.0, 0.0, -self.load_n), world.tip_position(self.body)
+            )
+
+    @property
+    def tip_link(self) -> str:
+        return self.body.plan.tip[self.manip.name][0]
+
+    def tip_m(self) -> np.ndarray:
+        return self.world.tip_position(self.body) - self.origin
+
+    def tip_angle_deg(self) -> float:
+        """Angle of the last link's chain axis (local +z) in the x–z plane, deg, unwrapped from the base."""
+        cid, body = self.world.client, self.body.id
+        orientations = [p.getBasePositionAndOrientation(body, physicsClientId=cid)[1]]
+        n = p.getNumJoints(body, physicsClientId=cid)
+        if n:
+            states = p.getLinkStates(body, list(range(n)), computeForwardKinematics=1, physicsClientId=cid)
+            orientations += [s[5] for s in states]
+        angles = []
+        for q in orientations:
+            axis = np.asarray(p.getMatrixFromQuaternion(q)).reshape(3, 3)[:, 2]
+            angles.append(np.arctan2(-axis[2], axis[0]))
+        return float(np.degrees(np.unwrap(angles)[-1]))
+
+    def tip_element(self) -> Link:
+        if self.manip.tip_links:
+            return self.manip.tip_links[-1]
+        return self.manip.actuators[-1].segment_link()
+
+    def add_stop(self) -> int:
+        """A static frictionless plate whose top face is at the straight tip's underside."""
+        tip = self.tip_element()
+        axis = np.asarray(self.manip.actuators[0].joints[0].axis)
+        bend = np.cross(axis, [0.0, 0.0, 1.0])
+        under = tip.half_extent_m(int(np.argmax(np.abs(bend[:2]))))
+        # The plate spans the whole finger, from the chain start to beyond the tip: a tip
+        # that curls and slides back along x stays on it, and every link that comes to rest
+        # on it adds to the total vertical force the protocol reports.
+        x_start = float(self.origin[0])
+        x_end = float(self.tip_m()[0]) + x_start + 0.05
+        half = np.array([(x_end - x_start) / 2, 0.05, 0.01])
+        centre = np.array([x_start + half[0], 0.0, -under - half[2]])
+        s = self.world.scale
+        cid = self.world.client
+        shape = p.createCollisionShape(p.GEOM_BOX, halfExtents=(half * s).tolist(), physicsClientId=cid)
+        stop = p.createMultiBody(0, shape, basePosition=(centre * s).tolist(), physicsClientId=cid)
+        p.changeDynamics(
+            stop,
+            -1,
+            lateralFriction=0.0,
+            spinningFriction=0.0,
+            rollingFriction=0.0,
+            restitution=0.0,
+            physicsClientId=cid,
+        )
+        return stop
+
+    def relax(self) -> int:
+        """Run to static equilibrium; returns the steps taken."""
+        world, drive, st = self.world, self.body.drive, self.settings
+        idx = drive.indices
+        zeros = [[0.0]] * len(idx)
+        ke_prev, last_tip, steps = 0.0, self.tip_m(), 0
+        quiet = 0
+        while steps < st.max_steps:
+            world.step()
+            steps += 1
+            drive.read()
+            ke = float(drive.qd @ drive.qd)
+            if ke < ke_prev or ke < 1e-20:
+                p.resetJointStatesMultiDof(
+                    drive.body, idx, [[q] for q in drive.q], zeros, physicsClientId=world.client
+                )
+                tip = self.tip_m()
+                moved = float(np.linalg.norm(tip - last_tip))
+                last_tip = tip
+                quiet = quiet + 1 if moved < st.tolerance_m else 0
+                if quiet >= 3:
+                    return steps
+                ke = 0.0
+            ke_prev = ke
+        raise SimulationError(f"bench did not reach equilibrium in {st.max_steps} steps")
+
+    def contact_force_n(self, stop: int) -> float:
+        c = self.world.contacts(self.body.id, stop)
+        return (
+            float(np.sum(c["normal_force_n"] * np.abs(c["normal_b_to_a"][:, 2])))
+            if len(c["normal_force_n"])
+            else 0.0
+        )
+
+
+def _manipulator(model: Model | Manipulator) -> Manipulator:
+    if isinstance(model, Manipulator):
+        return model
+    if model.manipulator is None:
+        raise SimulationError("bench protocols need a model with a 'manipulator' section, not an assembly")
+    return model.manipulator
+
+
+def run_bench(
+    model: Model | Manipulator,
+    test: str,
+    pressure_kpa: float = 0.0,
+    tip_load_n: float = 0.0,
+    settings: BenchSettings | None = None,
+    direction: str | None = None,
+) -> BenchResult:
+    """Simulate one bench measurement.
+
+    Args:
+        model: A manipulator model (its base is clamped whatever its mode).
+        test: ``tip_load``, ``blocked_force`` or ``free_bending``.
+        pressure_kpa: Actuation pressure in kPa (torque = gain · p).
+        tip_load_n: Downward tip force in N (``tip_load`` only), ≥ 0.
+        settings: Numerics.
+        direction: ``loading`` / ``unloading``: the row was reached from below /
+            above (pressure, or tip load for ``tip_load``); joint hysteresis torques
+            then oppose that approach. None or empty: no hysteresis offset.
+
+    Returns:
+        ``tip_deflection_mm``, ``blocked_force_n`` or ``(tip_x_mm, tip_z_mm, tip_angle_deg)``.
+
+    Raises:
+        SimulationError: Unknown test, no equilibrium, or a blow-up.
+    """
+    if test not in TESTS:
+        raise SimulationError(f"unknown test '{test}'; allowed: {', '.join(TESTS)}")
+    if tip_load_n < 0:
+        raise SimulationError(f"tip_load_n must be >= 0, got {tip_load_n}")
+    manip = _manipulator(model)
+    rig = _Rig(manip, settings or BenchSettings())
+    try:
+        rig.body.drive.set_inputs(_inputs(manip, pressure_kpa))
+        approach = {"loading": 1.0, "unloading": -1.0}.get(direction or "", 0.0)
+        if test != "tip_load":
+            rig.body.drive.set_approach(approach)
+        if test == "blocked_force":
+            stop = rig.add_stop()
+            steps = rig.relax()
+            force = float(np.mean([_step_force(rig, stop) for _ in range(5)]))
+            return BenchResult(force, steps)
+        steps = rig.relax()
+        tip0 = rig.tip_m()
+        if test == "free_bending":
+            return BenchResult((tip0[0] * 1e3, tip0[2] * 1e3, rig.tip_angle_deg()), steps)
+        rig.load_n = tip_load_n
+        rig.body.drive.set_approach(approach)  # the load is the varied input
+        steps += rig.relax()
+        return BenchResult(float(tip0[2] - rig.tip_m()[2]) * 1e3, steps)
+    except UnstableSimulation as exc:
+        raise SimulationError(f"bench {test} at {pressure_kpa} kPa blew up: {exc}") from exc
+    finally:
+        rig.close()
+
+
+def _step_force(rig: _Rig, stop: int) -> float:
+    rig.world.step()
+    return rig.contact_force_n(stop)

@@ -1,0 +1,417 @@
+"""A headless PyBullet world in SI units: load models, drive them, step, read back.
+
+The world is scaled internally by ``scale`` (paper Sec. III-B.4): lengths,
+positions, linear velocities, forces and gravity ×Y; torques and rotational
+stiffness ×Y²; masses unchanged. Every public method takes and returns SI.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass, field
+from time import perf_counter
+
+import numpy as np
+import numpy.typing as npt
+import pybullet as p
+
+from somo_sweep.errors import SimulationError, UnstableSimulation
+from somo_sweep.model.description import Link, Pose
+from somo_sweep.model.load import Model
+from somo_sweep.model.setpoints import SetpointTable
+from somo_sweep.sim.plan import BodyPlan
+from somo_sweep.sim.settings import WorldSettings
+from somo_sweep.sim.springs import SpringDrive
+from somo_sweep.sim.urdf import plan_assembly, write_urdf
+
+__all__ = ["Body", "ModelHandle", "World", "WorldSettings"]
+
+#: PyBullet's default cap on joint speed, rad/s; blow-ups show as speeds pinned here.
+MAX_JOINT_SPEED_RAD_S = 100.0
+#: A free body farther than this from the origin (m) is taken as thrown.
+THROWN_DISTANCE_M = 10.0
+
+
+@dataclass
+class Body:
+    """A loaded body: plan, PyBullet id, name → index maps, and its spring drive."""
+
+    plan: BodyPlan
+    id: int
+    link_index: dict[str, int]
+    drive: SpringDrive
+    constraint: int | None = None
+    offset: tuple[tuple[float, ...], tuple[float, ...]] = ((0.0, 0.0, 0.0), (0.0, 0.0, 0.0, 1.0))
+
+
+@dataclass
+class ModelHandle:
+    """All bodies of one loaded model; one call sets every control input."""
+
+    name: str
+    bodies: list[Body]
+    input_names: list[str] = field(default_factory=list)
+
+    def set_inputs(self, inputs_si: Sequence[float] | np.ndarray) -> None:
+        """Set every control input of the model (N·m / N), in ``input_names`` order."""
+        if len(inputs_si) != len(self.input_names):
+            raise ValueError(
+                f"{self.name}: expected {len(self.input_names)} inputs "
+                f"({', '.join(self.input_names)}), got {len(inputs_si)}"
+            )
+        if len(self.bodies) == 1:
+            self.bodies[0].drive.set_inputs(inputs_si)
+            return
+        u = np.asarray(inputs_si, dtype=float)
+        start = 0
+        for body in self.bodies:
+            n = body.drive.n_inputs
+            body.drive.set_inputs(u[start : start + n])
+            start += n
+
+    def body_of_manipulator(self, name: str) -> Body:
+        """The body holding manipulator ``name``."""
+        for body in self.bodies:
+            if name in body.plan.tip:
+                return body
+        raise KeyError(f"no manipulator '{name}' in {self.name}")
+
+
+class World:
+    """One PyBullet client in DIRECT mode; always :meth:`close` it (or use ``with``).
+
+    Args:
+        settings: Time step, scale, gravity and solver settings.
+    """
+
+    def __init__(self, settings: WorldSettings | None = None):
+        self.settings = settings or WorldSettings()
+        s = self.settings
+        if s.time_step_s <= 0 or s.scale <= 0:
+            raise SimulationError("time_step_s and scale must be > 0")
+        self.scale = float(s.scale)
+        self.client = p.connect(p.DIRECT)
+        p.resetSimulation(physicsClientId=self.client)
+        p.setPhysicsEngineParameter(
+            fixedTimeStep=s.time_step_s,
+            numSolverIterations=s.solver_iterations,
+            enableConeFriction=1,
+            deterministicOverlappingPairs=1,
+            physicsClientId=self.client,
+        )
+        p.setGravity(*(g * self.scale for g in s.gravity_m_s2), physicsClientId=self.client)
+        self.time_s = 0.0
+        self.step_count = 0
+        self.bodies: list[Body] = []
+        self.pre_step: list[Callable[[World], None]] = []
+        self.bullet_time_s = 0.0  # wall time spent inside stepSimulation
+        self._free: list[int] = []
+
+    # ----------------------------------------------------------------- loading
+    def __enter__(self) -> World:
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        self.close()
+
+    def close(self) -> None:
+        """Disconnect the client (safe to call twice)."""
+        if self.client >= 0:
+            p.disconnect(physicsClientId=self.client)
+            self.client = -1
+
+    def _apply_dynamics(self, body: int, index: int, link: Link) -> None:
+        f = link.friction
+        # Bullet's default link damping (0.04, with a speed-squared term) is switched off: it is
+        # not scale-invariant and would add an unmodelled drag; damping is the joints' business.
+        kwargs: dict[str, object] = dict(
+            lateralFriction=f.lateral,
+            spinningFriction=f.spinning * self.scale,
+            rollingFriction=f.rolling * self.scale,
+            restitution=link.restitution,
+            linearDamping=0.0,
+            angularDamping=0.0,
+        )
+        if f.anisotropic is not None:
+            kwargs["anisotropicFriction"] = list(f.anisotropic)
+        p.changeDynamics(body, index, physicsClientId=self.client, **kwargs)
+
+    def load_plan(self, plan: BodyPlan, pose: Pose | None = None) -> Body:
+        """Load one planned body at ``pose`` (default: the plan's pose)."""
+        if abs(plan.scale - self.scale) > 1e-12:
+            raise SimulationError(f"plan made for scale {plan.scale}, world has {self.scale}")
+        pose = pose or plan.pose
+        pos = [c * self.scale for c in pose.position_m]
+        orn = p.getQuaternionFromEuler(pose.rpy_rad)
+        # Branches of one body (two fingers on a palm) collide; a chain never with its ancestors.
+        flags = (
+            p.URDF_USE_INERTIA_FROM_FILE
+            | p.URDF_MAINTAIN_LINK_ORDER
+            | p.URDF_USE_SELF_COLLISION
+            | p.URDF_USE_SELF_COLLISION_EXCLUDE_ALL_PARENTS
+        )
+        body_id = p.loadURDF(
+            str(write_urdf(plan.urdf)),
+            pos,
+            orn,
+            useFixedBase=plan.mode == "fixed",
+            flags=flags,
+            physicsClientId=self.client,
+        )
+        link_index = {plan.links[0].name: -1}
+        joint_index: dict[str, int] = {}
+        for j in range(p.getNumJoints(body_id, physicsClientId=self.client)):
+            info = p.getJointInfo(body_id, j, physicsClientId=self.client)
+            joint_index[info[1].decode()] = j
+            link_index[info[12].decode()] = j
+        for info_l in plan.links:
+            if info_l.link is not None:
+                self._apply_dynamics(body_id, link_index[info_l.name], info_l.link)
+        drive = SpringDrive(
+            self.client,
+            body_id,
+            [joint_index[sj.name] for sj in plan.joints],
+            plan.joints,
+            len(plan.inputs),
+            self.scale,
+        )
+        # Every non-spring joint motor is switched off; spring joints get their Coulomb motor.
+        drive.enable_motors()
+        body = Body(plan, body_id, link_index, drive)
+        if plan.mode == "driven":
+            body.constraint = p.createConstraint(
+                body_id,
+                -1,
+                -1,
+                -1,
+                p.JOINT_FIXED,
+                [0, 0, 0],
+                [0, 0, 0],
+                pos,
+                orn,
+                physicsClientId=self.client,
+            )
+        if plan.mode != "fixed":
+            self._free.append(body_id)
+        self.bodies.append(body)
+        return body
+
+    def add_model(self, model: Model, pose: Pose | None = None) -> ModelHandle:
+        """Load a model (manipulator or assembly) at ``pose``; returns its handle."""
+        assembly = model.as_assembly()
+        root = pose or Pose()
+        bodies: list[Body] = []
+        root_tf = ([c for c in root.position_m], p.getQuaternionFromEuler(root.rpy_rad))
+        for plan in plan_assembly(assembly, self.scale):
+            local = (plan.pose.position_m, p.getQuaternionFromEuler(plan.pose.rpy_rad))
+            pos, orn = p.multiplyTransforms(root_tf[0], root_tf[1], local[0], local[1])
+            world_pose = Pose(position_m=tuple(pos), rpy_rad=tuple(p.getEulerFromQuaternion(orn)))
+            body = self.load_plan(plan, world_pose)
+            body.offset = (tuple(plan.pose.position_m), tuple(local[1]))
+            bodies.append(body)
+        names = [n for b in bodies for n in b.plan.inputs]
+        return ModelHandle(assembly.name, bodies, names)
+
+    def add_ground(
+        self,
+        friction: float = 1.0,
+        restitution: float = 0.0,
+        anisotropic: tuple[float, float, float] | None = None,
+    ) -> int:
+        """Add a static ground plane at z = 0; returns its body id."""
+        shape = p.createCollisionShape(p.GEOM_PLANE, physicsClientId=self.client)
+        body = p.createMultiBody(0, shape, physicsClientId=self.client)
+        kwargs: dict[str, object] = dict(lateralFriction=friction, restitution=restitution)
+        if anisotropic is not None:
+            kwargs["anisotropicFriction"] = list(anisotropic)
+        p.changeDynamics(body, -1, physicsClientId=self.client, **kwargs)
+        return body
+
+    # ----------------------------------------------------------------- stepping
+    def drive_base(
+        self,
+        body: Body,
+        position_m: Sequence[float] | np.ndarray,
+        rpy_rad: Sequence[float] | np.ndarray,
+        max_force_n: float = 200.0,
+    ) -> None:
+        """Move a driven body's base target to a world pose (SI); the mount offset is kept."""
+        if body.constraint is None:
+            raise SimulationError(f"body '{body.plan.name}' is not driven (base mode {body.plan.mode})")
+        orn = p.getQuaternionFromEuler([float(a) for a in rpy_rad])
+        pos, orn = p.multiplyTransforms(
+            [float(c) for c in position_m],
+            orn,
+            body.offset[0],
+            body.offset[1],
+        )
+        p.changeConstraint(
+            body.constraint,
+            [c * self.scale for c in pos],
+            jointChildFrameOrientation=orn,
+            maxForce=max_force_n * self.scale,
+            physicsClientId=self.client,
+        )
+
+    def follow(
+        self,
+        handle: ModelHandle,
+        inputs: SetpointTable | None = None,
+        base: SetpointTable | None = None,
+        max_force_n: float = 200.0,
+    ) -> None:
+        """Drive a model from setpoint tables at every step.
+
+        Args:
+            handle: The loaded model.
+            inputs: Control inputs against time (N·m / N), one column per input.
+            base: Base pose against time, columns x, y, z (m), roll, pitch, yaw (rad);
+                applied to every driven body of the model (mount offsets kept).
+            max_force_n: Force limit of the base-holding constraint, in N.
+        """
+        driven = [b for b in handle.bodies if b.constraint is not None]
+        if inputs is not None and inputs.width != len(handle.input_names):
+            raise SimulationError(
+                f"{handle.name}: input table has {inputs.width} columns, the model has "
+                f"{len(handle.input_names)} inputs ({', '.join(handle.input_names)})"
+            )
+        if base is not None and (base.width != 6 or not driven):
+            raise SimulationError(
+                f"{handle.name}: a base table needs 6 columns (x, y, z, roll, pitch, yaw) "
+                f"and a driven base; got {base.width} columns, {len(driven)} driven bodies"
+            )
+
+        # Setpoints are resent only when they change (holds cost nothing per step).
+        last: dict[str, bytes] = {}
+
+        def hook(world: World) -> None:
+            t = world.time_s
+            if inputs is not None:
+                u = inputs(t)
+                key = u.tobytes()
+                if last.get("inputs") != key:
+                    handle.set_inputs(u)
+                    last["inputs"] = key
+            if base is not None:
+                pose = base(t)
+                key = pose.tobytes()
+                if last.get("base") != key:
+                    for body in driven:
+                        world.drive_base(body, pose[:3], pose[3:], max_force_n)
+                    last["base"] = key
+
+        self.pre_step.append(hook)
+
+    def step(self, n: int = 1) -> None:
+        """Advance ``n`` steps: pre-step hooks (setpoints, loads), springs once, Bullet.
+
+        Raises:
+            UnstableSimulation: Joint speeds at Bullet's cap, NaN, or a body thrown.
+        """
+        cap = 0.99 * MAX_JOINT_SPEED_RAD_S
+        dt = self.settings.time_step_s
+        for _ in range(n):
+            for hook in self.pre_step:
+                hook(self)
+            for body in self.bodies:
+                drive = body.drive
+                drive.apply()
+                if drive.indices:
+                    q_max = np.abs(drive.qd).max()
+                    if not (q_max < cap):  # also catches NaN
+                        reason = "nan" if not np.isfinite(drive.qd).all() else "speed_cap"
+                        raise UnstableSimulation(reason, self.time_s, f"in body '{body.plan.name}'")
+            t0 = perf_counter()
+            p.stepSimulation(physicsClientId=self.client)
+            self.bullet_time_s += perf_counter() - t0
+            self.step_count += 1
+            self.time_s = self.step_count * dt
+            if self.step_count % self.settings.check_every == 0:
+                self.check_thrown()
+
+    def check_thrown(self) -> None:
+        """Raise if a free body left the scene, moves at Bullet's speed cap, or is not finite."""
+        for body_id in self._free:
+            pos = np.asarray(p.getBasePositionAndOrientation(body_id, physicsClientId=self.client)[0])
+            dist = float(np.linalg.norm(pos)) / self.scale
+            if not np.isfinite(dist):
+                raise UnstableSimulation("nan", self.time_s, f"body {body_id} position")
+            if dist > THROWN_DISTANCE_M:
+                raise UnstableSimulation("thrown", self.time_s, f"body {body_id} at {dist:.1f} m")
+            # Bullet caps base speeds at 100 scaled units (100/Y m/s); a body pinned there blew up.
+            lin, ang = p.getBaseVelocity(body_id, physicsClientId=self.client)
+            if max(np.abs(lin).max(), np.abs(ang).max()) >= 0.99 * MAX_JOINT_SPEED_RAD_S:
+                raise UnstableSimulation("speed_cap", self.time_s, f"body {body_id} at Bullet's speed cap")
+
+    # ----------------------------------------------------------------- reading
+    def link_frame(self, body: Body, link: str) -> tuple[np.ndarray, np.ndarray]:
+        """World position (m) and 3×3 rotation of a link's URDF frame."""
+        idx = body.link_index[link]
+        if idx == -1:
+            pos, orn = p.getBasePositionAndOrientation(body.id, physicsClientId=self.client)
+        else:
+            state = p.getLinkState(body.id, idx, computeForwardKinematics=1, physicsClientId=self.client)
+            pos, orn = state[4], state[5]
+        rot = np.asarray(p.getMatrixFromQuaternion(orn)).reshape(3, 3)
+        return np.asarray(pos) / self.scale, rot
+
+    def point_on_link(self, body: Body, link: str, local_m: Sequence[float]) -> np.ndarray:
+        """World position (m) of a point given in a link's URDF frame (m)."""
+        pos, rot = self.link_frame(body, link)
+        return pos + rot @ np.asarray(local_m, dtype=float)
+
+    def tip_position(self, body: Body, manipulator: str | None = None) -> np.ndarray:
+        """World position (m) of a manipulator's tip (distal end of its centre line)."""
+        name = manipulator or next(iter(body.plan.tip))
+        link, local = body.plan.tip[name]
+        return self.point_on_link(body, link, local)
+
+    def apply_force(self, body: Body, link: str, force_n: npt.ArrayLike, point_m: npt.ArrayLike) -> None:
+        """Apply a world-frame force (N) at a world point (m) for the coming step only."""
+        p.applyExternalForce(
+            body.id,
+            body.link_index[link],
+            (np.asarray(force_n, dtype=float) * self.scale).tolist(),
+            (np.asarray(point_m, dtype=float) * self.scale).tolist(),
+            p.WORLD_FRAME,
+            physicsClientId=self.client,
+        )
+
+    def base_pose(self, body_id: int) -> tuple[np.ndarray, np.ndarray]:
+        """Base position (m) and quaternion (x, y, z, w) of a body."""
+        pos, orn = p.getBasePositionAndOrientation(body_id, physicsClientId=self.client)
+        return np.asarray(pos) / self.scale, np.asarray(orn)
+
+    def closest_distance_m(self, body_a: int, body_b: int, within_m: float = 0.0) -> float:
+        """Smallest gap between two bodies' collision shapes, m (negative: they overlap by that much).
+
+        Only gaps up to ``within_m`` are searched; ``inf`` if the bodies are farther apart.
+        """
+        pts = p.getClosestPoints(body_a, body_b, within_m * self.scale, physicsClientId=self.client)
+        return min((pt[8] / self.scale for pt in pts), default=float("inf"))
+
+    def contacts(self, body_a: int, body_b: int | None = None) -> dict[str, np.ndarray]:
+        """Contact points of ``body_a`` (with ``body_b`` if given), in SI.
+
+        Returns:
+            Arrays ``link_a``, ``link_b``, ``position_on_a_m`` (n×3), ``normal_b_to_a``
+            (n×3), ``normal_force_n`` (n).
+        """
+        kwargs = {"bodyA": body_a} if body_b is None else {"bodyA": body_a, "bodyB": body_b}
+        pts = p.getContactPoints(physicsClientId=self.client, **kwargs)
+        if not pts:
+            return {
+                "link_a": np.zeros(0, int),
+                "link_b": np.zeros(0, int),
+                "position_on_a_m": np.zeros((0, 3)),
+                "normal_b_to_a": np.zeros((0, 3)),
+                "normal_force_n": np.zeros(0),
+            }
+        cols = list(zip(*pts, strict=True))
+        return {
+            "link_a": np.asarray(cols[3]),
+            "link_b": np.asarray(cols[4]),
+            "position_on_a_m": np.asarray(cols[5]) / self.scale,
+            "normal_b_to_a": np.asarray(cols[7]),
+            "normal_force_n": np.asarray(cols[9]) / self.scale,
+        }

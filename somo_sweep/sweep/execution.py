@@ -1,0 +1,252 @@
+"""Run jobs in parallel (joblib: loky locally, Dask on a cluster) and stream outcomes back.
+
+Every trial runs in its own process forked from the worker (POSIX), so a trial that
+dies (segfault, ``os._exit``, killed, out of memory) costs only that trial, which is
+marked ``error``; the worker, the sweep and every other trial go on. The forked
+child ignores SIGINT (Ctrl-C stops the sweep from the parent, which keeps every
+finished trial) and is killed if its worker dies.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import ctypes
+import os
+import pickle
+import select
+import signal
+import socket
+import threading
+import time
+from collections.abc import Iterable, Iterator
+from dataclasses import dataclass, field
+from typing import Any, Literal
+
+from joblib import Parallel, delayed, parallel_config
+
+from somo_sweep.errors import SomoError, UnstableSimulation
+from somo_sweep.sweep.jobs import Job
+from somo_sweep.tasks.registry import TaskResult, get_task
+
+__all__ = ["Backend", "Outcome", "dask_client", "execute", "run_isolated"]
+
+Backend = Literal["loky", "dask"]
+#: How often a worker restart is tried when a whole worker process (not a trial) dies.
+MAX_POOL_RESTARTS = 3
+_PR_SET_PDEATHSIG = 1
+
+
+@dataclass(frozen=True)
+class Outcome:
+    """What came back from one trial.
+
+    Attributes:
+        job_id: The job's id.
+        status: ``ok``, ``unstable`` or ``error``.
+        message: Why the status is not ``ok`` (empty otherwise).
+        metrics: The task's metrics.
+        labels: The task's labels.
+        wall_time_s: Wall time of the trial, s.
+        host: Host name of the worker.
+    """
+
+    job_id: str
+    status: str
+    message: str = ""
+    metrics: dict[str, Any] = field(default_factory=dict)
+    labels: dict[str, str] = field(default_factory=dict)
+    wall_time_s: float = 0.0
+    host: str = ""
+
+
+def _die_with_parent() -> None:
+    try:
+        libc = ctypes.CDLL(None, use_errno=True)
+        libc.prctl(_PR_SET_PDEATHSIG, signal.SIGKILL)
+    except (OSError, AttributeError):  # not Linux: the child still ends when its trial does
+        pass
+
+
+_watching: list[int] = []
+
+
+def _watch_owner(owner_pid: int) -> None:
+    """In a local worker process, exit as soon as the process that started the sweep is gone.
+
+    A killed ``somo-sweep run`` (SIGKILL, OOM) then leaves no idle workers behind; their
+    trial processes follow through their parent-death signal. Not done in the sweep's own
+    process (``--jobs 1``) nor on remote (Dask) workers, which are not its children.
+    """
+    if _watching or os.getpid() == owner_pid or os.getppid() != owner_pid:
+        return
+    _watching.append(owner_pid)
+
+    def watch() -> None:
+        while os.getppid() == owner_pid:
+            time.sleep(1.0)
+        os._exit(1)
+
+    threading.Thread(target=watch, name="somo-sweep-owner-watch", daemon=True).start()
+
+
+def _call(job: Job) -> TaskResult:
+    spec = get_task(job.task)
+    try:
+        return spec.run(job.model, job.params, job.settings, job.seed)
+    except UnstableSimulation as exc:
+        return TaskResult(status="unstable", message=str(exc))
+    except Exception as exc:
+        return TaskResult(status="error", message=f"{type(exc).__name__}: {exc}")
+
+
+def _exit_text(status: int) -> str:
+    if os.WIFSIGNALED(status):
+        sig = os.WTERMSIG(status)
+        return f"killed by signal {sig} ({signal.Signals(sig).name})"
+    return f"exit code {os.waitstatus_to_exitcode(status)}"
+
+
+def run_isolated(job: Job, timeout_s: float | None = None, owner_pid: int | None = None) -> Outcome:
+    """Run one job in a forked child process and return its outcome (never raises for the trial).
+
+    Args:
+        job: The job.
+        timeout_s: Kill the trial after this wall time, s (None: no limit).
+        owner_pid: Process id of the sweep; a local worker exits when that process is gone.
+    """
+    if owner_pid is not None:
+        _watch_owner(owner_pid)
+    get_task(job.task)  # import task modules before forking
+    start = time.perf_counter()
+    host = socket.gethostname()
+    read_fd, write_fd = os.pipe()
+    pid = os.fork()
+    if pid == 0:  # child: run, send the pickled result, leave without cleanup handlers
+        os.close(read_fd)
+        signal.signal(signal.SIGINT, signal.SIG_IGN)
+        signal.signal(signal.SIGTERM, signal.SIG_DFL)
+        _die_with_parent()
+        code = 1
+        try:
+            try:
+                data = pickle.dumps(_call(job))
+            except BaseException as exc:  # SystemExit in a task, or metrics that cannot be pickled
+                data = pickle.dumps(TaskResult(status="error", message=f"{type(exc).__name__}: {exc}"))
+            with os.fdopen(write_fd, "wb") as fh:
+                fh.write(data)
+            code = 0
+        finally:
+            os._exit(code)
+    os.close(write_fd)
+    chunks: list[bytes] = []
+    timed_out = finished = False
+    try:
+        with os.fdopen(read_fd, "rb", buffering=0) as fh:
+            deadline = None if timeout_s is None else start + timeout_s
+            while True:
+                wait = None if deadline is None else max(0.0, deadline - time.perf_counter())
+                if not select.select([fh], [], [], wait)[0]:
+                    timed_out = True
+                    break
+                chunk = fh.read(1 << 16)
+                if not chunk:
+                    break
+                chunks.append(chunk)
+        finished = True
+    finally:
+        if timed_out or not finished:  # over time, or interrupted while waiting: end the child
+            with contextlib.suppress(ProcessLookupError):
+                os.kill(pid, signal.SIGKILL)
+        if not finished:
+            os.waitpid(pid, 0)
+    _, status = os.waitpid(pid, 0)
+    wall = time.perf_counter() - start
+    if timed_out:
+        return Outcome(job.job_id, "error", f"timed out after {timeout_s} s", wall_time_s=wall, host=host)
+    try:
+        result: TaskResult = pickle.loads(b"".join(chunks))
+    except Exception:
+        msg = f"the process running this trial died ({_exit_text(status)})"
+        return Outcome(job.job_id, "error", msg, wall_time_s=wall, host=host)
+    return Outcome(
+        job.job_id, result.status, result.message, dict(result.metrics), dict(result.labels), wall, host
+    )
+
+
+def _parallel(backend: Backend, n_jobs: int) -> Parallel:
+    return Parallel(
+        n_jobs=n_jobs if backend == "loky" else -1,
+        return_as="generator_unordered",
+        batch_size=1,
+        pre_dispatch="2*n_jobs",
+    )
+
+
+def execute(
+    jobs: Iterable[Job],
+    backend: Backend = "loky",
+    n_jobs: int = 1,
+    scheduler: str | None = None,
+    timeout_s: float | None = None,
+    client: Any = None,
+) -> Iterator[Outcome]:
+    """Run jobs and yield their outcomes as they finish (in completion order).
+
+    Args:
+        jobs: The jobs to run.
+        backend: ``loky`` (processes on this machine) or ``dask`` (an existing cluster).
+        n_jobs: Worker processes for ``loky`` (1 runs in this process; trials are still forked).
+        scheduler: Dask scheduler address, e.g. ``tcp://10.0.0.5:8786`` (``dask`` only).
+        timeout_s: Per-trial wall-time limit, s.
+        client: A connected Dask client (``dask`` only; default: connect to ``scheduler``).
+
+    Raises:
+        SomoError: The Dask scheduler cannot be reached, or workers keep dying.
+    """
+    pending = {j.job_id: j for j in jobs}
+    own_client = backend == "dask" and client is None
+    if own_client:
+        client = dask_client(scheduler)
+    restarts = 0
+    owner = os.getpid()
+    try:
+        while pending:
+            todo = list(pending.values())
+            try:
+                with parallel_config(backend=backend):
+                    for out in _parallel(backend, n_jobs)(
+                        delayed(run_isolated)(j, timeout_s, owner) for j in todo
+                    ):
+                        pending.pop(out.job_id, None)
+                        yield out
+            except (KeyboardInterrupt, GeneratorExit):
+                raise
+            except Exception as exc:  # a worker process itself died (not a trial): restart the pool
+                restarts += 1
+                if restarts > MAX_POOL_RESTARTS:
+                    raise SomoError(
+                        f"workers died {restarts} times, giving up: {type(exc).__name__}: {exc}"
+                    ) from exc
+    finally:
+        if own_client and client is not None:
+            client.close()
+
+
+def dask_client(scheduler: str | None, timeout_s: float = 15.0) -> Any:
+    """A ``dask.distributed.Client`` connected to ``scheduler`` (joblib's Dask backend uses it).
+
+    Args:
+        scheduler: Address, e.g. ``tcp://HOST:8786``.
+        timeout_s: How long to try to connect, s.
+
+    Raises:
+        SomoError: No address, or the scheduler cannot be reached in time.
+    """
+    if not scheduler:
+        raise SomoError("--backend dask needs --scheduler ADDRESS (e.g. tcp://HOST:8786)")
+    from dask.distributed import Client
+
+    try:
+        return Client(scheduler, timeout=f"{timeout_s}s")
+    except (OSError, TimeoutError) as exc:
+        raise SomoError(f"cannot connect to the Dask scheduler at {scheduler}: {exc}") from None

@@ -1,0 +1,243 @@
+"""The job table of a study: one job per trial, each with a stable id and seed.
+
+A job is everything one trial needs (task name, validated model and parameters,
+simulation settings, seed), so it can run in any process or on any host. Its
+id is the hash of those inputs and the code version: the same study on the same
+code always gives the same ids, which is what resume relies on.
+"""
+
+from __future__ import annotations
+
+import ast
+import hashlib
+import json
+import os
+from dataclasses import asdict, dataclass
+from functools import cache
+from importlib.metadata import PackageNotFoundError, version
+from pathlib import Path
+from typing import Any
+
+import pandas as pd
+from pydantic import BaseModel
+
+from somo_sweep.errors import DescriptionError, Problem
+from somo_sweep.model.load import Model
+from somo_sweep.sim.settings import WorldSettings
+from somo_sweep.sweep.study import Study
+
+__all__ = ["Job", "JobTable", "build_jobs", "code_version", "param_column", "trial_modules"]
+
+
+def _package_version() -> str:
+    try:
+        return version("somo-sweep")
+    except PackageNotFoundError:  # a source tree that is not installed
+        return "0.0.0"
+
+
+def _module_file(name: str) -> Path | None:
+    root = Path(__file__).resolve().parents[2]
+    base = root / Path(*name.split("."))
+    for path in (base.with_suffix(".py"), base / "__init__.py"):
+        if path.is_file():
+            return path
+    return None
+
+
+#: Plumbing whose own source is hashed but whose imports are not followed: the registry
+#: imports the model and world modules for type annotations only.
+_NOT_FOLLOWED = {"somo_sweep.tasks.registry", "somo_sweep.tasks"}
+
+
+def _imports(path: Path) -> set[str]:
+    """``somo_sweep`` modules a source file imports (static; ``if TYPE_CHECKING:`` blocks skipped)."""
+    found: set[str] = set()
+    todo: list[ast.AST] = [ast.parse(path.read_text(encoding="utf-8"))]
+    while todo:
+        node = todo.pop()
+        if isinstance(node, ast.If) and "TYPE_CHECKING" in ast.unparse(node.test):
+            todo.extend(node.orelse)
+            continue
+        if isinstance(node, ast.ImportFrom) and node.module and node.module.startswith("somo_sweep"):
+            found.add(node.module)
+            found.update(f"{node.module}.{a.name}" for a in node.names)
+        elif isinstance(node, ast.Import):
+            found.update(a.name for a in node.names if a.name.startswith("somo_sweep"))
+        todo.extend(ast.iter_child_nodes(node))
+    return found
+
+
+def trial_modules(task_module: str) -> list[str]:
+    """The task's module and every somo_sweep module it imports, transitively (sorted)."""
+    todo, seen = [task_module], set()
+    while todo:
+        name = todo.pop()
+        path = _module_file(name)
+        if name in seen or path is None:
+            continue
+        seen.add(name)
+        if name not in _NOT_FOLLOWED:
+            todo.extend(sorted(_imports(path) - seen))
+    return sorted(seen)
+
+
+@cache
+def code_version(task_module: str) -> str:
+    """Package version plus a hash of the sources of :func:`trial_modules`.
+
+    Only code a trial can run is hashed: editing the CLI, the plots, the sweep engine or
+    another task keeps job ids, and hence finished results, valid; editing the task or
+    the core modules it uses (world, springs, ...) changes them.
+    """
+    digest = hashlib.sha256()
+    for name in trial_modules(task_module):
+        path = _module_file(name)
+        assert path is not None
+        digest.update(name.encode() + path.read_bytes())
+    return f"{_package_version()}+{digest.hexdigest()[:12]}"
+
+
+def _hash(obj: Any, n: int = 16) -> str:
+    text = json.dumps(obj, sort_keys=True, separators=(",", ":"), default=str)
+    return hashlib.sha256(text.encode()).hexdigest()[:n]
+
+
+def param_column(key: str) -> str:
+    """Column name of a key path: ``task.object.width_mm`` → ``task_object_width_mm``."""
+    out = key.replace("[", "_").replace("]", "").replace(".", "_")
+    return out.replace("__", "_")
+
+
+def _flatten(prefix: str, value: Any, out: dict[str, Any]) -> None:
+    if isinstance(value, dict):
+        for k, v in value.items():
+            _flatten(f"{prefix}_{k}", v, out)
+    elif isinstance(value, list | tuple):
+        out[prefix] = json.dumps(value)
+    else:
+        out[prefix] = value
+
+
+@dataclass(frozen=True)
+class Job:
+    """One trial, self-contained and picklable.
+
+    Attributes:
+        job_id: Stable id (hash of task, parameters, model content, settings, seed, code).
+        trial: Position in the study's grid order (0-based).
+        repeat: Repeat number at this grid point (0-based).
+        seed: Random seed handed to the task.
+        task: Registered task name.
+        model: The validated model with the point's overrides applied.
+        params: The validated task parameters.
+        settings: Simulation settings.
+        columns: The parameter columns of this trial (flattened, unit-suffixed names).
+    """
+
+    job_id: str
+    trial: int
+    repeat: int
+    seed: int
+    task: str
+    model: Model
+    params: BaseModel
+    settings: WorldSettings
+    columns: dict[str, Any]
+
+
+@dataclass(frozen=True)
+class JobTable:
+    """All jobs of a study and what identifies the study as a whole.
+
+    Attributes:
+        jobs: In grid order.
+        study_hash: Hash of every job id in order (changes with anything that changes a trial).
+        axes: Axis key path → column name.
+        resolved: The study as resolved (for manifests and "what changed" messages).
+    """
+
+    jobs: list[Job]
+    study_hash: str
+    axes: dict[str, str]
+    resolved: dict[str, Any]
+
+    def frame(self) -> pd.DataFrame:
+        """The job table as a DataFrame (id, trial, repeat, seed and parameter columns)."""
+        return pd.DataFrame(
+            [
+                {"job_id": j.job_id, "trial": j.trial, "repeat": j.repeat, "seed": j.seed, **j.columns}
+                for j in self.jobs
+            ]
+        )
+
+
+def _seed(base: int, point: dict[str, Any], repeat: int) -> int:
+    # The seed depends on what the trial is, not on where it sits in the grid or the cwd.
+    key = {k: (Path(str(v)).name if k == "model" else v) for k, v in point.items()}
+    return int(_hash([base, key, repeat], 8), 16)
+
+
+def build_jobs(study: Study) -> JobTable:
+    """Expand a study into its jobs.
+
+    Raises:
+        DescriptionError: Two trials are identical (e.g. a value repeated in an axis).
+    """
+    settings = study.simulation.world_settings()
+    code = code_version(study.task.run_path.partition(":")[0])
+    overrides = sorted({*study.fixed, *(a.key for a in study.axes)} - {"model"})
+    jobs: list[Job] = []
+    seen: dict[str, int] = {}
+    hashes: dict[int, str] = {}  # the study hands out one object per distinct model
+    for point in study.points():
+        model_path, model, params = study.resolve(point)
+        model_hash = hashes.get(id(model)) or hashes.setdefault(id(model), model.content_hash())
+        values = {**study.fixed, **point}
+        columns: dict[str, Any] = {}
+        _flatten("task", params.model_dump(mode="json"), columns)
+        for key in overrides:
+            if key.startswith("model."):
+                _flatten(param_column(key), values[key], columns)
+        columns["model_file"] = os.path.relpath(model_path, study.source.parent)
+        columns["model_hash"] = model_hash
+        for repeat in range(study.repeats):
+            seed = _seed(study.seed, point, repeat)
+            identity = {
+                "task": study.task.name,
+                "params": params.model_dump(mode="json"),
+                "model": model_hash,
+                "settings": asdict(settings),
+                "seed": seed,
+                "code": code,
+            }
+            job_id = _hash(identity)
+            trial = len(jobs)
+            if job_id in seen:
+                raise DescriptionError(
+                    study.source,
+                    [
+                        Problem(
+                            "sweep",
+                            f"trials {seen[job_id]} and {trial} are identical: {point}",
+                        )
+                    ],
+                )
+            seen[job_id] = trial
+            jobs.append(Job(job_id, trial, repeat, seed, study.task.name, model, params, settings, columns))
+    axes = {a.key: ("model_file" if a.key == "model" else param_column(a.key)) for a in study.axes}
+    resolved = {
+        "name": study.name,
+        "task": study.task.name,
+        "model": str(os.path.relpath(study.model_path, study.source.parent)),
+        "params": study.params,
+        "set": study.fixed,
+        "sweep": {a.key: list(a.values) for a in study.axes},
+        "groups": study.groups,
+        "repeats": study.repeats,
+        "seed": study.seed,
+        "simulation": study.simulation.model_dump(mode="json"),
+        "code_version": code,
+        "n_trials": len(jobs),
+    }
+    return JobTable(jobs, _hash([j.job_id for j in jobs]), axes, resolved)

@@ -1,0 +1,120 @@
+"""Summary plots of a trials table; every helper draws on a given ``ax`` (the CLI saves files)."""
+
+from __future__ import annotations
+
+from typing import Any
+
+import matplotlib.pyplot as plt
+import pandas as pd
+from matplotlib.axes import Axes
+from matplotlib.figure import Figure
+
+from somo_sweep.sweep.schema import FIXED, unit_of
+
+__all__ = ["metric_columns", "plot_labels", "plot_metric", "plot_status", "summary_figure"]
+
+STATUS_COLOURS = {"ok": "tab:green", "unstable": "tab:orange", "error": "tab:red"}
+#: At most this many metric panels in the summary figure.
+MAX_METRICS = 6
+
+
+def metric_columns(df: pd.DataFrame) -> list[str]:
+    """Numeric metric columns: not fixed, not parameters, not labels."""
+    return [
+        c
+        for c in df.columns
+        if c not in FIXED
+        and not c.startswith(("task_", "model_", "label_"))
+        and pd.api.types.is_numeric_dtype(df[c])
+        and not pd.api.types.is_bool_dtype(df[c])
+    ]
+
+
+def _label(column: str) -> str:
+    unit = unit_of(column)
+    return f"{column} ({unit})" if unit else column
+
+
+def plot_status(ax: Axes, df: pd.DataFrame, x: str | None) -> None:
+    """Stacked bars of trials by status, per value of column ``x`` (or in total)."""
+    counts = df["status"].value_counts().to_frame().T if x is None else pd.crosstab(df[x], df["status"])
+    bottom = None
+    labels = [str(v) for v in counts.index]
+    for status in counts.columns:
+        ax.bar(labels, counts[status], bottom=bottom, label=status, color=STATUS_COLOURS.get(status))
+        bottom = counts[status] if bottom is None else bottom + counts[status]
+    ax.set_xlabel(_label(x) if x else "")
+    ax.set_ylabel("trials")
+    ax.legend(fontsize="small")
+    ax.tick_params(axis="x", labelrotation=45)
+
+
+def plot_labels(ax: Axes, df: pd.DataFrame, x: str | None, label: str) -> None:
+    """Stacked bars of ``ok`` trials by the values of column ``label``, per value of ``x``."""
+    ok = df[df["status"] == "ok"]
+    values = ok[label].fillna("-")
+    counts = values.value_counts().to_frame().T if x is None else pd.crosstab(ok[x], values)
+    bottom = None
+    names = [str(v) for v in counts.index]
+    for value in counts.columns:
+        ax.bar(names, counts[value], bottom=bottom, label=str(value))
+        bottom = counts[value] if bottom is None else bottom + counts[value]
+    ax.set_xlabel(_label(x) if x else "")
+    ax.set_ylabel("ok trials")
+    ax.set_title(label.removeprefix("label_"))
+    ax.legend(fontsize="small")
+    ax.tick_params(axis="x", labelrotation=45)
+
+
+def plot_metric(
+    ax: Axes, df: pd.DataFrame, x: str, y: str, hue: str | None = None, hue_title: str | None = None
+) -> None:
+    """Mean of metric ``y`` over ``ok`` trials against ``x``, one line per value of ``hue``."""
+    ok = df[df["status"] == "ok"]
+    groups = [(None, ok)] if hue is None else list(ok.groupby(hue, sort=True))
+    for value, part in groups:
+        mean = part.groupby(x, sort=True)[y].mean()
+        ax.plot(
+            mean.index,
+            mean.to_numpy(),
+            marker="o",
+            ms=3,
+            label=None if hue is None else f"{value:.4g}" if isinstance(value, float) else str(value),
+        )
+    ax.set_xlabel(_label(x))
+    ax.set_ylabel(_label(y))
+    if hue is not None:
+        ax.legend(title=hue_title or hue, fontsize="x-small", title_fontsize="x-small")
+    ax.grid(alpha=0.3)
+
+
+def summary_figure(df: pd.DataFrame, manifest: dict[str, Any]) -> Figure:
+    """Trials by status, by each label, then each metric against the first numeric axis.
+
+    Metric panels draw one line per value of the second axis (if any).
+    """
+    short = {c: k.rsplit(".", 1)[-1] for k, c in manifest.get("axes", {}).items()}
+    axes = [c for c in short if c in df.columns]
+    numeric = [c for c in axes if pd.api.types.is_numeric_dtype(df[c])]
+    x = numeric[0] if numeric else (axes[0] if axes else None)
+    others = [c for c in axes if c != x]
+    hue = others[0] if others else None
+    metrics = metric_columns(df)[:MAX_METRICS] if x is not None else []
+    labels = [c for c in df.columns if c.startswith("label_")][:MAX_METRICS]
+    n = 1 + len(labels) + len(metrics)
+    cols = min(n, 3)
+    rows = (n + cols - 1) // cols
+    fig, grid = plt.subplots(rows, cols, figsize=(4.5 * cols, 3.6 * rows), squeeze=False)
+    flat = list(grid.ravel())
+    plot_status(flat[0], df, x)
+    flat[0].set_title("trials by status")
+    for ax, label in zip(flat[1:], labels, strict=False):
+        plot_labels(ax, df, x, label)
+    for ax, metric in zip(flat[1 + len(labels) :], metrics, strict=False):
+        assert x is not None
+        plot_metric(ax, df, x, metric, hue, short.get(hue or ""))
+    for ax in flat[n:]:
+        ax.set_visible(False)
+    fig.suptitle(f"{manifest.get('study_name')} ({len(df)} trials)")
+    fig.tight_layout()
+    return fig

@@ -1,0 +1,136 @@
+"""Re-run stored trials of a finished study and check they come out exactly the same.
+
+A trial is a pure function of its parameters, model, settings and seed, so running it
+again anywhere (here: in this process, outside the sweep engine's forked workers and
+its backend) must reproduce its stored row bit for bit: status, every label and every
+metric. :func:`recheck` draws trials at random (reproducibly, from ``seed``), runs them
+and lists every cell that differs. ``somo-sweep recheck STUDY.yaml`` is its command.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import pandas as pd
+
+from somo_sweep.errors import SomoError
+from somo_sweep.sweep.execution import Outcome, _call
+from somo_sweep.sweep.jobs import Job, build_jobs
+from somo_sweep.sweep.runner import outcome_row
+from somo_sweep.sweep.store import read_manifest, read_results
+from somo_sweep.sweep.study import Study
+
+__all__ = ["Mismatch", "RecheckReport", "recheck", "write_report"]
+
+#: Columns that describe how and where a trial ran, not what it computed.
+RUN_COLUMNS = frozenset({"wall_time_s", "host", "message"})
+
+
+@dataclass(frozen=True)
+class Mismatch:
+    """One cell that differs between the stored row and the re-run."""
+
+    trial: int
+    column: str
+    stored: Any
+    rerun: Any
+
+
+@dataclass
+class RecheckReport:
+    """Result of a recheck.
+
+    Attributes:
+        trials: Trial numbers re-run, in the order drawn.
+        columns_compared: Number of cells compared (over all trials).
+        mismatches: Every differing cell.
+    """
+
+    trials: list[int] = field(default_factory=list)
+    columns_compared: int = 0
+    mismatches: list[Mismatch] = field(default_factory=list)
+
+    @property
+    def identical(self) -> bool:
+        """True if every re-run reproduced its stored row exactly."""
+        return not self.mismatches
+
+    def to_dict(self) -> dict[str, Any]:
+        """JSON-ready summary."""
+        return {
+            "trials": self.trials,
+            "columns_compared": self.columns_compared,
+            "identical": self.identical,
+            "mismatches": [m.__dict__ for m in self.mismatches],
+        }
+
+
+def _same(a: Any, b: Any) -> bool:
+    """Exact equality, with NaN equal to NaN and None equal to a missing (NaN) cell."""
+    missing_a = a is None or (isinstance(a, float) and math.isnan(a))
+    missing_b = b is None or (isinstance(b, float) and math.isnan(b))
+    if missing_a or missing_b:
+        return missing_a and missing_b
+    if isinstance(a, np.generic):
+        a = a.item()
+    if isinstance(b, np.generic):
+        b = b.item()
+    return bool(a == b)
+
+
+def recheck(study: Study, n_trials: int = 20, seed: int = 0) -> RecheckReport:
+    """Re-run ``n_trials`` stored trials of ``study`` drawn at random; compare cell by cell.
+
+    Raises:
+        SomoError: No results, or results of another version of the study (re-run it first).
+    """
+    folder = study.output
+    table = build_jobs(study)
+    manifest = read_manifest(folder)
+    if manifest["study_hash"] != table.study_hash:
+        raise SomoError(
+            f"{folder} holds results of another version of {study.name} (hash {manifest['study_hash']}, "
+            f"the study now gives {table.study_hash}): run it again before rechecking"
+        )
+    stored = read_results(folder)
+    if stored.empty:
+        raise SomoError(f"{folder} holds no finished trials yet")
+    if n_trials < 1:
+        raise SomoError(f"the number of trials to recheck must be >= 1, got {n_trials}")
+    by_id: dict[str, Job] = {j.job_id: j for j in table.jobs}
+    rng = np.random.default_rng(seed)
+    picks = rng.choice(len(stored), size=min(n_trials, len(stored)), replace=False)
+    report = RecheckReport()
+    for index in picks:
+        row = stored.iloc[int(index)]
+        job = by_id[str(row["job_id"])]
+        result = _call(job)
+        out = Outcome(job.job_id, result.status, result.message, dict(result.metrics), dict(result.labels))
+        fresh = outcome_row(job, out, table.study_hash)
+        report.trials.append(job.trial)
+        _compare(report, job.trial, row, fresh)
+    return report
+
+
+def _compare(report: RecheckReport, trial: int, row: pd.Series, fresh: dict[str, Any]) -> None:
+    columns = (set(row.index) | set(fresh)) - RUN_COLUMNS
+    for column in sorted(columns):
+        a, b = row.get(column), fresh.get(column)
+        report.columns_compared += 1
+        if not _same(a, b):
+            report.mismatches.append(Mismatch(trial, column, _plain(a), _plain(b)))
+
+
+def _plain(value: Any) -> Any:
+    return value.item() if isinstance(value, np.generic) else value
+
+
+def write_report(report: RecheckReport, path: Path) -> None:
+    """Write the report as JSON."""
+    import json
+
+    path.write_text(json.dumps(report.to_dict(), indent=1, default=str))

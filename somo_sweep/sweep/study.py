@@ -1,0 +1,373 @@
+"""Study files: which task to run on which model, and the axes to sweep.
+
+A study file (YAML or JSON) looks like this; paths are relative to the study file::
+
+    name: finger_pressure_sweep          # default: the file name; output goes to results/<name>
+    task: bench                          # a registered task (``somo-sweep tasks`` lists them)
+    model: models/ihm_finger.yaml        # the model file every trial starts from
+    params:                              # fixed task parameters (the task's own schema)
+      test: free_bending
+    set:                                 # fixed overrides by key path (optional)
+      model.manipulator.actuators[0].joints[0].motor_limit_n_m: 0.0
+    sweep:                               # one axis per key path; the full grid by default
+      task.pressure_kpa: {start: 0, stop: 200, step: 25}        # inclusive, round-off safe
+      model.manipulator.actuators[0].joints[0].stiffness_n_m_per_rad: [0.15, 0.2186, 0.30]
+      task.tip_load_n: {start: 0.0, stop: 0.2, num: 9}          # linspace
+    link:                                # axes zipped together instead of crossed (same lengths)
+      - [task.pressure_kpa, task.tip_load_n]
+    repeats: 1                           # trials per grid point, each with its own seed
+    seed: 0                              # base seed; trial seeds derive from it and the point
+    simulation: {time_step_s: 5.0e-4, scale: 20, solver_iterations: 50, gravity_m_s2: [0, 0, -9.81]}
+    output: results/finger_pressure_sweep   # relative to the current directory
+
+In YAML flow style (``{...}``) quote keys holding ``[i]``; block style needs no quotes.
+Key paths start with ``model.`` (any field of the model file, list items as ``[i]``)
+or ``task.`` (a task parameter, nested with dots). The axis ``model`` (no path) sweeps
+over model files. An axis is a list, ``{values: [...]}``, ``{start, stop, step}``
+(inclusive) or ``{start, stop, num}`` (evenly spaced, inclusive).
+
+Every trial's model and task parameters are validated when the study is loaded,
+so a bad value fails before anything runs, naming the file, line and key path.
+"""
+
+from __future__ import annotations
+
+import copy
+import itertools
+import json
+import math
+from collections.abc import Iterator
+from dataclasses import dataclass, field
+from functools import cache
+from pathlib import Path
+from typing import Any
+
+from pydantic import BaseModel, Field
+
+from somo_sweep.errors import DescriptionError, Problem, SomoError
+from somo_sweep.model.description import Spec
+from somo_sweep.model.files import load_mapping
+from somo_sweep.model.load import Model, model_from_dict
+from somo_sweep.model.tables import resolve_table
+from somo_sweep.model.validation import validate
+from somo_sweep.sim.settings import WorldSettings
+from somo_sweep.sweep.axes import Axis, expand_axis, link_groups, parse_key_path, set_path
+from somo_sweep.tasks.registry import TaskSpec, get_task
+
+__all__ = ["Simulation", "Study", "StudyFile", "load_model_dict", "load_study"]
+
+
+class Simulation(Spec):
+    """Simulation settings of every trial (SI)."""
+
+    time_step_s: float = Field(5e-4, gt=0)
+    scale: float = Field(20.0, gt=0)
+    solver_iterations: int = Field(50, ge=1)
+    gravity_m_s2: tuple[float, float, float] = (0.0, 0.0, -9.81)
+
+    def world_settings(self) -> WorldSettings:
+        """The :class:`~somo_sweep.sim.world.WorldSettings` these settings describe."""
+        return WorldSettings(
+            time_step_s=self.time_step_s,
+            scale=self.scale,
+            gravity_m_s2=self.gravity_m_s2,
+            solver_iterations=self.solver_iterations,
+        )
+
+
+class StudyFile(Spec):
+    """The raw schema of a study file (see the module docstring)."""
+
+    name: str | None = Field(None, pattern=r"^[A-Za-z0-9_.-]+$")
+    task: str
+    model: str
+    params: dict[str, Any] = Field(default_factory=dict)
+    set: dict[str, Any] = Field(default_factory=dict)
+    sweep: dict[str, Any] = Field(default_factory=dict)
+    link: list[list[str]] = Field(default_factory=list)
+    repeats: int = Field(1, ge=1)
+    seed: int = Field(0, ge=0)
+    simulation: Simulation = Simulation()
+    output: str | None = None
+
+
+def _canonical(obj: Any) -> str:
+    return json.dumps(obj, sort_keys=True, separators=(",", ":"), default=str)
+
+
+@dataclass
+class Study:
+    """A loaded, validated study: the task, the base model(s), fixed values and the axes.
+
+    Attributes:
+        name: Study name (output folder name).
+        source: The study file.
+        task: The registered task.
+        model_path: Model file every trial starts from (unless the ``model`` axis is swept).
+        params: Fixed task parameters (raw, before overrides).
+        fixed: Fixed overrides by key path.
+        axes: Sweep axes in file order.
+        groups: Axis groups crossed as a grid; axes in one group are zipped.
+        repeats: Trials per grid point.
+        seed: Base seed.
+        simulation: Simulation settings.
+        output: Output folder.
+    """
+
+    name: str
+    source: Path
+    task: TaskSpec
+    model_path: Path
+    params: dict[str, Any]
+    fixed: dict[str, Any]
+    axes: list[Axis]
+    groups: list[list[str]]
+    repeats: int
+    seed: int
+    simulation: Simulation
+    output: Path
+    _models: dict[str, Model] = field(default_factory=dict, repr=False)
+    _bases: dict[str, dict[str, Any]] = field(default_factory=dict, repr=False)
+    _params: dict[str, BaseModel] = field(default_factory=dict, repr=False)
+
+    @property
+    def n_points(self) -> int:
+        """Number of grid points (trials = points × repeats)."""
+        return math.prod(len(self._axis(g[0]).values) for g in self.groups) if self.groups else 1
+
+    def _axis(self, key: str) -> Axis:
+        return next(a for a in self.axes if a.key == key)
+
+    def points(self) -> Iterator[dict[str, Any]]:
+        """Every grid point as {axis key: value}, last axis varying fastest."""
+        per_group = [
+            [dict(zip(g, vals, strict=True)) for vals in zip(*(self._axis(k).values for k in g), strict=True)]
+            for g in self.groups
+        ]
+        for combo in itertools.product(*per_group):
+            point: dict[str, Any] = {}
+            for part in combo:
+                point.update(part)
+            yield point
+
+    def _model_base(self, path: Path) -> dict[str, Any]:
+        key = str(path)
+        if key not in self._bases:
+            # Includes resolved and defaults left out: overrides see the file's own content.
+            self._bases[key] = load_model_dict(path)
+        return self._bases[key]
+
+    def resolve(self, point: dict[str, Any]) -> tuple[Path, Model, BaseModel]:
+        """The model file, model and task parameters of one grid point.
+
+        Raises:
+            DescriptionError: An override does not fit the model or the task.
+        """
+        path, model = self.resolve_model(point)
+        return path, model, self.resolve_params(point)
+
+    def resolve_model(self, point: dict[str, Any]) -> tuple[Path, Model]:
+        """The model file and the model (with its overrides applied) of one grid point."""
+        values = {**self.fixed, **point}
+        model_path = Path(values.get("model", self.model_path))
+        over = {k: v for k, v in values.items() if k.startswith("model.")}
+        key = _canonical([str(model_path), over])
+        if key not in self._models:
+            data = copy.deepcopy(self._model_base(model_path))
+            problems = []
+            for path, value in over.items():
+                try:
+                    set_path(data, parse_key_path(path)[1], value)
+                except ValueError as exc:
+                    problems.append(Problem(path, str(exc)))
+            if problems:
+                raise DescriptionError(self.source, problems)
+            try:
+                self._models[key] = model_from_dict(data, str(model_path))
+            except DescriptionError as exc:
+                moved = [Problem(f"model.{p.path}" if p.path else "model", p.message) for p in exc.problems]
+                raise DescriptionError(self.source, moved) from None
+        return model_path, self._models[key]
+
+    def resolve_params(self, point: dict[str, Any]) -> BaseModel:
+        """The task parameters (an instance of the task's ``params_model``) of one grid point."""
+        values = {**self.fixed, **point}
+        over = {k: v for k, v in values.items() if k.startswith("task.")}
+        key = _canonical(over)
+        if key not in self._params:
+            data = copy.deepcopy(self.params)
+            for path, value in over.items():
+                try:
+                    set_path(data, parse_key_path(path)[1], value)
+                except ValueError as exc:
+                    raise DescriptionError(self.source, [Problem(path, str(exc))]) from None
+            # Unknown keys fail even if the task's own model would let them through.
+            validate(_strict(self.task.params_model), data, str(self.source), prefix="task")
+            params = validate(self.task.params_model, data, str(self.source), prefix="task")
+            self._params[key] = self._resolve_tables(params)
+        return self._params[key]
+
+    def _resolve_tables(self, params: BaseModel) -> BaseModel:
+        """Table fields (the task's ``TABLE_FIELDS``) as ``LOCATION#sha256=DIGEST`` references."""
+        fields: tuple[str, ...] = getattr(type(params), "TABLE_FIELDS", ())
+        update: dict[str, str] = {}
+        for name in fields:
+            try:
+                update[name] = resolve_table(getattr(params, name), self.source.parent)
+            except SomoError as exc:
+                raise DescriptionError(self.source, [Problem(f"task.{name}", str(exc))]) from None
+        return params.model_copy(update=update) if update else params
+
+
+@cache
+def _strict(model: type[BaseModel]) -> type[BaseModel]:
+    """``model`` with unknown keys forbidden (used to check, never to build parameters)."""
+    if model.model_config.get("extra") == "forbid":
+        return model
+    config = {**model.model_config, "extra": "forbid"}
+    return type(model.__name__, (model,), {"model_config": config, "__module__": model.__module__})
+
+
+def load_model_dict(path: Path) -> dict[str, Any]:
+    """A model file's content as a plain dict (includes resolved, defaults omitted)."""
+    from somo_sweep.model.load import load_model
+
+    return load_model(path).model_dump(mode="json", exclude_unset=True)
+
+
+def load_study(path: str | Path, output: str | Path | None = None) -> Study:
+    """Load, validate and expand a study file; every trial's inputs are checked.
+
+    Args:
+        path: The study file (YAML or JSON).
+        output: Output folder overriding the file's ``output`` (e.g. from ``--out``).
+
+    Raises:
+        DescriptionError: Every problem of the file at once, with lines and key paths.
+    """
+    path = Path(path)
+    data, lines = load_mapping(path)
+    raw = validate(StudyFile, data, str(path), lines)
+    src = str(path)
+
+    def line(key: str) -> int | None:
+        return lines.get(key)
+
+    problems: list[Problem] = []
+    try:
+        task = get_task(raw.task)
+    except SomoError as exc:
+        raise DescriptionError(src, [Problem("task", str(exc), line("task"))]) from None
+    folder = path.parent
+    model_path = folder / raw.model
+    if not model_path.is_file():
+        problems.append(Problem("model", f"model file not found: {model_path}", line("model")))
+    fixed: dict[str, Any] = {}
+    bad: set[str] = set()
+    for key, value in raw.set.items():
+        try:
+            parse_key_path(key)
+        except ValueError as exc:
+            problems.append(Problem(f"set.{key}", str(exc), line(f"set.{key}")))
+            continue
+        fixed[key] = value
+    axes: list[Axis] = []
+    for key, spec in raw.sweep.items():
+        where = f"sweep.{key}"
+        values, found = expand_axis(spec, where)
+        before = len(problems)
+        for p in found:
+            problems.append(Problem(p.path, p.message, line(p.path) or line(where)))
+        if key == "model":
+            values = [str(folder / str(v)) for v in values]
+            for v in values:
+                if not Path(v).is_file():
+                    problems.append(Problem(where, f"model file not found: {v}", line(where)))
+        else:
+            try:
+                parse_key_path(key)
+            except ValueError as exc:
+                problems.append(Problem(where, str(exc), line(where)))
+        axes.append(Axis(key, tuple(values)))
+        if len(problems) > before:
+            bad.add(key)
+    n_before = len(problems)
+    groups = link_groups(
+        raw.link, [a.key for a in axes], {a.key: len(a.values) for a in axes}, lines, problems
+    )
+    name = raw.name or path.stem
+    out = Path(output) if output is not None else Path(raw.output or f"results/{name}")
+    study = Study(
+        name,
+        path,
+        task,
+        model_path,
+        raw.params,
+        fixed,
+        axes,
+        groups,
+        raw.repeats,
+        raw.seed,
+        raw.simulation,
+        out,
+    )
+    if problems and model_path.is_file():
+        # Check the trials of the good axes too, so that every problem is reported at once.
+        good = [a for a in axes if a.key not in bad]
+        linked_ok = len(problems) == n_before
+        study.axes = good
+        study.groups = (
+            [[k for k in g if k not in bad] for g in groups] if linked_ok else [[a.key] for a in good]
+        )
+        study.groups = [g for g in study.groups if g]
+        _check_points(study, lines, problems)
+        raise DescriptionError(src, problems)
+    if problems:
+        raise DescriptionError(src, problems)
+    _check_points(study, lines, problems)
+    if problems:
+        raise DescriptionError(src, problems)
+    return study
+
+
+def _check_points(study: Study, lines: dict[str, int], problems: list[Problem]) -> None:
+    """Resolve every distinct model and parameter set once; report each problem once."""
+    seen: set[tuple[str, str]] = set()
+    for point in study.points():
+        for resolve in (study.resolve_model, study.resolve_params):
+            try:
+                resolve(point)
+            except DescriptionError as exc:
+                for p in exc.problems:
+                    where = _blame(p.path, list(study.fixed), [k for k in point if k != "model"])
+                    same = where.endswith(p.path) or where == f"params.{p.path.removeprefix('task.')}"
+                    msg = p.message if same else f"{p.path}: {p.message}"
+                    if (where, msg) not in seen:
+                        seen.add((where, msg))
+                        problems.append(Problem(where, msg, _line(lines, where)))
+        if len(problems) >= 20:
+            return
+
+
+def _line(lines: dict[str, int], where: str) -> int | None:
+    """Line of a study key path, or of its ``params`` ancestor."""
+    while where:
+        if where in lines:
+            return lines[where]
+        if "." not in where:
+            return None
+        where = where.rsplit(".", 1)[0]
+    return None
+
+
+def _blame(path: str, fixed: list[str], swept: list[str]) -> str:
+    """The study key (``sweep.<axis>``, ``set.<key>`` or ``params...``) a problem comes from."""
+    for key in swept:
+        if path == key or path.startswith(f"{key}.") or path.startswith(f"{key}["):
+            return f"sweep.{key}"
+    for key in fixed:
+        if path == key or path.startswith(f"{key}.") or path.startswith(f"{key}["):
+            return f"set.{key}"
+    if path.startswith("task."):
+        return "params." + path[len("task.") :]
+    return path

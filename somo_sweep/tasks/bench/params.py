@@ -1,0 +1,38 @@
+"""Task ``bench``: its parameters and registration (light: no PyBullet import)."""
+
+from __future__ import annotations
+
+from typing import Literal
+
+from pydantic import BaseModel, ConfigDict, Field
+
+from somo_sweep.tasks.registry import TaskSpec, register
+
+__all__ = ["BenchParams"]
+
+
+class BenchParams(BaseModel):
+    """Parameters of task ``bench``.
+
+    Attributes:
+        test: ``tip_load``, ``blocked_force`` or ``free_bending``.
+        pressure_kpa: Actuation pressure in kPa.
+        tip_load_n: Downward tip force in N (``tip_load`` only), ≥ 0.
+    """
+
+    model_config = ConfigDict(extra="forbid", frozen=True)
+
+    test: Literal["tip_load", "blocked_force", "free_bending"] = "free_bending"
+    pressure_kpa: float = 0.0
+    tip_load_n: float = Field(0.0, ge=0)
+
+
+register(
+    TaskSpec(
+        name="bench",
+        run_path="somo_sweep.tasks.bench.task:run_bench_task",
+        params_model=BenchParams,
+        description="A bench protocol (tip_load, blocked_force, free_bending) of a manipulator model.",
+        tags=("bench",),
+    )
+)

@@ -1,0 +1,46 @@
+"""Task ``ihm_gait``: its parameters and registration (light: no PyBullet import)."""
+
+from __future__ import annotations
+
+from typing import ClassVar
+
+from pydantic import Field
+
+from somo_sweep.model.description import Spec
+from somo_sweep.tasks.registry import TaskSpec, register
+
+__all__ = ["GaitParams"]
+
+#: The bundled pressure table (a package data file).
+DEFAULT_TABLE = "ihm_gait_setpoints_psi.csv"
+
+
+class GaitParams(Spec):
+    """Parameters of the gait task (SI unless named otherwise)."""
+
+    #: Fields naming a table: resolved (and content-hashed) when a study is expanded.
+    TABLE_FIELDS: ClassVar[tuple[str, ...]] = ("pressure_table",)
+
+    pressure_table: str = DEFAULT_TABLE
+    w_grasp_n_m_per_psi: float = 0.005
+    w_side_n_m_per_psi: float = 0.01625
+    duration_s: float | None = Field(None, gt=0)
+    cube_size_m: float = Field(0.060, gt=0)
+    cube_mass_kg: float = Field(0.020, gt=0)
+    cube_friction: float = Field(1.2, ge=0)
+    palm_height_m: float | None = Field(None, gt=0)
+    palm_diameter_m: float | None = Field(None, gt=0)
+    cube_offset_std_m: float = Field(0.0, ge=0)
+    cube_yaw_std_deg: float = Field(0.0, ge=0)
+    record_every_s: float = Field(0.04, gt=0)
+
+
+register(
+    TaskSpec(
+        name="ihm_gait",
+        run_path="somo_sweep.tasks.ihm_gait.task:_run",
+        params_model=GaitParams,
+        description="Four-finger hand turning a cube with a finger gait from a pressure table",
+        tags=("paper", "fig5", "manipulation"),
+    )
+)

@@ -1,0 +1,259 @@
+"""Grasp labels — ``pinch``, ``power`` or ``no_grasp`` — from stored per-trial metrics.
+
+Two rules, both pure functions of a trial's stored metrics (so a finished sweep
+can be relabelled without rerunning it):
+
+``paper`` (the original study, facts sheet)
+    Grasped if, at the end, the object's centre is above 40 mm, below 200 mm and
+    within 50 mm of its start in x and y. Then the finger–object contacts of the
+    *final step* are averaged by link number (1 … 20, the fingertip counts as 21):
+    pinch if mean / 20 > 1 − DSR, power otherwise. (No contact → no grasp.)
+
+``contacts`` (default)
+    Uses where the contact *force* sits over the whole hold phase, not one step.
+    Grasped if the object was held: off the ground in at least 90 % of the hold
+    samples, touched by both fingers in at least 90 % of them, and higher at the
+    end than at the start by at least ``MIN_LIFT_M`` (10 mm). An object that swings
+    in the fingertips but stays off the ground is held; one left on the ground is not.
+    The finger's distal zone is its last round(20·DSR) links plus the fingertip
+    (the links past the driven segment, whether the distal segment is a separate
+    actuator or not); the rest of the finger and the palm form the proximal zone.
+    Pinch if the proximal zone carries less than ``max_proximal_fraction`` (25 %)
+    of the hold-phase normal force, power otherwise: a power grasp is one where
+    the object is pressed into the proximal finger or the palm, while a light
+    touch of a proximal link during a fingertip grasp does not make it one.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Mapping
+from dataclasses import dataclass
+from typing import Any, Literal
+
+import numpy as np
+
+from somo_sweep.errors import SomoError, did_you_mean
+from somo_sweep.tasks.pinch_grasp.params import N_FINGER_LINKS, distal_link_count, link_columns
+
+__all__ = [
+    "LABELS",
+    "RULES",
+    "GraspEvidence",
+    "classify",
+    "contact_position",
+    "distal_force_fractions",
+    "find_column",
+    "is_held",
+    "reclassify",
+]
+
+Label = Literal["pinch", "power", "no_grasp"]
+LABELS: tuple[str, ...] = ("pinch", "power", "no_grasp")
+RULES: tuple[str, ...] = ("contacts", "paper")
+
+#: Segment length and fingertip length along the finger, m (facts sheet).
+SEGMENT_M = 0.005
+TIP_M = 0.015
+#: Paper rule bounds on the final object position, m.
+PAPER_MIN_Z_M = 0.040
+PAPER_MAX_Z_M = 0.200
+PAPER_MAX_XY_M = 0.050
+#: Contacts rule: least rise of the object (m), least share of hold samples held, proximal share.
+MIN_LIFT_M = 0.010
+MIN_HELD_FRACTION = 0.9
+MAX_PROXIMAL_FRACTION = 0.25
+
+
+@dataclass(frozen=True)
+class GraspEvidence:
+    """What the rules look at, for one trial.
+
+    Attributes:
+        distal_segment_ratio: DSR of the fingers.
+        object_position_m: Final object centre (x, y, z) relative to the world, m; it starts at x = y = 0.
+        lift_height_m: Final object height above its start, m.
+        commanded_lift_m: How far the hand lifted, m.
+        hold_normal_force_n: Mean normal force per link number over the hold samples
+            (links 1 … 20 then the fingertip; both fingers added), N.
+        hold_normal_force_palm_n: Same for the palm and finger base boxes, N.
+        hold_contact_fraction_both_fingers: Share of hold samples with both fingers touching.
+        hold_ground_contact_fraction: Share of hold samples with the object touching the ground.
+        final_mean_contact_link: Mean link number of the final step's contacts (NaN: none).
+    """
+
+    distal_segment_ratio: float
+    object_position_m: tuple[float, float, float]
+    lift_height_m: float
+    commanded_lift_m: float
+    hold_normal_force_n: tuple[float, ...]
+    hold_normal_force_palm_n: float
+    hold_contact_fraction_both_fingers: float
+    final_mean_contact_link: float
+    hold_ground_contact_fraction: float = 0.0
+
+    @classmethod
+    def from_metrics(
+        cls, metrics: Mapping[str, Any], distal_segment_ratio: float, commanded_lift_m: float = 0.075
+    ) -> GraspEvidence:
+        """Evidence from a trial's metrics (a task result or one row of a results table)."""
+        forces = tuple(float(metrics[c]) for c in link_columns("hold_normal_force_n"))
+        return cls(
+            distal_segment_ratio=float(distal_segment_ratio),
+            object_position_m=(
+                float(metrics["object_x_m"]),
+                float(metrics["object_y_m"]),
+                float(metrics["object_z_m"]),
+            ),
+            lift_height_m=float(metrics["lift_height_m"]),
+            commanded_lift_m=float(commanded_lift_m),
+            hold_normal_force_n=forces,
+            hold_normal_force_palm_n=float(metrics["hold_normal_force_n_palm"]),
+            hold_contact_fraction_both_fingers=float(metrics["hold_contact_fraction_both_fingers"]),
+            final_mean_contact_link=float(metrics["final_mean_contact_link"]),
+            hold_ground_contact_fraction=float(metrics["hold_ground_contact_fraction"]),
+        )
+
+    @property
+    def n_distal_links(self) -> int:
+        """round(20·DSR), without float traps."""
+        return distal_link_count(self.distal_segment_ratio)
+
+
+def distal_force_fractions(evidence: GraspEvidence) -> dict[str, float]:
+    """Shares of the hold-phase normal force on the distal links, the fingertip and the proximal zone.
+
+    Returns NaN shares when there was no contact force at all.
+    """
+    f = np.asarray(evidence.hold_normal_force_n, float)
+    total = float(f.sum()) + evidence.hold_normal_force_palm_n
+    if total <= 0:
+        nan = float("nan")
+        return {"distal": nan, "tip": nan, "proximal": nan}
+    n_seg = N_FINGER_LINKS - 1
+    distal = float(f[n_seg - evidence.n_distal_links : n_seg].sum()) / total
+    tip = float(f[n_seg]) / total
+    return {"distal": distal, "tip": tip, "proximal": 1.0 - distal - tip}
+
+
+def contact_position(forces_n: tuple[float, ...] | np.ndarray) -> float:
+    """Force-weighted mean contact position along the finger, 0 at the base … 1 at the tip end."""
+    f = np.asarray(forces_n, float)
+    n_seg = N_FINGER_LINKS - 1
+    centres = np.append((np.arange(n_seg) + 0.5) * SEGMENT_M, n_seg * SEGMENT_M + TIP_M / 2)
+    if f.sum() <= 0:
+        return float("nan")
+    return float((f * centres).sum() / f.sum() / (n_seg * SEGMENT_M + TIP_M))
+
+
+def _paper(ev: GraspEvidence) -> Label:
+    x, y, z = ev.object_position_m
+    grasped = PAPER_MIN_Z_M < z < PAPER_MAX_Z_M and abs(x) < PAPER_MAX_XY_M and abs(y) < PAPER_MAX_XY_M
+    if not grasped or not math.isfinite(ev.final_mean_contact_link):
+        return "no_grasp"
+    return "pinch" if ev.final_mean_contact_link / 20 > 1 - ev.distal_segment_ratio else "power"
+
+
+def is_held(ev: GraspEvidence) -> bool:
+    """Held through the hold phase: off the ground, in both fingers, and lifted (see the module doc)."""
+    return (
+        ev.lift_height_m >= MIN_LIFT_M
+        and ev.hold_contact_fraction_both_fingers >= MIN_HELD_FRACTION
+        and 1.0 - ev.hold_ground_contact_fraction >= MIN_HELD_FRACTION
+    )
+
+
+def _contacts(ev: GraspEvidence, max_proximal_fraction: float = MAX_PROXIMAL_FRACTION) -> Label:
+    if not is_held(ev):
+        return "no_grasp"
+    shares = distal_force_fractions(ev)
+    if not math.isfinite(shares["proximal"]):
+        return "no_grasp"
+    return "pinch" if shares["proximal"] < max_proximal_fraction else "power"
+
+
+def classify(evidence: GraspEvidence, rule: str = "contacts", **options: float) -> Label:
+    """Label one trial with a rule (``contacts`` or ``paper``); options tune the ``contacts`` rule.
+
+    Raises:
+        SomoError: Unknown rule (lists the valid ones).
+    """
+    allowed = {"paper": (), "contacts": ("max_proximal_fraction",)}
+    if rule in allowed:
+        bad = sorted(set(options) - set(allowed[rule]))
+        if bad:
+            raise SomoError(
+                f"grasp rule '{rule}' takes no option {', '.join(bad)}; "
+                f"allowed: {', '.join(allowed[rule]) or 'none'}"
+            )
+    if rule == "paper":
+        return _paper(evidence)
+    if rule == "contacts":
+        return _contacts(evidence, **options)
+    raise SomoError(f"unknown grasp rule '{rule}'{did_you_mean(rule, RULES)}; allowed: {', '.join(RULES)}")
+
+
+def find_column(columns: list[str], name: str) -> str | None:
+    """The column holding ``name`` in a results table, or None.
+
+    Tried in order: ``name`` itself, the sweep engine's ``task_<name>`` (task parameters)
+    and ``label_<name>``, then the one column ending in ``.name``, ``/name`` or ``:name``.
+    """
+    for candidate in (name, f"task_{name}", f"label_{name}"):
+        if candidate in columns:
+            return candidate
+    hits = [c for c in columns if any(c.endswith(sep + name) for sep in (".", "/", ":"))]
+    return hits[0] if len(hits) == 1 else None
+
+
+def reclassify(table: Any, rule: str = "contacts", **options: float) -> Any:
+    """Labels for every row of a results table (a pandas DataFrame) from its stored metrics.
+
+    Columns are found by metric or parameter name, bare or behind a prefix
+    (``metrics.lift_height_m``, ``task.distal_segment_ratio``...). Rows whose status is
+    not ``ok`` keep no label (``None``).
+
+    Returns:
+        A pandas Series of labels aligned with ``table``.
+
+    Raises:
+        SomoError: A needed column is missing (lists which) or the rule is unknown.
+    """
+    import pandas as pd
+
+    classify(_DUMMY, rule, **options)  # fail early on a bad rule or option
+    cols = [str(c) for c in table.columns]
+    needed = [
+        "distal_segment_ratio",
+        "object_x_m",
+        "object_y_m",
+        "object_z_m",
+        "lift_height_m",
+        "hold_normal_force_n_palm",
+        "hold_contact_fraction_both_fingers",
+        "hold_ground_contact_fraction",
+        "final_mean_contact_link",
+        *link_columns("hold_normal_force_n"),
+    ]
+    found = {n: find_column(cols, n) for n in needed}
+    missing = [n for n, c in found.items() if c is None]
+    if missing:
+        raise SomoError(
+            f"results table lacks the columns needed to classify grasps: {', '.join(missing)} "
+            "(was it made by the pinch_grasp task?)"
+        )
+    lift_col = find_column(cols, "lift_m")
+    status_col = find_column(cols, "status")
+    labels: list[str | None] = []
+    for _, row in table.iterrows():
+        if status_col is not None and row[status_col] != "ok":
+            labels.append(None)
+            continue
+        metrics = {n: row[c] for n, c in found.items()}
+        lift = float(row[lift_col]) if lift_col is not None else 0.075
+        ev = GraspEvidence.from_metrics(metrics, float(metrics["distal_segment_ratio"]), lift)
+        labels.append(classify(ev, rule, **options))
+    return pd.Series(labels, index=table.index, name=f"grasp_{rule}", dtype=object)
+
+
+_DUMMY = GraspEvidence(0.2, (0.0, 0.0, 0.0), 0.0, 0.075, (0.0,) * N_FINGER_LINKS, 0.0, 0.0, float("nan"))

@@ -1,0 +1,104 @@
+"""Finger–object contacts of a gripper, sampled over a phase and reduced to per-link metrics.
+
+Links are numbered along each finger as in SoMo: 1 at the base … 20 at the last
+segment, 21 for the fingertip; palm and finger base boxes are ``palm``. Counts
+and forces of both fingers are added per link number, so a stored row holds
+everything :mod:`somo_sweep.tasks.pinch_grasp.classify` needs to relabel a trial.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from somo_sweep.sim.world import Body, World
+from somo_sweep.tasks.pinch_grasp.params import N_FINGER_LINKS, link_columns
+
+__all__ = ["HoldProbe"]
+
+
+class HoldProbe:
+    """Samples contacts between a gripper body and an object.
+
+    Args:
+        world: The world holding both.
+        hand: The gripper body (palm and fingers in one multibody).
+        object_id: PyBullet id of the object.
+        ground_id: PyBullet id of the ground (to tell a held object from one resting on it).
+    """
+
+    def __init__(self, world: World, hand: Body, object_id: int, ground_id: int | None = None):
+        self.world = world
+        self.hand = hand
+        self.object_id = object_id
+        self.ground_id = ground_id
+        self.on_ground = 0
+        self.fingers = list(hand.plan.tip)
+        # PyBullet link index → (finger number, link number 1..21) or palm (-1, 0).
+        self._where: dict[int, tuple[int, int]] = {}
+        self._along: dict[int, float] = {}
+        for info in hand.plan.links:
+            idx = hand.link_index[info.name]
+            if info.role in ("segment", "tip") and info.manipulator in self.fingers:
+                self._where[idx] = (self.fingers.index(info.manipulator), info.chain_index + 1)
+            else:
+                self._where[idx] = (-1, 0)
+        self.counts = np.zeros(N_FINGER_LINKS)
+        self.force_sums_n = np.zeros(N_FINGER_LINKS)
+        self.palm_count = 0
+        self.palm_force_sum_n = 0.0
+        self.finger_force_sums_n = np.zeros(len(self.fingers))
+        self.samples = 0
+        self.both_touching = 0
+        self.last_links: list[int] = []
+
+    def finger_base_x_m(self) -> float:
+        """Mean world x (m) of the fingers' chain starts (where each finger's first joint sits)."""
+        xs = []
+        for name in self.fingers:
+            base = f"{name}__base"
+            info = next(i for i in self.hand.plan.links if i.name == base)
+            assert info.link is not None
+            xs.append(self.world.point_on_link(self.hand, base, (0.0, 0.0, info.link.half_extent_m(2)))[0])
+        return float(np.mean(xs))
+
+    def sample(self) -> None:
+        """Record the current contacts (one sample)."""
+        c = self.world.contacts(self.object_id, self.hand.id)
+        touched = np.zeros(len(self.fingers), bool)
+        links: list[int] = []
+        for link_b, force in zip(c["link_b"].tolist(), c["normal_force_n"].tolist(), strict=True):
+            finger, number = self._where.get(int(link_b), (-1, 0))
+            if finger < 0:
+                self.palm_count += 1
+                self.palm_force_sum_n += force
+                continue
+            touched[finger] = True
+            links.append(number)
+            self.counts[number - 1] += 1
+            self.force_sums_n[number - 1] += force
+            self.finger_force_sums_n[finger] += force
+        self.samples += 1
+        self.both_touching += int(touched.all())
+        if self.ground_id is not None:
+            self.on_ground += int(len(self.world.contacts(self.object_id, self.ground_id)["link_a"]) > 0)
+        self.last_links = links
+
+    def metrics(self) -> dict[str, float | int]:
+        """Per-link and summary metrics over the samples taken (means per sample)."""
+        n = max(self.samples, 1)
+        out: dict[str, float | int] = {"hold_samples": self.samples}
+        out["hold_contact_fraction_both_fingers"] = self.both_touching / n
+        out["hold_ground_contact_fraction"] = self.on_ground / n
+        mean_force = self.force_sums_n / n
+        for name, v in zip(link_columns("hold_contact_count"), self.counts, strict=True):
+            out[name] = int(v)
+        for name, v in zip(link_columns("hold_normal_force_n"), mean_force, strict=True):
+            out[name] = float(v)
+        out["hold_contact_count_palm"] = self.palm_count
+        out["hold_normal_force_n_palm"] = self.palm_force_sum_n / n
+        for name, v in zip(self.fingers, self.finger_force_sums_n / n, strict=True):
+            out[f"hold_normal_force_n_{name}"] = float(v)
+        last = np.asarray(self.last_links, float)
+        out["final_contact_count"] = len(last)
+        out["final_mean_contact_link"] = float(last.mean()) if len(last) else float("nan")
+        return out

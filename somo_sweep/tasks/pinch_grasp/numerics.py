@@ -1,0 +1,154 @@
+"""Numerics of the pinch-grasp study: the chosen settings, and how to check them.
+
+The original ran 8000 steps of 0.5 ms per 4-s trial (12–13 s of wall time). Here the
+step is larger; what makes that stable is inertia shaping of the finger links (it
+lowers the chain's highest natural frequency, which the explicit springs must
+resolve, and leaves statics unchanged) on top of SoMo's Coulomb joint motor.
+:func:`compare` reruns a set of trials under two numerics and reports how often
+the labels agree and how far the metrics move; :func:`trial_seconds` times one trial.
+``somo-sweep paper numerics --help`` runs both.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from pathlib import Path
+from time import perf_counter, process_time
+from typing import Any
+
+import numpy as np
+
+from somo_sweep.model.load import load_model
+from somo_sweep.model.tables import bundled_path
+from somo_sweep.sim.settings import WorldSettings
+from somo_sweep.tasks.pinch_grasp.params import Numerics, PinchGraspParams
+from somo_sweep.tasks.pinch_grasp.task import run_pinch_grasp
+
+__all__ = [
+    "CHOSEN",
+    "ORIGINAL_TRIAL_S",
+    "REFERENCE",
+    "Setup",
+    "compare",
+    "quick_points",
+    "trial_seconds",
+    "trial_timing_lines",
+]
+
+GRIPPER = bundled_path("models", "pinch_gripper.yaml")
+QUICK_STUDY = bundled_path("pinch_grasp_quick.yaml")
+#: Wall time of one 4-s trial of the original SoMo study on one core (facts sheet), s.
+ORIGINAL_TRIAL_S = 12.5
+
+
+@dataclass(frozen=True)
+class Setup:
+    """Numerics of a run: time step (s), solver iterations and the finger regularisation."""
+
+    time_step_s: float
+    solver_iterations: int
+    numerics: Numerics
+
+    def settings(self) -> WorldSettings:
+        """World settings of this setup."""
+        return WorldSettings(time_step_s=self.time_step_s, solver_iterations=self.solver_iterations)
+
+    def describe(self) -> str:
+        """One line: dt, iterations, inertia shaping, damping, motor limit."""
+        n = self.numerics
+        return (
+            f"dt {self.time_step_s * 1e3:g} ms, {self.solver_iterations} solver iterations, "
+            f"added inertia {n.added_inertia_kg_m2:g} kg·m², damping "
+            f"{'file' if n.damping_n_m_s_per_rad is None else n.damping_n_m_s_per_rad}, motor limit "
+            f"{'file (0.005 N·m)' if n.motor_limit_n_m is None else n.motor_limit_n_m}"
+        )
+
+
+#: The study's numerics (also the defaults of :class:`PinchGraspParams.numerics`).
+CHOSEN = Setup(4e-3, 50, Numerics())
+#: The fine-step reference: the original's step and the physical finger (no inertia shaping).
+REFERENCE = Setup(5e-4, 50, Numerics(added_inertia_kg_m2=0.0))
+
+
+def quick_points(study: Path = QUICK_STUDY) -> list[dict[str, float]]:
+    """The grid points of a pinch_grasp study file (default: the quick study) as task parameters."""
+    from somo_sweep.sweep.study import load_study
+
+    return [{k.removeprefix("task."): v for k, v in pt.items()} for pt in load_study(study).points()]
+
+
+def _trial(point: dict[str, float], setup: Setup) -> dict[str, Any]:
+    params = PinchGraspParams(numerics=setup.numerics, **point)
+    start, cpu = perf_counter(), process_time()
+    result = run_pinch_grasp(load_model(GRIPPER), params, setup.settings())
+    return {
+        "cpu_time_s": process_time() - cpu,
+        "point": point,
+        "status": result.status,
+        "labels": dict(result.labels),
+        "metrics": dict(result.metrics),
+        "wall_time_s": perf_counter() - start,
+    }
+
+
+def trial_seconds(
+    setup: Setup = CHOSEN, repeats: int = 3, point: dict[str, float] | None = None
+) -> tuple[list[float], list[float]]:
+    """Wall and CPU times (s) of one 4-s trial, ``repeats`` times, in this process (one core).
+
+    CPU time is what the trial costs on an idle core; wall time includes waiting for a core
+    when other processes share the machine.
+    """
+    point = point or {"distal_segment_ratio": 0.2, "object_width_m": 0.040, "centering_m": 0.100}
+    runs = [_trial(point, setup) for _ in range(repeats)]
+    return [float(r["wall_time_s"]) for r in runs], [float(r["cpu_time_s"]) for r in runs]
+
+
+def compare(points: list[dict[str, float]], a: Setup, b: Setup, n_jobs: int = 2) -> dict[str, Any]:
+    """Run ``points`` under setups ``a`` and ``b``; label agreement and metric differences.
+
+    Returns:
+        ``agreement`` (share of trials whose ``grasp`` label is the same in both), the
+        same for ``grasp_paper``, the disagreeing points, median and max |Δ lift| (m),
+        the mean wall time per trial of each setup (s) and statuses.
+    """
+    from joblib import Parallel, delayed
+
+    runs = Parallel(n_jobs=n_jobs)(delayed(_trial)(pt, s) for s in (a, b) for pt in points)
+    ra, rb = runs[: len(points)], runs[len(points) :]
+    out: dict[str, Any] = {"trials": len(points), "runs": {"a": ra, "b": rb}}
+    for key in ("grasp", "grasp_paper"):
+        same = [
+            x["labels"].get(key, x["status"]) == y["labels"].get(key, y["status"])
+            for x, y in zip(ra, rb, strict=True)
+        ]
+        out[f"agreement_{key}"] = float(np.mean(same))
+        out[f"differ_{key}"] = [
+            (x["point"], x["labels"].get(key, x["status"]), y["labels"].get(key, y["status"]))
+            for x, y, s in zip(ra, rb, same, strict=True)
+            if not s
+        ]
+    dl = [
+        abs(x["metrics"]["lift_height_m"] - y["metrics"]["lift_height_m"])
+        for x, y in zip(ra, rb, strict=True)
+        if x["status"] == y["status"] == "ok"
+    ]
+    out["lift_diff_median_m"] = float(np.median(dl)) if dl else float("nan")
+    out["lift_diff_max_m"] = float(np.max(dl)) if dl else float("nan")
+    out["wall_s_a"] = float(np.mean([x["wall_time_s"] for x in ra]))
+    out["wall_s_b"] = float(np.mean([x["wall_time_s"] for x in rb]))
+    out["status_a"] = sorted({x["status"] for x in ra})
+    out["status_b"] = sorted({x["status"] for x in rb})
+    return out
+
+
+def trial_timing_lines(repeats: int = 3, setup: Setup = CHOSEN) -> list[str]:
+    """Time one pinch-grasp trial ``repeats`` times: wall and CPU time and the ratio to the original."""
+    wall, cpu = trial_seconds(setup, repeats)
+    return [
+        f"pinch-grasp trial (4 s simulated, one core), {setup.describe()}:",
+        f"  wall time min {min(wall):.2f} s, median {float(np.median(wall)):.2f} s over {len(wall)} runs",
+        f"  CPU time  min {min(cpu):.2f} s, median {float(np.median(cpu)):.2f} s (load-independent)",
+        f"  {ORIGINAL_TRIAL_S / min(wall):.1f}x faster (best wall time) than the original's "
+        f"{ORIGINAL_TRIAL_S} s per trial (target >= 5x; wall time grows with the machine's load)",
+    ]

@@ -1,0 +1,99 @@
+"""Task ``pinch_grasp``: parameters, link numbering and registration (light: no PyBullet import)."""
+
+from __future__ import annotations
+
+import math
+
+from pydantic import BaseModel, ConfigDict, Field
+
+from somo_sweep.tasks.registry import TaskSpec, register
+
+__all__ = ["N_FINGER_LINKS", "Numerics", "PinchGraspParams", "distal_link_count", "link_columns"]
+
+#: Link numbers stored per trial: 20 segments and the fingertip.
+N_FINGER_LINKS = 21
+
+
+def distal_link_count(distal_segment_ratio: float) -> int:
+    """Distal links of a 20-link finger: round(20·DSR), half up, robust to float round-off.
+
+    ``20 * 0.35`` is 7.000000000000001 and ``20 * 0.15`` is 3.0000000000000004: the
+    count is taken to the nearest integer, never compared for float equality.
+    """
+    return math.floor((N_FINGER_LINKS - 1) * distal_segment_ratio + 0.5 + 1e-9)
+
+
+def link_columns(prefix: str) -> list[str]:
+    """Metric names of a per-link quantity, link 1 … 20 then the tip (e.g. ``hold_normal_force_n``)."""
+    return [f"{prefix}_link{k:02d}" for k in range(1, N_FINGER_LINKS)] + [f"{prefix}_tip"]
+
+
+class Numerics(BaseModel):
+    """Numerical regularisation applied on top of the model file (not physics).
+
+    Attributes:
+        added_inertia_kg_m2: Inertia shaping added to each finger link's principal
+            moments (lowers the chain's highest mode; statics unchanged).
+        damping_n_m_s_per_rad: Viscous damping of every finger joint (``None`` keeps the file's).
+        motor_limit_n_m: Coulomb motor limit of every finger joint (``None`` keeps the file's).
+    """
+
+    model_config = ConfigDict(extra="forbid", frozen=True)
+
+    added_inertia_kg_m2: float = Field(3e-5, ge=0)
+    damping_n_m_s_per_rad: float | None = Field(None, ge=0)
+    motor_limit_n_m: float | None = Field(None, ge=0)
+
+
+class PinchGraspParams(BaseModel):
+    """Parameters of one pinch-grasp trial (SI).
+
+    Attributes:
+        distal_segment_ratio: DSR in [0, 1]; distal links = round(20·DSR).
+        object_width_m: Box extent along x (the approach direction), m.
+        centering_m: Distance along x from the object centre to the finger bases, m.
+        approach_m: Distance travelled toward the object in the first second, m.
+        torque_n_m: Final proximal actuation torque, N·m.
+        lift_m: Lift of the hand, m.
+        hand_height_m: Height of the fingers' centre line above the ground, m.
+        approach_s, ramp_s, lift_s, hold_s: Phase durations, s.
+        sample_period_s: Period of the hold-phase contact samples, s.
+        numerics: Numerical regularisation (inertia shaping, damping, motor limit).
+    """
+
+    model_config = ConfigDict(extra="forbid", frozen=True)
+
+    distal_segment_ratio: float = Field(0.2, ge=0, le=1)
+    object_width_m: float = Field(0.040, gt=0)
+    centering_m: float = Field(0.100, gt=0)
+    approach_m: float = 0.100
+    torque_n_m: float = 0.15
+    lift_m: float = 0.075
+    hand_height_m: float = Field(0.035, gt=0)
+    approach_s: float = Field(1.0, gt=0)
+    ramp_s: float = Field(1.0, gt=0)
+    lift_s: float = Field(1.0, gt=0)
+    hold_s: float = Field(1.0, gt=0)
+    sample_period_s: float = Field(0.01, gt=0)
+    numerics: Numerics = Numerics()
+
+    @property
+    def n_distal(self) -> int:
+        """Distal links: round(20·DSR) (no float-equality trap)."""
+        return distal_link_count(self.distal_segment_ratio)
+
+    @property
+    def duration_s(self) -> float:
+        """Simulated time of the trial, s."""
+        return self.approach_s + self.ramp_s + self.lift_s + self.hold_s
+
+
+register(
+    TaskSpec(
+        name="pinch_grasp",
+        run_path="somo_sweep.tasks.pinch_grasp.task:run_pinch_grasp",
+        params_model=PinchGraspParams,
+        description="Two-finger pinch grasp of a box (SoMo Fig. 6): approach, close, lift 75 mm, hold.",
+        tags=("grasp", "paper", "fig6"),
+    )
+)

@@ -1,0 +1,231 @@
+"""The pinch-grasp trial of SoMo's design study (paper Sec. V-A, Fig. 6).
+
+A two-finger gripper (``studies/models/pinch_gripper.yaml``) whose fingers are
+re-split by the distal segment ratio (DSR) into a driven proximal and a passive
+distal segment approaches a box, closes, lifts it 75 mm and holds it.
+Timeline (facts sheet): 0–1 s the hand moves 100 mm along −x to the centering
+position; 1–2 s the proximal torque ramps 0 → 0.15 N·m; 2–3 s the hand lifts
+75 mm; 3–4 s hold. Contacts are sampled over the hold phase and stored as
+per-link counts and forces, so grasps can be reclassified without rerunning
+(:mod:`somo_sweep.tasks.pinch_grasp.classify`).
+
+Centering position: the distance along x from the object's centre to the
+fingers' bases (the start of their chains), once the approach is over.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable, Sequence
+
+import numpy as np
+
+from somo_sweep.errors import SomoError, UnstableSimulation
+from somo_sweep.model.description import Actuator, Link, Manipulator, Pose, RigidBody
+from somo_sweep.model.load import Model
+from somo_sweep.model.setpoints import SetpointTable
+from somo_sweep.sim.settings import WorldSettings
+from somo_sweep.sim.urdf import plan_rigid_body
+from somo_sweep.sim.world import World
+from somo_sweep.tasks.pinch_grasp.classify import (
+    GraspEvidence,
+    classify,
+    contact_position,
+    distal_force_fractions,
+    is_held,
+)
+from somo_sweep.tasks.pinch_grasp.contacts import HoldProbe
+from somo_sweep.tasks.pinch_grasp.params import Numerics, PinchGraspParams
+from somo_sweep.tasks.registry import TaskResult
+
+__all__ = ["Numerics", "PinchGraspParams", "run_pinch_grasp", "split_finger"]
+
+#: Links per finger (the facts sheet's finger).
+N_LINKS = 20
+#: Box object: height (z) and extent across the fingers (y), in m; mass in kg.
+OBJECT_HEIGHT_M = 0.060
+OBJECT_DEPTH_M = 0.060
+OBJECT_MASS_KG = 0.020
+OBJECT_FRICTION = 2.0
+GROUND_FRICTION = 1.0
+OBJECT_COLOR_RGBA = (0.95, 0.55, 0.15, 1.0)
+#: Gap between the object and the ground at spawn, m.
+SPAWN_GAP_M = 0.0005
+
+
+def split_finger(finger: Manipulator, n_distal: int, numerics: Numerics | None = None) -> Manipulator:
+    """Re-split a two-actuator finger into ``20 − n_distal`` proximal and ``n_distal`` distal links.
+
+    Link size, mass and per-joint stiffness do not change with the split. With one
+    distal link or none, the finger is a single driven 20-link actuator (the facts
+    sheet's rule). ``numerics`` overrides inertia shaping, damping and motor limit.
+    """
+    if len(finger.actuators) != 2:
+        raise SomoError(
+            f"finger '{finger.name}' needs a proximal and a distal actuator, got {len(finger.actuators)}"
+        )
+    proximal, distal = finger.actuators
+    seg_m = proximal.segment_m
+
+    def tuned(act: Actuator, n: int, actuated: bool) -> Actuator:
+        link = act.link.with_length_z(seg_m)
+        joints = list(act.joints)
+        if numerics is not None:
+            link = link.model_copy(update={"added_inertia_kg_m2": numerics.added_inertia_kg_m2})
+            upd: dict[str, float] = {}
+            if numerics.damping_n_m_s_per_rad is not None:
+                upd["damping_n_m_s_per_rad"] = numerics.damping_n_m_s_per_rad
+            if numerics.motor_limit_n_m is not None:
+                upd["motor_limit_n_m"] = numerics.motor_limit_n_m
+            joints = [j.model_copy(update=upd) for j in joints]
+        # The first (grasp) axis of the proximal actuator is driven; nothing else is.
+        joints = [j.model_copy(update={"actuated": actuated and i == 0}) for i, j in enumerate(joints)]
+        return act.model_copy(
+            update={
+                "length_m": n * seg_m,
+                "n_segments": n,
+                "segment_length_m": None,
+                "link": link,
+                "joints": joints,
+                "stiffness_profile": None,
+            }
+        )
+
+    if n_distal <= 1:
+        actuators = [tuned(proximal, N_LINKS, True)]
+    else:
+        actuators = [tuned(proximal, N_LINKS - n_distal, True), tuned(distal, n_distal, False)]
+    return finger.model_copy(update={"actuators": actuators})
+
+
+def _gripper(model: Model, params: PinchGraspParams) -> Model:
+    assembly = model.as_assembly()
+    mounts = [
+        m.model_copy(update={"manipulator": split_finger(m.manipulator, params.n_distal, params.numerics)})
+        for m in assembly.manipulators
+    ]
+    return Model(assembly=assembly.model_copy(update={"manipulators": mounts}))
+
+
+def run_pinch_grasp(
+    model: Model,
+    params: PinchGraspParams,
+    settings: WorldSettings,
+    seed: int = 0,
+    *,
+    observe: Callable[[World, float], None] | None = None,
+    observe_at_s: Sequence[float] = (),
+) -> TaskResult:
+    """Run one trial; see the module docstring.
+
+    Args:
+        model: The gripper model (two two-actuator fingers on a driven palm).
+        params: Trial parameters.
+        settings: World settings (time step, scale, solver iterations).
+        seed: Unused: the trial is deterministic.
+        observe: Called as ``observe(world, time_s)`` before the steps nearest ``observe_at_s``
+            (for snapshots); it must not change the simulation.
+        observe_at_s: Times of the observations, s.
+    """
+    del seed
+    gripper = _gripper(model, params)
+    p = params
+    with World(settings) as world:
+        ground = world.add_ground(friction=GROUND_FRICTION)
+        obj_start = np.array([0.0, 0.0, OBJECT_HEIGHT_M / 2 + SPAWN_GAP_M])
+        box = RigidBody(
+            name="object",
+            link=Link(
+                shape="box",
+                size_m=(p.object_width_m, OBJECT_DEPTH_M, OBJECT_HEIGHT_M),
+                mass_kg=OBJECT_MASS_KG,
+                friction={"lateral": OBJECT_FRICTION},
+                color_rgba=OBJECT_COLOR_RGBA,
+            ),
+            pose=Pose(position_m=tuple(obj_start)),
+        )
+        obj = world.load_plan(plan_rigid_body(box, world.scale))
+        # Load the hand far away, measure where its finger bases sit relative to the palm.
+        far = np.array([1.0, 0.0, p.hand_height_m])
+        hand = world.add_model(gripper, Pose(position_m=tuple(far)))
+        palm = hand.bodies[0]
+        probe = HoldProbe(world, palm, obj.id, ground)
+        base_to_palm_x = float(far[0] - probe.finger_base_x_m())
+        x_end = obj_start[0] + p.centering_m + base_to_palm_x
+        start = np.array([x_end + p.approach_m, 0.0, p.hand_height_m])
+        world.drive_base(palm, start, (0.0, 0.0, 0.0))
+        _reset_base(world, palm.id, start)
+        t1 = p.approach_s
+        t2 = t1 + p.ramp_s
+        t3 = t2 + p.lift_s
+        t4 = t3 + p.hold_s
+        path = SetpointTable(
+            [0.0, t1, t2, t3],
+            [
+                start,
+                [x_end, 0, p.hand_height_m],
+                [x_end, 0, p.hand_height_m],
+                [x_end, 0, p.hand_height_m + p.lift_m],
+            ],
+        )
+        n_in = len(hand.input_names)
+        torque = SetpointTable([0.0, t1, t2], [[0.0] * n_in, [0.0] * n_in, [p.torque_n_m] * n_in])
+        dt = settings.time_step_s
+        n_steps = round(t4 / dt)
+        sample_every = max(1, round(p.sample_period_s / dt))
+        i_lift, i_hold = round(t2 / dt), round(t3 / dt)
+        z_obj: dict[int, float] = {}
+        observe_steps = {min(round(t / dt), n_steps - 1) for t in observe_at_s}
+        try:
+            for i in range(n_steps):
+                t = i * dt
+                if observe is not None and i in observe_steps:
+                    observe(world, t)
+                hand.set_inputs(torque(t))
+                world.drive_base(palm, path(t), (0.0, 0.0, 0.0))
+                if i in (i_lift, i_hold):
+                    z_obj[i] = float(world.base_pose(obj.id)[0][2])
+                world.step()
+                if i >= i_hold and (n_steps - 1 - i) % sample_every == 0:
+                    probe.sample()
+        except UnstableSimulation as exc:
+            return TaskResult(status="unstable", message=str(exc))
+        pos, quat = world.base_pose(obj.id)
+        hand_z_lift = p.lift_m
+        metrics: dict[str, float | int | bool | str] = {
+            "n_distal_links": p.n_distal,
+            "object_x_m": float(pos[0]),
+            "object_y_m": float(pos[1]),
+            "object_z_m": float(pos[2]),
+        }
+        rpy = world_rpy(quat)
+        metrics.update({"object_roll_rad": rpy[0], "object_pitch_rad": rpy[1], "object_yaw_rad": rpy[2]})
+        lift = float(pos[2] - obj_start[2])
+        metrics["lift_height_m"] = lift
+        metrics["lift_slip_m"] = float(hand_z_lift - (z_obj[i_hold] - z_obj[i_lift]))
+        metrics["hold_slip_m"] = float(z_obj[i_hold] - pos[2])
+        metrics.update(probe.metrics())
+    evidence = GraspEvidence.from_metrics(metrics, p.distal_segment_ratio, p.lift_m)
+    shares = distal_force_fractions(evidence)
+    metrics["hold_force_fraction_distal"] = shares["distal"]
+    metrics["hold_force_fraction_tip"] = shares["tip"]
+    metrics["hold_force_fraction_proximal"] = shares["proximal"]
+    metrics["hold_mean_contact_position"] = contact_position(evidence.hold_normal_force_n)
+    metrics["held"] = is_held(evidence)
+    labels = {"grasp": classify(evidence, "contacts"), "grasp_paper": classify(evidence, "paper")}
+    return TaskResult(status="ok", metrics=metrics, labels=labels)
+
+
+def world_rpy(quat: np.ndarray) -> tuple[float, float, float]:
+    """Roll, pitch, yaw (rad) of a quaternion (x, y, z, w)."""
+    import pybullet as pb
+
+    r = pb.getEulerFromQuaternion([float(c) for c in quat])
+    return float(r[0]), float(r[1]), float(r[2])
+
+
+def _reset_base(world: World, body_id: int, position_m: np.ndarray) -> None:
+    import pybullet as pb
+
+    pb.resetBasePositionAndOrientation(
+        body_id, (position_m * world.scale).tolist(), [0, 0, 0, 1], physicsClientId=world.client
+    )

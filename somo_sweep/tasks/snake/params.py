@@ -1,0 +1,37 @@
+"""Task ``snake``: its parameters and registration (light: no PyBullet import)."""
+
+from __future__ import annotations
+
+from typing import Literal
+
+import numpy as np
+from pydantic import Field
+
+from somo_sweep.model.description import Spec
+from somo_sweep.tasks.registry import TaskSpec, register
+
+__all__ = ["SnakeParams"]
+
+
+class SnakeParams(Spec):
+    """Parameters of the snake task (SI)."""
+
+    friction: Literal["anisotropic", "isotropic"] = "anisotropic"
+    amplitude_n_m: float = Field(0.008, gt=0)
+    wave_number_rad_per_m: float = Field(2 * np.pi / 0.25, gt=0)  # two waves on a 0.5 m body
+    angular_frequency_rad_s: float = Field(2 * np.pi * 1.5, gt=0)
+    ramp_s: float = Field(1.0, ge=0)
+    duration_s: float = Field(10.0, gt=0)
+    ground_friction: float = Field(1.0, ge=0)
+    record_every_s: float = Field(0.25, gt=0)
+
+
+register(
+    TaskSpec(
+        name="snake",
+        run_path="somo_sweep.tasks.snake.task:_run",
+        params_model=SnakeParams,
+        description="Snake crawling by a travelling torque wave, isotropic vs anisotropic friction",
+        tags=("paper", "fig8", "locomotion"),
+    )
+)
