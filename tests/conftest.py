@@ -9,8 +9,11 @@ from typing import Any
 import pytest
 import yaml
 
+from somo_sweep.model.tables import bundled_path
+
 ROOT = Path(__file__).resolve().parent.parent
-MODELS = ROOT / "studies" / "models"
+#: The bundled models, read from the package (as an installed copy would).
+MODELS = bundled_path("models")
 
 
 @pytest.fixture(autouse=True)

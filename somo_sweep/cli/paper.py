@@ -140,7 +140,7 @@ def numerics(
     ] = None,
 ) -> None:
     """Pinch-grasp numerics: time the chosen setup, or compare it with its half step or the fine reference."""
-    from somo_sweep.tasks.pinch_grasp.numerics import (
+    from somo_sweep.paper.numerics import (
         CHOSEN,
         QUICK_STUDY,
         REFERENCE,
@@ -148,7 +148,7 @@ def numerics(
         quick_points,
         trial_timing_lines,
     )
-    from somo_sweep.tasks.pinch_grasp.numerics import compare as run_compare
+    from somo_sweep.paper.numerics import compare as run_compare
     from somo_sweep.tasks.pinch_grasp.params import Numerics
 
     setup = CHOSEN

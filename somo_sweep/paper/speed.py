@@ -16,10 +16,10 @@ from somo_sweep.model.description import Link, Pose, RigidBody
 from somo_sweep.model.load import load_model
 from somo_sweep.model.setpoints import SetpointTable
 from somo_sweep.model.tables import bundled_path
+from somo_sweep.paper.numerics import trial_timing_lines
 from somo_sweep.sim.settings import WorldSettings
 from somo_sweep.sim.urdf import plan_rigid_body
 from somo_sweep.sim.world import World
-from somo_sweep.tasks.pinch_grasp.numerics import trial_timing_lines
 
 __all__ = ["convergence_lines", "gripper_step_timing", "speed_lines", "time_step_convergence"]
 

@@ -8,12 +8,11 @@ from pathlib import Path
 import numpy as np
 import pytest
 from conftest import MODELS
-
-from somo_sweep.errors import SomoError
-from somo_sweep.model.load import load_model
 from typer.testing import CliRunner
 
 from somo_sweep.cli import app
+from somo_sweep.errors import SomoError
+from somo_sweep.model.load import load_model
 from somo_sweep.sim.settings import WorldSettings
 from somo_sweep.tasks import TaskResult, get_task
 from somo_sweep.tasks.whole_arm.params import DEFAULT_TABLE, WholeArmParams

@@ -194,7 +194,7 @@ def test_missing_include_names_the_key(tmp_path: Path) -> None:
 def test_unparsable_yaml_names_the_line(tmp_path: Path) -> None:
     path = tmp_path / "bad.yaml"
     path.write_text("manipulator:\n  name: [unclosed\n")
-    with pytest.raises(DescriptionError, match="line"):
+    with pytest.raises(DescriptionError, match=r"- line 3: <top level>: cannot parse: while parsing a flow"):
         load_model(path)
 
 

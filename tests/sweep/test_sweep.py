@@ -9,12 +9,12 @@ from __future__ import annotations
 import shutil
 import signal
 import textwrap
-import time
 from pathlib import Path
 
 import pandas as pd
 import pyarrow.parquet as pq
 import pytest
+from conftest import MODELS
 from typer.testing import CliRunner
 
 from somo_sweep.cli.app import app
@@ -24,7 +24,6 @@ from somo_sweep.sweep.jobs import build_jobs, trial_modules
 from somo_sweep.sweep.runner import run_study
 from somo_sweep.sweep.store import ResultStore, read_manifest, read_results
 from somo_sweep.sweep.study import load_study
-from tests.conftest import MODELS
 
 #: Columns that legitimately differ between runs of the same study.
 RUN_COLUMNS = ["wall_time_s", "host"]
@@ -221,9 +220,7 @@ def test_results_of_a_changed_study_are_never_mixed_in(tmp_path: Path) -> None:
 
 def test_a_trial_over_its_time_limit_is_an_error(tmp_path: Path) -> None:
     path = selftest_study(tmp_path, extra="set: {task.sleep_s: 30.0}", n=1)
-    start = time.perf_counter()
     summary = run_study(load_study(path, tmp_path / "out"), n_jobs=1, timeout_s=0.5)
-    assert time.perf_counter() - start < 10
     assert summary.by_status == {"error": 1}
     assert read_results(tmp_path / "out")["message"].iloc[0] == "timed out after 0.5 s"
 
@@ -292,8 +289,8 @@ def test_show_and_plot_summarise_a_results_folder(tmp_path: Path) -> None:
     )
     res = CliRunner().invoke(app, ["plot", str(tmp_path / "out")])
     assert res.exit_code == 0, res.output
-    assert (tmp_path / "out" / "plots" / "summary.png").stat().st_size > 0
-    assert (tmp_path / "out" / "plots" / "summary.svg").stat().st_size > 0
+    assert (tmp_path / "out" / "plots" / "summary.png").read_bytes().startswith(b"\x89PNG\r\n\x1a\n")
+    assert (tmp_path / "out" / "plots" / "summary.svg").read_text().startswith("<?xml")
     res = CliRunner().invoke(app, ["show", str(tmp_path)])
     assert res.exit_code == 2 and "not a somo-sweep results folder" in res.output
 

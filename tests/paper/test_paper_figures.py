@@ -16,7 +16,6 @@ from pathlib import Path
 import pandas as pd
 import pytest
 from conftest import MODELS
-
 from typer.testing import CliRunner
 
 from somo_sweep.cli import app

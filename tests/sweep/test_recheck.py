@@ -8,6 +8,7 @@ import pandas as pd
 import pyarrow as pa
 import pyarrow.parquet as pq
 import pytest
+from test_sweep import selftest_study
 from typer.testing import CliRunner
 
 from somo_sweep.cli.app import app
@@ -15,7 +16,6 @@ from somo_sweep.errors import SomoError
 from somo_sweep.sweep.recheck import recheck
 from somo_sweep.sweep.runner import run_study
 from somo_sweep.sweep.study import load_study
-from tests.test_sweep import selftest_study
 
 runner = CliRunner()
 

@@ -16,11 +16,11 @@ from pathlib import Path
 
 import pandas as pd
 import pytest
+from test_sweep import make_study, results_only, selftest_study
 
 from somo_sweep.sweep.runner import run_study
 from somo_sweep.sweep.store import read_manifest, read_results
 from somo_sweep.sweep.study import load_study
-from tests.test_sweep import make_study, results_only, selftest_study
 
 CLI = Path(sys.executable).parent / "somo-sweep"
 BENCH_STUDY = """\

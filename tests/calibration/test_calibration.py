@@ -2,7 +2,6 @@
 
 from __future__ import annotations
 
-import time
 from pathlib import Path
 
 import numpy as np
@@ -221,9 +220,7 @@ def test_fit_recovers_both_axes_of_a_two_axis_finger() -> None:
 @pytest.mark.slow
 def test_fit_recovers_known_parameters_on_the_bundled_36_rows(tmp_path: Path) -> None:
     out = tmp_path / "model.yaml"
-    start = time.perf_counter()
     res = runner.invoke(app, ["calibrate", str(SYNTHETIC), *BUILD, "-o", str(out), "--jobs", "2"])
-    wall_s = time.perf_counter() - start
     assert res.exit_code == 0, res.output
     record = load_model(out).provenance["calibration"]  # type: ignore[index]
     pars = record["parameters"]
@@ -232,14 +229,13 @@ def test_fit_recovers_known_parameters_on_the_bundled_36_rows(tmp_path: Path) ->
     )
     assert pars["pressure_gain_n_m_per_kpa"]["value"] == pytest.approx(TRUE_GAIN_N_M_PER_KPA, rel=0.03)
     assert all(t["relative_rmse"] <= 0.05 for t in record["tests"]), record["tests"]
-    assert wall_s < 60, f"calibration took {wall_s:.1f} s"
 
 
 @pytest.mark.slow
 def test_bundled_synthetic_file_is_what_the_generator_makes(tmp_path: Path) -> None:
-    from somo_sweep.calibration.synthetic import main
+    from somo_sweep.calibration.synthetic import example_csv
 
-    main([str(tmp_path / "again.csv")])
+    (tmp_path / "again.csv").write_text(example_csv())
     again, bundled = read_measurements(tmp_path / "again.csv"), read_measurements(SYNTHETIC)
     cols = ["tip_deflection_mm", "blocked_force_n", "tip_x_mm", "tip_z_mm"]
     np.testing.assert_allclose(again[cols].to_numpy(), bundled[cols].to_numpy(), rtol=1e-4)

@@ -239,7 +239,7 @@ def test_diagnose_names_the_hidden_effect(effect: str, seed: int, noise_rel: flo
         "combined_after": result.combined_after,  # type: ignore[attr-defined]
         "wall_time_s": time.perf_counter() - start,
     }
-    log = Path(__file__).resolve().parent.parent / "results" / "diagnosis_matrix.jsonl"
+    log = Path(__file__).resolve().parents[2] / "results" / "diagnosis_matrix.jsonl"
     log.parent.mkdir(exist_ok=True)
     with log.open("a") as fh:
         fh.write(json.dumps(record) + "\n")

@@ -1,0 +1,47 @@
+"""One check over every registered task: a short trial runs, and it is the same in two processes."""
+
+from __future__ import annotations
+
+from typing import Any
+
+import pytest
+from joblib import Parallel, delayed
+
+from somo_sweep.model.load import load_model
+from somo_sweep.model.tables import bundled_path
+from somo_sweep.sim.settings import WorldSettings
+from somo_sweep.tasks.registry import TaskResult, all_tasks
+
+#: A short trial of each task: (model file, parameters, time step in s).
+SHORT: dict[str, tuple[str | None, dict[str, Any], float]] = {
+    "bench": ("ihm_finger.yaml", {"test": "free_bending", "pressure_kpa": 100.0}, 5e-4),
+    "ihm_gait": ("ihm_hand.yaml", {"duration_s": 0.3}, 1e-3),
+    "pinch_grasp": (
+        "pinch_gripper.yaml",
+        {"approach_s": 0.1, "ramp_s": 0.1, "lift_s": 0.1, "hold_s": 0.1, "approach_m": 0.01},
+        4e-3,
+    ),
+    "snake": ("snake.yaml", {"duration_s": 0.3}, 1e-3),
+    "whole_arm": ("whole_arm.yaml", {"duration_s": 0.3}, 1e-3),
+    "selftest_sleep": (None, {"x": 3.0}, 1e-3),
+    "selftest_crash": (None, {"x": 3.0}, 1e-3),
+    "selftest_unstable": (None, {"x": 3.0}, 1e-3),
+}
+
+
+def _trial(name: str, seed: int) -> TaskResult:
+    spec = all_tasks()[name]
+    model_file, params, dt = SHORT[name]
+    model = load_model(bundled_path("models", model_file or "ihm_finger.yaml"))
+    return spec.run(model, spec.params_model(**params), WorldSettings(time_step_s=dt), seed)
+
+
+def test_every_registered_task_has_a_short_trial_here() -> None:
+    assert sorted(SHORT) == sorted(all_tasks())
+
+
+@pytest.mark.parametrize("name", sorted(SHORT))
+def test_a_short_trial_runs_and_is_the_same_in_two_processes(name: str) -> None:
+    first, second = Parallel(n_jobs=2, backend="loky")(delayed(_trial)(name, 11) for _ in range(2))
+    assert first.status == "ok", first.message
+    assert repr(first) == repr(second)  # bit for bit (repr: NaN equals NaN)

@@ -1,0 +1,78 @@
+"""The package's shape: layers import downward only, studies load without PyBullet, one CLI."""
+
+from __future__ import annotations
+
+import ast
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+
+PACKAGE = Path(__file__).resolve().parents[1] / "somo_sweep"
+#: Each stage may import the stages ranked below it (and itself), never above.
+RANK = {
+    "errors": 0,
+    "model": 1,
+    "sim": 2,
+    "tasks": 3,
+    "sweep": 4,
+    "calibration": 4,
+    "diagnosis": 5,
+    "paper": 6,
+    "cli": 7,
+    "data": 1,
+}
+
+
+def _stage(module: str) -> str:
+    parts = module.split(".")
+    return parts[1] if len(parts) > 1 else ""
+
+
+def _imports(path: Path) -> set[str]:
+    found = set()
+    for node in ast.walk(ast.parse(path.read_text(encoding="utf-8"))):
+        if isinstance(node, ast.ImportFrom) and node.module and node.module.startswith("somo_sweep."):
+            found.add(node.module)
+        elif isinstance(node, ast.Import):
+            found |= {a.name for a in node.names if a.name.startswith("somo_sweep.")}
+    return found
+
+
+def test_the_top_level_holds_only_the_package_entry_and_the_errors() -> None:
+    assert sorted(p.name for p in PACKAGE.glob("*.py")) == ["__init__.py", "__main__.py", "errors.py"]
+
+
+def test_no_module_outside_the_cli_has_a_main() -> None:
+    offenders = [
+        str(path.relative_to(PACKAGE))
+        for path in PACKAGE.rglob("*.py")
+        if "cli" not in path.parts and "\ndef main(" in path.read_text(encoding="utf-8")
+    ]
+    assert offenders == []
+
+
+@pytest.mark.parametrize("path", sorted(PACKAGE.rglob("*.py")), ids=lambda p: str(p.relative_to(PACKAGE)))
+def test_every_import_points_down_the_stages(path: Path) -> None:
+    here = ".".join(("somo_sweep", *path.relative_to(PACKAGE).with_suffix("").parts))
+    stage = _stage(here)
+    if stage not in RANK:
+        return  # __init__ / __main__ of the package itself
+    upward = [m for m in _imports(path) if _stage(m) != stage and RANK[_stage(m)] >= RANK[stage]]
+    assert upward == [], f"{here} imports a stage at or above its own: {upward}"
+
+
+def test_loading_and_expanding_a_study_does_not_import_pybullet() -> None:
+    code = (
+        "import sys\n"
+        "from somo_sweep.model.tables import bundled_path\n"
+        "from somo_sweep.sweep.study import load_study\n"
+        "from somo_sweep.sweep.jobs import build_jobs\n"
+        "for name in ('pinch_grasp_quick.yaml', 'palm_design_quick.yaml', 'finger_pressure_sweep.yaml'):\n"
+        "    table = build_jobs(load_study(bundled_path(name)))\n"
+        "    assert table.jobs\n"
+        "print(sorted(m for m in sys.modules if m.startswith('pybullet')))\n"
+    )
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)
+    assert out.stdout.strip() == "[]"
