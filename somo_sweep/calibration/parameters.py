@@ -147,7 +147,7 @@ def joint_lever_arms(manip: Manipulator, axis_index: int) -> tuple[np.ndarray, n
         for i in range(act.segments):
             if i % len(act.joints) == axis_index:
                 j = act.joints[axis_index]
-                arms.append(total - (start + i * act.segment_m))
+                arms.append(total - (start + act.joint_position_m(i)))
                 rel.append(j.stiffness * act.stiffness_factor(i) / k0)
                 actuated.append(1.0 if j.actuated and axis_index == 0 else 0.0)
         start += act.length_m

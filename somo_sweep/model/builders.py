@@ -31,6 +31,7 @@ def planar_finger(
     stiffness_n_m_per_rad: float = 0.5,
     pressure_gain_n_m_per_kpa: float = 5e-4,
     name: str = "finger",
+    joint_placement: str = "midpoint",
 ) -> Model:
     """A one-axis finger of equal box links on a fixed clamp block.
 
@@ -46,6 +47,8 @@ def planar_finger(
         stiffness_n_m_per_rad: Joint stiffness, in N·m/rad.
         pressure_gain_n_m_per_kpa: Actuation torque per pressure, in N·m/kPa.
         name: Manipulator name.
+        joint_placement: ``midpoint`` (converges to a continuous finger at second order) or
+            ``start`` (SoMo's layout, first order).
 
     Raises:
         DescriptionError: When a value is out of range (message names the key).
@@ -62,6 +65,7 @@ def planar_finger(
                     "name": name,
                     "length_m": length_m,
                     "n_segments": segments,
+                    "joint_placement": joint_placement,
                     "link": {
                         "shape": "box",
                         "size_m": [width_m, thickness_m],

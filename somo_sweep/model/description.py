@@ -254,6 +254,8 @@ class Actuator(Spec):
     ``stiffness_profile`` multiplies the stiffness of each segment's joint;
     ``stiffness_gradient_per_m`` (effect, default 0) multiplies it further by
     (1 + g·s), s the joint's distance from the actuator start in m.
+    ``joint_placement``: ``midpoint`` (default; joints at the segment midpoints, second-order
+    convergence to a continuous finger) or ``start`` (SoMo's: a joint at each link's start).
     """
 
     name: str | None = None
@@ -264,6 +266,7 @@ class Actuator(Spec):
     joints: list[Joint] = Field(min_length=1, max_length=3)
     stiffness_profile: list[float] | None = None
     stiffness_gradient_per_m: float = 0.0
+    joint_placement: Literal["midpoint", "start"] = "midpoint"
 
     @model_validator(mode="after")
     def _segments_consistent(self) -> Actuator:
@@ -294,10 +297,11 @@ class Actuator(Spec):
                 )
             if any(v <= 0 for v in self.stiffness_profile):
                 raise ValueError("stiffness_profile entries must be > 0")
-        if 1 + self.stiffness_gradient_per_m * (n - 1) * self.length_m / n <= 0:
+        last_m = self.joint_position_m(n - 1)
+        if 1 + self.stiffness_gradient_per_m * last_m <= 0:
             raise ValueError(
                 f"stiffness_gradient_per_m = {self.stiffness_gradient_per_m} makes the last joint's "
-                f"stiffness <= 0; allowed: > {-n / ((n - 1) * self.length_m) if n > 1 else '-inf'} 1/m"
+                f"stiffness <= 0; allowed: > {-1 / last_m if last_m > 0 else '-inf'} 1/m"
             )
         return self
 
@@ -322,10 +326,21 @@ class Actuator(Spec):
         """Joint definition used at the base of segment ``i`` (axes alternate)."""
         return self.joints[i % len(self.joints)]
 
+    def joint_position_m(self, i: int) -> float:
+        """Distance of joint ``i`` from the actuator's start, m.
+
+        ``midpoint`` (the default) puts the joints at the segment midpoints: a rigid half link at
+        the start, ``n − 1`` full links and a half link at the end. The chain then converges to a
+        continuous finger at second order in the segment count. ``start`` is SoMo's layout (a
+        joint at the start of every link, the first at the clamp): first order, the chain bends
+        half a segment too early (docs/calibration.md, convergence table).
+        """
+        return (i + 0.5 if self.joint_placement == "midpoint" else i) * self.segment_m
+
     def stiffness_factor(self, i: int) -> float:
-        """Stiffness multiplier of segment ``i`` (profile times the gradient factor)."""
+        """Stiffness multiplier of segment ``i`` (profile times the gradient factor at its joint)."""
         profile = self.stiffness_profile[i] if self.stiffness_profile else 1.0
-        return profile * (1 + self.stiffness_gradient_per_m * i * self.segment_m)
+        return profile * (1 + self.stiffness_gradient_per_m * self.joint_position_m(i))
 
     @property
     def actuated_axes(self) -> list[int]:

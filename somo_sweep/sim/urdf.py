@@ -52,6 +52,19 @@ def _v(vec: np.ndarray | tuple[float, ...]) -> str:
     return " ".join(_f(float(x)) for x in vec)
 
 
+def _half(link: Link) -> Link:
+    """The link at half its z extent and half its mass (the end links of a midpoint chain)."""
+    shorter = link.with_length_z(link.half_extent_m(2))
+    given = None if link.inertia_kg_m2 is None else tuple(v / 2 for v in link.inertia_kg_m2)
+    return shorter.model_copy(
+        update={
+            "mass_kg": link.mass_kg / 2,
+            "added_inertia_kg_m2": link.added_inertia_kg_m2 / 2,
+            "inertia_kg_m2": given,
+        }
+    )
+
+
 def _geometry(link: Link, s: float) -> list[tuple[np.ndarray, str]]:
     """(origin offset, geometry XML) pairs of a link, scaled; the link is centred at 0."""
     z = (link.length_z_m or 0.0) * s
@@ -197,25 +210,43 @@ class _Builder:
             for ax in axes:
                 label = act.joints[ax].name or f"axis{ax}"
                 self.inputs.append(f"{name}/{act.name or a_i}/{label}")
-            link = act.segment_link()
+            full = act.segment_link()
             l_seg = act.segment_m
+            midpoint = act.joint_placement == "midpoint"
+            half = _half(full)
+            if midpoint:
+                # A rigid half link at the actuator's start; the joints then sit at segment midpoints.
+                link_name = f"{name}__a{a_i}_h"
+                info = LinkInfo(link_name, half, "segment", name, a_i, chain_index, along + l_seg / 4)
+                if prev is None:
+                    self.link(info, np.zeros(3))
+                    attach_point, first = np.array([0.0, 0.0, l_seg / 4]), link_name
+                else:
+                    self.link(info, np.array([0.0, 0.0, l_seg / 4]))
+                    self.fixed(f"{name}__a{a_i}_hj", prev, link_name, attach_point)
+                    attach_point, first = np.array([0.0, 0.0, l_seg / 2]), first or link_name
+                prev, prev_offset = link_name, np.zeros(3)
+                chain_index += 1
+                along += l_seg / 2
             for seg in range(act.segments):
                 jdef = act.joint_of_segment(seg)
                 off = np.asarray(jdef.offset_m)
                 link_name = f"{name}__a{a_i}_s{seg}"
+                last_half = midpoint and seg == act.segments - 1
+                link, l_this = (half, l_seg / 2) if last_half else (full, l_seg)
                 is_root = prev is None
                 if is_root:  # free chain with no base: first segment is the root, frame at its centre
                     centre = np.zeros(3)
                     self.link(
-                        LinkInfo(link_name, link, "segment", name, a_i, chain_index, along + l_seg / 2),
+                        LinkInfo(link_name, link, "segment", name, a_i, chain_index, along + l_this / 2),
                         centre,
                     )
-                    prev_offset = np.array([0.0, 0.0, -l_seg / 2])
+                    prev_offset = np.array([0.0, 0.0, -l_this / 2])
                     first = link_name
                 else:
                     self.link(
-                        LinkInfo(link_name, link, "segment", name, a_i, chain_index, along + l_seg / 2),
-                        -off + np.array([0.0, 0.0, l_seg / 2]),
+                        LinkInfo(link_name, link, "segment", name, a_i, chain_index, along + l_this / 2),
+                        -off + np.array([0.0, 0.0, l_this / 2]),
                     )
                     ax_i = seg % len(act.joints)
                     inp = input_base + axes.index(ax_i) if jdef.actuated else -1
@@ -238,12 +269,12 @@ class _Builder:
                     self.spring(sj, prev, link_name, attach_point + off, jdef.axis, jdef.limits)
                     first = first or link_name
                     prev_offset = off
-                attach_point = -prev_offset + np.array([0.0, 0.0, l_seg])
+                attach_point = -prev_offset + np.array([0.0, 0.0, l_this])
                 if is_root:
-                    attach_point = np.array([0.0, 0.0, l_seg / 2])
+                    attach_point = np.array([0.0, 0.0, l_this / 2])
                 prev = link_name
                 chain_index += 1
-                along += l_seg
+                along += l_this
             input_base += len(axes)
         for t_i, tip in enumerate(manip.tip_links):
             tip_name = f"{name}__tip{t_i}"

@@ -117,14 +117,15 @@ def test_saturated_actuation_follows_tanh() -> None:
 def test_stiffness_gradient_scales_each_joint_linearly_and_rejects_negative_stiffness() -> None:
     act = example_finger().manipulator.actuators[0]  # type: ignore[union-attr]
     graded = act.model_copy(update={"stiffness_gradient_per_m": -4.0})
-    assert graded.stiffness_factor(10) == pytest.approx(1 - 4.0 * 0.05)
+    # Joint 10 of 20 (5 mm segments) sits at the 11th segment's midpoint, 52.5 mm from the start.
+    assert graded.stiffness_factor(10) == pytest.approx(1 - 4.0 * 0.0525)
     with pytest.raises(ValueError, match="stiffness_gradient_per_m"):
         type(act).model_validate({**act.model_dump(), "stiffness_gradient_per_m": -20.0})
 
 
 def test_stiffening_spring_matches_the_cubic_law_on_a_single_joint() -> None:
     manip = planar_finger(
-        0.1, 1, 0.001, stiffness_n_m_per_rad=0.5, pressure_gain_n_m_per_kpa=1e-3
+        0.1, 1, 0.001, stiffness_n_m_per_rad=0.5, pressure_gain_n_m_per_kpa=1e-3, joint_placement="start"
     ).manipulator
     assert manip is not None
     stiff = add_effect(manip, "nonlinear_stiffness", 10.0)

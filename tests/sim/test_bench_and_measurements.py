@@ -106,11 +106,12 @@ def test_free_bending_tip_angle_is_the_sum_of_the_joint_angles_even_past_180_deg
     x_mm, z_mm, angle_deg = run_bench(model, "free_bending", pressure_kpa, settings=weightless).value  # type: ignore[misc]
     theta_rad = 20 * 5e-4 * pressure_kpa / 0.5
     assert angle_deg == pytest.approx(np.degrees(theta_rad), rel=1e-4)
-    # The tip of a chain of 20 equal links turning θ/20 each: a polygon inscribed in a circle.
-    step = theta_rad / 20
-    phi = step * np.arange(1, 21)
-    assert x_mm == pytest.approx(5.0 * np.sum(np.cos(phi)), abs=0.05)
-    assert z_mm == pytest.approx(-5.0 * np.sum(np.sin(phi)), abs=0.05)
+    # The tip of the midpoint chain: a half link along x, 19 links turning θ/20 more each, and a
+    # last half link at θ: a polygon inscribed in a circle.
+    phi = theta_rad / 20 * np.arange(21)
+    lengths_mm = np.array([2.5, *[5.0] * 19, 2.5])
+    assert x_mm == pytest.approx(np.sum(lengths_mm * np.cos(phi)), abs=0.05)
+    assert z_mm == pytest.approx(-np.sum(lengths_mm * np.sin(phi)), abs=0.05)
 
 
 def test_blocked_force_at_zero_pressure_is_part_of_the_finger_weight() -> None:

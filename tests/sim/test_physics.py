@@ -95,6 +95,7 @@ def test_each_torque_is_applied_exactly_once_per_step() -> None:
                 {
                     "length_m": 0.02,
                     "n_segments": 1,
+                    "joint_placement": "start",  # one body of the given inertia on the joint
                     "link": {
                         "shape": "cylinder",
                         "radius_m": 0.01,

@@ -39,7 +39,8 @@ def _snake(n: int = 8) -> dict:
 def test_free_chain_without_base_link_rests_on_the_ground() -> None:
     model = model_from_dict(_snake())
     plan = plan_assembly(model.as_assembly(), 20.0)[0]
-    assert len(plan.links) == 8 and len(plan.joints) == 7  # the first segment is the floating root
+    # The midpoint layout's first half link is the floating root; every segment has its joint.
+    assert len(plan.links) == 9 and len(plan.joints) == 8
     with World(WorldSettings(time_step_s=5e-4)) as world:
         world.add_ground()
         handle = world.add_model(model, Pose(position_m=(0, 0, 0.05), rpy_rad=(0, np.pi / 2, 0)))
