@@ -8,11 +8,18 @@ Workflow (``docs/diagnosis.md``):
    each registered effect (:mod:`somo_sweep.diagnosis.effects`), simulator in the loop, and
    scores each with BIC;
 3. the best effect is named only if its BIC beats ``none`` by ``DELTA_BIC_NONE``
-   and the runner-up by ``DELTA_BIC_NEXT``; otherwise ``none`` (ambiguity reported);
-4. the winner is written into the model's schema fields, the model is re-simulated
+   and the runner-up by ``DELTA_BIC_NEXT``;
+4. when the best single candidate still leaves ``PAIR_TRIGGER`` × noise or more, pairs
+   of the leading effects are fitted too, and a pair is named (``a+b``) when it beats
+   the best single candidate by ``DELTA_BIC_NONE``;
+5. the winner is written into the model's schema fields, the model is re-simulated
    from its plain-data form, and the gap before and after is reported, both in
    units of the noise estimated from the residuals of that best model (the
-   scatter the best model cannot fit).
+   scatter the best model cannot fit);
+6. the verdict is ``none`` only when the model then fits within ``FITS_WITHIN_NOISE``
+   noise levels; a model still further off is ``unexplained``, with the remaining
+   disagreements listed (channel, input range, size in noise units), never a false
+   ``none``.
 """
 
 from __future__ import annotations
@@ -27,7 +34,7 @@ import numpy as np
 from somo_sweep.calibration.metrics import TestMetric, per_test_metrics
 from somo_sweep.calibration.parameters import simulate_rows
 from somo_sweep.diagnosis.fit import CandidateFit, fit_candidate, jacobian, predict
-from somo_sweep.diagnosis.noise import NoiseEstimate, estimate_noise
+from somo_sweep.diagnosis.noise import NoiseEstimate, estimate_noise, find_disagreements
 from somo_sweep.diagnosis.problem import DiagnosisProblem, build_diagnosis
 from somo_sweep.model.load import Model, model_from_dict
 
@@ -46,6 +53,14 @@ DELTA_BIC_NONE = 10.0
 DELTA_BIC_NEXT = 6.0
 #: Convergence (relative χ² change) of the fits that decide a close call.
 CLOSE_CALL_RTOL = 1e-3
+#: A model whose combined score is at most this many noise levels fits the data.
+FITS_WITHIN_NOISE = 2.0
+#: Pairs of effects are tried when the best single candidate leaves at least this score.
+PAIR_TRIGGER = 3.0
+#: Leading single effects whose pairs are tried.
+PAIR_FROM_TOP = 3
+#: Verdicts that name no effect of the registry.
+NO_EFFECT = ("none", "unexplained")
 
 
 @dataclass(frozen=True)
@@ -55,7 +70,9 @@ class DiagnosisResult:
     Attributes:
         problem: The problem solved.
         candidates: Every candidate, best BIC first (``none`` included).
-        missing_effect: The named effect, or ``none``.
+        missing_effect: The named effect (``a+b`` for a pair), ``none`` (the model fits within
+            noise) or ``unexplained`` (no candidate brings it near the noise).
+        best_candidate: The candidate whose model is ``model_after`` (``none``, an effect or a pair).
         verdict: One sentence (names the ambiguity when there is one).
         model_after: The model with the effect added (or refitted without one).
         after: (n, 3) rows re-simulated with ``model_after``.
@@ -68,6 +85,7 @@ class DiagnosisResult:
     problem: DiagnosisProblem
     candidates: list[CandidateFit]
     missing_effect: str
+    best_candidate: str
     verdict: str
     model_after: Model
     after: np.ndarray
@@ -118,6 +136,7 @@ class DiagnosisResult:
 
         return {
             "missing_effect": self.missing_effect,
+            "best_candidate": self.best_candidate,
             "verdict": self.verdict,
             "candidates": [
                 {
@@ -165,6 +184,30 @@ def _decide(candidates: list[CandidateFit]) -> tuple[str, str]:
     return best.name, f"{best.name}: ΔBIC {none.bic - best.bic:.1f} over none, {gap:.1f} over the next best"
 
 
+def _pair_columns(problem: DiagnosisProblem, a: CandidateFit, b: CandidateFit) -> tuple[int, ...]:
+    base = tuple(range(problem.n_base))
+    return (*base, problem.effect_index(a.name), problem.effect_index(b.name))
+
+
+def _outcome(
+    problem: DiagnosisProblem, chosen: CandidateFit, n_jobs: int
+) -> tuple[Model, np.ndarray, dict[str, NoiseEstimate], float]:
+    """The chosen candidate's model (from its plain data), its rows, noise and combined score."""
+    manip = problem.manipulator_at(chosen.z)
+    model = problem.fit.base.model_copy(update={"manipulator": manip})
+    # Re-simulate from the model's plain-data form: the effect must live in the schema.
+    reloaded = model_from_dict(model.model_dump(mode="json"), source="<diagnosed model>")
+    assert reloaded.manipulator is not None
+    after = simulate_rows(reloaded.manipulator, problem.rows, problem.fit.settings, n_jobs)
+    # The noise is what the best model cannot fit: estimated from its residuals, free of
+    # the missing effect's curvature that inflates an estimate from the model as given.
+    noise = estimate_noise(problem.rows, after - problem.measured)
+    r = problem.normalised(after, noise)
+    finite = r[np.isfinite(r)]
+    score = float(np.sqrt(np.mean(finite**2))) if len(finite) else math.inf
+    return reloaded, after, noise, score
+
+
 def diagnose(
     problem: DiagnosisProblem,
     n_jobs: int = 1,
@@ -208,22 +251,42 @@ def diagnose(
             )
     candidates = sorted(fits.values(), key=lambda c: c.bic)
     name, verdict = _decide(candidates)
-    chosen = fits[name]
-    manip = problem.manipulator_at(chosen.z)
-    model = problem.fit.base.model_copy(update={"manipulator": manip})
-    # Re-simulate from the model's plain-data form: the effect must live in the schema.
-    reloaded = model_from_dict(model.model_dump(mode="json"), source="<diagnosed model>")
-    assert reloaded.manipulator is not None
-    after = simulate_rows(reloaded.manipulator, problem.rows, problem.fit.settings, n_jobs)
-    # The noise is what the best model cannot fit: estimated from its residuals, free of
-    # the missing effect's curvature that inflates an estimate from the model as given.
-    noise = estimate_noise(problem.rows, after - problem.measured)
+    reloaded, after, noise, score = _outcome(problem, fits[name], n_jobs)
+    singles = [c for c in candidates if c.name != "none"][:PAIR_FROM_TOP]
+    if score >= PAIR_TRIGGER and len(singles) >= 2:
+        pairs = [
+            fit_candidate(
+                problem, jac, f"{a.name}+{b.name}", _pair_columns(problem, a, b), n_jobs, max_evaluations
+            )
+            for i, a in enumerate(singles)
+            for b in singles[i + 1 :]
+        ]
+        best_pair = min(pairs, key=lambda c: c.bic)
+        candidates = sorted([*candidates, *pairs], key=lambda c: c.bic)
+        if best_pair.bic < min(c.bic for c in fits.values()) - DELTA_BIC_NONE:
+            name = best_pair.name
+            verdict = (
+                f"{name}: the best single candidate left {score:.1f}x noise; the pair beats it by "
+                f"ΔBIC {min(c.bic for c in fits.values()) - best_pair.bic:.1f}"
+            )
+            reloaded, after, noise, score = _outcome(problem, best_pair, n_jobs)
+    best_candidate = name
+    if score > FITS_WITHIN_NOISE:
+        left = find_disagreements(problem.rows, after - problem.measured, noise)
+        where = "; ".join(d.describe() for d in left[:3]) or "scattered over every channel"
+        tried = "refitting without an effect" if name == "none" else name
+        verdict = (
+            f"unexplained: the best candidate ({tried}) still misses the data by {score:.1f}x noise "
+            f"(a fit is <= {FITS_WITHIN_NOISE:g}x); remaining: {where}"
+        )
+        name = "unexplained"
     n_rows = len(problem.rows)
-    sims = n_rows + jac.simulations + n_rows * (1 + sum(c.evaluations for c in candidates))
+    sims = n_rows + jac.simulations + n_rows * (2 + sum(c.evaluations for c in candidates))
     return DiagnosisResult(
         problem=problem,
         candidates=candidates,
         missing_effect=name,
+        best_candidate=best_candidate,
         verdict=verdict,
         model_after=reloaded,
         after=after,

@@ -23,10 +23,14 @@ def test_labels(result: DiagnosisResult) -> list[str]:
 def verdict_lines(result: DiagnosisResult) -> list[str]:
     """The short verdict printed by the CLI."""
     lines = [f"missing effect: {result.missing_effect} ({result.verdict})"]
-    if result.missing_effect != "none":
-        lines.append(f"  {EFFECTS[result.missing_effect].summary}")
-        fit = result.candidate(result.missing_effect)
-        lines.append("  fitted: " + ", ".join(f"{k} = {v:.4g}" for k, v in result.parameters(fit).items()))
+    if result.best_candidate != "none":
+        for name in result.best_candidate.split("+"):
+            lines.append(f"  {EFFECTS[name].summary}")
+        fit = result.candidate(result.best_candidate)
+        held = (
+            "  fitted" if result.missing_effect != "unexplained" else "  best attempt (in the written model)"
+        )
+        lines.append(f"{held}: " + ", ".join(f"{k} = {v:.4g}" for k, v in result.parameters(fit).items()))
     lines.append(
         f"combined noise-normalised score: before {result.combined_before:.2f}, "
         f"after {result.combined_after:.2f}"
