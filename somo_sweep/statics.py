@@ -61,8 +61,11 @@ __all__ = [
 #: Selectable ways of finding a bench row's equilibrium.
 STATICS = ("solve", "dynamic")
 
-#: Newton iterations per solve (per continuation stage).
+#: Newton iterations per solve (per continuation stage); with the plate (a curled finger
+#: rolling over it changes contact once per link) and in all for one equilibrium.
 MAX_ITERATIONS = 60
+MAX_ITERATIONS_PLATE = 200
+MAX_ITERATIONS_TOTAL = 600
 #: Continuation stages tried, in order, when the full load does not converge at once.
 RAMPS = (4, 16)
 #: Largest joint change of one Newton step, rad (m for prismatic joints: ×0.01).
@@ -70,12 +73,16 @@ STEP_CAP_RAD = 0.6
 #: A joint turning more than this far from its neutral has no equilibrium in reach, rad.
 RUNAWAY_RAD = 4 * math.pi
 #: Converged when the generalized force imbalance is below this fraction of the torque scale.
-#: PyBullet reports link frames in single precision (relative noise ~1e-7), which sets the floor.
-RTOL = 1e-6
-#: Plate penetration tolerated at convergence, m (single-precision positions: ~1e-8 m).
-GAP_TOL_M = 1e-7
-#: Relative size of the energy's rounding noise (single-precision kinematics) in the line search.
-ENERGY_NOISE = 1e-6
+RTOL = 1e-9
+#: Plate penetration tolerated at convergence, m.
+GAP_TOL_M = 1e-11
+#: Relative size of the energy's rounding noise, tolerated by the line search.
+ENERGY_NOISE = 1e-12
+#: Bullet's contact slop (its default, in scaled-world units): resting contacts settle this far
+#: into the plate. A chain lying flat on it shares its weight between clamp and plate through
+#: joint deflections of that size, so the slop is part of the simulated bench (up to a few %
+#: of the blocked force of a finger resting on the plate near the clamp).
+BULLET_CONTACT_SLOP = 1e-5
 #: Bodies (PyBullet clients) kept loaded, and chains (spring sets on them) kept planned.
 BODY_CACHE = 6
 CHAIN_CACHE = 32
@@ -137,15 +144,19 @@ class _Kin:
 
 
 def _quat_to_rot(quat: np.ndarray) -> np.ndarray:
-    x, y, z, w = quat[:, 0], quat[:, 1], quat[:, 2], quat[:, 3]
-    return np.stack(
-        [
-            np.stack([1 - 2 * (y * y + z * z), 2 * (x * y - z * w), 2 * (x * z + y * w)], -1),
-            np.stack([2 * (x * y + z * w), 1 - 2 * (x * x + z * z), 2 * (y * z - x * w)], -1),
-            np.stack([2 * (x * z - y * w), 2 * (y * z + x * w), 1 - 2 * (x * x + y * y)], -1),
-        ],
-        -2,
-    )
+    """Rotation matrices (n, 3, 3) of quaternions (n, 4) in PyBullet's (x, y, z, w) order."""
+    x, y, z, w = quat.T
+    out = np.empty((len(quat), 3, 3))
+    out[:, 0, 0] = 1 - 2 * (y * y + z * z)
+    out[:, 0, 1] = 2 * (x * y - z * w)
+    out[:, 0, 2] = 2 * (x * z + y * w)
+    out[:, 1, 0] = 2 * (x * y + z * w)
+    out[:, 1, 1] = 1 - 2 * (x * x + z * z)
+    out[:, 1, 2] = 2 * (y * z - x * w)
+    out[:, 2, 0] = 2 * (x * z - y * w)
+    out[:, 2, 1] = 2 * (y * z + x * w)
+    out[:, 2, 2] = 1 - 2 * (x * x + y * y)
+    return out
 
 
 @dataclass
@@ -267,15 +278,24 @@ class _Body:
         axis_local = np.zeros((n, 3))
         kind = np.zeros(n, int)
         lower, upper = np.zeros(n), np.zeros(n)
+        inertial = np.zeros((n, 3))
+        inertial_orn = np.zeros((n, 4))
         for j in range(n):
             info = p.getJointInfo(bid, j, physicsClientId=cid)
             kind[j], parent[j] = info[2], info[16]
             lower[j], upper[j] = info[8], info[9]
             axis_local[j] = info[13]
+            dyn = p.getDynamicsInfo(bid, j, physicsClientId=cid)
+            inertial[j], inertial_orn[j] = dyn[3], dyn[4]
+        # Link (URDF, joint) frame = centre-of-mass frame · inertial offset⁻¹.
+        self.inertial_rot_t = np.transpose(_quat_to_rot(inertial_orn), (0, 2, 1)) if n else np.zeros((0, 3, 3))
+        self.inertial_pos = inertial
+        self.inertial_rotated = bool(np.any(np.abs(inertial_orn[:, :3]) > 0))
         movable = {j for j in range(n) if kind[j] != p.JOINT_FIXED}
         if movable != set(self.indices):
             raise SimulationError("statics: the body has movable joints that are not spring joints")
         self.mass = np.array([p.getDynamicsInfo(bid, j, physicsClientId=cid)[0] for j in range(n)])
+        self.heavy = np.flatnonzero(self.mass > 0)
         # subtree[j, l]: link l moves with joint j (l is j's child link or below it).
         sub = np.zeros((n, n), bool)
         for link in range(n):
@@ -285,8 +305,10 @@ class _Body:
                 a = parent[a]
         idx = np.array(self.indices, int)
         self.subtree = sub[idx].astype(float)  # (N joints, L links)
-        self.joint_below = sub[np.ix_(idx, idx)]  # (N, N): joint j is i or below it
+        self.joint_below = sub[np.ix_(idx, idx)].astype(float)  # (N, N): joint j is i or below it
         self.revolute = kind[idx] == p.JOINT_REVOLUTE
+        self.all_revolute = bool(np.all(self.revolute))
+        self.zero_axes = np.zeros((len(idx), 3))
         self.axis_local = axis_local[idx]
         self.pos_scale = np.where(self.revolute, 1.0, s)
         lim_lo, lim_hi = lower[idx] / self.pos_scale, upper[idx] / self.pos_scale
@@ -301,6 +323,7 @@ class _Body:
         self.tip_local = np.asarray(tip_local, float)
         if self.tip_link < 0:
             raise SimulationError("statics: the manipulator has no moving tip link")
+        self.heavy_and_tip = np.append(self.heavy, self.tip_link)
         info_by_name = {li.name: li for li in plan.links}
         shaped = [
             (self.body.link_index[name], li.link)
@@ -312,25 +335,37 @@ class _Body:
         tip0 = self.tip_point(kin) - self.origin
         centre, half = stop_geometry(manip, self.origin, float(tip0[0]))
         self.plate = _Plate(
-            float(centre[2] + half[2]), (float(centre[0] - half[0]), float(centre[0] + half[0])), float(half[1])
+            float(centre[2] + half[2]) - BULLET_CONTACT_SLOP / self.scale,
+            (float(centre[0] - half[0]), float(centre[0] + half[0])),
+            float(half[1]),
         )
 
     def close(self) -> None:
         self.world.close()
 
     def kinematics(self, q: np.ndarray) -> _Kin:
-        """Set the joints to ``q`` (SI) and read every link frame back (one PyBullet call each)."""
+        """Set the joints to ``q`` (SI) and read every link frame back (one PyBullet call each).
+
+        PyBullet's centre-of-mass frames come back in double precision, its link frames
+        (``getLinkState`` entries 4, 5) rounded to single precision; the link frames are
+        therefore derived from the former and the constant inertial offsets, so that the
+        energy and its derivatives are smooth to machine precision.
+        """
         cid, s = self.cid, self.scale
         values = q * self.pos_scale
         p.resetJointStatesMultiDof(self.bid, self.indices, [[float(v)] for v in values], physicsClientId=cid)
         states = p.getLinkStates(self.bid, self.links, computeForwardKinematics=1, physicsClientId=cid)
-        com = np.array([st[0] for st in states]) / s
-        frame = np.array([st[4] for st in states]) / s
-        rot = _quat_to_rot(np.array([st[5] for st in states]))
-        idx = self.indices
-        axes = np.einsum("nab,nb->na", rot[idx], self.axis_local)
+        com = np.array([st[0] for st in states])
+        rot = _quat_to_rot(np.array([st[1] for st in states]))
+        if self.inertial_rotated:
+            rot = rot @ self.inertial_rot_t
+        frame = (com - (rot @ self.inertial_pos[:, :, None])[:, :, 0]) / s
+        com = com / s
+        axes = (rot[self.indices] @ self.axis_local[:, :, None])[:, :, 0]
+        if self.all_revolute:
+            return _Kin(com, frame, rot, axes, self.zero_axes, frame[self.indices])
         rev = self.revolute[:, None]
-        return _Kin(com, frame, rot, np.where(rev, axes, 0.0), np.where(rev, 0.0, axes), frame[idx])
+        return _Kin(com, frame, rot, np.where(rev, axes, 0.0), np.where(rev, 0.0, axes), frame[self.indices])
 
     def tip_point(self, kin: _Kin) -> np.ndarray:
         return kin.frame[self.tip_link] + kin.rot[self.tip_link] @ self.tip_local
@@ -342,31 +377,35 @@ class _Body:
         return float(np.degrees(np.unwrap(angles)[-1]))
 
     # --------------------------------------------------------- generalized forces
-    def forces(self, kin: _Kin, links: np.ndarray, r: np.ndarray, f: np.ndarray) -> np.ndarray:
-        """Generalized forces Q of world point forces ``f`` at ``r`` on ``links``."""
-        d = self.subtree[:, links]
-        total = d @ f
-        moment = d @ np.cross(r, f)
-        return np.einsum("ia,ia->i", kin.omega, moment - np.cross(kin.origin, total)) + np.einsum(
-            "ia,ia->i", kin.vel, total
-        )
+    # Every force on the bench is vertical (weights, the tip load, the plate's reactions): a
+    # force is its z component fz at a world point r on a link. With joint i's axis ω_i through
+    # o_i (revolute) or direction v_i (prismatic) and S_i the points moving with joint i:
+    #   Q_i = Σ_{S_i} fz·[ω_i × (r − o_i) + v_i]_z,
+    #   dQ_i/dq_j (j at or below i) = Σ_{S_j} fz·[ω_i × (ω_j × (r − o_j) + v_j)]_z.
+    def _moments(self, links: np.ndarray, r: np.ndarray, fz: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        w = self.subtree[:, links] * fz
+        return w.sum(1), w @ r  # Σ fz and Σ fz·r over each joint's moving points
 
-    def hessian(self, kin: _Kin, links: np.ndarray, r: np.ndarray, f: np.ndarray) -> np.ndarray:
-        """dQ/dq of constant world point forces (symmetric: Q = −∇ of their potential)."""
-        d = self.subtree[:, links]
-        s = np.einsum("ip,pa,pb->iab", d, r, f)
-        total = d @ f
+    def forces(self, kin: _Kin, links: np.ndarray, r: np.ndarray, fz: np.ndarray) -> np.ndarray:
+        """Generalized forces Q of vertical point forces ``fz`` (N, up) at ``r`` on ``links``."""
+        total, s = self._moments(links, r, fz)
+        w, o = kin.omega, kin.origin
+        return w[:, 0] * (s[:, 1] - o[:, 1] * total) - w[:, 1] * (s[:, 0] - o[:, 0] * total) + kin.vel[:, 2] * total
+
+    def hessian(self, kin: _Kin, links: np.ndarray, r: np.ndarray, fz: np.ndarray) -> np.ndarray:
+        """dQ/dq of constant vertical point forces (symmetric: Q = −∇ of their potential)."""
+        total, s = self._moments(links, r, fz)
         w, o, v = kin.omega, kin.origin, kin.vel
         ww = w @ w.T
-        tr = np.trace(s, axis1=1, axis2=2)
+        # ω_i × (ω_j × d) = ω_j (ω_i·d) − d (ω_i·ω_j); its z part summed with fz over S_j:
         upper = (
-            np.einsum("ia,jab,jb->ij", w, s, w)
-            - tr[None, :] * ww
-            - np.einsum("ja,ja->j", total, w)[None, :] * (w @ o.T)
-            + np.einsum("ja,ja->j", total, o)[None, :] * ww
-            + w @ np.cross(v, total).T
+            (w @ s.T) * w[:, 2]
+            - ww * s[:, 2]
+            - (w @ o.T) * (total * w[:, 2])
+            + ww * (total * o[:, 2])
+            + (np.outer(w[:, 0], v[:, 1]) - np.outer(w[:, 1], v[:, 0])) * total
         )
-        upper = np.where(self.joint_below, upper, 0.0)
+        upper *= self.joint_below
         return upper + upper.T - np.diag(np.diag(upper))
 
     def heights_jacobian(self, kin: _Kin, links: np.ndarray, r: np.ndarray) -> np.ndarray:
@@ -417,23 +456,18 @@ class StaticChain:
     def _energy_terms(
         self, kin: _Kin, gravity: float, tip_n: float
     ) -> tuple[np.ndarray, np.ndarray, np.ndarray, float]:
-        """Force points of gravity and tip load: links, points, forces, their potential (J)."""
+        """Vertical force points of gravity and tip load: links, points, fz (N, up), their potential (J)."""
         b = self.body
-        heavy = np.flatnonzero(b.mass > 0)
-        links = list(heavy)
-        r = [kin.com[heavy]]
-        f = np.zeros((len(heavy), 3))
-        f[:, 2] = -b.mass[heavy] * gravity
-        forces = [f]
         if tip_n:
-            links.append(b.tip_link)
-            r.append(b.tip_point(kin)[None, :])
-            forces.append(np.array([[0.0, 0.0, -tip_n]]))
-        rr, ff = np.concatenate(r), np.concatenate(forces)
-        return np.asarray(links, int), rr, ff, float(-np.sum(rr * ff))
+            links = b.heavy_and_tip
+            r = np.concatenate([kin.com[b.heavy], b.tip_point(kin)[None, :]])
+            fz = np.append(-b.mass[b.heavy] * gravity, -tip_n)
+        else:
+            links, r, fz = b.heavy, kin.com[b.heavy], -b.mass[b.heavy] * gravity
+        return links, r, fz, float(-(fz @ r[:, 2]))
 
-    def _contacts(self, kin: _Kin) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        """Candidate contacts over the plate: points, links, gaps (m)."""
+    def _contacts(self, kin: _Kin) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+        """Every candidate contact: points, links, gaps to the plate (m), whether over the plate."""
         b = self.body
         r, links, drop = b.features.lowest(kin)
         plate = b.plate
@@ -442,7 +476,7 @@ class StaticChain:
             & (r[:, 0] <= plate.x_range_m[1])
             & (np.abs(r[:, 1]) <= plate.half_y_m)
         )
-        return r[on], links[on], r[on, 2] - drop[on] - plate.top_m
+        return r, links, r[:, 2] - drop - plate.top_m, on
 
     # ----------------------------------------------------------------- solver
     def equilibrium(
@@ -455,117 +489,132 @@ class StaticChain:
     ) -> _Equilibrium:
         """Minimise the energy under joint torques ``u`` (N·m) and tip load ``tip_n`` (N, down).
 
-        Tries the full load from ``q_start`` (default: straight), then continuation.
+        Tries the full load from ``q_start`` (default: straight), then continuation: the load
+        ramped in ``RAMPS`` equal steps, each solved from the last. Iterations are bounded
+        by ``MAX_ITERATIONS_TOTAL``.
         """
         start = np.zeros(len(self.k)) if q_start is None else q_start.copy()
-        total = 0
-        eq = self._newton(start, u, tip_n, gravity, plate)
-        total += eq.iterations
+        per_solve = MAX_ITERATIONS_PLATE if plate else MAX_ITERATIONS
+        budget = MAX_ITERATIONS_TOTAL
+        first = eq = self._newton(start, u, tip_n, gravity, plate, min(per_solve, budget))
+        budget -= eq.iterations
         if eq.converged:
             return eq
-        first = eq
         for stages in RAMPS:
             q = start.copy()
-            ok = True
             for i in range(1, stages + 1):
+                if budget <= 0:
+                    break
                 s = i / stages
-                eq = self._newton(q, u * s, tip_n * s, gravity, plate, u_from=u * (i - 1) / stages)
-                total += eq.iterations
+                eq = self._newton(q, u * s, tip_n * s, gravity, plate, min(per_solve, budget))
+                budget -= eq.iterations
                 if not eq.converged:
-                    ok = False
                     break
                 q = eq.q
-            if ok:
-                eq.iterations = total
+            if eq.converged:
+                eq.iterations = MAX_ITERATIONS_TOTAL - budget
                 return eq
-        first.iterations = total
-        if "continuation" not in first.cause:
-            first.cause += f"; load continuation in {', '.join(map(str, RAMPS))} steps failed too"
+        first.iterations = MAX_ITERATIONS_TOTAL - budget
+        first.cause += f"; load continuation in {' and '.join(map(str, RAMPS))} steps failed too"
         return first
 
     def _newton(
-        self,
-        q: np.ndarray,
-        u: np.ndarray,
-        tip_n: float,
-        gravity: float,
-        plate: bool,
-        u_from: np.ndarray | None = None,
+        self, q: np.ndarray, u: np.ndarray, tip_n: float, gravity: float, plate: bool, max_iter: int
     ) -> _Equilibrium:
+        """Newton iterations on the energy (SQP with the plate and joint limits as constraints)."""
         b = self.body
         k, k3, q0 = self.k, self.k3, self.q0
+        n = len(q)
         cap = STEP_CAP_RAD / b.pos_scale * np.where(b.revolute, 1.0, 0.01 * b.scale)
         lim = b.limited
         lo, hi = b.limits
+        eye = np.eye(n)
         rho = 0.0
-        lam_prev = np.zeros(0)
-        pts_prev: tuple[np.ndarray, np.ndarray] | None = None
+        held = np.zeros(0, int)  # candidate contacts active in the last subproblem
+        held_force = np.zeros(0)
         residual = math.inf
         noise = [0.0]
 
         def merit_parts(qv: np.ndarray) -> tuple[float, float, _Kin]:
             kin = b.kinematics(qv)
             dq = qv - q0
-            links, r, f, pot = self._energy_terms(kin, gravity, tip_n)
-            spring_e = np.sum(0.5 * k * dq * dq + 0.25 * np.abs(k3) * dq**4)
+            _, r, fz, pot = self._energy_terms(kin, gravity, tip_n)
+            spring_e = np.sum(0.5 * k * dq * dq + 0.25 * k3 * dq**4)
             noise[0] = ENERGY_NOISE * float(
-                spring_e + np.abs(u) @ np.abs(qv) + np.sum(np.linalg.norm(r, axis=1) * np.linalg.norm(f, axis=1))
+                np.sum(0.5 * k * dq * dq + 0.25 * np.abs(k3) * dq**4)
+                + np.abs(u) @ np.abs(qv)
+                + np.abs(fz) @ np.abs(r).sum(1)
             )
-            energy = float(np.sum(0.5 * k * dq * dq + 0.25 * k3 * dq**4) - u @ qv + pot)
+            energy = float(spring_e - u @ qv + pot)
             viol = 0.0
             if plate:
-                _, _, gap = self._contacts(kin)
-                viol += float(np.sum(np.maximum(-gap, 0.0)))
+                _, _, gap, on = self._contacts(kin)
+                viol += float(np.sum(np.maximum(-gap[on], 0.0)))
             if len(lim):
                 viol += float(np.sum(np.maximum(lo[lim] - qv[lim], 0)) + np.sum(np.maximum(qv[lim] - hi[lim], 0)))
             return energy, viol, kin
 
         energy, viol, kin = merit_parts(q)
-        for it in range(1, MAX_ITERATIONS + 1):
+        for it in range(1, max_iter + 1):
             if not np.all(np.isfinite(q)):
                 return _Equilibrium(q, False, it, math.nan, "non-finite joint angles")
             dq = q - q0
-            links, r, f, _ = self._energy_terms(kin, gravity, tip_n)
+            links, r, fz, _ = self._energy_terms(kin, gravity, tip_n)
             spring = k * dq + k3 * dq**3
-            resid = u - spring + b.forces(kin, links, r, f)
-            hess = np.diag(k + 3 * k3 * dq * dq) - b.hessian(kin, links, r, f)
+            external = b.forces(kin, links, r, fz)
+            resid = u - spring + external
+            hess = np.diag(k + 3 * k3 * dq * dq) - b.hessian(kin, links, r, fz)
             rows, gaps = [], []
-            cpts = clinks = None
+            n_contact_rows = 0
+            cand = np.zeros(0, int)
             if plate:
-                cpts, clinks, gap = self._contacts(kin)
-                if pts_prev is not None and len(lam_prev):
-                    # Lagrangian curvature of last iterate's contact forces, at their current points.
-                    hess -= b.hessian(kin, pts_prev[1], pts_prev[0], lam_prev[:, None] * np.array([0, 0, 1.0]))
-                rows.append(b.heights_jacobian(kin, clinks, cpts))
-                gaps.append(gap)
+                cpts, clinks, gap, on = self._contacts(kin)
+                if len(held):
+                    # Curvature of the contact forces of the last subproblem (Lagrangian Hessian).
+                    hess -= b.hessian(kin, clinks[held], cpts[held], held_force)
+                jac = b.heights_jacobian(kin, clinks, cpts)
+                norm = np.linalg.norm(jac, axis=1)
+                # A point whose height does not change to first order cannot be held off by the
+                # plate in a Newton step (a corner on the joint's vertical): left to the next one.
+                cand = np.flatnonzero(on & (norm > 1e-9 * max(float(np.max(norm, initial=0.0)), 1e-300)))
+                rows.append(jac[cand])
+                gaps.append(gap[cand])
+                n_contact_rows = len(cand)
             if len(lim):
-                eye = np.eye(len(q))
                 rows += [eye[lim], -eye[lim]]
                 gaps += [q[lim] - lo[lim], hi[lim] - q[lim]]
-            a = np.concatenate(rows) if rows else np.zeros((0, len(q)))
+            a = np.concatenate(rows) if rows else np.zeros((0, n))
             g = np.concatenate(gaps) if gaps else np.zeros(0)
-            hmod = _positive_definite(hess)
+            hmod = hess
+            if len(held) and n_contact_rows:
+                # Penalise leaving the contacts held last time: makes the Lagrangian Hessian positive
+                # definite when it is so on the contacts' tangent space, without moving the solution.
+                kept = np.flatnonzero(np.isin(cand, held))
+                if len(kept):
+                    rows_h = a[kept]
+                    sigma = float(np.max(np.abs(np.diag(hess)))) / max(float(np.max(np.sum(rows_h**2, 1))), 1e-300)
+                    hmod = hess + sigma * rows_h.T @ rows_h
+            hmod = _positive_definite(hmod)
             d, lam, why = _qp(hmod, -resid, a, -g)
             if d is None:
                 return _Equilibrium(q, False, it, residual, f"contact subproblem failed: {why}")
+            reaction = a.T @ lam
             scale = max(
-                float(np.max(np.abs(u))) if len(u) else 0.0,
-                float(np.max(np.abs(spring))),
-                float(np.max(np.abs(resid - u + spring))),
-                float(np.max(np.abs(a.T @ lam))) if len(lam) else 0.0,
+                float(np.max(np.abs(u), initial=0.0)),
+                float(np.max(np.abs(spring), initial=0.0)),
+                float(np.max(np.abs(external), initial=0.0)),
+                float(np.max(np.abs(reaction), initial=0.0)),
                 1e-12,
             )
-            stationarity = resid + a.T @ lam
-            residual = float(np.max(np.abs(stationarity)))
-            violation = float(max(np.max(-g, initial=0.0), 0.0))
+            residual = float(np.max(np.abs(resid + reaction), initial=0.0))
+            violation = float(np.max(-g, initial=0.0))
+            contact_lam = lam[:n_contact_rows]
             if residual <= RTOL * scale and violation <= GAP_TOL_M:
                 cause = self._stability(hess, a, g, lam)
-                n_contact = int(np.sum(lam[: len(cpts)] > 0)) if plate and cpts is not None else 0
-                force = float(np.sum(lam[: len(cpts)])) if plate and cpts is not None else 0.0
-                return _Equilibrium(q, not cause, it, residual, cause, force, n_contact)
-            if plate and cpts is not None and clinks is not None:
-                active = lam[: len(cpts)] > 0
-                lam_prev, pts_prev = lam[: len(cpts)][active], (cpts[active], clinks[active])
+                force = float(np.sum(contact_lam))
+                return _Equilibrium(q, not cause, it, residual, cause, force, int(np.sum(contact_lam > 0)))
+            held = cand[contact_lam > 0]
+            held_force = contact_lam[contact_lam > 0]
             # Step cap, then backtracking on the ℓ1 merit.
             shrink = float(np.min(cap / np.maximum(np.abs(d), 1e-300)))
             if shrink < 1:
@@ -577,7 +626,6 @@ class StaticChain:
             for _ in range(40):
                 trial = q + alpha * d
                 e_t, v_t, kin_t = merit_parts(trial)
-                # Rounding noise of the single-precision kinematics is tolerated (Newton's end game).
                 if np.isfinite(e_t) and e_t + rho * v_t <= merit + 1e-4 * alpha * min(slope, 0.0) + noise[0]:
                     accepted = True
                     break
@@ -589,7 +637,7 @@ class StaticChain:
                 return _Equilibrium(
                     q, False, it, residual, "a joint turned past 4π: no equilibrium (softening past its peak?)"
                 )
-        return _Equilibrium(q, False, MAX_ITERATIONS, residual, f"no convergence in {MAX_ITERATIONS} iterations")
+        return _Equilibrium(q, False, max_iter, residual, f"no convergence in {max_iter} iterations")
 
     def _stability(self, hess: np.ndarray, a: np.ndarray, g: np.ndarray, lam: np.ndarray) -> str:
         """Empty if the energy's Hessian is positive definite on the active constraints' tangent space."""
@@ -704,7 +752,14 @@ def _qp(
     lam = np.zeros(m)
     if m == 0:
         return x, lam, ""
-    y = cho_solve(factor, a.T)  # h⁻¹ aᵀ, (n, m)
+    cols: dict[int, np.ndarray] = {}
+
+    def y(i: int) -> np.ndarray:  # h⁻¹ a_iᵀ, for the few rows that ever enter the active set
+        col = cols.get(i)
+        if col is None:
+            col = cols[i] = cho_solve(factor, a[i])
+        return col
+
     scale_b = max(float(np.max(np.abs(b))), 1e-9)
     tol = 1e-13 * scale_b
     active: list[int] = []
@@ -719,15 +774,16 @@ def _qp(
             return None, lam, "a violated constraint is already active"
         u_plus = np.append(u, 0.0)
         for _inner in range(max_iter):
-            yp, np_ = y[:, pidx], a[pidx]
+            yp, np_ = y(pidx), a[pidx]
             if active:
                 na = a[active]
-                mat = na @ y[:, active]
+                ya = np.column_stack([y(i) for i in active])
+                mat = na @ ya
                 try:
                     r = np.linalg.solve(mat, na @ yp)
                 except np.linalg.LinAlgError:
                     r = np.linalg.lstsq(mat, na @ yp, rcond=None)[0]
-                z = yp - y[:, active] @ r
+                z = yp - ya @ r
             else:
                 r, z = np.zeros(0), yp
             zn = float(np_ @ z)
