@@ -17,10 +17,13 @@ of their multipliers (the plate's vertical reactions).
 Kinematics are PyBullet's own, on the very body the dynamic bench loads (same
 URDF, link frames, masses, centres of mass, tip point and world scale): joint
 states are set with ``resetJointStatesMultiDof`` and read back with one
-``getLinkStates`` call; no time step is ever taken. From the joint axes,
+``getLinkStates`` call; no time step is ever taken. (PyBullet returns the
+centre-of-mass frames in double precision but the link frames rounded to single
+precision, so link frames are derived from the former.) From the joint axes,
 joint origins and force points of that one call the generalized forces and
-their exact Hessian are computed in closed form (a serial tree with constant
-point forces), so every iteration is a full Newton step:
+their exact Hessian are computed in closed form (every bench force is vertical
+and constant: weights, tip load, plate reactions), so every iteration is a full
+Newton step:
 
 * the QP subproblem min ½dᵀKd − Rᵀd s.t. z(q) + J_z·d ≥ z_plate is solved by the
   Goldfarb–Idnani dual active-set method (no contact: a Cholesky solve);
@@ -28,6 +31,13 @@ point forces), so every iteration is a full Newton step:
   E + ρ·Σ max(0, −gap), with a per-joint step cap;
 * when the full load fails, the load (pressure torque and tip load) is ramped in
   steps from the last equilibrium (continuation).
+
+Candidate plate contacts are the lowest points of every link's collision shape
+(box corners, sphere bottoms, the lowest points of cylinder rims); the plate's top
+is lowered by Bullet's contact slop, where resting contacts settle in the
+simulated bench. URDF joint limits are constraints too. An equilibrium is only
+reported if the energy's Hessian is positive definite on the active contacts'
+tangent space (a stable one, as relaxation would find).
 
 A solved row never raises: :func:`solve_row` returns the value with a
 :class:`SolveStatus` (converged, iterations, residual, cause). Bodies are loaded
@@ -44,12 +54,23 @@ import numpy as np
 import pybullet as p
 from scipy.linalg import cho_factor, cho_solve
 
+from somo_sweep.bench import (
+    TESTS,
+    BenchSettings,
+    _inputs,
+    _manipulator,
+    _static_rig,
+    bench_frame,
+    stop_geometry,
+)
 from somo_sweep.description import Link, Manipulator
 from somo_sweep.errors import SimulationError
+from somo_sweep.layout import BodyPlan
+from somo_sweep.models import Model
 from somo_sweep.urdf import plan_manipulator
+from somo_sweep.world import World, WorldSettings
 
 __all__ = [
-    "STATICS",
     "RowSolution",
     "SolveStatus",
     "StaticChain",
@@ -57,9 +78,6 @@ __all__ = [
     "solve_row",
     "static_chain",
 ]
-
-#: Selectable ways of finding a bench row's equilibrium.
-STATICS = ("solve", "dynamic")
 
 #: Newton iterations per solve (per continuation stage); with the plate (a curled finger
 #: rolling over it changes contact once per link) and in all for one equilibrium.
@@ -253,20 +271,17 @@ class _Plate:
 class _Body:
     """One loaded bench body and its fixed kinematic structure (shared by all spring sets)."""
 
-    def __init__(self, manip: Manipulator, rig_manip: Manipulator, scale: float):
-        from somo_sweep.bench import bench_frame, stop_geometry
-        from somo_sweep.world import World, WorldSettings
-
+    def __init__(self, manip: Manipulator, plan: BodyPlan, scale: float):
         self.scale = scale
+        # Gravity is the solver's business (any magnitude, per row); the world never steps.
         self.world = World(WorldSettings(scale=scale, gravity_m_s2=(0.0, 0.0, 0.0)))
         try:
-            self._setup(manip, rig_manip, bench_frame, stop_geometry)
+            self._setup(manip, plan)
         except BaseException:
             self.world.close()
             raise
 
-    def _setup(self, manip, rig_manip, bench_frame, stop_geometry) -> None:  # type: ignore[no-untyped-def]
-        plan = plan_manipulator(rig_manip, self.scale)
+    def _setup(self, manip: Manipulator, plan: BodyPlan) -> None:
         self.body = self.world.load_plan(plan, bench_frame(manip))
         cid, bid, s = self.world.client, self.body.id, self.scale
         self.cid, self.bid = cid, bid
@@ -427,12 +442,9 @@ class StaticChain:
     """
 
     def __init__(self, manip: Manipulator, scale: float = 20.0, added_inertia_kg_m2: float = 1e-5):
-        from somo_sweep.bench import _static_rig
-
         self.manip = manip
-        rig = _static_rig(manip, added_inertia_kg_m2)
-        plan = plan_manipulator(rig, scale)
-        self.body = _body(manip, rig, plan.urdf, scale)
+        plan = plan_manipulator(_static_rig(manip, added_inertia_kg_m2), scale)
+        self.body = _body(manip, plan, scale)
         joints = plan.joints
         self.k = np.array([j.stiffness for j in joints], float)
         self.q0 = np.array([j.neutral for j in joints], float)
@@ -445,8 +457,6 @@ class StaticChain:
     # ----------------------------------------------------------------- loads
     def joint_torques(self, pressure_kpa: float) -> np.ndarray:
         """Actuation torque of every joint at ``pressure_kpa``, N·m (as the dynamic bench sets it)."""
-        from somo_sweep.bench import _inputs
-
         inputs = _inputs(self.manip, pressure_kpa)
         u = np.zeros(len(self.k))
         mask = self.input_index >= 0
@@ -818,16 +828,14 @@ _BODIES: OrderedDict[tuple[str, float, tuple[float, ...]], _Body] = OrderedDict(
 _CHAINS: OrderedDict[tuple[str, float, float], StaticChain] = OrderedDict()
 
 
-def _body(manip: Manipulator, rig: Manipulator, urdf: str, scale: float) -> _Body:
-    from somo_sweep.bench import bench_frame
-
+def _body(manip: Manipulator, plan: BodyPlan, scale: float) -> _Body:
     # The URDF fixes links, joints, masses and the tip; the bench frame fixes gravity's direction.
-    key = (urdf, float(scale), tuple(bench_frame(manip).rpy_rad))
+    key = (plan.urdf, float(scale), tuple(bench_frame(manip).rpy_rad))
     body = _BODIES.get(key)
     if body is not None and body.world.client >= 0:
         _BODIES.move_to_end(key)
         return body
-    body = _Body(manip, rig, scale)
+    body = _Body(manip, plan, scale)
     _BODIES[key] = body
     while len(_BODIES) > BODY_CACHE:
         _, old = _BODIES.popitem(last=False)
@@ -858,11 +866,11 @@ def clear_cache() -> None:
 
 
 def solve_row(
-    model: object,
+    model: Model | Manipulator,
     test: str,
     pressure_kpa: float = 0.0,
     tip_load_n: float = 0.0,
-    settings: object | None = None,
+    settings: BenchSettings | None = None,
     direction: str | None = None,
 ) -> RowSolution:
     """Solve one bench row statically; never raises (a failure is a status with its cause).
@@ -878,20 +886,18 @@ def solve_row(
     Returns:
         The value (NaN when failed) and a :class:`SolveStatus`.
     """
-    from somo_sweep.bench import TESTS, BenchSettings, _manipulator
-
     nan: float | tuple[float, float, float] = (
         (math.nan, math.nan, math.nan) if test == "free_bending" else math.nan
     )
     try:
-        st = settings if isinstance(settings, BenchSettings) else BenchSettings()
+        st = settings or BenchSettings()
         if test not in TESTS:
             raise SimulationError(f"unknown test '{test}'; allowed: {', '.join(TESTS)}")
         if not (tip_load_n >= 0) or not math.isfinite(tip_load_n):
             raise SimulationError(f"tip_load_n must be >= 0, got {tip_load_n}")
         if not math.isfinite(pressure_kpa):
             raise SimulationError(f"pressure_kpa must be finite, got {pressure_kpa}")
-        manip = _manipulator(model)  # type: ignore[arg-type]
+        manip = _manipulator(model)
         chain = static_chain(manip, st.scale, st.added_inertia_kg_m2)
         return chain.solve(test, pressure_kpa, tip_load_n, direction, st.gravity_m_s2)
     except Exception as exc:  # noqa: BLE001 - a row's failure is data, not an abort

@@ -350,6 +350,21 @@ def test_generalized_gravity_is_pybullets_jacobians_not_its_inverse_dynamics() -
     assert np.max(np.abs(inverse / s**2 + ours)) > 0.1 * np.max(np.abs(ours))
 
 
+def test_joint_limits_hold_where_the_relaxation_keeps_bouncing() -> None:
+    """URDF joint limits are constraints of the solve: at 200 kPa every joint sits at its upper
+    limit (tip angle 10 × 0.2 rad); the relaxation does not settle there in 40 000 steps."""
+    manip = Finger(0.1, 10, 10.0, 0.02, 180.0).manipulator()
+    act = manip.actuators[0]
+    joint = act.joints[0].model_copy(update={"limits_rad": (-0.05, 0.2)})
+    manip = manip.model_copy(update={"actuators": [act.model_copy(update={"joints": [joint]})]})
+    row = solve_row(manip, "free_bending", 200.0)
+    assert row.ok and isinstance(row.value, tuple)
+    assert row.value[2] == pytest.approx(math.degrees(2.0), rel=1e-9)
+    blocked = solve_row(manip, "blocked_force", 200.0)
+    relaxed = run_bench(manip, "blocked_force", 200.0, statics="dynamic").value
+    assert blocked.value == pytest.approx(relaxed, rel=1e-3)
+
+
 # --------------------------------------------------------------------------- failures, API
 def _softened() -> Manipulator:
     """Joints that soften past their peak torque (0.014 N·m, 45 kPa): no equilibrium above."""

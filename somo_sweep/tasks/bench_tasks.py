@@ -27,6 +27,8 @@ class BenchParams(BaseModel):
         test: ``tip_load``, ``blocked_force`` or ``free_bending``.
         pressure_kpa: Actuation pressure in kPa.
         tip_load_n: Downward tip force in N (``tip_load`` only), ≥ 0.
+        statics: ``solve`` (equilibrium solved directly) or ``dynamic`` (relaxation at the
+            study's time step); see :class:`~somo_sweep.bench.BenchSettings`.
     """
 
     model_config = ConfigDict(extra="forbid", frozen=True)
@@ -34,10 +36,12 @@ class BenchParams(BaseModel):
     test: Literal["tip_load", "blocked_force", "free_bending"] = "free_bending"
     pressure_kpa: float = 0.0
     tip_load_n: float = Field(0.0, ge=0)
+    statics: Literal["solve", "dynamic"] = "solve"
 
 
 def run_bench_task(model: Model, params: BenchParams, settings: WorldSettings, seed: int) -> TaskResult:
-    """Run one bench protocol; metrics in mm / N / deg, ``relax_steps`` the steps it took.
+    """Run one bench protocol; metrics in mm / N / deg, ``relax_steps`` the time steps (dynamic)
+    or Newton iterations (solve) it took.
 
     The bench is static and deterministic: ``seed`` is not used. The time step,
     scale and gravity magnitude come from ``settings``.
@@ -46,6 +50,7 @@ def run_bench_task(model: Model, params: BenchParams, settings: WorldSettings, s
         time_step_s=settings.time_step_s,
         scale=settings.scale,
         gravity_m_s2=abs(settings.gravity_m_s2[2]),
+        statics=params.statics,
     )
     try:
         res = run_bench(model, params.test, params.pressure_kpa, params.tip_load_n, bench)
