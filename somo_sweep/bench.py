@@ -300,7 +300,9 @@ def run_bench(
         _inputs(manip, pressure_kpa)  # a pressure without an actuation map is an error, as below
         row = solve_row(manip, test, pressure_kpa, tip_load_n, settings, direction)
         if not row.status.converged:
-            raise SimulationError(f"bench {test} at {pressure_kpa} kPa: no static equilibrium ({row.status.cause})")
+            raise SimulationError(
+                f"bench {test} at {pressure_kpa} kPa: no static equilibrium ({row.status.cause})"
+            )
         return BenchResult(row.value, row.status.iterations)
     rig = _Rig(manip, settings)
     try:

@@ -23,7 +23,14 @@ import numpy as np
 from scipy.optimize import least_squares
 
 from somo_sweep.calibration_metrics import WIDTH, TestMetric, per_test_metrics
-from somo_sweep.calibration_model import AXES, Parameter, RowFailure, joint_lever_arms, side_view, simulate_rows
+from somo_sweep.calibration_model import (
+    AXES,
+    Parameter,
+    RowFailure,
+    joint_lever_arms,
+    side_view,
+    simulate_rows,
+)
 from somo_sweep.calibration_problem import (
     CALIBRATION_SETTINGS,
     CalibrationProblem,
@@ -208,7 +215,7 @@ def solve_fit(problem: CalibrationProblem, n_jobs: int = 1, max_evaluations: int
         return _finish(
             problem,
             "fit",
-            initial,
+            initial.tolist(),
             start,
             sims[0],
             n_jobs,

@@ -145,11 +145,11 @@ def _simulate_row(
 
     Never raises for a row without equilibrium: its values are NaN and the cause is returned.
     """
-    nan = (math.nan, math.nan, math.nan)
+    nan = math.nan
     try:
         rig = side_view(manip) if axis == "side" else manip
     except (ValueError, SimulationError) as exc:  # a side view the model cannot have
-        return (*nan, f"{type(exc).__name__}: {exc}")
+        return nan, nan, nan, f"{type(exc).__name__}: {exc}"
     if settings.statics == "solve":
         row = solve_row(rig, test, pressure_kpa, load_n, settings, direction)
         value, cause = row.value, "" if row.ok else row.status.cause
@@ -159,9 +159,10 @@ def _simulate_row(
         except SimulationError as exc:
             value, cause = math.nan, str(exc)
     if cause:
-        return (*nan, cause)
-    values = value if isinstance(value, tuple) else (float(value), math.nan, math.nan)
-    return (*(float(v) for v in values), "")
+        return nan, nan, nan, cause
+    if isinstance(value, tuple):
+        return float(value[0]), float(value[1]), float(value[2]), ""
+    return float(value), nan, nan, ""
 
 
 def simulate_rows(

@@ -303,7 +303,9 @@ class _Body:
             dyn = p.getDynamicsInfo(bid, j, physicsClientId=cid)
             inertial[j], inertial_orn[j] = dyn[3], dyn[4]
         # Link (URDF, joint) frame = centre-of-mass frame · inertial offset⁻¹.
-        self.inertial_rot_t = np.transpose(_quat_to_rot(inertial_orn), (0, 2, 1)) if n else np.zeros((0, 3, 3))
+        self.inertial_rot_t = (
+            np.transpose(_quat_to_rot(inertial_orn), (0, 2, 1)) if n else np.zeros((0, 3, 3))
+        )
         self.inertial_pos = inertial
         self.inertial_rotated = bool(np.any(np.abs(inertial_orn[:, :3]) > 0))
         movable = {j for j in range(n) if kind[j] != p.JOINT_FIXED}
@@ -405,7 +407,11 @@ class _Body:
         """Generalized forces Q of vertical point forces ``fz`` (N, up) at ``r`` on ``links``."""
         total, s = self._moments(links, r, fz)
         w, o = kin.omega, kin.origin
-        return w[:, 0] * (s[:, 1] - o[:, 1] * total) - w[:, 1] * (s[:, 0] - o[:, 0] * total) + kin.vel[:, 2] * total
+        return (
+            w[:, 0] * (s[:, 1] - o[:, 1] * total)
+            - w[:, 1] * (s[:, 0] - o[:, 0] * total)
+            + kin.vel[:, 2] * total
+        )
 
     def hessian(self, kin: _Kin, links: np.ndarray, r: np.ndarray, fz: np.ndarray) -> np.ndarray:
         """dQ/dq of constant vertical point forces (symmetric: Q = −∇ of their potential)."""
@@ -561,7 +567,9 @@ class StaticChain:
                 _, _, gap, on = self._contacts(kin)
                 viol += float(np.sum(np.maximum(-gap[on], 0.0)))
             if len(lim):
-                viol += float(np.sum(np.maximum(lo[lim] - qv[lim], 0)) + np.sum(np.maximum(qv[lim] - hi[lim], 0)))
+                viol += float(
+                    np.sum(np.maximum(lo[lim] - qv[lim], 0)) + np.sum(np.maximum(qv[lim] - hi[lim], 0))
+                )
             return energy, viol, kin
 
         energy, viol, kin = merit_parts(q)
@@ -602,7 +610,9 @@ class StaticChain:
                 kept = np.flatnonzero(np.isin(cand, held))
                 if len(kept):
                     rows_h = a[kept]
-                    sigma = float(np.max(np.abs(np.diag(hess)))) / max(float(np.max(np.sum(rows_h**2, 1))), 1e-300)
+                    sigma = float(np.max(np.abs(np.diag(hess)))) / max(
+                        float(np.max(np.sum(rows_h**2, 1))), 1e-300
+                    )
                     hmod = hess + sigma * rows_h.T @ rows_h
             hmod = _positive_definite(hmod)
             d, lam, why = _qp(hmod, -resid, a, -g)
@@ -645,7 +655,11 @@ class StaticChain:
             q, energy, viol, kin = trial, e_t, v_t, kin_t
             if np.max(np.abs(q - q0)) > RUNAWAY_RAD:
                 return _Equilibrium(
-                    q, False, it, residual, "a joint turned past 4π: no equilibrium (softening past its peak?)"
+                    q,
+                    False,
+                    it,
+                    residual,
+                    "a joint turned past 4π: no equilibrium (softening past its peak?)",
                 )
         return _Equilibrium(q, False, max_iter, residual, f"no convergence in {max_iter} iterations")
 
@@ -900,5 +914,5 @@ def solve_row(
         manip = _manipulator(model)
         chain = static_chain(manip, st.scale, st.added_inertia_kg_m2)
         return chain.solve(test, pressure_kpa, tip_load_n, direction, st.gravity_m_s2)
-    except Exception as exc:  # noqa: BLE001 - a row's failure is data, not an abort
+    except Exception as exc:  # a row's failure is data, not an abort
         return RowSolution(nan, SolveStatus(False, 0, math.nan, f"{type(exc).__name__}: {exc}"))

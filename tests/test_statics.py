@@ -80,7 +80,11 @@ class Finger:
             "name": "finger",
             "length_m": length,
             "n_segments": n,
-            "link": {"shape": "box", "size_m": [0.02, min(0.012, 0.25 * length)], "mass_kg": self.mass_kg / bodies},
+            "link": {
+                "shape": "box",
+                "size_m": [0.02, min(0.012, 0.25 * length)],
+                "mass_kg": self.mass_kg / bodies,
+            },
             "joints": [joint],
         }
         if self.gradient:
@@ -90,7 +94,10 @@ class Finger:
             actuation["saturation_pressure_kpa"] = P_MAX / self.saturation
         manip: dict[str, Any] = {
             "name": "finger",
-            "base": {"mode": "fixed", "link": {"shape": "box", "size_m": [0.03, 0.03, 0.01], "mass_kg": 0.05}},
+            "base": {
+                "mode": "fixed",
+                "link": {"shape": "box", "size_m": [0.03, 0.03, 0.01], "mass_kg": 0.05},
+            },
             "actuators": [actuator],
             "actuation": actuation,
         }
@@ -153,8 +160,10 @@ def compare(fingers: list[Finger], settings: BenchSettings | None = None) -> pd.
             except SimulationError as exc:
                 relaxed, cause = math.nan, str(exc)
             t_dynamic = time.perf_counter() - t0
-            names = QUANTITIES[:3] if test == "free_bending" else (
-                ("tip_deflection_mm",) if test == "tip_load" else ("blocked_force_n",)
+            names = (
+                QUANTITIES[:3]
+                if test == "free_bending"
+                else (("tip_deflection_mm",) if test == "tip_load" else ("blocked_force_n",))
             )
             s_vals = np.atleast_1d(np.asarray(solved.value, float))
             d_vals = np.atleast_1d(np.asarray(relaxed, float)) * np.ones(len(names))
@@ -331,7 +340,9 @@ def test_generalized_gravity_is_pybullets_jacobians_not_its_inverse_dynamics() -
         cid, bid, s = rig.world.client, rig.body.id, rig.world.scale
         idx = rig.body.drive.indices
         p.resetJointStatesMultiDof(bid, idx, [[v] for v in q], physicsClientId=cid)
-        base_rot = np.asarray(p.getMatrixFromQuaternion(p.getBasePositionAndOrientation(bid, physicsClientId=cid)[1]))
+        base_rot = np.asarray(
+            p.getMatrixFromQuaternion(p.getBasePositionAndOrientation(bid, physicsClientId=cid)[1])
+        )
         g_world = np.array([0.0, 0.0, -9.81 * s])
         g_base = base_rot.reshape(3, 3).T @ g_world
         zeros = [0.0] * len(idx)
@@ -386,7 +397,10 @@ def test_simulate_rows_and_calibration_record_failed_rows_instead_of_aborting() 
     good = Finger(0.1, 20, 10.0, 0.02, 90.0).manipulator()
     rows = pd.DataFrame(
         [{"test": "tip_load", "pressure_kpa": 0.0, "tip_load_n": f} for f in (0.01, 0.03, 0.05)]
-        + [{"test": "blocked_force", "pressure_kpa": pr, "tip_load_n": math.nan} for pr in (20.0, 100.0, 150.0)]
+        + [
+            {"test": "blocked_force", "pressure_kpa": pr, "tip_load_n": math.nan}
+            for pr in (20.0, 100.0, 150.0)
+        ]
     )
     measured = simulate_rows(good, rows, BenchSettings())
     rows["tip_deflection_mm"] = np.where(rows["test"] == "tip_load", measured[:, 0], math.nan)
@@ -453,8 +467,16 @@ st = hypothesis.strategies
 )
 def test_every_row_returns_a_value_or_a_failed_status_quickly(**kw: Any) -> None:
     finger = Finger(
-        kw["length_m"], kw["segments"], kw["tip_stiffness"], kw["mass_kg"], kw["curl_deg"],
-        kw["stiffening"], kw["saturation"], kw["gradient"], kw["hysteresis"], kw["tip_sphere"],
+        kw["length_m"],
+        kw["segments"],
+        kw["tip_stiffness"],
+        kw["mass_kg"],
+        kw["curl_deg"],
+        kw["stiffening"],
+        kw["saturation"],
+        kw["gradient"],
+        kw["hysteresis"],
+        kw["tip_sphere"],
     )
     try:
         manip = finger.manipulator()
@@ -510,8 +532,10 @@ if __name__ == "__main__":
     table = compare(fingers)
     print(agreement(table).to_string(index=False))
     failed = table[~table["converged"]]
-    print(f"rows: {table.groupby(['finger', 'test', 'pressure_kpa']).ngroups}, solve failed: "
-          f"{failed.groupby(['finger', 'test', 'pressure_kpa']).ngroups}, dynamic failed: "
-          f"{table[~np.isfinite(table['dynamic'])].groupby(['finger', 'test', 'pressure_kpa']).ngroups}")
+    print(
+        f"rows: {table.groupby(['finger', 'test', 'pressure_kpa']).ngroups}, solve failed: "
+        f"{failed.groupby(['finger', 'test', 'pressure_kpa']).ngroups}, dynamic failed: "
+        f"{table[~np.isfinite(table['dynamic'])].groupby(['finger', 'test', 'pressure_kpa']).ngroups}"
+    )
     for seg in (5, 20, 40):
         print(seg, "segments:", _timings(seg))
