@@ -79,10 +79,10 @@ __all__ = [
     "static_chain",
 ]
 
-#: Newton iterations per solve (per continuation stage); with the plate (a curled finger
-#: rolling over it changes contact once per link) and in all for one equilibrium.
-MAX_ITERATIONS = 60
-MAX_ITERATIONS_PLATE = 200
+#: Newton iterations per solve (per continuation stage) and in all for one equilibrium. Most
+#: rows take 3–10; a limp chain swinging down under its weight, or a curled finger rolling
+#: over the plate (one contact change per link), take tens.
+MAX_ITERATIONS = 200
 MAX_ITERATIONS_TOTAL = 600
 #: Continuation stages tried, in order, when the full load does not converge at once.
 RAMPS = (4, 16)
@@ -510,7 +510,7 @@ class StaticChain:
         by ``MAX_ITERATIONS_TOTAL``.
         """
         start = np.zeros(len(self.k)) if q_start is None else q_start.copy()
-        per_solve = MAX_ITERATIONS_PLATE if plate else MAX_ITERATIONS
+        per_solve = MAX_ITERATIONS
         budget = MAX_ITERATIONS_TOTAL
         first = eq = self._newton(start, u, tip_n, gravity, plate, min(per_solve, budget))
         budget -= eq.iterations
@@ -791,11 +791,9 @@ def _qp(
     for _ in range(max_iter):
         s = a @ x - b
         pidx = int(np.argmin(s))
-        if s[pidx] >= -tol:
+        if s[pidx] >= -tol or pidx in active:  # (an active row "violated": rounding, done)
             lam[active] = u
             return x, lam, ""
-        if pidx in active:
-            return None, lam, "a violated constraint is already active"
         u_plus = np.append(u, 0.0)
         for _inner in range(max_iter):
             yp, np_ = y(pidx), a[pidx]
