@@ -173,6 +173,7 @@ def compare(fingers: list[Finger], settings: BenchSettings | None = None) -> pd.
                         "finger": i,
                         "test": test,
                         "pressure_kpa": pressure,
+                        "tip_load_n": load,
                         "quantity": name,
                         "solve": s,
                         "dynamic": d,
@@ -530,12 +531,14 @@ if __name__ == "__main__":
     rng = np.random.default_rng(int(sys.argv[2]) if len(sys.argv) > 2 else 7)
     fingers = [sample_finger(rng) for _ in range(n)]
     table = compare(fingers)
+    if len(sys.argv) > 3:
+        table.to_csv(sys.argv[3], index=False)
     print(agreement(table).to_string(index=False))
-    failed = table[~table["converged"]]
+    rows = table.drop_duplicates(["finger", "test", "pressure_kpa", "tip_load_n"])
     print(
-        f"rows: {table.groupby(['finger', 'test', 'pressure_kpa']).ngroups}, solve failed: "
-        f"{failed.groupby(['finger', 'test', 'pressure_kpa']).ngroups}, dynamic failed: "
-        f"{table[~np.isfinite(table['dynamic'])].groupby(['finger', 'test', 'pressure_kpa']).ngroups}"
+        f"rows: {len(rows)}, solve failed: {int((~rows['converged']).sum())}, "
+        f"dynamic failed: {int((~np.isfinite(rows['dynamic'])).sum())}; median ms per row: "
+        f"solve {1e3 * rows['t_solve_s'].median():.1f}, dynamic {1e3 * rows['t_dynamic_s'].median():.0f}"
     )
     for seg in (5, 20, 40):
         print(seg, "segments:", _timings(seg))
