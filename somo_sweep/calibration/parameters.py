@@ -1,11 +1,14 @@
 """How calibrated values enter a manipulator, and bench rows simulated in parallel.
 
 Each calibrated quantity is a :class:`Parameter` whose ``apply`` writes its value
-into a manipulator; side-axis rows are simulated on :func:`side_view`.
+into a manipulator; side-axis rows are simulated on :func:`side_view`. A row without
+an equilibrium never aborts the caller: it comes back as NaN, with its cause recorded
+(:class:`RowFailure`, logged and appended to ``failures`` when given).
 """
 
 from __future__ import annotations
 
+import logging
 import math
 from collections.abc import Callable
 from dataclasses import dataclass
@@ -15,12 +18,15 @@ import numpy as np
 import pandas as pd
 
 from somo_sweep.calibration.metrics import WIDTH
+from somo_sweep.errors import SimulationError
 from somo_sweep.model.description import Actuation, Manipulator
 from somo_sweep.sim.bench import BenchSettings, run_bench
+from somo_sweep.sim.statics import solve_row
 
 __all__ = [
     "AXES",
     "Parameter",
+    "RowFailure",
     "joint_lever_arms",
     "set_axis_stiffness",
     "set_pressure_gain",
@@ -30,6 +36,32 @@ __all__ = [
 
 #: Joint definition 0 is the grasp axis, 1 the side axis (SoMo's alternating joints).
 AXES = ("grasp", "side")
+
+log = logging.getLogger(__name__)
+
+
+@dataclass(frozen=True)
+class RowFailure:
+    """A bench row that found no equilibrium (its simulated values are NaN).
+
+    Attributes:
+        row: Position of the row in the rows simulated.
+        test: Its test.
+        pressure_kpa: Its pressure.
+        tip_load_n: Its tip load.
+        cause: Why it failed.
+    """
+
+    row: int
+    test: str
+    pressure_kpa: float
+    tip_load_n: float
+    cause: str
+
+    def describe(self) -> str:
+        """One line for messages."""
+        load = f", {self.tip_load_n:g} N" if self.test == "tip_load" else ""
+        return f"row {self.row} ({self.test} at {self.pressure_kpa:g} kPa{load}): {self.cause}"
 
 
 @dataclass(frozen=True)
@@ -108,17 +140,43 @@ def _simulate_row(
     load_n: float,
     settings: BenchSettings,
     direction: str = "",
-) -> tuple[float, float, float]:
-    """One bench row: (value, nan, nan) or (tip_x_mm, tip_z_mm, tip_angle_deg)."""
-    rig = side_view(manip) if axis == "side" else manip
-    value = run_bench(rig, test, pressure_kpa, load_n, settings, direction).value
-    return value if isinstance(value, tuple) else (float(value), math.nan, math.nan)
+) -> tuple[float, float, float, str]:
+    """One bench row: (value, nan, nan) or (tip_x_mm, tip_z_mm, tip_angle_deg), and a failure cause.
+
+    Never raises for a row without equilibrium: its values are NaN and the cause is returned.
+    """
+    nan = math.nan
+    try:
+        rig = side_view(manip) if axis == "side" else manip
+    except (ValueError, SimulationError) as exc:  # a side view the model cannot have
+        return nan, nan, nan, f"{type(exc).__name__}: {exc}"
+    if settings.statics == "solve":
+        row = solve_row(rig, test, pressure_kpa, load_n, settings, direction)
+        value, cause = row.value, "" if row.ok else row.status.cause
+    else:
+        try:
+            value, cause = run_bench(rig, test, pressure_kpa, load_n, settings, direction).value, ""
+        except SimulationError as exc:
+            value, cause = math.nan, str(exc)
+    if cause:
+        return nan, nan, nan, cause
+    if isinstance(value, tuple):
+        return float(value[0]), float(value[1]), float(value[2]), ""
+    return float(value), nan, nan, ""
 
 
 def simulate_rows(
-    manip: Manipulator, rows: pd.DataFrame, settings: BenchSettings, n_jobs: int = 1
+    manip: Manipulator,
+    rows: pd.DataFrame,
+    settings: BenchSettings,
+    n_jobs: int = 1,
+    failures: list[RowFailure] | None = None,
 ) -> np.ndarray:
-    """Simulate rows in parallel; returns an (n, 3) array like :func:`measured_array`."""
+    """Simulate rows in parallel; returns an (n, 3) array like :func:`measured_array`.
+
+    Rows without an equilibrium are NaN; each is logged (warning) and, when ``failures``
+    is given, appended to it as a :class:`RowFailure`.
+    """
     args = [
         (
             manip,
@@ -135,7 +193,13 @@ def simulate_rows(
         out = [_simulate_row(*a) for a in args]
     else:
         out = joblib.Parallel(n_jobs=n_jobs)(joblib.delayed(_simulate_row)(*a) for a in args)
-    return np.asarray(out, dtype=float).reshape(len(args), WIDTH)
+    for i, (a, res) in enumerate(zip(args, out, strict=True)):
+        if res[-1]:
+            failure = RowFailure(i, a[1], a[3], a[4], res[-1])
+            log.warning("bench row without equilibrium: %s", failure.describe())
+            if failures is not None:
+                failures.append(failure)
+    return np.asarray([res[:-1] for res in out], dtype=float).reshape(len(args), WIDTH)
 
 
 def joint_lever_arms(manip: Manipulator, axis_index: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:

@@ -19,6 +19,7 @@ from somo_sweep.calibration.metrics import measured_array
 from somo_sweep.calibration.parameters import (
     AXES,
     Parameter,
+    RowFailure,
     joint_lever_arms,
     set_axis_stiffness,
     set_pressure_gain,
@@ -97,13 +98,22 @@ class CalibrationProblem:
         return self.residuals_of(self.simulate(values, self.calibration_rows, n_jobs))
 
     def residuals_of(self, simulated: np.ndarray) -> np.ndarray:
-        """Relative residuals of already simulated calibration rows ((n, 3) array)."""
+        """Relative residuals of already simulated calibration rows ((n, 3) array); NaN where a row failed."""
         rows = self.calibration_rows
         return (simulated[:, 0] - measured_array(rows)[:, 0]) / self.residual_scales()
 
-    def simulate(self, values: Sequence[float], rows: pd.DataFrame, n_jobs: int = 1) -> np.ndarray:
-        """Simulate ``rows`` with the parameters at ``values``; (n, 3) like :func:`measured_array`."""
-        return simulate_rows(self.manipulator_at(values), rows, self.settings, n_jobs)
+    def simulate(
+        self,
+        values: Sequence[float],
+        rows: pd.DataFrame,
+        n_jobs: int = 1,
+        failures: list[RowFailure] | None = None,
+    ) -> np.ndarray:
+        """Simulate ``rows`` with the parameters at ``values``; (n, 3) like :func:`measured_array`.
+
+        Rows without an equilibrium are NaN (and appended to ``failures`` when given).
+        """
+        return simulate_rows(self.manipulator_at(values), rows, self.settings, n_jobs, failures)
 
     def describe(self) -> str:
         """Which rows calibrate, which validate, and the parameters (for the terminal)."""

@@ -61,6 +61,7 @@ def summary(result: CalibrationResult, source: str | Path | None = None) -> dict
         "rows": len(rows),
         "simulations": result.simulations,
         "wall_time_s": round(result.wall_time_s, 3),
+        "bench_statics": result.problem.settings.statics,
         "bench_time_step_s": result.problem.settings.time_step_s,
         "bench_gravity_m_s2": result.problem.settings.gravity_m_s2,
         "solver": result.message,
@@ -68,6 +69,10 @@ def summary(result: CalibrationResult, source: str | Path | None = None) -> dict
         "pybullet_version": _version("pybullet"),
         "created_utc": dt.datetime.now(dt.UTC).strftime("%Y-%m-%dT%H:%M:%SZ"),
     }
+    if result.failures:
+        record["rows_without_equilibrium"] = [
+            {"line": int(rows["line"].iloc[f.row]), "test": f.test, "cause": f.cause} for f in result.failures
+        ]
     if source and Path(source).is_file():
         record["measurements_sha256"] = hashlib.sha256(Path(source).read_bytes()).hexdigest()
     return record

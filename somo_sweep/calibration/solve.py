@@ -17,7 +17,7 @@ from __future__ import annotations
 import math
 import time
 from collections.abc import Sequence
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 from scipy.optimize import least_squares
@@ -27,7 +27,14 @@ from somo_sweep.calibration.formulas import (
     joint_stiffness_from_tip_stiffness,
 )
 from somo_sweep.calibration.metrics import WIDTH, TestMetric, per_test_metrics
-from somo_sweep.calibration.parameters import AXES, Parameter, joint_lever_arms, side_view, simulate_rows
+from somo_sweep.calibration.parameters import (
+    AXES,
+    Parameter,
+    RowFailure,
+    joint_lever_arms,
+    side_view,
+    simulate_rows,
+)
 from somo_sweep.calibration.problem import (
     CALIBRATION_SETTINGS,
     CalibrationProblem,
@@ -42,6 +49,7 @@ __all__ = [
     "CalibrationProblem",
     "CalibrationResult",
     "Parameter",
+    "RowFailure",
     "build_problem",
     "paper_values",
     "side_view",
@@ -70,6 +78,8 @@ class CalibrationResult:
         simulations: Number of bench simulations run.
         relative_stderr: Relative standard error by parameter (fit only).
         message: Solver message.
+        failures: Rows of ``simulated`` without an equilibrium (NaN there), with their causes
+            (``row`` indexes ``problem.rows``).
     """
 
     method: str
@@ -82,6 +92,7 @@ class CalibrationResult:
     simulations: int
     relative_stderr: dict[str, float] = field(default_factory=dict)
     message: str = ""
+    failures: list[RowFailure] = field(default_factory=list)
 
     def metric(self, label: str) -> TestMetric:
         """The metric of one test label (``tip_load``, ``tip_load[side]``, ``blocked_force``, ...)."""
@@ -100,6 +111,7 @@ def _finish(
     sims: int,
     n_jobs: int,
     known: np.ndarray | None = None,
+    known_failures: Sequence[RowFailure] = (),
     **extra: object,
 ) -> CalibrationResult:
     manip = problem.manipulator_at(values)
@@ -108,8 +120,19 @@ def _finish(
     todo = np.ones(len(problem.rows), bool) if known is None else ~calibration
     if known is not None:
         simulated[calibration] = known
+    failed: list[RowFailure] = []
     if todo.any():
-        simulated[todo] = simulate_rows(manip, problem.rows[todo], problem.settings, n_jobs)
+        simulated[todo] = simulate_rows(manip, problem.rows[todo], problem.settings, n_jobs, failed)
+    where = np.flatnonzero(todo)
+    failures = [replace(f, row=int(where[f.row])) for f in failed]
+    # Calibration rows simulated in the fit: their failures index the calibration rows.
+    failures += [replace(f, row=int(np.flatnonzero(calibration)[f.row])) for f in known_failures]
+    if failures:
+        extra["message"] = (
+            f"{extra.get('message', '')}; {len(failures)} row(s) without equilibrium (NaN): "
+            + "; ".join(f.describe() for f in failures[:3])
+            + (" ..." if len(failures) > 3 else "")
+        ).lstrip("; ")
     sims += int(todo.sum())
     return CalibrationResult(
         method=method,
@@ -120,6 +143,7 @@ def _finish(
         metrics=per_test_metrics(problem.rows, simulated),
         wall_time_s=time.perf_counter() - start_s,
         simulations=sims,
+        failures=sorted(failures, key=lambda f: f.row),
         **extra,  # type: ignore[arg-type]
     )
 
@@ -164,7 +188,10 @@ def solve_fit(problem: CalibrationProblem, n_jobs: int = 1, max_evaluations: int
 
     Parameters are fitted as multiples of their starting values (bounded to
     [1e-3, 1e3]); the Jacobian is taken once, by forward differences of 0.1 %,
-    at the start (chord method), and also gives the standard errors.
+    at the start (chord method), and also gives the standard errors. A trial point
+    with a row that finds no equilibrium (NaN) is rejected like a failed step (the
+    trust region shrinks); if the starting values already fail, nothing is fitted and
+    the result says so (``message``, ``failures``).
 
     Args:
         problem: From :func:`build_problem`.
@@ -175,16 +202,30 @@ def solve_fit(problem: CalibrationProblem, n_jobs: int = 1, max_evaluations: int
     initial = np.array([p.initial for p in problem.parameters])
     sims = [0]
 
-    memo: dict[bytes, np.ndarray] = {}
+    memo: dict[bytes, tuple[np.ndarray, list[RowFailure]]] = {}
 
     def fun(x: np.ndarray) -> np.ndarray:
         sims[0] += len(problem.calibration_rows)
-        simulated = problem.simulate(x * initial, problem.calibration_rows, n_jobs)
-        memo[x.tobytes()] = simulated
+        failed: list[RowFailure] = []
+        simulated = problem.simulate(x * initial, problem.calibration_rows, n_jobs, failed)
+        memo[x.tobytes()] = (simulated, failed)
         return problem.residuals_of(simulated)
 
     x0 = np.ones_like(initial)
     r0 = fun(x0)
+    if not np.all(np.isfinite(r0)):
+        # The starting model has calibration rows without equilibrium: nothing to fit from.
+        return _finish(
+            problem,
+            "fit",
+            initial.tolist(),
+            start,
+            sims[0],
+            n_jobs,
+            known=memo[x0.tobytes()][0],
+            known_failures=memo[x0.tobytes()][1],
+            message="not fitted: calibration rows without equilibrium at the starting values",
+        )
     # Chord method: the bench responses are close to linear in the parameters' multipliers,
     # so one forward-difference Jacobian at the start serves every iteration (each then costs
     # one evaluation instead of 1 + n_parameters).
@@ -192,7 +233,8 @@ def solve_fit(problem: CalibrationProblem, n_jobs: int = 1, max_evaluations: int
     for i in range(len(x0)):
         step = x0.copy()
         step[i] += _DIFF_STEP
-        jac0[:, i] = (fun(step) - r0) / _DIFF_STEP
+        # A probe whose rows fail (NaN) says nothing about them: their slope is taken as 0.
+        jac0[:, i] = np.nan_to_num((fun(step) - r0) / _DIFF_STEP, nan=0.0, posinf=0.0, neginf=0.0)
     cache = {x0.tobytes(): r0}
 
     def cached(x: np.ndarray) -> np.ndarray:
@@ -224,7 +266,8 @@ def solve_fit(problem: CalibrationProblem, n_jobs: int = 1, max_evaluations: int
         start,
         sims[0],
         n_jobs,
-        known=memo.get(sol.x.tobytes()),
+        known=memo[sol.x.tobytes()][0] if sol.x.tobytes() in memo else None,
+        known_failures=memo[sol.x.tobytes()][1] if sol.x.tobytes() in memo else (),
         relative_stderr=stderr,
         message=str(sol.message),
     )

@@ -70,14 +70,19 @@ class CandidateFit:
 
 
 def jacobian(problem: DiagnosisProblem, n_jobs: int = 1) -> Jacobian:
-    """Forward differences around z = 0 (the model as given), one simulation of all rows per column."""
+    """Forward differences around z = 0 (the model as given), one simulation of all rows per column.
+
+    Entries of rows that fail (no equilibrium) at z = 0 or at the probe get slope 0.
+    """
     r0 = problem.normalised(problem.before)
+    raw0 = problem.normalised(problem.before, failed=None)
     n_par = len(problem.start)
     matrix = np.empty((len(r0), n_par))
     for i in range(n_par):
         z = np.zeros(n_par)
         z[i] = BASE_STEP if i < problem.n_base else 1.0
-        matrix[:, i] = (problem.normalised(problem.simulate(z, n_jobs)) - r0) / z[i]
+        column = (problem.normalised(problem.simulate(z, n_jobs), failed=None) - raw0) / z[i]
+        matrix[:, i] = np.nan_to_num(column, nan=0.0, posinf=0.0, neginf=0.0)
     return Jacobian(r0, matrix, n_par * len(problem.rows))
 
 
@@ -146,7 +151,11 @@ def fit_candidate(
             h = BASE_STEP if i < problem.n_base else (0.25 if z[i] + 0.25 <= problem.upper[i] else -0.25)
             probe = z.copy()
             probe[i] += h
-            matrix[:, i] = (problem.normalised(problem.simulate(probe, n_jobs)) - r) / h
+            column = (
+                problem.normalised(problem.simulate(probe, n_jobs), failed=None)
+                - problem.normalised(simulated, failed=None)
+            ) / h
+            matrix[:, i] = np.nan_to_num(column, nan=0.0, posinf=0.0, neginf=0.0)
     evaluations = 0
     damping = 1.0
     while evaluations < max_evaluations:
@@ -159,6 +168,9 @@ def fit_candidate(
             sim = problem.simulate(trial, n_jobs)
         except SimulationError:  # a step into an unstable corner: treat as no improvement
             damping *= 0.5
+            continue
+        if not np.all(np.isfinite(problem.normalised(sim, failed=None))):
+            damping *= 0.5  # rows without equilibrium there: a failed step
             continue
         r_trial = problem.normalised(sim)
         chi2_trial = float(r_trial @ r_trial)

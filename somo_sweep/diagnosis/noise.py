@@ -210,6 +210,8 @@ def estimate_noise(rows: pd.DataFrame, residual: np.ndarray) -> dict[str, NoiseE
         for proportional in (False, True):
             w = np.nan_to_num(_weights(values, proportional, scale), nan=1.0)
             d, v = _second_differences(rows, ch, residual, w)
+            finite = np.isfinite(d)  # rows without equilibrium (NaN) say nothing about the noise
+            d, v = d[finite], v[finite]
             if len(d) < 2:
                 break
             var = max(float(np.mean(d**2 / v)), 1e-24)

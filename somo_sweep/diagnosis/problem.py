@@ -30,7 +30,11 @@ from somo_sweep.model.description import Manipulator
 from somo_sweep.model.load import Model
 from somo_sweep.sim.bench import BenchSettings
 
-__all__ = ["DiagnosisProblem", "build_diagnosis"]
+__all__ = ["FAILED_RESIDUAL", "DiagnosisProblem", "build_diagnosis"]
+
+#: Normalised residual scored for an entry whose row found no equilibrium (NaN): a candidate
+#: that fails rows scores as failed, without aborting the diagnosis.
+FAILED_RESIDUAL = 1e3
 
 
 def _current(manip: Manipulator, name: str) -> float:
@@ -96,19 +100,26 @@ class DiagnosisProblem:
         """Every row simulated at ``z``; (n, 3)."""
         return self.fit.simulate(self.values_at(z).tolist(), self.rows, n_jobs)
 
-    def normalised(self, simulated: np.ndarray, noise: dict[str, NoiseEstimate] | None = None) -> np.ndarray:
+    def normalised(
+        self,
+        simulated: np.ndarray,
+        noise: dict[str, NoiseEstimate] | None = None,
+        failed: float | None = FAILED_RESIDUAL,
+    ) -> np.ndarray:
         """Residuals (simulated − measured) / noise of every channel entry, concatenated.
 
         Args:
             simulated: (n, 3) simulated rows.
             noise: Noise per channel (default: ``self.noise``, estimated from the model as given).
+            failed: Value scored for entries of rows without equilibrium (NaN); None keeps NaN.
         """
         noise = self.noise if noise is None else noise
         parts = []
         for ch in channels(self.rows):
             measured = self.measured[ch.rows, ch.column]
             parts.append((simulated[ch.rows, ch.column] - measured) / noise[ch.name].at(measured))
-        return np.concatenate(parts)
+        out = np.concatenate(parts)
+        return out if failed is None else np.where(np.isfinite(out), out, failed)
 
     @property
     def channel_sizes(self) -> list[int]:

@@ -14,9 +14,13 @@ positive pressure curls the tip toward −z:
   tip's chain axis in the x–z plane: 0 along +x (straight), positive curling toward
   −z, unwrapped along the chain (a finger curled past 180° reads more than 180°).
 
-Each row is its own simulation, started straight and unloaded, with the load
-applied at once and the equilibrium found by dynamic relaxation (kinetic
-damping: velocities are zeroed whenever the kinetic energy peaks). Rotational
+By default (``statics="solve"``) each row's equilibrium is solved directly as
+the minimum of the chain's potential energy on the same PyBullet body
+(:mod:`somo_sweep.sim.statics`): no time step, nothing to blow up, a few ms per row.
+``statics="dynamic"`` keeps the original protocol: each row is its own
+simulation, started straight and unloaded, with the load applied at once and
+the equilibrium found by dynamic relaxation (kinetic damping: velocities are
+zeroed whenever the kinetic energy peaks). Rotational
 inertia is added to the links for this; it changes the path, not the
 equilibrium, which is all a static protocol reports. The joints' Coulomb
 motor limit is switched off on the bench: in SoMo it is a numerical damper,
@@ -32,15 +36,17 @@ import numpy as np
 import pybullet as p
 
 from somo_sweep.errors import SimulationError, UnstableSimulation
-from somo_sweep.model.description import Link, Manipulator, Pose
+from somo_sweep.model.description import Manipulator, Pose
 from somo_sweep.model.load import Model
 from somo_sweep.sim.settings import WorldSettings
 from somo_sweep.sim.urdf import plan_manipulator
 from somo_sweep.sim.world import Body, World
 
-__all__ = ["TESTS", "BenchResult", "BenchSettings", "bench_frame", "run_bench"]
+__all__ = ["STATICS", "TESTS", "BenchResult", "BenchSettings", "bench_frame", "run_bench", "stop_geometry"]
 
 TESTS = ("tip_load", "blocked_force", "free_bending")
+#: How a row's equilibrium is found: solved statically, or by dynamic relaxation.
+STATICS = ("solve", "dynamic")
 
 
 @dataclass(frozen=True)
@@ -48,12 +54,14 @@ class BenchSettings:
     """Numerics of the static protocols.
 
     Attributes:
-        time_step_s: Integration step in s.
+        time_step_s: Integration step in s (dynamic relaxation).
         scale: World scale factor.
         added_inertia_kg_m2: Rotational inertia added to every chain link (statics only).
         tolerance_m: Converged when the tip moves less than this between energy peaks, in m.
         max_steps: Give up (error) after this many steps.
         gravity_m_s2: Magnitude of gravity (along −z), m/s².
+        statics: ``solve`` (static equilibrium solved directly, :mod:`somo_sweep.sim.statics`) or
+            ``dynamic`` (dynamic relaxation; ``time_step_s``, ``tolerance_m``, ``max_steps``).
     """
 
     time_step_s: float = 5e-4
@@ -62,11 +70,12 @@ class BenchSettings:
     tolerance_m: float = 1e-8
     max_steps: int = 40_000
     gravity_m_s2: float = 9.81
+    statics: str = "solve"
 
 
 @dataclass(frozen=True)
 class BenchResult:
-    """One simulated row: the measured quantity and the steps it took."""
+    """One simulated row: the measured quantity and the steps (or Newton iterations) it took."""
 
     value: float | tuple[float, float, float]
     steps: int
@@ -115,6 +124,25 @@ def _inputs(manip: Manipulator, pressure_kpa: float) -> np.ndarray:
     for act in manip.actuators:
         u.extend(torque if ax == 0 else 0.0 for ax in act.actuated_axes)
     return np.asarray(u, dtype=float)
+
+
+def stop_geometry(manip: Manipulator, origin_m: np.ndarray, tip_x_m: float) -> tuple[np.ndarray, np.ndarray]:
+    """Centre and half extents (m, world) of the bench's frictionless plate.
+
+    Its top face is at the straight tip's underside; it spans the whole finger, from
+    the chain start ``origin_m`` to 50 mm beyond the straight tip (``tip_x_m`` from the
+    chain start): a tip that curls and slides back along x stays on it, and every link
+    that comes to rest on it adds to the total vertical force the protocol reports.
+    """
+    tip = manip.tip_links[-1] if manip.tip_links else manip.actuators[-1].segment_link()
+    axis = np.asarray(manip.actuators[0].joints[0].axis)
+    bend = np.cross(axis, [0.0, 0.0, 1.0])
+    under = tip.half_extent_m(int(np.argmax(np.abs(bend[:2]))))
+    x_start = float(origin_m[0])
+    x_end = tip_x_m + x_start + 0.05
+    half = np.array([(x_end - x_start) / 2, 0.05, 0.01])
+    centre = np.array([x_start + half[0], 0.0, -under - half[2]])
+    return centre, half
 
 
 class _Rig:
@@ -167,24 +195,9 @@ class _Rig:
             angles.append(np.arctan2(-axis[2], axis[0]))
         return float(np.degrees(np.unwrap(angles)[-1]))
 
-    def tip_element(self) -> Link:
-        if self.manip.tip_links:
-            return self.manip.tip_links[-1]
-        return self.manip.actuators[-1].segment_link()
-
     def add_stop(self) -> int:
         """A static frictionless plate whose top face is at the straight tip's underside."""
-        tip = self.tip_element()
-        axis = np.asarray(self.manip.actuators[0].joints[0].axis)
-        bend = np.cross(axis, [0.0, 0.0, 1.0])
-        under = tip.half_extent_m(int(np.argmax(np.abs(bend[:2]))))
-        # The plate spans the whole finger, from the chain start to beyond the tip: a tip
-        # that curls and slides back along x stays on it, and every link that comes to rest
-        # on it adds to the total vertical force the protocol reports.
-        x_start = float(self.origin[0])
-        x_end = float(self.tip_m()[0]) + x_start + 0.05
-        half = np.array([(x_end - x_start) / 2, 0.05, 0.01])
-        centre = np.array([x_start + half[0], 0.0, -under - half[2]])
+        centre, half = stop_geometry(self.manip, self.origin, float(self.tip_m()[0]))
         s = self.world.scale
         cid = self.world.client
         shape = p.createCollisionShape(p.GEOM_BOX, halfExtents=(half * s).tolist(), physicsClientId=cid)
@@ -250,6 +263,7 @@ def run_bench(
     tip_load_n: float = 0.0,
     settings: BenchSettings | None = None,
     direction: str | None = None,
+    statics: str | None = None,
 ) -> BenchResult:
     """Simulate one bench measurement.
 
@@ -262,19 +276,36 @@ def run_bench(
         direction: ``loading`` / ``unloading``: the row was reached from below /
             above (pressure, or tip load for ``tip_load``); joint hysteresis torques
             then oppose that approach. None or empty: no hysteresis offset.
+        statics: ``solve`` or ``dynamic`` (see :class:`BenchSettings`); None: ``settings.statics``.
 
     Returns:
-        ``tip_deflection_mm``, ``blocked_force_n`` or ``(tip_x_mm, tip_z_mm, tip_angle_deg)``.
+        ``tip_deflection_mm``, ``blocked_force_n`` or ``(tip_x_mm, tip_z_mm, tip_angle_deg)``;
+        ``steps`` counts time steps (dynamic) or Newton iterations (solve).
 
     Raises:
-        SimulationError: Unknown test, no equilibrium, or a blow-up.
+        SimulationError: Unknown test, no equilibrium, or a blow-up. (For a status instead of
+            an exception use :func:`somo_sweep.sim.statics.solve_row`.)
     """
     if test not in TESTS:
         raise SimulationError(f"unknown test '{test}'; allowed: {', '.join(TESTS)}")
     if tip_load_n < 0:
         raise SimulationError(f"tip_load_n must be >= 0, got {tip_load_n}")
+    settings = settings or BenchSettings()
+    statics = statics or settings.statics
+    if statics not in STATICS:
+        raise SimulationError(f"unknown statics '{statics}'; allowed: {', '.join(STATICS)}")
     manip = _manipulator(model)
-    rig = _Rig(manip, settings or BenchSettings())
+    if statics == "solve":
+        from somo_sweep.sim.statics import solve_row
+
+        _inputs(manip, pressure_kpa)  # a pressure without an actuation map is an error, as below
+        row = solve_row(manip, test, pressure_kpa, tip_load_n, settings, direction)
+        if not row.status.converged:
+            raise SimulationError(
+                f"bench {test} at {pressure_kpa} kPa: no static equilibrium ({row.status.cause})"
+            )
+        return BenchResult(row.value, row.status.iterations)
+    rig = _Rig(manip, settings)
     try:
         rig.body.drive.set_inputs(_inputs(manip, pressure_kpa))
         approach = {"loading": 1.0, "unloading": -1.0}.get(direction or "", 0.0)

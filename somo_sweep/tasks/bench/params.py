@@ -18,6 +18,8 @@ class BenchParams(BaseModel):
         test: ``tip_load``, ``blocked_force`` or ``free_bending``.
         pressure_kpa: Actuation pressure in kPa.
         tip_load_n: Downward tip force in N (``tip_load`` only), ≥ 0.
+        statics: ``solve`` (equilibrium solved directly) or ``dynamic`` (relaxation at the
+            study's time step); see :class:`~somo_sweep.sim.bench.BenchSettings`.
     """
 
     model_config = ConfigDict(extra="forbid", frozen=True)
@@ -25,6 +27,7 @@ class BenchParams(BaseModel):
     test: Literal["tip_load", "blocked_force", "free_bending"] = "free_bending"
     pressure_kpa: float = 0.0
     tip_load_n: float = Field(0.0, ge=0)
+    statics: Literal["solve", "dynamic"] = "solve"
 
 
 register(

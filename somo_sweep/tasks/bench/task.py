@@ -18,7 +18,8 @@ __all__ = ["run_bench_task"]
 
 
 def run_bench_task(model: Model, params: BenchParams, settings: WorldSettings, seed: int) -> TaskResult:
-    """Run one bench protocol; metrics in mm / N / deg, ``relax_steps`` the steps it took.
+    """Run one bench protocol; metrics in mm / N / deg, ``relax_steps`` the time steps (dynamic)
+    or Newton iterations (solve) it took.
 
     The bench is static and deterministic: ``seed`` is not used. The time step,
     scale and gravity magnitude come from ``settings``.
@@ -27,6 +28,7 @@ def run_bench_task(model: Model, params: BenchParams, settings: WorldSettings, s
         time_step_s=settings.time_step_s,
         scale=settings.scale,
         gravity_m_s2=abs(settings.gravity_m_s2[2]),
+        statics=params.statics,
     )
     try:
         res = run_bench(model, params.test, params.pressure_kpa, params.tip_load_n, bench)
