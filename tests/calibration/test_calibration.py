@@ -128,7 +128,9 @@ def test_eq9_overestimates_the_moment_a_blocked_tip_balances() -> None:
 def test_paper_method_lands_far_from_the_truth_on_the_bundled_planar_finger() -> None:
     problem = build_problem(read_measurements(SYNTHETIC), _example_base(), str(SYNTHETIC))
     stiffness, gain = paper_values(problem)
-    assert stiffness / TRUE_STIFFNESS_N_M_PER_RAD == pytest.approx(1.97, abs=0.05)
+    # eq. (8) vs the midpoint chain: L²/Σa² / (3/(2N) − 1/(2N²)) = 2.04 at N = 20, plus the noise of
+    # the measured tip-load slope.
+    assert stiffness / TRUE_STIFFNESS_N_M_PER_RAD == pytest.approx(2.04, abs=0.1)
     assert gain / TRUE_GAIN_N_M_PER_KPA == pytest.approx(1.80, abs=0.05)
 
 
