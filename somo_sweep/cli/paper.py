@@ -118,11 +118,19 @@ def speed(
     convergence: Annotated[
         bool, typer.Option("--convergence", help="The time-step convergence table.")
     ] = False,
+    statics: Annotated[bool, typer.Option("--statics", help="Only the bench-statics benchmark.")] = False,
 ) -> None:
-    """The benchmark (make bench): ms per step, Bullet vs Python, and one trial against the original."""
+    """The benchmark (make bench): grasp steps, one trial vs the original, bench statics."""
     from somo_sweep.paper.speed import convergence_lines, speed_lines
+    from somo_sweep.paper.statics_speed import statics_lines
 
-    for line in convergence_lines() if convergence else speed_lines(repeats):
+    if convergence:
+        lines = convergence_lines()
+    elif statics:
+        lines = statics_lines()
+    else:
+        lines = [*speed_lines(repeats), *statics_lines()]
+    for line in lines:
         typer.echo(line)
 
 
