@@ -9,7 +9,7 @@ from typing import Annotated
 
 import typer
 
-from somo_sweep.cli.output import fail, figure_bytes, write_atomic
+from somo_sweep.cli.output import fail, figure_bytes, working, write_atomic
 from somo_sweep.errors import SomoError
 
 METHODS = ("fit", "paper")
@@ -82,7 +82,8 @@ def calibrate(
         )
         console.print(problem.describe(), markup=False)
         solve = solve_fit if method == "fit" else solve_paper
-        result = solve(problem, n_jobs=jobs)
+        with working(f"calibrating ({method}) on {len(rows)} rows, simulator in the loop"):
+            result = solve(problem, n_jobs=jobs)
     except SomoError as exc:
         fail(exc)
     for table in results_table(result):

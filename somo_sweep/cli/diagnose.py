@@ -10,7 +10,7 @@ from typing import Annotated
 
 import typer
 
-from somo_sweep.cli.output import fail, figure_bytes, write_atomic
+from somo_sweep.cli.output import fail, figure_bytes, working, write_atomic
 from somo_sweep.errors import SomoError
 
 
@@ -63,9 +63,11 @@ def diagnose(
         rows = read_measurements(measurements)
         base = load_model(model)
         settings = replace(CALIBRATION_SETTINGS, gravity_m_s2=gravity_m_s2)
-        problem = build_diagnosis(rows, base, str(measurements), settings, names, n_jobs=jobs)
+        with working(f"simulating {len(rows)} rows with the model as given"):
+            problem = build_diagnosis(rows, base, str(measurements), settings, names, n_jobs=jobs)
         typer.echo(problem.describe())
-        result = run_diagnosis(problem, n_jobs=jobs)
+        with working(f"refitting with each of {len(problem.effects)} effects, simulator in the loop"):
+            result = run_diagnosis(problem, n_jobs=jobs)
     except SomoError as exc:
         fail(exc)
     wall_s = time.perf_counter() - start

@@ -11,6 +11,8 @@ import io
 import json
 import os
 import tempfile
+from collections.abc import Iterator
+from contextlib import contextmanager
 from pathlib import Path
 from typing import TYPE_CHECKING, Any, NoReturn
 
@@ -21,7 +23,7 @@ if TYPE_CHECKING:
 
     from somo_sweep.paper.artifacts import Artifacts
 
-__all__ = ["fail", "figure_bytes", "state", "write_artifacts", "write_atomic"]
+__all__ = ["fail", "figure_bytes", "state", "working", "write_artifacts", "write_atomic"]
 
 #: Options of the top-level callback (``--debug``, verbosity) that every command reads.
 state: dict[str, Any] = {"debug": False, "verbosity": 1}
@@ -33,6 +35,27 @@ def fail(exc: BaseException, code: int = 2) -> NoReturn:
         raise exc
     typer.echo(f"error: {exc}", err=True)
     raise typer.Exit(code)
+
+
+@contextmanager
+def working(what: str) -> Iterator[None]:
+    """A spinner with the elapsed time on stderr while ``what`` runs (silent with ``-q``)."""
+    if state["verbosity"] == 0:
+        yield
+        return
+    from rich.progress import Progress, SpinnerColumn, TextColumn, TimeElapsedColumn
+
+    with Progress(
+        SpinnerColumn(), TextColumn(what), TimeElapsedColumn(), transient=True, console=_stderr()
+    ) as progress:
+        progress.add_task(what, total=None)
+        yield
+
+
+def _stderr() -> Any:
+    from rich.console import Console
+
+    return Console(stderr=True)
 
 
 def write_atomic(path: Path, data: str | bytes) -> Path:
