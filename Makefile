@@ -81,7 +81,7 @@ fig8-quick: $(STAMP) ## Fig. 8 with 3-s runs
 	$(BIN)/somo-sweep paper fig8 --out results/figures --quick
 
 diagnose-demo: $(STAMP) ## Calibrate the bundled bench file, then name what the model misses
-	$(BIN)/somo-sweep calibrate studies/tables/planar_finger_bench_2.csv --length-mm 100 --segments 20 --mass-g 20 -o results/diagnose_demo/calibrated.yaml
+	$(BIN)/somo-sweep calibrate studies/tables/planar_finger_bench_2.csv -o results/diagnose_demo/calibrated.yaml
 	$(BIN)/somo-sweep diagnose studies/tables/planar_finger_bench_2.csv --model results/diagnose_demo/calibrated.yaml --out results/diagnose_demo
 
 sweep-demo: $(STAMP) ## Run the example study (27 trials) and print its summary

@@ -114,6 +114,7 @@ def example_csv() -> str:
     header = (
         "Synthetic, effect-free bench data (somo-sweep paper data synthetic): simulated, NOT measured.\n"
         "Planar finger 100 mm, 20 segments, 20 g (somo-sweep calibrate --length-mm 100 --segments 20 "
-        "--mass-g 20),\nknown stiffness and pressure gain, 1 % relative noise, seed 0."
+        "--mass-g 20),\nknown stiffness and pressure gain, 1 % relative noise, seed 0.\n"
+        "finger: {length_mm: 100, segments: 20, mass_g: 20, width_mm: 20, thickness_mm: 15}"
     )
     return measurements_csv(rows, header)

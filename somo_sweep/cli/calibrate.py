@@ -5,14 +5,54 @@ from __future__ import annotations
 import json
 from dataclasses import replace
 from pathlib import Path
-from typing import Annotated
+from typing import TYPE_CHECKING, Annotated
 
 import typer
 
 from somo_sweep.cli.output import fail, figure_bytes, working, write_atomic
 from somo_sweep.errors import SomoError
 
+if TYPE_CHECKING:
+    from somo_sweep.model.load import Model
+
 METHODS = ("fit", "paper")
+
+
+def default_output(measurements: Path, kind: str) -> Path:
+    """``results/<kind>/<CSV name>``: where a command writes when the user names no output."""
+    return Path("results") / kind / measurements.stem
+
+
+def base_model(
+    measurements: Path,
+    model: Path | None,
+    length_mm: float | None,
+    segments: int | None,
+    mass_g: float | None,
+    width_mm: float | None,
+    thickness_mm: float | None,
+) -> Model:
+    """The model to calibrate: ``--model``, else the CSV's ``# finger:`` line with the flags over it.
+
+    Raises:
+        SomoError: Neither a model nor a complete finger (the message says what is missing).
+    """
+    from somo_sweep.calibration.finger import FINGER_KEYS, finger_from_header, read_finger_header
+    from somo_sweep.model.load import load_model
+
+    if model is not None:
+        return load_model(model)
+    flags = {"length_mm": length_mm, "segments": segments, "mass_g": mass_g}
+    header = read_finger_header(measurements) if measurements.is_file() else None
+    missing = [k for k, v in flags.items() if v is None and k not in (header or {})]
+    if missing:
+        flags_missing = ", ".join("--" + k.replace("_", "-") for k in missing)
+        raise SomoError(
+            f"{measurements}: no finger to calibrate; give --model BASE.yaml, or add a line "
+            f"'# finger: {{length_mm: 100, segments: 20, mass_g: 20}}' above the CSV header "
+            f"(keys: {', '.join(FINGER_KEYS)}), or pass {flags_missing}"
+        )
+    return finger_from_header(header or {}, **flags, width_mm=width_mm, thickness_mm=thickness_mm)
 
 
 def _figure_bytes(result: object, label: str, fmt: str) -> bytes:
@@ -30,15 +70,26 @@ def calibrate(
     measurements: Annotated[
         Path, typer.Argument(help="Measurement CSV (tip_load / blocked_force / free_bending).")
     ],
-    output: Annotated[Path, typer.Option("-o", "--output", help="Calibrated model YAML to write.")],
+    output: Annotated[
+        Path | None,
+        typer.Option(
+            "-o", "--output", help="Calibrated model YAML [default: results/calibration/CSV-NAME/model.yaml]."
+        ),
+    ] = None,
     model: Annotated[Path | None, typer.Option(help="Base manipulator model to calibrate.")] = None,
-    length_mm: Annotated[float | None, typer.Option(help="Without --model: finger length, mm.")] = None,
-    segments: Annotated[int | None, typer.Option(help="Without --model: number of segments.")] = None,
-    mass_g: Annotated[float | None, typer.Option(help="Without --model: finger mass, g.")] = None,
-    width_mm: Annotated[float, typer.Option(help="Without --model: link width (joint axis), mm.")] = 20.0,
+    length_mm: Annotated[
+        float | None, typer.Option(help="Finger length, mm (overrides the CSV's finger line).")
+    ] = None,
+    segments: Annotated[
+        int | None, typer.Option(help="Number of segments (overrides the CSV's finger line).")
+    ] = None,
+    mass_g: Annotated[
+        float | None, typer.Option(help="Finger mass, g (overrides the CSV's finger line).")
+    ] = None,
+    width_mm: Annotated[float | None, typer.Option(help="Link width (joint axis), mm [default: 20].")] = None,
     thickness_mm: Annotated[
-        float, typer.Option(help="Without --model: link thickness (bending), mm.")
-    ] = 15.0,
+        float | None, typer.Option(help="Link thickness (bending), mm [default: 15].")
+    ] = None,
     method: Annotated[str, typer.Option(help="fit (simulator in the loop) or paper (eq. 8 and 9).")] = "fit",
     report: Annotated[Path | None, typer.Option(help="Folder for plots and a JSON summary.")] = None,
     jobs: Annotated[int, typer.Option(help="Worker processes for the bench rows.")] = 2,
@@ -52,8 +103,6 @@ def calibrate(
     from somo_sweep.calibration.measurements import read_measurements
     from somo_sweep.calibration.report import model_yaml, results_table, summary, with_provenance
     from somo_sweep.calibration.solve import CALIBRATION_SETTINGS, build_problem, solve_fit, solve_paper
-    from somo_sweep.model.builders import planar_finger
-    from somo_sweep.model.load import load_model
 
     if method not in METHODS:
         fail(SomoError(f"--method '{method}' is not known; allowed: {', '.join(METHODS)}"))
@@ -62,20 +111,7 @@ def calibrate(
     console = Console(width=max(Console().width, 100))  # tables fit when piped (default 80)
     try:
         rows = read_measurements(measurements)
-        if model is not None:
-            base = load_model(model)
-        else:
-            missing = [
-                n
-                for n, v in (("--length-mm", length_mm), ("--segments", segments), ("--mass-g", mass_g))
-                if v is None
-            ]
-            if missing:
-                raise SomoError(f"give --model BASE.yaml, or build a finger with {', '.join(missing)}")
-            assert length_mm is not None and segments is not None and mass_g is not None
-            base = planar_finger(
-                length_mm * 1e-3, segments, mass_g * 1e-3, width_mm * 1e-3, thickness_mm * 1e-3
-            )
+        base = base_model(measurements, model, length_mm, segments, mass_g, width_mm, thickness_mm)
         settings = replace(CALIBRATION_SETTINGS, gravity_m_s2=gravity_m_s2)
         problem = build_problem(
             rows, base, str(measurements), settings, min_rows_per_parameter=2 if method == "fit" else 1
@@ -90,6 +126,7 @@ def calibrate(
         console.print(table)
     console.print(f"{result.simulations} bench simulations in {result.wall_time_s:.1f} s ({jobs} worker(s))")
     header = f"calibrated by somo-sweep calibrate --method {method} from {measurements}"
+    output = output or default_output(measurements, "calibration") / "model.yaml"
     outputs: list[tuple[Path, str | bytes]] = [
         (output, model_yaml(with_provenance(result, measurements), header))
     ]

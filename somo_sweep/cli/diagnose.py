@@ -32,11 +32,15 @@ def diagnose(
         Path, typer.Argument(help="Measurement CSV (tip_load / blocked_force / free_bending).")
     ],
     model: Annotated[
-        Path, typer.Option(help="Calibrated manipulator model (e.g. from somo-sweep calibrate).")
-    ],
+        Path | None,
+        typer.Option(
+            help="Calibrated model (from somo-sweep calibrate) [default: calibrate the CSV's finger first]."
+        ),
+    ] = None,
     out: Annotated[
-        Path, typer.Option(help="Folder for diagnosis.json, report.md, model.yaml, diagnosis.png.")
-    ],
+        Path | None,
+        typer.Option(help="Folder for the report files [default: results/diagnosis/CSV-NAME]."),
+    ] = None,
     effects: Annotated[
         str | None, typer.Option(help="Comma-separated effects to try (default: every registered one).")
     ] = None,
@@ -46,7 +50,8 @@ def diagnose(
     """Find where simulation and measurement disagree, name the missing effect, add it to the model."""
     from somo_sweep.calibration.measurements import read_measurements
     from somo_sweep.calibration.report import model_yaml
-    from somo_sweep.calibration.solve import CALIBRATION_SETTINGS
+    from somo_sweep.calibration.solve import CALIBRATION_SETTINGS, build_problem, solve_fit
+    from somo_sweep.cli.calibrate import base_model, default_output
     from somo_sweep.diagnosis.diagnose import build_diagnosis
     from somo_sweep.diagnosis.diagnose import diagnose as run_diagnosis
     from somo_sweep.diagnosis.effects import get_effect
@@ -61,8 +66,14 @@ def diagnose(
         if jobs < 1:
             raise SomoError(f"--jobs must be >= 1, got {jobs}")
         rows = read_measurements(measurements)
-        base = load_model(model)
         settings = replace(CALIBRATION_SETTINGS, gravity_m_s2=gravity_m_s2)
+        if model is not None:
+            base = load_model(model)
+        else:
+            finger = base_model(measurements, None, None, None, None, None, None)
+            with working(f"no --model: calibrating the CSV's finger on {len(rows)} rows first"):
+                base = solve_fit(build_problem(rows, finger, str(measurements), settings), n_jobs=jobs).model
+            typer.echo("calibrated the finger of the CSV's '# finger:' line first (somo-sweep calibrate)")
         with working(f"simulating {len(rows)} rows with the model as given"):
             problem = build_diagnosis(rows, base, str(measurements), settings, names, n_jobs=jobs)
         typer.echo(problem.describe())
@@ -73,7 +84,8 @@ def diagnose(
     wall_s = time.perf_counter() - start
     record = result.as_dict()
     record["measurements"] = str(measurements)
-    record["model"] = str(model)
+    record["model"] = str(model) if model is not None else "calibrated from the CSV's finger line"
+    out = out or default_output(measurements, "diagnosis")
     record["command_wall_time_s"] = round(wall_s, 2)
     diagnosed = result.model_after.model_copy(
         update={
@@ -83,7 +95,9 @@ def diagnose(
             }
         }
     )
-    header = f"diagnosed by somo-sweep diagnose from {measurements} and {model}: {result.missing_effect}"
+    header = (
+        f"diagnosed by somo-sweep diagnose from {measurements} and {record['model']}: {result.missing_effect}"
+    )
     outputs: list[tuple[Path, str | bytes]] = [
         (out / "diagnosis.json", json.dumps(record, indent=2, ensure_ascii=False) + "\n"),
         (out / "report.md", report_markdown(result, str(measurements))),

@@ -37,6 +37,7 @@ def example_csv() -> str:
     header = (
         "Synthetic bench data (somo-sweep paper data diagnosis-example): simulated, NOT measured.\n"
         "Planar finger 100 mm, 20 segments, 20 g; 1 % relative noise. Calibrate it, then run\n"
-        "somo-sweep diagnose to see what the calibrated model is missing."
+        "somo-sweep diagnose to see what the calibrated model is missing.\n"
+        "finger: {length_mm: 100, segments: 20, mass_g: 20, width_mm: 20, thickness_mm: 15}"
     )
     return measurements_csv(example_rows(), header)

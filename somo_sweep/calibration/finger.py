@@ -1,0 +1,106 @@
+"""The finger a measurement CSV describes, read from its machine-readable header line.
+
+A bench CSV may state its finger in one comment line above the header, a YAML mapping::
+
+    # finger: {length_mm: 100, segments: 20, mass_g: 20, width_mm: 20, thickness_mm: 15}
+
+so ``somo-sweep calibrate measurements.csv`` needs nothing else. ``length_mm``, ``segments``
+and ``mass_g`` are required; ``width_mm`` (20), ``thickness_mm`` (15) and ``joint_placement``
+(``midpoint``) are optional. Command-line flags override the header, ``--model`` replaces it.
+"""
+
+from __future__ import annotations
+
+import math
+from pathlib import Path
+from typing import Any
+
+import yaml
+
+from somo_sweep.errors import MeasurementError
+from somo_sweep.model.builders import DEFAULT_THICKNESS_M, DEFAULT_WIDTH_M, planar_finger
+from somo_sweep.model.load import Model
+
+__all__ = ["FINGER_KEYS", "finger_from_header", "read_finger_header"]
+
+#: Header keys with their meaning; the first three are required.
+FINGER_KEYS = {
+    "length_mm": "bending length, mm",
+    "segments": "number of links (and joints), 1-200",
+    "mass_g": "mass of the bending part, g",
+    "width_mm": "link width along the joint axis, mm",
+    "thickness_mm": "link thickness in the bending direction, mm",
+    "joint_placement": "midpoint or start",
+}
+REQUIRED = ("length_mm", "segments", "mass_g")
+_PREFIX = "# finger:"
+#: Only the file's first lines are searched, so a huge file costs nothing here.
+_SEARCH_LINES = 50
+
+
+def read_finger_header(path: str | Path) -> dict[str, Any] | None:
+    """The ``# finger:`` mapping of a CSV, validated; None when the file has no such line.
+
+    Raises:
+        MeasurementError: A header line that is not a mapping, an unknown key, a missing
+            required key or a value out of range (the message names the line and the key).
+    """
+    path = Path(path)
+    with path.open("rb") as fh:
+        head = [fh.readline() for _ in range(_SEARCH_LINES)]
+    for number, raw in enumerate(head, start=1):
+        line = raw.decode("utf-8", errors="replace").strip()
+        if not line.lower().startswith(_PREFIX):
+            continue
+        where = f"line {number}, finger header"
+        try:
+            data = yaml.safe_load(line[len(_PREFIX) :])
+        except yaml.YAMLError:
+            data = None
+        if not isinstance(data, dict):
+            raise MeasurementError(
+                path, [f"{where}: write a mapping, e.g. {{length_mm: 100, segments: 20, mass_g: 20}}"]
+            )
+        return _validate(path, where, data)
+    return None
+
+
+def _validate(path: Path, where: str, data: dict[Any, Any]) -> dict[str, Any]:
+    problems = [
+        f"{where}: unknown key '{k}'; allowed: {', '.join(FINGER_KEYS)}" for k in data if k not in FINGER_KEYS
+    ]
+    problems += [f"{where}: {k} ({FINGER_KEYS[k]}) is required" for k in REQUIRED if k not in data]
+    for key in ("length_mm", "mass_g", "width_mm", "thickness_mm"):
+        value = data.get(key)
+        if value is not None and not (
+            isinstance(value, int | float)
+            and not isinstance(value, bool)
+            and math.isfinite(value)
+            and value > 0
+        ):
+            problems.append(f"{where}: {key} must be a finite number > 0, got {value!r}")
+    segments = data.get("segments")
+    if segments is not None and not (
+        isinstance(segments, int) and not isinstance(segments, bool) and 1 <= segments <= 200
+    ):
+        problems.append(f"{where}: segments must be a whole number from 1 to 200, got {segments!r}")
+    if data.get("joint_placement", "midpoint") not in ("midpoint", "start"):
+        problems.append(
+            f"{where}: joint_placement must be midpoint or start, got {data['joint_placement']!r}"
+        )
+    if problems:
+        raise MeasurementError(path, problems)
+    return dict(data)
+
+
+def finger_from_header(header: dict[str, Any], **overrides: Any) -> Model:
+    """The planar finger of a header (mm and g as written), with flag values overriding it."""
+    values = {**header, **{k: v for k, v in overrides.items() if v is not None}}
+    return planar_finger(
+        float(values["length_mm"]) * 1e-3,
+        int(values["segments"]),
+        float(values["mass_g"]) * 1e-3,
+        float(values.get("width_mm", DEFAULT_WIDTH_M * 1e3)) * 1e-3,
+        float(values.get("thickness_mm", DEFAULT_THICKNESS_M * 1e3)) * 1e-3,
+        joint_placement=str(values.get("joint_placement", "midpoint")),
+    )

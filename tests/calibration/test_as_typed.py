@@ -1,0 +1,91 @@
+"""The user's own usage lines, exactly as typed: ``somo-sweep calibrate measurements.csv`` and
+``somo-sweep diagnose measurements.csv`` in a folder holding only the CSV."""
+
+from __future__ import annotations
+
+import os
+import shutil
+from pathlib import Path
+
+import pytest
+from typer.testing import CliRunner
+
+from somo_sweep.calibration.finger import read_finger_header
+from somo_sweep.cli import app
+from somo_sweep.errors import MeasurementError
+from somo_sweep.model.load import load_model
+from somo_sweep.model.tables import bundled_path
+
+BUNDLED = bundled_path("tables", "planar_finger_bench_2.csv")
+
+
+@pytest.fixture
+def folder(tmp_path: Path) -> Path:
+    shutil.copy(BUNDLED, tmp_path / "measurements.csv")
+    cwd = Path.cwd()
+    os.chdir(tmp_path)
+    yield tmp_path
+    os.chdir(cwd)
+
+
+def test_calibrate_as_typed_reads_the_finger_line_and_writes_under_results(folder: Path) -> None:
+    result = CliRunner().invoke(app, ["calibrate", "measurements.csv"])
+    assert result.exit_code == 0, result.output
+    written = folder / "results" / "calibration" / "measurements" / "model.yaml"
+    assert f"wrote {written.relative_to(folder)}" in result.output
+    manip = load_model(written).manipulator
+    assert manip is not None and manip.length_m == pytest.approx(0.100)
+    assert manip.actuators[0].segments == 20 and manip.actuators[0].joint_placement == "midpoint"
+
+
+def test_diagnose_as_typed_calibrates_first_and_names_the_bundled_effect(folder: Path) -> None:
+    result = CliRunner().invoke(app, ["diagnose", "measurements.csv"])
+    assert result.exit_code == 0, result.output
+    assert "missing effect: actuation_saturation" in result.output
+    assert (folder / "results" / "diagnosis" / "measurements" / "diagnosis.json").is_file()
+
+
+def test_a_csv_without_finger_line_or_model_says_how_to_give_one(tmp_path: Path) -> None:
+    lines = [ln for ln in BUNDLED.read_text().splitlines() if not ln.startswith("# finger:")]
+    (tmp_path / "m.csv").write_text("\n".join(lines) + "\n")
+    result = CliRunner().invoke(app, ["calibrate", str(tmp_path / "m.csv"), "-o", str(tmp_path / "x.yaml")])
+    assert result.exit_code == 2
+    assert "no finger to calibrate" in result.output and "# finger: {length_mm: 100" in result.output
+    assert "--length-mm, --segments, --mass-g" in result.output
+
+
+@pytest.mark.parametrize(
+    ("line", "message"),
+    [
+        (
+            "# finger: {length_mm: 100, segments: 20}",
+            "line 1, finger header: mass_g (mass of the bending part, g) is required",
+        ),
+        (
+            "# finger: {length_mm: 100, segments: 0, mass_g: 20}",
+            "segments must be a whole number from 1 to 200, got 0",
+        ),
+        (
+            "# finger: {length_mm: .nan, segments: 20, mass_g: 20}",
+            "length_mm must be a finite number > 0, got nan",
+        ),
+        (
+            "# finger: {lenght_mm: 100, segments: 20, mass_g: 20}",
+            "unknown key 'lenght_mm'; allowed: length_mm",
+        ),
+        ("# finger: 100 mm", "write a mapping"),
+    ],
+)
+def test_a_bad_finger_line_names_the_line_and_the_key(tmp_path: Path, line: str, message: str) -> None:
+    path = tmp_path / "m.csv"
+    path.write_text(line + "\ntest,pressure_kpa\n")
+    with pytest.raises(MeasurementError, match="finger header") as info:
+        read_finger_header(path)
+    assert message in str(info.value)
+
+
+def test_flags_override_the_finger_line(folder: Path) -> None:
+    result = CliRunner().invoke(app, ["calibrate", "measurements.csv", "--segments", "10", "-o", "ten.yaml"])
+    assert result.exit_code == 0, result.output
+    manip = load_model(folder / "ten.yaml").manipulator
+    assert manip is not None and manip.actuators[0].segments == 10
