@@ -16,6 +16,7 @@ when the effect is only a few noise levels large.
 from __future__ import annotations
 
 import numpy as np
+import pandas as pd
 import pytest
 from reference.rod import bench_rows, standard_finger
 
@@ -87,3 +88,28 @@ def test_the_hidden_continuum_effect_is_named_and_the_gap_halved(
         assert result.combined_after <= FITS_WITHIN_NOISE, (before, after)
     elif before > 2.0:  # the effect is larger than twice the noise
         assert after <= 0.5 * before, (before, after, result.verdict)
+
+
+def _diagnose_rows(rows: pd.DataFrame) -> DiagnosisResult:
+    rows["line"] = range(2, len(rows) + 2)
+    calibrated = solve_fit(build_problem(rows, planar_finger(0.100, 20, 0.020)), n_jobs=2).model
+    return diagnose(build_diagnosis(rows, calibrated, n_jobs=2), 2)
+
+
+def test_two_hidden_effects_are_named_as_a_pair() -> None:
+    """Saturation and a heavier finger together: the best single effect leaves 9x noise."""
+    rod = standard_finger(actuation_saturation=250.0, self_weight=0.6)
+    result = _diagnose_rows(bench_rows(rod, None, 0.01, 1))
+    assert set(result.missing_effect.split("+")) == {"actuation_saturation", "self_weight"}, result.verdict
+    truth = measured_array(bench_rows(rod))
+    assert gap(result, truth, result.after) <= 0.5 * gap(result, truth, result.problem.before)
+
+
+def test_a_disagreement_no_effect_explains_is_unexplained_never_none() -> None:
+    """A 3 mm offset of every free-bending tip x (a camera misplaced): nothing in the vocabulary
+    makes it, and the combined score (1.7) alone would pass for noise."""
+    rows = bench_rows(standard_finger(), None, 0.01, 1)
+    rows.loc[rows["test"] == "free_bending", "tip_x_mm"] += 3.0
+    result = _diagnose_rows(rows)
+    assert result.missing_effect == "unexplained"
+    assert "remaining: free_bending.tip_x, pressure_kpa" in result.verdict
