@@ -18,10 +18,9 @@ $(STAMP): pyproject.toml
 
 install: $(STAMP) ## Create .venv and install somo-sweep with its dev tools
 
-demo: $(STAMP) ## Install, then run the main job on the bundled example
-	$(BIN)/somo-sweep check studies/models/pinch_gripper.yaml
-	$(BIN)/somo-sweep measure studies/models/ihm_finger.yaml --test blocked_force --values 0,50,100,150,200,240 --csv results/demo_blocked_force.csv
-	$(BIN)/somo-sweep run studies/finger_pressure_sweep.yaml --overwrite
+demo: $(STAMP) ## Install, then the main job on a bundled example: 24 grasp trials labelled pinch / power / no grasp, and their figure
+	$(BIN)/somo-sweep run studies/pinch_grasp_demo.yaml
+	$(BIN)/somo-sweep paper fig6 results/pinch_grasp_demo --out results/pinch_grasp_demo/figures
 
 test: $(STAMP) ## Install, then run the default test suite
 	$(BIN)/python -m pytest
