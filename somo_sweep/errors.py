@@ -1,7 +1,7 @@
 """The exception tree of somo-sweep.
 
 Every error a user can cause derives from :class:`SomoError`; the CLI prints its
-message and exits with code 2. Errors carry structured fields so that callers
+message and exits with code 2 (1 for a :class:`StorageError`). Errors carry structured fields so that callers
 (and tests) can inspect them without parsing text.
 """
 
@@ -18,6 +18,7 @@ __all__ = [
     "Problem",
     "SimulationError",
     "SomoError",
+    "StorageError",
     "UnstableSimulation",
     "did_you_mean",
 ]
@@ -88,6 +89,13 @@ class MeasurementError(SomoError):
 
 class SimulationError(SomoError):
     """A simulation could not be set up or run."""
+
+
+class StorageError(SomoError):
+    """Results could not be written (disk full, permissions); what was written is intact.
+
+    The CLI exits with code 1 (a failed run), not 2 (bad input).
+    """
 
 
 class UnstableSimulation(SimulationError):

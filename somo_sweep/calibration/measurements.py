@@ -82,7 +82,14 @@ def read_measurements(path: str | Path, require_measured: bool = True) -> pd.Dat
     path = Path(path)
     if not path.is_file():
         raise MeasurementError(path, ["file not found"])
-    text = path.read_text(encoding="utf-8")
+    data = path.read_bytes()
+    try:
+        text = data.decode("utf-8")
+    except UnicodeDecodeError as exc:
+        raise MeasurementError(
+            path,
+            [f"not UTF-8 text: byte 0x{data[exc.start]:02x} at offset {exc.start}; save the file as UTF-8"],
+        ) from None
     comment_lines = [i + 1 for i, ln in enumerate(text.splitlines()) if ln.lstrip().startswith("#")]
     try:
         raw = pd.read_csv(

@@ -13,6 +13,7 @@ from typing import Annotated
 import typer
 
 from somo_sweep.cli import calibrate, diagnose, grasp, model, paper, sweep
+from somo_sweep.cli.help import HelpGroup, plain_help
 from somo_sweep.cli.output import state
 
 __all__ = ["app", "main"]
@@ -21,6 +22,8 @@ app = typer.Typer(
     no_args_is_help=True,
     help="Simulate soft continuum robots in PyBullet: describe, measure, calibrate, sweep.",
     rich_markup_mode="rich",
+    cls=HelpGroup,
+    add_completion=True,  # --install-completion / --show-completion for bash, zsh, fish
 )
 
 
@@ -60,7 +63,8 @@ app.command()(calibrate.calibrate)
 app.command()(diagnose.diagnose)
 app.command()(grasp.classify)
 app.command()(grasp.render)
-app.add_typer(paper.app, name="paper")
+app.add_typer(paper.app, name="paper", cls=HelpGroup)
+plain_help(app)
 
 
 def main() -> None:

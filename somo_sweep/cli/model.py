@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import math
 import sys
 from pathlib import Path
 from typing import Annotated
@@ -14,21 +15,35 @@ from somo_sweep.errors import SomoError
 
 __all__ = ["check", "measure"]
 
+ALLOW_OUTSIDE = Annotated[
+    bool,
+    typer.Option(
+        "--allow-outside", help="Let the model include files outside its own folder (file: ../x.yaml)."
+    ),
+]
+
 
 def _floats(text: str, option: str) -> list[float]:
     try:
-        return [float(v) for v in text.split(",") if v.strip()]
+        values = [float(v) for v in text.split(",") if v.strip()]
     except ValueError:
-        raise typer.BadParameter(f"{option} must be comma-separated numbers, got '{text}'") from None
+        fail(SomoError(f"{option} must be comma-separated numbers, got '{text}'"))
+    bad = [v for v in values if not math.isfinite(v)]
+    if bad:
+        fail(SomoError(f"{option} must be finite numbers, got {bad[0]} in '{text}'"))
+    return values
 
 
-def check(model: Annotated[Path, typer.Argument(help="Model file (YAML or JSON).")]) -> None:
+def check(
+    model: Annotated[Path, typer.Argument(help="Model file (YAML or JSON).")],
+    allow_outside: ALLOW_OUTSIDE = False,
+) -> None:
     """Validate a model file and print its bodies, links, joints and inputs."""
     from somo_sweep.model.load import load_model
     from somo_sweep.sim.urdf import plan_assembly
 
     try:
-        m = load_model(model)
+        m = load_model(model, allow_outside)
     except SomoError as exc:
         fail(exc)
     for plan in plan_assembly(m.as_assembly(), 1.0):
@@ -46,6 +61,7 @@ def measure(
     ],
     pressure_kpa: Annotated[float, typer.Option(help="Pressure for tip_load rows, kPa.")] = 0.0,
     csv: Annotated[Path | None, typer.Option(help="Also write the rows to this CSV file.")] = None,
+    allow_outside: ALLOW_OUTSIDE = False,
 ) -> None:
     """Simulate bench protocols and print rows in the measurement CSV schema."""
     from somo_sweep.calibration.measurements import COLUMNS, measurements_csv, simulate_measurements
@@ -55,6 +71,8 @@ def measure(
     if test not in TESTS:
         fail(SomoError(f"--test '{test}' is not a bench test; allowed: {', '.join(TESTS)}"))
     vals = _floats(values, "--values")
+    if not math.isfinite(pressure_kpa):
+        fail(SomoError(f"--pressure-kpa must be a finite number, got {pressure_kpa}"))
     if not vals:
         fail(SomoError("--values needs at least one number"))
     rows = pd.DataFrame({c: [float("nan")] * len(vals) for c in COLUMNS})
@@ -66,7 +84,7 @@ def measure(
     else:
         rows["pressure_kpa"] = vals
     try:
-        sim = simulate_measurements(load_model(model), rows)
+        sim = simulate_measurements(load_model(model, allow_outside), rows)
     except SomoError as exc:
         fail(exc)
     text = measurements_csv(sim, header=f"simulated with somo-sweep measure from {model}")

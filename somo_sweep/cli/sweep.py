@@ -2,7 +2,6 @@
 
 from __future__ import annotations
 
-import os
 from pathlib import Path
 from typing import TYPE_CHECKING, Annotated
 
@@ -18,20 +17,32 @@ from rich.progress import (
 )
 
 from somo_sweep.cli.output import fail, figure_bytes, write_atomic
-from somo_sweep.errors import SomoError
+from somo_sweep.errors import SomoError, StorageError
 
 if TYPE_CHECKING:  # the heavy modules are imported when a command runs
-    from somo_sweep.sweep.jobs import JobTable
+    from somo_sweep.sweep.runner import RunSummary
     from somo_sweep.sweep.study import Study
 
 _err = Console(stderr=True)
 _out = Console()
+#: Default of ``--max-trials`` (the library's :data:`somo_sweep.sweep.study.MAX_TRIALS`).
+MAX_TRIALS = 1_000_000
+#: Rows a dry run prints.
+DRY_ROWS = 10
+
+ALLOW_OUTSIDE = Annotated[
+    bool,
+    typer.Option(
+        "--allow-outside", help="Let model files include files outside their own folder (file: ../x.yaml)."
+    ),
+]
 
 
 def run(
     study: Annotated[Path, typer.Argument(help="Study file (YAML or JSON).")],
     jobs: Annotated[
-        int, typer.Option("--jobs", "-j", help="Worker processes (loky); default: all cores.")
+        int,
+        typer.Option("--jobs", "-j", help="Worker processes (loky); default: the CPUs this process may use."),
     ] = 0,
     dry_run: Annotated[
         bool, typer.Option("--dry-run", help="Print the job table; simulate nothing.")
@@ -39,7 +50,8 @@ def run(
     backend: Annotated[str, typer.Option(help="loky (this machine) or dask (a cluster).")] = "loky",
     scheduler: Annotated[str | None, typer.Option(help="Dask scheduler address, tcp://HOST:8786.")] = None,
     out: Annotated[
-        Path | None, typer.Option("--out", help="Results folder (default: results/<study>).")
+        Path | None,
+        typer.Option("--out", help="Results folder, anywhere (default: the study's, inside results/)."),
     ] = None,
     plots: Annotated[bool, typer.Option("--plots/--no-plots", help="Draw summary plots at the end.")] = True,
     timeout: Annotated[float | None, typer.Option(help="Per-trial wall-time limit, s.")] = None,
@@ -49,9 +61,21 @@ def run(
     retry_errors: Annotated[
         bool, typer.Option("--retry-errors", help="Run again the trials stored as error (resume skips them).")
     ] = False,
+    allow_errors: Annotated[
+        bool, typer.Option("--allow-errors", help="Exit 0 even if trials ended in error (default: exit 1).")
+    ] = False,
+    max_trials: Annotated[
+        int, typer.Option("--max-trials", help="Refuse a study with more trials than this.")
+    ] = MAX_TRIALS,
+    allow_outside: ALLOW_OUTSIDE = False,
     chunk_rows: Annotated[int, typer.Option(help="Rows per Parquet part file.", hidden=True)] = 50,
 ) -> None:
-    """Run a study: every trial missing from its results folder, in parallel, into Parquet."""
+    """Run a study: every trial missing from its results folder, in parallel, into Parquet.
+
+    Exits 1 if a trial of the study ended in error (see --allow-errors, --retry-errors).
+    """
+    import joblib
+
     from somo_sweep.sweep.jobs import build_jobs
     from somo_sweep.sweep.runner import run_study
     from somo_sweep.sweep.study import load_study
@@ -60,56 +84,72 @@ def run(
         fail(SomoError(f"--backend must be loky or dask, got '{backend}'"))
     if jobs < 0:
         fail(SomoError(f"--jobs must be >= 1, got {jobs}"))
+    if max_trials < 1:
+        fail(SomoError(f"--max-trials must be >= 1, got {max_trials}"))
     if backend == "dask" and not scheduler:
         fail(SomoError("--backend dask needs --scheduler ADDRESS (e.g. tcp://HOST:8786)"))
+    if chunk_rows < 1:
+        fail(SomoError(f"--chunk-rows must be >= 1, got {chunk_rows}"))
+    if out is not None and out.exists() and not out.is_dir():
+        fail(SomoError(f"--out {out} is a file, not a folder"))
     try:
-        st = load_study(study, out)
+        st = load_study(study, out, max_trials, allow_outside)
+        if dry_run:
+            _print_dry_run(st)
+            return
         table = build_jobs(st)
     except SomoError as exc:
         fail(exc)
-    if dry_run:
-        _print_dry_run(st, table)
-        return
-    n_jobs = jobs or os.cpu_count() or 1
-    progress = Progress(
-        TextColumn("[bold]{task.description}"),
-        BarColumn(),
-        MofNCompleteColumn(),
-        TextColumn("{task.fields[rate]:.2f} trials/s"),
-        TimeElapsedColumn(),
-        TextColumn("ETA"),
-        TimeRemainingColumn(),
-        console=_err,
-    )
-    bar = progress.add_task(st.name, total=None, rate=0.0)
+    n_jobs = jobs or joblib.cpu_count() or 1
+    live: list[Progress] = []  # the progress bar, once the results folder is open
 
-    def started(n_todo: int, n_done: int) -> None:
-        if n_done:
-            _err.print(f"resuming {st.output}: {n_done} of {n_done + n_todo} trials already done")
-        progress.update(bar, total=n_todo)
+    def started(summary: RunSummary) -> None:
+        for note in summary.notes:
+            typer.echo(f"note: {note}", err=True)
+        if summary.stored_errors:
+            typer.echo(
+                f"resuming {st.output}: {summary.skipped} of {summary.total} trials already stored, "
+                f"{summary.stored_errors} of them as error; run with --retry-errors to run those again",
+                err=True,
+            )
+        elif summary.skipped:
+            typer.echo(
+                f"resuming {st.output}: {summary.skipped} of {summary.total} trials already done",
+                err=True,
+            )
+        progress = _progress()
+        progress.add_task(st.name, total=summary.total - summary.skipped, rate=0.0)
+        progress.start()
+        live.append(progress)
 
     def advanced(_: object) -> None:
-        progress.advance(bar)
-        task = progress.tasks[0]
-        progress.update(bar, rate=(task.completed / task.elapsed) if task.elapsed else 0.0)
+        task = live[0].tasks[0]
+        live[0].advance(task.id)
+        live[0].update(task.id, rate=(task.completed / task.elapsed) if task.elapsed else 0.0)
+
+    def stop() -> None:
+        while live:
+            live.pop().stop()
 
     try:
-        with progress:
-            summary = run_study(
-                st,
-                n_jobs,
-                backend,  # type: ignore[arg-type]
-                scheduler,
-                table,
-                chunk_rows=chunk_rows,
-                timeout_s=timeout,
-                overwrite=overwrite,
-                retry_errors=retry_errors,
-                on_start=started,
-                on_outcome=advanced,
-            )
+        summary = run_study(
+            st,
+            n_jobs,
+            backend,  # type: ignore[arg-type]
+            scheduler,
+            table,
+            chunk_rows=chunk_rows,
+            timeout_s=timeout,
+            overwrite=overwrite,
+            retry_errors=retry_errors,
+            on_start=started,
+            on_outcome=advanced,
+        )
     except SomoError as exc:
-        fail(exc)
+        stop()
+        fail(exc, code=1 if isinstance(exc, StorageError) else 2)
+    finally:
+        stop()
     from somo_sweep.sweep.summary import print_run_summary
 
     print_run_summary(_out, summary)
@@ -121,29 +161,61 @@ def run(
             _save_plots(st.output)
         except Exception as exc:  # the results are safe; a plot problem must not fail the run
             _err.print(f"warning: summary plots not drawn ({type(exc).__name__}: {exc}); try somo-sweep plot")
+    if summary.errors and not allow_errors:
+        typer.echo(
+            f"{summary.errors} of {summary.total} trial(s) ended in error (exit code 1); see somo-sweep show "
+            f"{st.output}; --retry-errors runs them again, --allow-errors accepts them",
+            err=True,
+        )
+        raise typer.Exit(1)
 
 
-def _print_dry_run(st: Study, table: JobTable) -> None:
-    frame = table.frame()
-    typer.echo(
-        f"{st.name}: task {st.task.name}, {len(frame)} trials "
-        f"({st.n_points} grid points x {st.repeats} repeat(s)), study hash {table.study_hash}, "
-        f"output {st.output}"
+def _progress() -> Progress:
+    return Progress(
+        TextColumn("[bold]{task.description}"),
+        BarColumn(),
+        MofNCompleteColumn(),
+        TextColumn("{task.fields[rate]:.2f} trials/s"),
+        TimeElapsedColumn(),
+        TextColumn("ETA"),
+        TimeRemainingColumn(),
+        console=_err,
     )
-    typer.echo(frame.head(10).to_string(index=False))
-    if len(frame) > 10:
-        typer.echo(f"... {len(frame) - 10} more")
+
+
+def _print_dry_run(st: Study) -> None:
+    """Count, then the first rows, without building the other jobs."""
+    from somo_sweep.sweep.jobs import first_jobs, jobs_frame
+
+    typer.echo(
+        f"{st.name}: task {st.task.name}, {st.n_trials} trials "
+        f"({st.n_points} grid points x {st.repeats} repeat(s)), output {st.output}"
+    )
+    frame = jobs_frame(first_jobs(st, DRY_ROWS))
+    typer.echo(frame.to_string(index=False))
+    if st.n_trials > DRY_ROWS:
+        typer.echo(f"... {st.n_trials - DRY_ROWS} more")
+
+
+def _damaged(path: Path, reason: str) -> None:
+    typer.echo(
+        f"warning: skipped damaged part file {path} ({reason}); the next somo-sweep run of this study "
+        "moves it to trials/quarantine/ and runs its trials again",
+        err=True,
+    )
 
 
 def _save_plots(folder: Path) -> None:
     from somo_sweep.sweep.plots import summary_figure
-    from somo_sweep.sweep.store import read_manifest, read_results
+    from somo_sweep.sweep.store import read_manifest, read_results, record_files
 
-    fig = summary_figure(read_results(folder), read_manifest(folder))
+    df, manifest = read_results(folder, _damaged), read_manifest(folder)
     target = folder / "plots"
-    write_atomic(target / "summary.png", figure_bytes(fig, "png", 120))
-    fig = summary_figure(read_results(folder), read_manifest(folder))
-    write_atomic(target / "summary.svg", figure_bytes(fig, "svg", 120))
+    written = [write_atomic(target / "summary.png", figure_bytes(summary_figure(df, manifest), "png", 120))]
+    written.append(
+        write_atomic(target / "summary.svg", figure_bytes(summary_figure(df, manifest), "svg", 120))
+    )
+    record_files(folder, written)
     _out.print(f"plots: {target / 'summary.png'} (and .svg)")
 
 
@@ -153,7 +225,7 @@ def show(results: Annotated[Path, typer.Argument(help="Results folder, e.g. resu
     from somo_sweep.sweep.summary import print_results
 
     try:
-        print_results(_out, read_results(results), read_manifest(results))
+        print_results(_out, read_results(results, _damaged), read_manifest(results))
     except SomoError as exc:
         fail(exc)
 
@@ -166,11 +238,15 @@ def plot(results: Annotated[Path, typer.Argument(help="Results folder, e.g. resu
         fail(exc)
 
 
-def tasks() -> None:
-    """List the registered tasks (study files name them in ``task:``)."""
+def tasks(
+    show_all: Annotated[bool, typer.Option("--all", help="Also list the engine's selftest tasks.")] = False,
+) -> None:
+    """List the registered tasks (study files name them in task:)."""
     from somo_sweep.tasks import all_tasks
 
     for name, spec in all_tasks().items():
+        if "selftest" in spec.tags and not show_all:
+            continue
         tags = f" [{', '.join(spec.tags)}]" if spec.tags else ""
         typer.echo(f"{name}{tags}: {spec.description}")
 
@@ -180,21 +256,27 @@ def recheck(
     trials: Annotated[int, typer.Option("--trials", "-n", help="How many stored trials to re-run.")] = 20,
     seed: Annotated[int, typer.Option(help="Seed of the random draw of trials.")] = 0,
     out: Annotated[
-        Path | None, typer.Option("--out", help="Results folder (default: results/<study>).")
+        Path | None,
+        typer.Option("--out", help="Results folder, anywhere (default: the study's, inside results/)."),
     ] = None,
     report: Annotated[Path | None, typer.Option(help="Also write the comparison as JSON here.")] = None,
+    max_trials: Annotated[
+        int, typer.Option("--max-trials", help="Refuse a study with more trials than this.")
+    ] = MAX_TRIALS,
+    allow_outside: ALLOW_OUTSIDE = False,
 ) -> None:
     """Re-run random stored trials in this process; exit 1 unless every cell is identical."""
+    import json
+
     from somo_sweep.sweep.recheck import recheck as run_recheck
-    from somo_sweep.sweep.recheck import write_report
     from somo_sweep.sweep.study import load_study
 
     try:
-        result = run_recheck(load_study(study, out), trials, seed)
+        result = run_recheck(load_study(study, out, max_trials, allow_outside), trials, seed, _damaged)
     except SomoError as exc:
         fail(exc)
     if report is not None:
-        write_report(result, report)
+        write_atomic(report, json.dumps(result.to_dict(), indent=1, default=str))
     n_bad = len({m.trial for m in result.mismatches})
     typer.echo(
         f"re-ran {len(result.trials)} trial(s) {sorted(result.trials)}: "

@@ -9,13 +9,16 @@ definitions (two definitions alternate a grasp and a side axis, as in SoMo).
 from __future__ import annotations
 
 import math
-from typing import Literal
+import re
+from typing import Annotated, Literal
 
 import numpy as np
-from pydantic import BaseModel, ConfigDict, Field, field_validator, model_validator
+from pydantic import AfterValidator, BaseModel, ConfigDict, Field, field_validator, model_validator
 
 __all__ = [
     "LENGTH_REL_TOL",
+    "MAX_SEGMENTS",
+    "NAME_PATTERN",
     "Actuation",
     "Actuator",
     "Assembly",
@@ -32,14 +35,28 @@ __all__ = [
 
 #: Relative tolerance when a length must be a whole number of segments.
 LENGTH_REL_TOL = 1e-6
+#: Most segments one actuator may have (a body is further limited by PyBullet, see ``load.py``).
+MAX_SEGMENTS = 200
+#: What names of manipulators, mounts, bodies, actuators and joints may hold (they become URDF names).
+NAME_PATTERN = "[A-Za-z0-9_.-]+"
 
 Vec3 = tuple[float, float, float]
 
 
-class Spec(BaseModel):
-    """Base of every description: unknown keys fail, instances are immutable."""
+def _check_name(value: str) -> str:
+    if not re.fullmatch(NAME_PATTERN, value):
+        raise ValueError(f"a name may hold only letters, digits, '_', '.' and '-' (pattern {NAME_PATTERN})")
+    return value
 
-    model_config = ConfigDict(extra="forbid", frozen=True)
+
+#: A name that is safe in URDF and in file names.
+Name = Annotated[str, AfterValidator(_check_name)]
+
+
+class Spec(BaseModel):
+    """Base of every description: unknown keys fail, NaN and infinity fail, instances are immutable."""
+
+    model_config = ConfigDict(extra="forbid", frozen=True, allow_inf_nan=False)
 
 
 class Friction(Spec):
@@ -169,7 +186,7 @@ class Joint(Spec):
     against the approach direction of a ``loading`` / ``unloading`` row.
     """
 
-    name: str | None = None
+    name: Name | None = None
     type: Literal["revolute", "prismatic"] = "revolute"
     axis: Vec3
     offset_m: Vec3 = (0.0, 0.0, 0.0)
@@ -258,9 +275,9 @@ class Actuator(Spec):
     convergence to a continuous finger) or ``start`` (SoMo's: a joint at each link's start).
     """
 
-    name: str | None = None
+    name: Name | None = None
     length_m: float = Field(gt=0)
-    n_segments: int | None = Field(None, ge=1)
+    n_segments: int | None = Field(None, ge=1, le=MAX_SEGMENTS)
     segment_length_m: float | None = Field(None, gt=0)
     link: Link
     joints: list[Joint] = Field(min_length=1, max_length=3)
@@ -274,6 +291,10 @@ class Actuator(Spec):
             raise ValueError("give exactly one of n_segments or segment_length_m")
         if self.segment_length_m is not None:
             ratio = self.length_m / self.segment_length_m
+            if ratio > MAX_SEGMENTS + 0.5:
+                raise ValueError(
+                    f"length_m / segment_length_m = {ratio:.6g} segments; allowed: at most {MAX_SEGMENTS}"
+                )
             if abs(ratio - round(ratio)) > LENGTH_REL_TOL * ratio or round(ratio) < 1:
                 raise ValueError(
                     f"length_m = {self.length_m} is not a whole number of segments of "
@@ -374,7 +395,7 @@ class Actuation(Spec):
 class Manipulator(Spec):
     """Actuators in series with optional base link and tip links."""
 
-    name: str = "manipulator"
+    name: Name = "manipulator"
     base: Base = Base()
     actuators: list[Actuator] = Field(min_length=1)
     tip_links: list[Link] = []
@@ -405,7 +426,7 @@ class Mount(Spec):
     of an earlier manipulator of the same assembly (soft fingers on a rigid arm).
     """
 
-    name: str
+    name: Name
     manipulator: Manipulator
     pose: Pose = Pose()
     attach_to: str | None = None
@@ -414,7 +435,7 @@ class Mount(Spec):
 class RigidBody(Spec):
     """A rigid body of an assembly or scene."""
 
-    name: str
+    name: Name
     link: Link
     pose: Pose = Pose()
     fixed: bool = False
@@ -427,7 +448,7 @@ class Assembly(Spec):
     (held by ``base.mode``); without one, each manipulator is its own body.
     """
 
-    name: str = "assembly"
+    name: Name = "assembly"
     base: Base = Base()
     manipulators: list[Mount] = Field(min_length=1)
     bodies: list[RigidBody] = []

@@ -1,8 +1,11 @@
 """Model files: a ``manipulator:`` or an ``assembly:`` section, from YAML, JSON or a dict.
 
 Inside an assembly, a mount may say ``file: other.yaml`` instead of giving its
-``manipulator`` inline; the path is relative to the including file. Top-level keys
-starting with ``_`` are ignored: they hold YAML anchors reused below (``&link`` / ``*link``).
+``manipulator`` inline; the path is relative to the including file and must stay inside
+that file's folder tree (unless ``allow_outside``). Top-level keys starting with ``_``
+are ignored: they hold YAML anchors reused below (``&link`` / ``*link``).
+
+Every body must fit in one PyBullet multibody: at most :data:`MAX_BODY_LINKS` links.
 """
 
 from __future__ import annotations
@@ -20,7 +23,11 @@ from somo_sweep.model.description import Assembly, Manipulator, Mount, Spec
 from somo_sweep.model.files import load_mapping
 from somo_sweep.model.validation import validate
 
-__all__ = ["Model", "load_model", "model_from_dict"]
+__all__ = ["MAX_BODY_LINKS", "Model", "body_links", "load_model", "model_from_dict"]
+
+#: Links of one PyBullet multibody, its base included. Measured with pybullet 3.2.7: with
+#: 128 joints (129 links) or more, every joint and link state query fails.
+MAX_BODY_LINKS = 128
 
 
 class Model(Spec):
@@ -55,7 +62,65 @@ class Model(Spec):
         return hashlib.sha256(text.encode()).hexdigest()[:16]
 
 
-def _resolve_includes(data: dict[str, Any], folder: Path | None, source: str) -> dict[str, Any]:
+def _chain_links(manip: Manipulator, extra_anchor: bool) -> int:
+    """Links :func:`somo_sweep.sim.urdf.plan_manipulator` makes for one manipulator's chain."""
+    n = 1 if manip.base.link is not None or extra_anchor else 0
+    for act in manip.actuators:
+        n += act.segments + (1 if act.joint_placement == "midpoint" else 0)
+    return n + len(manip.tip_links)
+
+
+def body_links(assembly: Assembly) -> dict[str, int]:
+    """Links of every PyBullet body the assembly becomes (manipulators only), by body name."""
+    if assembly.base.link is not None:
+        total = 1 + sum(
+            _chain_links(m.manipulator, m.manipulator.base.link is None and any(m.pose.rpy_rad))
+            for m in assembly.manipulators
+        )
+        return {assembly.name: total}
+    out = {}
+    for mount in assembly.manipulators:
+        anchor = mount.manipulator.base.link is None and assembly.base.mode == "fixed"
+        out[mount.name] = _chain_links(mount.manipulator, anchor)
+    return out
+
+
+def _check_bodies(model: Model, source: str, lines: dict[str, int] | None) -> None:
+    key = "manipulator" if model.manipulator is not None else "assembly"
+    problems = [
+        Problem(
+            key,
+            f"body '{name}' has {n} links; allowed: at most {MAX_BODY_LINKS} links per body (PyBullet's "
+            f"multibody limit: a base and {MAX_BODY_LINKS - 1} jointed links); use fewer segments",
+            (lines or {}).get(key),
+        )
+        for name, n in body_links(model.as_assembly()).items()
+        if n > MAX_BODY_LINKS
+    ]
+    if problems:
+        raise DescriptionError(source, problems)
+
+
+def _include_path(ref: Path, folder: Path, allow_outside: bool) -> Path | str:
+    """The file an include names, or why it is refused."""
+    if allow_outside:
+        return ref if ref.is_absolute() else folder / ref
+    hint = "allowed: a path inside the model file's folder (or pass --allow-outside)"
+    if ref.is_absolute():
+        return f"'{ref}' is an absolute path; {hint}"
+    path = folder / ref
+    try:
+        inside = path.resolve().is_relative_to(folder.resolve())
+    except (OSError, ValueError, RuntimeError):  # a name no file can have, a symlink loop
+        inside = False
+    if not inside:
+        return f"'{ref}' leaves the folder {folder}; {hint}"
+    return path
+
+
+def _resolve_includes(
+    data: dict[str, Any], folder: Path | None, source: str, allow_outside: bool = False
+) -> dict[str, Any]:
     # Top-level keys starting with "_" hold YAML anchors (&link ... *link) and are not part of the model.
     data = {k: copy.deepcopy(v) for k, v in data.items() if not str(k).startswith("_")}
     assembly = data.get("assembly")
@@ -65,11 +130,20 @@ def _resolve_includes(data: dict[str, Any], folder: Path | None, source: str) ->
     for i, mount in enumerate(assembly.get("manipulators") or []):
         if not isinstance(mount, dict) or "file" not in mount:
             continue
-        ref = Path(str(mount.pop("file")))
-        path = ref if ref.is_absolute() or folder is None else folder / ref
+        value = mount.pop("file")
         key = f"assembly.manipulators[{i}].file"
+        if not isinstance(value, str) or not value.strip():
+            problems.append(
+                Problem(key, f"must be a model file's path, got a {type(value).__name__}: {value!r:.60}")
+            )
+            continue
+        ref = Path(value)
         if "manipulator" in mount:
             problems.append(Problem(key, "give either 'file' or 'manipulator', not both"))
+            continue
+        path = _include_path(ref, folder or Path("."), allow_outside)
+        if isinstance(path, str):
+            problems.append(Problem(key, f"cannot include {path}"))
             continue
         try:
             included, _ = load_mapping(path)
@@ -90,23 +164,28 @@ def model_from_dict(
     source: str = "<dict>",
     folder: Path | None = None,
     lines: dict[str, int] | None = None,
+    allow_outside: bool = False,
 ) -> Model:
     """Validate a model given as a Python dict (same schema as the files).
 
     Args:
         data: The parsed content.
         source: Name used in error messages.
-        folder: Folder that relative ``file:`` includes are resolved against.
+        folder: Folder that relative ``file:`` includes are resolved against (default: the
+            current directory); includes may not leave it.
         lines: Key-path → line map for messages.
+        allow_outside: Let ``file:`` includes name any file (absolute, or up with ``..``).
 
     Raises:
         DescriptionError: Listing every problem.
     """
-    return validate(Model, _resolve_includes(data, folder, source), source, lines)
+    model = validate(Model, _resolve_includes(data, folder, source, allow_outside), source, lines)
+    _check_bodies(model, source, lines)
+    return model
 
 
-def load_model(path: str | Path) -> Model:
-    """Load and validate a model file (YAML or JSON)."""
+def load_model(path: str | Path, allow_outside: bool = False) -> Model:
+    """Load and validate a model file (YAML or JSON); see :func:`model_from_dict`."""
     path = Path(path)
     data, lines = load_mapping(path)
-    return model_from_dict(data, str(path), path.parent, lines)
+    return model_from_dict(data, str(path), path.parent, lines, allow_outside)

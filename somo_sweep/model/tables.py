@@ -16,6 +16,7 @@ from importlib import resources
 from pathlib import Path
 
 from somo_sweep.errors import SomoError
+from somo_sweep.model.files import is_file
 
 __all__ = ["BUNDLED_PREFIX", "bundled_path", "read_table_text", "resolve_table"]
 
@@ -35,10 +36,10 @@ def _locate(ref: str, base_dir: Path | None) -> tuple[str, Path]:
     path = Path(ref).expanduser()
     candidates = [path] if path.is_absolute() else [(base_dir or Path.cwd()) / path]
     for candidate in candidates:
-        if candidate.is_file():
+        if is_file(candidate):
             return str(candidate.resolve()), candidate
     bundled = bundled_path("tables", path.name)
-    if path.parent == Path(".") and bundled.is_file():
+    if path.parent == Path(".") and is_file(bundled):
         return BUNDLED_PREFIX + path.name, bundled
     where = f" (looked in {candidates[0].parent})" if candidates else ""
     raise SomoError(f"table '{ref}' not found{where}; bundled tables: {', '.join(_bundled_names())}")

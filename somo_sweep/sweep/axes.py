@@ -4,6 +4,8 @@ A key path is ``model.<field path>`` or ``task.<parameter path>``, with list ite
 ``[i]`` (``model.manipulator.actuators[0].length_m``). An axis spec is a list,
 ``{values: [...]}``, an inclusive ``{start, stop, step}`` range (float round-off is
 cleaned to :data:`RANGE_DIGITS` significant digits) or ``{start, stop, num}``.
+:func:`axis_length` counts an axis's values from its spec, without expanding it, so a
+study can be sized (and refused) before anything is built.
 """
 
 from __future__ import annotations
@@ -16,7 +18,15 @@ from typing import Any
 
 from somo_sweep.errors import Problem, did_you_mean
 
-__all__ = ["RANGE_DIGITS", "Axis", "expand_axis", "link_groups", "parse_key_path", "set_path"]
+__all__ = [
+    "RANGE_DIGITS",
+    "Axis",
+    "axis_length",
+    "expand_axis",
+    "link_groups",
+    "parse_key_path",
+    "set_path",
+]
 
 #: Significant digits kept when a range is expanded (kills 0.30000000000000004).
 RANGE_DIGITS = 12
@@ -78,6 +88,37 @@ def set_path(data: Any, parts: list[str | int], value: Any) -> None:
 
 def _clean(v: float) -> float:
     return float(f"{v:.{RANGE_DIGITS}g}")
+
+
+def _number(v: Any) -> bool:
+    return not isinstance(v, bool) and isinstance(v, int | float) and math.isfinite(v)
+
+
+def axis_length(spec: Any) -> int | None:
+    """Number of values of an axis spec, computed without expanding it (None if malformed).
+
+    ``expand_axis(spec, ...)`` gives exactly this many values for every well-formed spec.
+    """
+    if isinstance(spec, list):
+        return len(spec)
+    if not isinstance(spec, dict):
+        return None
+    keys = set(spec)
+    if keys == {"values"}:
+        return axis_length(spec["values"])
+    if not all(_number(spec.get(k)) for k in keys) or keys not in (
+        {"start", "stop", "step"},
+        {"start", "stop", "num"},
+    ):
+        return None
+    if "num" in keys:
+        num = spec["num"]
+        return num if isinstance(num, int) and num >= 1 else None
+    start, stop, step = spec["start"], spec["stop"], spec["step"]
+    if step <= 0 or stop < start:
+        return None
+    count = (stop - start) / step
+    return math.floor(count + 1e-9) + 1 if count < 1e18 else 10**18
 
 
 def expand_axis(spec: Any, where: str) -> tuple[list[Any], list[Problem]]:

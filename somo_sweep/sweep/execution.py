@@ -116,7 +116,8 @@ def run_isolated(job: Job, timeout_s: float | None = None, owner_pid: int | None
     """
     if owner_pid is not None:
         _watch_owner(owner_pid)
-    get_task(job.task)  # import task modules before forking
+    with contextlib.suppress(Exception):  # an import error is the trial's, reported by the child
+        _ = get_task(job.task).run  # import the task's modules once per worker, before forking
     start = time.perf_counter()
     host = socket.gethostname()
     read_fd, write_fd = os.pipe()
@@ -244,7 +245,12 @@ def dask_client(scheduler: str | None, timeout_s: float = 15.0) -> Any:
     """
     if not scheduler:
         raise SomoError("--backend dask needs --scheduler ADDRESS (e.g. tcp://HOST:8786)")
-    from dask.distributed import Client
+    try:
+        from dask.distributed import Client
+    except ImportError:
+        raise SomoError(
+            '--backend dask needs Dask, which is not installed: pip install "somo-sweep[dask]"'
+        ) from None
 
     try:
         return Client(scheduler, timeout=f"{timeout_s}s")

@@ -2,16 +2,20 @@
 
 A job is everything one trial needs (task name, validated model and parameters,
 simulation settings, seed), so it can run in any process or on any host. Its
-id is the hash of those inputs and the code version: the same study on the same
-code always gives the same ids, which is what resume relies on.
+id is the hash of those inputs, the code version and the PyBullet version: the same
+study on the same code and simulator always gives the same ids, which is what resume
+relies on. :func:`iter_jobs` yields them one by one (a dry run prints the first ones
+without building the rest).
 """
 
 from __future__ import annotations
 
 import ast
 import hashlib
+import itertools
 import json
 import os
+from collections.abc import Iterator
 from dataclasses import asdict, dataclass
 from functools import cache
 from importlib.metadata import PackageNotFoundError, version
@@ -26,7 +30,18 @@ from somo_sweep.model.load import Model
 from somo_sweep.sim.settings import WorldSettings
 from somo_sweep.sweep.study import Study
 
-__all__ = ["Job", "JobTable", "build_jobs", "code_version", "param_column", "trial_modules"]
+__all__ = [
+    "Job",
+    "JobTable",
+    "build_jobs",
+    "code_version",
+    "first_jobs",
+    "iter_jobs",
+    "jobs_frame",
+    "param_column",
+    "pybullet_version",
+    "trial_modules",
+]
 
 
 def _package_version() -> str:
@@ -34,6 +49,15 @@ def _package_version() -> str:
         return version("somo-sweep")
     except PackageNotFoundError:  # a source tree that is not installed
         return "0.0.0"
+
+
+@cache
+def pybullet_version() -> str:
+    """The installed PyBullet's version (from its metadata: PyBullet itself is not imported)."""
+    try:
+        return version("pybullet")
+    except PackageNotFoundError:
+        return "none"
 
 
 def _module_file(name: str) -> Path | None:
@@ -164,12 +188,17 @@ class JobTable:
 
     def frame(self) -> pd.DataFrame:
         """The job table as a DataFrame (id, trial, repeat, seed and parameter columns)."""
-        return pd.DataFrame(
-            [
-                {"job_id": j.job_id, "trial": j.trial, "repeat": j.repeat, "seed": j.seed, **j.columns}
-                for j in self.jobs
-            ]
-        )
+        return jobs_frame(self.jobs)
+
+
+def jobs_frame(jobs: list[Job]) -> pd.DataFrame:
+    """Jobs as a DataFrame (id, trial, repeat, seed and parameter columns)."""
+    return pd.DataFrame(
+        [
+            {"job_id": j.job_id, "trial": j.trial, "repeat": j.repeat, "seed": j.seed, **j.columns}
+            for j in jobs
+        ]
+    )
 
 
 def _seed(base: int, point: dict[str, Any], repeat: int) -> int:
@@ -178,17 +207,18 @@ def _seed(base: int, point: dict[str, Any], repeat: int) -> int:
     return int(_hash([base, key, repeat], 8), 16)
 
 
-def build_jobs(study: Study) -> JobTable:
-    """Expand a study into its jobs.
+def iter_jobs(study: Study) -> Iterator[Job]:
+    """The jobs of a study one by one, in grid order.
 
     Raises:
         DescriptionError: Two trials are identical (e.g. a value repeated in an axis).
     """
     settings = study.simulation.world_settings()
     code = code_version(study.task.run_path.partition(":")[0])
+    engine = pybullet_version()
     overrides = sorted({*study.fixed, *(a.key for a in study.axes)} - {"model"})
-    jobs: list[Job] = []
     seen: dict[str, int] = {}
+    trial = 0
     hashes: dict[int, str] = {}  # the study hands out one object per distinct model
     for point in study.points():
         model_path, model, params = study.resolve(point)
@@ -210,9 +240,9 @@ def build_jobs(study: Study) -> JobTable:
                 "settings": asdict(settings),
                 "seed": seed,
                 "code": code,
+                "pybullet": engine,
             }
             job_id = _hash(identity)
-            trial = len(jobs)
             if job_id in seen:
                 raise DescriptionError(
                     study.source,
@@ -224,7 +254,23 @@ def build_jobs(study: Study) -> JobTable:
                     ],
                 )
             seen[job_id] = trial
-            jobs.append(Job(job_id, trial, repeat, seed, study.task.name, model, params, settings, columns))
+            yield Job(job_id, trial, repeat, seed, study.task.name, model, params, settings, columns)
+            trial += 1
+
+
+def first_jobs(study: Study, n: int) -> list[Job]:
+    """The first ``n`` jobs of a study, without building the others."""
+    return list(itertools.islice(iter_jobs(study), n))
+
+
+def build_jobs(study: Study) -> JobTable:
+    """Expand a study into its jobs.
+
+    Raises:
+        DescriptionError: Two trials are identical (e.g. a value repeated in an axis).
+    """
+    jobs = list(iter_jobs(study))
+    code = code_version(study.task.run_path.partition(":")[0])
     axes = {a.key: ("model_file" if a.key == "model" else param_column(a.key)) for a in study.axes}
     resolved = {
         "name": study.name,
@@ -238,6 +284,7 @@ def build_jobs(study: Study) -> JobTable:
         "seed": study.seed,
         "simulation": study.simulation.model_dump(mode="json"),
         "code_version": code,
+        "pybullet": pybullet_version(),
         "n_trials": len(jobs),
     }
     return JobTable(jobs, _hash([j.job_id for j in jobs]), axes, resolved)

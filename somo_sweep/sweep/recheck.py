@@ -10,6 +10,7 @@ and lists every cell that differs. ``somo-sweep recheck STUDY.yaml`` is its comm
 from __future__ import annotations
 
 import math
+from collections.abc import Callable
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -82,8 +83,12 @@ def _same(a: Any, b: Any) -> bool:
     return bool(a == b)
 
 
-def recheck(study: Study, n_trials: int = 20, seed: int = 0) -> RecheckReport:
+def recheck(
+    study: Study, n_trials: int = 20, seed: int = 0, on_damaged: Callable[[Path, str], None] | None = None
+) -> RecheckReport:
     """Re-run ``n_trials`` stored trials of ``study`` drawn at random; compare cell by cell.
+
+    Damaged part files are skipped (``on_damaged`` is told; default: a warning).
 
     Raises:
         SomoError: No results, or results of another version of the study (re-run it first).
@@ -96,7 +101,7 @@ def recheck(study: Study, n_trials: int = 20, seed: int = 0) -> RecheckReport:
             f"{folder} holds results of another version of {study.name} (hash {manifest['study_hash']}, "
             f"the study now gives {table.study_hash}): run it again before rechecking"
         )
-    stored = read_results(folder)
+    stored = read_results(folder, on_damaged)
     if stored.empty:
         raise SomoError(f"{folder} holds no finished trials yet")
     if n_trials < 1:

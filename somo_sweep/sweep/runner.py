@@ -1,16 +1,16 @@
 """Run a study end to end: job table → missing trials → parallel execution → results folder.
 
 :func:`run_study` is what ``somo-sweep run`` calls. It is resumable (only trials
-missing from the results folder run), writes results in chunks as they stream in,
-and on SIGINT / SIGTERM writes every finished trial before returning.
+missing from the results folder run). Every finished trial is appended to the run's
+journal at once (so a SIGKILL loses only the trials in flight) and written into part
+files in chunks; on SIGINT / SIGTERM every finished trial is written before returning,
+and when the disk fills up the run stops with what it wrote intact.
 """
 
 from __future__ import annotations
 
 import contextlib
 import json
-import os
-import shutil
 import signal
 import threading
 import time
@@ -21,8 +21,10 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
+import joblib
 import numpy as np
 
+from somo_sweep.errors import StorageError
 from somo_sweep.sweep.execution import Backend, Outcome, dask_client, execute
 from somo_sweep.sweep.jobs import Job, JobTable, build_jobs
 from somo_sweep.sweep.schema import FIXED
@@ -49,6 +51,9 @@ class RunSummary:
         by_label: Trials run now, by ``label_name=value``.
         wall_time_s: Wall time of the run, s.
         interrupted: The run was stopped by SIGINT / SIGTERM (signal number), else None.
+        stored_errors: Trials already in the folder (skipped) whose status is ``error``.
+        notes: What the results folder needed on opening (damaged parts set aside, manifest
+            rebuilt, rows recovered, runs marked aborted), for the user.
     """
 
     folder: Path
@@ -59,11 +64,18 @@ class RunSummary:
     by_label: Counter[str] = field(default_factory=Counter)
     wall_time_s: float = 0.0
     interrupted: int | None = None
+    stored_errors: int = 0
+    notes: list[str] = field(default_factory=list)
 
     @property
     def trials_per_s(self) -> float:
         """Trials run per second of wall time."""
         return self.run / self.wall_time_s if self.wall_time_s > 0 else 0.0
+
+    @property
+    def errors(self) -> int:
+        """Trials of the study stored as ``error`` after this run (earlier ones included)."""
+        return self.stored_errors + self.by_status["error"]
 
 
 def outcome_row(job: Job, out: Outcome, study_hash: str) -> dict[str, Any]:
@@ -148,6 +160,12 @@ class _SignalGuard:
             raise _Stop(signum)
 
 
+def _declared_types(study: Study, table: JobTable) -> dict[str, str]:
+    """Column types of the task's declared metrics, under the column names rows use."""
+    taken = FIXED | set(table.jobs[0].columns if table.jobs else ())
+    return {(f"metric_{n}" if n in taken else n): t for n, t in study.task.metrics.items()}
+
+
 def run_study(
     study: Study,
     n_jobs: int | None = None,
@@ -159,30 +177,34 @@ def run_study(
     timeout_s: float | None = None,
     overwrite: bool = False,
     retry_errors: bool = False,
-    on_start: Callable[[int, int], None] | None = None,
+    on_start: Callable[[RunSummary], None] | None = None,
     on_outcome: Callable[[Outcome], None] | None = None,
 ) -> RunSummary:
     """Run the trials of ``study`` missing from its results folder.
 
     Args:
         study: The loaded study (its ``output`` is the results folder).
-        n_jobs: Worker processes for loky (default: all cores).
+        n_jobs: Worker processes for loky (default: the CPUs this process may use).
         backend: ``loky`` or ``dask``.
         scheduler: Dask scheduler address (``dask`` only).
         table: The job table, if already built.
         chunk_rows: Rows per part file.
-        flush_interval_s: Longest time finished rows wait before being written, s.
+        flush_interval_s: Longest time finished rows wait before going into a part file, s
+            (they are in the run's journal from the moment they finish).
         timeout_s: Per-trial wall-time limit, s.
         overwrite: Delete results of a different study in the folder instead of refusing.
         retry_errors: Run again the trials stored as ``error`` (their rows are replaced).
-        on_start: Called with (trials to run, trials already done).
+        on_start: Called with the summary (``total``, ``skipped``, ``stored_errors``, ``notes``)
+            once the folder is open, before any trial runs.
         on_outcome: Called with every outcome as it arrives.
 
     Raises:
+        StorageError: The results could not be written (e.g. disk full); the run stopped, what
+            it wrote is intact and the manifest counts only rows in part files.
         SomoError: Folder locked, different study in the folder, Dask unreachable.
     """
     table = table or build_jobs(study)
-    n_jobs = n_jobs or os.cpu_count() or 1
+    n_jobs = n_jobs or joblib.cpu_count() or 1
     param_types: dict[str, list[Any]] = {}
     for job in table.jobs:
         for k, v in job.columns.items():
@@ -190,7 +212,13 @@ def run_study(
     client = dask_client(scheduler) if backend == "dask" else None  # fail before writing anything
     try:
         store = ResultStore(
-            study.output, table.study_hash, table.resolved, table.axes, param_types, overwrite
+            study.output,
+            table.study_hash,
+            table.resolved,
+            table.axes,
+            param_types,
+            overwrite,
+            _declared_types(study, table),
         )
     except BaseException:
         if client is not None:
@@ -199,19 +227,22 @@ def run_study(
     start = time.perf_counter()
     started = ended = False
     buffer: list[dict[str, Any]] = []
+    summary = RunSummary(study.output, len(table.jobs), 0, notes=list(store.notes))
+    failure: OSError | None = None
     try:
-        shutil.copyfile(study.source, study.output / f"study{study.source.suffix}")
+        store.copy_study(study.source)
         if retry_errors:
             store.drop_errors()
-        done = store.done_ids()
+        done = store.done_statuses()
         todo = [j for j in table.jobs if j.job_id not in done]
-        summary = RunSummary(study.output, len(table.jobs), len(table.jobs) - len(todo))
+        summary.skipped = len(table.jobs) - len(todo)
+        summary.stored_errors = sum(1 for j in table.jobs if done.get(j.job_id) == "error")
         store.start_run(
             {"backend": backend, "n_jobs": n_jobs if backend == "loky" else None, "to_run": len(todo)}
         )
         started = True
         if on_start:
-            on_start(len(todo), summary.skipped)
+            on_start(summary)
         by_id = {j.job_id: j for j in todo}
         last_flush = time.perf_counter()
         with _SignalGuard() as guard:
@@ -219,31 +250,53 @@ def run_study(
             try:
                 for out in execute(todo, backend, n_jobs, scheduler, timeout_s, client):
                     with guard.protect():
-                        buffer.append(outcome_row(by_id[out.job_id], out, table.study_hash))
+                        row = outcome_row(by_id[out.job_id], out, table.study_hash)
                         summary.run += 1
                         summary.by_status[out.status] += 1
                         summary.by_label.update(f"{k}={v}" for k, v in out.labels.items())
+                        store.journal(row)
+                        buffer.append(row)
                         if on_outcome:
                             on_outcome(out)
                         if len(buffer) >= chunk_rows or time.perf_counter() - last_flush >= flush_interval_s:
-                            rows, buffer = buffer, []
-                            store.write(rows)
+                            store.write(buffer)
+                            buffer = []
                             last_flush = time.perf_counter()
             except KeyboardInterrupt as exc:
                 summary.interrupted = exc.signum if isinstance(exc, _Stop) else int(signal.SIGINT)
                 status = "interrupted"
+            except OSError as exc:
+                failure, status = exc, "failed"
             with guard.protect(stop_after=False):
-                rows, buffer = buffer, []
-                store.write(rows)
+                if failure is None:
+                    try:
+                        store.write(buffer)
+                        buffer = []
+                    except OSError as exc:
+                        failure, status = exc, "failed"
                 summary.wall_time_s = time.perf_counter() - start
-                store.end_run(status, summary.run)
+                with contextlib.suppress(OSError):
+                    store.end_run(status, summary.run)
                 ended = True
-        return summary
+    except OSError as exc:
+        failure = exc
     finally:
         if started and not ended:  # an unexpected error: keep the finished rows, say so in the manifest
             with contextlib.suppress(Exception):
                 store.write(buffer)
+                buffer = []
+            with contextlib.suppress(Exception):
                 store.end_run("failed", summary.run)
+        written = store.rows_written
         store.close()
         if client is not None:
             client.close()
+    if failure is not None:
+        reason = failure.strerror or str(failure)
+        raise StorageError(
+            f"stopped: cannot write the results in {study.output} ({reason}). {summary.run} trial(s) "
+            f"finished in this run and {written} of them are in the table, intact; free space and run the "
+            "same command again: finished trials not yet in the table are recovered from the run's "
+            "journal, the others run again"
+        )
+    return summary

@@ -3,101 +3,111 @@
 Layout of ``results/<study>/``::
 
     trials/part-*.parquet   one row per finished trial; read with pd.read_parquet(".../trials")
-    manifest.json           study hash, resolved study, versions, hosts, runs, columns with units
+    trials/.journal-*.jsonl the rows of a run as its trials finish (one line each), until
+                            they are in a part file; a killed run's rows are recovered from it
+    trials/quarantine/      damaged part files, set aside (their trials run again)
+    manifest.json           study hash, resolved study, runs (each with its versions), hosts,
+                            columns with units, and every file the tool wrote here
     study.yaml              copy of the study file as last run
     plots/                  summary plots (PNG and SVG)
     .lock                   held (flock) while a run writes here
 
 Part files are written atomically (temporary name starting with ``.``, which readers
-skip, then renamed), so an interrupted run never leaves a half-written file in the
-dataset. Every part has the same schema: when a new metric appears, earlier parts are
-rewritten with the new (null) column.
+skip, then renamed), so an interrupted run, or a full disk, never leaves a half-written
+file in the dataset. Column types come from the fixed columns, the task's declared
+metrics and the study's parameters; other metrics are typed from their values (a
+column with no value yet stays untyped) and earlier parts are rewritten when a type
+widens. ``--overwrite`` deletes only files the tool wrote, and a folder that is not
+a results folder is never written into.
 """
 
 from __future__ import annotations
 
 import contextlib
-import fcntl
 import json
 import os
-import platform
-import shutil
-import socket
 import sys
 import uuid
 from datetime import UTC, datetime
-from importlib.metadata import PackageNotFoundError, version
 from pathlib import Path
-from typing import Any
+from typing import IO, Any
 
-import pandas as pd
 import pyarrow as pa
 import pyarrow.compute as pc
 import pyarrow.parquet as pq
 
 from somo_sweep.errors import SomoError
+from somo_sweep.sweep.folder import (
+    JOURNAL_GLOB,
+    MANIFEST,
+    PART_GLOB,
+    QUARANTINE,
+    journal_rows,
+    read_manifest,
+    read_results,
+    split_parts,
+)
+from somo_sweep.sweep.manifest import (
+    acquire,
+    describe_changes,
+    new_manifest,
+    now_utc,
+    record_files,
+    release,
+    versions,
+    write_json,
+)
 from somo_sweep.sweep.schema import COLUMNS, FIXED, arrow_type, merge_types, unit_of
 
-__all__ = ["ResultStore", "read_manifest", "read_results"]
+__all__ = ["ResultStore", "read_manifest", "read_results", "record_files"]
+
+#: Files a run may find in a folder that is not (yet) a results folder.
+_OWN = {".lock", f".{MANIFEST}.tmp", ".study.yaml.tmp", ".study.json.tmp"}
 
 
-def _versions() -> dict[str, str]:
-    out = {"python": platform.python_version()}
-    for pkg in ("somo-sweep", "pybullet", "numpy", "pandas", "pyarrow", "joblib", "dask", "distributed"):
-        with contextlib.suppress(PackageNotFoundError):
-            out[pkg] = version(pkg)
-    return out
-
-
-def _now() -> str:
-    return datetime.now(UTC).isoformat(timespec="seconds")
-
-
-def read_manifest(folder: str | Path) -> dict[str, Any]:
-    """The manifest of a results folder.
-
-    Raises:
-        SomoError: No manifest (not a somo-sweep results folder).
-    """
-    path = Path(folder) / "manifest.json"
-    if not path.is_file():
-        raise SomoError(f"{folder} is not a somo-sweep results folder (no manifest.json)")
-    return dict(json.loads(path.read_text()))
-
-
-def read_results(folder: str | Path) -> pd.DataFrame:
-    """Every trial of a results folder, in grid order (one pandas call underneath).
-
-    Raises:
-        SomoError: Not a results folder, or rows of another study in it.
-    """
-    folder = Path(folder)
-    manifest = read_manifest(folder)
-    trials = folder / "trials"
-    if not trials.is_dir() or not any(trials.glob("*.parquet")):
-        return pd.DataFrame(columns=[c.name for c in COLUMNS])
-    df = pd.read_parquet(trials)
-    foreign = df[df["study_hash"] != manifest["study_hash"]]
-    if len(foreign):
+def _check_target(folder: Path) -> None:
+    """Refuse a file, or a non-empty folder that is not a results folder."""
+    if folder.exists() and not folder.is_dir():
+        raise SomoError(f"{folder} is a file, not a folder; give --out a folder (new or a results folder)")
+    if not folder.is_dir() or (folder / MANIFEST).exists() or (folder / "trials").is_dir():
+        return
+    others = sorted(p.name for p in folder.iterdir() if p.name not in _OWN)
+    if others:
+        shown = ", ".join(others[:3]) + (", …" if len(others) > 3 else "")
         raise SomoError(
-            f"{folder}: {len(foreign)} row(s) belong to another study (hash {foreign['study_hash'].iloc[0]})"
+            f"{folder} is not empty ({shown}) and is not a somo-sweep results folder (no {MANIFEST}); "
+            "nothing was written: give --out a new folder or a results folder"
         )
-    return df.sort_values("trial", kind="stable").reset_index(drop=True)
+
+
+def _inside(folder: Path, rel: str) -> Path | None:
+    """``folder / rel`` if ``rel`` is a plain relative path inside ``folder``, else None."""
+    path = Path(rel)
+    if path.is_absolute() or ".." in path.parts or not path.parts:
+        return None
+    return folder / path
 
 
 class ResultStore:
-    """Write access to a results folder for one run: lock, resume, parts, manifest.
+    """Write access to a results folder for one run: lock, resume, parts, journal, manifest.
 
     Args:
         folder: The results folder (created if missing).
-        overwrite: Delete results of a different study instead of refusing.
         study_hash: Hash of the study being run.
         resolved: The resolved study (stored; used to say what changed).
         axes: Axis key path → column name.
         param_types: Column name → example values (to fix parameter column types up front).
+        overwrite: Delete results of a different study instead of refusing.
+        column_types: Column name → Arrow type alias, declared up front (the task's metrics).
+
+    Attributes:
+        notes: What the store found and did on opening (damaged parts moved, manifest
+            rebuilt, rows recovered, runs marked aborted), for the user.
+        rows_written: Rows this run put into part files.
 
     Raises:
-        SomoError: Another run holds the folder, or it holds rows of a different study.
+        SomoError: Another run holds the folder, it holds rows of a different study, or it is
+            a file or a folder that is not a results folder.
     """
 
     def __init__(
@@ -108,74 +118,181 @@ class ResultStore:
         axes: dict[str, str],
         param_types: dict[str, list[Any]],
         overwrite: bool = False,
+        column_types: dict[str, str] | None = None,
     ):
         self.folder = Path(folder)
         self.trials = self.folder / "trials"
-        self.folder.mkdir(parents=True, exist_ok=True)
-        self._lock = _acquire(self.folder / ".lock")
+        self.notes: list[str] = []
+        self.rows_written = 0
+        self._journal: IO[str] | None = None
+        _check_target(self.folder)
         try:
+            self.folder.mkdir(parents=True, exist_ok=True)
+        except OSError as exc:
+            raise SomoError(f"cannot create the results folder {self.folder}: {exc.strerror}") from None
+        self._lock: int | None = acquire(self.folder / ".lock")
+        try:
+            self.trials.mkdir(exist_ok=True)
+            for tmp in self.trials.glob(".*.tmp"):
+                tmp.unlink()
+            self._quarantine()
             self.manifest = self._open(study_hash, resolved, axes, overwrite)
+            self._init_types(param_types, column_types or {})
+            # Unique per run, so that a resumed run never overwrites an earlier part file.
+            self.run_id = f"{datetime.now(UTC):%Y%m%dT%H%M%S}-{uuid.uuid4().hex[:8]}"
+            self.seq = 0
+            self._mark_aborted()
+            self._heal_schemas()
+            self._recover(study_hash)
+            self._write_manifest()
         except BaseException:
             self.close()
             raise
-        self.trials.mkdir(exist_ok=True)
-        for tmp in self.trials.glob(".*.tmp"):
-            tmp.unlink()
+
+    # -- opening ---------------------------------------------------------------------------
+
+    def _quarantine(self) -> None:
+        _, bad = split_parts(self.folder)
+        for part, reason in bad:
+            target = self.trials / QUARANTINE / f"_{part.name}"
+            target.parent.mkdir(exist_ok=True)
+            os.replace(part, target)
+            self.notes.append(
+                f"damaged part file {part.name} ({reason}) moved to {target}; its trials run again"
+            )
+
+    def _stored_hashes(self) -> set[str]:
+        hashes: set[str] = set()
+        for part in self._parts():
+            column = pq.read_table(part, columns=["study_hash"]).column("study_hash")
+            hashes.update(str(h) for h in pc.unique(column).to_pylist())
+        for journal in self.trials.glob(JOURNAL_GLOB):
+            hashes.update(str(r.get("study_hash")) for r in journal_rows(journal))
+        return hashes
+
+    def _open(
+        self, study_hash: str, resolved: dict[str, Any], axes: dict[str, str], overwrite: bool
+    ) -> dict[str, Any]:
+        old: dict[str, Any] | None = None
+        damaged = ""
+        if (self.folder / MANIFEST).exists():
+            try:
+                old = read_manifest(self.folder)
+            except SomoError as exc:
+                damaged = str(exc)
+        stored = self._stored_hashes()
+        if old is not None and (old["study_hash"] == study_hash or not stored):
+            if old["study_hash"] == study_hash:
+                old.setdefault("files", [])
+                return old
+            return new_manifest(study_hash, resolved, axes)
+        if old is None and stored <= {study_hash}:
+            if stored:
+                if damaged:
+                    os.replace(self.folder / MANIFEST, self.folder / f"{MANIFEST}.damaged")
+                why = "damaged (kept as manifest.json.damaged)" if damaged else "missing"
+                self.notes.append(f"{MANIFEST} was {why}: rebuilt from the part files (earlier runs unknown)")
+            new = new_manifest(study_hash, resolved, axes)
+            new["files"] = [f"{MANIFEST}.damaged"] if damaged and stored else []
+            return new
+        other = old["study_hash"] if old is not None else ", ".join(sorted(stored - {study_hash}))
+        if overwrite:
+            n = self._delete_tool_files(old)
+            self.notes.append(f"--overwrite: deleted {n} file(s) of the previous study (hash {other})")
+            return new_manifest(study_hash, resolved, axes)
+        changed = (
+            describe_changes(old.get("study", {}), resolved)
+            if old is not None
+            else "unknown (no readable manifest)"
+        )
+        raise SomoError(
+            f"{self.folder} holds results of a different study (hash {other}, this one is {study_hash}); "
+            f"changed: {changed}. Results are never mixed: run with --out NEW_FOLDER, or with --overwrite "
+            "to delete them and start over"
+        )
+
+    def _delete_tool_files(self, old: dict[str, Any] | None) -> int:
+        """Delete what the tool wrote here (listed in the manifest, or its part and journal files)."""
+        paths = {p for p in (_inside(self.folder, str(f)) for f in (old or {}).get("files", [])) if p}
+        paths.update(self.trials.glob(PART_GLOB))
+        paths.update(self.trials.glob(JOURNAL_GLOB))
+        paths.update((self.trials / QUARANTINE).glob(f"_{PART_GLOB}"))
+        n = 0
+        for path in sorted(paths):
+            if path.is_file() and not path.is_symlink():
+                path.unlink()
+                n += 1
+        for sub in (self.folder / "plots", self.trials / QUARANTINE):
+            with contextlib.suppress(OSError):  # kept if anything else is in it
+                sub.rmdir()
+        return n
+
+    def _init_types(self, param_types: dict[str, list[Any]], declared: dict[str, str]) -> None:
         self.types: dict[str, pa.DataType] = {
             name: pa.type_for_alias(info["type"]) for name, info in self.manifest["columns"].items()
         }
         for c in COLUMNS:
             self.types.setdefault(c.name, pa.type_for_alias(c.type))
+        for name, alias in declared.items():
+            self.types[name] = merge_types(self.types.get(name, pa.null()), pa.type_for_alias(alias))
         for name, values in param_types.items():
             self.types[name] = merge_types(self.types.get(name, pa.null()), arrow_type(values))
-        # Unique per run, so that a resumed run never overwrites an earlier part file.
-        self.run_id = f"{datetime.now(UTC):%Y%m%dT%H%M%S}-{uuid.uuid4().hex[:8]}"
-        self.seq = 0
 
-    def _open(
-        self, study_hash: str, resolved: dict[str, Any], axes: dict[str, str], overwrite: bool
-    ) -> dict[str, Any]:
-        has_rows = self.trials.is_dir() and any(self.trials.glob("*.parquet"))
-        path = self.folder / "manifest.json"
-        if has_rows and not path.is_file():
-            raise SomoError(f"{self.folder} holds trials but no manifest.json; use another --out folder")
-        if path.is_file() and has_rows:
-            old = read_manifest(self.folder)
-            if old["study_hash"] != study_hash and overwrite:
-                for part in self.trials.glob("*.parquet"):
-                    part.unlink()
-                shutil.rmtree(self.folder / "plots", ignore_errors=True)
-            elif old["study_hash"] != study_hash:
-                changed = _diff(old.get("study", {}), resolved)
-                raise SomoError(
-                    f"{self.folder} holds results of a different study (hash {old['study_hash']}, "
-                    f"this one is {study_hash}); changed: {changed}. Results are never mixed: "
-                    f"run with --out NEW_FOLDER, or with --overwrite to delete them and start over"
-                )
-            else:
-                return old
-        return {
-            "study_name": resolved.get("name"),
-            "study_hash": study_hash,
-            "study": resolved,
-            "axes": axes,
-            "n_trials": resolved.get("n_trials"),
-            "versions": _versions(),
-            "hosts": [],
-            "runs": [],
-            "columns": {},
-        }
+    def _mark_aborted(self) -> None:
+        for run in self.manifest["runs"]:
+            if run.get("status") == "running":  # we hold the lock: its process is gone
+                run.update(status="aborted", aborted_found_utc=now_utc())
+                self.notes.append(f"the run started {run.get('start_utc')} was killed: marked aborted")
+
+    def _heal_schemas(self) -> None:
+        """Give every part the current schema (a rewrite cut short by a full disk leaves mixed ones)."""
+        parts = self._parts()
+        schema = self._schema()
+        if any(pq.read_schema(p).remove_metadata() != schema.remove_metadata() for p in parts):
+            for part in parts:
+                self._atomic(pq.read_table(part), part, schema)
+
+    def _recover(self, study_hash: str) -> None:
+        """Rows of killed runs, kept in their journals, go into a part file (once each)."""
+        journals = sorted(self.trials.glob(JOURNAL_GLOB))
+        if not journals:
+            return
+        done = self.done_ids()
+        rows: dict[str, dict[str, Any]] = {}
+        for journal in journals:
+            for row in journal_rows(journal):
+                if row.get("study_hash") == study_hash and row["job_id"] not in done:
+                    rows.setdefault(row["job_id"], row)
+        if rows:
+            self.write(list(rows.values()))
+            self.rows_written = 0  # written now, but finished by the killed run
+            self.notes.append(f"recovered {len(rows)} finished trial(s) of a killed run from its journal")
+        for journal in journals:
+            journal.unlink()
+
+    # -- reading -----------------------------------------------------------------------------
+
+    def _parts(self) -> list[Path]:
+        return sorted(self.trials.glob("*.parquet"))
+
+    def done_statuses(self) -> dict[str, str]:
+        """Status of every trial already stored, by job id."""
+        parts = self._parts()
+        if not parts:
+            return {}
+        table = pq.read_table(parts, columns=["job_id", "status"])
+        return dict(zip(table.column("job_id").to_pylist(), table.column("status").to_pylist(), strict=True))
 
     def done_ids(self) -> set[str]:
         """Ids of the trials already stored."""
-        if not self.trials.is_dir() or not any(self.trials.glob("*.parquet")):
-            return set()
-        return set(pq.read_table(self.trials, columns=["job_id"]).column("job_id").to_pylist())
+        return set(self.done_statuses())
+
+    # -- writing -----------------------------------------------------------------------------
 
     def drop_errors(self) -> int:
         """Remove the rows of ``error`` trials (each part rewritten atomically); returns how many."""
         dropped = 0
-        for part in sorted(self.trials.glob("*.parquet")):
+        for part in self._parts():
             table = pq.read_table(part)
             keep = pc.not_equal(table.column("status"), "error")
             n = table.num_rows - pc.sum(keep.cast(pa.int64())).as_py()
@@ -184,55 +301,96 @@ class ResultStore:
             dropped += n
             if n == table.num_rows:
                 part.unlink()
+                self._forget(part)
             else:
                 self._atomic(table.filter(keep), part, self._schema())
         return dropped
 
+    def copy_study(self, source: Path) -> None:
+        """Keep a copy of the study file (``study.yaml`` / ``study.json``)."""
+        target = self.folder / f"study{source.suffix}"
+        tmp = self.folder / f".{target.name}.tmp"
+        try:
+            tmp.write_bytes(source.read_bytes())
+            os.replace(tmp, target)
+        except BaseException:
+            tmp.unlink(missing_ok=True)
+            raise
+        self._record(target)
+
     def start_run(self, info: dict[str, Any]) -> None:
-        """Record the start of a run (backend, workers, trials to run) in the manifest."""
-        self.manifest["runs"].append({"start_utc": _now(), "end_utc": None, "status": "running", **info})
-        self.manifest["versions"] = _versions()
+        """Record the start of a run (backend, workers, trials to run, versions) in the manifest."""
+        now = versions()
+        self.manifest["runs"].append(
+            {"start_utc": now_utc(), "end_utc": None, "status": "running", **info, "versions": now}
+        )
+        self.manifest["versions"] = now
         self._write_manifest()
 
     def end_run(self, status: str, n_done: int) -> None:
-        """Record the end of the current run (``completed`` or ``interrupted``)."""
+        """Record the end of the current run (``completed``, ``interrupted`` or ``failed``).
+
+        Args:
+            status: How the run ended.
+            n_done: Trials that finished in this run (``trials_written`` counts only those
+                whose rows are in part files).
+        """
         run = self.manifest["runs"][-1]
-        run.update(end_utc=_now(), status=status, trials_written=n_done)
+        run.update(end_utc=now_utc(), status=status, trials_finished=n_done, trials_written=self.rows_written)
         self._write_manifest()
+        if status != "failed":  # every finished row is in a part file: the journal is not needed
+            self._close_journal(delete=True)
+
+    def journal(self, row: dict[str, Any]) -> None:
+        """Append one finished row to this run's journal (flushed: a killed run keeps it)."""
+        if self._journal is None:
+            path = self.trials / f".journal-{self.run_id}.jsonl"
+            self._journal = path.open("a", encoding="utf-8")
+        self._journal.write(json.dumps(row, default=str) + "\n")
+        self._journal.flush()
 
     def write(self, rows: list[dict[str, Any]]) -> None:
-        """Append rows as one new part file (atomically); widen the schema if needed."""
+        """Append rows as one new part file (atomically); widen the schema if needed.
+
+        Raises:
+            OSError: The part file could not be written (e.g. the disk is full); nothing
+                of it is left in the dataset and the manifest is unchanged.
+        """
         if not rows:
             return
         names = list(dict.fromkeys(k for r in rows for k in r))
-        widened = False
+        types = dict(self.types)
         for name in names:
-            new = merge_types(self.types.get(name, pa.null()), arrow_type([r.get(name) for r in rows]))
-            if new != self.types.get(name):
-                widened = True
-                self.types[name] = new
-        schema = self._schema()
-        if widened and self._has_parts():
-            for part in sorted(self.trials.glob("*.parquet")):
+            types[name] = merge_types(types.get(name, pa.null()), arrow_type([r.get(name) for r in rows]))
+        widened = types != self.types
+        schema = self._schema(types)
+        if widened:
+            for part in self._parts():
                 self._atomic(pq.read_table(part), part, schema)
-        table = pa.Table.from_pylist([{k: r.get(k) for k in schema.names} for r in rows], schema=schema)
-        self._atomic(table, self.trials / f"part-{self.run_id}-{self.seq:05d}.parquet", schema)
+        self.types = types
+        table = pa.table({n: _column([r.get(n) for r in rows], schema.field(n).type) for n in schema.names})
+        path = self.trials / f"part-{self.run_id}-{self.seq:05d}.parquet"
+        self._atomic(table, path, schema)
         self.seq += 1
+        self.rows_written += len(rows)
+        self._record(path)
         hosts = sorted({*self.manifest["hosts"], *(str(r.get("host", "")) for r in rows)} - {""})
         self.manifest["hosts"] = hosts
         self._write_manifest()
 
-    def _has_parts(self) -> bool:
-        return any(self.trials.glob("*.parquet"))
+    def _record(self, path: Path) -> None:
+        rel = path.relative_to(self.folder).as_posix()
+        if rel not in self.manifest["files"]:
+            self.manifest["files"].append(rel)
 
-    def _schema(self) -> pa.Schema:
-        order = [c.name for c in COLUMNS] + sorted(n for n in self.types if n not in FIXED)
-        fields = []
-        for name in order:
-            t = self.types[name]
-            t = pa.string() if t == pa.null() else t  # all-null columns are stored as strings
-            fields.append(pa.field(name, t, metadata={"unit": unit_of(name)}))
-        return pa.schema(fields)
+    def _forget(self, path: Path) -> None:
+        rel = path.relative_to(self.folder).as_posix()
+        self.manifest["files"] = [f for f in self.manifest["files"] if f != rel]
+
+    def _schema(self, types: dict[str, pa.DataType] | None = None) -> pa.Schema:
+        types = self.types if types is None else types
+        order = [c.name for c in COLUMNS] + sorted(n for n in types if n not in FIXED)
+        return pa.schema([pa.field(n, types[n], metadata={"unit": unit_of(n)}) for n in order])
 
     def _atomic(self, table: pa.Table, path: Path, schema: pa.Schema) -> None:
         for name in schema.names:
@@ -240,55 +398,42 @@ class ResultStore:
                 table = table.append_column(name, pa.nulls(len(table), schema.field(name).type))
         table = table.select(schema.names).cast(schema)
         tmp = path.parent / f".{path.name}.tmp"
-        pq.write_table(table, tmp)
-        os.replace(tmp, path)
+        try:
+            pq.write_table(table, tmp)
+            os.replace(tmp, path)
+        except BaseException:
+            tmp.unlink(missing_ok=True)
+            raise
 
     def _write_manifest(self) -> None:
         schema = self._schema() if hasattr(self, "types") else pa.schema([])
         self.manifest["columns"] = {f.name: {"type": str(f.type), "unit": unit_of(f.name)} for f in schema}
         self.manifest["python"] = sys.version.split()[0]
-        tmp = self.folder / ".manifest.json.tmp"
-        tmp.write_text(json.dumps(self.manifest, indent=2, default=str) + "\n")
-        os.replace(tmp, self.folder / "manifest.json")
+        self.manifest["files"] = sorted(set(self.manifest["files"]))
+        write_json(self.folder / MANIFEST, self.manifest)
+
+    def _close_journal(self, delete: bool) -> None:
+        if self._journal is not None:
+            path = Path(self._journal.name)
+            with contextlib.suppress(OSError):
+                self._journal.close()
+            self._journal = None
+            if delete:
+                path.unlink(missing_ok=True)
 
     def close(self) -> None:
-        """Release the lock (safe to call twice)."""
+        """Release the lock (safe to call twice); the journal is kept unless the run ended."""
+        self._close_journal(delete=False)
         if self._lock is not None:
-            fcntl.flock(self._lock, fcntl.LOCK_UN)
-            os.close(self._lock)
-            self._lock = None  # type: ignore[assignment]
+            release(self._lock)
+            self._lock = None
 
 
-def _acquire(path: Path) -> int:
-    fd = os.open(path, os.O_RDWR | os.O_CREAT, 0o644)
+def _column(values: list[Any], kind: pa.DataType) -> pa.Array:
+    """An Arrow column of ``kind``; values of an older text column that are not text become text."""
     try:
-        fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
-    except BlockingIOError:
-        holder = os.pread(fd, 400, 0).decode(errors="replace").strip() or "another process"
-        os.close(fd)
-        raise SomoError(
-            f"{path.parent} is in use by another somo-sweep run ({holder}); "
-            "wait for it to finish or stop it, or use another --out folder"
-        ) from None
-    os.ftruncate(fd, 0)
-    os.pwrite(fd, f"pid {os.getpid()} on {socket.gethostname()} since {_now()}".encode(), 0)
-    return fd
-
-
-def _diff(old: dict[str, Any], new: dict[str, Any]) -> str:
-    """What differs between two resolved studies, in words (for the refusal message)."""
-    parts = []
-    for key in sorted(k for k in {*old, *new} if old.get(k) != new.get(k) and k != "n_trials"):
-        if key == "sweep":
-            a, b = old.get(key) or {}, new.get(key) or {}
-            for axis in sorted(k for k in {*a, *b} if a.get(k) != b.get(k)):
-                was, now = a.get(axis), b.get(axis)
-                parts.append(
-                    f"sweep.{axis} ({'absent' if was is None else f'{len(was)} values'} -> "
-                    f"{'absent' if now is None else f'{len(now)} values'})"
-                    if was is None or now is None or len(was) != len(now)
-                    else f"sweep.{axis} (values {was} -> {now})"
-                )
-        else:
-            parts.append(f"{key} ({old.get(key)!r} -> {new.get(key)!r})")
-    return ", ".join(parts) or "the content of the model files"
+        return pa.array(values, type=kind)
+    except (pa.ArrowTypeError, pa.ArrowInvalid):
+        if kind != pa.string():
+            raise
+        return pa.array([None if v is None else str(v) for v in values], type=kind)

@@ -18,7 +18,7 @@ A study file (YAML or JSON) looks like this; paths are relative to the study fil
     repeats: 1                           # trials per grid point, each with its own seed
     seed: 0                              # base seed; trial seeds derive from it and the point
     simulation: {time_step_s: 5.0e-4, scale: 20, solver_iterations: 50, gravity_m_s2: [0, 0, -9.81]}
-    output: results/finger_pressure_sweep   # relative to the current directory
+    output: results/finger_pressure_sweep   # a folder inside results/ of the current directory
 
 In YAML flow style (``{...}``) quote keys holding ``[i]``; block style needs no quotes.
 Key paths start with ``model.`` (any field of the model file, list items as ``[i]``)
@@ -27,7 +27,11 @@ over model files. An axis is a list, ``{values: [...]}``, ``{start, stop, step}`
 (inclusive) or ``{start, stop, num}`` (evenly spaced, inclusive).
 
 Every trial's model and task parameters are validated when the study is loaded,
-so a bad value fails before anything runs, naming the file, line and key path.
+so a bad value fails before anything runs, naming the file, line and key path. The
+number of trials is counted from the axis specs before any axis is expanded, and a
+study above ``max_trials`` (:data:`MAX_TRIALS` by default) is refused. ``name`` and
+``output`` may only place results inside :data:`RESULTS_ROOT`; an explicit output
+folder (``--out``) may be anywhere.
 """
 
 from __future__ import annotations
@@ -36,6 +40,7 @@ import copy
 import itertools
 import json
 import math
+import os
 from collections.abc import Iterator
 from dataclasses import dataclass, field
 from functools import cache
@@ -46,15 +51,22 @@ from pydantic import BaseModel, Field
 
 from somo_sweep.errors import DescriptionError, Problem, SomoError
 from somo_sweep.model.description import Spec
-from somo_sweep.model.files import load_mapping
+from somo_sweep.model.files import is_file, load_mapping
 from somo_sweep.model.load import Model, model_from_dict
-from somo_sweep.model.tables import resolve_table
+from somo_sweep.model.tables import bundled_path, resolve_table
 from somo_sweep.model.validation import validate
 from somo_sweep.sim.settings import WorldSettings
-from somo_sweep.sweep.axes import Axis, expand_axis, link_groups, parse_key_path, set_path
+from somo_sweep.sweep.axes import Axis, axis_length, expand_axis, link_groups, parse_key_path, set_path
 from somo_sweep.tasks.registry import TaskSpec, get_task
 
-__all__ = ["Simulation", "Study", "StudyFile", "load_model_dict", "load_study"]
+__all__ = ["MAX_TRIALS", "RESULTS_ROOT", "Simulation", "Study", "StudyFile", "load_model_dict", "load_study"]
+
+#: Most trials a study may have unless the caller allows more (``--max-trials``).
+MAX_TRIALS = 1_000_000
+#: Folder (relative to the current directory) that ``name`` and ``output`` must stay inside.
+RESULTS_ROOT = Path("results")
+#: Up to this many grid points, the models and parameters checked at load are kept for the jobs.
+CHECK_CACHE_POINTS = 10_000
 
 
 class Simulation(Spec):
@@ -112,6 +124,7 @@ class Study:
         seed: Base seed.
         simulation: Simulation settings.
         output: Output folder.
+        allow_outside: Model includes may name files outside the model's folder.
     """
 
     name: str
@@ -126,6 +139,7 @@ class Study:
     seed: int
     simulation: Simulation
     output: Path
+    allow_outside: bool = False
     _models: dict[str, Model] = field(default_factory=dict, repr=False)
     _bases: dict[str, dict[str, Any]] = field(default_factory=dict, repr=False)
     _params: dict[str, BaseModel] = field(default_factory=dict, repr=False)
@@ -134,6 +148,11 @@ class Study:
     def n_points(self) -> int:
         """Number of grid points (trials = points × repeats)."""
         return math.prod(len(self._axis(g[0]).values) for g in self.groups) if self.groups else 1
+
+    @property
+    def n_trials(self) -> int:
+        """Number of trials (grid points × repeats), counted without building them."""
+        return self.n_points * self.repeats
 
     def _axis(self, key: str) -> Axis:
         return next(a for a in self.axes if a.key == key)
@@ -154,7 +173,7 @@ class Study:
         key = str(path)
         if key not in self._bases:
             # Includes resolved and defaults left out: overrides see the file's own content.
-            self._bases[key] = load_model_dict(path)
+            self._bases[key] = load_model_dict(path, self.allow_outside)
         return self._bases[key]
 
     def resolve(self, point: dict[str, Any]) -> tuple[Path, Model, BaseModel]:
@@ -166,46 +185,59 @@ class Study:
         path, model = self.resolve_model(point)
         return path, model, self.resolve_params(point)
 
-    def resolve_model(self, point: dict[str, Any]) -> tuple[Path, Model]:
-        """The model file and the model (with its overrides applied) of one grid point."""
+    def resolve_model(self, point: dict[str, Any], cache: bool = True) -> tuple[Path, Model]:
+        """The model file and the model (with its overrides applied) of one grid point.
+
+        With ``cache=False`` a model not built before is checked and returned, not kept.
+        """
         values = {**self.fixed, **point}
         model_path = Path(values.get("model", self.model_path))
         over = {k: v for k, v in values.items() if k.startswith("model.")}
         key = _canonical([str(model_path), over])
-        if key not in self._models:
-            data = copy.deepcopy(self._model_base(model_path))
-            problems = []
-            for path, value in over.items():
-                try:
-                    set_path(data, parse_key_path(path)[1], value)
-                except ValueError as exc:
-                    problems.append(Problem(path, str(exc)))
-            if problems:
-                raise DescriptionError(self.source, problems)
+        if key in self._models:
+            return model_path, self._models[key]
+        data = copy.deepcopy(self._model_base(model_path))
+        problems = []
+        for path, value in over.items():
             try:
-                self._models[key] = model_from_dict(data, str(model_path))
-            except DescriptionError as exc:
-                moved = [Problem(f"model.{p.path}" if p.path else "model", p.message) for p in exc.problems]
-                raise DescriptionError(self.source, moved) from None
-        return model_path, self._models[key]
+                set_path(data, parse_key_path(path)[1], value)
+            except ValueError as exc:
+                problems.append(Problem(path, str(exc)))
+        if problems:
+            raise DescriptionError(self.source, problems)
+        try:
+            model = model_from_dict(data, str(model_path))
+        except DescriptionError as exc:
+            moved = [Problem(f"model.{p.path}" if p.path else "model", p.message) for p in exc.problems]
+            raise DescriptionError(self.source, moved) from None
+        if cache:
+            self._models[key] = model
+        return model_path, model
 
-    def resolve_params(self, point: dict[str, Any]) -> BaseModel:
-        """The task parameters (an instance of the task's ``params_model``) of one grid point."""
+    def resolve_params(self, point: dict[str, Any], cache: bool = True) -> BaseModel:
+        """The task parameters (an instance of the task's ``params_model``) of one grid point.
+
+        With ``cache=False`` parameters not built before are checked and returned, not kept.
+        """
         values = {**self.fixed, **point}
         over = {k: v for k, v in values.items() if k.startswith("task.")}
         key = _canonical(over)
-        if key not in self._params:
-            data = copy.deepcopy(self.params)
-            for path, value in over.items():
-                try:
-                    set_path(data, parse_key_path(path)[1], value)
-                except ValueError as exc:
-                    raise DescriptionError(self.source, [Problem(path, str(exc))]) from None
+        if key in self._params:
+            return self._params[key]
+        data = copy.deepcopy(self.params)
+        for path, value in over.items():
+            try:
+                set_path(data, parse_key_path(path)[1], value)
+            except ValueError as exc:
+                raise DescriptionError(self.source, [Problem(path, str(exc))]) from None
+        strict = _strict(self.task.params_model)
+        if strict is not self.task.params_model:
             # Unknown keys fail even if the task's own model would let them through.
-            validate(_strict(self.task.params_model), data, str(self.source), prefix="task")
-            params = validate(self.task.params_model, data, str(self.source), prefix="task")
-            self._params[key] = self._resolve_tables(params)
-        return self._params[key]
+            validate(strict, data, str(self.source), prefix="task")
+        params = self._resolve_tables(validate(self.task.params_model, data, str(self.source), prefix="task"))
+        if cache:
+            self._params[key] = params
+        return params
 
     def _resolve_tables(self, params: BaseModel) -> BaseModel:
         """Table fields (the task's ``TABLE_FIELDS``) as ``LOCATION#sha256=DIGEST`` references."""
@@ -228,30 +260,89 @@ def _strict(model: type[BaseModel]) -> type[BaseModel]:
     return type(model.__name__, (model,), {"model_config": config, "__module__": model.__module__})
 
 
-def load_model_dict(path: Path) -> dict[str, Any]:
+def load_model_dict(path: Path, allow_outside: bool = False) -> dict[str, Any]:
     """A model file's content as a plain dict (includes resolved, defaults omitted)."""
     from somo_sweep.model.load import load_model
 
-    return load_model(path).model_dump(mode="json", exclude_unset=True)
+    return load_model(path, allow_outside).model_dump(mode="json", exclude_unset=True)
 
 
-def load_study(path: str | Path, output: str | Path | None = None) -> Study:
+def _count_trials(raw: StudyFile) -> tuple[int, int]:
+    """(grid points, trials) of a study file, from its axis specs alone (nothing expanded)."""
+    sizes = {k: n for k, spec in raw.sweep.items() if (n := axis_length(spec)) is not None}
+    groups = link_groups(raw.link, list(sizes), sizes, {}, [])
+    points = math.prod(sizes[g[0]] for g in groups if g)
+    return points, points * raw.repeats
+
+
+def _output(raw: StudyFile, name: str, output: str | Path | None) -> tuple[Path, Problem | None]:
+    """The results folder, and a problem if the study file puts it outside :data:`RESULTS_ROOT`."""
+    if output is not None:
+        return Path(output), None
+    key, out = ("output", Path(raw.output)) if raw.output is not None else ("name", RESULTS_ROOT / name)
+    parts = Path(os.path.normpath(out)).parts
+    if out.is_absolute() or ".." in out.parts or len(parts) < 2 or parts[0] != RESULTS_ROOT.name:
+        given = raw.output if key == "output" else name
+        return out, Problem(
+            key,
+            f"'{given}' puts the results in {out}, outside {RESULTS_ROOT}/; allowed: a folder inside "
+            f"{RESULTS_ROOT}/ of the current directory (or choose any folder with --out)",
+        )
+    return out, None
+
+
+def _nested(path: Path, exc: DescriptionError) -> str:
+    """The problems of an included file, in one line (never a line of its content)."""
+    shown = "; ".join(p.render() for p in exc.problems[:3])
+    more = f" (and {len(exc.problems) - 3} more)" if len(exc.problems) > 3 else ""
+    return f"{path}: {shown}{more}"
+
+
+def _bundled_if_missing(path: Path) -> Path:
+    if path.exists() or len(path.parts) > 2:
+        return path
+    name = path.name if path.suffix in (".yaml", ".yml", ".json") else f"{path.name}.yaml"
+    candidate = bundled_path(name)
+    return candidate if candidate.is_file() else path
+
+
+def load_study(
+    path: str | Path,
+    output: str | Path | None = None,
+    max_trials: int = MAX_TRIALS,
+    allow_outside: bool = False,
+) -> Study:
     """Load, validate and expand a study file; every trial's inputs are checked.
 
     Args:
         path: The study file (YAML or JSON).
-        output: Output folder overriding the file's ``output`` (e.g. from ``--out``).
+        output: Output folder overriding the file's ``output`` (e.g. from ``--out``); it
+            may be anywhere, while the file's ``output`` / ``name`` must stay in ``results/``.
+        max_trials: Refuse a study with more trials (counted before any axis is expanded).
+        allow_outside: Let model files include files outside their own folder.
+
+    A path that does not exist but names a bundled study (``pinch_grasp_demo`` or
+    ``pinch_grasp_demo.yaml``, see ``somo_sweep/data``) loads the bundled one, so an installed
+    package runs its examples from any folder.
 
     Raises:
         DescriptionError: Every problem of the file at once, with lines and key paths.
     """
-    path = Path(path)
+    path = _bundled_if_missing(Path(path))
     data, lines = load_mapping(path)
     raw = validate(StudyFile, data, str(path), lines)
     src = str(path)
 
     def line(key: str) -> int | None:
         return lines.get(key)
+
+    n_points, n_trials = _count_trials(raw)
+    if n_trials > max_trials:
+        msg = (
+            f"the study has {n_trials} trials ({n_points} grid points x {raw.repeats} repeat(s)); "
+            f"allowed: at most {max_trials}; pass --max-trials {n_trials} to run it anyway"
+        )
+        raise DescriptionError(src, [Problem("sweep" if raw.sweep else "repeats", msg, line("sweep"))])
 
     problems: list[Problem] = []
     try:
@@ -260,8 +351,12 @@ def load_study(path: str | Path, output: str | Path | None = None) -> Study:
         raise DescriptionError(src, [Problem("task", str(exc), line("task"))]) from None
     folder = path.parent
     model_path = folder / raw.model
-    if not model_path.is_file():
+    if not is_file(model_path):
         problems.append(Problem("model", f"model file not found: {model_path}", line("model")))
+    name = raw.name or path.stem
+    out, misplaced = _output(raw, name, output)
+    if misplaced is not None:
+        problems.append(Problem(misplaced.path, misplaced.message, line(misplaced.path)))
     fixed: dict[str, Any] = {}
     bad: set[str] = set()
     for key, value in raw.set.items():
@@ -281,7 +376,7 @@ def load_study(path: str | Path, output: str | Path | None = None) -> Study:
         if key == "model":
             values = [str(folder / str(v)) for v in values]
             for v in values:
-                if not Path(v).is_file():
+                if not is_file(Path(v)):
                     problems.append(Problem(where, f"model file not found: {v}", line(where)))
         else:
             try:
@@ -295,8 +390,6 @@ def load_study(path: str | Path, output: str | Path | None = None) -> Study:
     groups = link_groups(
         raw.link, [a.key for a in axes], {a.key: len(a.values) for a in axes}, lines, problems
     )
-    name = raw.name or path.stem
-    out = Path(output) if output is not None else Path(raw.output or f"results/{name}")
     study = Study(
         name,
         path,
@@ -310,8 +403,10 @@ def load_study(path: str | Path, output: str | Path | None = None) -> Study:
         raw.seed,
         raw.simulation,
         out,
+        allow_outside,
     )
-    if problems and model_path.is_file():
+    bases_ok = _check_bases(study, lines, problems)
+    if problems and bases_ok:
         # Check the trials of the good axes too, so that every problem is reported at once.
         good = [a for a in axes if a.key not in bad]
         linked_ok = len(problems) == n_before
@@ -330,13 +425,49 @@ def load_study(path: str | Path, output: str | Path | None = None) -> Study:
     return study
 
 
+def _check_bases(study: Study, lines: dict[str, int], problems: list[Problem]) -> bool:
+    """Load every model file the study starts from; a broken one is blamed on its study key."""
+    files = [("model", study.model_path)]
+    files += [("sweep.model", Path(v)) for a in study.axes if a.key == "model" for v in a.values]
+    ok = True
+    for key, model_path in files:
+        if not is_file(model_path):
+            ok = False
+            continue
+        try:
+            study._model_base(model_path)
+        except DescriptionError as exc:
+            ok = False
+            problems.append(Problem(key, _nested(model_path, exc), _line(lines, key)))
+    return ok
+
+
+def _distinct(study: Study, model: bool) -> Iterator[dict[str, Any]]:
+    """The distinct combinations of the model axes (or of the task axes) over the grid."""
+    per_group = []
+    for group in study.groups:
+        keys = [k for k in group if (k == "model" or k.startswith("model.")) == model]
+        if not keys:
+            continue
+        found: dict[str, dict[str, Any]] = {}
+        for values in zip(*(study._axis(k).values for k in keys), strict=True):
+            found.setdefault(_canonical(values), dict(zip(keys, values, strict=True)))
+        per_group.append(list(found.values()))
+    for combo in itertools.product(*per_group):
+        point: dict[str, Any] = {}
+        for part in combo:
+            point.update(part)
+        yield point
+
+
 def _check_points(study: Study, lines: dict[str, int], problems: list[Problem]) -> None:
     """Resolve every distinct model and parameter set once; report each problem once."""
     seen: set[tuple[str, str]] = set()
-    for point in study.points():
-        for resolve in (study.resolve_model, study.resolve_params):
+    keep = study.n_points <= CHECK_CACHE_POINTS  # a big grid is checked without keeping every set
+    for resolve, model in ((study.resolve_model, True), (study.resolve_params, False)):
+        for point in _distinct(study, model):
             try:
-                resolve(point)
+                resolve(point, keep)
             except DescriptionError as exc:
                 for p in exc.problems:
                     where = _blame(p.path, list(study.fixed), [k for k in point if k != "model"])
@@ -345,8 +476,8 @@ def _check_points(study: Study, lines: dict[str, int], problems: list[Problem]) 
                     if (where, msg) not in seen:
                         seen.add((where, msg))
                         problems.append(Problem(where, msg, _line(lines, where)))
-        if len(problems) >= 20:
-            return
+            if len(problems) >= 20:
+                return
 
 
 def _line(lines: dict[str, int], where: str) -> int | None:

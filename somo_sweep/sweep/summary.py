@@ -41,9 +41,10 @@ def _table(title: str, frame: pd.DataFrame, index_name: str) -> Table:
 def print_run_summary(console: Console, summary: RunSummary) -> None:
     """Trials by status and label, wall time and trials per second of one run."""
     status = ", ".join(f"{k} {v}" for k, v in sorted(summary.by_status.items())) or "none"
-    console.print(
-        f"{summary.run} trial(s) run ({status}); {summary.skipped} already done; {summary.total} in the study"
-    )
+    stored = f"{summary.skipped} already done"
+    if summary.stored_errors:
+        stored = f"{summary.skipped} already stored ({summary.stored_errors} as error)"
+    console.print(f"{summary.run} trial(s) run ({status}); {stored}; {summary.total} in the study")
     if summary.by_label:
         console.print("labels: " + ", ".join(f"{k} {v}" for k, v in sorted(summary.by_label.items())))
     console.print(

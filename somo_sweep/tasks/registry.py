@@ -31,13 +31,14 @@ class TaskResult:
 
     Attributes:
         status: ``ok``, ``unstable`` (the integration blew up) or ``error``.
-        metrics: Numbers (and flags) with the unit in every name, e.g. ``lift_height_m``.
+        metrics: Numbers (and flags) with the unit in every name, e.g. ``lift_height_m``; None
+            when a metric has no value in this trial.
         labels: Categorical outcomes, e.g. ``{"grasp": "pinch"}``.
         message: Why the status is not ``ok``.
     """
 
     status: Status = "ok"
-    metrics: Mapping[str, float | int | bool | str] = field(default_factory=dict)
+    metrics: Mapping[str, float | int | bool | str | None] = field(default_factory=dict)
     labels: Mapping[str, str] = field(default_factory=dict)
     message: str = ""
 
@@ -57,6 +58,9 @@ class TaskSpec:
         params_model: Pydantic model of the task's parameters (defaults included).
         description: One line for listings.
         tags: Free-form tags (``bench``, ``grasp``, ``paper``...; ``selftest`` tasks are hidden).
+        metrics: Arrow type of each metric the task returns (``double``, ``int64``, ``bool`` or
+            ``string``). The results table's columns for them have these types from the first
+            row on; a metric not declared here is typed from its values.
     """
 
     name: str
@@ -64,6 +68,7 @@ class TaskSpec:
     params_model: type[BaseModel]
     description: str = ""
     tags: tuple[str, ...] = ()
+    metrics: Mapping[str, str] = field(default_factory=dict)
 
     @property
     def run(self) -> TaskFn:

@@ -16,6 +16,7 @@ import ctypes
 import os
 import signal
 import time
+from pathlib import Path
 from typing import TYPE_CHECKING, Literal
 
 import numpy as np
@@ -28,7 +29,10 @@ if TYPE_CHECKING:  # annotations only: these tasks run no simulation
     from somo_sweep.model.load import Model
     from somo_sweep.sim.settings import WorldSettings
 
-__all__ = ["SelftestParams"]
+__all__ = ["METRICS", "SelftestParams"]
+
+#: The metrics every selftest task returns, with their types (``y`` is missing for ``none_x``).
+METRICS = {"y": "double", "noise": "double", "time_s": "double"}
 
 
 class SelftestParams(BaseModel):
@@ -40,6 +44,9 @@ class SelftestParams(BaseModel):
         crash_x: Values of ``x`` whose trial kills its process (``selftest_crash``).
         how: How to fail: ``exit``, ``segfault``, ``kill`` (the process dies) or ``raise``.
         unstable_x: Values of ``x`` reported unstable (``selftest_unstable``).
+        none_x: Values of ``x`` whose metric ``y`` is missing (None).
+        done_dir: If set, a folder where every trial leaves an empty file (named by ``x`` and
+            the seed) as it returns, so that fault-injection tests can count finished trials.
     """
 
     model_config = ConfigDict(extra="forbid", frozen=True)
@@ -49,13 +56,21 @@ class SelftestParams(BaseModel):
     crash_x: list[float] = Field(default_factory=list)
     how: Literal["exit", "segfault", "kill", "raise"] = "exit"
     unstable_x: list[float] = Field(default_factory=list)
+    none_x: list[float] = Field(default_factory=list)
+    done_dir: str = ""
 
 
 def _result(params: SelftestParams, seed: int) -> TaskResult:
     time.sleep(params.sleep_s)
     noise = np.random.default_rng(seed).normal()  # a NumPy scalar, as tasks often return
+    if params.done_dir:
+        Path(params.done_dir, f"{params.x}-{seed}").touch()
     return TaskResult(
-        metrics={"y": params.x**2, "noise": noise, "time_s": params.sleep_s},
+        metrics={
+            "y": None if params.x in params.none_x else params.x**2,
+            "noise": noise,
+            "time_s": params.sleep_s,
+        },
         labels={"sign": "positive" if params.x > 0 else "non_positive"},
     )
 
@@ -87,4 +102,4 @@ for _name, _fn, _text in (
     ("selftest_crash", "_crash", "Kills its process for chosen x (engine tests)."),
     ("selftest_unstable", "_unstable", "Reports a blow-up for chosen x (engine tests)."),
 ):
-    register(TaskSpec(_name, f"{__name__}:{_fn}", SelftestParams, _text, ("selftest",)))
+    register(TaskSpec(_name, f"{__name__}:{_fn}", SelftestParams, _text, ("selftest",), METRICS))

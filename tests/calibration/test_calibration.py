@@ -153,7 +153,7 @@ def test_problem_says_which_rows_calibrate_and_which_validate() -> None:
     # closed-form starting values are already within 10 % of the truth
     assert problem.parameters[0].initial == pytest.approx(TRUE_STIFFNESS_N_M_PER_RAD, rel=0.1)
     assert problem.parameters[1].initial == pytest.approx(TRUE_GAIN_N_M_PER_KPA, rel=0.1)
-    assert "validation rows: free_bending (13: lines 28, 29" in problem.describe()
+    assert "validation rows: free_bending (13: lines 29, 30" in problem.describe()  # after 4 comment lines
 
 
 def test_problem_extends_with_an_extra_effect_parameter() -> None:

@@ -37,5 +37,13 @@ register(
         params_model=BenchParams,
         description="A bench protocol (tip_load, blocked_force, free_bending) of a manipulator model.",
         tags=("bench",),
+        metrics={
+            "relax_steps": "int64",
+            "tip_x_mm": "double",
+            "tip_z_mm": "double",
+            "tip_angle_deg": "double",
+            "tip_deflection_mm": "double",
+            "blocked_force_n": "double",
+        },
     )
 )

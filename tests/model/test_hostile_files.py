@@ -1,0 +1,207 @@
+"""Hostile model files: bombs, huge and binary files, repeated keys, NaN, escaping includes, odd names.
+
+Every one fails fast with one message naming the file, the key path (and line), the bad
+value and what is allowed; none gets as far as PyBullet.
+"""
+
+from __future__ import annotations
+
+import time
+from pathlib import Path
+
+import pytest
+from conftest import MODELS, load_yaml
+from typer.testing import CliRunner
+
+from somo_sweep.cli.app import app
+from somo_sweep.errors import DescriptionError
+from somo_sweep.model.files import MAX_FILE_BYTES, load_mapping
+from somo_sweep.model.load import MAX_BODY_LINKS, load_model, model_from_dict
+
+#: Nine levels of nine-way aliases: 9⁹ ≈ 387 million values once expanded.
+BOMB = "a: &a [x, x, x, x, x, x, x, x, x]\n" + "".join(
+    f"{c}: &{c} [" + ", ".join([f"*{p}"] * 9) + "]\n" for p, c in zip("abcdefgh", "bcdefghi", strict=True)
+)
+
+
+def _error(path: Path) -> str:
+    with pytest.raises(DescriptionError) as info:
+        load_model(path)
+    return str(info.value)
+
+
+def _write(tmp_path: Path, text: str, name: str = "m.yaml") -> Path:
+    path = tmp_path / name
+    path.write_text(text, encoding="utf-8")
+    return path
+
+
+def test_an_alias_bomb_is_refused_at_once(tmp_path: Path) -> None:
+    path = _write(tmp_path, BOMB + "manipulator: *i\n")
+    start = time.perf_counter()
+    text = _error(path)
+    assert time.perf_counter() - start < 1.0
+    assert "expands to more than 100000 values (YAML aliases included); allowed: at most 100000" in text
+    assert text.startswith(f"{path}: 1 problem(s)")
+
+
+def test_a_self_referencing_alias_is_refused(tmp_path: Path) -> None:
+    text = _error(_write(tmp_path, "manipulator: &m {actuators: [*m]}\n"))
+    assert "a YAML alias refers to itself (a recursive structure)" in text
+
+
+def test_a_file_above_the_size_limit_is_refused_before_parsing(tmp_path: Path) -> None:
+    path = tmp_path / "big.yaml"
+    path.write_bytes(b"manipulator: {}\n" + b"#" * MAX_FILE_BYTES)
+    assert f"file is {MAX_FILE_BYTES + 16} bytes; allowed: at most 4 MiB" in _error(path)
+
+
+def test_deep_nesting_is_refused_not_a_recursion_error(tmp_path: Path) -> None:
+    text = _error(_write(tmp_path, "manipulator: " + "[" * 5000 + "]" * 5000 + "\n"))
+    assert "nested deeper than 64 levels; allowed: at most 64" in text
+
+
+def test_a_latin1_byte_names_its_offset(tmp_path: Path) -> None:
+    path = tmp_path / "latin1.yaml"
+    path.write_bytes("manipulator:\n  name: café\n".encode("latin-1"))
+    assert f"{path}: 1 problem(s)\n  - <top level>: not UTF-8 text: byte 0xe9 at offset 24" in _error(path)
+
+
+def test_a_binary_file_is_named_binary(tmp_path: Path) -> None:
+    path = tmp_path / "model.yaml"
+    path.write_bytes(b"\x89PNG\r\n\x1a\n\x00\x00\x00\rIHDR")
+    assert "binary file (NUL byte at offset 8); allowed: UTF-8 text" in _error(path)
+
+
+def test_a_key_given_twice_names_the_key_and_both_lines(tmp_path: Path) -> None:
+    text = (MODELS / "ihm_finger.yaml").read_text()
+    path = _write(
+        tmp_path, text.replace("      length_m: 0.100\n", "      length_m: 0.100\n      length_m: 0.120\n")
+    )
+    assert (
+        "line 11: manipulator.actuators[0].length_m: key 'length_m' is given twice "
+        "(lines 10 and 11); allowed: each key once per mapping"
+    ) in _error(path)
+
+
+def test_a_key_given_twice_in_json_is_refused(tmp_path: Path) -> None:
+    path = _write(tmp_path, '{"manipulator": {}, "manipulator": {}}', "m.json")
+    assert "manipulator: key 'manipulator' is given twice in one object; allowed: once" in _error(path)
+
+
+@pytest.mark.parametrize("value", [".nan", ".inf", "-.inf"])
+def test_nan_and_infinity_are_refused_with_their_key_path(tmp_path: Path, value: str) -> None:
+    text = (MODELS / "ihm_finger.yaml").read_text().replace("length_m: 0.100", f"length_m: {value}", 1)
+    shown = {".nan": "nan", ".inf": "inf", "-.inf": "-inf"}[value]
+    assert f"manipulator.actuators[0].length_m: must be a finite number, got {shown}" in _error(
+        _write(tmp_path, text)
+    )
+
+
+def test_nan_in_a_python_dict_is_refused_by_the_schema() -> None:
+    data = load_yaml("ihm_finger.yaml")
+    data["manipulator"]["actuators"][0]["joints"][0]["stiffness_n_m_per_rad"] = float("inf")
+    with pytest.raises(DescriptionError, match=r"stiffness_n_m_per_rad: Input should be a finite number"):
+        model_from_dict(data)
+
+
+def test_a_parse_error_never_quotes_the_file(tmp_path: Path) -> None:
+    path = _write(tmp_path, "manipulator:\n  name: [secret-token-123\n")
+    text = _error(path)
+    assert "cannot parse: while parsing a flow sequence" in text and "secret-token-123" not in text
+
+
+def _gripper(tmp_path: Path, ref: str) -> Path:
+    text = (MODELS / "pinch_gripper.yaml").read_text().replace("file: pinch_finger.yaml", f"file: {ref}")
+    sub = tmp_path / "models"
+    sub.mkdir(exist_ok=True)
+    return _write(sub, text, "gripper.yaml")
+
+
+@pytest.mark.parametrize("ref", ["../../../../../../etc/passwd", "/etc/passwd"], ids=["dotdot", "absolute"])
+def test_an_include_may_not_leave_the_model_folder(tmp_path: Path, ref: str) -> None:
+    text = _error(_gripper(tmp_path, ref))
+    assert f"assembly.manipulators[0].file: cannot include '{ref}'" in text
+    assert "allowed: a path inside the model file's folder (or pass --allow-outside)" in text
+    assert "root:" not in text
+
+
+def test_allow_outside_lets_an_include_go_up(tmp_path: Path) -> None:
+    (tmp_path / "shared").mkdir()
+    (tmp_path / "shared" / "finger.yaml").write_text((MODELS / "pinch_finger.yaml").read_text())
+    path = _gripper(tmp_path, "../shared/finger.yaml")
+    assert "leaves the folder" in _error(path)
+    assert load_model(path, allow_outside=True).assembly is not None
+
+
+def test_an_included_file_that_cannot_be_parsed_is_reported_without_its_content(tmp_path: Path) -> None:
+    (tmp_path / "models").mkdir()
+    (tmp_path / "models" / "notes.yaml").write_text("password: [hunter2\n")
+    text = _error(_gripper(tmp_path, "notes.yaml"))
+    assert "assembly.manipulators[0].file: cannot include" in text and "cannot parse" in text
+    assert "hunter2" not in text
+
+
+@pytest.mark.parametrize("name", ["a&b", "x<y>", 'q"uote', "it's", "sp ace"])
+def test_names_outside_the_safe_pattern_are_refused(name: str) -> None:
+    data = load_yaml("ihm_finger.yaml")
+    data["manipulator"]["name"] = name
+    with pytest.raises(DescriptionError) as info:
+        model_from_dict(data, "m.yaml")
+    assert (
+        "manipulator.name: a name may hold only letters, digits, '_', '.' and '-' "
+        f"(pattern [A-Za-z0-9_.-]+), got {name!r}"
+    ) in str(info.value)
+
+
+def test_more_segments_than_an_actuator_may_have_is_refused() -> None:
+    data = load_yaml("ihm_finger.yaml")
+    data["manipulator"]["actuators"][0]["n_segments"] = 10000
+    with pytest.raises(DescriptionError) as info:
+        model_from_dict(data, "m.yaml")
+    assert "manipulator.actuators[0].n_segments: Input should be less than or equal to 200, got 10000" in str(
+        info.value
+    )
+
+
+def test_a_tiny_segment_length_is_refused_before_building_anything() -> None:
+    data = load_yaml("ihm_finger.yaml")
+    act = data["manipulator"]["actuators"][0]
+    del act["n_segments"]
+    act["segment_length_m"] = 1e-9
+    with pytest.raises(DescriptionError, match=r"= 1e\+08 segments; allowed: at most 200"):
+        model_from_dict(data, "m.yaml")
+
+
+def test_a_body_above_pybullets_link_limit_is_refused_naming_the_limit() -> None:
+    data = load_yaml("ihm_finger.yaml")
+    data["manipulator"]["actuators"][0]["n_segments"] = 150
+    with pytest.raises(DescriptionError) as info:
+        model_from_dict(data, "m.yaml")
+    assert (
+        f"manipulator: body 'ihm_finger' has 152 links; allowed: at most {MAX_BODY_LINKS} links per body "
+        "(PyBullet's multibody limit: a base and 127 jointed links)"
+    ) in str(info.value)
+
+
+def test_check_refuses_a_huge_body_cleanly(tmp_path: Path) -> None:
+    text = (MODELS / "ihm_finger.yaml").read_text().replace("n_segments: 10", "n_segments: 1000")
+    res = CliRunner().invoke(app, ["check", str(_write(tmp_path, text))])
+    assert res.exit_code == 2 and "less than or equal to 200, got 1000" in res.output
+    assert "Traceback" not in res.output
+
+
+def test_loading_stays_fast_at_the_value_limit(tmp_path: Path) -> None:
+    path = _write(tmp_path, "manipulator:\n  tip_links: [" + ", ".join(["1"] * 150_000) + "]\n")
+    start = time.perf_counter()
+    with pytest.raises(DescriptionError, match="holds more than 100000 values"):
+        load_mapping(path)
+    assert time.perf_counter() - start < 2.0
+
+
+def test_measure_refuses_a_huge_body_instead_of_crashing(tmp_path: Path) -> None:
+    text = (MODELS / "ihm_finger.yaml").read_text().replace("n_segments: 10", "n_segments: 10000")
+    args = ["measure", str(_write(tmp_path, text)), "--test", "free_bending", "--values", "10"]
+    res = CliRunner().invoke(app, args)
+    assert res.exit_code == 2 and "Traceback" not in res.output
+    assert "n_segments: Input should be less than or equal to 200, got 10000" in res.output

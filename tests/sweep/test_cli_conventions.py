@@ -1,0 +1,139 @@
+"""Command-line conventions: exit codes, messages before progress bars, help texts, tasks, workers, Dask."""
+
+from __future__ import annotations
+
+import sys
+from pathlib import Path
+
+import click
+import joblib
+import pytest
+import typer
+from test_sweep import selftest_study
+from typer.testing import CliRunner
+
+from somo_sweep.cli.app import app
+from somo_sweep.errors import SomoError
+from somo_sweep.sweep.execution import dask_client
+from somo_sweep.sweep.runner import run_study
+from somo_sweep.sweep.store import read_manifest
+from somo_sweep.sweep.study import load_study
+
+CRASHING = "set: {task.crash_x: [2.0, 5.0], task.how: raise}"
+
+
+def _run(path: Path, out: Path, *extra: str) -> object:
+    return CliRunner().invoke(app, ["run", str(path), "--out", str(out), "-j", "1", "--no-plots", *extra])
+
+
+def test_run_exits_1_when_a_trial_ended_in_error(tmp_path: Path) -> None:
+    path = selftest_study(tmp_path, task="selftest_crash", extra=CRASHING, n=6)
+    res = _run(path, tmp_path / "out")
+    assert res.exit_code == 1, res.output
+    assert "2 of 6 trial(s) ended in error (exit code 1)" in res.output and "--allow-errors" in res.output
+
+
+def test_allow_errors_accepts_a_run_with_errors(tmp_path: Path) -> None:
+    path = selftest_study(tmp_path, task="selftest_crash", extra=CRASHING, n=6)
+    assert _run(path, tmp_path / "out", "--allow-errors").exit_code == 0
+
+
+def test_resuming_a_folder_with_errors_says_how_many_and_names_retry_errors(tmp_path: Path) -> None:
+    path = selftest_study(tmp_path, task="selftest_crash", extra=CRASHING, n=6)
+    _run(path, tmp_path / "out")
+    res = _run(path, tmp_path / "out")
+    assert res.exit_code == 1
+    assert (
+        f"resuming {tmp_path / 'out'}: 6 of 6 trials already stored, 2 of them as error; "
+        "run with --retry-errors to run those again"
+    ) in res.output
+    assert "already done" not in res.output
+
+
+def test_a_refused_run_draws_no_progress_bar(tmp_path: Path) -> None:
+    path = selftest_study(tmp_path)
+    run_study(load_study(path, tmp_path / "out"), n_jobs=1)
+    path.write_text(path.read_text().replace("stop: 8", "stop: 9"))
+    res = _run(path, tmp_path / "out")
+    assert res.exit_code == 2 and "holds results of a different study" in res.output
+    assert "━" not in res.output and "trials/s" not in res.output
+    assert res.output.startswith("error: ")
+
+
+def _commands(group: click.Command, prefix: str = "") -> list[tuple[str, click.Command]]:
+    found = [(prefix, group)]
+    for name, sub in getattr(group, "commands", {}).items():
+        found += _commands(sub, f"{prefix} {name}".strip())
+    return found
+
+
+@pytest.mark.parametrize("name", [n for n, _ in _commands(typer.main.get_command(app))])
+def test_help_shows_flags_as_flags_and_no_raw_markup(name: str) -> None:
+    res = CliRunner().invoke(app, [*name.split(), "--help"], terminal_width=200)
+    assert res.exit_code == 0, res.output
+    assert "<bool>" not in res.output
+    assert "``" not in res.output
+    usage = next(line for line in res.output.splitlines() if "Usage:" in line)
+    assert "{" not in usage, usage
+
+
+def test_run_help_lists_its_arguments_in_capitals() -> None:
+    res = CliRunner().invoke(app, ["run", "--help"], terminal_width=200)
+    assert "run [OPTIONS] STUDY" in res.output
+
+
+def test_tasks_hides_selftest_tasks_unless_all() -> None:
+    shown = CliRunner().invoke(app, ["tasks"]).output
+    assert "bench [bench]" in shown and "selftest" not in shown
+    assert "selftest_sleep [selftest]" in CliRunner().invoke(app, ["tasks", "--all"]).output
+
+
+def test_shell_completion_is_offered() -> None:
+    res = CliRunner().invoke(app, ["--help"], terminal_width=200)
+    assert "--install-completion" in res.output and "--show-completion" in res.output
+
+
+def test_default_workers_follow_the_cpus_this_process_may_use(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    monkeypatch.setattr(joblib, "cpu_count", lambda *a, **k: 1)
+    monkeypatch.setattr("os.cpu_count", lambda: 64)
+    run_study(load_study(selftest_study(tmp_path, n=2), tmp_path / "out"))
+    assert read_manifest(tmp_path / "out")["runs"][-1]["n_jobs"] == 1
+
+
+def test_dask_backend_without_dask_names_the_extra(monkeypatch: pytest.MonkeyPatch) -> None:
+    monkeypatch.setitem(sys.modules, "dask.distributed", None)
+    with pytest.raises(SomoError) as info:
+        dask_client("tcp://127.0.0.1:9")
+    assert str(info.value) == (
+        '--backend dask needs Dask, which is not installed: pip install "somo-sweep[dask]"'
+    )
+
+
+def test_dask_backend_without_dask_is_a_clear_cli_error(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    monkeypatch.setitem(sys.modules, "dask.distributed", None)
+    res = _run(
+        selftest_study(tmp_path), tmp_path / "out", "--backend", "dask", "--scheduler", "tcp://127.0.0.1:9"
+    )
+    assert res.exit_code == 2 and 'pip install "somo-sweep[dask]"' in res.output
+    assert "Traceback" not in res.output and not (tmp_path / "out").exists()
+
+
+def test_measure_refuses_nan_values_clearly() -> None:
+    from conftest import MODELS
+
+    res = CliRunner().invoke(
+        app, ["measure", str(MODELS / "ihm_finger.yaml"), "--test", "free_bending", "--values", "10,nan"]
+    )
+    assert res.exit_code == 2
+    assert res.output.startswith("error: --values must be finite numbers, got nan in '10,nan'")
+
+
+def test_the_cli_default_trial_limit_is_the_librarys() -> None:
+    from somo_sweep.cli.sweep import MAX_TRIALS as CLI_LIMIT
+    from somo_sweep.sweep.study import MAX_TRIALS
+
+    assert CLI_LIMIT == MAX_TRIALS

@@ -1,0 +1,303 @@
+"""Damaged results folders and faults while writing: nothing written is ever lost or claimed falsely."""
+
+from __future__ import annotations
+
+import errno
+import json
+import os
+from pathlib import Path
+
+import pandas as pd
+import pyarrow as pa
+import pyarrow.parquet as pq
+import pytest
+from test_sweep import make_study, results_only, selftest_study
+from typer.testing import CliRunner
+
+from somo_sweep.cli.app import app
+from somo_sweep.errors import SomoError, StorageError
+from somo_sweep.sweep import jobs as jobs_module
+from somo_sweep.sweep import store as store_module
+from somo_sweep.sweep.jobs import build_jobs
+from somo_sweep.sweep.runner import run_study
+from somo_sweep.sweep.store import ResultStore, read_manifest, read_results
+from somo_sweep.sweep.study import load_study
+
+
+def _finished(tmp_path: Path, n: int = 8, chunk_rows: int = 4) -> tuple[Path, Path]:
+    """A study of ``n`` selftest trials run into ``out`` in parts of ``chunk_rows``."""
+    path = selftest_study(tmp_path, n=n)
+    out = tmp_path / "out"
+    run_study(load_study(path, out), n_jobs=1, chunk_rows=chunk_rows)
+    return path, out
+
+
+def _parts(out: Path) -> list[Path]:
+    return sorted((out / "trials").glob("part-*.parquet"))
+
+
+def _run(path: Path, out: Path, *extra: str) -> object:
+    return CliRunner().invoke(app, ["run", str(path), "--out", str(out), "-j", "1", "--no-plots", *extra])
+
+
+def test_a_truncated_part_is_quarantined_and_its_trials_run_again(tmp_path: Path) -> None:
+    path, out = _finished(tmp_path)
+    first = _parts(out)[0]
+    first.write_bytes(first.read_bytes()[:100])
+    res = _run(path, out)
+    assert res.exit_code == 0, res.output
+    moved = out / "trials" / "quarantine" / f"_{first.name}"
+    assert f"note: damaged part file {first.name}" in res.output and f"moved to {moved}" in res.output
+    assert "4 trial(s) run (ok 4); 4 already done" in res.output and moved.is_file()
+    df = pd.read_parquet(out / "trials")  # one pandas call still reads the whole table
+    assert len(df) == 8 and df["job_id"].is_unique
+
+
+def test_show_skips_a_zero_byte_part_and_says_so(tmp_path: Path) -> None:
+    _, out = _finished(tmp_path)
+    empty = _parts(out)[1]
+    empty.write_bytes(b"")
+    res = CliRunner().invoke(app, ["show", str(out)])
+    assert res.exit_code == 0, res.output
+    assert f"warning: skipped damaged part file {empty} (empty file)" in res.output
+    assert "4 of 8 trials stored" in res.output and empty.exists()  # show changes nothing
+
+
+def test_recheck_skips_a_damaged_part(tmp_path: Path) -> None:
+    path, out = _finished(tmp_path)
+    _parts(out)[0].write_bytes(b"PAR1")
+    res = CliRunner().invoke(app, ["recheck", str(path), "--out", str(out), "-n", "2"])
+    assert res.exit_code == 0, res.output
+    assert "skipped damaged part file" in res.output and "2 identical, 0 different" in res.output
+
+
+def test_a_deleted_manifest_is_rebuilt_from_the_parts(tmp_path: Path) -> None:
+    path, out = _finished(tmp_path)
+    (out / "manifest.json").unlink()
+    res = _run(path, out)
+    assert res.exit_code == 0, res.output
+    assert "note: manifest.json was missing: rebuilt from the part files (earlier runs unknown)" in res.output
+    assert "0 trial(s) run (none); 8 already done" in res.output
+    assert read_manifest(out)["n_trials"] == 8 and len(read_results(out)) == 8
+
+
+def test_a_truncated_manifest_is_a_clear_error_for_show_and_is_rebuilt_by_run(tmp_path: Path) -> None:
+    path, out = _finished(tmp_path)
+    manifest = out / "manifest.json"
+    truncated = manifest.read_text()[:50]
+    manifest.write_text(truncated)
+    res = CliRunner().invoke(app, ["show", str(out)])
+    assert res.exit_code == 2 and "Traceback" not in res.output
+    assert f"error: {manifest} is damaged (" in res.output and "to rebuild it from the trials" in res.output
+    res = _run(path, out)
+    assert res.exit_code == 0, res.output
+    assert "manifest.json was damaged (kept as manifest.json.damaged)" in res.output
+    assert (out / "manifest.json.damaged").read_text() == truncated
+    assert len(read_results(out)) == 8
+
+
+def test_a_lost_manifest_of_another_study_is_refused_then_replaced_with_overwrite(tmp_path: Path) -> None:
+    path, out = _finished(tmp_path)
+    (out / "manifest.json").unlink()
+    path.write_text(path.read_text().replace("stop: 8", "stop: 9"))
+    res = _run(path, out)
+    assert res.exit_code == 2 and "holds results of a different study" in res.output
+    assert "changed: unknown (no readable manifest)" in res.output and len(_parts(out)) == 2
+    res = _run(path, out, "--overwrite")
+    assert res.exit_code == 0, res.output
+    assert "9 trial(s) run (ok 9); 0 already done" in res.output and len(read_results(out)) == 9
+
+
+def test_overwrite_deletes_only_the_files_the_tool_wrote(tmp_path: Path) -> None:
+    path = selftest_study(tmp_path)
+    out = tmp_path / "out"
+    assert CliRunner().invoke(app, ["run", str(path), "--out", str(out), "-j", "1"]).exit_code == 0
+    files = read_manifest(out)["files"]
+    assert {"study.yaml", "plots/summary.png", "plots/summary.svg"} <= set(files)
+    assert all(f in files for f in (p.relative_to(out).as_posix() for p in _parts(out)))
+    (out / "plots" / "important.png").write_bytes(b"mine")
+    (out / "trials" / "notes.txt").write_text("mine too")
+    path.write_text(path.read_text().replace("stop: 8", "stop: 3"))
+    res = _run(path, out, "--overwrite")
+    assert res.exit_code == 0, res.output
+    assert "--overwrite: deleted 4 file(s) of the previous study" in res.output
+    assert (out / "plots" / "important.png").read_bytes() == b"mine"
+    assert (out / "trials" / "notes.txt").read_text() == "mine too"
+    assert len(read_results(out)) == 3 and not (out / "plots" / "summary.png").exists()
+
+
+def test_a_folder_that_is_not_a_results_folder_is_refused_even_with_overwrite(tmp_path: Path) -> None:
+    path = selftest_study(tmp_path)
+    mine = tmp_path / "mine"
+    (mine / "plots").mkdir(parents=True)
+    (mine / "plots" / "important.png").write_bytes(b"mine")
+    res = _run(path, mine, "--overwrite")
+    assert res.exit_code == 2 and "Traceback" not in res.output
+    assert f"error: {mine} is not empty (plots) and is not a somo-sweep results folder" in res.output
+    assert sorted(p.name for p in mine.iterdir()) == ["plots"]
+
+
+def test_out_pointing_at_a_file_is_a_clear_error(tmp_path: Path) -> None:
+    path = selftest_study(tmp_path)
+    target = tmp_path / "taken.txt"
+    target.write_text("keep me")
+    res = _run(path, target)
+    assert res.exit_code == 2 and f"error: --out {target} is a file, not a folder" in res.output
+    assert target.read_text() == "keep me"
+    with pytest.raises(SomoError, match="is a file, not a folder"):
+        run_study(load_study(path, target), n_jobs=1)
+
+
+class _DiskFull:
+    """``pq.write_table`` that succeeds ``allowed`` times, then fails as a full disk does."""
+
+    def __init__(self, allowed: int):
+        self.allowed = allowed
+        self.real = pq.write_table
+
+    def __call__(self, table: pa.Table, where: Path, **kwargs: object) -> None:
+        if self.allowed <= 0:
+            Path(where).write_bytes(b"PAR1 half a file")  # a partial write, as the disk filled up
+            raise OSError(errno.ENOSPC, os.strerror(errno.ENOSPC))
+        self.allowed -= 1
+        self.real(table, where, **kwargs)
+
+
+def test_a_full_disk_stops_the_run_keeping_every_written_row(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    path = selftest_study(tmp_path)
+    out = tmp_path / "out"
+    monkeypatch.setattr(store_module.pq, "write_table", _DiskFull(allowed=2))
+    with pytest.raises(StorageError) as info:
+        run_study(load_study(path, out), n_jobs=1, chunk_rows=2)
+    assert "cannot write the results in" in str(info.value) and "No space left on device" in str(info.value)
+    assert "and 4 of them are in the table, intact" in str(info.value)
+    monkeypatch.undo()
+    kept = read_results(out)
+    run = read_manifest(out)["runs"][-1]
+    assert len(kept) == 4 and run["status"] == "failed" and run["trials_written"] == 4
+    assert not list((out / "trials").glob(".*.tmp"))
+    summary = run_study(load_study(path, out), n_jobs=1)
+    assert any("recovered" in note for note in summary.notes)
+    df = read_results(out)
+    assert len(df) == 8 and df["job_id"].is_unique
+
+
+def test_a_full_disk_exits_1_with_a_message_not_a_traceback(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    path = selftest_study(tmp_path)
+    monkeypatch.setattr(store_module.pq, "write_table", _DiskFull(allowed=1))
+    res = _run(path, tmp_path / "out", "--chunk-rows", "2")
+    assert res.exit_code == 1 and "Traceback" not in res.output
+    assert "error: stopped: cannot write the results in" in res.output
+
+
+def test_finished_trials_of_a_killed_run_are_recovered_from_its_journal(tmp_path: Path) -> None:
+    path = selftest_study(tmp_path)
+    out = tmp_path / "out"
+    pid = os.fork()
+    if pid == 0:  # a run killed after 5 finished trials: no cleanup of any kind
+        try:
+
+            def die(outcome: object, seen: list[int] = [0]) -> None:  # noqa: B006
+                seen[0] += 1
+                if seen[0] == 5:
+                    os._exit(9)
+
+            run_study(load_study(path, out), n_jobs=1, chunk_rows=100, on_outcome=die)
+        finally:
+            os._exit(1)
+    _, status = os.waitpid(pid, 0)
+    assert os.waitstatus_to_exitcode(status) == 9
+    assert (
+        not _parts(out)
+        and len((out / "trials").glob(".journal-*.jsonl").__next__().read_text().splitlines()) == 5
+    )
+    summary = run_study(load_study(path, out), n_jobs=1)
+    assert (summary.skipped, summary.run) == (5, 3)
+    assert "recovered 5 finished trial(s) of a killed run from its journal" in summary.notes
+    assert read_manifest(out)["runs"][0]["status"] == "aborted"
+
+
+def test_a_run_left_running_by_a_killed_process_is_marked_aborted(tmp_path: Path) -> None:
+    path = selftest_study(tmp_path)
+    study = load_study(path, tmp_path / "out")
+    table = build_jobs(study)
+    killed = ResultStore(study.output, table.study_hash, table.resolved, table.axes, {})
+    killed.start_run({"backend": "loky"})
+    killed.close()  # the process died: no end_run
+    summary = run_study(study, n_jobs=1)
+    runs = read_manifest(study.output)["runs"]
+    assert [r["status"] for r in runs] == ["aborted", "completed"]
+    assert any("was killed: marked aborted" in note for note in summary.notes)
+
+
+def test_a_column_empty_in_the_first_part_takes_numbers_on_resume(tmp_path: Path) -> None:
+    path = selftest_study(tmp_path)
+    study = load_study(path, tmp_path / "out")
+    table = build_jobs(study)
+    rows = [
+        {"job_id": j.job_id, "trial": j.trial, "status": "ok", "study_hash": table.study_hash}
+        for j in table.jobs
+    ]
+    args = (study.output, table.study_hash, table.resolved, table.axes, {})
+    first = ResultStore(*args)
+    first.write([{**rows[0], "gap_m": None}])
+    first.close()
+    second = ResultStore(*args)
+    second.write([{**rows[1], "gap_m": 1.5}])
+    second.close()
+    df = read_results(study.output)
+    assert df["gap_m"].dtype == "float64" and df["gap_m"].isna().tolist() == [True, False]
+
+
+def test_declared_metric_types_fix_the_schema_from_the_first_part(tmp_path: Path) -> None:
+    # Every trial fails: no row has a metric, yet the columns are there with the declared types.
+    path = selftest_study(tmp_path, task="selftest_crash", extra="set: {task.crash_x: [1.0, 2.0]}", n=2)
+    run_study(load_study(path, tmp_path / "out"), n_jobs=1)
+    schema = pq.read_schema(_parts(tmp_path / "out")[0])
+    assert schema.field("y").type == pa.float64() and schema.field("noise").type == pa.float64()
+
+
+def test_a_metric_missing_in_early_trials_keeps_its_type(tmp_path: Path) -> None:
+    path = selftest_study(tmp_path, extra="set: {task.none_x: [1.0, 2.0]}", n=4)
+    run_study(load_study(path, tmp_path / "out"), n_jobs=1, chunk_rows=2)
+    df = read_results(tmp_path / "out")
+    assert df["y"].dtype == "float64" and df["y"].isna().tolist() == [True, True, False, False]
+
+
+def test_every_run_keeps_its_versions(tmp_path: Path) -> None:
+    path, out = _finished(tmp_path)
+    run_study(load_study(path, out), n_jobs=1)
+    runs = read_manifest(out)["runs"]
+    assert len(runs) == 2 and all({"python", "pybullet", "somo-sweep"} <= set(r["versions"]) for r in runs)
+
+
+def test_job_ids_change_with_the_pybullet_version(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    path = selftest_study(tmp_path)
+    before = build_jobs(load_study(path))
+    monkeypatch.setattr(jobs_module, "pybullet_version", lambda: "0.0.1")
+    after = build_jobs(load_study(path))
+    assert not {j.job_id for j in before.jobs} & {j.job_id for j in after.jobs}
+    assert after.resolved["pybullet"] == "0.0.1"
+
+
+def test_resume_after_a_crash_mid_rewrite_heals_mixed_schemas(tmp_path: Path) -> None:
+    path, out = _finished(tmp_path)
+    part = _parts(out)[0]
+    table = pq.read_table(part)
+    pq.write_table(table.append_column("extra_m", pa.array([1.0] * len(table))), part)
+    summary = run_study(load_study(path, out), n_jobs=1)
+    assert summary.run == 0
+    schemas = {pq.read_schema(p).remove_metadata().to_string() for p in _parts(out)}
+    assert len(schemas) == 1 and len(pd.read_parquet(out / "trials")) == 8
+    assert results_only(read_results(out)).shape[0] == 8
+
+
+def test_study_copy_and_manifest_name_what_was_written(tmp_path: Path) -> None:
+    path = make_study(tmp_path, "task: selftest_sleep\nmodel: models/ihm_finger.yaml\n")
+    run_study(load_study(path, tmp_path / "out"), n_jobs=1)
+    manifest = json.loads((tmp_path / "out" / "manifest.json").read_text())
+    assert "study.yaml" in manifest["files"] and manifest["runs"][0]["trials_written"] == 1
