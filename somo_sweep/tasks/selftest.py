@@ -47,6 +47,8 @@ class SelftestParams(BaseModel):
         none_x: Values of ``x`` whose metric ``y`` is missing (None).
         done_dir: If set, a folder where every trial leaves an empty file (named by ``x`` and
             the seed) as it returns, so that fault-injection tests can count finished trials.
+        notify_fifo: If set, a named pipe that gets one byte as each trial returns, so that a
+            test can block until trials finish instead of polling (no reader: nothing sent).
     """
 
     model_config = ConfigDict(extra="forbid", frozen=True)
@@ -58,6 +60,18 @@ class SelftestParams(BaseModel):
     unstable_x: list[float] = Field(default_factory=list)
     none_x: list[float] = Field(default_factory=list)
     done_dir: str = ""
+    notify_fifo: str = ""
+
+
+def _notify(fifo: str) -> None:
+    try:
+        fd = os.open(fifo, os.O_WRONLY | os.O_NONBLOCK)
+    except OSError:  # no reader (ENXIO) or not there: nobody is waiting
+        return
+    try:
+        os.write(fd, b".")
+    finally:
+        os.close(fd)
 
 
 def _result(params: SelftestParams, seed: int) -> TaskResult:
@@ -65,6 +79,8 @@ def _result(params: SelftestParams, seed: int) -> TaskResult:
     noise = np.random.default_rng(seed).normal()  # a NumPy scalar, as tasks often return
     if params.done_dir:
         Path(params.done_dir, f"{params.x}-{seed}").touch()
+    if params.notify_fifo:
+        _notify(params.notify_fifo)
     return TaskResult(
         metrics={
             "y": None if params.x in params.none_x else params.x**2,

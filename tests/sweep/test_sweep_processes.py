@@ -8,6 +8,7 @@ tests send SIGINT / SIGTERM / SIGKILL to a real ``somo-sweep run`` mid-sweep, th
 from __future__ import annotations
 
 import os
+import select
 import signal
 import subprocess
 import sys
@@ -77,18 +78,19 @@ def test_same_table_on_a_dask_local_cluster(bench_reference: tuple[Path, pd.Data
 @pytest.mark.parametrize("signum", [signal.SIGINT, signal.SIGTERM], ids=["SIGINT", "SIGTERM"])
 def test_interrupt_keeps_every_finished_trial_and_resume_completes(tmp_path: Path, signum: int) -> None:
     n = 40
-    path = selftest_study(tmp_path, extra="set: {task.sleep_s: 0.1}", n=n)
+    fifo = tmp_path / "finished"
+    os.mkfifo(fifo)
+    path = selftest_study(tmp_path, extra=f"set: {{task.sleep_s: 0.1, task.notify_fifo: '{fifo}'}}", n=n)
     out = tmp_path / "out"
-    proc = subprocess.Popen(
-        [str(CLI), "run", str(path), "--jobs", "2", "--chunk-rows", "2", "--no-plots", "--out", str(out)],
-        stdout=subprocess.PIPE,
-        stderr=subprocess.PIPE,
-        text=True,
-    )
+    with FinishedTrials(fifo) as finished:
+        proc = subprocess.Popen(
+            [str(CLI), "run", str(path), "--jobs", "2", "--chunk-rows", "2", "--no-plots", "--out", str(out)],
+            stdout=subprocess.PIPE,
+            stderr=subprocess.PIPE,
+            text=True,
+        )
+        finished.wait(4)  # four trials have returned; the engine has received at least one
     try:
-        deadline = time.monotonic() + 60
-        while not list((out / "trials").glob("*.parquet")) and time.monotonic() < deadline:
-            time.sleep(0.05)  # results are written in chunks while the sweep runs
         assert proc.poll() is None, "the sweep finished before it could be interrupted"
         children = _descendants(proc.pid)
         proc.send_signal(signum)
@@ -110,17 +112,18 @@ def test_interrupt_keeps_every_finished_trial_and_resume_completes(tmp_path: Pat
 
 
 def test_a_killed_run_leaves_no_process_and_a_readable_table(tmp_path: Path) -> None:
-    path = selftest_study(tmp_path, extra="set: {task.sleep_s: 0.15}", n=30)
+    fifo = tmp_path / "finished"
+    os.mkfifo(fifo)
+    path = selftest_study(tmp_path, extra=f"set: {{task.sleep_s: 0.15, task.notify_fifo: '{fifo}'}}", n=30)
     out = tmp_path / "out"
-    proc = subprocess.Popen(
-        [str(CLI), "run", str(path), "--jobs", "2", "--chunk-rows", "2", "--no-plots", "--out", str(out)],
-        stdout=subprocess.DEVNULL,
-        stderr=subprocess.DEVNULL,
-    )
+    with FinishedTrials(fifo) as finished:
+        proc = subprocess.Popen(
+            [str(CLI), "run", str(path), "--jobs", "2", "--chunk-rows", "2", "--no-plots", "--out", str(out)],
+            stdout=subprocess.DEVNULL,
+            stderr=subprocess.DEVNULL,
+        )
+        finished.wait(6)  # trials have returned: some rows are written (or journalled)
     try:
-        deadline = time.monotonic() + 60
-        while not list((out / "trials").glob("*.parquet")) and time.monotonic() < deadline:
-            time.sleep(0.05)
         children = _descendants(proc.pid)
         proc.send_signal(signal.SIGKILL)
         proc.wait(timeout=60)
@@ -133,6 +136,33 @@ def test_a_killed_run_leaves_no_process_and_a_readable_table(tmp_path: Path) -> 
     assert len(kept) >= 2 and kept["job_id"].is_unique
     summary = run_study(load_study(path, out), n_jobs=2)
     assert summary.skipped + summary.run == 30
+
+
+class FinishedTrials:
+    """Blocks until selftest trials have returned: each writes one byte into a named pipe.
+
+    The test keeps a writer end open itself, so the pipe never reads as closed while the
+    sweep's trials come and go, and ``select`` sleeps until a byte arrives (no polling).
+    """
+
+    def __init__(self, fifo: Path, timeout_s: float = 60.0):
+        self.fifo, self.timeout_s, self.count = fifo, timeout_s, 0
+
+    def __enter__(self) -> FinishedTrials:
+        self.read_fd = os.open(self.fifo, os.O_RDONLY | os.O_NONBLOCK)
+        self.keep_fd = os.open(self.fifo, os.O_WRONLY | os.O_NONBLOCK)
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        os.close(self.keep_fd)
+        os.close(self.read_fd)
+
+    def wait(self, count: int) -> None:
+        deadline = time.monotonic() + self.timeout_s
+        while self.count < count:
+            ready, _, _ = select.select([self.read_fd], [], [], max(deadline - time.monotonic(), 0.0))
+            assert ready, f"only {self.count} of {count} trials finished in {self.timeout_s} s"
+            self.count += len(os.read(self.read_fd, 1024))
 
 
 def _all_gone(pids: list[int], wait_s: float = 10.0) -> bool:
