@@ -64,6 +64,12 @@ def _line_of(row: int, comment_lines: list[int]) -> int:
     return line
 
 
+#: Most data rows a measurement file may have (a bench session has tens to hundreds).
+MAX_ROWS = 5000
+#: Problems listed per file; the rest are counted.
+MAX_PROBLEMS = 20
+
+
 def read_measurements(path: str | Path, require_measured: bool = True) -> pd.DataFrame:
     """Read and validate a measurement CSV.
 
@@ -108,6 +114,14 @@ def read_measurements(path: str | Path, require_measured: bool = True) -> pd.Dat
             problems.append(f"unknown column '{c}'{did_you_mean(c, allowed)}; allowed: {', '.join(allowed)}")
     if problems:
         raise MeasurementError(path, problems)
+    if len(raw) > MAX_ROWS:
+        raise MeasurementError(
+            path,
+            [
+                f"{len(raw)} data rows; a bench file may have at most {MAX_ROWS} (each row is a "
+                "simulation in every calibration step): average repeats or split the file"
+            ],
+        )
     if raw.empty:
         raise MeasurementError(path, ["no data rows"])
     out = pd.DataFrame({"test": raw["test"].str.strip()})
@@ -158,7 +172,9 @@ def read_measurements(path: str | Path, require_measured: bool = True) -> pd.Dat
         if test == "tip_load" and row["tip_load_n"] < 0:
             problems.append(f"{where}, column tip_load_n: {row['tip_load_n']} < 0; loads must be >= 0 N")
     if problems:
-        raise MeasurementError(path, problems)
+        more = len(problems) - MAX_PROBLEMS
+        shown = problems[:MAX_PROBLEMS] + ([f"… and {more} more problem(s)"] if more > 0 else [])
+        raise MeasurementError(path, shown)
     return out.reset_index(drop=True)
 
 

@@ -254,5 +254,8 @@ def build_problem(
     return CalibrationProblem(base, rows, tuple(params), settings, source)
 
 
-def _lines(rows: pd.DataFrame) -> str:
-    return ", ".join(str(n) for n in rows["line"])
+def _lines(rows: pd.DataFrame, shown: int = 12) -> str:
+    """Line numbers of rows, the first ``shown`` and how many more (a long file stays one line)."""
+    lines = [str(n) for n in rows["line"][:shown]]
+    more = len(rows) - shown
+    return ", ".join(lines) + (f", … ({more} more)" if more > 0 else "")

@@ -7,10 +7,12 @@ import os
 import shutil
 from pathlib import Path
 
+import pandas as pd
 import pytest
 from typer.testing import CliRunner
 
 from somo_sweep.calibration.finger import read_finger_header
+from somo_sweep.calibration.measurements import read_measurements
 from somo_sweep.cli import app
 from somo_sweep.errors import MeasurementError
 from somo_sweep.model.load import load_model
@@ -89,3 +91,34 @@ def test_flags_override_the_finger_line(folder: Path) -> None:
     assert result.exit_code == 0, result.output
     manip = load_model(folder / "ten.yaml").manipulator
     assert manip is not None and manip.actuators[0].segments == 10
+
+
+def test_a_huge_measurement_file_is_refused_with_the_limit(tmp_path: Path) -> None:
+    path = tmp_path / "huge.csv"
+    row = "free_bending,100,,,,90.0,-30.0\n"
+    path.write_text(
+        "test,pressure_kpa,tip_load_n,tip_deflection_mm,blocked_force_n,tip_x_mm,tip_z_mm\n" + row * 100_000
+    )
+    result = CliRunner().invoke(app, ["calibrate", str(path), "--model", "nope.yaml"])
+    assert result.exit_code == 2
+    assert "100000 data rows; a bench file may have at most 5000" in result.output
+    assert len(result.output) < 2000
+
+
+def test_many_bad_rows_are_listed_up_to_twenty_and_counted(tmp_path: Path) -> None:
+    path = tmp_path / "bad.csv"
+    row = "free_bending,abc,,,,90.0,-30.0\n"
+    path.write_text(
+        "test,pressure_kpa,tip_load_n,tip_deflection_mm,blocked_force_n,tip_x_mm,tip_z_mm\n" + row * 1000
+    )
+    with pytest.raises(MeasurementError) as info:
+        read_measurements(path)
+    # two per row: not a number, and then empty where the test needs it
+    assert len(info.value.problems) == 21 and info.value.problems[-1] == "… and 1980 more problem(s)"
+
+
+def test_a_long_file_describes_its_rows_in_one_short_line() -> None:
+    from somo_sweep.calibration.problem import _lines
+
+    rows = pd.DataFrame({"line": range(2, 3002)})
+    assert _lines(rows) == "2, 3, 4, 5, 6, 7, 8, 9, 10, 11, 12, 13, … (2988 more)"
