@@ -45,3 +45,22 @@ def test_a_short_trial_runs_and_is_the_same_in_two_processes(name: str) -> None:
     first, second = Parallel(n_jobs=2, backend="loky")(delayed(_trial)(name, 11) for _ in range(2))
     assert first.status == "ok", first.message
     assert repr(first) == repr(second)  # bit for bit (repr: NaN equals NaN)
+    _assert_metrics_match_declaration(name, first)
+
+
+#: Arrow type alias of each Python value type a metric may have.
+ARROW_TYPE = {bool: "bool", int: "int64", float: "double", str: "string"}
+
+
+def _assert_metrics_match_declaration(name: str, result: TaskResult) -> None:
+    """Every metric a trial returns is declared, with the type of its value.
+
+    The declaration fixes the Parquet schema from the first row on; an undeclared metric
+    would be typed from its values (text when empty in every row of the first part).
+    """
+    declared = dict(all_tasks()[name].metrics)
+    returned = {k: ARROW_TYPE[type(v)] for k, v in result.metrics.items() if v is not None}
+    assert set(result.metrics) <= set(declared), (
+        f"{name}: undeclared {sorted(set(result.metrics) - set(declared))}"
+    )
+    assert {k: declared[k] for k in returned} == returned

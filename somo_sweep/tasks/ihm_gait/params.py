@@ -35,6 +35,17 @@ class GaitParams(Spec):
     record_every_s: float = Field(0.04, gt=0)
 
 
+#: Arrow type of every metric a trial returns (the results table's schema).
+METRICS: dict[str, str] = {
+    "final_rot_z_deg": "double",
+    "rot_z_per_cycle_deg": "double",
+    "max_offaxis_position_m": "double",
+    "max_tilt_deg": "double",
+    "dropped": "bool",
+    "toppled": "bool",
+}
+
+
 register(
     TaskSpec(
         name="ihm_gait",
@@ -42,5 +53,6 @@ register(
         params_model=GaitParams,
         description="Four-finger hand turning a cube with a finger gait from a pressure table",
         tags=("paper", "fig5", "manipulation"),
+        metrics=METRICS,
     )
 )

@@ -88,6 +88,32 @@ class PinchGraspParams(BaseModel):
         return self.approach_s + self.ramp_s + self.lift_s + self.hold_s
 
 
+#: Arrow type of every metric a trial returns (the results table's schema).
+METRICS: dict[str, str] = {
+    "n_distal_links": "int64",
+    **{name: "double" for name in ("object_x_m", "object_y_m", "object_z_m")},
+    **{name: "double" for name in ("object_roll_rad", "object_pitch_rad", "object_yaw_rad")},
+    "lift_height_m": "double",
+    "lift_slip_m": "double",
+    "hold_slip_m": "double",
+    "hold_samples": "int64",
+    "hold_contact_fraction_both_fingers": "double",
+    "hold_ground_contact_fraction": "double",
+    **{name: "int64" for name in link_columns("hold_contact_count")},
+    **{name: "double" for name in link_columns("hold_normal_force_n")},
+    "hold_contact_count_palm": "int64",
+    "hold_normal_force_n_palm": "double",
+    "hold_normal_force_n_left": "double",
+    "hold_normal_force_n_right": "double",
+    "final_contact_count": "int64",
+    "final_mean_contact_link": "double",
+    "hold_force_fraction_distal": "double",
+    "hold_force_fraction_tip": "double",
+    "hold_force_fraction_proximal": "double",
+    "hold_mean_contact_position": "double",
+    "held": "bool",
+}
+
 register(
     TaskSpec(
         name="pinch_grasp",
@@ -95,5 +121,6 @@ register(
         params_model=PinchGraspParams,
         description="Two-finger pinch grasp of a box (SoMo Fig. 6): approach, close, lift 75 mm, hold.",
         tags=("grasp", "paper", "fig6"),
+        metrics=METRICS,
     )
 )

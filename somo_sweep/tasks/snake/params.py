@@ -26,6 +26,15 @@ class SnakeParams(Spec):
     record_every_s: float = Field(0.25, gt=0)
 
 
+#: Arrow type of every metric a trial returns (the results table's schema).
+METRICS: dict[str, str] = {
+    "advance_m": "double",
+    "sideways_m": "double",
+    "advance_body_widths": "double",
+    "speed_m_s": "double",
+}
+
+
 register(
     TaskSpec(
         name="snake",
@@ -33,5 +42,6 @@ register(
         params_model=SnakeParams,
         description="Snake crawling by a travelling torque wave, isotropic vs anisotropic friction",
         tags=("paper", "fig8", "locomotion"),
+        metrics=METRICS,
     )
 )

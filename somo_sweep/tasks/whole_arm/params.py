@@ -38,6 +38,18 @@ class WholeArmParams(Spec):
     record_every_s: float = Field(0.01, gt=0)
 
 
+#: Arrow type of every metric a trial returns (the results table's schema).
+METRICS: dict[str, str] = {
+    "ball_passed_hoop": "bool",
+    "ball_max_lift_m": "double",
+    "hoop_crossing_offset_m": "double",
+    "hoop_crossing_time_s": "double",
+    "hoop_allowed_offset_m": "double",
+    "ball_touched_rim": "bool",
+    "ball_final_height_m": "double",
+}
+
+
 register(
     TaskSpec(
         name="whole_arm",
@@ -45,5 +57,6 @@ register(
         params_model=WholeArmParams,
         description="Continuum arm wraps a ball, lifts it and drops it through a hoop (scripted torques)",
         tags=("paper", "fig7", "manipulation"),
+        metrics=METRICS,
     )
 )
