@@ -17,6 +17,7 @@ import joblib
 import numpy as np
 import pandas as pd
 
+from somo_sweep.calibration import meter
 from somo_sweep.calibration.metrics import WIDTH
 from somo_sweep.errors import SimulationError
 from somo_sweep.model.description import Actuation, Manipulator
@@ -193,6 +194,7 @@ def simulate_rows(
         out = [_simulate_row(*a) for a in args]
     else:
         out = joblib.Parallel(n_jobs=n_jobs)(joblib.delayed(_simulate_row)(*a) for a in args)
+    meter.count(len(args))
     for i, (a, res) in enumerate(zip(args, out, strict=True)):
         if res[-1]:
             failure = RowFailure(i, a[1], a[3], a[4], res[-1])

@@ -22,6 +22,7 @@ from dataclasses import dataclass, field, replace
 import numpy as np
 from scipy.optimize import least_squares
 
+from somo_sweep.calibration import meter
 from somo_sweep.calibration.formulas import (
     actuation_torque_from_blocked_force,
     joint_stiffness_from_tip_stiffness,
@@ -180,6 +181,7 @@ def solve_paper(problem: CalibrationProblem, n_jobs: int = 1) -> CalibrationResu
     """Calibrate with :func:`paper_values`, then simulate every row to report the agreement."""
     start = time.perf_counter()
     values = paper_values(problem)
+    meter.expect(len(problem.rows))
     return _finish(problem, "paper", values, start, 0, n_jobs, message="eq. (8) and (9) as published")
 
 
@@ -211,6 +213,9 @@ def solve_fit(problem: CalibrationProblem, n_jobs: int = 1, max_evaluations: int
         memo[x.tobytes()] = (simulated, failed)
         return problem.residuals_of(simulated)
 
+    n_cal, n_val = len(problem.calibration_rows), len(problem.validation_rows)
+    # At most: the start, one probe per parameter, the evaluations, then the validation rows.
+    meter.expect(n_cal * (1 + len(initial) + max_evaluations) + n_val)
     x0 = np.ones_like(initial)
     r0 = fun(x0)
     if not np.all(np.isfinite(r0)):
@@ -250,6 +255,7 @@ def solve_fit(problem: CalibrationProblem, n_jobs: int = 1, max_evaluations: int
         ftol=1e-6,
         max_nfev=max_evaluations,
     )
+    meter.expect(len(problem.rows))  # the fit is done: at most every row once more
     dof = max(len(sol.fun) - len(initial), 1)
     stderr: dict[str, float] = {}
     try:

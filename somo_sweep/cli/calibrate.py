@@ -118,7 +118,7 @@ def calibrate(
         )
         console.print(problem.describe(), markup=False)
         solve = solve_fit if method == "fit" else solve_paper
-        with working(f"calibrating ({method}) on {len(rows)} rows, simulator in the loop"):
+        with working(f"calibrating ({method})", bench_rows=True):
             result = solve(problem, n_jobs=jobs)
     except SomoError as exc:
         fail(exc)

@@ -71,13 +71,13 @@ def diagnose(
             base = load_model(model)
         else:
             finger = base_model(measurements, None, None, None, None, None, None)
-            with working(f"no --model: calibrating the CSV's finger on {len(rows)} rows first"):
+            with working("calibrating the CSV's finger first", bench_rows=True):
                 base = solve_fit(build_problem(rows, finger, str(measurements), settings), n_jobs=jobs).model
             typer.echo("calibrated the finger of the CSV's '# finger:' line first (somo-sweep calibrate)")
-        with working(f"simulating {len(rows)} rows with the model as given"):
+        with working("simulating the model as given", bench_rows=True):
             problem = build_diagnosis(rows, base, str(measurements), settings, names, n_jobs=jobs)
         typer.echo(problem.describe())
-        with working(f"refitting with each of {len(problem.effects)} effects, simulator in the loop"):
+        with working(f"refitting with {len(problem.effects)} effects", bench_rows=True):
             result = run_diagnosis(problem, n_jobs=jobs)
     except SomoError as exc:
         fail(exc)

@@ -38,18 +38,54 @@ def fail(exc: BaseException, code: int = 2) -> NoReturn:
 
 
 @contextmanager
-def working(what: str) -> Iterator[None]:
-    """A spinner with the elapsed time on stderr while ``what`` runs (silent with ``-q``)."""
+def working(what: str, bench_rows: bool = False) -> Iterator[None]:
+    """A spinner with the elapsed time on stderr while ``what`` runs (silent with ``-q``).
+
+    With ``bench_rows``, a bar of the bench rows simulated against the solver's running
+    estimate of how many it will need at most (:mod:`somo_sweep.calibration.meter`), and
+    the time left at the current pace.
+    """
     if state["verbosity"] == 0:
         yield
         return
-    from rich.progress import Progress, SpinnerColumn, TextColumn, TimeElapsedColumn
+    from rich.progress import (
+        BarColumn,
+        MofNCompleteColumn,
+        Progress,
+        SpinnerColumn,
+        TextColumn,
+        TimeElapsedColumn,
+        TimeRemainingColumn,
+    )
+
+    if not bench_rows:
+        with Progress(
+            SpinnerColumn(), TextColumn(what), TimeElapsedColumn(), transient=True, console=_stderr()
+        ) as progress:
+            progress.add_task(what, total=None)
+            yield
+        return
+    from somo_sweep.calibration.meter import metered
 
     with Progress(
-        SpinnerColumn(), TextColumn(what), TimeElapsedColumn(), transient=True, console=_stderr()
+        SpinnerColumn(),
+        TextColumn(what),
+        BarColumn(bar_width=16),
+        MofNCompleteColumn(),
+        TextColumn("rows"),
+        TimeElapsedColumn(),
+        TextColumn("eta"),
+        TimeRemainingColumn(compact=True),
+        transient=True,
+        console=_stderr(),
     ) as progress:
-        progress.add_task(what, total=None)
-        yield
+        task = progress.add_task(what, total=None)
+
+        def report(done: int, expected: int) -> None:
+            progress.update(task, completed=done, total=max(expected, 1))
+
+        with metered(report):
+            yield
 
 
 def _stderr() -> Any:

@@ -32,6 +32,7 @@ from typing import Any
 
 import numpy as np
 
+from somo_sweep.calibration import meter
 from somo_sweep.calibration.metrics import TestMetric, per_test_metrics
 from somo_sweep.calibration.parameters import simulate_rows
 from somo_sweep.diagnosis.fit import CandidateFit, fit_candidate, jacobian, predict
@@ -233,6 +234,12 @@ def diagnose(
             not by which candidate's chord iteration happened to get further.
     """
     start_s = time.perf_counter()
+    n_rows, n_par = len(problem.rows), len(problem.start)
+    # At most: the Jacobian, the refit without an effect and the refined ones, two close calls,
+    # the outcome (updated below as the refinements are decided).
+    meter.expect(
+        n_rows * (n_par + max_evaluations * (1 + refine_top) + 2 * (close_call_evaluations + n_par) + 1)
+    )
     jac = jacobian(problem, n_jobs)
     base = tuple(range(problem.n_base))
     predicted = {
@@ -248,6 +255,8 @@ def diagnose(
         else:
             fits[pred.name] = pred
     best = min((f.bic for n, f in fits.items() if n != "none"), default=math.inf)
+    close = [f for n, f in fits.items() if n != "none" and f.bic < best + 2 * DELTA_BIC_NEXT]
+    meter.expect(n_rows * (sum(close_call_evaluations + len(f.columns) for f in close) + 1))
     for n, f in list(fits.items()):
         if n != "none" and f.bic < best + 2 * DELTA_BIC_NEXT:
             fits[n] = fit_candidate(
@@ -256,8 +265,11 @@ def diagnose(
     candidates = sorted(fits.values(), key=lambda c: c.bic)
     name, verdict = _decide(candidates)
     reloaded, after, noise, score = _outcome(problem, fits[name], n_jobs)
+    outcomes = 1
     singles = [c for c in candidates if c.name != "none"][:PAIR_FROM_TOP]
     if score >= PAIR_TRIGGER and len(singles) >= 2:
+        n_pairs = len(singles) * (len(singles) - 1) // 2
+        meter.expect(n_rows * (n_pairs * max_evaluations + 1))
         pairs = [
             fit_candidate(
                 problem, jac, f"{a.name}+{b.name}", _pair_columns(problem, a, b), n_jobs, max_evaluations
@@ -274,6 +286,7 @@ def diagnose(
                 f"ΔBIC {min(c.bic for c in fits.values()) - best_pair.bic:.1f}"
             )
             reloaded, after, noise, score = _outcome(problem, best_pair, n_jobs)
+            outcomes += 1
     best_candidate = name
     left = find_disagreements(problem.rows, after - problem.measured, noise)
     systematic = [d for d in left if d.rows >= SYSTEMATIC_RUN_ROWS]
@@ -286,8 +299,8 @@ def diagnose(
             f"beyond 2x noise); remaining: {where}"
         )
         name = "unexplained"
-    n_rows = len(problem.rows)
-    sims = n_rows + jac.simulations + n_rows * (2 + sum(c.evaluations for c in candidates))
+    # The model as given, the Jacobian, every refit's re-simulations, and each outcome's.
+    sims = n_rows + jac.simulations + n_rows * (outcomes + sum(c.evaluations for c in candidates))
     return DiagnosisResult(
         problem=problem,
         candidates=candidates,

@@ -16,6 +16,7 @@ from dataclasses import dataclass, replace
 import numpy as np
 import pandas as pd
 
+from somo_sweep.calibration import meter
 from somo_sweep.calibration.metrics import measured_array
 from somo_sweep.calibration.solve import CALIBRATION_SETTINGS, CalibrationProblem, Parameter, build_problem
 from somo_sweep.diagnosis.effects import EFFECTS, Effect, EffectParameter, get_effect
@@ -189,6 +190,7 @@ def build_diagnosis(
     # A negative probe (a softening gradient) flips the bounds in z.
     lower, upper = np.minimum(lo, hi), np.maximum(lo, hi)
     measured = measured_array(fit.rows)
+    meter.expect(len(fit.rows))
     before = fit.simulate(start.tolist(), fit.rows, n_jobs)
     noise = estimate_noise(fit.rows, before - measured)
     return DiagnosisProblem(

@@ -17,6 +17,7 @@ from somo_sweep.calibration.formulas import (
     joint_stiffness_from_tip_stiffness,
 )
 from somo_sweep.calibration.measurements import measurements_csv, read_measurements
+from somo_sweep.calibration.meter import metered
 from somo_sweep.calibration.metrics import per_test_metrics
 from somo_sweep.calibration.solve import build_problem, paper_values, side_view, simulate_rows, solve_fit
 from somo_sweep.calibration.synthetic import (
@@ -188,7 +189,13 @@ def test_fit_recovers_known_parameters_short() -> None:
     )
     rows["line"] = np.arange(len(rows)) + 2
     base = planar_finger(0.1, 8, 0.02)
-    result = solve_fit(build_problem(rows, base), n_jobs=1)
+    reports: list[tuple[int, int]] = []
+    with metered(lambda done, expected: reports.append((done, expected))):
+        result = solve_fit(build_problem(rows, base), n_jobs=1)
+    # The progress bar counted every bench row, and the first estimate was an upper bound.
+    assert reports[-1][0] == result.simulations
+    assert all(done <= expected for done, expected in reports)
+    assert reports[0][1] >= result.simulations
     assert result.values["stiffness_n_m_per_rad[grasp]"] == pytest.approx(0.3, rel=0.03)
     assert result.values["pressure_gain_n_m_per_kpa"] == pytest.approx(1.5e-4, rel=0.03)
     assert result.reproduces_within(0.05), result.metrics

@@ -18,6 +18,7 @@ import pytest
 from typer.testing import CliRunner
 
 from somo_sweep.calibration.measurements import COLUMNS, measurements_csv
+from somo_sweep.calibration.meter import metered
 from somo_sweep.calibration.report import model_yaml
 from somo_sweep.calibration.solve import CALIBRATION_SETTINGS, build_problem, solve_fit
 from somo_sweep.calibration.synthetic import bench_plan, example_finger, synthetic_rows
@@ -210,7 +211,14 @@ def test_tip_load_noise_follows_each_pressure_separately() -> None:
 def test_diagnose_names_a_hidden_saturation_and_halves_the_gap() -> None:
     """Default-suite representative: 16 rows, 1 % noise, one hidden effect, 2 + 2 chord iterations."""
     rows = _hidden_rows("actuation_saturation", seed=5, noise_rel=0.01, short=True)
-    result = _calibrate_then_diagnose(rows, refine_top=1, max_evaluations=2, close_call_evaluations=2)
+    calibrated = solve_fit(build_problem(rows, planar_finger(0.100, 20, 0.020)), n_jobs=2).model
+    reports: list[tuple[int, int]] = []
+    with metered(lambda done, expected: reports.append((done, expected))):
+        problem = build_diagnosis(rows, calibrated, n_jobs=2)
+        result = diagnose(problem, 2, 1, 2, 2)
+    # The progress bar counted every bench row the diagnosis simulated.
+    assert reports[-1][0] == result.simulations
+    assert all(done <= expected for done, expected in reports)
     assert result.missing_effect == "actuation_saturation", result.verdict  # type: ignore[attr-defined]
     assert result.combined_after <= 0.5 * result.combined_before  # type: ignore[attr-defined]
 
