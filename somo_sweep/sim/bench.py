@@ -145,6 +145,14 @@ def stop_geometry(manip: Manipulator, origin_m: np.ndarray, tip_x_m: float) -> t
     return centre, half
 
 
+#: Bullet's contact slop (scaled-world units): resting contacts settle this far into a body.
+#: The bench's plate body is raised by it, so that a finger resting on the plate rests at the
+#: nominal height (the straight chain's underside), as in the solved statics and the continuum.
+#: Left in, a finger lying flat would hang that far into the plate from its clamp, and its
+#: stiff joints would carry up to ~10 % of its weight to the clamp instead of the plate.
+BULLET_CONTACT_SLOP = 1e-5
+
+
 class _Rig:
     """A finger clamped in the bench frame, with optional stop and tip load."""
 
@@ -196,12 +204,16 @@ class _Rig:
         return float(np.degrees(np.unwrap(angles)[-1]))
 
     def add_stop(self) -> int:
-        """A static frictionless plate whose top face is at the straight tip's underside."""
+        """A static frictionless plate whose top face is at the straight tip's underside.
+
+        The body is placed Bullet's contact slop higher, where resting contacts settle.
+        """
         centre, half = stop_geometry(self.manip, self.origin, float(self.tip_m()[0]))
         s = self.world.scale
         cid = self.world.client
         shape = p.createCollisionShape(p.GEOM_BOX, halfExtents=(half * s).tolist(), physicsClientId=cid)
-        stop = p.createMultiBody(0, shape, basePosition=(centre * s).tolist(), physicsClientId=cid)
+        position = centre * s + np.array([0.0, 0.0, BULLET_CONTACT_SLOP])
+        stop = p.createMultiBody(0, shape, basePosition=position.tolist(), physicsClientId=cid)
         p.changeDynamics(
             stop,
             -1,

@@ -34,9 +34,10 @@ Newton step:
 
 Candidate plate contacts are the lowest points of every link's collision shape
 (box corners, sphere bottoms, the lowest points of cylinder rims); the plate's top
-is lowered by Bullet's contact slop, where resting contacts settle in the
-simulated bench. URDF joint limits are constraints too. An equilibrium is only
-reported if the energy's Hessian is positive definite on the active contacts'
+is exactly at the straight chain's underside (the simulated bench raises its plate
+body by Bullet's contact slop so that resting contacts settle there too, see
+:data:`somo_sweep.sim.bench.BULLET_CONTACT_SLOP`). URDF joint limits are constraints
+too. An equilibrium is only reported if the energy's Hessian is positive definite on the active contacts'
 tangent space (a stable one, as relaxation would find).
 
 A solved row never raises: :func:`solve_row` returns the value with a
@@ -97,11 +98,6 @@ RTOL = 1e-9
 GAP_TOL_M = 1e-11
 #: Relative size of the energy's rounding noise, tolerated by the line search.
 ENERGY_NOISE = 1e-12
-#: Bullet's contact slop (its default, in scaled-world units): resting contacts settle this far
-#: into the plate. A chain lying flat on it shares its weight between clamp and plate through
-#: joint deflections of that size, so the slop is part of the simulated bench (up to a few %
-#: of the blocked force of a finger resting on the plate near the clamp).
-BULLET_CONTACT_SLOP = 1e-5
 #: Bodies (PyBullet clients) kept loaded, and chains (spring sets on them) kept planned.
 BODY_CACHE = 6
 CHAIN_CACHE = 32
@@ -353,7 +349,7 @@ class _Body:
         tip0 = self.tip_point(kin) - self.origin
         centre, half = stop_geometry(manip, self.origin, float(tip0[0]))
         self.plate = _Plate(
-            float(centre[2] + half[2]) - BULLET_CONTACT_SLOP / self.scale,
+            float(centre[2] + half[2]),
             (float(centre[0] - half[0]), float(centre[0] + half[0])),
             float(half[1]),
         )

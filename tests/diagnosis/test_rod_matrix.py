@@ -34,20 +34,12 @@ HIDDEN: dict[str, dict[str, float]] = {
     "self_weight": {"self_weight": 0.4},  # the finger weighs 28 g, the data say 20 g
 }
 
-#: Cases whose gap is not halved yet. The floor is the 0 kPa blocked-force row: a finger lying
-#: flat on a rigid plate puts its whole weight on it in the continuum (0.196 N) but about 7/8 of
-#: it in the chain (0.171 N); at 2 % noise the gradient's gap (2.2, 2.8) then falls only to
-#: 0.55 and 0.66 of itself. Strict: the marker fails once they pass.
-NOT_HALVED = {("stiffness_gradient", 1, 0.02), ("stiffness_gradient", 2, 0.02)}
-_XFAIL = pytest.mark.xfail(strict=True, reason="flat-lying weight split at 0 kPa (see NOT_HALVED)")
-
 CASES = [
     pytest.param(
         effect,
         seed,
         noise,
         id=f"{effect}-seed{seed}-noise{100 * noise:.0f}pct",
-        marks=[_XFAIL] if (effect, seed, noise) in NOT_HALVED else [],
     )
     for effect in HIDDEN
     for noise in (0.01, 0.02)

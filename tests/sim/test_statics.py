@@ -21,6 +21,7 @@ from conftest import ihm_finger_dict
 from somo_sweep.calibration.parameters import set_axis_stiffness, side_view
 from somo_sweep.calibration.solve import build_problem, simulate_rows, solve_fit
 from somo_sweep.errors import SimulationError
+from somo_sweep.model.builders import planar_finger
 from somo_sweep.model.description import Actuation, Manipulator
 from somo_sweep.model.load import model_from_dict
 from somo_sweep.sim.bench import BenchSettings, run_bench
@@ -420,6 +421,24 @@ def test_simulate_rows_and_calibration_record_failed_rows_instead_of_aborting() 
     base = model_from_dict({"manipulator": _softened().model_dump(mode="json")})
     result = solve_fit(build_problem(rows, base), max_evaluations=3)  # must not raise
     assert result.failures and "without equilibrium" in result.message
+
+
+@pytest.mark.parametrize("segments", [10, 20])
+def test_a_finger_lying_flat_puts_all_but_one_link_of_its_weight_on_the_plate(segments: int) -> None:
+    """At 0 kPa the finger lies flat on the plate (its top at the straight finger's underside).
+
+    The continuum puts its whole weight W on the plate; the chain hangs its clamp-side half link
+    and half of its first link from the clamp, so the plate carries W·(1 − 1/N), in the solved
+    statics and in the simulated bench alike. (With the plate left 0.5 µm low by Bullet's contact
+    slop, stiff joints carried another 8 % of W to the clamp: 0.171 instead of 0.186 N at N = 20.)
+    """
+    manip = planar_finger(0.100, segments, 0.020, stiffness_n_m_per_rad=0.0665 * segments).manipulator
+    assert manip is not None
+    weight_n = 0.020 * 9.81
+    solved = run_bench(manip, "blocked_force", 0.0).value
+    relaxed = run_bench(manip, "blocked_force", 0.0, statics="dynamic").value
+    assert solved == pytest.approx(weight_n * (1 - 1 / segments), rel=1e-3)
+    assert relaxed == pytest.approx(solved, rel=1e-4)
 
 
 def test_dynamic_relaxation_stays_selectable() -> None:
