@@ -94,6 +94,12 @@ STEP_CAP_RAD = 0.6
 RUNAWAY_RAD = 4 * math.pi
 #: Converged when the generalized force imbalance is below this fraction of the torque scale.
 RTOL = 1e-9
+#: Also converged when the Newton step is below ``STALL_STEP_RAD`` (the configuration no longer
+#: moves) and the imbalance below ``STALL_RTOL`` of the torque scale: a finger lying flat on the
+#: plate has more touching corners than joints, its contact forces are not unique, and the
+#: dual active-set's multipliers leave an imbalance of ~1e-7 of the scale that no step removes.
+STALL_STEP_RAD = 1e-12
+STALL_RTOL = 1e-6
 #: Plate penetration tolerated at convergence, m.
 GAP_TOL_M = 1e-11
 #: Relative size of the energy's rounding noise, tolerated by the line search.
@@ -626,7 +632,10 @@ class StaticChain:
             residual = float(np.max(np.abs(resid + reaction), initial=0.0))
             violation = float(np.max(-g, initial=0.0))
             contact_lam = lam[:n_contact_rows]
-            if residual <= RTOL * scale and violation <= GAP_TOL_M:
+            stalled = (
+                float(np.max(np.abs(d), initial=0.0)) <= STALL_STEP_RAD and residual <= STALL_RTOL * scale
+            )
+            if (residual <= RTOL * scale or stalled) and violation <= GAP_TOL_M:
                 cause = self._stability(hess, a, g, lam)
                 force = float(np.sum(contact_lam))
                 return _Equilibrium(q, not cause, it, residual, cause, force, int(np.sum(contact_lam > 0)))
