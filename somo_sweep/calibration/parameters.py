@@ -166,18 +166,29 @@ def _simulate_row(
     return float(value), nan, nan, ""
 
 
+#: Solved bench rows take 2–5 ms; a worker process takes about a second to start and import
+#: PyBullet, and every batch costs tens of ms to send out. Smaller batches run in-process.
+MIN_PARALLEL_SOLVED_ROWS = 200
+
+
 def simulate_rows(
     manip: Manipulator,
     rows: pd.DataFrame,
     settings: BenchSettings,
     n_jobs: int = 1,
     failures: list[RowFailure] | None = None,
+    min_parallel_rows: int | None = None,
 ) -> np.ndarray:
-    """Simulate rows in parallel; returns an (n, 3) array like :func:`measured_array`.
+    """Simulate rows, in up to ``n_jobs`` processes; returns an (n, 3) array like :func:`measured_array`.
 
     Rows without an equilibrium are NaN; each is logged (warning) and, when ``failures``
-    is given, appended to it as a :class:`RowFailure`.
+    is given, appended to it as a :class:`RowFailure`. Batches smaller than
+    ``min_parallel_rows`` (default: :data:`MIN_PARALLEL_SOLVED_ROWS` for solved statics,
+    2 for dynamic relaxation) run in this process: a worker takes longer to start than
+    a hundred solved rows take.
     """
+    if min_parallel_rows is None:
+        min_parallel_rows = MIN_PARALLEL_SOLVED_ROWS if settings.statics == "solve" else 2
     args = [
         (
             manip,
@@ -190,7 +201,7 @@ def simulate_rows(
         )
         for r in rows.itertuples()
     ]
-    if n_jobs == 1 or len(args) < 2:
+    if n_jobs == 1 or len(args) < max(min_parallel_rows, 2):
         out = [_simulate_row(*a) for a in args]
     else:
         out = joblib.Parallel(n_jobs=n_jobs)(joblib.delayed(_simulate_row)(*a) for a in args)

@@ -92,7 +92,12 @@ def calibrate(
     ] = None,
     method: Annotated[str, typer.Option(help="fit (simulator in the loop) or paper (eq. 8 and 9).")] = "fit",
     report: Annotated[Path | None, typer.Option(help="Folder for plots and a JSON summary.")] = None,
-    jobs: Annotated[int, typer.Option(help="Worker processes for the bench rows.")] = 2,
+    jobs: Annotated[
+        int,
+        typer.Option(
+            help="Worker processes for batches of 200 bench rows or more (smaller ones run in-process)."
+        ),
+    ] = 2,
     gravity_m_s2: Annotated[
         float, typer.Option(help="Gravity on the bench, m/s² (0: a horizontal, weightless bench).")
     ] = 9.81,
@@ -124,7 +129,7 @@ def calibrate(
         fail(exc)
     for table in results_table(result):
         console.print(table)
-    console.print(f"{result.simulations} bench simulations in {result.wall_time_s:.1f} s ({jobs} worker(s))")
+    console.print(f"{result.simulations} bench simulations in {result.wall_time_s:.1f} s")
     header = f"calibrated by somo-sweep calibrate --method {method} from {measurements}"
     output = output or default_output(measurements, "calibration") / "model.yaml"
     outputs: list[tuple[Path, str | bytes]] = [

@@ -44,7 +44,12 @@ def diagnose(
     effects: Annotated[
         str | None, typer.Option(help="Comma-separated effects to try (default: every registered one).")
     ] = None,
-    jobs: Annotated[int, typer.Option(help="Worker processes for the bench rows.")] = 2,
+    jobs: Annotated[
+        int,
+        typer.Option(
+            help="Worker processes for batches of 200 bench rows or more (smaller ones run in-process)."
+        ),
+    ] = 2,
     gravity_m_s2: Annotated[float, typer.Option(help="Gravity on the bench, m/s².")] = 9.81,
 ) -> None:
     """Find where simulation and measurement disagree, name the missing effect, add it to the model."""

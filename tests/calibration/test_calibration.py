@@ -313,7 +313,7 @@ def test_rows_simulate_identically_with_one_or_two_workers() -> None:
     plan = bench_plan([0.05], [100], [200])
     manip = _small_truth().manipulator
     one = simulate_rows(manip, plan, BenchSettings(time_step_s=1e-3), n_jobs=1)
-    two = simulate_rows(manip, plan, BenchSettings(time_step_s=1e-3), n_jobs=2)
+    two = simulate_rows(manip, plan, BenchSettings(time_step_s=1e-3), n_jobs=2, min_parallel_rows=0)
     np.testing.assert_array_equal(one, two)
 
 
