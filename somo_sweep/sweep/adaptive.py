@@ -9,12 +9,14 @@ The coarse sub-grid takes every ``stride``-th index of a refined dimension, alwa
 its last index. Consecutive coarse indices bound *boxes* (closed index ranges; a
 dimension that is not refined contributes one index per box). A box is **settled** when
 every simulated cell inside it or on its faces has the same *key* (a cell's status and
-labels); a box that is not settled is split at the midpoints of every dimension it spans
-by more than one step, and the corners of its children are simulated next. Refinement
-ends when every box whose corners are all simulated is settled or has no cell left
-between its corners. Each cell that was never simulated takes the key of the settled
-boxes that hold it (they agree: the faces they share carry simulated cells of the
-smaller box; a cell they would fill differently is simulated).
+labels). A box that is not settled is split at its midpoint along the dimensions whose
+corner edges change key (along all its longer dimensions when only a cell inside it
+differs); a dimension one step long whose edges change key is replaced by the box's two
+faces across it, which hold all its cells. The corners of the new boxes are simulated
+next. Refinement ends when every box whose corners are all simulated is settled or has
+no cell left between its corners. Each cell that was never simulated takes the key of
+the settled box that holds it; a cell two settled boxes would fill differently is
+simulated instead.
 
 Decisions depend only on the keys of the cells this procedure asked for, so the cells
 simulated are the same whatever order trials finish in, and an interrupted refinement
@@ -40,7 +42,6 @@ __all__ = [
     "default_stride",
     "infer",
     "next_cells",
-    "rounds",
 ]
 
 #: A dimension with fewer values is simulated at every value.
@@ -224,22 +225,6 @@ def next_cells(grid: AdaptiveGrid, keys: np.ndarray) -> list[Cell]:
     """
     wanted, settled = _walk(grid, keys)
     return wanted or _fill(grid, keys, settled)[1]
-
-
-def rounds(grid: AdaptiveGrid, key_of: dict[Cell, int]) -> Iterator[list[Cell]]:
-    """Replay the rounds from known keys: each yields the round's cells, all of them known.
-
-    Stops before the first round with a cell missing from ``key_of`` (or at the end), so a
-    resumed run learns how many rounds are complete and which cells were asked for.
-    """
-    keys = np.full(grid.shape, UNKNOWN, dtype=np.int64)
-    while True:
-        cells = next_cells(grid, keys)
-        if not cells or any(c not in key_of for c in cells):
-            return
-        for c in cells:
-            keys[c] = key_of[c]
-        yield cells
 
 
 def infer(grid: AdaptiveGrid, keys: np.ndarray) -> list[tuple[Box, int, list[Cell]]]:

@@ -64,7 +64,6 @@ from somo_sweep.tasks.registry import TaskSpec, get_task
 __all__ = [
     "MAX_TRIALS",
     "RESULTS_ROOT",
-    "SAMPLING",
     "Adaptive",
     "Simulation",
     "Study",
@@ -77,8 +76,6 @@ __all__ = [
 MAX_TRIALS = 1_000_000
 #: Folder (relative to the current directory) that ``name`` and ``output`` must stay inside.
 RESULTS_ROOT = Path("results")
-#: How a study's grid is sampled: every point, or a coarse sub-grid refined where labels change.
-SAMPLING = ("grid", "adaptive")
 #: Up to this many grid points, the models and parameters checked at load are kept for the jobs.
 CHECK_CACHE_POINTS = 10_000
 
