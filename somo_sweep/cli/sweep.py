@@ -21,6 +21,7 @@ from somo_sweep.errors import SomoError, StorageError
 
 if TYPE_CHECKING:  # the heavy modules are imported when a command runs
     from somo_sweep.sweep.runner import RunSummary
+    from somo_sweep.sweep.sampling import Batch
     from somo_sweep.sweep.study import Study
 
 _err = Console(stderr=True)
@@ -68,6 +69,14 @@ def run(
         int, typer.Option("--max-trials", help="Refuse a study with more trials than this.")
     ] = MAX_TRIALS,
     allow_outside: ALLOW_OUTSIDE = False,
+    adaptive: Annotated[
+        bool | None,
+        typer.Option(
+            "--adaptive/--exhaustive",
+            help="Simulate a coarse sub-grid, then only where labels change; the other cells are "
+            "stored as inferred (default: the study's sampling:, else exhaustive).",
+        ),
+    ] = None,
     chunk_rows: Annotated[int, typer.Option(help="Rows per Parquet part file.", hidden=True)] = 50,
 ) -> None:
     """Run a study: every trial missing from its results folder, in parallel, into Parquet.
@@ -94,6 +103,8 @@ def run(
         fail(SomoError(f"--out {out} is a file, not a folder"))
     try:
         st = load_study(study, out, max_trials, allow_outside)
+        if adaptive is not None:
+            st.sampling = "adaptive" if adaptive else "grid"
         if dry_run:
             _print_dry_run(st)
             return
@@ -118,12 +129,17 @@ def run(
                 err=True,
             )
         progress = _progress()
-        progress.add_task(st.name, total=summary.total - summary.skipped, rate=0.0)
         progress.start()
         live.append(progress)
 
+    def new_round(batch: Batch) -> None:
+        name = st.name if batch.number is None else f"round {batch.number}: {batch.cells} cells"
+        if batch.number == 0:
+            name += " (coarse)"
+        live[0].add_task(name, total=len(batch.jobs), rate=0.0)
+
     def advanced(_: object) -> None:
-        task = live[0].tasks[0]
+        task = live[0].tasks[-1]
         live[0].advance(task.id)
         live[0].update(task.id, rate=(task.completed / task.elapsed) if task.elapsed else 0.0)
 
@@ -144,6 +160,7 @@ def run(
             retry_errors=retry_errors,
             on_start=started,
             on_outcome=advanced,
+            on_round=new_round,
         )
     except SomoError as exc:
         stop()
@@ -186,11 +203,14 @@ def _progress() -> Progress:
 def _print_dry_run(st: Study) -> None:
     """Count, then the first rows, without building the other jobs."""
     from somo_sweep.sweep.jobs import first_jobs, jobs_frame
+    from somo_sweep.sweep.sampling import describe
 
     typer.echo(
         f"{st.name}: task {st.task.name}, {st.n_trials} trials "
         f"({st.n_points} grid points x {st.repeats} repeat(s)), output {st.output}"
     )
+    if st.sampling == "adaptive":
+        typer.echo(describe(st))
     frame = jobs_frame(first_jobs(st, DRY_ROWS))
     typer.echo(frame.to_string(index=False))
     if st.n_trials > DRY_ROWS:

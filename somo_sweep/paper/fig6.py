@@ -1,9 +1,10 @@
 """Paper Fig. 6: grasp type over centering position × object width, one panel per DSR.
 
 Works on a tidy table with one row per trial and the columns
-``distal_segment_ratio``, ``centering_m``, ``object_width_m`` and ``label``;
+``distal_segment_ratio``, ``centering_m``, ``object_width_m``, ``label`` and ``inferred``;
 :func:`grasp_table` makes it from a results table (any column prefix), relabelling
-with a chosen rule. Plot helpers draw on given axes; only the CLI saves files.
+with a chosen rule. Cells an adaptive run inferred keep their stored label and are drawn
+hatched. Plot helpers draw on given axes; only the CLI saves files.
 """
 
 from __future__ import annotations
@@ -17,7 +18,8 @@ import pandas as pd
 
 from somo_sweep.errors import SomoError
 from somo_sweep.paper.artifacts import Artifacts
-from somo_sweep.tasks.pinch_grasp.classify import LABELS, find_column, reclassify
+from somo_sweep.paper.grasp_trials import grasp_labels, inferred_rows
+from somo_sweep.tasks.pinch_grasp.classify import LABELS, find_column
 
 __all__ = [
     "COLORS",
@@ -38,20 +40,19 @@ DSR_DECIMALS = 6
 def grasp_table(results: pd.DataFrame, rule: str = "contacts") -> pd.DataFrame:
     """Tidy (DSR, centering, width, label) table of a pinch-grasp results table.
 
-    Rows that are not ``ok`` get the label ``unstable`` (or ``error``) from their status.
+    Rows that are not ``ok`` get the label ``unstable`` (or ``error``) from their status; cells
+    an adaptive run inferred keep the label it stored (``inferred`` true).
     """
     cols = [str(c) for c in results.columns]
     found = {n: find_column(cols, n) for n in ("distal_segment_ratio", "centering_m", "object_width_m")}
     missing = [n for n, c in found.items() if c is None]
     if missing:
         raise SomoError(f"results table lacks {', '.join(missing)}: not a pinch_grasp study?")
-    labels = reclassify(results, rule)
-    status_col = find_column(cols, "status")
-    if status_col is not None:
-        labels = labels.where(results[status_col] == "ok", results[status_col])
+    labels = grasp_labels(results, rule)
     out = pd.DataFrame({n: results[c].astype(float).to_numpy() for n, c in found.items() if c is not None})
     out["distal_segment_ratio"] = out["distal_segment_ratio"].round(DSR_DECIMALS)
     out["label"] = labels.to_numpy()
+    out["inferred"] = inferred_rows(results).to_numpy()
     return out
 
 
@@ -81,8 +82,11 @@ def draw_dsr_panel(ax: Any, table: pd.DataFrame, dsr: float) -> None:
     widths = np.sort(rows["object_width_m"].unique())
     dc = float(np.min(np.diff(cents))) if len(cents) > 1 else 0.005
     for _, r in rows.iterrows():
+        inferred = bool(r.get("inferred", False))
         ax.add_patch(
-            _rect(r["centering_m"] * 1e3 - dc * 5e2, widths, r["object_width_m"], dc * 1e3, r["label"])
+            _rect(
+                r["centering_m"] * 1e3 - dc * 5e2, widths, r["object_width_m"], dc * 1e3, r["label"], inferred
+            )
         )
     if len(cents):
         ax.set_xlim((cents[0] - dc / 2) * 1e3, (cents[-1] + dc / 2) * 1e3)
@@ -91,12 +95,22 @@ def draw_dsr_panel(ax: Any, table: pd.DataFrame, dsr: float) -> None:
     ax.set_title(f"DSR {dsr:.2f}")
 
 
-def _rect(x0_mm: float, widths: np.ndarray, width_m: float, dx_mm: float, label: str) -> Any:
+def _rect(
+    x0_mm: float, widths: np.ndarray, width_m: float, dx_mm: float, label: str, inferred: bool = False
+) -> Any:
     from matplotlib.patches import Rectangle
 
     row = int(np.argmin(np.abs(widths - width_m)))
     color = COLORS.get(label, "#7f7f7f")
-    return Rectangle((x0_mm, row - 0.5), dx_mm, 1.0, facecolor=color, edgecolor="white", linewidth=0.5)
+    return Rectangle(
+        (x0_mm, row - 0.5),
+        dx_mm,
+        1.0,
+        facecolor=color,
+        edgecolor="white",
+        linewidth=0.5,
+        hatch="///" if inferred else None,
+    )
 
 
 def draw_fig6(axes: Sequence[Any], table: pd.DataFrame, max_dsr: float = 0.5) -> list[float]:
@@ -132,11 +146,13 @@ def build(table: pd.DataFrame, stem: str = "fig6", max_dsr: float = 0.5) -> Arti
         ax.set_ylabel("object width (mm)")
     best = smallest_all_width_pinch_dsr(table)
     present = [lab for lab in COLORS if lab in set(table["label"])]
-    fig.legend(
-        handles=[Patch(facecolor=COLORS[lab], edgecolor="0.5", label=lab) for lab in present],
-        loc="lower center",
-        ncol=len(present),
-    )
+    handles = [Patch(facecolor=COLORS[lab], edgecolor="0.5", label=lab) for lab in present]
+    n_inferred = int(table["inferred"].sum()) if "inferred" in table.columns else 0
+    if n_inferred:
+        handles.append(
+            Patch(facecolor="white", edgecolor="0.5", hatch="///", label="inferred (not simulated)")
+        )
+    fig.legend(handles=handles, loc="lower center", ncol=len(handles))
     headline = (
         "no DSR pinch-grasps every width" if best is None else f"smallest all-width pinch DSR: {best:.2f}"
     )
@@ -146,6 +162,7 @@ def build(table: pd.DataFrame, stem: str = "fig6", max_dsr: float = 0.5) -> Arti
     info = {
         "smallest_all_width_pinch_dsr": best,
         "trials": len(table),
+        "inferred": n_inferred,
         "labels": {str(k): int(v) for k, v in table["label"].value_counts().items()},
     }
     return Artifacts(
@@ -153,5 +170,10 @@ def build(table: pd.DataFrame, stem: str = "fig6", max_dsr: float = 0.5) -> Arti
         dpi=150,
         json={f"{stem}.json": info},
         tables={f"{stem}_summary.csv": summary},
-        lines=[f"{info['trials']} trials, labels: {info['labels']}", headline],
+        lines=[
+            f"{info['trials']} trials ({n_inferred} inferred, not simulated), labels: {info['labels']}"
+            if n_inferred
+            else f"{info['trials']} trials, labels: {info['labels']}",
+            headline,
+        ],
     )

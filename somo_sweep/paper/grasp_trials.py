@@ -12,7 +12,10 @@ from somo_sweep.errors import SomoError
 from somo_sweep.paper.artifacts import Artifacts
 from somo_sweep.tasks.pinch_grasp.classify import find_column, reclassify
 
-__all__ = ["find_trial", "read_results", "relabel", "render_trial"]
+__all__ = ["find_trial", "grasp_labels", "read_results", "relabel", "render_trial"]
+
+#: The label column the pinch_grasp task stores for each rule (with its default options).
+STORED_LABEL = {"contacts": "label_grasp", "paper": "label_grasp_paper"}
 
 
 def read_results(folder: str | Path) -> pd.DataFrame:
@@ -32,6 +35,34 @@ def read_results(folder: str | Path) -> pd.DataFrame:
     return table
 
 
+def inferred_rows(table: pd.DataFrame) -> pd.Series:
+    """Which rows are cells an adaptive run inferred (no metrics to relabel from)."""
+    if "inferred" not in table.columns:
+        return pd.Series(False, index=table.index)
+    return table["inferred"].fillna(False).astype(bool)
+
+
+def grasp_labels(table: pd.DataFrame, rule: str = "contacts", **options: float) -> pd.Series:
+    """Labels of every row: simulated rows relabelled from their metrics, inferred rows from the run.
+
+    An inferred cell has no metrics: it keeps the label the adaptive run stored for this rule
+    (``unknown`` with non-default options, or where its simulated neighbours disagreed on it).
+    Rows that are not ``ok`` get their status.
+    """
+    inferred = inferred_rows(table)
+    labels = pd.Series(None, index=table.index, dtype=object, name=f"grasp_{rule}")
+    if (~inferred).any():
+        labels[~inferred] = reclassify(table[~inferred], rule, **options)
+    if inferred.any():
+        column = STORED_LABEL.get(rule)
+        stored = table.loc[inferred, column] if column in table.columns and not options else None
+        labels[inferred] = "unknown" if stored is None else stored.fillna("unknown")
+    status_col = find_column([str(c) for c in table.columns], "status")
+    if status_col is not None:
+        labels = labels.where(table[status_col] == "ok", table[status_col])
+    return labels
+
+
 def relabel(
     folder: str | Path, rule: str = "contacts", **options: float
 ) -> tuple[dict[str, int], pd.DataFrame]:
@@ -43,11 +74,8 @@ def relabel(
     """
     folder = Path(folder)
     table = read_results(folder)
-    labels = reclassify(table, rule, **options)
+    labels = grasp_labels(table, rule, **options)
     cols = [str(c) for c in table.columns]
-    status_col = find_column(cols, "status")
-    if status_col is not None:
-        labels = labels.where(table[status_col] == "ok", table[status_col])
     keep = [
         c
         for c in (
@@ -57,6 +85,7 @@ def relabel(
     ]
     out = table[keep].copy()
     out[f"grasp_{rule}"] = labels
+    out["inferred"] = inferred_rows(table)
     return dict(sorted(Counter(str(v) for v in labels).items())), out
 
 

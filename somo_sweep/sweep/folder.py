@@ -16,12 +16,14 @@ from typing import Any
 
 import pandas as pd
 import pyarrow as pa
+import pyarrow.compute as pc
 import pyarrow.parquet as pq
 
 from somo_sweep.errors import SomoError
 from somo_sweep.sweep.schema import COLUMNS
 
 __all__ = [
+    "INFERRED",
     "JOURNAL_GLOB",
     "MANIFEST",
     "PART_GLOB",
@@ -34,6 +36,8 @@ __all__ = [
 ]
 
 MANIFEST = "manifest.json"
+#: The cells an adaptive run inferred instead of simulating (outside ``trials/``: never resumed from).
+INFERRED = "inferred.parquet"
 #: Part files of the trials table, in ``trials/``.
 PART_GLOB = "part-*.parquet"
 #: Rows of a run appended one by one as trials finish (hidden: Parquet readers skip them).
@@ -98,7 +102,11 @@ def _warn(path: Path, reason: str) -> None:
 
 
 def read_results(folder: str | Path, on_damaged: OnDamaged | None = None) -> pd.DataFrame:
-    """Every readable trial of a results folder, in grid order.
+    """Every readable trial of a results folder, in grid order, with a boolean ``inferred`` column.
+
+    Simulated trials have ``inferred`` false; the cells an adaptive run did not simulate
+    (``inferred.parquet``) follow with ``inferred`` true, their metrics missing. A cell stored
+    as simulated is never also returned as inferred.
 
     Args:
         folder: The results folder.
@@ -120,8 +128,15 @@ def read_results(folder: str | Path, on_damaged: OnDamaged | None = None) -> pd.
             tables.append(pq.read_table(part))
         except (pa.ArrowException, OSError) as exc:  # a footer that reads, pages that do not
             report(part, str(exc).split("\n")[0])
-    if not tables:
-        return pd.DataFrame(columns=[c.name for c in COLUMNS])
+    inferred = _read_inferred(folder, report)
+    if not tables and inferred is None:
+        return pd.DataFrame(columns=[*(c.name for c in COLUMNS), "inferred"])
+    if tables:
+        simulated = pa.concat_tables(tables, promote_options="permissive")
+        tables = [simulated.append_column("inferred", pa.array([False] * simulated.num_rows))]
+    if inferred is not None:
+        done = pa.array(tables[0].column("job_id").to_pylist() if tables else [], type=pa.string())
+        tables.append(inferred.filter(pc.invert(pc.is_in(inferred.column("job_id"), value_set=done))))
     df = pa.concat_tables(tables, promote_options="permissive").to_pandas()
     foreign = df[df["study_hash"] != manifest["study_hash"]]
     if len(foreign):
@@ -129,6 +144,18 @@ def read_results(folder: str | Path, on_damaged: OnDamaged | None = None) -> pd.
             f"{folder}: {len(foreign)} row(s) belong to another study (hash {foreign['study_hash'].iloc[0]})"
         )
     return df.sort_values("trial", kind="stable").reset_index(drop=True)
+
+
+def _read_inferred(folder: Path, report: OnDamaged) -> pa.Table | None:
+    path = folder / INFERRED
+    if not path.is_file():
+        return None
+    try:
+        table = pq.read_table(path)
+    except (pa.ArrowException, OSError) as exc:
+        report(path, str(exc).split("\n")[0])
+        return None
+    return table if "inferred" in table.column_names else None
 
 
 def journal_rows(path: Path) -> list[dict[str, Any]]:

@@ -13,7 +13,7 @@ from somo_sweep.sweep.schema import FIXED, unit_of
 
 __all__ = ["metric_columns", "plot_labels", "plot_metric", "plot_status", "summary_figure"]
 
-STATUS_COLOURS = {"ok": "tab:green", "unstable": "tab:orange", "error": "tab:red"}
+STATUS_COLOURS = {"ok": "tab:green", "unstable": "tab:orange", "error": "tab:red", "inferred": "0.75"}
 #: At most this many metric panels in the summary figure.
 MAX_METRICS = 6
 
@@ -35,9 +35,17 @@ def _label(column: str) -> str:
     return f"{column} ({unit})" if unit else column
 
 
+def _inferred(df: pd.DataFrame) -> pd.Series:
+    if "inferred" not in df.columns:
+        return pd.Series(False, index=df.index)
+    return df["inferred"].fillna(False).astype(bool)
+
+
 def plot_status(ax: Axes, df: pd.DataFrame, x: str | None) -> None:
-    """Stacked bars of trials by status, per value of column ``x`` (or in total)."""
-    counts = df["status"].value_counts().to_frame().T if x is None else pd.crosstab(df[x], df["status"])
+    """Stacked bars of trials by status, per value of column ``x`` (or in total); inferred cells
+    of an adaptive run are a bar segment of their own."""
+    status = df["status"].where(~_inferred(df), "inferred")
+    counts = status.value_counts().to_frame().T if x is None else pd.crosstab(df[x], status)
     bottom = None
     labels = [str(v) for v in counts.index]
     for status in counts.columns:
@@ -50,8 +58,12 @@ def plot_status(ax: Axes, df: pd.DataFrame, x: str | None) -> None:
 
 
 def plot_labels(ax: Axes, df: pd.DataFrame, x: str | None, label: str) -> None:
-    """Stacked bars of ``ok`` trials by the values of column ``label``, per value of ``x``."""
+    """Stacked bars of ``ok`` trials by the values of column ``label``, per value of ``x``.
+
+    Inferred cells count with the label their simulated neighbours agree on; the title says how many.
+    """
     ok = df[df["status"] == "ok"]
+    n_inferred = int(_inferred(ok).sum())
     values = ok[label].fillna("-")
     counts = values.value_counts().to_frame().T if x is None else pd.crosstab(ok[x], values)
     bottom = None
@@ -61,7 +73,7 @@ def plot_labels(ax: Axes, df: pd.DataFrame, x: str | None, label: str) -> None:
         bottom = counts[value] if bottom is None else bottom + counts[value]
     ax.set_xlabel(_label(x) if x else "")
     ax.set_ylabel("ok trials")
-    ax.set_title(label.removeprefix("label_"))
+    ax.set_title(label.removeprefix("label_") + (f" ({n_inferred} inferred)" if n_inferred else ""))
     ax.legend(fontsize="small")
     ax.tick_params(axis="x", labelrotation=45)
 
@@ -115,6 +127,8 @@ def summary_figure(df: pd.DataFrame, manifest: dict[str, Any]) -> Figure:
         plot_metric(ax, df, x, metric, hue, short.get(hue or ""))
     for ax in flat[n:]:
         ax.set_visible(False)
-    fig.suptitle(f"{manifest.get('study_name')} ({len(df)} trials)")
+    n_inferred = int(_inferred(df).sum())
+    extra = f", {n_inferred} of them inferred" if n_inferred else ""
+    fig.suptitle(f"{manifest.get('study_name')} ({len(df)} trials{extra})")
     fig.tight_layout()
     return fig

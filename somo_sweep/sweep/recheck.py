@@ -102,6 +102,7 @@ def recheck(
             f"the study now gives {table.study_hash}): run it again before rechecking"
         )
     stored = read_results(folder, on_damaged)
+    stored = stored[~stored["inferred"]].drop(columns="inferred")  # inferred cells have nothing to rerun
     if stored.empty:
         raise SomoError(f"{folder} holds no finished trials yet")
     if n_trials < 1:

@@ -1,7 +1,10 @@
 """Run a study end to end: job table → missing trials → parallel execution → results folder.
 
 :func:`run_study` is what ``somo-sweep run`` calls. It is resumable (only trials
-missing from the results folder run). Every finished trial is appended to the run's
+missing from the results folder run). An adaptive study runs in rounds
+(:mod:`somo_sweep.sweep.sampling`): each round's trials are chosen from the labels of the
+rounds before, and when the last round completes the cells never simulated are written
+as inferred rows. Every finished trial is appended to the run's
 journal at once (so a SIGKILL loses only the trials in flight) and written into part
 files in chunks; on SIGINT / SIGTERM every finished trial is written before returning,
 and when the disk fills up the run stops with what it wrote intact.
@@ -27,15 +30,25 @@ import numpy as np
 from somo_sweep.errors import StorageError
 from somo_sweep.sweep.execution import Backend, Outcome, dask_client, execute
 from somo_sweep.sweep.jobs import Job, JobTable, build_jobs
+from somo_sweep.sweep.sampling import AdaptivePlan, Batch, Known
 from somo_sweep.sweep.schema import FIXED
 from somo_sweep.sweep.store import ResultStore
 from somo_sweep.sweep.study import Study
 
-__all__ = ["RunSummary", "outcome_row", "run_study"]
+__all__ = ["RoundSummary", "RunSummary", "outcome_row", "run_study"]
 
 #: Rows buffered before a part file is written, and the longest wait between writes, s.
 CHUNK_ROWS = 50
 FLUSH_INTERVAL_S = 10.0
+
+
+@dataclass
+class RoundSummary:
+    """One adaptive round of a run: its number, its cells and the trials run for it now."""
+
+    number: int
+    cells: int
+    run: int = 0
 
 
 @dataclass
@@ -54,6 +67,10 @@ class RunSummary:
         stored_errors: Trials already in the folder (skipped) whose status is ``error``.
         notes: What the results folder needed on opening (damaged parts set aside, manifest
             rebuilt, rows recovered, runs marked aborted), for the user.
+        sampling: ``grid`` or ``adaptive``.
+        rounds: Adaptive rounds that ran trials in this run.
+        simulated_cells: Adaptive: grid cells simulated when the run ended (earlier runs included).
+        inferred: Adaptive: trials written as inferred (0 until the last round completes).
     """
 
     folder: Path
@@ -66,6 +83,10 @@ class RunSummary:
     interrupted: int | None = None
     stored_errors: int = 0
     notes: list[str] = field(default_factory=list)
+    sampling: str = "grid"
+    rounds: list[RoundSummary] = field(default_factory=list)
+    simulated_cells: int = 0
+    inferred: int = 0
 
     @property
     def trials_per_s(self) -> float:
@@ -179,6 +200,8 @@ def run_study(
     retry_errors: bool = False,
     on_start: Callable[[RunSummary], None] | None = None,
     on_outcome: Callable[[Outcome], None] | None = None,
+    adaptive: bool | None = None,
+    on_round: Callable[[Batch], None] | None = None,
 ) -> RunSummary:
     """Run the trials of ``study`` missing from its results folder.
 
@@ -197,13 +220,18 @@ def run_study(
         on_start: Called with the summary (``total``, ``skipped``, ``stored_errors``, ``notes``)
             once the folder is open, before any trial runs.
         on_outcome: Called with every outcome as it arrives.
+        adaptive: Sample adaptively (default: the study's ``sampling``).
+        on_round: Called with each batch of trials before it runs (an adaptive round, or the
+            one batch of a grid run).
 
     Raises:
         StorageError: The results could not be written (e.g. disk full); the run stopped, what
             it wrote is intact and the manifest counts only rows in part files.
         SomoError: Folder locked, different study in the folder, Dask unreachable.
+        DescriptionError: ``adaptive.labels`` names a label the task does not give.
     """
     table = table or build_jobs(study)
+    adaptive = study.sampling == "adaptive" if adaptive is None else adaptive
     n_jobs = n_jobs or joblib.cpu_count() or 1
     param_types: dict[str, list[Any]] = {}
     for job in table.jobs:
@@ -228,6 +256,8 @@ def run_study(
     started = ended = False
     buffer: list[dict[str, Any]] = []
     summary = RunSummary(study.output, len(table.jobs), 0, notes=list(store.notes))
+    summary.sampling = "adaptive" if adaptive else "grid"
+    plan = AdaptivePlan(study, table) if adaptive else None
     failure: OSError | None = None
     try:
         store.copy_study(study.source)
@@ -237,31 +267,50 @@ def run_study(
         todo = [j for j in table.jobs if j.job_id not in done]
         summary.skipped = len(table.jobs) - len(todo)
         summary.stored_errors = sum(1 for j in table.jobs if done.get(j.job_id) == "error")
+        known: Known = store.stored_labels() if plan else {}
+        store.clear_inferred()
         store.start_run(
-            {"backend": backend, "n_jobs": n_jobs if backend == "loky" else None, "to_run": len(todo)}
+            {
+                "backend": backend,
+                "n_jobs": n_jobs if backend == "loky" else None,
+                "to_run": len(todo),
+                "sampling": summary.sampling,
+            }
         )
         started = True
         if on_start:
             on_start(summary)
-        by_id = {j.job_id: j for j in todo}
+        batches = plan.rounds(known) if plan else iter([Batch(None, len(todo), todo)])
         last_flush = time.perf_counter()
         with _SignalGuard() as guard:
             status = "completed"
             try:
-                for out in execute(todo, backend, n_jobs, scheduler, timeout_s, client):
-                    with guard.protect():
-                        row = outcome_row(by_id[out.job_id], out, table.study_hash)
-                        summary.run += 1
-                        summary.by_status[out.status] += 1
-                        summary.by_label.update(f"{k}={v}" for k, v in out.labels.items())
-                        store.journal(row)
-                        buffer.append(row)
-                        if on_outcome:
-                            on_outcome(out)
-                        if len(buffer) >= chunk_rows or time.perf_counter() - last_flush >= flush_interval_s:
-                            store.write(buffer)
-                            buffer = []
-                            last_flush = time.perf_counter()
+                for batch in batches:
+                    if batch.number is not None:
+                        summary.rounds.append(RoundSummary(batch.number, batch.cells))
+                    if on_round:
+                        on_round(batch)
+                    by_id = {j.job_id: j for j in batch.jobs}
+                    for out in execute(batch.jobs, backend, n_jobs, scheduler, timeout_s, client):
+                        with guard.protect():
+                            row = outcome_row(by_id[out.job_id], out, table.study_hash)
+                            summary.run += 1
+                            if summary.rounds:
+                                summary.rounds[-1].run += 1
+                            summary.by_status[out.status] += 1
+                            summary.by_label.update(f"{k}={v}" for k, v in out.labels.items())
+                            known[out.job_id] = (out.status, dict(out.labels))
+                            store.journal(row)
+                            buffer.append(row)
+                            if on_outcome:
+                                on_outcome(out)
+                            if (
+                                len(buffer) >= chunk_rows
+                                or time.perf_counter() - last_flush >= flush_interval_s
+                            ):
+                                store.write(buffer)
+                                buffer = []
+                                last_flush = time.perf_counter()
             except KeyboardInterrupt as exc:
                 summary.interrupted = exc.signum if isinstance(exc, _Stop) else int(signal.SIGINT)
                 status = "interrupted"
@@ -272,11 +321,25 @@ def run_study(
                     try:
                         store.write(buffer)
                         buffer = []
+                        if plan and status == "completed":
+                            inferred = plan.inferred_rows(known, table.study_hash)
+                            store.write_inferred(inferred)
+                            summary.inferred = len(inferred)
                     except OSError as exc:
                         failure, status = exc, "failed"
                 summary.wall_time_s = time.perf_counter() - start
+                summary.simulated_cells = plan.simulated_cells if plan else 0
+                extra = (
+                    {
+                        "rounds": [vars(r) for r in summary.rounds],
+                        "simulated_cells": summary.simulated_cells,
+                        "inferred_trials": summary.inferred,
+                    }
+                    if plan
+                    else None
+                )
                 with contextlib.suppress(OSError):
-                    store.end_run(status, summary.run)
+                    store.end_run(status, summary.run, extra)
                 ended = True
     except OSError as exc:
         failure = exc

@@ -6,6 +6,8 @@ Layout of ``results/<study>/``::
     trials/.journal-*.jsonl the rows of a run as its trials finish (one line each), until
                             they are in a part file; a killed run's rows are recovered from it
     trials/quarantine/      damaged part files, set aside (their trials run again)
+    inferred.parquet        adaptive runs: the cells never simulated (``inferred`` true), rewritten
+                            at the end of each completed adaptive run and removed when a run starts
     manifest.json           study hash, resolved study, runs (each with its versions), hosts,
                             columns with units, and every file the tool wrote here
     study.yaml              copy of the study file as last run
@@ -38,6 +40,7 @@ import pyarrow.parquet as pq
 
 from somo_sweep.errors import SomoError
 from somo_sweep.sweep.folder import (
+    INFERRED,
     JOURNAL_GLOB,
     MANIFEST,
     PART_GLOB,
@@ -283,6 +286,18 @@ class ResultStore:
         table = pq.read_table(parts, columns=["job_id", "status"])
         return dict(zip(table.column("job_id").to_pylist(), table.column("status").to_pylist(), strict=True))
 
+    def stored_labels(self) -> dict[str, tuple[str, dict[str, str]]]:
+        """Status and labels (names without ``label_``) of every trial already stored, by job id."""
+        parts = self._parts()
+        if not parts:
+            return {}
+        names = [n for n in self._schema().names if n.startswith("label_")]
+        table = pq.read_table(parts, columns=["job_id", "status", *names]).to_pylist()
+        return {
+            r["job_id"]: (r["status"], {n.removeprefix("label_"): r[n] for n in names if r[n] is not None})
+            for r in table
+        }
+
     def done_ids(self) -> set[str]:
         """Ids of the trials already stored."""
         return set(self.done_statuses())
@@ -327,16 +342,18 @@ class ResultStore:
         self.manifest["versions"] = now
         self._write_manifest()
 
-    def end_run(self, status: str, n_done: int) -> None:
+    def end_run(self, status: str, n_done: int, extra: dict[str, Any] | None = None) -> None:
         """Record the end of the current run (``completed``, ``interrupted`` or ``failed``).
 
         Args:
             status: How the run ended.
             n_done: Trials that finished in this run (``trials_written`` counts only those
                 whose rows are in part files).
+            extra: More to record with the run (e.g. the adaptive rounds).
         """
         run = self.manifest["runs"][-1]
         run.update(end_utc=now_utc(), status=status, trials_finished=n_done, trials_written=self.rows_written)
+        run.update(extra or {})
         self._write_manifest()
         if status != "failed":  # every finished row is in a part file: the journal is not needed
             self._close_journal(delete=True)
@@ -376,6 +393,30 @@ class ResultStore:
         self._record(path)
         hosts = sorted({*self.manifest["hosts"], *(str(r.get("host", "")) for r in rows)} - {""})
         self.manifest["hosts"] = hosts
+        self._write_manifest()
+
+    def clear_inferred(self) -> None:
+        """Remove the inferred cells of an earlier adaptive run (they are rebuilt when one completes)."""
+        path = self.folder / INFERRED
+        if path.exists():
+            path.unlink()
+        self._forget(path)
+        self._write_manifest()
+
+    def write_inferred(self, rows: list[dict[str, Any]]) -> None:
+        """Write the inferred cells (``inferred`` true) as ``inferred.parquet``, atomically.
+
+        They never go into ``trials/``: resume reads only the part files, so an inferred cell
+        is never taken for a simulated one.
+        """
+        if not rows:
+            return
+        schema = self._schema().append(pa.field("inferred", pa.bool_()))
+        names = [n for n in schema.names if any(n in r for r in rows)]
+        table = pa.table({n: _column([r.get(n) for r in rows], schema.field(n).type) for n in names})
+        path = self.folder / INFERRED
+        self._atomic(table, path, schema)
+        self._record(path)
         self._write_manifest()
 
     def _record(self, path: Path) -> None:

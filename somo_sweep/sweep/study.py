@@ -19,6 +19,8 @@ A study file (YAML or JSON) looks like this; paths are relative to the study fil
     seed: 0                              # base seed; trial seeds derive from it and the point
     simulation: {time_step_s: 5.0e-4, scale: 20, solver_iterations: 50, gravity_m_s2: [0, 0, -9.81]}
     output: results/finger_pressure_sweep   # a folder inside results/ of the current directory
+    sampling: grid                       # or adaptive: a coarse sub-grid, refined where labels change
+    adaptive: {labels: [grasp], coarse_step: 4}   # optional: labels to follow (default: all), stride
 
 In YAML flow style (``{...}``) quote keys holding ``[i]``; block style needs no quotes.
 Key paths start with ``model.`` (any field of the model file, list items as ``[i]``)
@@ -45,7 +47,7 @@ from collections.abc import Iterator
 from dataclasses import dataclass, field
 from functools import cache
 from pathlib import Path
-from typing import Any
+from typing import Annotated, Any, Literal
 
 from pydantic import BaseModel, Field
 
@@ -59,7 +61,16 @@ from somo_sweep.sim.settings import WorldSettings
 from somo_sweep.sweep.axes import Axis, axis_length, expand_axis, link_groups, parse_key_path, set_path
 from somo_sweep.tasks.registry import TaskSpec, get_task
 
-__all__ = ["MAX_TRIALS", "RESULTS_ROOT", "Simulation", "Study", "StudyFile", "load_model_dict", "load_study"]
+__all__ = [
+    "MAX_TRIALS",
+    "RESULTS_ROOT",
+    "Adaptive",
+    "Simulation",
+    "Study",
+    "StudyFile",
+    "load_model_dict",
+    "load_study",
+]
 
 #: Most trials a study may have unless the caller allows more (``--max-trials``).
 MAX_TRIALS = 1_000_000
@@ -87,6 +98,20 @@ class Simulation(Spec):
         )
 
 
+class Adaptive(Spec):
+    """Settings of adaptive sampling (``sampling: adaptive`` or ``somo-sweep run --adaptive``).
+
+    Attributes:
+        labels: Labels whose changes are refined (``grasp`` or ``label_grasp``); default:
+            every label the task gives. A trial's status is always followed too.
+        coarse_step: Index steps between coarse cells along each refined axis (default: the
+            largest power of two ≤ (values − 1) / 2 of each axis).
+    """
+
+    labels: list[Annotated[str, Field(pattern=r"^[A-Za-z0-9_]+$")]] = Field(default_factory=list)
+    coarse_step: int | None = Field(None, ge=1)
+
+
 class StudyFile(Spec):
     """The raw schema of a study file (see the module docstring)."""
 
@@ -101,6 +126,8 @@ class StudyFile(Spec):
     seed: int = Field(0, ge=0)
     simulation: Simulation = Simulation()
     output: str | None = None
+    sampling: Literal["grid", "adaptive"] = "grid"
+    adaptive: Adaptive = Adaptive()
 
 
 def _canonical(obj: Any) -> str:
@@ -125,6 +152,8 @@ class Study:
         simulation: Simulation settings.
         output: Output folder.
         allow_outside: Model includes may name files outside the model's folder.
+        sampling: ``grid`` (every trial) or ``adaptive`` (see :mod:`somo_sweep.sweep.adaptive`).
+        adaptive: Settings of adaptive sampling.
     """
 
     name: str
@@ -140,6 +169,8 @@ class Study:
     simulation: Simulation
     output: Path
     allow_outside: bool = False
+    sampling: str = "grid"
+    adaptive: Adaptive = field(default_factory=Adaptive)
     _models: dict[str, Model] = field(default_factory=dict, repr=False)
     _bases: dict[str, dict[str, Any]] = field(default_factory=dict, repr=False)
     _params: dict[str, BaseModel] = field(default_factory=dict, repr=False)
@@ -404,6 +435,8 @@ def load_study(
         raw.simulation,
         out,
         allow_outside,
+        raw.sampling,
+        raw.adaptive,
     )
     bases_ok = _check_bases(study, lines, problems)
     if problems and bases_ok:

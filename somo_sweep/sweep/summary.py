@@ -10,7 +10,7 @@ from rich.table import Table
 
 from somo_sweep.sweep.runner import RunSummary
 
-__all__ = ["breakdown", "label_columns", "print_results", "print_run_summary"]
+__all__ = ["breakdown", "inferred_mask", "label_columns", "print_results", "print_run_summary"]
 
 
 def label_columns(df: pd.DataFrame) -> list[str]:
@@ -18,9 +18,28 @@ def label_columns(df: pd.DataFrame) -> list[str]:
     return [c for c in df.columns if c.startswith("label_")]
 
 
+def inferred_mask(df: pd.DataFrame) -> pd.Series:
+    """Which rows are inferred cells of an adaptive run (all False for a table without them)."""
+    if "inferred" not in df.columns:
+        return pd.Series(False, index=df.index)
+    return df["inferred"].fillna(False).astype(bool)
+
+
+def _by_sampling(values: pd.Series, inferred: pd.Series) -> pd.DataFrame:
+    """Counts of each value, split into simulated and inferred rows when there are inferred ones."""
+    if not inferred.any():
+        return values.value_counts().to_frame("trials")
+    counts = pd.crosstab(values, inferred.map({False: "simulated", True: "inferred"}))
+    return counts.reindex(columns=["simulated", "inferred"], fill_value=0)
+
+
 def breakdown(df: pd.DataFrame, column: str) -> pd.DataFrame:
-    """Trials per value of ``column``: counts by status and by each label value."""
+    """Trials per value of ``column``: counts by status, by each label value, and inferred."""
     parts = [pd.crosstab(df[column], df["status"])]
+    inferred = inferred_mask(df)
+    if inferred.any():
+        parts.append(pd.crosstab(df[column], inferred).reindex(columns=[True], fill_value=0))
+        parts[-1].columns = ["inferred"]
     for label in label_columns(df):
         counts = pd.crosstab(df[column], df[label].fillna("-"))
         counts.columns = [f"{label.removeprefix('label_')}={v}" for v in counts.columns]
@@ -45,6 +64,14 @@ def print_run_summary(console: Console, summary: RunSummary) -> None:
     if summary.stored_errors:
         stored = f"{summary.skipped} already stored ({summary.stored_errors} as error)"
     console.print(f"{summary.run} trial(s) run ({status}); {stored}; {summary.total} in the study")
+    if summary.sampling == "adaptive":
+        rounds = ", ".join(f"round {r.number}: {r.cells} cells, {r.run} run" for r in summary.rounds)
+        console.print(f"adaptive: {rounds or 'no round left to run'}")
+        if summary.interrupted is None:
+            console.print(
+                f"adaptive: {summary.simulated_cells} grid cells simulated, {summary.inferred} trial(s) "
+                "inferred (stored with inferred = true)"
+            )
     if summary.by_label:
         console.print("labels: " + ", ".join(f"{k} {v}" for k, v in sorted(summary.by_label.items())))
     console.print(
@@ -56,8 +83,15 @@ def print_run_summary(console: Console, summary: RunSummary) -> None:
 def print_results(console: Console, df: pd.DataFrame, manifest: dict[str, Any]) -> None:
     """Header (study, hash, completeness, runs), counts by status and label, per-axis tables."""
     total = manifest.get("n_trials") or 0
+    inferred = inferred_mask(df)
+    stored = f"{len(df)} of {total} trials stored"
+    if inferred.any():
+        stored = (
+            f"{(~inferred).sum()} simulated and {inferred.sum()} inferred (adaptive sampling) "
+            f"of {total} trials"
+        )
     console.print(
-        f"[bold]{manifest.get('study_name')}[/bold]: {len(df)} of {total} trials stored, "
+        f"[bold]{manifest.get('study_name')}[/bold]: {stored}, "
         f"study hash {manifest['study_hash']}, task {manifest.get('study', {}).get('task')}"
     )
     for run in manifest.get("runs", []):
@@ -67,15 +101,16 @@ def print_results(console: Console, df: pd.DataFrame, manifest: dict[str, Any]) 
         )
     if df.empty:
         return
-    counts = df["status"].value_counts().rename_axis("status").to_frame("trials")
+    counts = _by_sampling(df["status"].rename("status"), inferred)
     console.print(_table("trials by status", counts, "status"))
     for label in label_columns(df):
-        counts = df[label].fillna("-").value_counts().to_frame("trials")
+        counts = _by_sampling(df[label].fillna("-"), inferred)
         console.print(_table(f"trials by {label.removeprefix('label_')}", counts, "value"))
     for key, column in manifest.get("axes", {}).items():
         if column in df.columns:
             console.print(_table(f"by {key}", breakdown(df, column), column))
-    bad = df[df["status"] != "ok"]
+    simulated = df[~inferred]
+    bad = simulated[simulated["status"] != "ok"]
     if len(bad):
         counts = bad.groupby(["status", "message"]).size().sort_values(ascending=False).head(5)
         table = Table(title="most common reasons (not ok)", title_justify="left")
@@ -84,4 +119,7 @@ def print_results(console: Console, df: pd.DataFrame, manifest: dict[str, Any]) 
         for (status, message), n in counts.items():
             table.add_row(str(status), str(message), str(n))
         console.print(table)
-    console.print(f"wall time per trial: mean {df['wall_time_s'].mean():.3f} s; {len(df) - len(bad)} ok")
+    console.print(
+        f"wall time per trial: mean {simulated['wall_time_s'].mean():.3f} s; {len(simulated) - len(bad)} "
+        "simulated ok"
+    )

@@ -7,6 +7,10 @@
 * ``selftest_unstable``: like ``selftest_sleep``, but reports a blow-up when ``x`` is in
   ``unstable_x`` (raises :class:`~somo_sweep.errors.UnstableSimulation`, as the core does).
 
+With ``region_radius_m`` set, every task also labels ``region`` ``inside`` or ``outside`` the
+ball of that radius around the origin in (x, u, v): a known label boundary in up to three
+dimensions, for the adaptive-sampling tests.
+
 They let the robustness tests run in real loky and Dask worker processes in milliseconds.
 """
 
@@ -40,6 +44,10 @@ class SelftestParams(BaseModel):
 
     Attributes:
         x: Input value (dimensionless).
+        u: Second input, for labels over two or three axes (dimensionless).
+        v: Third input (dimensionless).
+        region_radius_m: If > 0, the label ``region`` is ``inside`` where x² + u² + v² is below
+            its square, else ``outside`` (the inputs read as lengths here, m).
         sleep_s: Wall time to sleep per trial, s.
         crash_x: Values of ``x`` whose trial kills its process (``selftest_crash``).
         how: How to fail: ``exit``, ``segfault``, ``kill`` (the process dies) or ``raise``.
@@ -54,6 +62,9 @@ class SelftestParams(BaseModel):
     model_config = ConfigDict(extra="forbid", frozen=True)
 
     x: float = 0.0
+    u: float = 0.0
+    v: float = 0.0
+    region_radius_m: float = Field(0.0, ge=0)
     sleep_s: float = Field(0.0, ge=0)
     crash_x: list[float] = Field(default_factory=list)
     how: Literal["exit", "segfault", "kill", "raise"] = "exit"
@@ -87,8 +98,16 @@ def _result(params: SelftestParams, seed: int) -> TaskResult:
             "noise": noise,
             "time_s": params.sleep_s,
         },
-        labels={"sign": "positive" if params.x > 0 else "non_positive"},
+        labels=_labels(params),
     )
+
+
+def _labels(params: SelftestParams) -> dict[str, str]:
+    labels = {"sign": "positive" if params.x > 0 else "non_positive"}
+    if params.region_radius_m > 0:
+        inside = params.x**2 + params.u**2 + params.v**2 < params.region_radius_m**2
+        labels["region"] = "inside" if inside else "outside"
+    return labels
 
 
 def _sleep(model: Model, params: SelftestParams, settings: WorldSettings, seed: int) -> TaskResult:

@@ -150,3 +150,34 @@ def test_fig6_quick_pipeline_runs_real_trials_and_draws_the_figure(tmp_path: Pat
     trials = pd.read_parquet(folder / "trials").sort_values("task_distal_segment_ratio")
     assert trials["status"].tolist() == ["ok", "ok"]
     assert trials["label_grasp"].tolist() == ["pinch", "power"]
+
+
+def test_cells_an_adaptive_run_inferred_keep_their_stored_label_and_are_drawn(tmp_path: Path) -> None:
+    folder = results_folder(tmp_path)
+    inferred = {
+        "job_id": "job3",
+        "trial": 3,
+        "status": "ok",
+        "study_hash": "h",
+        "task_distal_segment_ratio": 0.2,
+        "task_object_width_m": 0.04,
+        "task_centering_m": 0.115,
+        "label_grasp": "power",
+        "label_grasp_paper": "pinch",
+        "inferred": True,
+    }
+    pd.DataFrame([inferred]).to_parquet(folder / "inferred.parquet")
+    from somo_sweep.paper.grasp_trials import read_results
+
+    table = grasp_table(read_results(folder))
+    assert table["label"].tolist() == ["pinch", "power", "unstable", "power"]
+    assert table["inferred"].tolist() == [False, False, False, True]
+    assert grasp_table(read_results(folder), "paper")["label"].tolist()[-1] == "pinch"
+    result = CliRunner().invoke(app, ["paper", "fig6", str(folder), "--out", str(tmp_path / "fig")])
+    assert result.exit_code == 0, result.output
+    assert "4 trials (1 inferred, not simulated)" in result.output
+    assert json.loads((folder / "fig6_contacts.json").read_text())["inferred"] == 1
+    result = CliRunner().invoke(app, ["classify", str(folder)])
+    assert result.exit_code == 0, result.output
+    labels = pd.read_csv(folder / "grasp_labels_contacts.csv")
+    assert labels["grasp_contacts"].tolist()[-1] == "power" and labels["inferred"].tolist()[-1]

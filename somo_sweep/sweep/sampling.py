@@ -1,0 +1,232 @@
+"""Which trials of a study run: every one (``grid``) or adaptively (``adaptive``), in rounds.
+
+:class:`AdaptivePlan` maps a study's grid onto :mod:`somo_sweep.sweep.adaptive`: a cell is
+a grid point (all its repeats), its key is the status and labels of its trials (an
+``error`` or ``unstable`` trial is a key of its own, so refinement closes in on failures
+too), and the cells never simulated become *inferred* rows: the labels their settled
+neighbours agree on, no metrics, ``inferred`` true. The runner executes one
+:class:`Batch` at a time and records outcomes in ``known``, which the plan reads to
+decide the next round.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+from collections.abc import Iterator
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+
+from somo_sweep.errors import DescriptionError, Problem
+from somo_sweep.sweep.adaptive import UNKNOWN, AdaptiveGrid, Cell, infer, next_cells
+from somo_sweep.sweep.jobs import Job, JobTable
+from somo_sweep.sweep.study import Study
+
+__all__ = ["INFERRED_MESSAGE", "AdaptivePlan", "Batch", "Known", "describe", "grid_of"]
+
+#: (status, labels) of a finished trial, by job id.
+Known = dict[str, tuple[str, dict[str, str]]]
+#: The ``message`` of an inferred row.
+INFERRED_MESSAGE = "inferred, not simulated: every simulated cell of its settled box agrees"
+
+
+@dataclass(frozen=True)
+class Batch:
+    """Trials to run together.
+
+    Attributes:
+        number: Refinement round (0 is the coarse sub-grid); None for a plain grid run.
+        cells: Grid cells in this round (some may be stored already).
+        jobs: The round's trials not yet stored.
+    """
+
+    number: int | None
+    cells: int
+    jobs: list[Job]
+
+
+def _refinable(values: tuple[Any, ...]) -> bool:
+    numbers = [v for v in values if not isinstance(v, bool) and isinstance(v, int | float)]
+    if len(numbers) != len(values) or not all(math.isfinite(v) for v in numbers):
+        return False
+    steps = np.diff(np.asarray(numbers, dtype=float))
+    return bool((steps > 0).all() or (steps < 0).all())
+
+
+def grid_of(study: Study) -> AdaptiveGrid:
+    """The study's grid: one dimension per axis group, refined where numeric and monotonic."""
+    axes = {a.key: a.values for a in study.axes}
+    shape = [len(axes[g[0]]) for g in study.groups]
+    refined = [all(_refinable(axes[k]) for k in g) for g in study.groups]
+    return AdaptiveGrid.build(shape, refined, study.adaptive.coarse_step)
+
+
+def _label_name(name: str) -> str:
+    return name.removeprefix("label_")
+
+
+class AdaptivePlan:
+    """The adaptive rounds of one study and the rows of the cells it does not simulate.
+
+    Args:
+        study: The study.
+        table: Its job table (grid order: cell after cell, repeats innermost).
+    """
+
+    def __init__(self, study: Study, table: JobTable):
+        self.study = study
+        self.jobs = table.jobs
+        self.grid = grid_of(study)
+        self.labels = [_label_name(n) for n in study.adaptive.labels]
+        self.keys = np.full(self.grid.shape, UNKNOWN, dtype=np.int64)
+        self._codes: dict[str, int] = {}
+        self._checked = False
+
+    def describe(self) -> str:
+        """What the plan does, in one paragraph (for ``--dry-run``)."""
+        return describe(self.study, self.grid)
+
+    def cell_jobs(self, cell: Cell) -> list[Job]:
+        """The trials (one per repeat) of a grid cell."""
+        point = int(np.ravel_multi_index(cell, self.grid.shape)) if cell else 0
+        reps = self.study.repeats
+        return self.jobs[point * reps : (point + 1) * reps]
+
+    def key(self, status: str, labels: dict[str, str]) -> str:
+        """The key of one trial: its status, and if ``ok`` the labels refinement follows."""
+        if status != "ok":
+            return status
+        names = self.labels or sorted(labels)
+        return json.dumps([[n, labels.get(n)] for n in names])
+
+    def _cell_key(self, cell: Cell, known: Known) -> int | None:
+        outcomes = [known.get(j.job_id) for j in self.cell_jobs(cell)]
+        if any(o is None for o in outcomes):
+            return None
+        text = json.dumps([self.key(*o) for o in outcomes if o is not None])
+        return self._codes.setdefault(text, len(self._codes))
+
+    def _check_labels(self, known: Known) -> None:
+        """Every label the study names must come out of its ``ok`` trials."""
+        seen = {n for status, labels in known.values() if status == "ok" for n in labels}
+        if self._checked or not seen:
+            return
+        self._checked = True
+        unknown = [n for n in self.labels if n not in seen]
+        if unknown:
+            raise DescriptionError(
+                self.study.source,
+                [
+                    Problem(
+                        "adaptive.labels",
+                        f"'{n}' is not a label of task {self.study.task.name}; its trials give: "
+                        + ", ".join(sorted(seen)),
+                    )
+                    for n in unknown
+                ],
+            )
+
+    def rounds(self, known: Known) -> Iterator[Batch]:
+        """The rounds still to run; finished rounds are replayed from ``known``, not rerun.
+
+        The caller runs each batch and adds every outcome to ``known`` before asking for the
+        next one.
+
+        Raises:
+            DescriptionError: ``adaptive.labels`` names a label the task does not give.
+        """
+        number = 0
+        while True:
+            cells = next_cells(self.grid, self.keys)
+            if not cells:
+                return
+            todo = [j for c in cells for j in self.cell_jobs(c) if j.job_id not in known]
+            if todo:
+                yield Batch(number, len(cells), todo)
+            self._check_labels(known)
+            for cell in cells:
+                code = self._cell_key(cell, known)
+                if code is None:
+                    raise RuntimeError(f"round {number}: cell {cell} has no outcome")
+                self.keys[cell] = code
+            number += 1
+
+    @property
+    def simulated_cells(self) -> int:
+        """Cells the plan has simulated so far."""
+        return int((self.keys != UNKNOWN).sum())
+
+    def inferred_rows(self, known: Known, study_hash: str) -> list[dict[str, Any]]:
+        """Rows of the cells never simulated (after the last round): agreed labels, no metrics.
+
+        A label column gets a value only where every simulated cell of the settled box agrees
+        on it (the labels refinement followed always do); trials stored outside the plan
+        (e.g. by an earlier full-grid run) are simulated and get no inferred row.
+        """
+        rows: list[dict[str, Any]] = []
+        for box, _, cells in infer(self.grid, self.keys):
+            closure = tuple(slice(lo, hi + 1) for lo, hi in box)
+            origin = np.array([lo for lo, _ in box])
+            sources = [
+                tuple(int(i) for i in origin + idx) for idx in np.argwhere(self.keys[closure] != UNKNOWN)
+            ]
+            for repeat in range(self.study.repeats):
+                outcomes = [known[self.cell_jobs(c)[repeat].job_id] for c in sources]
+                status = outcomes[0][0]
+                names = sorted({n for _, labels in outcomes for n in labels})
+                agreed = {}
+                for name in names:
+                    values = {labels.get(name) for _, labels in outcomes}
+                    agreed[f"label_{name}"] = values.pop() if len(values) == 1 else None
+                for cell in cells:
+                    job = self.cell_jobs(cell)[repeat]
+                    if job.job_id in known:
+                        continue
+                    rows.append(_row(job, status, agreed, study_hash))
+        return sorted(rows, key=lambda r: int(r["trial"]))
+
+
+def _row(job: Job, status: str, labels: dict[str, str | None], study_hash: str) -> dict[str, Any]:
+    return {
+        "job_id": job.job_id,
+        "trial": job.trial,
+        "repeat": job.repeat,
+        "seed": job.seed,
+        "status": status,
+        "message": INFERRED_MESSAGE,
+        "wall_time_s": None,
+        "host": "",
+        "study_hash": study_hash,
+        **job.columns,
+        **labels,
+        "inferred": True,
+    }
+
+
+def _nth(n: int) -> str:
+    suffix = "th" if 10 <= n % 100 <= 20 else {1: "st", 2: "nd", 3: "rd"}.get(n % 10, "th")
+    return "every value" if n == 1 else f"every {n}{suffix} value"
+
+
+def describe(study: Study, grid: AdaptiveGrid | None = None) -> str:
+    """What adaptive sampling of ``study`` does: grid, refined axes, coarse sub-grid, bound."""
+    grid = grid or grid_of(study)
+    dims = []
+    for g, n, refined, stride in zip(study.groups, grid.shape, grid.refined, grid.strides, strict=True):
+        name = " + ".join(g)
+        how = f"refined, coarse: {_nth(stride)} and the last" if refined else "every value (not refined)"
+        dims.append(f"  {name}: {n} values, {how}")
+    labels = ", ".join(f"label_{_label_name(n)}" for n in study.adaptive.labels) or "every label_* column"
+    reps = study.repeats
+    return "\n".join(
+        [
+            f"adaptive sampling of a {' x '.join(map(str, grid.shape)) or '1'} grid ({grid.n_cells} cells):",
+            *dims,
+            f"round 0 simulates the coarse sub-grid: {grid.n_coarse()} cells ({grid.n_coarse() * reps} "
+            f"trials); later rounds bisect between cells whose status or {labels} differ; at most "
+            f"{grid.n_cells} cells ({grid.n_cells * reps} trials); cells never simulated are stored as "
+            "inferred",
+        ]
+    )
