@@ -73,7 +73,7 @@ def statics_lines(dynamic_rows: int = 12) -> list[str]:
     relaxed_s, _, blew = _calibrate_s("dynamic")
     mark = "ok" if solved_s <= CALIBRATE_TARGET_S else "MISSED"
     lines.append(
-        f"calibrate, bundled 36 rows, 2 workers: solved {solved_s:.2f} s ({sims} rows, {bad} failed), "
+        f"calibrate, bundled 36 rows, --jobs 2: solved {solved_s:.2f} s ({sims} rows, {bad} failed), "
         f"dynamic {relaxed_s:.1f} s ({blew} failed), {relaxed_s / solved_s:.0f}x "
         f"(target <= {CALIBRATE_TARGET_S:g} s: {mark})"
     )
@@ -85,7 +85,7 @@ def statics_lines(dynamic_rows: int = 12) -> list[str]:
     took = perf_counter() - start
     mark = "ok" if took <= DIAGNOSE_TARGET_S else "MISSED"
     lines.append(
-        f"diagnose, same rows, 2 workers: {took:.1f} s, {result.simulations} bench rows, "
+        f"diagnose, same rows, --jobs 2: {took:.1f} s, {result.simulations} bench rows, "
         f"named {result.missing_effect} (target <= {DIAGNOSE_TARGET_S:g} s: {mark})"
     )
     return lines
