@@ -1,10 +1,12 @@
 """Paper Fig. 6: grasp type over centering position × object width, one panel per DSR.
 
 Works on a tidy table with one row per trial and the columns
-``distal_segment_ratio``, ``centering_m``, ``object_width_m``, ``label`` and ``inferred``;
-:func:`grasp_table` makes it from a results table (any column prefix), relabelling
-with a chosen rule. Cells an adaptive run inferred keep their stored label and are drawn
-hatched. Plot helpers draw on given axes; only the CLI saves files.
+``distal_segment_ratio``, ``centering_position_m`` (the paper's centering position c),
+``object_width_m``, ``label`` and ``inferred``; :func:`grasp_table` makes it from a results
+table (any column prefix), relabelling with a chosen rule. Cells an adaptive run inferred keep
+their stored label and are drawn hatched. The x axis is c, as in the paper; a secondary axis
+on top gives d = 200 mm − c, the finger bases' distance from the object's centre. Plot helpers
+draw on given axes; only the CLI saves files.
 """
 
 from __future__ import annotations
@@ -20,6 +22,7 @@ from somo_sweep.errors import SomoError
 from somo_sweep.paper.artifacts import Artifacts
 from somo_sweep.paper.grasp_trials import grasp_labels, inferred_rows
 from somo_sweep.tasks.pinch_grasp.classify import LABELS, find_column
+from somo_sweep.tasks.pinch_grasp.params import BASE_DISTANCE_AT_ZERO_CENTERING_M
 
 __all__ = [
     "COLORS",
@@ -35,16 +38,30 @@ __all__ = [
 COLORS = {"pinch": "#1f3a5f", "power": "#9ec5e8", "no_grasp": "#f2f2f2", "unstable": "#d62728"}
 #: DSR values are grouped after rounding to this many decimals.
 DSR_DECIMALS = 6
+#: Axis labels: the paper's centering position c, and the bases' distance d = 200 mm − c.
+CENTERING_LABEL = "centering position c (mm)"
+BASE_DISTANCE_LABEL = "bases' distance d = 200 − c (mm)"
 
 
 def grasp_table(results: pd.DataFrame, rule: str = "contacts") -> pd.DataFrame:
-    """Tidy (DSR, centering, width, label) table of a pinch-grasp results table.
+    """Tidy (DSR, centering c, width, label) table of a pinch-grasp results table.
 
     Rows that are not ``ok`` get the label ``unstable`` (or ``error``) from their status; cells
     an adaptive run inferred keep the label it stored (``inferred`` true).
+
+    Raises:
+        SomoError: Not a pinch_grasp table, or one made before the paper's centering
+            position (its ``centering_m`` was the bases' distance d to the chain starts).
     """
     cols = [str(c) for c in results.columns]
-    found = {n: find_column(cols, n) for n in ("distal_segment_ratio", "centering_m", "object_width_m")}
+    names = ("distal_segment_ratio", "centering_position_m", "object_width_m")
+    found = {n: find_column(cols, n) for n in names}
+    if found["centering_position_m"] is None and find_column(cols, "centering_m") is not None:
+        raise SomoError(
+            "results made before the geometry change: their centering_m is the finger bases' distance d "
+            "from the object centre (to the chain starts), not the paper's centering position c; "
+            "rerun the study with this version (task.centering_position_m = 200 mm − d, bases at the mounts)"
+        )
     missing = [n for n, c in found.items() if c is None]
     if missing:
         raise SomoError(f"results table lacks {', '.join(missing)}: not a pinch_grasp study?")
@@ -76,18 +93,17 @@ def label_summary(table: pd.DataFrame) -> pd.DataFrame:
 
 
 def draw_dsr_panel(ax: Any, table: pd.DataFrame, dsr: float) -> None:
-    """One panel: centering (mm) on x, width (mm) on y, one coloured cell per trial of this DSR."""
+    """One panel: centering c (mm) on x (d on a secondary top axis), width (mm) on y, a cell per trial."""
     rows = table[np.isclose(table["distal_segment_ratio"], dsr)]
-    cents = np.sort(rows["centering_m"].unique())
+    cents = np.sort(rows["centering_position_m"].unique())
     widths = np.sort(rows["object_width_m"].unique())
     dc = float(np.min(np.diff(cents))) if len(cents) > 1 else 0.005
     for _, r in rows.iterrows():
         inferred = bool(r.get("inferred", False))
-        ax.add_patch(
-            _rect(
-                r["centering_m"] * 1e3 - dc * 5e2, widths, r["object_width_m"], dc * 1e3, r["label"], inferred
-            )
-        )
+        x0_mm = r["centering_position_m"] * 1e3 - dc * 5e2
+        ax.add_patch(_rect(x0_mm, widths, r["object_width_m"], dc * 1e3, r["label"], inferred))
+    total_mm = BASE_DISTANCE_AT_ZERO_CENTERING_M * 1e3
+    ax.secondary_xaxis("top", functions=(lambda c: total_mm - c, lambda d: total_mm - d))
     if len(cents):
         ax.set_xlim((cents[0] - dc / 2) * 1e3, (cents[-1] + dc / 2) * 1e3)
     ax.set_ylim(-0.5, len(widths) - 0.5)
@@ -141,9 +157,12 @@ def build(table: pd.DataFrame, stem: str = "fig6", max_dsr: float = 0.5) -> Arti
     flat = list(axes.ravel())
     draw_fig6(flat, table, max_dsr)
     for ax in axes[-1]:
-        ax.set_xlabel("centering position (mm)")
+        ax.set_xlabel(CENTERING_LABEL)
     for ax in axes[:, 0]:
         ax.set_ylabel("object width (mm)")
+    for ax in axes[0]:
+        if ax.child_axes:
+            ax.child_axes[0].set_xlabel(BASE_DISTANCE_LABEL, fontsize="small")
     best = smallest_all_width_pinch_dsr(table)
     present = [lab for lab in COLORS if lab in set(table["label"])]
     handles = [Patch(facecolor=COLORS[lab], edgecolor="0.5", label=lab) for lab in present]
@@ -156,7 +175,11 @@ def build(table: pd.DataFrame, stem: str = "fig6", max_dsr: float = 0.5) -> Arti
     headline = (
         "no DSR pinch-grasps every width" if best is None else f"smallest all-width pinch DSR: {best:.2f}"
     )
-    fig.suptitle(headline)
+    fig.suptitle(
+        f"{headline}\nc: the paper's centering position; the finger bases end the approach "
+        f"d = {BASE_DISTANCE_AT_ZERO_CENTERING_M * 1e3:g} mm − c from the object's centre",
+        fontsize="medium",
+    )
     fig.tight_layout(rect=(0, 0.06, 1, 0.95))
     summary = label_summary(table)
     info = {

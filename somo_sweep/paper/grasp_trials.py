@@ -70,19 +70,15 @@ def relabel(
 
     Returns:
         Counts per label (``unstable``/``error`` for trials that are not ``ok``) and the table
-        (job id, the three sweep parameters, ``grasp_<rule>``).
+        (job id, the three sweep parameters, ``grasp_<rule>``; an old folder's ``centering_m``,
+        the bases' distance before the paper's centering position, is kept under its own name).
     """
     folder = Path(folder)
     table = read_results(folder)
     labels = grasp_labels(table, rule, **options)
     cols = [str(c) for c in table.columns]
-    keep = [
-        c
-        for c in (
-            find_column(cols, n) for n in ("job_id", "distal_segment_ratio", "object_width_m", "centering_m")
-        )
-        if c is not None
-    ]
+    names = ("job_id", "distal_segment_ratio", "object_width_m", "centering_position_m", "centering_m")
+    keep = [c for c in (find_column(cols, n) for n in names) if c is not None]
     out = table[keep].copy()
     out[f"grasp_{rule}"] = labels
     out["inferred"] = inferred_rows(table)
@@ -127,7 +123,7 @@ def render_trial(study_path: str | Path, trial: str, times_s: list[float]) -> tu
     params = job.params
     assert isinstance(params, PinchGraspParams)
     images: dict[float, Any] = {}
-    camera = Camera(target_m=(params.centering_m * 0.5, 0.0, params.hand_height_m))
+    camera = Camera(target_m=(params.base_distance_m * 0.5, 0.0, params.hand_height_m))
 
     def observe(world: World, time_s: float) -> None:
         images[time_s] = snapshot(world, camera)
@@ -135,7 +131,7 @@ def render_trial(study_path: str | Path, trial: str, times_s: list[float]) -> tu
     result = run_pinch_grasp(job.model, params, job.settings, job.seed, observe=observe, observe_at_s=times_s)
     name = (
         f"{study.name}_dsr{params.distal_segment_ratio:.2f}_w{params.object_width_m * 1e3:g}mm"
-        f"_c{params.centering_m * 1e3:g}mm"
+        f"_c{params.centering_position_m * 1e3:g}mm"
     )
     out = Artifacts(images={f"{name}_t{t:.2f}s.png": img for t, img in sorted(images.items())})
     return out, str(result.labels.get("grasp", result.status))

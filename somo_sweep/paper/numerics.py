@@ -99,7 +99,7 @@ def trial_seconds(
     CPU time is what the trial costs on an idle core; wall time includes waiting for a core
     when other processes share the machine.
     """
-    point = point or {"distal_segment_ratio": 0.2, "object_width_m": 0.040, "centering_m": 0.100}
+    point = point or {"distal_segment_ratio": 0.2, "object_width_m": 0.040, "centering_position_m": 0.100}
     runs = [_trial(point, setup) for _ in range(repeats)]
     return [float(r["wall_time_s"]) for r in runs], [float(r["cpu_time_s"]) for r in runs]
 

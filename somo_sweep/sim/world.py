@@ -382,6 +382,11 @@ class World:
         pos, orn = p.getBasePositionAndOrientation(body_id, physicsClientId=self.client)
         return np.asarray(pos) / self.scale, np.asarray(orn)
 
+    def base_velocity(self, body_id: int) -> tuple[np.ndarray, np.ndarray]:
+        """Base linear velocity (m/s) and angular velocity (rad/s) of a body, world frame."""
+        lin, ang = p.getBaseVelocity(body_id, physicsClientId=self.client)
+        return np.asarray(lin) / self.scale, np.asarray(ang)
+
     def closest_distance_m(self, body_a: int, body_b: int, within_m: float = 0.0) -> float:
         """Smallest gap between two bodies' collision shapes, m (negative: they overlap by that much).
 

@@ -6,6 +6,7 @@ import json
 from pathlib import Path
 
 import pandas as pd
+import pytest
 from typer.testing import CliRunner
 
 from somo_sweep.cli.app import app
@@ -14,9 +15,14 @@ from somo_sweep.tasks.pinch_grasp.params import link_columns
 
 
 def tidy(labels: dict[tuple[float, float], list[str]]) -> pd.DataFrame:
-    """Rows for {(dsr, width): labels over centering 70, 75, ... mm}."""
+    """Rows for {(dsr, width): labels over centering positions c = 70, 75, ... mm}."""
     rows = [
-        {"distal_segment_ratio": d, "object_width_m": w, "centering_m": 0.070 + 0.005 * i, "label": lab}
+        {
+            "distal_segment_ratio": d,
+            "object_width_m": w,
+            "centering_position_m": 0.07 + 0.005 * i,
+            "label": lab,
+        }
         for (d, w), labs in labels.items()
         for i, lab in enumerate(labs)
     ]
@@ -52,7 +58,17 @@ def test_fig6_build_returns_figure_summary_and_headline() -> None:
     assert out.lines[-1] == "smallest all-width pinch DSR: 0.10"
 
 
-def results_folder(tmp_path: Path) -> Path:
+def test_fig6_axis_is_the_papers_centering_with_the_bases_distance_on_top() -> None:
+    out = build(tidy({(0.1, 0.01): ["power", "pinch", "pinch"]}))
+    ax = out.figures["fig6"].axes[0]
+    assert ax.get_xlabel() == "centering position c (mm)"
+    (top,) = ax.child_axes  # the secondary axis: d = 200 mm − c
+    assert top.get_xlabel().startswith("bases' distance d")
+    assert ax.get_xlim() == pytest.approx((67.5, 82.5))  # cells centred on c = 70, 75, 80 mm
+    assert "d = 200 mm − c" in out.figures["fig6"]._suptitle.get_text()
+
+
+def results_folder(tmp_path: Path, centering_column: str = "task_centering_position_m") -> Path:
     """A results folder in the sweep engine's layout with two pinch_grasp rows and one blow-up."""
     rows = []
     for i, (per_link, final, status) in enumerate(
@@ -65,7 +81,7 @@ def results_folder(tmp_path: Path) -> Path:
             "study_hash": "h",
             "task_distal_segment_ratio": 0.2,
             "task_object_width_m": 0.04,
-            "task_centering_m": 0.1 + 0.005 * i,
+            centering_column: 0.1 + 0.005 * i,
             "task_lift_m": 0.075,
             "object_x_m": 0.0,
             "object_y_m": 0.0,
@@ -118,6 +134,18 @@ def test_bad_rule_and_missing_folder_are_user_errors(tmp_path: Path) -> None:
     assert result.exit_code == 2
 
 
+def test_fig6_refuses_a_folder_made_before_the_papers_centering_position(tmp_path: Path) -> None:
+    # Old folders stored centering_m, the bases' distance d to the chain starts: never plotted as c.
+    folder = results_folder(tmp_path, centering_column="task_centering_m")
+    result = CliRunner().invoke(app, ["paper", "fig6", str(folder), "--out", str(tmp_path / "fig")])
+    assert result.exit_code == 2
+    assert "before the geometry change" in result.output and "centering_position_m" in result.output
+    result = CliRunner().invoke(app, ["classify", str(folder)])
+    assert result.exit_code == 0, result.output  # relabelling does not read the axis
+    # and keeps the old column under its own name
+    assert "task_centering_m" in pd.read_csv(folder / "grasp_labels_contacts.csv").columns
+
+
 def test_grasp_table_marks_blow_ups(tmp_path: Path) -> None:
     from somo_sweep.paper.grasp_trials import read_results
 
@@ -134,8 +162,8 @@ def test_fig6_quick_pipeline_runs_real_trials_and_draws_the_figure(tmp_path: Pat
     study.write_text(
         "name: pinch_tiny\ntask: pinch_grasp\nmodel: models/pinch_gripper.yaml\n"
         "sweep:\n  task.distal_segment_ratio: [0.1, 0.5]\n  task.object_width_m: [0.080, 0.120]\n"
-        "  task.centering_m: [0.105, 0.075]\n"
-        "link: [[task.distal_segment_ratio, task.object_width_m, task.centering_m]]\n"
+        "  task.centering_position_m: [0.085, 0.115]\n"
+        "link: [[task.distal_segment_ratio, task.object_width_m, task.centering_position_m]]\n"
         "seed: 0\nsimulation: {time_step_s: 4.0e-3, scale: 20, solver_iterations: 50}\n"
     )
     folder = tmp_path / "results" / "pinch_tiny"
@@ -161,7 +189,7 @@ def test_cells_an_adaptive_run_inferred_keep_their_stored_label_and_are_drawn(tm
         "study_hash": "h",
         "task_distal_segment_ratio": 0.2,
         "task_object_width_m": 0.04,
-        "task_centering_m": 0.115,
+        "task_centering_position_m": 0.115,
         "label_grasp": "power",
         "label_grasp_paper": "pinch",
         "inferred": True,

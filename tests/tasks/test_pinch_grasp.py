@@ -60,13 +60,15 @@ def test_task_is_registered_with_its_parameters() -> None:
     assert "fig6" in spec.tags
 
 
-def run(dsr: float, width_m: float, centering_m: float, time_step_s: float = 4e-3):
-    params = PinchGraspParams(distal_segment_ratio=dsr, object_width_m=width_m, centering_m=centering_m)
+def run(dsr: float, width_m: float, centering_position_m: float, time_step_s: float = 4e-3):
+    params = PinchGraspParams(
+        distal_segment_ratio=dsr, object_width_m=width_m, centering_position_m=centering_position_m
+    )
     return run_pinch_grasp(load_model(GRIPPER), params, WorldSettings(time_step_s=time_step_s), seed=0)
 
 
 def test_long_distal_segment_pinches_a_wide_box_in_its_fingertips_and_lifts_it() -> None:
-    result = run(0.1, 0.080, 0.105)
+    result = run(0.1, 0.080, 0.085)
     assert result.status == "ok"
     assert result.labels["grasp"] == "pinch"
     m = result.metrics
@@ -77,7 +79,7 @@ def test_long_distal_segment_pinches_a_wide_box_in_its_fingertips_and_lifts_it()
 
 
 def test_hand_close_to_a_wide_box_wraps_it_in_a_power_grasp() -> None:
-    result = run(0.5, 0.120, 0.075)
+    result = run(0.5, 0.120, 0.115)
     assert result.status == "ok"
     assert result.labels["grasp"] == "power"
     assert result.metrics["hold_force_fraction_proximal"] > 0.5
@@ -85,7 +87,7 @@ def test_hand_close_to_a_wide_box_wraps_it_in_a_power_grasp() -> None:
 
 
 def test_trial_is_deterministic() -> None:
-    a, b = run(0.2, 0.040, 0.105), run(0.2, 0.040, 0.105)
+    a, b = run(0.2, 0.040, 0.085), run(0.2, 0.040, 0.085)
     assert (a.status, a.labels) == (b.status, b.labels)
     same = {
         k: a.metrics[k] == b.metrics[k] or (a.metrics[k] != a.metrics[k] and b.metrics[k] != b.metrics[k])
@@ -105,7 +107,7 @@ def test_pad_torsional_friction_keeps_a_fingertip_pinched_box_from_pivoting(tmp_
         text = (MODELS / name).read_text()
         (tmp_path / name).write_text(text.replace("spinning: 0.004", "spinning: 0.0"))
     assert "spinning: 0.004" in (MODELS / "pinch_finger.yaml").read_text()
-    params = PinchGraspParams(distal_segment_ratio=0.3, object_width_m=0.040, centering_m=0.115)
+    params = PinchGraspParams(distal_segment_ratio=0.3, object_width_m=0.040, centering_position_m=0.075)
     settings = WorldSettings(time_step_s=4e-3)
     pads = run_pinch_grasp(load_model(GRIPPER), params, settings)
     points = run_pinch_grasp(load_model(tmp_path / "pinch_gripper.yaml"), params, settings)
@@ -117,7 +119,7 @@ def test_pad_torsional_friction_keeps_a_fingertip_pinched_box_from_pivoting(tmp_
 
 @pytest.mark.slow
 def test_fingers_out_of_reach_leave_a_narrow_box_on_the_ground() -> None:
-    result = run(0.2, 0.010, 0.165)
+    result = run(0.2, 0.010, 0.030)  # bases 170 mm from the box: beyond the fingertips' ~121 mm
     assert result.labels == {"grasp": "no_grasp", "grasp_paper": "no_grasp"}
     assert abs(result.metrics["lift_height_m"]) < 0.002
     assert result.metrics["hold_contact_count_tip"] == 0
@@ -125,19 +127,20 @@ def test_fingers_out_of_reach_leave_a_narrow_box_on_the_ground() -> None:
 
 @pytest.mark.slow
 @pytest.mark.parametrize(
-    ("dsr", "width_m", "centering_m", "lift_tol_m"),
+    ("dsr", "width_m", "centering_position_m", "lift_tol_m"),
     [
-        (0.1, 0.080, 0.105, 0.005),
-        (0.3, 0.040, 0.105, 0.005),
+        (0.1, 0.080, 0.085, 0.005),
+        (0.3, 0.040, 0.085, 0.005),
         # A power grasp holds at both steps, but how far the box slides down in the wrapped
-        # fingers during the lift differs (72 vs 40 mm of lift): only the label is compared.
-        (0.5, 0.120, 0.075, None),
+        # fingers during the lift may differ: only the label is compared.
+        (0.5, 0.120, 0.115, None),
     ],
 )
 def test_labels_and_lift_agree_at_half_the_time_step(
-    dsr: float, width_m: float, centering_m: float, lift_tol_m: float | None
+    dsr: float, width_m: float, centering_position_m: float, lift_tol_m: float | None
 ) -> None:
-    coarse, fine = run(dsr, width_m, centering_m, 4e-3), run(dsr, width_m, centering_m, 2e-3)
+    coarse = run(dsr, width_m, centering_position_m, 4e-3)
+    fine = run(dsr, width_m, centering_position_m, 2e-3)
     assert coarse.labels == fine.labels
     if lift_tol_m is not None:
         assert coarse.metrics["lift_height_m"] == pytest.approx(fine.metrics["lift_height_m"], abs=lift_tol_m)
@@ -155,6 +158,10 @@ def test_bundled_studies_use_the_facts_sheet_grid_and_the_chosen_numerics() -> N
         assert study.simulation.time_step_s == CHOSEN.time_step_s
         assert study.simulation.solver_iterations == CHOSEN.solver_iterations
     dsrs = sorted({pt["task.distal_segment_ratio"] for pt in full.points()})
+    # The paper's 22 centering positions c = 70 … 175 mm: finger bases 130 … 25 mm from the object.
+    cs = sorted({pt["task.centering_position_m"] for pt in full.points()})
+    assert len(cs) == 22 and cs[0] == pytest.approx(0.070) and cs[-1] == pytest.approx(0.175)
+    assert {pt["task.centering_position_m"] for pt in quick.points()} <= set(cs)
     assert [PinchGraspParams(distal_segment_ratio=d).n_distal for d in dsrs] == list(range(15))
     # The task's default regularisation is the chosen one: 3e-5 kg·m² inertia shaping, the file's joints.
     default = PinchGraspParams().numerics

@@ -51,15 +51,30 @@ class HoldProbe:
         self.both_touching = 0
         self.last_links: list[int] = []
 
-    def finger_base_x_m(self) -> float:
-        """Mean world x (m) of the fingers' chain starts (where each finger's first joint sits)."""
-        xs = []
+    def finger_mounts_m(self) -> np.ndarray:
+        """World positions (m, one row per finger) of the finger mounts.
+
+        A mount is the centre of the back face of the finger's base box, where the finger
+        sits on the palm: SoMo's base frame, the point the original study places at its
+        hand offset (the chain starts one base box length further along the finger).
+        """
+        rows = []
         for name in self.fingers:
             base = f"{name}__base"
             info = next(i for i in self.hand.plan.links if i.name == base)
             assert info.link is not None
-            xs.append(self.world.point_on_link(self.hand, base, (0.0, 0.0, info.link.half_extent_m(2)))[0])
-        return float(np.mean(xs))
+            rows.append(self.world.point_on_link(self.hand, base, (0.0, 0.0, -info.link.half_extent_m(2))))
+        return np.asarray(rows)
+
+    def touching_now(self) -> bool:
+        """Whether any part of the hand (fingers, palm, base boxes) touches the object now."""
+        return len(self.world.contacts(self.object_id, self.hand.id)["link_a"]) > 0
+
+    def on_ground_now(self) -> bool:
+        """Whether the object touches the ground now (False without a ground)."""
+        if self.ground_id is None:
+            return False
+        return len(self.world.contacts(self.object_id, self.ground_id)["link_a"]) > 0
 
     def sample(self) -> None:
         """Record the current contacts (one sample)."""
@@ -79,8 +94,7 @@ class HoldProbe:
             self.finger_force_sums_n[finger] += force
         self.samples += 1
         self.both_touching += int(touched.all())
-        if self.ground_id is not None:
-            self.on_ground += int(len(self.world.contacts(self.object_id, self.ground_id)["link_a"]) > 0)
+        self.on_ground += int(self.on_ground_now())
         self.last_links = links
 
     def metrics(self) -> dict[str, float | int]:

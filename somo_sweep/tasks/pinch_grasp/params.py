@@ -1,17 +1,40 @@
-"""Task ``pinch_grasp``: parameters, link numbering and registration (light: no PyBullet import)."""
+"""Task ``pinch_grasp``: parameters, link numbering and registration (light: no PyBullet import).
+
+Geometry (facts sheet, read from the original's code): the object's centre is at x = 0 and
+the fingers point along −x toward it. The paper's *centering position* c is the original's
+plotted axis, c = 200 mm − d, where d is the distance along x from the object's centre to
+the finger bases (the finger mounts: the back faces of the base boxes, SoMo's base frames)
+once the approach is over. c = 70 mm puts the bases 130 mm from the object's centre (the
+fingertips near its near face), c = 175 mm puts them 25 mm from it (the object deep between
+the fingers, against the base boxes). The parameter is ``centering_position_m`` (c); before
+this definition the task had ``centering_m``, which was d measured to the chains' starts,
+so the old name is refused with an explanation instead of being silently reinterpreted.
+"""
 
 from __future__ import annotations
 
 import math
+from typing import Any
 
-from pydantic import BaseModel, ConfigDict, Field
+from pydantic import BaseModel, ConfigDict, Field, model_validator
 
 from somo_sweep.tasks.registry import TaskSpec, register
 
-__all__ = ["N_FINGER_LINKS", "Numerics", "PinchGraspParams", "distal_link_count", "link_columns"]
+__all__ = [
+    "BASE_DISTANCE_AT_ZERO_CENTERING_M",
+    "N_FINGER_LINKS",
+    "Numerics",
+    "PinchGraspParams",
+    "distal_link_count",
+    "link_columns",
+]
 
 #: Link numbers stored per trial: 20 segments and the fingertip.
 N_FINGER_LINKS = 21
+#: c + d in the original study, m: the centering position c is 200 mm minus the finger bases'
+#: distance d from the object's centre (its hand offset h in scaled units gives d = 100 + 50·h
+#: and c = 100 − 50·h, in mm).
+BASE_DISTANCE_AT_ZERO_CENTERING_M = 0.200
 
 
 def distal_link_count(distal_segment_ratio: float) -> int:
@@ -51,21 +74,26 @@ class PinchGraspParams(BaseModel):
     Attributes:
         distal_segment_ratio: DSR in [0, 1]; distal links = round(20·DSR).
         object_width_m: Box extent along x (the approach direction), m.
-        centering_m: Distance along x from the object centre to the finger bases, m.
-        approach_m: Distance travelled toward the object in the first second, m.
+        centering_position_m: The paper's centering position c, m: the finger bases end the
+            approach ``base_distance_m`` = 0.200 m − c from the object's centre along x (see
+            the module docstring; 0.070 … 0.175 m in the paper's grid).
+        approach_m: Distance travelled toward the object in the first second, m; the hand
+            starts this much farther out.
         torque_n_m: Final proximal actuation torque, N·m.
         lift_m: Lift of the hand, m.
         hand_height_m: Height of the fingers' centre line above the ground, m.
         approach_s, ramp_s, lift_s, hold_s: Phase durations, s.
         sample_period_s: Period of the hold-phase contact samples, s.
         numerics: Numerical regularisation (inertia shaping, damping, motor limit).
+        early_stop: End the trial as soon as its outcome is settled (no grasp under both
+            rules; :mod:`somo_sweep.tasks.pinch_grasp.settled`); the metrics record when and why.
     """
 
     model_config = ConfigDict(extra="forbid", frozen=True)
 
     distal_segment_ratio: float = Field(0.2, ge=0, le=1)
     object_width_m: float = Field(0.040, gt=0)
-    centering_m: float = Field(0.100, gt=0)
+    centering_position_m: float = Field(0.100, gt=0, lt=BASE_DISTANCE_AT_ZERO_CENTERING_M)
     approach_m: float = 0.100
     torque_n_m: float = 0.15
     lift_m: float = 0.075
@@ -76,6 +104,29 @@ class PinchGraspParams(BaseModel):
     hold_s: float = Field(1.0, gt=0)
     sample_period_s: float = Field(0.01, gt=0)
     numerics: Numerics = Numerics()
+    early_stop: bool = True
+
+    @model_validator(mode="before")
+    @classmethod
+    def _refuse_old_centering(cls, data: Any) -> Any:
+        if isinstance(data, dict) and "centering_m" in data:
+            d = data["centering_m"]
+            hint = ""
+            if isinstance(d, int | float) and not isinstance(d, bool):
+                c = BASE_DISTANCE_AT_ZERO_CENTERING_M - d - 0.00966  # base box 10 mm, splayed 15°
+                hint = f" (centering_m {d:g} is about centering_position_m {c:.3f} for the bundled gripper)"
+            raise ValueError(
+                "'centering_m' (the bases' distance d from the object centre, measured to the finger "
+                "chains' starts) was replaced by 'centering_position_m', the paper's centering position "
+                f"c = {BASE_DISTANCE_AT_ZERO_CENTERING_M:g} m − d with d measured to the finger mounts"
+                f"{hint}; results made with 'centering_m' used the old geometry"
+            )
+        return data
+
+    @property
+    def base_distance_m(self) -> float:
+        """d, the finger bases' (mounts') distance along x from the object's centre after the approach, m."""
+        return BASE_DISTANCE_AT_ZERO_CENTERING_M - self.centering_position_m
 
     @property
     def n_distal(self) -> int:
@@ -112,6 +163,10 @@ METRICS: dict[str, str] = {
     "hold_force_fraction_proximal": "double",
     "hold_mean_contact_position": "double",
     "held": "bool",
+    "base_distance_m": "double",
+    "squeeze_end_hand_contact": "bool",
+    "ended_early_s": "double",
+    "ended_early_reason": "string",
 }
 
 register(

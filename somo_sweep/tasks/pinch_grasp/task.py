@@ -3,14 +3,19 @@
 A two-finger gripper (``studies/models/pinch_gripper.yaml``) whose fingers are
 re-split by the distal segment ratio (DSR) into a driven proximal and a passive
 distal segment approaches a box, closes, lifts it 75 mm and holds it.
-Timeline (facts sheet): 0–1 s the hand moves 100 mm along −x to the centering
-position; 1–2 s the proximal torque ramps 0 → 0.15 N·m; 2–3 s the hand lifts
-75 mm; 3–4 s hold. Contacts are sampled over the hold phase and stored as
+Timeline (facts sheet): 0–1 s the hand moves 100 mm along −x, from 100 mm farther
+out to where the finger bases sit d = 200 mm − c from the object's centre (c: the
+paper's centering position, ``centering_position_m``); 1–2 s the proximal torque
+ramps 0 → 0.15 N·m; 2–3 s the hand lifts 75 mm; 3–4 s hold. The finger bases
+(mounts, SoMo's base frames: the back faces of the base boxes) stay 35 mm above the
+ground until the lift. Contacts are sampled over the hold phase and stored as
 per-link counts and forces, so grasps can be reclassified without rerunning
 (:mod:`somo_sweep.tasks.pinch_grasp.classify`).
 
-Centering position: the distance along x from the object's centre to the
-fingers' bases (the start of their chains), once the approach is over.
+Early stop (``early_stop``, on by default): at the end of the squeeze and of the
+lift the trial ends if its outcome is already settled as no grasp under both rules
+(:mod:`somo_sweep.tasks.pinch_grasp.settled`); ``ended_early_s`` and
+``ended_early_reason`` record when and why (NaN and ``""`` for a trial run to its end).
 """
 
 from __future__ import annotations
@@ -35,6 +40,7 @@ from somo_sweep.tasks.pinch_grasp.classify import (
 )
 from somo_sweep.tasks.pinch_grasp.contacts import HoldProbe
 from somo_sweep.tasks.pinch_grasp.params import Numerics, PinchGraspParams
+from somo_sweep.tasks.pinch_grasp.settled import Snapshot, settled_reason
 from somo_sweep.tasks.registry import TaskResult
 
 __all__ = ["Numerics", "PinchGraspParams", "run_pinch_grasp", "split_finger"]
@@ -144,13 +150,13 @@ def run_pinch_grasp(
             pose=Pose(position_m=tuple(obj_start)),
         )
         obj = world.load_plan(plan_rigid_body(box, world.scale))
-        # Load the hand far away, measure where its finger bases sit relative to the palm.
+        # Load the hand far away, measure where its finger mounts sit relative to the palm.
         far = np.array([1.0, 0.0, p.hand_height_m])
         hand = world.add_model(gripper, Pose(position_m=tuple(far)))
         palm = hand.bodies[0]
         probe = HoldProbe(world, palm, obj.id, ground)
-        base_to_palm_x = float(far[0] - probe.finger_base_x_m())
-        x_end = obj_start[0] + p.centering_m + base_to_palm_x
+        mount_to_palm_x = float(far[0] - probe.finger_mounts_m()[:, 0].mean())
+        x_end = obj_start[0] + p.base_distance_m + mount_to_palm_x
         start = np.array([x_end + p.approach_m, 0.0, p.hand_height_m])
         world.drive_base(palm, start, (0.0, 0.0, 0.0))
         _reset_base(world, palm.id, start)
@@ -174,35 +180,43 @@ def run_pinch_grasp(
         sample_every = max(1, round(p.sample_period_s / dt))
         i_lift, i_hold = round(t2 / dt), round(t3 / dt)
         z_obj: dict[int, float] = {}
+        metrics: dict[str, float | int | bool | str] = {"n_distal_links": p.n_distal}
+        ended_early_s, reason, touched = float("nan"), "", False
         observe_steps = {min(round(t / dt), n_steps - 1) for t in observe_at_s}
         try:
             for i in range(n_steps):
                 t = i * dt
                 if observe is not None and i in observe_steps:
                     observe(world, t)
-                hand.set_inputs(torque(t))
-                world.drive_base(palm, path(t), (0.0, 0.0, 0.0))
                 if i in (i_lift, i_hold):
                     z_obj[i] = float(world.base_pose(obj.id)[0][2])
+                if i == i_lift:
+                    metrics["base_distance_m"] = float(probe.finger_mounts_m()[:, 0].mean() - obj_start[0])
+                    metrics["squeeze_end_hand_contact"] = touched = probe.touching_now()
+                # From the end of the squeeze to the end of the lift, every sample period.
+                if p.early_stop and i_lift <= i <= i_hold and (i - i_lift) % sample_every == 0:
+                    reason = settled_reason(_snapshot(world, probe, obj.id), touched)
+                    if reason:
+                        ended_early_s = t
+                        break
+                hand.set_inputs(torque(t))
+                world.drive_base(palm, path(t), (0.0, 0.0, 0.0))
                 world.step()
                 if i >= i_hold and (n_steps - 1 - i) % sample_every == 0:
                     probe.sample()
         except UnstableSimulation as exc:
             return TaskResult(status="unstable", message=str(exc))
         pos, quat = world.base_pose(obj.id)
-        hand_z_lift = p.lift_m
-        metrics: dict[str, float | int | bool | str] = {
-            "n_distal_links": p.n_distal,
-            "object_x_m": float(pos[0]),
-            "object_y_m": float(pos[1]),
-            "object_z_m": float(pos[2]),
-        }
+        metrics.update({f"object_{a}_m": float(v) for a, v in zip("xyz", pos, strict=True)})
         rpy = world_rpy(quat)
         metrics.update({"object_roll_rad": rpy[0], "object_pitch_rad": rpy[1], "object_yaw_rad": rpy[2]})
-        lift = float(pos[2] - obj_start[2])
-        metrics["lift_height_m"] = lift
-        metrics["lift_slip_m"] = float(hand_z_lift - (z_obj[i_hold] - z_obj[i_lift]))
-        metrics["hold_slip_m"] = float(z_obj[i_hold] - pos[2])
+        metrics["lift_height_m"] = float(pos[2] - obj_start[2])
+        nan = float("nan")
+        lifted = z_obj[i_hold] - z_obj[i_lift] if not reason else nan
+        metrics["lift_slip_m"] = float(p.lift_m - lifted)
+        metrics["hold_slip_m"] = float(z_obj[i_hold] - pos[2]) if not reason else nan
+        metrics["ended_early_s"] = ended_early_s
+        metrics["ended_early_reason"] = reason
         metrics.update(probe.metrics())
     evidence = GraspEvidence.from_metrics(metrics, p.distal_segment_ratio, p.lift_m)
     shares = distal_force_fractions(evidence)
@@ -213,6 +227,22 @@ def run_pinch_grasp(
     metrics["held"] = is_held(evidence)
     labels = {"grasp": classify(evidence, "contacts"), "grasp_paper": classify(evidence, "paper")}
     return TaskResult(status="ok", metrics=metrics, labels=labels)
+
+
+def _snapshot(world: World, probe: HoldProbe, object_id: int) -> Snapshot:
+    """The early-stop rule's view of the current state."""
+    lin, ang = world.base_velocity(object_id)
+    drive = probe.hand.drive
+    drive.read()
+    finger_speed = float(np.abs(drive.velocities_si()).max()) if drive.indices else 0.0
+    return Snapshot(
+        hand_touches_object=probe.touching_now(),
+        object_on_ground=probe.on_ground_now(),
+        object_speed_m_s=float(np.linalg.norm(lin)),
+        object_spin_rad_s=float(np.linalg.norm(ang)),
+        object_z_m=float(world.base_pose(object_id)[0][2]),
+        finger_speed_rad_s=finger_speed,
+    )
 
 
 def world_rpy(quat: np.ndarray) -> tuple[float, float, float]:
