@@ -34,8 +34,8 @@ Newton step:
 
 Candidate plate contacts are the lowest points of every link's collision shape
 (box corners, sphere bottoms, the lowest points of cylinder rims); the plate's top
-is exactly at the straight chain's underside (the simulated bench raises its plate
-body by Bullet's contact slop so that resting contacts settle there too, see
+is exactly at the straight chain's underside, as in the continuum (the simulated
+bench's contacts rest Bullet's contact slop deeper, see
 :data:`somo_sweep.sim.bench.BULLET_CONTACT_SLOP`). URDF joint limits are constraints
 too. An equilibrium is only reported if the energy's Hessian is positive definite on the active contacts'
 tangent space (a stable one, as relaxation would find).
