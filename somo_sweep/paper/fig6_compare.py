@@ -78,7 +78,9 @@ def build(sides: list[Side], max_dsr: float = 0.5, paper_style: bool = False) ->
     rows = [(s, "cells") for s in sides] + ([(s, "contour") for s in sides] if paper_style else [])
     n = max(len(dsrs), 1)
     fig = plt.figure(layout="constrained", figsize=(max(2.3 * n, 9.0), 2.9 * len(rows) + 0.6))
-    for r, (sub, (side, style)) in enumerate(zip(fig.subfigures(len(rows), 1), rows, strict=True)):
+    made = fig.subfigures(len(rows), 1, squeeze=False)
+    subfigs = [made[i, 0] for i in range(len(rows))]
+    for r, (sub, (side, style)) in enumerate(zip(subfigs, rows, strict=True)):
         axes = sub.subplots(1, n, squeeze=False)[0]
         for ax, dsr in zip(axes, dsrs, strict=False):
             if style == "cells":
