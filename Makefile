@@ -5,7 +5,7 @@ BIN    := $(VENV)/bin
 STAMP  := $(VENV)/.installed-stamp
 
 .DEFAULT_GOAL := help
-.PHONY: help install demo test test-slow lint format bench fig6 fig6-quick fig3 fig5 fig5-quick palm palm-quick fig7 fig7-quick fig8 fig8-quick diagnose-demo sweep-demo figures clean
+.PHONY: help install demo test test-slow lint format bench fig6 fig6-quick fig6-ablation fig6-ablation-quick fig3 fig5 fig5-quick palm palm-quick fig7 fig7-quick fig8 fig8-quick diagnose-demo sweep-demo figures clean
 
 help: ## List the targets
 	@grep -E '^[a-zA-Z0-9_-]+:.*?## ' $(MAKEFILE_LIST) | awk 'BEGIN {FS = ":.*?## "}; {printf "  make %-12s %s\n", $$1, $$2}'
@@ -49,6 +49,12 @@ fig6-quick: $(STAMP) ## Fig. 6 on a 192-trial subset (a few minutes on 2 cores),
 	$(BIN)/somo-sweep run studies/pinch_grasp_quick.yaml
 	$(BIN)/somo-sweep paper fig6 results/pinch_grasp_quick --out results/figures/quick
 	$(BIN)/somo-sweep paper fig6 results/pinch_grasp_quick --out results/figures/quick --rule paper
+
+fig6-ablation: $(STAMP) ## Fig. 6 ablation, ours vs the original's choices one factor at a time: 4 simulated configurations x 2310 cells (adaptive, resumable) -> results/reference/fig6_ablation.{csv,md,png}, fig6_compare.png
+	$(BIN)/somo-sweep paper fig6-ablation --out results/reference
+
+fig6-ablation-quick: $(STAMP) ## The ablation on the 192-cell quick grid (4 simulated configurations, adaptive) -> results/figures/quick
+	$(BIN)/somo-sweep paper fig6-ablation --quick --out results/figures/quick
 
 fig3: $(STAMP) ## Paper Fig. 3: blocked force vs pressure, eq. (8)/(9) and fit vs published values
 	$(BIN)/somo-sweep paper fig3 --out results/figures

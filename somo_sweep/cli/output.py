@@ -152,6 +152,8 @@ def write_artifacts(artifacts: Artifacts, out: Path) -> list[Path]:
         written.append(write_atomic(out / name, json.dumps(data, indent=2, default=str) + "\n"))
     for name, frame in artifacts.tables.items():
         written.append(write_atomic(out / name, frame.to_csv(index=False)))
+    for name, text in artifacts.texts.items():
+        written.append(write_atomic(out / name, text))
     for name, image in artifacts.images.items():
         written.append(write_atomic(out / name, _png(image)))
     for name, frames in artifacts.animations.items():

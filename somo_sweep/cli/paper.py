@@ -16,6 +16,7 @@ from somo_sweep.cli.output import fail, write_artifacts, write_atomic
 from somo_sweep.errors import SomoError
 
 if TYPE_CHECKING:
+    from somo_sweep.paper.ablation import Configuration
     from somo_sweep.paper.artifacts import Artifacts
 
 __all__ = ["app"]
@@ -78,6 +79,124 @@ def fig6(
     if target.resolve() != results.resolve():
         # The headline is stored with the results too, wherever the figure goes.
         write_atomic(results / f"{stem}.json", json.dumps(artifacts.json[f"{stem}.json"], indent=2) + "\n")
+
+
+@app.command("fig6-ablation")
+def fig6_ablation(
+    quick: Annotated[bool, typer.Option("--quick", help="The quick grid (same as --grid quick).")] = False,
+    grid: Annotated[str, typer.Option(help="Grid of the ablation file: full or quick.")] = "full",
+    ablation: Annotated[
+        Path | None,
+        typer.Option(help="Ablation file (default: the bundled studies/pinch_grasp_ablation.yaml)."),
+    ] = None,
+    results_root: Annotated[
+        Path, typer.Option(help="Folder holding the configurations' results folders.")
+    ] = Path("results"),
+    out: Annotated[
+        Path | None,
+        typer.Option(help="Output folder (default: results/reference; with --quick results/figures/quick)."),
+    ] = None,
+    jobs: Annotated[int, typer.Option("--jobs", "-j", help="Worker processes (default: every CPU).")] = 0,
+    adaptive: Annotated[
+        bool, typer.Option("--adaptive/--exhaustive", help="Sample each configuration adaptively.")
+    ] = True,
+    run: Annotated[
+        bool, typer.Option("--run/--no-run", help="Run missing trials first (--no-run: tables only).")
+    ] = True,
+    paper_style: Annotated[
+        bool, typer.Option("--paper-style", help="Side-by-side figure: add rows drawn the paper's way.")
+    ] = False,
+) -> None:
+    """Fig. 6 ablation: ours vs the original's choices, one factor at a time (table, figure, side by side).
+
+    Runs every configuration's missing trials (resumable), then writes fig6_ablation.csv, .md and
+    .png and fig6_compare.png.
+    """
+    from somo_sweep.paper.ablation import (
+        ABLATION_FILE,
+        compare_sides,
+        configurations,
+        load_ablation,
+        read_configurations,
+    )
+    from somo_sweep.paper.fig6_ablation import RULES, build
+    from somo_sweep.paper.fig6_compare import build as build_compare
+
+    grid = "quick" if quick else grid
+    target = out or (Path("results/figures/quick") if grid == "quick" else Path("results/reference"))
+    try:
+        spec, folder = load_ablation(ablation or ABLATION_FILE)
+        configs = configurations(spec, folder, grid, results_root)
+        if run:
+            stopped = _run_ablation(configs, jobs, adaptive)
+            if stopped is not None:
+                typer.echo(
+                    "interrupted: finished trials kept; run the same command again to resume", err=True
+                )
+                raise typer.Exit(128 + stopped)
+        results = read_configurations(configs, RULES)
+        rules: dict[str, str] = {"ours": spec.rules.ours, "original": spec.rules.original}
+        artifacts = build(results, list(spec.factors), rules, title=f"{spec.name} ({grid} grid)")
+        compare = build_compare(compare_sides(results, spec), paper_style=paper_style)
+    except SomoError as exc:
+        fail(exc)
+    artifacts.figures.update(compare.figures)
+    artifacts.lines += compare.lines
+    _finish(artifacts, target)
+
+
+def _run_ablation(configs: list[Configuration], jobs: int, adaptive: bool) -> int | None:
+    """Run the configurations with a line each; returns the signal number if interrupted."""
+    from rich.console import Console
+
+    from somo_sweep.paper.ablation import run_configurations
+    from somo_sweep.sweep.summary import print_run_summary
+
+    console = Console()
+    shared = {c.name: c.same_as for c in configs if c.same_as}
+
+    def started(config: Configuration) -> None:
+        also = [n for n, first in shared.items() if first == config.name]
+        same = f" (= {', '.join(also)})" if also else ""
+        typer.echo(f"configuration {config.name}{same}: {len(config.table.jobs)} cells -> {config.folder}")
+
+    summaries = run_configurations(configs, jobs or None, adaptive, on_config=started)
+    for summary in summaries:
+        print_run_summary(console, summary)
+    errors = sum(s.errors for s in summaries)
+    if errors:
+        typer.echo(f"warning: {errors} trial(s) ended in error; they are drawn as 'error'", err=True)
+    return next((s.interrupted for s in summaries if s.interrupted is not None), None)
+
+
+@app.command("fig6-compare")
+def fig6_compare(
+    a: Annotated[Path, typer.Argument(help="Results folder of the first configuration (ours).")],
+    b: Annotated[Path, typer.Argument(help="Results folder of the second (the original's).")],
+    rule_a: Annotated[str, typer.Option(help="Grasp rule of A: contacts or paper.")] = "contacts",
+    rule_b: Annotated[str, typer.Option(help="Grasp rule of B: contacts or paper.")] = "paper",
+    name_a: Annotated[str, typer.Option(help="Name of A in the figure.")] = "ours",
+    name_b: Annotated[str, typer.Option(help="Name of B in the figure.")] = "original",
+    max_dsr: Annotated[float, typer.Option(help="Largest DSR drawn.")] = 0.5,
+    paper_style: Annotated[
+        bool, typer.Option("--paper-style", help="Add rows drawn the paper's way (grasped trials, contours).")
+    ] = False,
+    out: OUT = DEFAULT_OUT,
+) -> None:
+    """Fig. 6 side by side: two results folders panel by panel on the paper's axes, each with its headline."""
+    from somo_sweep.paper.fig6 import grasp_table
+    from somo_sweep.paper.fig6_compare import Side, build
+    from somo_sweep.paper.grasp_trials import read_results
+
+    try:
+        sides = [
+            Side(name_a, rule_a, grasp_table(read_results(a), rule_a)),
+            Side(name_b, rule_b, grasp_table(read_results(b), rule_b)),
+        ]
+        artifacts = build(sides, max_dsr=max_dsr, paper_style=paper_style)
+    except SomoError as exc:
+        fail(exc)
+    _finish(artifacts, out)
 
 
 @app.command()

@@ -28,6 +28,7 @@ class Artifacts:
         dpi: Figure resolution, dots per inch.
         json: File name → JSON-serialisable numbers.
         tables: File name → table, saved as CSV without the index.
+        texts: File name → text (Markdown tables, notes), saved as UTF-8.
         images: File name → RGB image (H × W × 3, uint8), saved as PNG.
         animations: File name → RGB frames, saved as an animated GIF (0.1 s a frame).
         lines: What to print when done (headline numbers).
@@ -38,6 +39,7 @@ class Artifacts:
     dpi: int = 120
     json: dict[str, Any] = field(default_factory=dict)
     tables: dict[str, pd.DataFrame] = field(default_factory=dict)
+    texts: dict[str, str] = field(default_factory=dict)
     images: dict[str, np.ndarray] = field(default_factory=dict)
     animations: dict[str, list[np.ndarray]] = field(default_factory=dict)
     lines: list[str] = field(default_factory=list)

@@ -44,7 +44,7 @@ import json
 import math
 import os
 from collections.abc import Iterator
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from functools import cache
 from pathlib import Path
 from typing import Annotated, Any, Literal
@@ -68,6 +68,7 @@ __all__ = [
     "Simulation",
     "Study",
     "StudyFile",
+    "derive_study",
     "load_model_dict",
     "load_study",
 ]
@@ -456,6 +457,49 @@ def load_study(
     if problems:
         raise DescriptionError(src, problems)
     return study
+
+
+def derive_study(study: Study, overrides: dict[str, Any], name: str, output: str | Path) -> Study:
+    """A copy of ``study`` with extra fixed overrides (as in its ``set:``), a new name and folder.
+
+    Used for configurations generated from one study (the Fig. 6 ablation). Every trial of the
+    copy is checked as at load; problems are reported against ``set.<key>`` of ``study``'s file.
+
+    Args:
+        study: A loaded study.
+        overrides: Key path (``task.…`` or ``model.…``) → value; replaces ``set:`` entries and
+            must not name a swept axis.
+        name: Name of the derived study.
+        output: Its results folder.
+
+    Raises:
+        DescriptionError: A key path is malformed, swept, or its value does not fit.
+    """
+    problems: list[Problem] = []
+    swept = {a.key for a in study.axes}
+    for key in overrides:
+        try:
+            parse_key_path(key)
+        except ValueError as exc:
+            problems.append(Problem(f"set.{key}", str(exc)))
+            continue
+        if key in swept or key == "model":
+            problems.append(Problem(f"set.{key}", "is a sweep axis of the study; allowed: a fixed key path"))
+    if problems:
+        raise DescriptionError(study.source, problems)
+    derived = replace(
+        study,
+        name=name,
+        fixed={**study.fixed, **overrides},
+        output=Path(output),
+        _models={},
+        _params={},
+    )
+    derived._bases = study._bases  # model files are shared; overrides are applied per trial
+    _check_points(derived, {}, problems)
+    if problems:
+        raise DescriptionError(study.source, problems)
+    return derived
 
 
 def _check_bases(study: Study, lines: dict[str, int], problems: list[Problem]) -> bool:

@@ -87,6 +87,19 @@ class PinchGraspParams(BaseModel):
         numerics: Numerical regularisation (inertia shaping, damping, motor limit).
         early_stop: End the trial as soon as its outcome is settled (no grasp under both
             rules; :mod:`somo_sweep.tasks.pinch_grasp.settled`); the metrics record when and why.
+        spring_scale: Multiplies every finger joint's stiffness (both axes, both segments).
+            1: the model file's (calibrated) stiffness, ours; 2: the original code's effective
+            stiffness (it applied every spring torque twice per step).
+        finger_spinning_friction_m: Spinning (torsional) friction of every finger link and
+            fingertip, m (Bullet's spinning friction as a length). ``None`` keeps the model
+            file's (0.004 m in the bundled finger: a ~3-mm contact patch); 0 gives the
+            original's point contacts.
+        restitution: Restitution of the object, the finger links and the fingertips (Bullet
+            multiplies a pair's values; the ground and the base boxes keep theirs). ``None``
+            keeps the model file's on the fingers (0 in the bundled finger) and 0 on the object.
+
+    The last three are the Fig. 6 ablation's physical factors (docs/pinch_grasp.md,
+    :mod:`somo_sweep.paper.fig6_ablation`); their defaults are our physical model.
     """
 
     model_config = ConfigDict(extra="forbid", frozen=True)
@@ -105,6 +118,9 @@ class PinchGraspParams(BaseModel):
     sample_period_s: float = Field(0.01, gt=0)
     numerics: Numerics = Numerics()
     early_stop: bool = True
+    spring_scale: float = Field(1.0, gt=0)
+    finger_spinning_friction_m: float | None = Field(None, ge=0)
+    restitution: float | None = Field(None, ge=0, le=1)
 
     @model_validator(mode="before")
     @classmethod

@@ -25,7 +25,7 @@ from collections.abc import Callable, Sequence
 import numpy as np
 
 from somo_sweep.errors import SomoError, UnstableSimulation
-from somo_sweep.model.description import Actuator, Link, Manipulator, Pose, RigidBody
+from somo_sweep.model.description import Actuator, Joint, Link, Manipulator, Pose, RigidBody
 from somo_sweep.model.load import Model
 from somo_sweep.model.setpoints import SetpointTable
 from somo_sweep.sim.settings import WorldSettings
@@ -43,7 +43,7 @@ from somo_sweep.tasks.pinch_grasp.params import Numerics, PinchGraspParams
 from somo_sweep.tasks.pinch_grasp.settled import Snapshot, settled_reason
 from somo_sweep.tasks.registry import TaskResult
 
-__all__ = ["Numerics", "PinchGraspParams", "run_pinch_grasp", "split_finger"]
+__all__ = ["Numerics", "PinchGraspParams", "gripper", "object_body", "run_pinch_grasp", "split_finger"]
 
 #: Links per finger (the facts sheet's finger).
 N_LINKS = 20
@@ -58,12 +58,28 @@ OBJECT_COLOR_RGBA = (0.95, 0.55, 0.15, 1.0)
 SPAWN_GAP_M = 0.0005
 
 
-def split_finger(finger: Manipulator, n_distal: int, numerics: Numerics | None = None) -> Manipulator:
+def split_finger(
+    finger: Manipulator,
+    n_distal: int,
+    numerics: Numerics | None = None,
+    *,
+    spring_scale: float = 1.0,
+    spinning_friction_m: float | None = None,
+    restitution: float | None = None,
+) -> Manipulator:
     """Re-split a two-actuator finger into ``20 − n_distal`` proximal and ``n_distal`` distal links.
 
     Link size, mass and per-joint stiffness do not change with the split. With one
     distal link or none, the finger is a single driven 20-link actuator (the facts
-    sheet's rule). ``numerics`` overrides inertia shaping, damping and motor limit.
+    sheet's rule).
+
+    Args:
+        finger: The two-actuator finger of the model file.
+        n_distal: Distal links, 0 … 20.
+        numerics: Overrides of inertia shaping, damping and motor limit (None: the file's).
+        spring_scale: Multiplier of every joint's stiffness (2: the original's effective springs).
+        spinning_friction_m: Spinning friction of every link and fingertip, m (None: the file's).
+        restitution: Restitution of every link and fingertip (None: the file's).
     """
     if len(finger.actuators) != 2:
         raise SomoError(
@@ -72,8 +88,16 @@ def split_finger(finger: Manipulator, n_distal: int, numerics: Numerics | None =
     proximal, distal = finger.actuators
     seg_m = proximal.segment_m
 
+    def surface(link: Link) -> Link:
+        upd: dict[str, object] = {}
+        if spinning_friction_m is not None:
+            upd["friction"] = link.friction.model_copy(update={"spinning": spinning_friction_m})
+        if restitution is not None:
+            upd["restitution"] = restitution
+        return link.model_copy(update=upd) if upd else link
+
     def tuned(act: Actuator, n: int, actuated: bool) -> Actuator:
-        link = act.link.with_length_z(seg_m)
+        link = surface(act.link.with_length_z(seg_m))
         joints = list(act.joints)
         if numerics is not None:
             link = link.model_copy(update={"added_inertia_kg_m2": numerics.added_inertia_kg_m2})
@@ -83,6 +107,8 @@ def split_finger(finger: Manipulator, n_distal: int, numerics: Numerics | None =
             if numerics.motor_limit_n_m is not None:
                 upd["motor_limit_n_m"] = numerics.motor_limit_n_m
             joints = [j.model_copy(update=upd) for j in joints]
+        if spring_scale != 1.0:
+            joints = [_scaled_spring(j, spring_scale) for j in joints]
         # The first (grasp) axis of the proximal actuator is driven; nothing else is.
         joints = [j.model_copy(update={"actuated": actuated and i == 0}) for i, j in enumerate(joints)]
         return act.model_copy(
@@ -100,16 +126,55 @@ def split_finger(finger: Manipulator, n_distal: int, numerics: Numerics | None =
         actuators = [tuned(proximal, N_LINKS, True)]
     else:
         actuators = [tuned(proximal, N_LINKS - n_distal, True), tuned(distal, n_distal, False)]
-    return finger.model_copy(update={"actuators": actuators})
+    tips = [surface(t) for t in finger.tip_links]
+    return finger.model_copy(update={"actuators": actuators, "tip_links": tips})
 
 
-def _gripper(model: Model, params: PinchGraspParams) -> Model:
+def _scaled_spring(joint: Joint, factor: float) -> Joint:
+    """``joint`` with its stiffness (revolute or prismatic) multiplied by ``factor``."""
+    upd = {
+        name: value * factor
+        for name in ("stiffness_n_m_per_rad", "stiffness_n_per_m")
+        if (value := getattr(joint, name)) is not None
+    }
+    return joint.model_copy(update=upd)
+
+
+def gripper(model: Model, params: PinchGraspParams) -> Model:
+    """The trial's gripper: each finger re-split by DSR with the numerics and physical factors applied."""
     assembly = model.as_assembly()
     mounts = [
-        m.model_copy(update={"manipulator": split_finger(m.manipulator, params.n_distal, params.numerics)})
+        m.model_copy(
+            update={
+                "manipulator": split_finger(
+                    m.manipulator,
+                    params.n_distal,
+                    params.numerics,
+                    spring_scale=params.spring_scale,
+                    spinning_friction_m=params.finger_spinning_friction_m,
+                    restitution=params.restitution,
+                )
+            }
+        )
         for m in assembly.manipulators
     ]
     return Model(assembly=assembly.model_copy(update={"manipulators": mounts}))
+
+
+def object_body(params: PinchGraspParams) -> RigidBody:
+    """The box to grasp, resting just above the ground at x = y = 0."""
+    return RigidBody(
+        name="object",
+        link=Link(
+            shape="box",
+            size_m=(params.object_width_m, OBJECT_DEPTH_M, OBJECT_HEIGHT_M),
+            mass_kg=OBJECT_MASS_KG,
+            friction={"lateral": OBJECT_FRICTION},
+            restitution=params.restitution or 0.0,
+            color_rgba=OBJECT_COLOR_RGBA,
+        ),
+        pose=Pose(position_m=(0.0, 0.0, OBJECT_HEIGHT_M / 2 + SPAWN_GAP_M)),
+    )
 
 
 def run_pinch_grasp(
@@ -133,26 +198,16 @@ def run_pinch_grasp(
         observe_at_s: Times of the observations, s.
     """
     del seed
-    gripper = _gripper(model, params)
+    hand_model = gripper(model, params)
     p = params
     with World(settings) as world:
         ground = world.add_ground(friction=GROUND_FRICTION)
-        obj_start = np.array([0.0, 0.0, OBJECT_HEIGHT_M / 2 + SPAWN_GAP_M])
-        box = RigidBody(
-            name="object",
-            link=Link(
-                shape="box",
-                size_m=(p.object_width_m, OBJECT_DEPTH_M, OBJECT_HEIGHT_M),
-                mass_kg=OBJECT_MASS_KG,
-                friction={"lateral": OBJECT_FRICTION},
-                color_rgba=OBJECT_COLOR_RGBA,
-            ),
-            pose=Pose(position_m=tuple(obj_start)),
-        )
+        box = object_body(p)
+        obj_start = np.array(box.pose.position_m)
         obj = world.load_plan(plan_rigid_body(box, world.scale))
         # Load the hand far away, measure where its finger mounts sit relative to the palm.
         far = np.array([1.0, 0.0, p.hand_height_m])
-        hand = world.add_model(gripper, Pose(position_m=tuple(far)))
+        hand = world.add_model(hand_model, Pose(position_m=tuple(far)))
         palm = hand.bodies[0]
         probe = HoldProbe(world, palm, obj.id, ground)
         mount_to_palm_x = float(far[0] - probe.finger_mounts_m()[:, 0].mean())
