@@ -2,7 +2,10 @@
 
 Each finger of the family is the bundled gripper (``pinch_gripper.yaml``) with every joint
 stiffness multiplied by one factor and every finger link mass by another (built in memory,
-nothing written). :func:`~somo_sweep.sim.numerics.choose_numerics` picks its step and
+nothing written). The grasp torque is scaled with the stiffness, so every finger closes by
+the same angles (at 0.15 N·m a ×0.1 finger would curl 2.2 rad per joint into itself, and a
+×10 finger would hardly move): the statics stay those of the study, the dynamics (modes)
+change. :func:`~somo_sweep.sim.numerics.choose_numerics` picks its step and
 shaping; a small grasp sample runs at that step and at a quarter of it with the same
 shaping, and the ``grasp`` labels are compared. No blow-up retry here: a blow-up counts.
 ``somo-sweep paper numerics --auto-family`` runs it.
@@ -85,8 +88,11 @@ class FingerCheck:
         return sum(a[0] == "unstable" for a in self.auto), sum(f[0] == "unstable" for f in self.fine)
 
 
-def _run(model: Model, point: dict[str, float], inertia_kg_m2: float, step_s: float) -> tuple[str, str, str]:
-    params = PinchGraspParams(numerics=Numerics(added_inertia_kg_m2=inertia_kg_m2), **point)
+def _run(
+    model: Model, point: dict[str, float], inertia_kg_m2: float, step_s: float, torque_n_m: float
+) -> tuple[str, str, str]:
+    numerics = Numerics(added_inertia_kg_m2=inertia_kg_m2)
+    params = PinchGraspParams(numerics=numerics, torque_n_m=torque_n_m, **point)
     result = run_pinch_grasp(model, params, WorldSettings(time_step_s=step_s))
     labels = dict(result.labels)
     return result.status, labels.get("grasp", result.status), labels.get("grasp_paper", result.status)
@@ -111,10 +117,11 @@ def check_family(
     members = [(k, m, finger_variant(base, k, m)) for k, m in family]
     chosen = [choose_numerics(model) for _, _, model in members]
     tasks: list[Any] = []
-    for (_, _, model), c in zip(members, chosen, strict=True):
+    torque = PinchGraspParams().torque_n_m
+    for (k, _, model), c in zip(members, chosen, strict=True):
         j = max(c.added_inertia_kg_m2.values())
         for step in (c.time_step_s, c.time_step_s / refine):
-            tasks.extend(delayed(_run)(model, pt, j, step) for pt in points)
+            tasks.extend(delayed(_run)(model, pt, j, step, torque * k) for pt in points)
     out, n, runs = [], len(points), []
     for run in Parallel(n_jobs=n_jobs, return_as="generator")(tasks):
         runs.append(run)
