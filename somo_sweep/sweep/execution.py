@@ -4,7 +4,7 @@ Every trial runs in its own process forked from the worker (POSIX), so a trial t
 dies (segfault, ``os._exit``, killed, out of memory) costs only that trial, which is
 marked ``error``; the worker, the sweep and every other trial go on. A trial that
 blows up (``unstable``) is run once more at half the time step, same everything else; the
-outcome says so (``retried_half_step``, ``time_step_s_used``) and stays ``unstable`` only if
+outcome says so (``retried_half_step``, ``time_step_used_s``) and stays ``unstable`` only if
 the retry blows up too. The forked child ignores SIGINT (Ctrl-C stops the sweep from the
 parent, which keeps every finished trial) and is killed if its worker dies.
 """
@@ -51,7 +51,7 @@ class Outcome:
         wall_time_s: Wall time of the trial, s.
         host: Host name of the worker.
         retried_half_step: The first run blew up and the trial was run again at half the step.
-        time_step_s_used: Time step of the run reported, s (NaN if the trial never ran).
+        time_step_used_s: Time step of the run reported, s (NaN if the trial never ran).
     """
 
     job_id: str
@@ -62,7 +62,7 @@ class Outcome:
     wall_time_s: float = 0.0
     host: str = ""
     retried_half_step: bool = False
-    time_step_s_used: float = float("nan")
+    time_step_used_s: float = float("nan")
 
 
 @dataclass(frozen=True)
@@ -72,12 +72,12 @@ class Attempt:
     Attributes:
         result: What the task returned (for the retry, if there was one).
         retried_half_step: The first run was ``unstable`` and this is the half-step rerun.
-        time_step_s_used: Time step of ``result``'s run, s.
+        time_step_used_s: Time step of ``result``'s run, s.
     """
 
     result: TaskResult
     retried_half_step: bool
-    time_step_s_used: float
+    time_step_used_s: float
 
 
 def _die_with_parent() -> None:
@@ -218,7 +218,7 @@ def outcome_of(job: Job, attempt: Attempt, wall_time_s: float = 0.0, host: str =
         wall_time_s,
         host,
         attempt.retried_half_step,
-        attempt.time_step_s_used,
+        attempt.time_step_used_s,
     )
 
 

@@ -111,7 +111,7 @@ def outcome_row(job: Job, out: Outcome, study_hash: str) -> dict[str, Any]:
         "wall_time_s": out.wall_time_s,
         "host": out.host,
         "retried_half_step": out.retried_half_step,
-        "time_step_s_used": out.time_step_s_used,
+        "time_step_used_s": out.time_step_used_s,
         "study_hash": study_hash,
         **job.columns,
     }

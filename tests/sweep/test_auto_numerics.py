@@ -63,9 +63,9 @@ def test_a_blow_up_is_retried_at_half_the_step_and_recorded(tmp_path: Path) -> N
     summary = run_study(load_study(path, tmp_path / "out"), n_jobs=1)
     assert summary.by_status == {"ok": 4}
     df = read_results(tmp_path / "out").set_index("task_x")
-    assert df.loc[3.0, "retried_half_step"] and df.loc[3.0, "time_step_s_used"] == pytest.approx(5e-4)
+    assert df.loc[3.0, "retried_half_step"] and df.loc[3.0, "time_step_used_s"] == pytest.approx(5e-4)
     assert "retried at 0.0005 s" in df.loc[3.0, "message"]
-    assert not df.loc[1.0, "retried_half_step"] and df.loc[1.0, "time_step_s_used"] == pytest.approx(1e-3)
+    assert not df.loc[1.0, "retried_half_step"] and df.loc[1.0, "time_step_used_s"] == pytest.approx(1e-3)
 
 
 def test_a_retry_that_blows_up_too_stays_unstable(tmp_path: Path) -> None:
@@ -75,7 +75,7 @@ def test_a_retry_that_blows_up_too_stays_unstable(tmp_path: Path) -> None:
     assert summary.by_status == {"ok": 3, "unstable": 1}
     row = read_results(tmp_path / "out").set_index("task_x").loc[3.0]
     assert row["status"] == "unstable" and row["retried_half_step"]
-    assert row["time_step_s_used"] == pytest.approx(5e-4)
+    assert row["time_step_used_s"] == pytest.approx(5e-4)
 
 
 def test_the_manifest_records_the_automatic_numerics(tmp_path: Path) -> None:
@@ -84,7 +84,7 @@ def test_the_manifest_records_the_automatic_numerics(tmp_path: Path) -> None:
     (choice,) = auto.values()
     assert {"time_step_s", "reason", "chains"} <= set(choice)
     df = read_results(tmp_path / "out")
-    assert (df["time_step_s_used"] == choice["time_step_s"]).all()
+    assert (df["time_step_used_s"] == choice["time_step_s"]).all()
     assert isinstance(df, pd.DataFrame)
 
 
