@@ -38,8 +38,9 @@ def check(
     model: Annotated[Path, typer.Argument(help="Model file (YAML or JSON).")],
     allow_outside: ALLOW_OUTSIDE = False,
 ) -> None:
-    """Validate a model file and print its bodies, links, joints and inputs."""
+    """Validate a model file; print its bodies, links, joints, inputs, modes and automatic step."""
     from somo_sweep.model.load import load_model
+    from somo_sweep.sim.numerics import choose_numerics
     from somo_sweep.sim.urdf import plan_assembly
 
     try:
@@ -51,6 +52,9 @@ def check(
             f"{plan.name}: base {plan.mode}, {len(plan.links)} links, {len(plan.joints)} spring joints, "
             f"inputs: {', '.join(plan.inputs) or 'none'}"
         )
+    typer.echo("automatic numerics (used when a study gives no simulation:):")
+    for line in choose_numerics(m).describe():
+        typer.echo(f"  {line}")
 
 
 def measure(

@@ -265,8 +265,24 @@ def numerics(
     a: Annotated[
         str | None, typer.Option(help="Setup A: DT_S,ITERATIONS,INERTIA_KG_M2[,DAMPING_N_M_S_PER_RAD].")
     ] = None,
+    auto_family: Annotated[
+        bool,
+        typer.Option(
+            "--auto-family",
+            help="Check the automatic numerics on a family of fingers against a 4x finer step.",
+        ),
+    ] = False,
+    points: Annotated[int, typer.Option(help="--auto-family: grasp trials per finger (1-3).")] = 3,
 ) -> None:
     """Pinch-grasp numerics: time the chosen setup, or compare it with its half step or the fine reference."""
+    if auto_family:
+        from somo_sweep.paper.auto_numerics import FAMILY_POINTS, check_family, family_lines
+
+        if not 1 <= points <= len(FAMILY_POINTS):
+            fail(SomoError(f"--points must be 1 to {len(FAMILY_POINTS)}, got {points}"))
+        for line in family_lines(check_family(points=FAMILY_POINTS[:points], n_jobs=jobs)):
+            typer.echo(line)
+        return
     from somo_sweep.paper.numerics import (
         CHOSEN,
         QUICK_STUDY,

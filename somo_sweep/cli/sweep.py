@@ -211,7 +211,18 @@ def _print_dry_run(st: Study) -> None:
     )
     if st.sampling == "adaptive":
         typer.echo(describe(st))
-    frame = jobs_frame(first_jobs(st, DRY_ROWS))
+    jobs = first_jobs(st, DRY_ROWS)
+    if st.simulation is None:
+        shown: set[str] = set()
+        for job in jobs:
+            if job.numerics is not None and job.columns["model_hash"] not in shown:
+                shown.add(job.columns["model_hash"])
+                typer.echo(f"automatic numerics (no simulation: block), model {job.columns['model_file']}:")
+                for line in job.numerics.describe():
+                    typer.echo(f"  {line}")
+    else:
+        typer.echo(f"simulation: time step {st.simulation.time_step_s * 1e3:g} ms (from the study file)")
+    frame = jobs_frame(jobs)
     typer.echo(frame.to_string(index=False))
     if st.n_trials > DRY_ROWS:
         typer.echo(f"... {st.n_trials - DRY_ROWS} more")

@@ -2,9 +2,11 @@
 
 Every trial runs in its own process forked from the worker (POSIX), so a trial that
 dies (segfault, ``os._exit``, killed, out of memory) costs only that trial, which is
-marked ``error``; the worker, the sweep and every other trial go on. The forked
-child ignores SIGINT (Ctrl-C stops the sweep from the parent, which keeps every
-finished trial) and is killed if its worker dies.
+marked ``error``; the worker, the sweep and every other trial go on. A trial that
+blows up (``unstable``) is run once more at half the time step, same everything else; the
+outcome says so (``retried_half_step``, ``time_step_used_s``) and stays ``unstable`` only if
+the retry blows up too. The forked child ignores SIGINT (Ctrl-C stops the sweep from the
+parent, which keeps every finished trial) and is killed if its worker dies.
 """
 
 from __future__ import annotations
@@ -19,7 +21,7 @@ import socket
 import threading
 import time
 from collections.abc import Iterable, Iterator
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from typing import Any, Literal
 
 from joblib import Parallel, delayed, parallel_config
@@ -28,7 +30,7 @@ from somo_sweep.errors import SomoError, UnstableSimulation
 from somo_sweep.sweep.jobs import Job
 from somo_sweep.tasks.registry import TaskResult, get_task
 
-__all__ = ["Backend", "Outcome", "dask_client", "execute", "run_isolated"]
+__all__ = ["Attempt", "Backend", "Outcome", "dask_client", "execute", "outcome_of", "run_isolated", "run_job"]
 
 Backend = Literal["loky", "dask"]
 #: How often a worker restart is tried when a whole worker process (not a trial) dies.
@@ -48,6 +50,8 @@ class Outcome:
         labels: The task's labels.
         wall_time_s: Wall time of the trial, s.
         host: Host name of the worker.
+        retried_half_step: The first run blew up and the trial was run again at half the step.
+        time_step_used_s: Time step of the run reported, s (NaN if the trial never ran).
     """
 
     job_id: str
@@ -57,6 +61,23 @@ class Outcome:
     labels: dict[str, str] = field(default_factory=dict)
     wall_time_s: float = 0.0
     host: str = ""
+    retried_half_step: bool = False
+    time_step_used_s: float = float("nan")
+
+
+@dataclass(frozen=True)
+class Attempt:
+    """A trial's result and how it was obtained.
+
+    Attributes:
+        result: What the task returned (for the retry, if there was one).
+        retried_half_step: The first run was ``unstable`` and this is the half-step rerun.
+        time_step_used_s: Time step of ``result``'s run, s.
+    """
+
+    result: TaskResult
+    retried_half_step: bool
+    time_step_used_s: float
 
 
 def _die_with_parent() -> None:
@@ -89,14 +110,26 @@ def _watch_owner(owner_pid: int) -> None:
     threading.Thread(target=watch, name="somo-sweep-owner-watch", daemon=True).start()
 
 
-def _call(job: Job) -> TaskResult:
+def _call(job: Job, time_step_s: float) -> TaskResult:
     spec = get_task(job.task)
     try:
-        return spec.run(job.model, job.params, job.settings, job.seed)
+        return spec.run(job.model, job.params, replace(job.settings, time_step_s=time_step_s), job.seed)
     except UnstableSimulation as exc:
         return TaskResult(status="unstable", message=str(exc))
     except Exception as exc:
         return TaskResult(status="error", message=f"{type(exc).__name__}: {exc}")
+
+
+def run_job(job: Job) -> Attempt:
+    """Run one job in this process; a blow-up is retried once at half the step (never raises)."""
+    step = job.settings.time_step_s
+    first = _call(job, step)
+    if first.status != "unstable":
+        return Attempt(first, False, step)
+    retry = _call(job, step / 2)
+    note = f"first run at {step:g} s blew up ({first.message}); retried at {step / 2:g} s"
+    message = note if retry.status == "ok" else f"{note}: {retry.message}"
+    return Attempt(replace(retry, message=message), True, step / 2)
 
 
 def _exit_text(status: int) -> str:
@@ -130,9 +163,10 @@ def run_isolated(job: Job, timeout_s: float | None = None, owner_pid: int | None
         code = 1
         try:
             try:
-                data = pickle.dumps(_call(job))
+                data = pickle.dumps(run_job(job))
             except BaseException as exc:  # SystemExit in a task, or metrics that cannot be pickled
-                data = pickle.dumps(TaskResult(status="error", message=f"{type(exc).__name__}: {exc}"))
+                failed = TaskResult(status="error", message=f"{type(exc).__name__}: {exc}")
+                data = pickle.dumps(Attempt(failed, False, job.settings.time_step_s))
             with os.fdopen(write_fd, "wb") as fh:
                 fh.write(data)
             code = 0
@@ -165,12 +199,26 @@ def run_isolated(job: Job, timeout_s: float | None = None, owner_pid: int | None
     if timed_out:
         return Outcome(job.job_id, "error", f"timed out after {timeout_s} s", wall_time_s=wall, host=host)
     try:
-        result: TaskResult = pickle.loads(b"".join(chunks))
+        attempt: Attempt = pickle.loads(b"".join(chunks))
     except Exception:
         msg = f"the process running this trial died ({_exit_text(status)})"
         return Outcome(job.job_id, "error", msg, wall_time_s=wall, host=host)
+    return outcome_of(job, attempt, wall, host)
+
+
+def outcome_of(job: Job, attempt: Attempt, wall_time_s: float = 0.0, host: str = "") -> Outcome:
+    """The :class:`Outcome` of a job's :class:`Attempt`."""
+    r = attempt.result
     return Outcome(
-        job.job_id, result.status, result.message, dict(result.metrics), dict(result.labels), wall, host
+        job.job_id,
+        r.status,
+        r.message,
+        dict(r.metrics),
+        dict(r.labels),
+        wall_time_s,
+        host,
+        attempt.retried_half_step,
+        attempt.time_step_used_s,
     )
 
 

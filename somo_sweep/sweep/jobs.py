@@ -6,6 +6,11 @@ id is the hash of those inputs, the code version and the PyBullet version: the s
 study on the same code and simulator always gives the same ids, which is what resume
 relies on. :func:`iter_jobs` yields them one by one (a dry run prints the first ones
 without building the rest).
+
+A study without a ``simulation:`` block gets its numerics from each model's modes
+(:func:`~somo_sweep.sim.numerics.choose_numerics`, which loads the chains in PyBullet): the
+job's model carries the chosen inertia shaping and its settings the chosen step, both
+before hashing, so the id is still a function of what the trial actually runs.
 """
 
 from __future__ import annotations
@@ -20,7 +25,7 @@ from dataclasses import asdict, dataclass
 from functools import cache
 from importlib.metadata import PackageNotFoundError, version
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import pandas as pd
 from pydantic import BaseModel
@@ -30,9 +35,13 @@ from somo_sweep.model.load import Model
 from somo_sweep.sim.settings import WorldSettings
 from somo_sweep.sweep.study import Study
 
+if TYPE_CHECKING:
+    from somo_sweep.sim.numerics import ChosenNumerics
+
 __all__ = [
     "Job",
     "JobTable",
+    "auto_numerics",
     "build_jobs",
     "code_version",
     "first_jobs",
@@ -157,6 +166,8 @@ class Job:
         params: The validated task parameters.
         settings: Simulation settings.
         columns: The parameter columns of this trial (flattened, unit-suffixed names).
+        numerics: The automatic numerics applied to ``model`` and ``settings`` (None when the
+            study gives its own ``simulation:``).
     """
 
     job_id: str
@@ -168,6 +179,7 @@ class Job:
     params: BaseModel
     settings: WorldSettings
     columns: dict[str, Any]
+    numerics: ChosenNumerics | None = None
 
 
 @dataclass(frozen=True)
@@ -213,16 +225,19 @@ def iter_jobs(study: Study) -> Iterator[Job]:
     Raises:
         DescriptionError: Two trials are identical (e.g. a value repeated in an axis).
     """
-    settings = study.simulation.world_settings()
+    fixed_settings = None if study.simulation is None else study.simulation.world_settings()
     code = code_version(study.task.run_path.partition(":")[0])
     engine = pybullet_version()
     overrides = sorted({*study.fixed, *(a.key for a in study.axes)} - {"model"})
     seen: dict[str, int] = {}
     trial = 0
-    hashes: dict[int, str] = {}  # the study hands out one object per distinct model
+    # The study hands out one object per distinct model: each is shaped and hashed once.
+    prepared: dict[int, tuple[Model, str, WorldSettings, ChosenNumerics | None]] = {}
     for point in study.points():
-        model_path, model, params = study.resolve(point)
-        model_hash = hashes.get(id(model)) or hashes.setdefault(id(model), model.content_hash())
+        model_path, given, params = study.resolve(point)
+        if id(given) not in prepared:
+            prepared[id(given)] = _prepare(given, fixed_settings)
+        model, model_hash, settings, numerics = prepared[id(given)]
         values = {**study.fixed, **point}
         columns: dict[str, Any] = {}
         _flatten("task", params.model_dump(mode="json"), columns)
@@ -254,8 +269,28 @@ def iter_jobs(study: Study) -> Iterator[Job]:
                     ],
                 )
             seen[job_id] = trial
-            yield Job(job_id, trial, repeat, seed, study.task.name, model, params, settings, columns)
+            yield Job(
+                job_id, trial, repeat, seed, study.task.name, model, params, settings, columns, numerics
+            )
             trial += 1
+
+
+def _prepare(
+    model: Model, fixed: WorldSettings | None
+) -> tuple[Model, str, WorldSettings, ChosenNumerics | None]:
+    """The model and settings a trial runs: as given, or with the automatic numerics applied."""
+    if fixed is not None:
+        return model, model.content_hash(), fixed, None
+    from somo_sweep.sim.numerics import choose_numerics  # loads PyBullet: only when needed
+
+    chosen = choose_numerics(model)
+    shaped = chosen.apply(model)
+    return shaped, shaped.content_hash(), WorldSettings(time_step_s=chosen.time_step_s), chosen
+
+
+def auto_numerics(jobs: list[Job]) -> dict[str, dict[str, Any]]:
+    """The distinct automatic numerics of ``jobs``, by the hash of the (shaped) model they ran."""
+    return {str(j.columns["model_hash"]): j.numerics.as_dict() for j in jobs if j.numerics is not None}
 
 
 def first_jobs(study: Study, n: int) -> list[Job]:
@@ -282,7 +317,11 @@ def build_jobs(study: Study) -> JobTable:
         "groups": study.groups,
         "repeats": study.repeats,
         "seed": study.seed,
-        "simulation": study.simulation.model_dump(mode="json"),
+        "simulation": (
+            {"auto": auto_numerics(jobs)}
+            if study.simulation is None
+            else study.simulation.model_dump(mode="json")
+        ),
         "code_version": code,
         "pybullet": pybullet_version(),
         "n_trials": len(jobs),

@@ -19,7 +19,7 @@ import numpy as np
 import pandas as pd
 
 from somo_sweep.errors import SomoError
-from somo_sweep.sweep.execution import Outcome, _call
+from somo_sweep.sweep.execution import outcome_of, run_job
 from somo_sweep.sweep.jobs import Job, build_jobs
 from somo_sweep.sweep.runner import outcome_row
 from somo_sweep.sweep.store import read_manifest, read_results
@@ -114,8 +114,7 @@ def recheck(
     for index in picks:
         row = stored.iloc[int(index)]
         job = by_id[str(row["job_id"])]
-        result = _call(job)
-        out = Outcome(job.job_id, result.status, result.message, dict(result.metrics), dict(result.labels))
+        out = outcome_of(job, run_job(job))
         fresh = outcome_row(job, out, table.study_hash)
         report.trials.append(job.trial)
         _compare(report, job.trial, row, fresh)

@@ -110,6 +110,8 @@ def outcome_row(job: Job, out: Outcome, study_hash: str) -> dict[str, Any]:
         "message": out.message,
         "wall_time_s": out.wall_time_s,
         "host": out.host,
+        "retried_half_step": out.retried_half_step,
+        "time_step_used_s": out.time_step_used_s,
         "study_hash": study_hash,
         **job.columns,
     }

@@ -40,6 +40,8 @@ COLUMNS: tuple[Column, ...] = (
     Column("message", "string", "", "why the status is not ok"),
     Column("wall_time_s", "double", "s", "wall time of the trial"),
     Column("host", "string", "", "host that ran the trial"),
+    Column("retried_half_step", "bool", "", "the first run blew up; the row is the rerun at half the step"),
+    Column("time_step_used_s", "double", "s", "time step of the run the row reports"),
     Column("model_file", "string", "", "model file, relative to the study file"),
     Column("model_hash", "string", "", "hash of the model content after overrides"),
     Column("study_hash", "string", "", "hash of the study the row belongs to"),

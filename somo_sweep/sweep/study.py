@@ -18,6 +18,8 @@ A study file (YAML or JSON) looks like this; paths are relative to the study fil
     repeats: 1                           # trials per grid point, each with its own seed
     seed: 0                              # base seed; trial seeds derive from it and the point
     simulation: {time_step_s: 5.0e-4, scale: 20, solver_iterations: 50, gravity_m_s2: [0, 0, -9.81]}
+                                         # without it: the step and inertia shaping are chosen from
+                                         # each model's modes (somo_sweep.sim.numerics)
     output: results/finger_pressure_sweep   # a folder inside results/ of the current directory
     sampling: grid                       # or adaptive: a coarse sub-grid, refined where labels change
     adaptive: {labels: [grasp], coarse_step: 4}   # optional: labels to follow (default: all), stride
@@ -125,7 +127,7 @@ class StudyFile(Spec):
     link: list[list[str]] = Field(default_factory=list)
     repeats: int = Field(1, ge=1)
     seed: int = Field(0, ge=0)
-    simulation: Simulation = Simulation()
+    simulation: Simulation | None = None
     output: str | None = None
     sampling: Literal["grid", "adaptive"] = "grid"
     adaptive: Adaptive = Adaptive()
@@ -150,7 +152,8 @@ class Study:
         groups: Axis groups crossed as a grid; axes in one group are zipped.
         repeats: Trials per grid point.
         seed: Base seed.
-        simulation: Simulation settings.
+        simulation: Simulation settings, or None: chosen per model
+            (:func:`~somo_sweep.sim.numerics.choose_numerics`).
         output: Output folder.
         allow_outside: Model includes may name files outside the model's folder.
         sampling: ``grid`` (every trial) or ``adaptive`` (see :mod:`somo_sweep.sweep.adaptive`).
@@ -167,7 +170,7 @@ class Study:
     groups: list[list[str]]
     repeats: int
     seed: int
-    simulation: Simulation
+    simulation: Simulation | None
     output: Path
     allow_outside: bool = False
     sampling: str = "grid"

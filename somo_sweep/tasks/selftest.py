@@ -5,7 +5,8 @@
   ``x`` is in ``crash_x`` (``how``: ``exit`` = ``os._exit(3)``, ``segfault``, ``kill`` = SIGKILL),
   or raises an exception (``how: raise``).
 * ``selftest_unstable``: like ``selftest_sleep``, but reports a blow-up when ``x`` is in
-  ``unstable_x`` (raises :class:`~somo_sweep.errors.UnstableSimulation`, as the core does).
+  ``unstable_x`` (raises :class:`~somo_sweep.errors.UnstableSimulation`, as the core does),
+  at any step or, with ``unstable_above_step_s`` > 0, only at steps above that one.
 
 With ``region_radius_m`` set, every task also labels ``region`` ``inside`` or ``outside`` the
 ball of that radius around the origin in (x, u, v): a known label boundary in up to three
@@ -52,6 +53,7 @@ class SelftestParams(BaseModel):
         crash_x: Values of ``x`` whose trial kills its process (``selftest_crash``).
         how: How to fail: ``exit``, ``segfault``, ``kill`` (the process dies) or ``raise``.
         unstable_x: Values of ``x`` reported unstable (``selftest_unstable``).
+        unstable_above_step_s: If > 0, those trials blow up only at time steps above this, s.
         none_x: Values of ``x`` whose metric ``y`` is missing (None).
         done_dir: If set, a folder where every trial leaves an empty file (named by ``x`` and
             the seed) as it returns, so that fault-injection tests can count finished trials.
@@ -69,6 +71,7 @@ class SelftestParams(BaseModel):
     crash_x: list[float] = Field(default_factory=list)
     how: Literal["exit", "segfault", "kill", "raise"] = "exit"
     unstable_x: list[float] = Field(default_factory=list)
+    unstable_above_step_s: float = Field(0.0, ge=0)
     none_x: list[float] = Field(default_factory=list)
     done_dir: str = ""
     notify_fifo: str = ""
@@ -127,7 +130,8 @@ def _crash(model: Model, params: SelftestParams, settings: WorldSettings, seed: 
 
 
 def _unstable(model: Model, params: SelftestParams, settings: WorldSettings, seed: int) -> TaskResult:
-    if params.x in params.unstable_x:
+    too_large = params.unstable_above_step_s == 0 or settings.time_step_s > params.unstable_above_step_s
+    if params.x in params.unstable_x and too_large:
         raise UnstableSimulation("speed_cap", 0.123, "(selftest)")
     return _result(params, seed)
 
