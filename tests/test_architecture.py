@@ -76,3 +76,9 @@ def test_loading_and_expanding_a_study_does_not_import_pybullet() -> None:
     )
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)
     assert out.stdout.strip() == "[]"
+
+
+def test_test_modules_have_unique_names() -> None:
+    """``tests`` has no packages: two test files with one basename stop pytest's collection."""
+    names = [p.name for p in (PACKAGE.parent / "tests").rglob("test_*.py")]
+    assert sorted({n for n in names if names.count(n) > 1}) == []
