@@ -53,6 +53,26 @@ def test_a_changed_stored_metric_is_reported_and_fails(tmp_path: Path) -> None:
     assert {m["column"] for m in mismatches} == {"noise"}
 
 
+def test_rows_written_before_the_retry_columns_recheck_identical(tmp_path: Path) -> None:
+    """A folder from before ``retried_half_step``/``time_step_used_s`` (null there) is not different;
+    a stored value in them is still compared."""
+    path = _finished(tmp_path)
+    parts = sorted((tmp_path / "out" / "trials").glob("*.parquet"))
+    for part in parts:
+        table = pq.read_table(part)
+        df = table.to_pandas()
+        df["retried_half_step"] = None
+        df["time_step_used_s"] = float("nan")
+        pq.write_table(pa.Table.from_pandas(df, schema=table.schema, preserve_index=False), part)
+    assert recheck(load_study(path, tmp_path / "out"), n_trials=6, seed=3).identical
+    table = pq.read_table(parts[0])
+    df = table.to_pandas()
+    df["retried_half_step"] = True
+    pq.write_table(pa.Table.from_pandas(df, schema=table.schema, preserve_index=False), parts[0])
+    report = recheck(load_study(path, tmp_path / "out"), n_trials=6, seed=3)
+    assert {m.column for m in report.mismatches} == {"retried_half_step"}
+
+
 def test_results_of_another_study_version_are_refused(tmp_path: Path) -> None:
     path = _finished(tmp_path)
     path.write_text(path.read_text().replace("sleep_s: 0.0", "sleep_s: 0.001"))
