@@ -238,8 +238,18 @@ def speed(
         bool, typer.Option("--convergence", help="The time-step convergence table.")
     ] = False,
     statics: Annotated[bool, typer.Option("--statics", help="Only the bench-statics benchmark.")] = False,
+    scaling: Annotated[
+        bool,
+        typer.Option(
+            "--scaling/--no-scaling",
+            help="Time a 24-trial sweep at 1 and 2 workers and on a 2-worker Dask LocalCluster.",
+        ),
+    ] = True,
 ) -> None:
-    """The benchmark (make bench): grasp steps, one trial vs the original, bench statics."""
+    """The benchmark (make bench): grasp steps, one trial vs the original's numerics, bench statics,
+    sweep scaling (parallel efficiency, Dask vs joblib)."""
+    import tempfile
+
     from somo_sweep.paper.speed import convergence_lines, speed_lines
     from somo_sweep.paper.statics_speed import statics_lines
 
@@ -251,6 +261,12 @@ def speed(
         lines = [*speed_lines(repeats), *statics_lines()]
     for line in lines:
         typer.echo(line)
+    if scaling and not (convergence or statics):
+        from somo_sweep.paper.scaling import scaling_lines, scaling_runs
+
+        with tempfile.TemporaryDirectory(prefix="somo-sweep-scaling-") as tmp:
+            for line in scaling_lines(scaling_runs(Path(tmp))):
+                typer.echo(line)
 
 
 @app.command()

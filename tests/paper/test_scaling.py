@@ -1,0 +1,44 @@
+"""The scaling benchmark's plumbing (``make bench``): three runs of one study, same labels.
+
+The timings themselves are the benchmark's business (an idle machine, ``somo-sweep paper
+speed``); here a study of sleeping selftest trials checks that the three runs happen, land
+in their own folders and are compared.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+from somo_sweep.paper.scaling import scaling_lines, scaling_runs
+
+STUDY = """\
+name: scaling_check
+task: selftest_sleep
+model: models/ihm_finger.yaml
+params: {sleep_s: 0.2}
+sweep:
+  task.x: {start: 1, stop: 6, step: 1}
+"""
+
+
+def test_three_runs_of_one_study_with_the_same_labels(tmp_path: Path) -> None:
+    models = tmp_path / "models"
+    models.mkdir()
+    from somo_sweep.model.tables import bundled_path
+
+    (models / "ihm_finger.yaml").write_text(bundled_path("models", "ihm_finger.yaml").read_text())
+    study = tmp_path / "study.yaml"
+    study.write_text(STUDY)
+    out = tmp_path / "runs"
+    out.mkdir()
+    runs = scaling_runs(out, study)
+    assert [r.name for r in runs] == ["joblib, 1 worker", "joblib, 2 workers", "Dask LocalCluster, 2 workers"]
+    assert [r.trials for r in runs] == [6, 6, 6]
+    assert sorted(p.name for p in out.iterdir()) == ["dask", "jobs1", "jobs2"]
+    # Six 0.2-s sleeps: one worker needs at least 1.2 s, two workers at least 0.6 s.
+    assert runs[0].wall_s >= 1.2 and runs[1].wall_s >= 0.6
+    lines = scaling_lines(runs, "scaling_check")
+    assert "labels and statuses identical in the three runs: yes" in lines[-1]
+    assert any("parallel efficiency" in line for line in lines)
+    runs[2].labels.loc[0, "status"] = "error"
+    assert scaling_lines(runs)[-1].endswith("NO")
