@@ -7,6 +7,7 @@ figures, numbers and tables) and writes what it returns into ``--out``.
 from __future__ import annotations
 
 import json
+import math
 from pathlib import Path
 from typing import TYPE_CHECKING, Annotated
 
@@ -281,6 +282,10 @@ def numerics(
     a: Annotated[
         str | None, typer.Option(help="Setup A: DT_S,ITERATIONS,INERTIA_KG_M2[,DAMPING_N_M_S_PER_RAD].")
     ] = None,
+    b: Annotated[
+        str | None,
+        typer.Option(help="Setup B to compare A with (same format as --a; --compare not needed)."),
+    ] = None,
     auto_family: Annotated[
         bool,
         typer.Option(
@@ -310,29 +315,39 @@ def numerics(
     from somo_sweep.paper.numerics import compare as run_compare
     from somo_sweep.tasks.pinch_grasp.params import Numerics
 
-    setup = CHOSEN
-    if a:
+    def parse(text: str, option: str) -> Setup:
         try:
-            dt, iters, inertia, *damping = a.split(",")
+            dt, iters, inertia, *damping = text.split(",")
             c = float(damping[0]) if damping else None
-            setup = Setup(
-                float(dt), int(iters), Numerics(added_inertia_kg_m2=float(inertia), damping_n_m_s_per_rad=c)
+            step_s, n_iter = float(dt), int(iters)
+            if len(damping) > 1 or not (0 < step_s < 1) or n_iter < 1 or not math.isfinite(float(inertia)):
+                raise ValueError(text)
+            return Setup(
+                step_s, n_iter, Numerics(added_inertia_kg_m2=float(inertia), damping_n_m_s_per_rad=c)
             )
         except ValueError:
-            fail(SomoError(f"--a must be DT_S,ITERATIONS,INERTIA_KG_M2[,DAMPING], got '{a}'"))
-    if compare is None:
+            fail(
+                SomoError(
+                    f"{option} must be DT_S,ITERATIONS,INERTIA_KG_M2[,DAMPING] (0 < DT_S < 1, "
+                    f"ITERATIONS >= 1, INERTIA and DAMPING finite and >= 0), got '{text}'"
+                )
+            )
+
+    setup = parse(a, "--a") if a else CHOSEN
+    if b is not None:
+        other = parse(b, "--b")
+    elif compare is None:
         for line in trial_timing_lines(repeats, setup):
             typer.echo(line)
         return
-    if compare not in ("half-step", "reference"):
+    elif compare == "reference":
+        other = REFERENCE
+    elif compare == "half-step":
+        other = Setup(setup.time_step_s / 2, setup.solver_iterations, setup.numerics)
+    else:
         fail(SomoError(f"--compare must be half-step or reference, got '{compare}'"))
-    b = (
-        REFERENCE
-        if compare == "reference"
-        else Setup(setup.time_step_s / 2, setup.solver_iterations, setup.numerics)
-    )
-    typer.echo(f"A: {setup.describe()}\nB: {b.describe()}")
-    result = run_compare(quick_points(study or QUICK_STUDY), setup, b, jobs)
+    typer.echo(f"A: {setup.describe()}\nB: {other.describe()}")
+    result = run_compare(quick_points(study or QUICK_STUDY), setup, other, jobs)
     runs = result.pop("runs")
     if save is not None:
         write_atomic(save, json.dumps(runs, default=str))

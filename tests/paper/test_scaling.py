@@ -1,4 +1,5 @@
-"""The scaling benchmark's plumbing (``make bench``): three runs of one study, same labels.
+"""The benchmark's plumbing (``make bench``): three runs of one study with the same labels,
+and the numerics setups ``paper numerics`` accepts.
 
 The timings themselves are the benchmark's business (an idle machine, ``somo-sweep paper
 speed``); here a study of sleeping selftest trials checks that the three runs happen, land
@@ -9,6 +10,10 @@ from __future__ import annotations
 
 from pathlib import Path
 
+import pytest
+from typer.testing import CliRunner
+
+from somo_sweep.cli import app
 from somo_sweep.paper.scaling import scaling_lines, scaling_runs
 
 STUDY = """\
@@ -42,3 +47,22 @@ def test_three_runs_of_one_study_with_the_same_labels(tmp_path: Path) -> None:
     assert any("parallel efficiency" in line for line in lines)
     runs[2].labels.loc[0, "status"] = "error"
     assert scaling_lines(runs)[-1].endswith("NO")
+
+
+@pytest.mark.parametrize(
+    "setup",
+    [
+        "0,50,0",
+        "nan,50,3e-5",
+        "4e-3,0,3e-5",
+        "4e-3,50,-1",
+        "4e-3,50,inf",
+        "4e-3,50,0,nan",
+        "a,b,c",
+        "4e-3,50",
+    ],
+)
+def test_numerics_setups_out_of_range_are_refused_before_any_trial(setup: str) -> None:
+    result = CliRunner().invoke(app, ["paper", "numerics", "--b", setup])
+    assert result.exit_code == 2
+    assert "--b must be DT_S,ITERATIONS,INERTIA_KG_M2[,DAMPING]" in result.output and setup in result.output
