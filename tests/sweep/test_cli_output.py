@@ -1,0 +1,28 @@
+"""Files the command line writes: atomically, with the permissions a plain write would give."""
+
+from __future__ import annotations
+
+import os
+import stat
+from pathlib import Path
+
+from somo_sweep.cli.output import write_atomic
+
+
+def test_a_new_file_gets_the_umask_permissions_not_the_temporary_files(tmp_path: Path) -> None:
+    old = os.umask(0o022)
+    try:
+        path = write_atomic(tmp_path / "sub" / "table.csv", "a,b\n1,2\n")
+    finally:
+        os.umask(old)
+    assert path.read_text() == "a,b\n1,2\n"
+    assert stat.S_IMODE(path.stat().st_mode) == 0o644
+    assert [p.name for p in path.parent.iterdir()] == ["table.csv"]  # no temporary left behind
+
+
+def test_an_existing_file_keeps_its_mode(tmp_path: Path) -> None:
+    path = tmp_path / "report.md"
+    path.write_text("old")
+    path.chmod(0o640)
+    write_atomic(path, b"new")
+    assert path.read_bytes() == b"new" and stat.S_IMODE(path.stat().st_mode) == 0o640
