@@ -51,7 +51,7 @@ fig6-quick: $(STAMP) ## Fig. 6 on a 192-trial subset (a few minutes on 2 cores),
 	$(BIN)/somo-sweep paper fig6 results/pinch_grasp_quick --out results/figures/quick --rule paper
 
 fig6-ablation: $(STAMP) ## Fig. 6 ablation, ours vs the original's choices one factor at a time: 4 simulated configurations x 2310 cells (adaptive, resumable) -> results/reference/fig6_ablation.{csv,md,png}, fig6_compare.png
-	$(BIN)/somo-sweep paper fig6-ablation --out results/reference
+	$(BIN)/somo-sweep paper fig6-ablation --paper-style --out results/reference
 
 fig6-ablation-quick: $(STAMP) ## The ablation on the 192-cell quick grid (4 simulated configurations, adaptive) -> results/figures/quick
 	$(BIN)/somo-sweep paper fig6-ablation --quick --out results/figures/quick
