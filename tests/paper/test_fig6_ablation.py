@@ -214,5 +214,5 @@ def test_make_fig6_ablation_runs_the_command() -> None:
         text=True,
         check=True,
     ).stdout
-    assert "somo-sweep paper fig6-ablation --out results/reference" in out
+    assert "somo-sweep paper fig6-ablation --paper-style --out results/reference" in out
     assert "somo-sweep paper fig6-ablation --quick" in out
