@@ -29,11 +29,13 @@ __all__ = ["FAMILY", "FAMILY_POINTS", "FingerCheck", "check_family", "finger_var
 GRIPPER = bundled_path("models", "pinch_gripper.yaml")
 #: (stiffness factor, link mass factor) of the family members checked by default, cheapest first.
 FAMILY: tuple[tuple[float, float], ...] = ((0.1, 1.0), (1.0, 5.0), (1.0, 1.0), (1.0, 0.2), (10.0, 1.0))
-#: The grasp sample: DSR, box width (m) and centering (m), spanning the study's ranges.
+#: The grasp sample: DSR, box width (m) and the paper's centering position c (m), spanning the
+#: study's ranges. c = 90, 70 and 110 mm are the hand placements of the sample's first runs
+#: (the bases' distance to the chain starts d = 100, 120 and 80 mm, before c replaced it).
 FAMILY_POINTS: tuple[dict[str, float], ...] = (
-    {"distal_segment_ratio": 0.2, "object_width_m": 0.040, "centering_m": 0.100},
-    {"distal_segment_ratio": 0.4, "object_width_m": 0.080, "centering_m": 0.120},
-    {"distal_segment_ratio": 0.0, "object_width_m": 0.020, "centering_m": 0.080},
+    {"distal_segment_ratio": 0.2, "object_width_m": 0.040, "centering_position_m": 0.090},
+    {"distal_segment_ratio": 0.4, "object_width_m": 0.080, "centering_position_m": 0.070},
+    {"distal_segment_ratio": 0.0, "object_width_m": 0.020, "centering_position_m": 0.110},
 )
 
 

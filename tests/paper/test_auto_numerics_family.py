@@ -6,6 +6,7 @@ import pytest
 
 from somo_sweep.model.load import load_model
 from somo_sweep.paper.auto_numerics import FAMILY_POINTS, GRIPPER, check_family, finger_variant
+from somo_sweep.tasks.pinch_grasp.params import PinchGraspParams
 
 
 def test_finger_variant_scales_stiffness_and_link_mass_only() -> None:
@@ -19,7 +20,13 @@ def test_finger_variant_scales_stiffness_and_link_mass_only() -> None:
         assert new.manipulator.tip_links == old.manipulator.tip_links
 
 
+def test_every_family_point_is_a_valid_trial() -> None:
+    for point in FAMILY_POINTS:
+        assert PinchGraspParams(**point).centering_position_m == point["centering_position_m"]
+
+
 @pytest.mark.slow
+@pytest.mark.timeout(900)
 def test_soft_finger_agrees_with_a_four_times_finer_step() -> None:
     """One trial on the cheapest member (stiffness ×0.1: 1.5 ms vs 0.375 ms), no blow-up."""
     (check,) = check_family(family=((0.1, 1.0),), points=FAMILY_POINTS[:1], n_jobs=1)
@@ -28,6 +35,7 @@ def test_soft_finger_agrees_with_a_four_times_finer_step() -> None:
 
 
 @pytest.mark.slow
+@pytest.mark.timeout(3600)
 def test_the_family_agrees_with_a_four_times_finer_step() -> None:
     """Five fingers (stiffness ×0.1–×10, link mass ×0.2–×5) × three grasps: ≥ 97 % agreement."""
     checks = check_family()
