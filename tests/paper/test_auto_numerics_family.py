@@ -25,8 +25,6 @@ def test_every_family_point_is_a_valid_trial() -> None:
         assert PinchGraspParams(**point).centering_position_m == point["centering_position_m"]
 
 
-@pytest.mark.slow
-@pytest.mark.timeout(900)
 def test_soft_finger_agrees_with_a_four_times_finer_step() -> None:
     """One trial on the cheapest member (stiffness ×0.1: 1.5 ms vs 0.375 ms), no blow-up."""
     (check,) = check_family(family=((0.1, 1.0),), points=FAMILY_POINTS[:1], n_jobs=1)
