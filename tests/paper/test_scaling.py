@@ -43,10 +43,12 @@ def test_three_runs_of_one_study_with_the_same_labels(tmp_path: Path) -> None:
     # Six 0.2-s sleeps: one worker needs at least 1.2 s, two workers at least 0.6 s.
     assert runs[0].wall_s >= 1.2 and runs[1].wall_s >= 0.6
     lines = scaling_lines(runs, "scaling_check")
-    assert "labels and statuses identical in the three runs: yes" in lines[-1]
+    assert "labels and statuses identical in the 3 runs: yes" in lines[-1]
     assert any("parallel efficiency" in line for line in lines)
     runs[2].labels.loc[0, "status"] = "error"
     assert scaling_lines(runs)[-1].endswith("NO")
+    without_dask = scaling_lines(runs[:2])
+    assert "Dask run skipped" in without_dask[-2] and without_dask[-1].endswith("2 runs: yes")
 
 
 @pytest.mark.parametrize(
