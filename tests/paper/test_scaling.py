@@ -14,7 +14,8 @@ import pytest
 from typer.testing import CliRunner
 
 from somo_sweep.cli import app
-from somo_sweep.paper.scaling import scaling_lines, scaling_runs
+from somo_sweep.paper.scaling import DASK_DEFAULT, DASK_QUIET, scaling_lines, scaling_runs
+from somo_sweep.sweep.execution import DASK_WORKER_CONFIG, dask_environment
 
 STUDY = """\
 name: scaling_check
@@ -37,14 +38,16 @@ def test_three_runs_of_one_study_with_the_same_labels(tmp_path: Path) -> None:
     out = tmp_path / "runs"
     out.mkdir()
     runs = scaling_runs(out, study)
-    assert [r.name for r in runs] == ["joblib, 1 worker", "joblib, 2 workers", "Dask LocalCluster, 2 workers"]
-    assert [r.trials for r in runs] == [6, 6, 6]
-    assert sorted(p.name for p in out.iterdir()) == ["dask", "jobs1", "jobs2"]
+    assert [r.name for r in runs] == ["joblib, 1 worker", "joblib, 2 workers", DASK_DEFAULT, DASK_QUIET]
+    assert [r.trials for r in runs] == [6, 6, 6, 6]
+    assert sorted(p.name for p in out.iterdir()) == ["dask", "dask_defaults", "jobs1", "jobs2"]
     # Six 0.2-s sleeps: one worker needs at least 1.2 s, two workers at least 0.6 s.
     assert runs[0].wall_s >= 1.2 and runs[1].wall_s >= 0.6
     lines = scaling_lines(runs, "scaling_check")
-    assert "labels and statuses identical in the 3 runs: yes" in lines[-1]
+    assert "labels and statuses identical in the 4 runs: yes" in lines[-1]
     assert any("parallel efficiency" in line for line in lines)
+    assert any("Dask defaults = " in line for line in lines)
+    assert any("somo-sweep settings = " in line and "target <= 1.1" in line for line in lines)
     runs[2].labels.loc[0, "status"] = "error"
     assert scaling_lines(runs)[-1].endswith("NO")
     without_dask = scaling_lines(runs[:2])
@@ -68,3 +71,20 @@ def test_numerics_setups_out_of_range_are_refused_before_any_trial(setup: str) -
     result = CliRunner().invoke(app, ["paper", "numerics", "--b", setup])
     assert result.exit_code == 2
     assert "--b must be DT_S,ITERATIONS,INERTIA_KG_M2[,DAMPING]" in result.output and setup in result.output
+
+
+def test_the_worker_settings_read_as_the_environment_dask_reads() -> None:
+    import dask
+
+    env = dask_environment()
+    assert env["DASK_DISTRIBUTED__ADMIN__TICK__INTERVAL"] == "1s"
+    assert env["DASK_DISTRIBUTED__WORKER__PROFILE__ENABLED"] == "False"
+    assert env["DASK_DISTRIBUTED__ADMIN__SYSTEM_MONITOR__INTERVAL"] == "2s"
+    # Dask's own reader turns these variables back into the same settings.
+    parsed = dask.config.collect_env(env)
+    for key, value in DASK_WORKER_CONFIG.items():
+        node: object = parsed
+        for part in key.split("."):
+            assert isinstance(node, dict)
+            node = node.get(part, node.get(part.replace("-", "_")))
+        assert node == value, key
