@@ -22,6 +22,9 @@ if TYPE_CHECKING:
 
 __all__ = ["app"]
 
+#: Largest object shift ``paper numerics --perturb-m`` takes, m (well below the grid's 5 mm).
+MAX_PERTURB_M = 1e-3
+
 app = typer.Typer(no_args_is_help=True, help="Reproduce the SoMo paper's figures (Figs. 3, 5-8, palm study).")
 
 OUT = Annotated[Path, typer.Option("--out", help="Folder for the figure files.")]
@@ -294,8 +297,18 @@ def numerics(
         ),
     ] = False,
     points: Annotated[int, typer.Option(help="--auto-family: grasp trials per finger (1-3).")] = 3,
+    perturb_m: Annotated[
+        float,
+        typer.Option(
+            "--perturb-m",
+            help="Also run every point with the object moved this far (m, 0-0.001) both ways; "
+            "agreement is then also given over the points whose label survives the shift.",
+        ),
+    ] = 0.0,
 ) -> None:
     """Pinch-grasp numerics: time the chosen setup, or compare it with its half step or the fine reference."""
+    if not (0.0 <= perturb_m <= MAX_PERTURB_M):  # also refuses NaN
+        fail(SomoError(f"--perturb-m must be 0 to {MAX_PERTURB_M:g} m, got {perturb_m:g}"))
     if auto_family:
         from somo_sweep.paper.auto_numerics import FAMILY_POINTS, check_family, family_lines
 
@@ -347,7 +360,7 @@ def numerics(
     else:
         fail(SomoError(f"--compare must be half-step or reference, got '{compare}'"))
     typer.echo(f"A: {setup.describe()}\nB: {other.describe()}")
-    result = run_compare(quick_points(study or QUICK_STUDY), setup, other, jobs)
+    result = run_compare(quick_points(study or QUICK_STUDY), setup, other, jobs, perturb_m)
     runs = result.pop("runs")
     if save is not None:
         write_atomic(save, json.dumps(runs, default=str))

@@ -26,6 +26,7 @@ from somo_sweep.tasks.pinch_grasp.task import run_pinch_grasp
 
 __all__ = [
     "CHOSEN",
+    "LABEL_KEYS",
     "ORIGINAL_NUMERICS",
     "ORIGINAL_TRIAL_S",
     "RATIO_TARGET",
@@ -111,30 +112,73 @@ def trial_seconds(
     return [float(r["wall_time_s"]) for r in runs], [float(r["cpu_time_s"]) for r in runs]
 
 
-def compare(points: list[dict[str, float]], a: Setup, b: Setup, n_jobs: int = 2) -> dict[str, Any]:
+#: Label keys compared by :func:`compare` (the two grasp rules).
+LABEL_KEYS = ("grasp", "grasp_paper")
+
+
+def _label(run: dict[str, Any], key: str) -> str:
+    return str(run["labels"].get(key, run["status"]))
+
+
+def _shifted(point: dict[str, float], shift_m: float) -> dict[str, float]:
+    return {**point, "centering_position_m": point["centering_position_m"] + shift_m}
+
+
+def compare(
+    points: list[dict[str, float]], a: Setup, b: Setup, n_jobs: int = 2, perturb_m: float = 0.0
+) -> dict[str, Any]:
     """Run ``points`` under setups ``a`` and ``b``; label agreement and metric differences.
 
+    With ``perturb_m`` > 0 every point also runs with the object moved by ± ``perturb_m``
+    along the finger (``centering_position_m``), under both setups. A point whose label
+    changes under that shift, at either setup's own numerics, is *sensitive*: its outcome
+    hangs on a detail far below any physical tolerance (the box slides into the palm or
+    stays in the fingertips, a thin box tips or not), so a label difference there says
+    nothing about the step. Agreement is then also given over the robust points alone.
+
     Returns:
-        ``agreement`` (share of trials whose ``grasp`` label is the same in both), the
-        same for ``grasp_paper``, the disagreeing points, median and max |Δ lift| (m),
-        the mean wall time per trial of each setup (s) and statuses.
+        ``agreement_<key>`` (share of trials whose label — ``grasp``, ``grasp_paper`` —
+        is the same in both), the disagreeing points, median and max |Δ lift| (m), the mean
+        wall time per trial of each setup (s) and statuses; with ``perturb_m``, per key
+        ``robust_<key>`` (share of points robust in both setups), ``agreement_robust_<key>``
+        and ``differ_sensitive_<key>`` (how many disagreements sit on sensitive points).
     """
     from joblib import Parallel, delayed
 
-    runs = Parallel(n_jobs=n_jobs)(delayed(_trial)(pt, s) for s in (a, b) for pt in points)
-    ra, rb = runs[: len(points)], runs[len(points) :]
-    out: dict[str, Any] = {"trials": len(points), "runs": {"a": ra, "b": rb}}
-    for key in ("grasp", "grasp_paper"):
-        same = [
-            x["labels"].get(key, x["status"]) == y["labels"].get(key, y["status"])
-            for x, y in zip(ra, rb, strict=True)
-        ]
+    if perturb_m < 0 or not np.isfinite(perturb_m):
+        raise ValueError(f"perturb_m must be finite and >= 0, got {perturb_m}")
+    shifts = (0.0, -perturb_m, perturb_m) if perturb_m > 0 else (0.0,)
+    todo = [(_shifted(pt, d), s) for s in (a, b) for d in shifts for pt in points]
+    runs = Parallel(n_jobs=n_jobs)(delayed(_trial)(pt, s) for pt, s in todo)
+    n = len(points)
+    per = {  # setup -> shift index -> runs in point order
+        name: [runs[(i * len(shifts) + k) * n : (i * len(shifts) + k + 1) * n] for k in range(len(shifts))]
+        for i, name in enumerate(("a", "b"))
+    }
+    ra, rb = per["a"][0], per["b"][0]
+    out: dict[str, Any] = {"trials": n, "runs": {"a": ra, "b": rb}}
+    if perturb_m > 0:
+        out["perturb_m"] = perturb_m
+        out["runs"]["shifted"] = {name: per[name][1:] for name in ("a", "b")}
+    for key in LABEL_KEYS:
+        same = [_label(x, key) == _label(y, key) for x, y in zip(ra, rb, strict=True)]
         out[f"agreement_{key}"] = float(np.mean(same))
         out[f"differ_{key}"] = [
-            (x["point"], x["labels"].get(key, x["status"]), y["labels"].get(key, y["status"]))
+            (x["point"], _label(x, key), _label(y, key))
             for x, y, s in zip(ra, rb, same, strict=True)
             if not s
         ]
+        if perturb_m > 0:
+            robust = [
+                all(len({_label(per[name][k][j], key) for k in range(3)}) == 1 for name in ("a", "b"))
+                for j in range(n)
+            ]
+            kept = [s for s, r in zip(same, robust, strict=True) if r]
+            out[f"robust_{key}"] = float(np.mean(robust))
+            out[f"agreement_robust_{key}"] = float(np.mean(kept)) if kept else float("nan")
+            out[f"differ_sensitive_{key}"] = sum(
+                1 for s, r in zip(same, robust, strict=True) if not s and not r
+            )
     dl = [
         abs(x["metrics"]["lift_height_m"] - y["metrics"]["lift_height_m"])
         for x, y in zip(ra, rb, strict=True)
