@@ -297,6 +297,13 @@ def numerics(
         ),
     ] = False,
     points: Annotated[int, typer.Option(help="--auto-family: grasp trials per finger (1-3).")] = 3,
+    corners: Annotated[
+        bool,
+        typer.Option(
+            "--corners",
+            help="--auto-family: also the four corners (stiffness x0.1/x10 with link mass x0.2/x5; long).",
+        ),
+    ] = False,
     perturb_m: Annotated[
         float,
         typer.Option(
@@ -310,13 +317,32 @@ def numerics(
     if not (0.0 <= perturb_m <= MAX_PERTURB_M):  # also refuses NaN
         fail(SomoError(f"--perturb-m must be 0 to {MAX_PERTURB_M:g} m, got {perturb_m:g}"))
     if auto_family:
-        from somo_sweep.paper.auto_numerics import FAMILY_POINTS, check_family, family_lines
+        from somo_sweep.paper.auto_numerics import (
+            FAMILY,
+            FAMILY_CORNERS,
+            FAMILY_POINTS,
+            FingerCheck,
+            check_family,
+            family_lines,
+        )
 
         if not 1 <= points <= len(FAMILY_POINTS):
             fail(SomoError(f"--points must be 1 to {len(FAMILY_POINTS)}, got {points}"))
-        for line in family_lines(check_family(points=FAMILY_POINTS[:points], n_jobs=jobs)):
+        family = FAMILY + FAMILY_CORNERS if corners else FAMILY
+
+        def progress_line(check: FingerCheck) -> None:
+            typer.echo(
+                f"finger stiffness x{check.stiffness_factor:g}, link mass x{check.mass_factor:g}: "
+                f"{check.agree}/{len(check.auto)} labels agree",
+                err=True,
+            )
+
+        checks = check_family(family, FAMILY_POINTS[:points], n_jobs=jobs, on_finger=progress_line)
+        for line in family_lines(checks):
             typer.echo(line)
         return
+    if corners:
+        fail(SomoError("--corners belongs to --auto-family"))
     from somo_sweep.paper.numerics import (
         CHOSEN,
         QUICK_STUDY,

@@ -82,3 +82,18 @@ def test_the_command_refuses_a_shift_out_of_range_before_any_trial(bad: str) -> 
     result = CliRunner().invoke(app, ["paper", "numerics", "--b", "2e-3,50,3e-5", "--perturb-m", bad])
     assert result.exit_code == 2
     assert "--perturb-m must be 0 to 0.001 m" in result.output
+
+
+def test_corners_without_the_family_check_is_refused() -> None:
+    result = CliRunner().invoke(app, ["paper", "numerics", "--corners"])
+    assert result.exit_code == 2
+    assert "--corners belongs to --auto-family" in result.output
+
+
+def test_the_corners_are_the_four_extremes_of_the_family_range() -> None:
+    from somo_sweep.paper.auto_numerics import FAMILY, FAMILY_CORNERS
+
+    ks = {k for k, _ in FAMILY}
+    ms = {m for _, m in FAMILY}
+    assert sorted(FAMILY_CORNERS) == sorted((k, m) for k in (min(ks), max(ks)) for m in (min(ms), max(ms)))
+    assert not set(FAMILY_CORNERS) & set(FAMILY)
