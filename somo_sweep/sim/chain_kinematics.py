@@ -1,0 +1,311 @@
+"""The bench body's kinematics for the statics solver: one forward-kinematics call, candidate
+plate contacts and the generalized forces and Hessians of vertical forces, all in SI.
+
+Kinematics are PyBullet's own, on the very body the dynamic bench loads (same URDF, link
+frames, masses, centres of mass, tip point and world scale): joint states are set with
+``resetJointStatesMultiDof`` and read back with one ``getLinkStates`` call; no time step is
+ever taken. Used by :mod:`somo_sweep.sim.statics`.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+import pybullet as p
+
+from somo_sweep.errors import SimulationError
+from somo_sweep.model.description import Link, Manipulator
+from somo_sweep.sim.bench import bench_frame, stop_geometry
+from somo_sweep.sim.plan import BodyPlan
+from somo_sweep.sim.settings import WorldSettings
+from somo_sweep.sim.world import World
+
+__all__ = ["BenchBody", "ContactFeatures", "Kin", "Plate", "quat_to_rot"]
+
+
+@dataclass
+class Kin:
+    """One forward-kinematics evaluation, SI, world frame."""
+
+    com: np.ndarray  # (L, 3) link centres of mass
+    frame: np.ndarray  # (L, 3) link (joint) frame origins
+    rot: np.ndarray  # (L, 3, 3) link frame orientations
+    omega: np.ndarray  # (N, 3) revolute joint axes (0 for prismatic)
+    vel: np.ndarray  # (N, 3) prismatic joint axes (0 for revolute)
+    origin: np.ndarray  # (N, 3) joint origins
+
+
+def quat_to_rot(quat: np.ndarray) -> np.ndarray:
+    """Rotation matrices (n, 3, 3) of quaternions (n, 4) in PyBullet's (x, y, z, w) order."""
+    x, y, z, w = quat.T
+    out = np.empty((len(quat), 3, 3))
+    out[:, 0, 0] = 1 - 2 * (y * y + z * z)
+    out[:, 0, 1] = 2 * (x * y - z * w)
+    out[:, 0, 2] = 2 * (x * z + y * w)
+    out[:, 1, 0] = 2 * (x * y + z * w)
+    out[:, 1, 1] = 1 - 2 * (x * x + z * z)
+    out[:, 1, 2] = 2 * (y * z - x * w)
+    out[:, 2, 0] = 2 * (x * z - y * w)
+    out[:, 2, 1] = 2 * (y * z + x * w)
+    out[:, 2, 2] = 1 - 2 * (x * x + y * y)
+    return out
+
+
+@dataclass
+class ContactFeatures:
+    """Candidate plate contacts: the lowest points of every link's collision shape."""
+
+    point_link: np.ndarray = field(default_factory=lambda: np.zeros(0, int))  # corners
+    point_local: np.ndarray = field(default_factory=lambda: np.zeros((0, 3)))
+    sphere_link: np.ndarray = field(default_factory=lambda: np.zeros(0, int))  # spheres
+    sphere_local: np.ndarray = field(default_factory=lambda: np.zeros((0, 3)))
+    sphere_radius: np.ndarray = field(default_factory=lambda: np.zeros(0))
+    rim_link: np.ndarray = field(default_factory=lambda: np.zeros(0, int))  # circular edges
+    rim_local: np.ndarray = field(default_factory=lambda: np.zeros((0, 3)))
+    rim_axis: np.ndarray = field(default_factory=lambda: np.zeros((0, 3)))
+    rim_radius: np.ndarray = field(default_factory=lambda: np.zeros(0))
+
+    @staticmethod
+    def of(links: list[tuple[int, Link]]) -> ContactFeatures:
+        pts: list[tuple[int, tuple[float, float, float]]] = []
+        sph: list[tuple[int, tuple[float, float, float], float]] = []
+        rims: list[tuple[int, tuple[float, float, float], float]] = []
+        for index, link in links:
+            z = (link.length_z_m or 0.0) / 2
+            if link.shape in ("box", "stadium"):
+                assert link.size_m is not None
+                x, y = link.size_m[0] / 2, link.size_m[1] / 2
+                if link.shape == "stadium":
+                    for sx in (-1.0, 1.0):
+                        rims += [(index, (sx * (x - y), 0.0, sz * z), y) for sz in (-1.0, 1.0)]
+                    x -= y
+                if x > 0:
+                    pts += [
+                        (index, (sx * x, sy * y, sz * z))
+                        for sx in (-1.0, 1.0)
+                        for sy in (-1.0, 1.0)
+                        for sz in (-1.0, 1.0)
+                    ]
+            elif link.shape == "sphere":
+                sph.append((index, (0.0, 0.0, 0.0), link.radius_m or 0.0))
+            elif link.shape == "cylinder":
+                rims += [(index, (0.0, 0.0, sz * z), link.radius_m or 0.0) for sz in (-1.0, 1.0)]
+            else:  # capsule: two end spheres
+                r = link.radius_m or 0.0
+                sph += [(index, (0.0, 0.0, sz * max(z - r, 0.0)), r) for sz in (-1.0, 1.0)]
+        f = ContactFeatures()
+        if pts:
+            f.point_link = np.array([i for i, _ in pts])
+            f.point_local = np.array([v for _, v in pts], float)
+        if sph:
+            f.sphere_link = np.array([i for i, _, _ in sph])
+            f.sphere_local = np.array([v for _, v, _ in sph], float)
+            f.sphere_radius = np.array([r for _, _, r in sph], float)
+        if rims:
+            f.rim_link = np.array([i for i, _, _ in rims])
+            f.rim_local = np.array([v for _, v, _ in rims], float)
+            f.rim_axis = np.tile([0.0, 0.0, 1.0], (len(rims), 1))
+            f.rim_radius = np.array([r for _, _, r in rims], float)
+        return f
+
+    def lowest(self, kin: Kin) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """World force points (m, 3), their links and the drop below them to the shape's bottom."""
+        parts_r, parts_l, parts_d = [], [], []
+        if len(self.point_link):
+            l_ = self.point_link
+            parts_r.append(kin.com[l_] + np.einsum("pab,pb->pa", kin.rot[l_], self.point_local))
+            parts_l.append(l_)
+            parts_d.append(np.zeros(len(l_)))
+        if len(self.sphere_link):
+            l_ = self.sphere_link
+            parts_r.append(kin.com[l_] + np.einsum("pab,pb->pa", kin.rot[l_], self.sphere_local))
+            parts_l.append(l_)
+            parts_d.append(self.sphere_radius)
+        if len(self.rim_link):
+            l_ = self.rim_link
+            centre = kin.com[l_] + np.einsum("pab,pb->pa", kin.rot[l_], self.rim_local)
+            axis = np.einsum("pab,pb->pa", kin.rot[l_], self.rim_axis)
+            down = np.array([0.0, 0.0, -1.0]) - (-axis[:, 2:3]) * axis  # -z minus its axial part
+            norm = np.linalg.norm(down, axis=1, keepdims=True)
+            parts_r.append(centre + self.rim_radius[:, None] * down / np.maximum(norm, 1e-12))
+            parts_l.append(l_)
+            parts_d.append(np.zeros(len(l_)))
+        if not parts_r:
+            return np.zeros((0, 3)), np.zeros(0, int), np.zeros(0)
+        return np.concatenate(parts_r), np.concatenate(parts_l), np.concatenate(parts_d)
+
+
+@dataclass(frozen=True)
+class Plate:
+    top_m: float
+    x_range_m: tuple[float, float]
+    half_y_m: float
+
+
+class BenchBody:
+    """One loaded bench body and its fixed kinematic structure (shared by all spring sets)."""
+
+    def __init__(self, manip: Manipulator, plan: BodyPlan, scale: float):
+        self.scale = scale
+        # Gravity is the solver's business (any magnitude, per row); the world never steps.
+        self.world = World(WorldSettings(scale=scale, gravity_m_s2=(0.0, 0.0, 0.0)))
+        try:
+            self._setup(manip, plan)
+        except BaseException:
+            self.world.close()
+            raise
+
+    def _setup(self, manip: Manipulator, plan: BodyPlan) -> None:
+        self.body = self.world.load_plan(plan, bench_frame(manip))
+        cid, bid, s = self.world.client, self.body.id, self.scale
+        self.cid, self.bid = cid, bid
+        n = p.getNumJoints(bid, physicsClientId=cid)
+        self.n_links = n
+        self.links = list(range(n))
+        self.indices = list(self.body.drive.indices)
+        parent = np.full(n, -1)
+        axis_local = np.zeros((n, 3))
+        kind = np.zeros(n, int)
+        lower, upper = np.zeros(n), np.zeros(n)
+        inertial = np.zeros((n, 3))
+        inertial_orn = np.zeros((n, 4))
+        for j in range(n):
+            info = p.getJointInfo(bid, j, physicsClientId=cid)
+            kind[j], parent[j] = info[2], info[16]
+            lower[j], upper[j] = info[8], info[9]
+            axis_local[j] = info[13]
+            dyn = p.getDynamicsInfo(bid, j, physicsClientId=cid)
+            inertial[j], inertial_orn[j] = dyn[3], dyn[4]
+        # Link (URDF, joint) frame = centre-of-mass frame · inertial offset⁻¹.
+        self.inertial_rot_t = np.transpose(quat_to_rot(inertial_orn), (0, 2, 1)) if n else np.zeros((0, 3, 3))
+        self.inertial_pos = inertial
+        self.inertial_rotated = bool(np.any(np.abs(inertial_orn[:, :3]) > 0))
+        movable = {j for j in range(n) if kind[j] != p.JOINT_FIXED}
+        if movable != set(self.indices):
+            raise SimulationError("statics: the body has movable joints that are not spring joints")
+        self.mass = np.array([p.getDynamicsInfo(bid, j, physicsClientId=cid)[0] for j in range(n)])
+        self.heavy = np.flatnonzero(self.mass > 0)
+        # subtree[j, l]: link l moves with joint j (l is j's child link or below it).
+        sub = np.zeros((n, n), bool)
+        for link in range(n):
+            a = link
+            while a >= 0:
+                sub[a, link] = True
+                a = parent[a]
+        idx = np.array(self.indices, int)
+        self.subtree = sub[idx].astype(float)  # (N joints, L links)
+        self.joint_below = sub[np.ix_(idx, idx)].astype(float)  # (N, N): joint j is i or below it
+        self.revolute = kind[idx] == p.JOINT_REVOLUTE
+        self.all_revolute = bool(np.all(self.revolute))
+        self.zero_axes = np.zeros((len(idx), 3))
+        self.axis_local = axis_local[idx]
+        self.pos_scale = np.where(self.revolute, 1.0, s)
+        lim_lo, lim_hi = lower[idx] / self.pos_scale, upper[idx] / self.pos_scale
+        self.limited = np.flatnonzero(lower[idx] < upper[idx])
+        self.limits = (lim_lo, lim_hi)
+        base_orn = p.getBasePositionAndOrientation(bid, physicsClientId=cid)[1]
+        self.base_rot = quat_to_rot(np.array([base_orn]))[0]
+        base = manip.base.link
+        self.origin = np.array([base.half_extent_m(2) if base else 0.0, 0.0, 0.0])
+        tip_name, tip_local = plan.tip[manip.name]
+        self.tip_link = self.body.link_index[tip_name]
+        self.tip_local = np.asarray(tip_local, float)
+        if self.tip_link < 0:
+            raise SimulationError("statics: the manipulator has no moving tip link")
+        self.heavy_and_tip = np.append(self.heavy, self.tip_link)
+        info_by_name = {li.name: li for li in plan.links}
+        shaped = [
+            (self.body.link_index[name], li.link)
+            for name, li in info_by_name.items()
+            if li.link is not None and self.body.link_index[name] >= 0
+        ]
+        self.features = ContactFeatures.of(shaped)
+        kin = self.kinematics(np.zeros(len(idx)))
+        tip0 = self.tip_point(kin) - self.origin
+        centre, half = stop_geometry(manip, self.origin, float(tip0[0]))
+        self.plate = Plate(
+            float(centre[2] + half[2]),
+            (float(centre[0] - half[0]), float(centre[0] + half[0])),
+            float(half[1]),
+        )
+
+    def close(self) -> None:
+        self.world.close()
+
+    def kinematics(self, q: np.ndarray) -> Kin:
+        """Set the joints to ``q`` (SI) and read every link frame back (one PyBullet call each).
+
+        PyBullet's centre-of-mass frames come back in double precision, its link frames
+        (``getLinkState`` entries 4, 5) rounded to single precision; the link frames are
+        therefore derived from the former and the constant inertial offsets, so that the
+        energy and its derivatives are smooth to machine precision.
+        """
+        cid, s = self.cid, self.scale
+        values = q * self.pos_scale
+        p.resetJointStatesMultiDof(self.bid, self.indices, [[float(v)] for v in values], physicsClientId=cid)
+        states = p.getLinkStates(self.bid, self.links, computeForwardKinematics=1, physicsClientId=cid)
+        com = np.array([st[0] for st in states])
+        rot = quat_to_rot(np.array([st[1] for st in states]))
+        if self.inertial_rotated:
+            rot = rot @ self.inertial_rot_t
+        frame = (com - (rot @ self.inertial_pos[:, :, None])[:, :, 0]) / s
+        com = com / s
+        axes = (rot[self.indices] @ self.axis_local[:, :, None])[:, :, 0]
+        if self.all_revolute:
+            return Kin(com, frame, rot, axes, self.zero_axes, frame[self.indices])
+        rev = self.revolute[:, None]
+        return Kin(com, frame, rot, np.where(rev, axes, 0.0), np.where(rev, 0.0, axes), frame[self.indices])
+
+    def tip_point(self, kin: Kin) -> np.ndarray:
+        return kin.frame[self.tip_link] + kin.rot[self.tip_link] @ self.tip_local
+
+    def tip_angle_deg(self, kin: Kin) -> float:
+        """As the dynamic bench reads it: last link's chain axis in the x–z plane, unwrapped."""
+        axes = np.concatenate([self.base_rot[None, :, 2], kin.rot[:, :, 2]])
+        angles = np.arctan2(-axes[:, 2], axes[:, 0])
+        return float(np.degrees(np.unwrap(angles)[-1]))
+
+    # --------------------------------------------------------- generalized forces
+    # Every force on the bench is vertical (weights, the tip load, the plate's reactions): a
+    # force is its z component fz at a world point r on a link. With joint i's axis ω_i through
+    # o_i (revolute) or direction v_i (prismatic) and S_i the points moving with joint i:
+    #   Q_i = Σ_{S_i} fz·[ω_i × (r − o_i) + v_i]_z,
+    #   dQ_i/dq_j (j at or below i) = Σ_{S_j} fz·[ω_i × (ω_j × (r − o_j) + v_j)]_z.
+    def _moments(self, links: np.ndarray, r: np.ndarray, fz: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        w = self.subtree[:, links] * fz
+        return w.sum(1), w @ r  # Σ fz and Σ fz·r over each joint's moving points
+
+    def forces(self, kin: Kin, links: np.ndarray, r: np.ndarray, fz: np.ndarray) -> np.ndarray:
+        """Generalized forces Q of vertical point forces ``fz`` (N, up) at ``r`` on ``links``."""
+        total, s = self._moments(links, r, fz)
+        w, o = kin.omega, kin.origin
+        return (
+            w[:, 0] * (s[:, 1] - o[:, 1] * total)
+            - w[:, 1] * (s[:, 0] - o[:, 0] * total)
+            + kin.vel[:, 2] * total
+        )
+
+    def hessian(self, kin: Kin, links: np.ndarray, r: np.ndarray, fz: np.ndarray) -> np.ndarray:
+        """dQ/dq of constant vertical point forces (symmetric: Q = −∇ of their potential)."""
+        total, s = self._moments(links, r, fz)
+        w, o, v = kin.omega, kin.origin, kin.vel
+        ww = w @ w.T
+        # ω_i × (ω_j × d) = ω_j (ω_i·d) − d (ω_i·ω_j); its z part summed with fz over S_j:
+        upper = (
+            (w @ s.T) * w[:, 2]
+            - ww * s[:, 2]
+            - (w @ o.T) * (total * w[:, 2])
+            + ww * (total * o[:, 2])
+            + (np.outer(w[:, 0], v[:, 1]) - np.outer(w[:, 1], v[:, 0])) * total
+        )
+        upper *= self.joint_below
+        return upper + upper.T - np.diag(np.diag(upper))
+
+    def heights_jacobian(self, kin: Kin, links: np.ndarray, r: np.ndarray) -> np.ndarray:
+        """d z(point)/dq for points fixed in their links, (P, N)."""
+        d = self.subtree[:, links].T
+        w, o, v = kin.omega, kin.origin, kin.vel
+        dx = r[:, None, 0] - o[None, :, 0]
+        dy = r[:, None, 1] - o[None, :, 1]
+        return d * (w[None, :, 0] * dy - w[None, :, 1] * dx + v[None, :, 2])
