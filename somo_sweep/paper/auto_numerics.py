@@ -141,13 +141,17 @@ def check_family(
 
 def family_lines(checks: list[FingerCheck]) -> list[str]:
     """A table of the family check: numerics, agreement and blow-ups per finger, then overall."""
-    lines = ["stiffness x | mass x | step ms | added inertia kg·m² | lowest rad/s (shift) | agree | blow-ups"]
+    lines = [
+        "stiffness x | mass x | step ms | added inertia kg·m² | lowest rad/s (shift) | agree | blow-ups"
+        " | labels at the chosen step (contacts / paper rule)"
+    ]
     for c in checks:
         ch = next(iter(c.chosen.chains.values()))
+        labels = ", ".join(f"{a[1]}/{a[2]}" for a in c.auto)
         lines.append(
             f"{c.stiffness_factor:g} | {c.mass_factor:g} | {c.chosen.time_step_s * 1e3:g} | "
             f"{ch.added_inertia_kg_m2:.3g} | {ch.before.lowest_rad_s:.1f} ({ch.lowest_shift * 100:.2f} %) | "
-            f"{c.agree}/{len(c.auto)} | {c.blow_ups[0]} auto, {c.blow_ups[1]} fine"
+            f"{c.agree}/{len(c.auto)} | {c.blow_ups[0]} auto, {c.blow_ups[1]} fine | {labels}"
         )
     agree, total = sum(c.agree for c in checks), sum(len(c.auto) for c in checks)
     lines.append(

@@ -5,7 +5,7 @@ from __future__ import annotations
 import pytest
 
 from somo_sweep.model.load import load_model
-from somo_sweep.paper.auto_numerics import FAMILY_POINTS, GRIPPER, check_family, finger_variant
+from somo_sweep.paper.auto_numerics import FAMILY_POINTS, GRIPPER, check_family, family_lines, finger_variant
 from somo_sweep.tasks.pinch_grasp.params import PinchGraspParams
 
 
@@ -30,6 +30,10 @@ def test_soft_finger_agrees_with_a_four_times_finer_step() -> None:
     (check,) = check_family(family=((0.1, 1.0),), points=FAMILY_POINTS[:1], n_jobs=1)
     assert check.blow_ups == (0, 0)
     assert check.agree == 1
+    row = family_lines([check])[1]
+    assert row.startswith("0.1 | 1 | 1.5 | ")
+    # The table shows what agreed: the trial's labels under both rules, not only a count.
+    assert row.endswith(f"| {check.auto[0][1]}/{check.auto[0][2]}")
 
 
 @pytest.mark.slow
