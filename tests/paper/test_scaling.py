@@ -1,8 +1,10 @@
-"""The benchmark's plumbing (``make bench``): three runs of one study with the same labels,
-and the numerics setups ``paper numerics`` accepts.
+"""The benchmark's plumbing (``make bench``): four runs of one study (one and two joblib workers,
+a Dask LocalCluster with Dask's defaults and with the somo-sweep worker settings) with the same
+labels, the worker settings as environment variables, and the numerics setups ``paper numerics``
+accepts.
 
 The timings themselves are the benchmark's business (an idle machine, ``somo-sweep paper
-speed``); here a study of sleeping selftest trials checks that the three runs happen, land
+speed``); here a study of sleeping selftest trials checks that the four runs happen, land
 in their own folders and are compared.
 """
 
@@ -27,7 +29,7 @@ sweep:
 """
 
 
-def test_three_runs_of_one_study_with_the_same_labels(tmp_path: Path) -> None:
+def test_every_way_of_running_one_study_gives_the_same_labels(tmp_path: Path) -> None:
     models = tmp_path / "models"
     models.mkdir()
     from somo_sweep.model.tables import bundled_path
