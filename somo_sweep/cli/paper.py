@@ -246,7 +246,8 @@ def speed(
         bool,
         typer.Option(
             "--scaling/--no-scaling",
-            help="Time a 24-trial sweep at 1 and 2 workers and on a 2-worker Dask LocalCluster.",
+            help="Time a 24-trial sweep at 1 and 2 workers and on a 2-worker Dask LocalCluster "
+            "(Dask's defaults, then the somo-sweep worker settings).",
         ),
     ] = True,
 ) -> None:
