@@ -10,6 +10,7 @@ in their own folders and are compared.
 
 from __future__ import annotations
 
+import re
 from pathlib import Path
 
 import pytest
@@ -90,3 +91,9 @@ def test_the_worker_settings_read_as_the_environment_dask_reads() -> None:
             assert isinstance(node, dict)
             node = node.get(part, node.get(part.replace("-", "_")))
         assert node == value, key
+
+
+def test_the_readme_gives_exactly_these_settings_to_a_cluster() -> None:
+    readme = (Path(__file__).resolve().parents[2] / "README.md").read_text()
+    given = dict(re.findall(r"(DASK_[A-Z_]+)=(\S+)", readme))
+    assert given == dask_environment()
