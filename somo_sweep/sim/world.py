@@ -179,16 +179,20 @@ class World:
         drive.enable_motors()
         body = Body(plan, body_id, link_index, drive)
         if plan.mode == "driven":
+            # The body's base frame is held at the world frame (pos, orn); drive_base moves that
+            # world frame. The orientations go by keyword: the fifth positional one is the
+            # parent's, which would yank a tilted base upright.
             body.constraint = p.createConstraint(
                 body_id,
                 -1,
                 -1,
                 -1,
                 p.JOINT_FIXED,
-                [0, 0, 0],
-                [0, 0, 0],
-                pos,
-                orn,
+                jointAxis=[0, 0, 0],
+                parentFramePosition=[0, 0, 0],
+                childFramePosition=pos,
+                parentFrameOrientation=[0, 0, 0, 1],
+                childFrameOrientation=orn,
                 physicsClientId=self.client,
             )
         if plan.mode != "fixed":

@@ -5,6 +5,7 @@ from __future__ import annotations
 from pathlib import Path
 
 import numpy as np
+import pybullet as pb
 import pytest
 from conftest import MODELS, ihm_finger_dict, load_yaml
 
@@ -80,6 +81,36 @@ def test_follow_drives_inputs_and_base_from_tables() -> None:
         world.step(1400)
         pos, _ = world.base_pose(hand.bodies[0].id)
     assert pos[2] == pytest.approx(0.10, abs=1e-3)
+
+
+def test_tilted_driven_bodies_keep_their_pose_and_follow_a_turn() -> None:
+    """A driven base loaded with a rotation is held there, then turned by ``drive_base``.
+
+    Without a base link each finger of the gripper is its own driven body, mounted
+    tilted (pitch ±90°, yaw ±15°); the holding constraint must not yank it upright.
+    """
+    data = load_model(MODELS / "pinch_gripper.yaml").as_assembly().model_dump(mode="json", exclude_none=True)
+    del data["base"]["link"]
+    with World(WorldSettings(time_step_s=5e-4, gravity_m_s2=(0, 0, 0))) as world:
+        hand = world.add_model(model_from_dict({"assembly": data}), Pose(position_m=(0.2, 0, 0.2)))
+        assert len(hand.bodies) == 2
+        loaded = [world.base_pose(b.id) for b in hand.bodies]
+        world.step(200)
+        for body, (pos0, quat0) in zip(hand.bodies, loaded, strict=True):
+            pos, quat = world.base_pose(body.id)
+            assert np.allclose(pos, pos0, atol=1e-5)
+            assert abs(float(np.dot(quat, quat0))) == pytest.approx(1.0, abs=1e-8)
+        # A quarter turn about z of the whole hand over 1 s turns each mount about its origin.
+        turn = SetpointTable([0.1, 1.1], [[0.2, 0, 0.2, 0, 0, 0], [0.2, 0, 0.2, 0, 0, np.pi / 2]])
+        world.follow(hand, base=turn)
+        world.step(3000)
+        quarter = np.array([0, 0, np.sqrt(0.5), np.sqrt(0.5)])
+        for body, (pos0, quat0) in zip(hand.bodies, loaded, strict=True):
+            pos, quat = world.base_pose(body.id)
+            rel = np.asarray(pos0) - (0.2, 0, 0.2)
+            assert np.allclose(pos, (0.2 - rel[1], rel[0], 0.2 + rel[2]), atol=1e-4)
+            expected = np.array(pb.multiplyTransforms([0, 0, 0], quarter, [0, 0, 0], quat0)[1])
+            assert abs(float(np.dot(quat, expected))) == pytest.approx(1.0, abs=1e-6)
 
 
 def test_follow_rejects_tables_of_the_wrong_width() -> None:
