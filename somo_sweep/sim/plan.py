@@ -92,6 +92,8 @@ class BodyPlan:
         inputs: Names of the control inputs (``manipulator/actuator/axis``).
         tip: Per manipulator, its last link and the distal end point of the chain's
             centre line in that link's frame (m): the manipulator's tip.
+        part_of: For one manipulator of an assembly loaded as several bodies, the name of
+            the assembly's base body; the part never collides with it.
     """
 
     name: str
@@ -103,3 +105,4 @@ class BodyPlan:
     joints: list[SpringJoint]
     inputs: list[str] = field(default_factory=list)
     tip: dict[str, tuple[str, tuple[float, float, float]]] = field(default_factory=dict)
+    part_of: str | None = None

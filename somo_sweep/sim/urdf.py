@@ -7,6 +7,7 @@ URDF files are written once per content hash into the user cache
 
 from __future__ import annotations
 
+import dataclasses
 import hashlib
 import os
 import tempfile
@@ -18,7 +19,14 @@ import numpy as np
 from somo_sweep.model.description import Assembly, Base, Link, Manipulator, Pose, RigidBody
 from somo_sweep.sim.plan import BodyPlan, LinkInfo, SpringJoint
 
-__all__ = ["cache_dir", "plan_assembly", "plan_manipulator", "plan_rigid_body", "write_urdf"]
+__all__ = [
+    "cache_dir",
+    "plan_assembly",
+    "plan_manipulator",
+    "plan_rigid_body",
+    "splits_into_bodies",
+    "write_urdf",
+]
 
 
 def cache_dir() -> Path:
@@ -340,15 +348,53 @@ def plan_rigid_body(body: RigidBody, scale: float) -> BodyPlan:
     return BodyPlan(body.name, b.text(body.name), scale, mode, body.pose, b.links, [])  # type: ignore[arg-type]
 
 
-def plan_assembly(assembly: Assembly, scale: float, pose: Pose | None = None) -> list[BodyPlan]:
+def splits_into_bodies(assembly: Assembly) -> bool:
+    """Whether :func:`plan_assembly` may load ``assembly`` as one body per manipulator.
+
+    Only a base that never moves with the fingers' loads qualifies: ``fixed`` (exact) or
+    ``driven`` (held to its path by a stiff constraint, so each part can be held on its
+    own). Each manipulator then needs a base link of its own (a driven multibody needs a
+    massive root) unless the base is fixed, and none may sit on another's tip.
+    """
+    base: Base = assembly.base
+    if base.link is None or base.mode == "free" or not assembly.manipulators:
+        return False
+    if any(m.attach_to is not None for m in assembly.manipulators):
+        return False
+    return base.mode == "fixed" or all(m.manipulator.base.link is not None for m in assembly.manipulators)
+
+
+def plan_assembly(
+    assembly: Assembly, scale: float, pose: Pose | None = None, *, split: bool = False
+) -> list[BodyPlan]:
     """Plan an assembly: one body with a base link, else one body per manipulator.
 
     Rigid bodies of the assembly are always separate bodies. Without a base
     link, mount poses are composed with ``pose`` by the world when loading.
+
+    With ``split`` and an assembly that qualifies (:func:`splits_into_bodies`), the base
+    link becomes a body of its own and every manipulator another, at its mount pose and
+    held the same way (the parts are marked to never collide with the base, as links of
+    one body never collide with their ancestors). The dynamics are the same (exactly for a
+    fixed base; for a driven one up to the holding constraints' stiffness) and each step is
+    cheaper: Bullet's cost per constraint row (contacts, joint motors) grows with the
+    number of joints of the body the row acts on.
     """
     plans: list[BodyPlan] = []
     base: Base = assembly.base
-    if base.link is not None:
+    if split and splits_into_bodies(assembly):
+        assert base.link is not None
+        root = f"{assembly.name}__base"
+        b = _Builder(scale)
+        b.link(LinkInfo(root, base.link, "root"), np.zeros(3))
+        plans.append(
+            BodyPlan(assembly.name, b.text(assembly.name), scale, base.mode, pose or Pose(), b.links, [])
+        )
+        for mount in assembly.manipulators:
+            manip = mount.manipulator.model_copy(update={"name": mount.name})
+            part = plan_manipulator(manip, scale, mount.pose, base.mode)
+            plans.append(dataclasses.replace(part, part_of=assembly.name))
+    elif base.link is not None:
         b = _Builder(scale)
         root = f"{assembly.name}__base"
         b.link(LinkInfo(root, base.link, "root"), np.zeros(3))

@@ -206,13 +206,23 @@ class World:
         root = pose or Pose()
         bodies: list[Body] = []
         root_tf = ([c for c in root.position_m], p.getQuaternionFromEuler(root.rpy_rad))
-        for plan in plan_assembly(assembly, self.scale):
+        split = self.settings.body_per_manipulator
+        if split is None:
+            split = assembly.base.mode == "fixed"
+        for plan in plan_assembly(assembly, self.scale, split=split):
             local = (plan.pose.position_m, p.getQuaternionFromEuler(plan.pose.rpy_rad))
             pos, orn = p.multiplyTransforms(root_tf[0], root_tf[1], local[0], local[1])
             world_pose = Pose(position_m=tuple(pos), rpy_rad=tuple(p.getEulerFromQuaternion(orn)))
             body = self.load_plan(plan, world_pose)
             body.offset = (tuple(plan.pose.position_m), tuple(local[1]))
             bodies.append(body)
+        # Parts of a split assembly never touch its base body (as links never touch ancestors).
+        by_name = {b.plan.name: b for b in bodies}
+        for body in bodies:
+            if body.plan.part_of is not None:
+                base = by_name[body.plan.part_of]
+                for link in body.link_index.values():
+                    p.setCollisionFilterPair(base.id, body.id, -1, link, 0, physicsClientId=self.client)
         names = [n for b in bodies for n in b.plan.inputs]
         return ModelHandle(assembly.name, bodies, names)
 
@@ -256,6 +266,37 @@ class World:
             maxForce=max_force_n * self.scale,
             physicsClientId=self.client,
         )
+
+    def drive_model(
+        self,
+        handle: ModelHandle,
+        position_m: Sequence[float] | np.ndarray,
+        rpy_rad: Sequence[float] | np.ndarray,
+        max_force_n: float = 200.0,
+    ) -> None:
+        """Move the base target of every driven body of a model (each keeps its mount offset)."""
+        driven = [b for b in handle.bodies if b.constraint is not None]
+        if not driven:
+            raise SimulationError(f"model '{handle.name}' has no driven base")
+        for body in driven:
+            self.drive_base(body, position_m, rpy_rad, max_force_n)
+
+    def place_model(
+        self,
+        handle: ModelHandle,
+        position_m: Sequence[float] | np.ndarray,
+        rpy_rad: Sequence[float] | np.ndarray,
+    ) -> None:
+        """Teleport every body of a model to the model pose (mount offsets kept), at rest."""
+        orn = p.getQuaternionFromEuler([float(a) for a in rpy_rad])
+        for body in handle.bodies:
+            pos, quat = p.multiplyTransforms(
+                [float(c) for c in position_m], orn, body.offset[0], body.offset[1]
+            )
+            p.resetBasePositionAndOrientation(
+                body.id, [c * self.scale for c in pos], quat, physicsClientId=self.client
+            )
+            p.resetBaseVelocity(body.id, [0, 0, 0], [0, 0, 0], physicsClientId=self.client)
 
     def follow(
         self,

@@ -84,12 +84,20 @@ CHECK_CACHE_POINTS = 10_000
 
 
 class Simulation(Spec):
-    """Simulation settings of every trial (SI)."""
+    """Simulation settings of every trial (SI).
+
+    ``body_per_manipulator`` loads a hand as one PyBullet body per finger plus the palm, at a
+    lower cost per step (:func:`somo_sweep.sim.urdf.plan_assembly`). Left out, only a hand
+    with a fixed palm is split (exactly the same dynamics); ``true`` splits a driven palm's
+    hand too (the same dynamics up to the holding constraints: check the labels, as
+    docs/pinch_grasp.md does for the pinch gripper); ``false`` never splits.
+    """
 
     time_step_s: float = Field(5e-4, gt=0)
     scale: float = Field(20.0, gt=0)
     solver_iterations: int = Field(50, ge=1)
     gravity_m_s2: tuple[float, float, float] = (0.0, 0.0, -9.81)
+    body_per_manipulator: bool | None = None
 
     def world_settings(self) -> WorldSettings:
         """The :class:`~somo_sweep.sim.world.WorldSettings` these settings describe."""
@@ -98,6 +106,7 @@ class Simulation(Spec):
             scale=self.scale,
             gravity_m_s2=self.gravity_m_s2,
             solver_iterations=self.solver_iterations,
+            body_per_manipulator=self.body_per_manipulator,
         )
 
 

@@ -138,3 +138,70 @@ def test_world_rejects_plans_of_another_scale() -> None:
     plan = plan_assembly(model.as_assembly(), 10.0)[0]
     with World(WorldSettings(scale=20.0)) as world, pytest.raises(SimulationError, match="scale"):
         world.load_plan(plan)
+
+
+def _tips(model_path: Path, split: bool, inputs: list[float]) -> tuple[list[str], np.ndarray, int]:
+    with World(WorldSettings(time_step_s=1e-3, body_per_manipulator=split)) as world:
+        hand = world.add_model(load_model(model_path))
+        n = len(hand.input_names)
+        world.follow(hand, inputs=SetpointTable([0.0, 0.5], [[0.0] * n, inputs[:n]]))
+        world.step(1000)
+        tips = [world.tip_position(b, name) for b in hand.bodies for name in b.plan.tip]
+        return hand.input_names, np.asarray(tips), len(hand.bodies)
+
+
+def test_a_fixed_hand_split_into_bodies_moves_like_one_body() -> None:
+    """The four-finger hand as one body or as five (plate + fingers): same inputs, same tips.
+
+    A fixed base never moves, so the split is exact up to the solver's row order.
+    """
+    u = [0.03, 0.01, 0.02, -0.01, 0.04, 0.0, 0.01, 0.02]
+    names_one, tips_one, n_one = _tips(MODELS / "ihm_hand.yaml", False, u)
+    names_split, tips_split, n_split = _tips(MODELS / "ihm_hand.yaml", True, u)
+    assert (n_one, n_split) == (2, 6)  # hand (+ palm rigid body); plate + 4 fingers (+ palm)
+    assert names_split == names_one
+    assert np.ptp(tips_one[:, 2]) < 0.01 and np.abs(tips_one[:, :2]).max() > 0.01  # fingers bent
+    assert np.abs(tips_split - tips_one).max() < 2e-5
+
+
+def test_split_plans_keep_inputs_and_only_split_what_qualifies() -> None:
+    gripper = load_model(MODELS / "pinch_gripper.yaml").as_assembly()
+    one = plan_assembly(gripper, 20.0)
+    split = plan_assembly(gripper, 20.0, split=True)
+    assert [p.name for p in one] == ["pinch_gripper"]
+    assert [(p.name, p.mode, p.part_of) for p in split] == [
+        ("pinch_gripper", "driven", None),
+        ("left", "driven", "pinch_gripper"),
+        ("right", "driven", "pinch_gripper"),
+    ]
+    assert [i for p in split for i in p.inputs] == one[0].inputs
+    assert {j.name for p in split for j in p.joints} == {j.name for j in one[0].joints}
+    # A free base couples the fingers through the palm's motion; a tip-mounted hand needs its arm.
+    free = gripper.model_copy(update={"base": gripper.base.model_copy(update={"mode": "free"})})
+    assert len(plan_assembly(free, 20.0, split=True)) == 1
+    arm = load_model(MODELS / "arm_with_fingers.yaml").as_assembly()
+    assert len([p for p in plan_assembly(arm, 20.0, split=True) if p.joints]) == 1
+
+
+def test_split_fingers_never_touch_their_palm() -> None:
+    """The finger base boxes overlap the palm box; as parts they must not collide with it."""
+    settings = WorldSettings(time_step_s=5e-4, gravity_m_s2=(0, 0, 0), body_per_manipulator=True)
+    with World(settings) as world:
+        hand = world.add_model(load_model(MODELS / "pinch_gripper.yaml"), Pose(position_m=(0.1, 0, 0.1)))
+        palm, *fingers = hand.bodies
+        assert len(fingers) == 2 and all(f.plan.part_of == palm.plan.name for f in fingers)
+        assert min(world.closest_distance_m(palm.id, f.id) for f in fingers) <= 0.0
+        world.step(400)
+        for finger in fingers:
+            assert len(world.contacts(palm.id, finger.id)["link_a"]) == 0
+            assert np.abs(finger.drive.positions_si()).max() < 1e-6
+
+
+def test_by_default_only_a_fixed_base_is_split() -> None:
+    """Exact for a fixed base, so automatic; a driven base's hand is split only when asked."""
+    with World(WorldSettings(gravity_m_s2=(0, 0, 0))) as world:
+        fixed = world.add_model(load_model(MODELS / "ihm_hand.yaml"))
+        driven = world.add_model(load_model(MODELS / "pinch_gripper.yaml"), Pose(position_m=(1, 0, 0)))
+        assert [len(fixed.bodies), len(driven.bodies)] == [6, 1]
+    with World(WorldSettings(body_per_manipulator=False)) as world:
+        assert len(world.add_model(load_model(MODELS / "ihm_hand.yaml")).bodies) == 2

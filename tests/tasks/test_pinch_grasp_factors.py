@@ -46,12 +46,17 @@ def build(**factors: float | None) -> Built:
     with World(WorldSettings(time_step_s=4e-3, scale=SCALE)) as world:
         hand = world.add_model(gripper(load_model(MODELS / "pinch_gripper.yaml"), params))
         box = world.load_plan(plan_rigid_body(object_body(params), world.scale))
-        (body,) = hand.bodies
-        links = [i for name, i in body.link_index.items() if "__a" in name or "__tip" in name]
-        info = [pb.getDynamicsInfo(body.id, i, physicsClientId=world.client) for i in links]
+        # The palm and each finger are bodies of their own (WorldSettings.body_per_manipulator).
+        links = [
+            (body.id, i)
+            for body in hand.bodies
+            for name, i in body.link_index.items()
+            if "__a" in name or "__tip" in name
+        ]
+        info = [pb.getDynamicsInfo(b, i, physicsClientId=world.client) for b, i in links]
         obj = pb.getDynamicsInfo(box.id, -1, physicsClientId=world.client)
         return Built(
-            stiffness_n_m_per_rad=np.asarray(body.drive.k) / SCALE**2,
+            stiffness_n_m_per_rad=np.concatenate([body.drive.k for body in hand.bodies]) / SCALE**2,
             finger_spinning_m=[d[7] / SCALE for d in info],
             finger_restitution=[d[5] for d in info],
             object_restitution=obj[5],

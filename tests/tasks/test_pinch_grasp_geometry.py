@@ -39,13 +39,14 @@ def hand_positions(
     seen: dict[float, dict[str, np.ndarray]] = {}
 
     def observe(world: World, time_s: float) -> None:
-        hand = next(b for b in world.bodies if b.plan.tip)
-        fingers = sorted(hand.plan.tip)
+        # One body per finger, or one hand body holding both (WorldSettings.body_per_manipulator).
+        body_of = {name: b for b in world.bodies for name in b.plan.tip}
+        fingers = sorted(body_of)
         seen[round(time_s, 6)] = {
             "mounts": np.array(
-                [world.point_on_link(hand, f"{f}__base", (0, 0, -BASE_HALF_LENGTH_M)) for f in fingers]
+                [world.point_on_link(body_of[f], f"{f}__base", (0, 0, -BASE_HALF_LENGTH_M)) for f in fingers]
             ),
-            "tips": np.array([world.tip_position(hand, f) for f in fingers]),
+            "tips": np.array([world.tip_position(body_of[f], f) for f in fingers]),
         }
 
     run_pinch_grasp(

@@ -10,7 +10,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from somo_sweep.sim.world import Body, World
+from somo_sweep.sim.world import Body, ModelHandle, World
 from somo_sweep.tasks.pinch_grasp.params import N_FINGER_LINKS, link_columns
 
 __all__ = ["HoldProbe"]
@@ -21,27 +21,29 @@ class HoldProbe:
 
     Args:
         world: The world holding both.
-        hand: The gripper body (palm and fingers in one multibody).
+        hand: The gripper (palm and fingers: one body, or one per finger and the palm).
         object_id: PyBullet id of the object.
         ground_id: PyBullet id of the ground (to tell a held object from one resting on it).
     """
 
-    def __init__(self, world: World, hand: Body, object_id: int, ground_id: int | None = None):
+    def __init__(self, world: World, hand: ModelHandle, object_id: int, ground_id: int | None = None):
         self.world = world
         self.hand = hand
         self.object_id = object_id
         self.ground_id = ground_id
         self.on_ground = 0
-        self.fingers = list(hand.plan.tip)
-        # PyBullet link index → (finger number, link number 1..21) or palm (-1, 0).
-        self._where: dict[int, tuple[int, int]] = {}
-        self._along: dict[int, float] = {}
-        for info in hand.plan.links:
-            idx = hand.link_index[info.name]
-            if info.role in ("segment", "tip") and info.manipulator in self.fingers:
-                self._where[idx] = (self.fingers.index(info.manipulator), info.chain_index + 1)
-            else:
-                self._where[idx] = (-1, 0)
+        self.fingers = [name for body in hand.bodies for name in body.plan.tip]
+        # (PyBullet body id, link index) → (finger number, link number 1..21) or palm (-1, 0).
+        self._where: dict[tuple[int, int], tuple[int, int]] = {}
+        self._link_body: dict[str, Body] = {}
+        for body in hand.bodies:
+            for info in body.plan.links:
+                idx = body.link_index[info.name]
+                self._link_body[info.name] = body
+                if info.role in ("segment", "tip") and info.manipulator in self.fingers:
+                    self._where[body.id, idx] = (self.fingers.index(info.manipulator), info.chain_index + 1)
+                else:
+                    self._where[body.id, idx] = (-1, 0)
         self.counts = np.zeros(N_FINGER_LINKS)
         self.force_sums_n = np.zeros(N_FINGER_LINKS)
         self.palm_count = 0
@@ -61,14 +63,15 @@ class HoldProbe:
         rows = []
         for name in self.fingers:
             base = f"{name}__base"
-            info = next(i for i in self.hand.plan.links if i.name == base)
+            body = self._link_body[base]
+            info = next(i for i in body.plan.links if i.name == base)
             assert info.link is not None
-            rows.append(self.world.point_on_link(self.hand, base, (0.0, 0.0, -info.link.half_extent_m(2))))
+            rows.append(self.world.point_on_link(body, base, (0.0, 0.0, -info.link.half_extent_m(2))))
         return np.asarray(rows)
 
     def touching_now(self) -> bool:
         """Whether any part of the hand (fingers, palm, base boxes) touches the object now."""
-        return len(self.world.contacts(self.object_id, self.hand.id)["link_a"]) > 0
+        return any(len(self.world.contacts(self.object_id, b.id)["link_a"]) > 0 for b in self.hand.bodies)
 
     def on_ground_now(self) -> bool:
         """Whether the object touches the ground now (False without a ground)."""
@@ -78,20 +81,21 @@ class HoldProbe:
 
     def sample(self) -> None:
         """Record the current contacts (one sample)."""
-        c = self.world.contacts(self.object_id, self.hand.id)
         touched = np.zeros(len(self.fingers), bool)
         links: list[int] = []
-        for link_b, force in zip(c["link_b"].tolist(), c["normal_force_n"].tolist(), strict=True):
-            finger, number = self._where.get(int(link_b), (-1, 0))
-            if finger < 0:
-                self.palm_count += 1
-                self.palm_force_sum_n += force
-                continue
-            touched[finger] = True
-            links.append(number)
-            self.counts[number - 1] += 1
-            self.force_sums_n[number - 1] += force
-            self.finger_force_sums_n[finger] += force
+        for body in self.hand.bodies:
+            c = self.world.contacts(self.object_id, body.id)
+            for link_b, force in zip(c["link_b"].tolist(), c["normal_force_n"].tolist(), strict=True):
+                finger, number = self._where.get((body.id, int(link_b)), (-1, 0))
+                if finger < 0:
+                    self.palm_count += 1
+                    self.palm_force_sum_n += force
+                    continue
+                touched[finger] = True
+                links.append(number)
+                self.counts[number - 1] += 1
+                self.force_sums_n[number - 1] += force
+                self.finger_force_sums_n[finger] += force
         self.samples += 1
         self.both_touching += int(touched.all())
         self.on_ground += int(self.on_ground_now())

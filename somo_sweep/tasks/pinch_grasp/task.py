@@ -208,13 +208,12 @@ def run_pinch_grasp(
         # Load the hand far away, measure where its finger mounts sit relative to the palm.
         far = np.array([1.0, 0.0, p.hand_height_m])
         hand = world.add_model(hand_model, Pose(position_m=tuple(far)))
-        palm = hand.bodies[0]
-        probe = HoldProbe(world, palm, obj.id, ground)
+        probe = HoldProbe(world, hand, obj.id, ground)
         mount_to_palm_x = float(far[0] - probe.finger_mounts_m()[:, 0].mean())
         x_end = obj_start[0] + p.base_distance_m + mount_to_palm_x
         start = np.array([x_end + p.approach_m, 0.0, p.hand_height_m])
-        world.drive_base(palm, start, (0.0, 0.0, 0.0))
-        _reset_base(world, palm.id, start)
+        world.drive_model(hand, start, (0.0, 0.0, 0.0))
+        world.place_model(hand, start, (0.0, 0.0, 0.0))
         t1 = p.approach_s
         t2 = t1 + p.ramp_s
         t3 = t2 + p.lift_s
@@ -255,7 +254,7 @@ def run_pinch_grasp(
                         ended_early_s = t
                         break
                 hand.set_inputs(torque(t))
-                world.drive_base(palm, path(t), (0.0, 0.0, 0.0))
+                world.drive_model(hand, path(t), (0.0, 0.0, 0.0))
                 world.step()
                 if i >= i_hold and (n_steps - 1 - i) % sample_every == 0:
                     probe.sample()
@@ -287,9 +286,11 @@ def run_pinch_grasp(
 def _snapshot(world: World, probe: HoldProbe, object_id: int) -> Snapshot:
     """The early-stop rule's view of the current state."""
     lin, ang = world.base_velocity(object_id)
-    drive = probe.hand.drive
-    drive.read()
-    finger_speed = float(np.abs(drive.velocities_si()).max()) if drive.indices else 0.0
+    finger_speed = 0.0
+    for body in probe.hand.bodies:
+        if body.drive.indices:
+            body.drive.read()
+            finger_speed = max(finger_speed, float(np.abs(body.drive.velocities_si()).max()))
     return Snapshot(
         hand_touches_object=probe.touching_now(),
         object_on_ground=probe.on_ground_now(),
@@ -306,11 +307,3 @@ def world_rpy(quat: np.ndarray) -> tuple[float, float, float]:
 
     r = pb.getEulerFromQuaternion([float(c) for c in quat])
     return float(r[0]), float(r[1]), float(r[2])
-
-
-def _reset_base(world: World, body_id: int, position_m: np.ndarray) -> None:
-    import pybullet as pb
-
-    pb.resetBasePositionAndOrientation(
-        body_id, (position_m * world.scale).tolist(), [0, 0, 0, 1], physicsClientId=world.client
-    )
