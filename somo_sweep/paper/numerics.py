@@ -11,6 +11,7 @@ the labels agree and how far the metrics move; :func:`trial_seconds` times one t
 
 from __future__ import annotations
 
+import dataclasses
 from dataclasses import dataclass
 from pathlib import Path
 from time import perf_counter, process_time
@@ -47,15 +48,24 @@ ORIGINAL_TRIAL_S = 12.5
 
 @dataclass(frozen=True)
 class Setup:
-    """Numerics of a run: time step (s), solver iterations and the finger regularisation."""
+    """Numerics of a run: time step (s), solver iterations and the finger regularisation.
+
+    ``body_per_manipulator`` False loads the gripper as one body (palm and both fingers)
+    instead of one body per finger and the palm (:class:`WorldSettings`).
+    """
 
     time_step_s: float
     solver_iterations: int
     numerics: Numerics
+    body_per_manipulator: bool = True
 
     def settings(self) -> WorldSettings:
         """World settings of this setup."""
-        return WorldSettings(time_step_s=self.time_step_s, solver_iterations=self.solver_iterations)
+        return WorldSettings(
+            time_step_s=self.time_step_s,
+            solver_iterations=self.solver_iterations,
+            body_per_manipulator=self.body_per_manipulator,
+        )
 
     def describe(self) -> str:
         """One line: dt, iterations, inertia shaping, damping, motor limit."""
@@ -65,6 +75,7 @@ class Setup:
             f"added inertia {n.added_inertia_kg_m2:g} kg·m², damping "
             f"{'file' if n.damping_n_m_s_per_rad is None else n.damping_n_m_s_per_rad}, motor limit "
             f"{'file (0.005 N·m)' if n.motor_limit_n_m is None else n.motor_limit_n_m}"
+            + ("" if self.body_per_manipulator else ", the hand as one body")
         )
 
 
@@ -241,4 +252,19 @@ def trial_timing_lines(
         f"  the original SoMo code took {ORIGINAL_TRIAL_S:g} s per trial on a machine like this "
         f"(facts sheet): {ORIGINAL_TRIAL_S / float(np.median(orig)):.2f}x this engine's median at its "
         "numerics in this run",
+        *_one_body_lines(setup, repeats),
+    ]
+
+
+def _one_body_lines(setup: Setup, repeats: int) -> list[str]:
+    """Ours against the same numerics with the gripper loaded as one body, paired CPU times."""
+    if not setup.body_per_manipulator:
+        return []
+    one = dataclasses.replace(setup, body_per_manipulator=False)
+    pairs = paired_trial_seconds(one, setup, repeats)
+    ratio = float(np.median([a / b for a, b in pairs]))
+    return [
+        f"  one body per finger and the palm: {ratio:.2f}x cheaper than the gripper as one body "
+        f"(median {float(np.median([a for a, _ in pairs])):.2f} s against "
+        f"{float(np.median([b for _, b in pairs])):.2f} s, {repeats} alternating runs)",
     ]
