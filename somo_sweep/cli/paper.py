@@ -6,8 +6,8 @@ figures, numbers and tables) and writes what it returns into ``--out``.
 
 from __future__ import annotations
 
+import dataclasses
 import json
-import math
 from pathlib import Path
 from typing import TYPE_CHECKING, Annotated
 
@@ -284,7 +284,8 @@ def numerics(
     save: Annotated[Path | None, typer.Option(help="Write every trial's result to this JSON file.")] = None,
     study: Annotated[Path | None, typer.Option(help="pinch_grasp study whose grid to compare on.")] = None,
     a: Annotated[
-        str | None, typer.Option(help="Setup A: DT_S,ITERATIONS,INERTIA_KG_M2[,DAMPING_N_M_S_PER_RAD].")
+        str | None,
+        typer.Option(help="Setup A: DT_S,ITERATIONS,INERTIA_KG_M2[,DAMPING_N_M_S_PER_RAD][,one-body]."),
     ] = None,
     b: Annotated[
         str | None,
@@ -349,27 +350,21 @@ def numerics(
         QUICK_STUDY,
         REFERENCE,
         Setup,
+        parse_setup,
         quick_points,
         trial_timing_lines,
     )
     from somo_sweep.paper.numerics import compare as run_compare
-    from somo_sweep.tasks.pinch_grasp.params import Numerics
 
     def parse(text: str, option: str) -> Setup:
         try:
-            dt, iters, inertia, *damping = text.split(",")
-            c = float(damping[0]) if damping else None
-            step_s, n_iter = float(dt), int(iters)
-            if len(damping) > 1 or not (0 < step_s < 1) or n_iter < 1 or not math.isfinite(float(inertia)):
-                raise ValueError(text)
-            return Setup(
-                step_s, n_iter, Numerics(added_inertia_kg_m2=float(inertia), damping_n_m_s_per_rad=c)
-            )
+            return parse_setup(text)
         except ValueError:
             fail(
                 SomoError(
-                    f"{option} must be DT_S,ITERATIONS,INERTIA_KG_M2[,DAMPING] (0 < DT_S < 1, "
-                    f"ITERATIONS >= 1, INERTIA and DAMPING finite and >= 0), got '{text}'"
+                    f"{option} must be DT_S,ITERATIONS,INERTIA_KG_M2[,DAMPING][,one-body] (0 < DT_S < 1, "
+                    f"ITERATIONS >= 1, INERTIA and DAMPING finite and >= 0; one-body: the gripper as one "
+                    f"body instead of the palm and each finger apart), got '{text}'"
                 )
             )
 
@@ -383,7 +378,7 @@ def numerics(
     elif compare == "reference":
         other = REFERENCE
     elif compare == "half-step":
-        other = Setup(setup.time_step_s / 2, setup.solver_iterations, setup.numerics)
+        other = dataclasses.replace(setup, time_step_s=setup.time_step_s / 2)
     else:
         fail(SomoError(f"--compare must be half-step or reference, got '{compare}'"))
     typer.echo(f"A: {setup.describe()}\nB: {other.describe()}")

@@ -12,6 +12,7 @@ the labels agree and how far the metrics move; :func:`trial_seconds` times one t
 from __future__ import annotations
 
 import dataclasses
+import math
 from dataclasses import dataclass
 from pathlib import Path
 from time import perf_counter, process_time
@@ -35,6 +36,7 @@ __all__ = [
     "Setup",
     "compare",
     "paired_trial_seconds",
+    "parse_setup",
     "quick_points",
     "trial_seconds",
     "trial_timing_lines",
@@ -87,6 +89,28 @@ REFERENCE = Setup(5e-4, 50, Numerics(added_inertia_kg_m2=0.0))
 ORIGINAL_NUMERICS = REFERENCE
 #: ``make bench``'s target for ours vs the original numerics in this engine (issue #16).
 RATIO_TARGET = 13.5
+
+
+def parse_setup(text: str) -> Setup:
+    """A setup from ``DT_S,ITERATIONS,INERTIA_KG_M2[,DAMPING_N_M_S_PER_RAD][,one-body]``.
+
+    ``one-body`` loads the gripper as one body instead of the palm and each finger apart.
+
+    Raises:
+        ValueError: Malformed, out of range (0 < DT_S < 1, ITERATIONS >= 1) or not finite.
+    """
+    fields = text.split(",")
+    one_body = fields[-1].strip() == "one-body"
+    dt, iters, inertia, *damping = fields[:-1] if one_body else fields
+    if len(damping) > 1:
+        raise ValueError(text)
+    step_s, n_iter, j = float(dt), int(iters), float(inertia)
+    c = float(damping[0]) if damping else None
+    if not (0 < step_s < 1) or n_iter < 1 or not math.isfinite(j):
+        raise ValueError(text)
+    # Numerics refuses a negative or infinite damping / inertia (pydantic's ValidationError is a ValueError).
+    numerics = Numerics(added_inertia_kg_m2=j, damping_n_m_s_per_rad=c)
+    return Setup(step_s, n_iter, numerics, body_per_manipulator=not one_body)
 
 
 def quick_points(study: Path = QUICK_STUDY) -> list[dict[str, float]]:

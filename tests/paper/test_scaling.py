@@ -68,12 +68,27 @@ def test_every_way_of_running_one_study_gives_the_same_labels(tmp_path: Path) ->
         "4e-3,50,0,nan",
         "a,b,c",
         "4e-3,50",
+        "one-body",
+        "4e-3,50,3e-5,one-bodies",
+        "4e-3,50,3e-5,0.01,0.02",
     ],
 )
 def test_numerics_setups_out_of_range_are_refused_before_any_trial(setup: str) -> None:
     result = CliRunner().invoke(app, ["paper", "numerics", "--b", setup])
     assert result.exit_code == 2
-    assert "--b must be DT_S,ITERATIONS,INERTIA_KG_M2[,DAMPING]" in result.output and setup in result.output
+    assert "--b must be DT_S,ITERATIONS,INERTIA_KG_M2[,DAMPING][,one-body]" in result.output
+    assert setup in result.output
+
+
+def test_a_setup_names_its_body_layout() -> None:
+    from somo_sweep.paper.numerics import CHOSEN, parse_setup
+
+    split = parse_setup("4e-3,50,3e-5")
+    one = parse_setup("2e-3, 50, 3e-5, 0.01, one-body")
+    assert split == CHOSEN and split.settings().body_per_manipulator is True
+    assert (one.time_step_s, one.numerics.damping_n_m_s_per_rad) == (2e-3, 0.01)
+    assert one.settings().body_per_manipulator is False
+    assert one.describe().endswith("the hand as one body") and "one body" not in split.describe()
 
 
 def test_the_worker_settings_read_as_the_environment_dask_reads() -> None:
