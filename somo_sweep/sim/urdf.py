@@ -351,10 +351,10 @@ def plan_rigid_body(body: RigidBody, scale: float) -> BodyPlan:
 def splits_into_bodies(assembly: Assembly) -> bool:
     """Whether :func:`plan_assembly` may load ``assembly`` as one body per manipulator.
 
-    Only a base that never moves with the fingers' loads qualifies: ``fixed`` (exact) or
-    ``driven`` (held to its path by a stiff constraint, so each part can be held on its
-    own). Each manipulator then needs a base link of its own (a driven multibody needs a
-    massive root) unless the base is fixed, and none may sit on another's tip.
+    Only a base that never moves with the fingers' loads qualifies: ``fixed`` or ``driven``
+    (held to its path by a stiff constraint, so each part can be held on its own). Each
+    manipulator then needs a base link of its own (a driven multibody needs a massive root)
+    unless the base is fixed, and none may sit on another's tip.
     """
     base: Base = assembly.base
     if base.link is None or base.mode == "free" or not assembly.manipulators:
@@ -375,10 +375,12 @@ def plan_assembly(
     With ``split`` and an assembly that qualifies (:func:`splits_into_bodies`), the base
     link becomes a body of its own and every manipulator another, at its mount pose and
     held the same way (the parts are marked to never collide with the base, as links of
-    one body never collide with their ancestors). The dynamics are the same (exactly for a
-    fixed base; for a driven one up to the holding constraints' stiffness) and each step is
-    cheaper: Bullet's cost per constraint row (contacts, joint motors) grows with the
-    number of joints of the body the row acts on.
+    one body never collide with their ancestors). The equations are the same (for a driven
+    base up to the holding constraints' stiffness) and each step is cheaper: Bullet's cost
+    per constraint row (contacts, joint motors) grows with the number of joints of the body
+    the row acts on. The solver meets the rows in another order, though, which can tip
+    knife-edge contact outcomes (a box that pivots in a weak pinch, a cube on the edge of
+    falling off a palm); callers opt in per study.
     """
     plans: list[BodyPlan] = []
     base: Base = assembly.base

@@ -206,10 +206,7 @@ class World:
         root = pose or Pose()
         bodies: list[Body] = []
         root_tf = ([c for c in root.position_m], p.getQuaternionFromEuler(root.rpy_rad))
-        split = self.settings.body_per_manipulator
-        if split is None:
-            split = assembly.base.mode == "fixed"
-        for plan in plan_assembly(assembly, self.scale, split=split):
+        for plan in plan_assembly(assembly, self.scale, split=self.settings.body_per_manipulator):
             local = (plan.pose.position_m, p.getQuaternionFromEuler(plan.pose.rpy_rad))
             pos, orn = p.multiplyTransforms(root_tf[0], root_tf[1], local[0], local[1])
             world_pose = Pose(position_m=tuple(pos), rpy_rad=tuple(p.getEulerFromQuaternion(orn)))

@@ -86,18 +86,18 @@ CHECK_CACHE_POINTS = 10_000
 class Simulation(Spec):
     """Simulation settings of every trial (SI).
 
-    ``body_per_manipulator`` loads a hand as one PyBullet body per finger plus the palm, at a
-    lower cost per step (:func:`somo_sweep.sim.urdf.plan_assembly`). Left out, only a hand
-    with a fixed palm is split (exactly the same dynamics); ``true`` splits a driven palm's
-    hand too (the same dynamics up to the holding constraints: check the labels, as
-    docs/pinch_grasp.md does for the pinch gripper); ``false`` never splits.
+    ``body_per_manipulator: true`` loads a hand with a fixed or driven palm as one PyBullet
+    body per finger plus the palm, at a lower cost per step
+    (:func:`somo_sweep.sim.urdf.plan_assembly`). The hand moves the same, but knife-edge
+    contact outcomes can come out the other way, so check a study's results before opting
+    in (docs/pinch_grasp.md, "One body per finger").
     """
 
     time_step_s: float = Field(5e-4, gt=0)
     scale: float = Field(20.0, gt=0)
     solver_iterations: int = Field(50, ge=1)
     gravity_m_s2: tuple[float, float, float] = (0.0, 0.0, -9.81)
-    body_per_manipulator: bool | None = None
+    body_per_manipulator: bool = False
 
     def world_settings(self) -> WorldSettings:
         """The :class:`~somo_sweep.sim.world.WorldSettings` these settings describe."""
