@@ -237,6 +237,7 @@ def run_pinch_grasp(
         metrics: dict[str, float | int | bool | str] = {"n_distal_links": p.n_distal}
         ended_early_s, reason, touched = float("nan"), "", False
         observe_steps = {min(round(t / dt), n_steps - 1) for t in observe_at_s}
+        last_u, last_pose = np.full(n_in, np.nan), np.full(3, np.nan)
         try:
             for i in range(n_steps):
                 t = i * dt
@@ -253,8 +254,15 @@ def run_pinch_grasp(
                     if reason:
                         ended_early_s = t
                         break
-                hand.set_inputs(torque(t))
-                world.drive_model(hand, path(t), (0.0, 0.0, 0.0))
+                # Setpoints are resent only when they change: the torque is constant during the
+                # approach and the hold, the hand's target during the squeeze and the hold.
+                u, pose = torque(t), path(t)
+                if not np.array_equal(u, last_u):
+                    hand.set_inputs(u)
+                    last_u = u
+                if not np.array_equal(pose, last_pose):
+                    world.drive_model(hand, pose, (0.0, 0.0, 0.0))
+                    last_pose = pose
                 world.step()
                 if i >= i_hold and (n_steps - 1 - i) % sample_every == 0:
                     probe.sample()
