@@ -1,0 +1,51 @@
+"""``make bench``'s trial lines: ours, the original numerics and the no-joint-friction ceiling
+are timed in turn, and each ratio is the median of the per-repeat ratios.
+
+Trials are replaced by a stand-in whose CPU time is set by the setup, so every number the
+lines print is known exactly; the timings themselves are the benchmark's business.
+"""
+
+from __future__ import annotations
+
+import pytest
+
+import somo_sweep.paper.numerics as numerics
+from somo_sweep.paper.numerics import (
+    CHOSEN,
+    ORIGINAL_NUMERICS,
+    Setup,
+    trial_timing_lines,
+    without_joint_friction,
+)
+
+
+def test_the_ceiling_switches_only_the_joint_friction_off() -> None:
+    ceiling = without_joint_friction(CHOSEN)
+    assert ceiling.numerics.motor_limit_n_m == 0.0
+    assert ceiling.numerics.added_inertia_kg_m2 == CHOSEN.numerics.added_inertia_kg_m2
+    assert (ceiling.time_step_s, ceiling.solver_iterations) == (CHOSEN.time_step_s, CHOSEN.solver_iterations)
+    assert ceiling.body_per_manipulator == CHOSEN.body_per_manipulator
+    assert CHOSEN.numerics.motor_limit_n_m is None  # the model file's 0.005 N·m is untouched
+
+
+def test_the_lines_print_the_paired_ratio_and_the_ceiling(monkeypatch: pytest.MonkeyPatch) -> None:
+    order: list[str] = []
+
+    def fake(setup: Setup, repeats: int = 1, point: object = None) -> tuple[list[float], list[float]]:
+        if setup == ORIGINAL_NUMERICS:
+            name, cpu = "original", 4.0
+        elif setup.numerics.motor_limit_n_m == 0.0:
+            name, cpu = "ceiling", 0.25
+        elif setup.body_per_manipulator:
+            name, cpu = "ours", 0.5
+        else:
+            name, cpu = "one body", 0.7
+        order.append(name)
+        return [cpu] * repeats, [cpu] * repeats
+
+    monkeypatch.setattr(numerics, "trial_seconds", fake)
+    text = "\n".join(trial_timing_lines(repeats=2))
+    assert order[:6] == ["original", "ours", "ceiling"] * 2  # in turn, not one setup after another
+    assert "ours is 8.0x faster" in text and "target >= 13.5x: not met" in text
+    assert "16.0x the original numerics" in text
+    assert "1.40x cheaper than the gripper as one body" in text
