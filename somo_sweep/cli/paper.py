@@ -285,7 +285,10 @@ def numerics(
     study: Annotated[Path | None, typer.Option(help="pinch_grasp study whose grid to compare on.")] = None,
     a: Annotated[
         str | None,
-        typer.Option(help="Setup A: DT_S,ITERATIONS,INERTIA_KG_M2[,DAMPING_N_M_S_PER_RAD][,one-body]."),
+        typer.Option(
+            help="Setup A: DT_S,ITERATIONS,INERTIA_KG_M2[,DAMPING_N_M_S_PER_RAD]"
+            "[,one-body][,friction-every-2] (default: the study's)."
+        ),
     ] = None,
     b: Annotated[
         str | None,
@@ -362,9 +365,10 @@ def numerics(
         except ValueError:
             fail(
                 SomoError(
-                    f"{option} must be DT_S,ITERATIONS,INERTIA_KG_M2[,DAMPING][,one-body] (0 < DT_S < 1, "
-                    f"ITERATIONS >= 1, INERTIA and DAMPING finite and >= 0; one-body: the gripper as one "
-                    f"body instead of the palm and each finger apart), got '{text}'"
+                    f"{option} must be DT_S,ITERATIONS,INERTIA_KG_M2[,DAMPING][,one-body][,friction-every-2] "
+                    f"(0 < DT_S < 1, ITERATIONS >= 1, INERTIA and DAMPING finite and >= 0; one-body: the "
+                    f"gripper as one body instead of the palm and each finger apart; friction-every-2: the "
+                    f"joints' Coulomb friction solved every other step), got '{text}'"
                 )
             )
 

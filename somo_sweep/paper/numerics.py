@@ -55,13 +55,15 @@ class Setup:
     """Numerics of a run: time step (s), solver iterations and the finger regularisation.
 
     ``body_per_manipulator`` False loads the gripper as one body (palm and both fingers)
-    instead of one body per finger and the palm (:class:`WorldSettings`).
+    instead of one body per finger and the palm; ``friction_rows_every`` 2 solves the joints'
+    Coulomb friction every other step (:class:`WorldSettings`).
     """
 
     time_step_s: float
     solver_iterations: int
     numerics: Numerics
     body_per_manipulator: bool = True
+    friction_rows_every: int = 1
 
     def settings(self) -> WorldSettings:
         """World settings of this setup."""
@@ -69,6 +71,7 @@ class Setup:
             time_step_s=self.time_step_s,
             solver_iterations=self.solver_iterations,
             body_per_manipulator=self.body_per_manipulator,
+            friction_rows_every=self.friction_rows_every,
         )
 
     def describe(self) -> str:
@@ -80,11 +83,17 @@ class Setup:
             f"{'file' if n.damping_n_m_s_per_rad is None else n.damping_n_m_s_per_rad}, motor limit "
             f"{'file (0.005 N·m)' if n.motor_limit_n_m is None else n.motor_limit_n_m}"
             + ("" if self.body_per_manipulator else ", the hand as one body")
+            + (
+                f", friction solved every {self.friction_rows_every} steps"
+                if self.friction_rows_every > 1
+                else ""
+            )
         )
 
 
-#: The study's numerics (also the defaults of :class:`PinchGraspParams.numerics`).
-CHOSEN = Setup(4e-3, 50, Numerics())
+#: The study's numerics (also the defaults of :class:`PinchGraspParams.numerics`): the joints'
+#: Coulomb friction solved every other step (docs/pinch_grasp.md, "Friction every other step").
+CHOSEN = Setup(4e-3, 50, Numerics(), friction_rows_every=2)
 #: The fine-step reference: the original's step and the physical finger (no inertia shaping).
 REFERENCE = Setup(5e-4, 50, Numerics(added_inertia_kg_m2=0.0))
 #: The original study's numerics (0.5 ms, 8000 steps per 4-s trial, no shaping, 50 iterations).
@@ -94,16 +103,21 @@ RATIO_TARGET = 13.5
 
 
 def parse_setup(text: str) -> Setup:
-    """A setup from ``DT_S,ITERATIONS,INERTIA_KG_M2[,DAMPING_N_M_S_PER_RAD][,one-body]``.
+    """A setup from ``DT_S,ITERATIONS,INERTIA_KG_M2[,DAMPING_N_M_S_PER_RAD][,one-body][,friction-every-2]``.
 
-    ``one-body`` loads the gripper as one body instead of the palm and each finger apart.
+    The two flags may come in either order. ``one-body`` loads the gripper as one body instead
+    of the palm and each finger apart; ``friction-every-2`` solves the joints' Coulomb friction
+    every other step.
 
     Raises:
         ValueError: Malformed, out of range (0 < DT_S < 1, ITERATIONS >= 1) or not finite.
     """
     fields = text.split(",")
-    one_body = fields[-1].strip() == "one-body"
-    dt, iters, inertia, *damping = fields[:-1] if one_body else fields
+    flags: set[str] = set()
+    while fields and fields[-1].strip() in {"one-body", "friction-every-2"} - flags:
+        flags.add(fields.pop().strip())
+    one_body, every = "one-body" in flags, 2 if "friction-every-2" in flags else 1
+    dt, iters, inertia, *damping = fields
     if len(damping) > 1:
         raise ValueError(text)
     step_s, n_iter, j = float(dt), int(iters), float(inertia)
@@ -112,7 +126,7 @@ def parse_setup(text: str) -> Setup:
         raise ValueError(text)
     # Numerics refuses a negative or infinite damping / inertia (pydantic's ValidationError is a ValueError).
     numerics = Numerics(added_inertia_kg_m2=j, damping_n_m_s_per_rad=c)
-    return Setup(step_s, n_iter, numerics, body_per_manipulator=not one_body)
+    return Setup(step_s, n_iter, numerics, body_per_manipulator=not one_body, friction_rows_every=every)
 
 
 def quick_points(study: Path = QUICK_STUDY) -> list[dict[str, float]]:
@@ -257,7 +271,7 @@ def without_joint_friction(setup: Setup) -> Setup:
     are most of Bullet's work per step.
     """
     numerics = setup.numerics.model_copy(update={"motor_limit_n_m": 0.0})
-    return dataclasses.replace(setup, numerics=numerics)
+    return dataclasses.replace(setup, numerics=numerics, friction_rows_every=1)
 
 
 def trial_timing_lines(

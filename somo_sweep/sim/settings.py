@@ -22,6 +22,13 @@ class WorldSettings:
             :func:`somo_sweep.sim.urdf.plan_assembly`). Off by default: the split moves
             knife-edge contact outcomes (the in-hand gait's cube falls in one of Fig. 5's
             runs), so a study opts in after checking its own results, as the pinch studies do.
+        friction_rows_every: Steps between the solves of the joints' Coulomb friction (SoMo's
+            zero-velocity motors, which Bullet solves as one constraint row per joint and which
+            are most of its work per step). 1 solves them every step. 2 solves them every other
+            step and, on the step between, applies each joint's friction torque from the last
+            solve as a fixed torque (within its limit): the stiction of the solved step carries
+            over, at about half the rows' cost. Checked on the pinch study's labels
+            (docs/pinch_grasp.md); 3 was not stable in labels and is refused.
     """
 
     time_step_s: float = 5e-4
@@ -30,3 +37,8 @@ class WorldSettings:
     solver_iterations: int = 50
     check_every: int = 100
     body_per_manipulator: bool = False
+    friction_rows_every: int = 1
+
+    def __post_init__(self) -> None:
+        if self.friction_rows_every not in (1, 2):
+            raise ValueError(f"friction_rows_every must be 1 or 2, got {self.friction_rows_every!r}")

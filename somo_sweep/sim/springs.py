@@ -8,7 +8,9 @@ This is the hot path. It makes exactly one ``getJointStates`` and one
 ``setJointMotorControlArray`` call per body per step and only vectorised numpy
 arithmetic; all SI → scaled-world conversions are folded into constants once.
 PyBullet *adds up* every TORQUE_CONTROL command given within a step and clears
-them after the step, so the torque must be sent exactly once.
+them after the step, so the torque must be sent exactly once. With the joints' Coulomb
+motors solved only every other step (``friction_every`` 2), one more call switches their
+rows on or off at each step.
 """
 
 from __future__ import annotations
@@ -25,6 +27,9 @@ __all__ = ["SpringDrive"]
 
 _first = itemgetter(0)
 _second = itemgetter(1)
+_fourth = itemgetter(3)
+#: Friction solves between refreshes of the joint-space mass matrix (friction every other step).
+MASS_MATRIX_EVERY = 10
 
 
 class SpringDrive:
@@ -37,6 +42,10 @@ class SpringDrive:
         joints: The spring joints, same order.
         n_inputs: Number of control inputs of the body.
         scale: World scale factor Y.
+        friction_every: Steps between solves of the joints' Coulomb motors, 1 or 2
+            (:attr:`WorldSettings.friction_rows_every`); with 2, the step between gets a fixed
+            friction torque from the solved one (:meth:`_torques_with_held_friction`).
+        time_step_s: The world's time step, s (needed with ``friction_every`` 2).
     """
 
     def __init__(
@@ -47,6 +56,8 @@ class SpringDrive:
         joints: Sequence[SpringJoint],
         n_inputs: int,
         scale: float,
+        friction_every: int = 1,
+        time_step_s: float = 0.0,
     ):
         self.client = client
         self.body = body
@@ -81,6 +92,19 @@ class SpringDrive:
         self.q = np.zeros(len(joints))
         self.qd = np.zeros(len(joints))
         self.steps_applied = 0
+        if friction_every not in (1, 2) or (friction_every == 2 and not time_step_s > 0):
+            raise ValueError(
+                f"friction_every must be 1, or 2 with time_step_s > 0; got {friction_every}, {time_step_s}"
+            )
+        self.friction_every = int(friction_every)
+        self.time_step_s = float(time_step_s)
+        self._rows_on = True
+        self._solves = 0
+        self._qd_before_solve = np.zeros(len(joints))
+        self._mass = np.zeros((len(joints), len(joints)))
+        self._movable: list[int] | None = None
+        self._zero_list = [0.0] * len(joints)
+        self._limit_list = self.motor_limit.tolist()
 
     def enable_motors(self) -> None:
         """Set the zero-velocity motors (Coulomb limit, SoMo's control limit force) once."""
@@ -141,15 +165,82 @@ class SpringDrive:
         """Read the state and send this step's efforts (the one torque command per step)."""
         if not self.indices:
             return
-        self.read()
+        if self.friction_every == 1:
+            self.read()
+            efforts = self.torques()
+        else:
+            efforts = self._torques_with_held_friction()
         p.setJointMotorControlArray(
             self.body,
             self.indices,
             p.TORQUE_CONTROL,
-            forces=self.torques().tolist(),
+            forces=efforts.tolist(),
             physicsClientId=self.client,
         )
         self.steps_applied += 1
+
+    def _torques_with_held_friction(self) -> np.ndarray:
+        """This step's efforts when the Coulomb motors are solved every other step.
+
+        Even steps solve the motors as Bullet's constraint rows. On the odd step after one, the
+        rows are off and each joint gets a fixed friction torque instead, from the solved step:
+
+        * a joint whose motor reached its limit was sliding: it keeps that torque (−F·sign q̇);
+        * a joint held below the limit was stuck: it gets the torque that keeps it at rest, the
+          static demand. The solved motor torque is not that: it also stopped whatever speed the
+          joint had, and replaying that braking on the next step would throw the joint back (a
+          stuck finger would chatter forever). Newton's law over the solved step gives the
+          demand: M·(q̇₁ − q̇₀)/dt = τ_other + τ_motor, so −τ_other = τ_motor − M·(q̇₁ − q̇₀)/dt,
+          with M the joint-space mass matrix, refreshed every ``MASS_MATRIX_EVERY`` solves. Clipped
+          to ±F, so a joint whose demand exceeds its limit starts to slide.
+        """
+        states = p.getJointStates(self.body, self.indices, physicsClientId=self.client)
+        n = len(states)
+        self.q = np.fromiter(map(_first, states), float, n)
+        self.qd = np.fromiter(map(_second, states), float, n)
+        efforts = self.torques()
+        if self.steps_applied % 2 == 0:
+            self._set_motor_rows(True)
+            self._qd_before_solve = self.qd
+            return efforts
+        motor = np.fromiter(map(_fourth, states), float, n)
+        limit = self.motor_limit
+        if self._solves % MASS_MATRIX_EVERY == 0:
+            self._mass = self._joint_mass_matrix()
+        self._solves += 1
+        demand = motor - self._mass @ (self.qd - self._qd_before_solve) / self.time_step_s
+        sliding = np.abs(motor) >= limit * (1.0 - 1e-9)
+        held = np.where(sliding, np.clip(motor, -limit, limit), np.clip(demand, -limit, limit))
+        self._set_motor_rows(False)
+        return efforts + held
+
+    def _joint_mass_matrix(self) -> np.ndarray:
+        """The mass matrix block of the spring joints (scaled world), at the current pose."""
+        if self._movable is None:
+            kinds = [
+                p.getJointInfo(self.body, j, physicsClientId=self.client)[2]
+                for j in range(p.getNumJoints(self.body, physicsClientId=self.client))
+            ]
+            self._movable = [j for j, kind in enumerate(kinds) if kind != p.JOINT_FIXED]
+        positions = [s[0] for s in p.getJointStates(self.body, self._movable, physicsClientId=self.client)]
+        full = np.asarray(p.calculateMassMatrix(self.body, positions, physicsClientId=self.client))
+        base = full.shape[0] - len(self._movable)  # 6 for a floating base, 0 for a fixed one
+        rows = [base + self._movable.index(j) for j in self.indices]
+        return full[np.ix_(rows, rows)]
+
+    def _set_motor_rows(self, on: bool) -> None:
+        """Switch the zero-velocity motors' rows on (the Coulomb limit) or off (limit 0)."""
+        if on == self._rows_on:
+            return
+        p.setJointMotorControlArray(
+            self.body,
+            self.indices,
+            p.VELOCITY_CONTROL,
+            targetVelocities=self._zero_list,
+            forces=self._limit_list if on else self._zero_list,
+            physicsClientId=self.client,
+        )
+        self._rows_on = on
 
     def positions_si(self) -> np.ndarray:
         """Last read joint positions in rad / m."""

@@ -174,6 +174,8 @@ class World:
             plan.joints,
             len(plan.inputs),
             self.scale,
+            friction_every=self.settings.friction_rows_every,
+            time_step_s=self.settings.time_step_s,
         )
         # Every non-spring joint motor is switched off; spring joints get their Coulomb motor.
         drive.enable_motors()

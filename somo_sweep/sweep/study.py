@@ -91,6 +91,11 @@ class Simulation(Spec):
     (:func:`somo_sweep.sim.urdf.plan_assembly`). The hand moves the same, but knife-edge
     contact outcomes can come out the other way, so check a study's results before opting
     in (docs/pinch_grasp.md, "One body per finger").
+
+    ``friction_rows_every: 2`` solves the joints' Coulomb friction every other step and holds
+    each joint's solved friction torque on the step between
+    (:attr:`~somo_sweep.sim.settings.WorldSettings.friction_rows_every`); 1 (default) solves
+    it every step.
     """
 
     time_step_s: float = Field(5e-4, gt=0)
@@ -98,6 +103,7 @@ class Simulation(Spec):
     solver_iterations: int = Field(50, ge=1)
     gravity_m_s2: tuple[float, float, float] = (0.0, 0.0, -9.81)
     body_per_manipulator: bool = False
+    friction_rows_every: int = Field(1, ge=1, le=2)
 
     def world_settings(self) -> WorldSettings:
         """The :class:`~somo_sweep.sim.world.WorldSettings` these settings describe."""
@@ -107,6 +113,7 @@ class Simulation(Spec):
             gravity_m_s2=self.gravity_m_s2,
             solver_iterations=self.solver_iterations,
             body_per_manipulator=self.body_per_manipulator,
+            friction_rows_every=self.friction_rows_every,
         )
 
 

@@ -71,12 +71,16 @@ def test_every_way_of_running_one_study_gives_the_same_labels(tmp_path: Path) ->
         "one-body",
         "4e-3,50,3e-5,one-bodies",
         "4e-3,50,3e-5,0.01,0.02",
+        "4e-3,50,3e-5,friction-every-3",
+        "4e-3,50,3e-5,one-body,one-body",
     ],
 )
 def test_numerics_setups_out_of_range_are_refused_before_any_trial(setup: str) -> None:
     result = CliRunner().invoke(app, ["paper", "numerics", "--b", setup])
     assert result.exit_code == 2
-    assert "--b must be DT_S,ITERATIONS,INERTIA_KG_M2[,DAMPING][,one-body]" in result.output
+    assert (
+        "--b must be DT_S,ITERATIONS,INERTIA_KG_M2[,DAMPING][,one-body][,friction-every-2]" in result.output
+    )
     assert setup in result.output
 
 
@@ -84,11 +88,17 @@ def test_a_setup_names_its_body_layout() -> None:
     from somo_sweep.paper.numerics import CHOSEN, parse_setup
 
     split = parse_setup("4e-3,50,3e-5")
+    assert parse_setup("4e-3,50,3e-5,friction-every-2") == CHOSEN
     one = parse_setup("2e-3, 50, 3e-5, 0.01, one-body")
-    assert split == CHOSEN and split.settings().body_per_manipulator is True
+    assert split.settings().body_per_manipulator is True
     assert (one.time_step_s, one.numerics.damping_n_m_s_per_rad) == (2e-3, 0.01)
     assert one.settings().body_per_manipulator is False
     assert one.describe().endswith("the hand as one body") and "one body" not in split.describe()
+    every = parse_setup("4e-3,50,3e-5,one-body,friction-every-2")
+    assert parse_setup("4e-3,50,3e-5,friction-every-2,one-body") == every
+    assert every.settings().friction_rows_every == 2 and every.settings().body_per_manipulator is False
+    assert every.describe().endswith("friction solved every 2 steps")
+    assert split.settings().friction_rows_every == 1 and "friction solved" not in split.describe()
 
 
 def test_the_worker_settings_read_as_the_environment_dask_reads() -> None:

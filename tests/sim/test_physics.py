@@ -138,3 +138,85 @@ def test_thrown_or_capped_body_is_detected(speed_m_s: float, reason: str) -> Non
         with pytest.raises(UnstableSimulation) as err:
             world.step(4000)
         assert err.value.reason == reason
+
+
+def _rotor(stiffness: float, motor_limit: float, inertia: float) -> dict[str, object]:
+    """One revolute joint carrying a cylinder of the given inertia about it."""
+    return {
+        "manipulator": {
+            "name": "rotor",
+            "actuators": [
+                {
+                    "length_m": 0.02,
+                    "n_segments": 1,
+                    "joint_placement": "start",
+                    "link": {
+                        "shape": "cylinder",
+                        "radius_m": 0.01,
+                        "mass_kg": 0.1,
+                        "inertia_kg_m2": [1e-4, 1e-4, inertia],
+                    },
+                    "joints": [
+                        {
+                            "axis": [0, 0, 1],
+                            "stiffness_n_m_per_rad": stiffness,
+                            "motor_limit_n_m": motor_limit,
+                        }
+                    ],
+                }
+            ],
+        }
+    }
+
+
+@pytest.mark.parametrize("every", [1, 2])
+@pytest.mark.parametrize("time_step_s", [1e-3, 4e-3])
+def test_coulomb_joint_friction_decays_an_oscillation_by_two_f_over_k_per_swing(
+    every: int, time_step_s: float
+) -> None:
+    """Spring k, Coulomb friction F, input u stepped on at rest: the swings about u/k shrink by
+    2F/k each (the classical Coulomb-damped oscillator), so the turning points are
+    u/k ± (1 − 0.2), ∓ (1 − 0.4), ± (1 − 0.6) rad for u/k = 1 rad and 2F/k = 0.2 rad, and the
+    joint comes to rest within F/k of u/k. Friction solved every step and every other step
+    (the kept torque on the step between) must both give it: a kept torque of the wrong sign
+    would pump the swing up, none at all would halve the decay."""
+    k, f, inertia, u = 0.05, 0.005, 2e-4, 0.05
+    settings = WorldSettings(time_step_s=time_step_s, gravity_m_s2=(0, 0, 0), friction_rows_every=every)
+    with World(settings) as world:
+        handle = world.add_model(model_from_dict(_rotor(k, f, inertia)))
+        handle.set_inputs([u])
+        drive = handle.bodies[0].drive
+        angles = []
+        for _ in range(round(2.0 / time_step_s)):
+            world.step()
+            drive.read()
+            angles.append(drive.positions_si()[0])
+    q = np.array(angles)
+    turning = [q[i] for i in range(1, len(q) - 1) if (q[i] - q[i - 1]) * (q[i + 1] - q[i]) < 0]
+    np.testing.assert_allclose(turning[:3], [1.8, 0.4, 1.4], atol=2e-3)
+    assert abs(q[-1] - u / k) <= f / k
+    assert np.ptp(q[-50:]) < 1e-6  # at rest: stuck by static friction, not creeping
+
+
+@pytest.mark.parametrize("every", [1, 2])
+def test_a_load_below_the_friction_limit_never_moves_the_joint(every: int) -> None:
+    """Static friction holds a free joint (k = 0) under a torque below its limit, without creep,
+    and lets it slide at (u − F)/I above it."""
+    f, inertia, dt, steps = 0.005, 2e-4, 1e-3, 200
+    for u, expected in ((0.004, 0.0), (0.008, 0.5 * (0.008 - f) / inertia * (dt * steps) ** 2)):
+        settings = WorldSettings(time_step_s=dt, gravity_m_s2=(0, 0, 0), friction_rows_every=every)
+        with World(settings) as world:
+            handle = world.add_model(model_from_dict(_rotor(0.0, f, inertia)))
+            handle.set_inputs([u])
+            world.step(steps)
+            drive = handle.bodies[0].drive
+            drive.read()
+            angle = drive.positions_si()[0]
+        # explicit Euler's first-order lag: ½·a·dt·T on top of ½·a·T², 0.5 % here
+        assert angle == pytest.approx(expected, rel=6e-3, abs=1e-9)
+
+
+@pytest.mark.parametrize("every", [0, 3])
+def test_friction_solved_other_than_every_step_or_every_other_is_refused(every: int) -> None:
+    with pytest.raises(ValueError, match="friction_rows_every must be 1 or 2"):
+        WorldSettings(friction_rows_every=every)

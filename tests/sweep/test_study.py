@@ -245,3 +245,18 @@ def test_unknown_task_parameters_fail_even_if_the_task_model_allows_extras(
     )
     path = write_study(tmp_path, "task: _test_lax\nmodel: models/ihm_finger.yaml\nparams: {widht_m: 0.02}\n")
     assert "line 3: params.widht_m: unknown key 'widht_m' (did you mean 'width_m'?)" in problems_of(path)
+
+
+@pytest.mark.parametrize("every", ["3", "0", "1.5", "two"])
+def test_friction_solved_other_than_every_step_or_every_other_is_refused_with_its_key(
+    tmp_path: Path, every: str
+) -> None:
+    path = write_study(tmp_path, HEAD + f"simulation: {{time_step_s: 4.0e-3, friction_rows_every: {every}}}\n")
+    text = problems_of(path)
+    assert "line 4: simulation.friction_rows_every:" in text and every in text
+
+
+def test_friction_every_other_step_reaches_the_world_settings(tmp_path: Path) -> None:
+    path = write_study(tmp_path, HEAD + "simulation: {time_step_s: 4.0e-3, friction_rows_every: 2}\n")
+    settings = load_study(path).simulation.world_settings()  # type: ignore[union-attr]
+    assert (settings.friction_rows_every, settings.time_step_s) == (2, 4e-3)

@@ -157,6 +157,8 @@ def test_bundled_studies_use_the_facts_sheet_grid_and_the_chosen_numerics() -> N
         assert study.task.name == "pinch_grasp"
         assert study.simulation.time_step_s == CHOSEN.time_step_s
         assert study.simulation.solver_iterations == CHOSEN.solver_iterations
+        assert study.simulation.friction_rows_every == CHOSEN.friction_rows_every == 2
+        assert study.simulation.body_per_manipulator is CHOSEN.body_per_manipulator is True
     dsrs = sorted({pt["task.distal_segment_ratio"] for pt in full.points()})
     # The paper's 22 centering positions c = 70 … 175 mm: finger bases 130 … 25 mm from the object.
     cs = sorted({pt["task.centering_position_m"] for pt in full.points()})
