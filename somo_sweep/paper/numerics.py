@@ -29,6 +29,8 @@ from somo_sweep.tasks.pinch_grasp.task import run_pinch_grasp
 __all__ = [
     "CHOSEN",
     "LABEL_KEYS",
+    "ORIGINAL_CODE_OVER_ENGINE",
+    "ORIGINAL_CODE_TARGET",
     "ORIGINAL_NUMERICS",
     "ORIGINAL_TRIAL_S",
     "RATIO_TARGET",
@@ -46,8 +48,14 @@ __all__ = [
 
 GRIPPER = bundled_path("models", "pinch_gripper.yaml")
 QUICK_STUDY = bundled_path("pinch_grasp_quick.yaml")
-#: Wall time of one 4-s trial of the original SoMo study on one core (facts sheet), s.
-ORIGINAL_TRIAL_S = 12.5
+#: Time of one 4-s trial of the original SoMo code (its ``run_single``, DSR 0.2, 40-mm box,
+#: c = 100 mm) on one core of the 2-core reference machine, s: the median of 3 runs made in
+#: turn with ours on 2026-11-24 (its legacy branch, PyBullet 3.2.7 as ours; docs/pinch_grasp.md,
+#: "Speed against the original code"). The facts sheet's older 12.0-13.3 s is not used.
+ORIGINAL_TRIAL_S = 8.2
+#: The original code's trial time over this engine's at the original's numerics, measured in the
+#: same runs (median of 3 pairs; each finger its own body in both).
+ORIGINAL_CODE_OVER_ENGINE = 2.17
 
 
 @dataclass(frozen=True)
@@ -98,8 +106,14 @@ CHOSEN = Setup(4e-3, 50, Numerics(), friction_rows_every=2)
 REFERENCE = Setup(5e-4, 50, Numerics(added_inertia_kg_m2=0.0))
 #: The original study's numerics (0.5 ms, 8000 steps per 4-s trial, no shaping, 50 iterations).
 ORIGINAL_NUMERICS = REFERENCE
-#: ``make bench``'s target for ours vs the original numerics in this engine (issue #16).
+#: ``make bench``'s target for ours vs the original numerics in this engine (issue #16): 20x the
+#: original trial over the engine's per-step advantage as first measured (1.48x, the gripper as one
+#: body). Measured side by side with the original's own layout the advantage is 2.17x
+#: (``ORIGINAL_CODE_OVER_ENGINE``), which makes 20x the original about 9.2x here; the bench prints
+#: both, and the target stays the issue's.
 RATIO_TARGET = 13.5
+#: The issue's target against the original code itself.
+ORIGINAL_CODE_TARGET = 20.0
 
 
 def parse_setup(text: str) -> Setup:
@@ -280,8 +294,9 @@ def trial_timing_lines(
     """Time one pinch-grasp trial: ours, and (unless ``original`` is None) the same trial at the
     original's numerics in this engine, alternately; CPU times and their ratio.
 
-    The ratio's target (``RATIO_TARGET``) is issue #16's: 20x the original SoMo trial, which we
-    measured 1.4-1.6x slower per step than this engine at the same numerics (20 / 1.48).
+    The ratio's target (``RATIO_TARGET``) is issue #16's. The original code's own time
+    (``ORIGINAL_TRIAL_S``) comes from a run made in turn with ours on the same machine, not from
+    this run: its code is not part of this repository.
     """
     if original is None:
         wall, cpu = trial_seconds(setup, repeats)
@@ -296,6 +311,7 @@ def trial_timing_lines(
     ratio = float(np.median([r[0] / r[1] for r in runs]))
     ceiling = float(np.median([r[0] / r[2] for r in runs]))
     verdict = "ok" if ratio >= RATIO_TARGET else "not met"
+    vs_code = ORIGINAL_TRIAL_S / float(np.median(ours))
     return [
         "pinch-grasp trial (DSR 0.2, 40 mm box, c 100 mm; 4 s simulated, one core), CPU time, "
         f"{repeats} alternating runs:",
@@ -307,9 +323,11 @@ def trial_timing_lines(
         f"  ceiling: ours without joint friction (motor limit 0, no motor rows; not a valid finger) "
         f"median {float(np.median([r[2] for r in runs])):.2f} s, {ceiling:.1f}x the original numerics: "
         "the most this step can gain in this engine",
-        f"  the original SoMo code took {ORIGINAL_TRIAL_S:g} s per trial on a machine like this "
-        f"(facts sheet): {ORIGINAL_TRIAL_S / float(np.median(orig)):.2f}x this engine's median at its "
-        "numerics in this run",
+        f"  the original SoMo code took {ORIGINAL_TRIAL_S:g} s per trial on this machine kind, run in "
+        f"turn with ours on 2026-11-24 ({ORIGINAL_CODE_OVER_ENGINE:g}x this engine at its numerics "
+        f"then; {ORIGINAL_TRIAL_S / float(np.median(orig)):.2f}x in this run): ours is "
+        f"{vs_code:.1f}x faster than it (target >= {ORIGINAL_CODE_TARGET:g}x: "
+        f"{'ok' if vs_code >= ORIGINAL_CODE_TARGET else 'not met'})",
         *_one_body_lines(setup, repeats),
     ]
 
