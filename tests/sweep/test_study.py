@@ -251,7 +251,9 @@ def test_unknown_task_parameters_fail_even_if_the_task_model_allows_extras(
 def test_friction_solved_other_than_every_step_or_every_other_is_refused_with_its_key(
     tmp_path: Path, every: str
 ) -> None:
-    path = write_study(tmp_path, HEAD + f"simulation: {{time_step_s: 4.0e-3, friction_rows_every: {every}}}\n")
+    path = write_study(
+        tmp_path, HEAD + f"simulation: {{time_step_s: 4.0e-3, friction_rows_every: {every}}}\n"
+    )
     text = problems_of(path)
     assert "line 4: simulation.friction_rows_every:" in text and every in text
 
