@@ -25,10 +25,11 @@ class WorldSettings:
         friction_rows_every: Steps between the solves of the joints' Coulomb friction (SoMo's
             zero-velocity motors, which Bullet solves as one constraint row per joint and which
             are most of its work per step). 1 solves them every step. 2 solves them every other
-            step and, on the step between, applies each joint's friction torque from the last
-            solve as a fixed torque (within its limit): the stiction of the solved step carries
-            over, at about half the rows' cost. Checked on the pinch study's labels
-            (docs/pinch_grasp.md); 3 was not stable in labels and is refused.
+            step; on the step between, a joint that was sliding keeps its friction torque and a
+            stuck one gets its static demand from Newton's law over the solved step
+            (:class:`~somo_sweep.sim.springs.SpringDrive`), within its limit: 0.79-0.83x the
+            CPU of a pinch trial, labels checked against 2 ms (docs/pinch_grasp.md, "Friction
+            every other step"). Other values are refused.
     """
 
     time_step_s: float = 5e-4

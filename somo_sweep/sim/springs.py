@@ -191,8 +191,10 @@ class SpringDrive:
           joint had, and replaying that braking on the next step would throw the joint back (a
           stuck finger would chatter forever). Newton's law over the solved step gives the
           demand: M·(q̇₁ − q̇₀)/dt = τ_other + τ_motor, so −τ_other = τ_motor − M·(q̇₁ − q̇₀)/dt,
-          with M the joint-space mass matrix, refreshed every ``MASS_MATRIX_EVERY`` solves. Clipped
-          to ±F, so a joint whose demand exceeds its limit starts to slide.
+          with M the joints' block of the mass matrix, refreshed every ``MASS_MATRIX_EVERY``
+          solves. A floating base's own change of speed over the step is left out (it is zero
+          for a fixed base and for a driven one moving steadily). Clipped to ±F, so a joint
+          whose demand exceeds its limit starts to slide.
         """
         states = p.getJointStates(self.body, self.indices, physicsClientId=self.client)
         n = len(states)
