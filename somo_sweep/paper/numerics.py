@@ -279,10 +279,10 @@ def paired_trial_seconds(
 def without_joint_friction(setup: Setup) -> Setup:
     """``setup`` with every finger joint's Coulomb motor off (limit 0: Bullet adds no motor rows).
 
-    Not a valid model of the finger (against the chosen numerics, labels move in 6 % of the quick
-    study under the contacts rule and 11 % under the paper's): the bench
-    times it as the most a step of this size can gain in this engine, since the motor rows
-    are most of Bullet's work per step.
+    Not a valid model of the finger (against friction every step, labels moved in 6 % of the
+    quick study under the contacts rule and 11 % under the paper's): the bench times it as the
+    most a step of this size can gain in this engine, since the motor rows are most of Bullet's
+    work per step.
     """
     numerics = setup.numerics.model_copy(update={"motor_limit_n_m": 0.0})
     return dataclasses.replace(setup, numerics=numerics, friction_rows_every=1)

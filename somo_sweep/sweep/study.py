@@ -92,10 +92,10 @@ class Simulation(Spec):
     contact outcomes can come out the other way, so check a study's results before opting
     in (docs/pinch_grasp.md, "One body per finger").
 
-    ``friction_rows_every: 2`` solves the joints' Coulomb friction every other step and holds
-    each joint's solved friction torque on the step between
-    (:attr:`~somo_sweep.sim.settings.WorldSettings.friction_rows_every`); 1 (default) solves
-    it every step.
+    ``friction_rows_every: 2`` solves the joints' Coulomb friction every other step; on the step
+    between, a sliding joint keeps its friction torque and a stuck one gets its static demand
+    (:attr:`~somo_sweep.sim.settings.WorldSettings.friction_rows_every`). 1 (default) solves it
+    every step.
     """
 
     time_step_s: float = Field(5e-4, gt=0)
