@@ -287,7 +287,7 @@ def numerics(
         str | None,
         typer.Option(
             help="Setup A: DT_S,ITERATIONS,INERTIA_KG_M2[,DAMPING_N_M_S_PER_RAD]"
-            "[,one-body][,friction-every-2] (default: the study's)."
+            "[,one-body][,friction-every-2][,residual=R] (default: the study's)."
         ),
     ] = None,
     b: Annotated[
@@ -365,10 +365,12 @@ def numerics(
         except ValueError:
             fail(
                 SomoError(
-                    f"{option} must be DT_S,ITERATIONS,INERTIA_KG_M2[,DAMPING][,one-body][,friction-every-2] "
-                    f"(0 < DT_S < 1, ITERATIONS >= 1, INERTIA and DAMPING finite and >= 0; one-body: the "
-                    f"gripper as one body instead of the palm and each finger apart; friction-every-2: the "
-                    f"joints' Coulomb friction solved every other step), got '{text}'"
+                    f"{option} must be DT_S,ITERATIONS,INERTIA_KG_M2[,DAMPING][,one-body][,friction-every-2]"
+                    f"[,residual=R] (0 < DT_S < 1, ITERATIONS >= 1, INERTIA and DAMPING finite and >= 0, R "
+                    f"finite and > 0; one-body: the gripper as one body instead of the palm and each finger "
+                    f"apart; friction-every-2: the joints' Coulomb friction solved every other step; "
+                    f"residual=R: Bullet's solver stops once an iteration's squared corrections sum "
+                    f"below R), got '{text}'"
                 )
             )
 

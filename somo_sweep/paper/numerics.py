@@ -64,7 +64,8 @@ class Setup:
 
     ``body_per_manipulator`` False loads the gripper as one body (palm and both fingers)
     instead of one body per finger and the palm; ``friction_rows_every`` 2 solves the joints'
-    Coulomb friction every other step (:class:`WorldSettings`).
+    Coulomb friction every other step; ``solver_residual_threshold`` lets Bullet's solver stop
+    early (:class:`WorldSettings`).
     """
 
     time_step_s: float
@@ -72,6 +73,7 @@ class Setup:
     numerics: Numerics
     body_per_manipulator: bool = True
     friction_rows_every: int = 1
+    solver_residual_threshold: float | None = None
 
     def settings(self) -> WorldSettings:
         """World settings of this setup."""
@@ -80,6 +82,7 @@ class Setup:
             solver_iterations=self.solver_iterations,
             body_per_manipulator=self.body_per_manipulator,
             friction_rows_every=self.friction_rows_every,
+            solver_residual_threshold=self.solver_residual_threshold,
         )
 
     def describe(self) -> str:
@@ -94,6 +97,11 @@ class Setup:
             + (
                 f", friction solved every {self.friction_rows_every} steps"
                 if self.friction_rows_every > 1
+                else ""
+            )
+            + (
+                f", solver early exit below {self.solver_residual_threshold:g}"
+                if self.solver_residual_threshold is not None
                 else ""
             )
         )
@@ -117,30 +125,47 @@ ORIGINAL_CODE_TARGET = 20.0
 
 
 def parse_setup(text: str) -> Setup:
-    """A setup from ``DT_S,ITERATIONS,INERTIA_KG_M2[,DAMPING_N_M_S_PER_RAD][,one-body][,friction-every-2]``.
+    """A setup from ``DT_S,ITERATIONS,INERTIA_KG_M2[,DAMPING_N_M_S_PER_RAD][,FLAG...]``.
 
-    The two flags may come in either order. ``one-body`` loads the gripper as one body instead
+    Flags, in any order, each at most once: ``one-body`` loads the gripper as one body instead
     of the palm and each finger apart; ``friction-every-2`` solves the joints' Coulomb friction
-    every other step.
+    every other step; ``residual=R`` lets Bullet's solver stop once an iteration's squared
+    corrections sum below R (:class:`WorldSettings`).
 
     Raises:
-        ValueError: Malformed, out of range (0 < DT_S < 1, ITERATIONS >= 1) or not finite.
+        ValueError: Malformed, out of range (0 < DT_S < 1, ITERATIONS >= 1, R > 0) or not finite.
     """
     fields = text.split(",")
-    flags: set[str] = set()
-    while fields and fields[-1].strip() in {"one-body", "friction-every-2"} - flags:
-        flags.add(fields.pop().strip())
+    flags: dict[str, str] = {}
+    while fields:
+        name, _, value = fields[-1].strip().partition("=")
+        if name not in {"one-body", "friction-every-2", "residual"} or name in flags:
+            break
+        if (name == "residual") != bool(value):
+            raise ValueError(text)
+        flags[name] = value
+        fields.pop()
     one_body, every = "one-body" in flags, 2 if "friction-every-2" in flags else 1
-    dt, iters, inertia, *damping = fields
-    if len(damping) > 1:
+    residual = float(flags["residual"]) if "residual" in flags else None
+    if residual is not None and not (math.isfinite(residual) and residual > 0):
         raise ValueError(text)
+    if len(fields) not in (3, 4):
+        raise ValueError(text)
+    dt, iters, inertia, *damping = fields
     step_s, n_iter, j = float(dt), int(iters), float(inertia)
     c = float(damping[0]) if damping else None
     if not (0 < step_s < 1) or n_iter < 1 or not math.isfinite(j):
         raise ValueError(text)
     # Numerics refuses a negative or infinite damping / inertia (pydantic's ValidationError is a ValueError).
     numerics = Numerics(added_inertia_kg_m2=j, damping_n_m_s_per_rad=c)
-    return Setup(step_s, n_iter, numerics, body_per_manipulator=not one_body, friction_rows_every=every)
+    return Setup(
+        step_s,
+        n_iter,
+        numerics,
+        body_per_manipulator=not one_body,
+        friction_rows_every=every,
+        solver_residual_threshold=residual,
+    )
 
 
 def quick_points(study: Path = QUICK_STUDY) -> list[dict[str, float]]:

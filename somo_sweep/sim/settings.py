@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 
 __all__ = ["WorldSettings"]
@@ -30,6 +31,13 @@ class WorldSettings:
             (:class:`~somo_sweep.sim.springs.SpringDrive`), within its limit: 0.79-0.83x the
             CPU of a pinch trial, labels checked against 2 ms (docs/pinch_grasp.md, "Friction
             every other step"). Other values are refused.
+        solver_residual_threshold: Early exit of Bullet's constraint solver: it stops iterating
+            once one iteration changes the constraint velocities by less than this (Bullet's
+            ``solverResidualThreshold``: the sum of squared velocity corrections of all rows, in
+            the scaled world's units, so linear rows count in (Y·m/s)² and joint rows in
+            (rad/s)²). None keeps Bullet's 1e-7, at which a pinch trial runs all its
+            iterations; larger values cut steps whose constraints settle early (docs/pinch_grasp.md,
+            "Solver early exit"). Must be finite and > 0.
     """
 
     time_step_s: float = 5e-4
@@ -39,7 +47,11 @@ class WorldSettings:
     check_every: int = 100
     body_per_manipulator: bool = False
     friction_rows_every: int = 1
+    solver_residual_threshold: float | None = None
 
     def __post_init__(self) -> None:
         if self.friction_rows_every not in (1, 2):
             raise ValueError(f"friction_rows_every must be 1 or 2, got {self.friction_rows_every!r}")
+        r = self.solver_residual_threshold
+        if r is not None and not (math.isfinite(r) and r > 0):
+            raise ValueError(f"solver_residual_threshold must be finite and > 0 (or None), got {r!r}")

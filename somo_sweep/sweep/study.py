@@ -96,6 +96,11 @@ class Simulation(Spec):
     between, a sliding joint keeps its friction torque and a stuck one gets its static demand
     (:attr:`~somo_sweep.sim.settings.WorldSettings.friction_rows_every`). 1 (default) solves it
     every step.
+
+    ``solver_residual_threshold`` lets Bullet's solver stop iterating once an iteration's squared
+    velocity corrections sum below it
+    (:attr:`~somo_sweep.sim.settings.WorldSettings.solver_residual_threshold`); left out,
+    Bullet's 1e-7 applies.
     """
 
     time_step_s: float = Field(5e-4, gt=0)
@@ -104,6 +109,7 @@ class Simulation(Spec):
     gravity_m_s2: tuple[float, float, float] = (0.0, 0.0, -9.81)
     body_per_manipulator: bool = False
     friction_rows_every: int = Field(1, ge=1, le=2)
+    solver_residual_threshold: float | None = Field(None, gt=0)
 
     def world_settings(self) -> WorldSettings:
         """The :class:`~somo_sweep.sim.world.WorldSettings` these settings describe."""
@@ -114,6 +120,7 @@ class Simulation(Spec):
             solver_iterations=self.solver_iterations,
             body_per_manipulator=self.body_per_manipulator,
             friction_rows_every=self.friction_rows_every,
+            solver_residual_threshold=self.solver_residual_threshold,
         )
 
 

@@ -73,13 +73,21 @@ def test_every_way_of_running_one_study_gives_the_same_labels(tmp_path: Path) ->
         "4e-3,50,3e-5,0.01,0.02",
         "4e-3,50,3e-5,friction-every-3",
         "4e-3,50,3e-5,one-body,one-body",
+        "4e-3,50,3e-5,residual",
+        "4e-3,50,3e-5,residual=0",
+        "4e-3,50,3e-5,residual=-1e-3",
+        "4e-3,50,3e-5,residual=nan",
+        "4e-3,50,3e-5,residual=inf",
+        "4e-3,50,3e-5,residual=1e-3,residual=1e-2",
+        "4e-3,50,3e-5,one-body=1",
     ],
 )
 def test_numerics_setups_out_of_range_are_refused_before_any_trial(setup: str) -> None:
     result = CliRunner().invoke(app, ["paper", "numerics", "--b", setup])
     assert result.exit_code == 2
     assert (
-        "--b must be DT_S,ITERATIONS,INERTIA_KG_M2[,DAMPING][,one-body][,friction-every-2]" in result.output
+        "--b must be DT_S,ITERATIONS,INERTIA_KG_M2[,DAMPING][,one-body][,friction-every-2][,residual=R]"
+        in result.output
     )
     assert setup in result.output
 
@@ -99,6 +107,11 @@ def test_a_setup_names_its_body_layout() -> None:
     assert every.settings().friction_rows_every == 2 and every.settings().body_per_manipulator is False
     assert every.describe().endswith("friction solved every 2 steps")
     assert split.settings().friction_rows_every == 1 and "friction solved" not in split.describe()
+    early = parse_setup("4e-3,50,3e-5,residual=1e-3,friction-every-2")
+    assert parse_setup("4e-3, 50, 3e-5, friction-every-2, residual=1e-3") == early
+    assert early.settings().solver_residual_threshold == 1e-3 and early.settings().friction_rows_every == 2
+    assert early.describe().endswith("solver early exit below 0.001")
+    assert split.settings().solver_residual_threshold is None and "early exit" not in split.describe()
 
 
 def test_the_worker_settings_read_as_the_environment_dask_reads() -> None:
