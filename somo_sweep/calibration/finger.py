@@ -15,10 +15,9 @@ import math
 from pathlib import Path
 from typing import Any
 
-import yaml
-
 from somo_sweep.errors import MeasurementError
 from somo_sweep.model.builders import DEFAULT_THICKNESS_M, DEFAULT_WIDTH_M, planar_finger
+from somo_sweep.model.files import parse_yaml_value
 from somo_sweep.model.load import Model
 
 __all__ = ["FINGER_KEYS", "finger_from_header", "read_finger_header"]
@@ -36,6 +35,8 @@ REQUIRED = ("length_mm", "segments", "mass_g")
 _PREFIX = "# finger:"
 #: Only the file's first lines are searched, so a huge file costs nothing here.
 _SEARCH_LINES = 50
+#: Longest header line read, in bytes (a longer one is cut and then refused).
+_MAX_LINE_BYTES = 4096
 
 
 def read_finger_header(path: str | Path) -> dict[str, Any] | None:
@@ -47,20 +48,23 @@ def read_finger_header(path: str | Path) -> dict[str, Any] | None:
     """
     path = Path(path)
     with path.open("rb") as fh:
-        head = [fh.readline() for _ in range(_SEARCH_LINES)]
+        head = [fh.readline(_MAX_LINE_BYTES + 1) for _ in range(_SEARCH_LINES)]
     for number, raw in enumerate(head, start=1):
         line = raw.decode("utf-8", errors="replace").strip()
         if not line.lower().startswith(_PREFIX):
             continue
         where = f"line {number}, finger header"
-        try:
-            data = yaml.safe_load(line[len(_PREFIX) :])
-        except yaml.YAMLError:
-            data = None
-        if not isinstance(data, dict):
+        example = "write a mapping, e.g. {length_mm: 100, segments: 20, mass_g: 20}"
+        if len(raw) > _MAX_LINE_BYTES:
             raise MeasurementError(
-                path, [f"{where}: write a mapping, e.g. {{length_mm: 100, segments: 20, mass_g: 20}}"]
+                path, [f"{where}: longer than {_MAX_LINE_BYTES} bytes; allowed: one short line; {example}"]
             )
+        try:
+            data = parse_yaml_value(line[len(_PREFIX) :])
+        except ValueError as exc:
+            raise MeasurementError(path, [f"{where}: {exc}; {example}"]) from None
+        if not isinstance(data, dict):
+            raise MeasurementError(path, [f"{where}: {example}"])
         return _validate(path, where, data)
     return None
 

@@ -19,7 +19,16 @@ import yaml
 
 from somo_sweep.errors import DescriptionError, Problem
 
-__all__ = ["MAX_DEPTH", "MAX_FILE_BYTES", "MAX_VALUES", "is_file", "join_path", "load_mapping", "read_text"]
+__all__ = [
+    "MAX_DEPTH",
+    "MAX_FILE_BYTES",
+    "MAX_VALUES",
+    "is_file",
+    "join_path",
+    "load_mapping",
+    "parse_yaml_value",
+    "read_text",
+]
 
 #: Largest study or model file read, in bytes.
 MAX_FILE_BYTES = 4 * 1024 * 1024
@@ -79,6 +88,10 @@ def _parse_error(exc: yaml.YAMLError) -> Problem:
         text = ", ".join(p for p in (exc.context, exc.problem) if p)
         mark = exc.problem_mark or exc.context_mark
         line = mark.line + 1 if mark is not None else None
+        if "maximum nesting depth" in (exc.problem or ""):
+            # libyaml >= 0.2.6 (PyYAML 6.0.4 wheels) stops at its own limit of 1000 levels,
+            # scanning ahead of the events :func:`_check_events` counts: the same refusal.
+            return Problem("", f"nested deeper than {MAX_DEPTH} levels; allowed: at most {MAX_DEPTH}", line)
         where = f" (column {mark.column + 1})" if mark is not None else ""
         return Problem("", f"cannot parse: {text}{where}", line)
     if isinstance(exc, yaml.reader.ReaderError):
@@ -202,6 +215,27 @@ def _load_yaml(text: str, problems: list[Problem], lines: dict[str, int]) -> Any
         return loader.construct_document(node)
     finally:
         loader.dispose()
+
+
+def parse_yaml_value(text: str) -> Any:
+    """One YAML value from a short text (a header line), with the limits of a whole file.
+
+    Raises:
+        ValueError: The text does not parse, repeats a key or goes past
+            :data:`MAX_VALUES` / :data:`MAX_DEPTH`; the message says which. NaN and
+            infinity are left to the caller, which knows the allowed range of each value.
+    """
+    problems: list[Problem] = []
+    lines: dict[str, int] = {}
+    try:
+        data = _load_yaml(text, problems, lines)
+    except yaml.YAMLError as exc:
+        problems.append(_parse_error(exc))
+    except RecursionError:
+        problems.append(Problem("", f"nested deeper than {MAX_DEPTH} levels; allowed: at most {MAX_DEPTH}"))
+    if problems:
+        raise ValueError("; ".join(f"{p.path + ': ' if p.path else ''}{p.message}" for p in problems))
+    return data
 
 
 def _json_pairs(problems: list[Problem]) -> Any:

@@ -76,6 +76,22 @@ def test_a_csv_without_finger_line_or_model_says_how_to_give_one(tmp_path: Path)
             "unknown key 'lenght_mm'; allowed: length_mm",
         ),
         ("# finger: 100 mm", "write a mapping"),
+        (
+            "# finger: {length_mm: 100, segments: 20, mass_g: 20, mass_g: 3}",
+            "key 'mass_g' is given twice",
+        ),
+        (
+            "# finger: {length_mm: 100, segments: 20, mass_g: 20, width_mm: " + "[" * 100 + "]" * 100 + "}",
+            "nested deeper than 64 levels; allowed: at most 64",
+        ),
+        (  # past libyaml's own limit of 1000 levels (PyYAML >= 6.0.4), once a RecursionError
+            "# finger: {length_mm: 100, segments: 20, mass_g: 20, width_mm: " + "[" * 1500 + "]" * 1500 + "}",
+            "nested deeper than 64 levels; allowed: at most 64",
+        ),
+        (
+            "# finger: {length_mm: 100, segments: 20, mass_g: 20, note: '" + "a" * 100_000 + "'}",
+            "longer than 4096 bytes; allowed: one short line",
+        ),
     ],
 )
 def test_a_bad_finger_line_names_the_line_and_the_key(tmp_path: Path, line: str, message: str) -> None:

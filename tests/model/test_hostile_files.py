@@ -56,9 +56,24 @@ def test_a_file_above_the_size_limit_is_refused_before_parsing(tmp_path: Path) -
     assert f"file is {MAX_FILE_BYTES + 16} bytes; allowed: at most 4 MiB" in _error(path)
 
 
-def test_deep_nesting_is_refused_not_a_recursion_error(tmp_path: Path) -> None:
-    text = _error(_write(tmp_path, "manipulator: " + "[" * 5000 + "]" * 5000 + "\n"))
+@pytest.mark.parametrize(
+    "body",
+    [
+        "[" * 100 + "]" * 100,  # past our limit, within libyaml's
+        "[" * 5000 + "]" * 5000,  # past libyaml's 1000 levels too (its own error since PyYAML 6.0.4)
+        "\n" + "".join(" " * (2 * i + 2) + "-\n" for i in range(1500)),  # block style, 1500 levels
+    ],
+    ids=["flow-100", "flow-5000", "block-1500"],
+)
+def test_deep_nesting_is_refused_not_a_recursion_error(tmp_path: Path, body: str) -> None:
+    text = _error(_write(tmp_path, "manipulator: " + body + "\n"))
     assert "nested deeper than 64 levels; allowed: at most 64" in text
+
+
+def test_nesting_at_the_limit_is_read(tmp_path: Path) -> None:
+    path = _write(tmp_path, "manipulator: {}\nnote: " + "[" * 63 + "]" * 63 + "\n")
+    data, _ = load_mapping(path)
+    assert isinstance(data["note"], list)
 
 
 def test_a_latin1_byte_names_its_offset(tmp_path: Path) -> None:
