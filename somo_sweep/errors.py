@@ -13,6 +13,7 @@ from dataclasses import dataclass
 from pathlib import Path
 
 __all__ = [
+    "SHOWN_CHARS",
     "DescriptionError",
     "MeasurementError",
     "Problem",
@@ -21,6 +22,7 @@ __all__ = [
     "StorageError",
     "UnstableSimulation",
     "did_you_mean",
+    "shown",
 ]
 
 
@@ -43,7 +45,7 @@ class Problem:
     line: int | None = None
 
     def render(self) -> str:
-        where = self.path or "<top level>"
+        where = shown(self.path, 4 * SHOWN_CHARS) if self.path else "<top level>"
         if self.line is not None:
             where = f"line {self.line}: {where}"
         return f"{where}: {self.message}"
@@ -116,7 +118,27 @@ class UnstableSimulation(SimulationError):
         return type(self), (self.reason, self.time_s, self.detail)
 
 
+#: Longest user value echoed whole in a message; longer ones are cut (see :func:`shown`).
+SHOWN_CHARS = 60
+
+
+def shown(value: str, limit: int = SHOWN_CHARS) -> str:
+    """A user value as a message quotes it: cut to ``limit`` characters with its length said.
+
+    A hostile file's 50-MB cell must not become a 50-MB error message.
+    """
+    if len(value) <= limit:
+        return value
+    return f"{value[:limit]}… ({len(value)} characters)"
+
+
 def did_you_mean(word: str, choices: Iterable[str]) -> str:
-    """Return a ``" (did you mean 'x'?)"`` hint, or an empty string."""
-    close = difflib.get_close_matches(word, list(choices), n=1, cutoff=0.6)
+    """Return a ``" (did you mean 'x'?)"`` hint, or an empty string.
+
+    Words much longer than every choice get no hint (and cost no time: difflib is quadratic).
+    """
+    options = list(choices)
+    if not options or len(word) > 2 * max(len(c) for c in options) + 8:
+        return ""
+    close = difflib.get_close_matches(word, options, n=1, cutoff=0.6)
     return f" (did you mean '{close[0]}'?)" if close else ""

@@ -15,7 +15,8 @@ from pathlib import Path
 
 import pandas as pd
 
-from somo_sweep.errors import MeasurementError, did_you_mean
+from somo_sweep.errors import MeasurementError, did_you_mean, shown
+from somo_sweep.model.files import is_file
 from somo_sweep.model.load import Model
 from somo_sweep.sim.bench import TESTS, BenchSettings, run_bench
 
@@ -66,6 +67,8 @@ def _line_of(row: int, comment_lines: list[int]) -> int:
 
 #: Most data rows a measurement file may have (a bench session has tens to hundreds).
 MAX_ROWS = 5000
+#: Largest measurement file read, in bytes (5000 rows of a bench file take well under 1 MiB).
+MAX_FILE_BYTES = 8 * 1024 * 1024
 #: Problems listed per file; the rest are counted.
 MAX_PROBLEMS = 20
 
@@ -86,9 +89,18 @@ def read_measurements(path: str | Path, require_measured: bool = True) -> pd.Dat
         MeasurementError: Naming every bad row and column at once.
     """
     path = Path(path)
-    if not path.is_file():
+    if not is_file(path):
         raise MeasurementError(path, ["file not found"])
+    size = path.stat().st_size
+    if size > MAX_FILE_BYTES:
+        limit = f"{MAX_FILE_BYTES // (1024 * 1024)} MiB"
+        raise MeasurementError(
+            path, [f"file is {size} bytes; allowed: at most {limit} (at most {MAX_ROWS} data rows)"]
+        )
     data = path.read_bytes()
+    nul = data.find(b"\x00")
+    if nul >= 0:
+        raise MeasurementError(path, [f"binary file (NUL byte at offset {nul}); allowed: UTF-8 CSV text"])
     try:
         text = data.decode("utf-8")
     except UnicodeDecodeError as exc:
@@ -111,7 +123,9 @@ def read_measurements(path: str | Path, require_measured: bool = True) -> pd.Dat
     allowed = COLUMNS + list(OPTIONAL_MEASURED) + list(OPTIONAL)
     for c in raw.columns:
         if c not in allowed:
-            problems.append(f"unknown column '{c}'{did_you_mean(c, allowed)}; allowed: {', '.join(allowed)}")
+            problems.append(
+                f"unknown column '{shown(c)}'{did_you_mean(c, allowed)}; allowed: {', '.join(allowed)}"
+            )
     if problems:
         raise MeasurementError(path, problems)
     if len(raw) > MAX_ROWS:
@@ -137,10 +151,12 @@ def read_measurements(path: str | Path, require_measured: bool = True) -> pd.Dat
             try:
                 v = float(cell)
             except ValueError:
-                problems.append(f"line {_line_of(i, comment_lines)}, column {c}: '{cell}' is not a number")
+                problems.append(
+                    f"line {_line_of(i, comment_lines)}, column {c}: '{shown(cell)}' is not a number"
+                )
                 v = math.nan
             if not math.isnan(v) and not math.isfinite(v):
-                problems.append(f"line {_line_of(i, comment_lines)}, column {c}: {cell} is not finite")
+                problems.append(f"line {_line_of(i, comment_lines)}, column {c}: {shown(cell)} is not finite")
             values.append(v)
         out[c] = values
     for c, choices in OPTIONAL.items():
@@ -149,7 +165,7 @@ def read_measurements(path: str | Path, require_measured: bool = True) -> pd.Dat
             for i, cell in enumerate(out[c]):
                 if cell not in choices and cell != "":
                     problems.append(
-                        f"line {_line_of(i, comment_lines)}, column {c}: '{cell}' "
+                        f"line {_line_of(i, comment_lines)}, column {c}: '{shown(cell)}' "
                         f"{did_you_mean(cell, choices)}; allowed: {', '.join(choices)}"
                     )
     out["line"] = [_line_of(i, comment_lines) for i in range(len(out))]
@@ -158,7 +174,7 @@ def read_measurements(path: str | Path, require_measured: bool = True) -> pd.Dat
         test = row["test"]
         if test not in TESTS:
             problems.append(
-                f"{where}, column test: unknown test '{test}'{did_you_mean(test, TESTS)}; "
+                f"{where}, column test: unknown test '{shown(test)}'{did_you_mean(test, TESTS)}; "
                 f"allowed: {', '.join(TESTS)}"
             )
             continue
@@ -173,8 +189,8 @@ def read_measurements(path: str | Path, require_measured: bool = True) -> pd.Dat
             problems.append(f"{where}, column tip_load_n: {row['tip_load_n']} < 0; loads must be >= 0 N")
     if problems:
         more = len(problems) - MAX_PROBLEMS
-        shown = problems[:MAX_PROBLEMS] + ([f"… and {more} more problem(s)"] if more > 0 else [])
-        raise MeasurementError(path, shown)
+        listed = problems[:MAX_PROBLEMS] + ([f"… and {more} more problem(s)"] if more > 0 else [])
+        raise MeasurementError(path, listed)
     return out.reset_index(drop=True)
 
 

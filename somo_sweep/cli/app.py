@@ -8,6 +8,7 @@ import-for-side-effect and no cycle between the app and its commands.
 from __future__ import annotations
 
 import os
+import sys
 from typing import Annotated
 
 import typer
@@ -15,6 +16,7 @@ import typer
 from somo_sweep.cli import calibrate, diagnose, grasp, model, paper, sweep
 from somo_sweep.cli.help import HelpGroup, plain_help
 from somo_sweep.cli.output import state
+from somo_sweep.errors import SHOWN_CHARS, shown
 
 __all__ = ["app", "main"]
 
@@ -68,6 +70,18 @@ plain_help(app)
 
 
 def main() -> None:
-    """Console-script entry point (figures drawn off-screen)."""
+    """Console-script entry point (figures drawn off-screen).
+
+    An operating-system error no command foresaw (a name longer than the file system allows,
+    no permission, a full disk) ends the run with one line naming the file, not a traceback
+    (``--debug`` shows it); what was already written stays, as for any other error.
+    """
     os.environ.setdefault("MPLBACKEND", "Agg")
-    app()
+    try:
+        app()
+    except OSError as exc:
+        if state["debug"]:
+            raise
+        name = f": {shown(str(exc.filename), 4 * SHOWN_CHARS)}" if exc.filename else ""
+        print(f"error: {exc.strerror or exc}{name}", file=sys.stderr)
+        raise SystemExit(2) from None

@@ -18,7 +18,7 @@ from pathlib import Path
 from somo_sweep.errors import SomoError
 from somo_sweep.model.files import is_file
 
-__all__ = ["BUNDLED_PREFIX", "bundled_path", "read_table_text", "resolve_table"]
+__all__ = ["BUNDLED_PREFIX", "MAX_TABLE_BYTES", "bundled_path", "read_table_text", "resolve_table"]
 
 BUNDLED_PREFIX = "bundled:"
 _DIGEST = "#sha256="
@@ -29,6 +29,10 @@ def bundled_path(*parts: str) -> Path:
     return Path(str(resources.files("somo_sweep.data").joinpath(*parts)))
 
 
+#: Largest table read, in bytes (20 times the full-rate hardware recording of the gait).
+MAX_TABLE_BYTES = 32 * 1024 * 1024
+
+
 def _locate(ref: str, base_dir: Path | None) -> tuple[str, Path]:
     if ref.startswith(BUNDLED_PREFIX):
         name = ref.removeprefix(BUNDLED_PREFIX)
@@ -37,6 +41,12 @@ def _locate(ref: str, base_dir: Path | None) -> tuple[str, Path]:
     candidates = [path] if path.is_absolute() else [(base_dir or Path.cwd()) / path]
     for candidate in candidates:
         if is_file(candidate):
+            size = candidate.stat().st_size
+            if size > MAX_TABLE_BYTES:
+                raise SomoError(
+                    f"table {candidate}: file is {size} bytes; allowed: at most {MAX_TABLE_BYTES} bytes "
+                    f"({MAX_TABLE_BYTES / 2**20:g} MiB)"
+                )
             return str(candidate.resolve()), candidate
     bundled = bundled_path("tables", path.name)
     if path.parent == Path(".") and is_file(bundled):

@@ -13,7 +13,7 @@ from typing import Any, TypeVar
 
 from pydantic import BaseModel, ValidationError
 
-from somo_sweep.errors import DescriptionError, Problem, did_you_mean
+from somo_sweep.errors import DescriptionError, Problem, did_you_mean, shown
 from somo_sweep.model.files import join_path
 
 __all__ = ["validate"]
@@ -68,15 +68,15 @@ def _describe(err: Any, root: type[BaseModel]) -> str:
         allowed = sorted(owner.model_fields) if owner else []
         hint = did_you_mean(str(loc[-1]), allowed)
         listing = f"; allowed keys: {', '.join(allowed)}" if allowed else ""
-        return f"unknown key '{loc[-1]}'{hint}{listing}"
+        return f"unknown key '{shown(str(loc[-1]))}'{hint}{listing}"
     value = err.get("input")
-    shown = "" if kind == "missing" else f", got {value!r}"
+    got = "" if kind == "missing" else f", got {shown(repr(value))}"
     msg = err["msg"]
     if kind == "literal_error":
-        return f"{msg}{shown}"
+        return f"{msg}{got}"
     if msg.startswith("Value error, "):
         msg = msg[len("Value error, ") :]
-    return f"{msg}{shown}"
+    return f"{msg}{got}"
 
 
 def _nearest_line(path: str, lines: dict[str, int]) -> int | None:

@@ -38,7 +38,7 @@ import pyarrow as pa
 import pyarrow.compute as pc
 import pyarrow.parquet as pq
 
-from somo_sweep.errors import SomoError
+from somo_sweep.errors import SomoError, shown
 from somo_sweep.sweep.folder import (
     INFERRED,
     JOURNAL_GLOB,
@@ -128,11 +128,12 @@ class ResultStore:
         self.notes: list[str] = []
         self.rows_written = 0
         self._journal: IO[str] | None = None
-        _check_target(self.folder)
         try:
+            _check_target(self.folder)
             self.folder.mkdir(parents=True, exist_ok=True)
-        except OSError as exc:
-            raise SomoError(f"cannot create the results folder {self.folder}: {exc.strerror}") from None
+        except OSError as exc:  # a name too long, no permission, a file in the way, ...
+            where = shown(str(self.folder), 200)
+            raise SomoError(f"cannot create the results folder {where}: {exc.strerror}") from None
         self._lock: int | None = acquire(self.folder / ".lock")
         try:
             self.trials.mkdir(exist_ok=True)

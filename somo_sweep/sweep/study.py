@@ -141,7 +141,7 @@ class Adaptive(Spec):
 class StudyFile(Spec):
     """The raw schema of a study file (see the module docstring)."""
 
-    name: str | None = Field(None, pattern=r"^[A-Za-z0-9_.-]+$")
+    name: str | None = Field(None, pattern=r"^[A-Za-z0-9_.-]+$", max_length=100)
     task: str
     model: str
     params: dict[str, Any] = Field(default_factory=dict)

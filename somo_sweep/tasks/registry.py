@@ -16,7 +16,7 @@ from typing import Any, Literal
 
 from pydantic import BaseModel
 
-from somo_sweep.errors import SomoError, did_you_mean
+from somo_sweep.errors import SomoError, did_you_mean, shown
 from somo_sweep.model.load import Model
 from somo_sweep.sim.settings import WorldSettings
 
@@ -116,5 +116,7 @@ def get_task(name: str) -> TaskSpec:
     """
     tasks = all_tasks()
     if name not in tasks:
-        raise SomoError(f"unknown task '{name}'{did_you_mean(name, tasks)}; allowed: {', '.join(tasks)}")
+        raise SomoError(
+            f"unknown task '{shown(name)}'{did_you_mean(name, tasks)}; allowed: {', '.join(tasks)}"
+        )
     return tasks[name]

@@ -172,3 +172,49 @@ def test_a_model_that_cannot_be_parsed_is_blamed_without_quoting_it(tmp_path: Pa
     broken.write_text("manipulator:\n  name: [api-key-42\n")
     text = _problems(make_study(tmp_path, f"task: selftest_sleep\nmodel: {broken}\n"))
     assert f"line 2: model: {broken}: line 3: <top level>: cannot parse" in text and "api-key-42" not in text
+
+
+BIG = "z" * 1_000_000
+
+
+@pytest.mark.parametrize(
+    ("body", "message"),
+    [
+        (f"sampling: {BIG}\n", "line 3: sampling: Input should be 'grid' or 'adaptive', got 'zzz"),
+        (f"params: {{sleep_s: {BIG}}}\n", "line 3: params.sleep_s: Input should be a valid number"),
+        (f"? {BIG}\n: 1\n", "line 3: zzz"),
+        (f"name: {BIG}\n", "line 3: name: String should have at most 100 characters"),
+    ],
+    ids=["choice", "number", "key", "name"],
+)
+def test_a_megabyte_value_or_key_is_cut_in_the_message(tmp_path: Path, body: str, message: str) -> None:
+    text = _problems(make_study(tmp_path, HEAD + body))
+    assert message in text and "… (100000" in text
+    assert len(text) < 1500
+
+
+def test_an_unknown_megabyte_task_name_is_cut(tmp_path: Path) -> None:
+    text = _problems(make_study(tmp_path, f"task: {BIG}\nmodel: models/ihm_finger.yaml\n"))
+    assert "unknown task 'zzz" in text and "… (1000000 characters)'; allowed: bench, ihm_gait" in text
+    assert len(text) < 1000
+
+
+def test_a_results_folder_name_too_long_for_the_file_system_is_one_line(tmp_path: Path) -> None:
+    path = make_study(tmp_path, HEAD + f"output: results/{'q' * 300}\n")
+    res = CliRunner().invoke(app, ["run", str(path)])
+    assert res.exit_code == 2 and "cannot create the results folder results/qqq" in res.output
+    assert "File name too long" in res.output and "Traceback" not in res.output
+
+
+def test_an_os_error_no_command_foresaw_is_one_line_naming_the_file(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch, capsys: pytest.CaptureFixture[str]
+) -> None:
+    from somo_sweep.cli.app import main
+
+    path = make_study(tmp_path, HEAD + "sweep:\n  task.x: [1, 2]\n")
+    monkeypatch.setattr("sys.argv", ["somo-sweep", "run", str(path), "--out", "q" * 300])
+    with pytest.raises(SystemExit) as info:
+        main()
+    assert info.value.code == 2
+    err = capsys.readouterr().err
+    assert err.startswith("error: File name too long: qqq") and err.endswith("… (300 characters)\n")

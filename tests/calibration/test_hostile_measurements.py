@@ -1,0 +1,87 @@
+"""Hostile measurement CSVs and tables: huge, binary, absurdly long cells.
+
+Each is refused with one bounded message naming the file, the line and what is allowed;
+none is read whole into memory past its limit or echoed whole into the message.
+"""
+
+from __future__ import annotations
+
+import time
+from pathlib import Path
+
+import pytest
+
+from somo_sweep.calibration.measurements import MAX_FILE_BYTES, read_measurements
+from somo_sweep.errors import SHOWN_CHARS, MeasurementError, SomoError, did_you_mean, shown
+from somo_sweep.model import tables
+from somo_sweep.model.tables import resolve_table
+
+HEADER = "test,pressure_kpa,tip_load_n,tip_deflection_mm,blocked_force_n,tip_x_mm,tip_z_mm\n"
+
+
+def _error(path: Path) -> str:
+    with pytest.raises(MeasurementError) as info:
+        read_measurements(path)
+    return str(info.value)
+
+
+def test_a_file_above_the_size_limit_is_refused_before_reading(tmp_path: Path) -> None:
+    path = tmp_path / "m.csv"
+    path.write_bytes(HEADER.encode() + b"#" * MAX_FILE_BYTES)
+    text = _error(path)
+    assert f"file is {MAX_FILE_BYTES + len(HEADER)} bytes; allowed: at most 8 MiB" in text
+    assert len(text) < 500
+
+
+def test_a_binary_file_is_named_binary(tmp_path: Path) -> None:
+    path = tmp_path / "m.csv"
+    path.write_bytes(HEADER.encode() + b"tip_load,0,\x00\x01,1,,,\n")
+    assert f"binary file (NUL byte at offset {len(HEADER) + 11}); allowed: UTF-8 CSV text" in _error(path)
+
+
+@pytest.mark.parametrize(
+    ("row", "message"),
+    [
+        ("a" * 2_000_000 + ",0,1,1,,,", "line 2, column test: unknown test 'aaaa"),
+        ("tip_load,0," + "1" * 2_000_000 + ",1,,,", "line 2, column tip_load_n: 1111"),
+        ("tip_load,0,x" + "y" * 1_999_999 + ",1,,,", "line 2, column tip_load_n: 'xyyy"),
+    ],
+    ids=["test", "overflowing-number", "not-a-number"],
+)
+def test_a_huge_cell_is_cut_in_the_message_and_costs_no_time(tmp_path: Path, row: str, message: str) -> None:
+    path = tmp_path / "m.csv"
+    path.write_text(HEADER + row + "\n")
+    start = time.perf_counter()
+    text = _error(path)
+    assert time.perf_counter() - start < 5.0  # difflib on a 2-MB word took minutes
+    assert message in text and "… (2000000 characters)" in text
+    assert len(text) < 1000
+
+
+def test_a_huge_column_name_is_cut(tmp_path: Path) -> None:
+    path = tmp_path / "m.csv"
+    path.write_text(HEADER.rstrip("\n") + ",z" + "x" * 1_000_000 + "\n")
+    text = _error(path)
+    assert "unknown column 'zxxx" in text and "… (1000001 characters)'; allowed: test, pressure_kpa" in text
+    assert len(text) < 1000
+
+
+def test_shown_keeps_short_values_and_cuts_long_ones() -> None:
+    assert shown("tip_lod") == "tip_lod"
+    assert shown("x" * SHOWN_CHARS) == "x" * SHOWN_CHARS
+    assert shown("x" * (SHOWN_CHARS + 1)) == "x" * SHOWN_CHARS + f"… ({SHOWN_CHARS + 1} characters)"
+
+
+def test_did_you_mean_still_hints_and_skips_absurd_words() -> None:
+    assert did_you_mean("tip_lod", ["tip_load", "blocked_force"]) == " (did you mean 'tip_load'?)"
+    assert did_you_mean("tip_load" * 1000, ["tip_load"]) == ""
+    assert did_you_mean("anything", []) == ""
+
+
+def test_a_table_above_the_size_limit_is_refused(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    monkeypatch.setattr(tables, "MAX_TABLE_BYTES", 1024)
+    (tmp_path / "small.csv").write_text("time_s,a\n" + "0,1\n" * 10)
+    assert "#sha256=" in resolve_table("small.csv", tmp_path)
+    (tmp_path / "big.csv").write_text("time_s,a\n" + "0,1\n" * 1000)
+    with pytest.raises(SomoError, match=r"big\.csv: file is 4009 bytes; allowed: at most 1024 bytes"):
+        resolve_table("big.csv", tmp_path)
