@@ -36,6 +36,8 @@ __all__ = [
 ]
 
 MANIFEST = "manifest.json"
+#: Largest manifest read; a larger one is damaged (thousands of resumed runs take well under 1 MiB).
+MAX_MANIFEST_BYTES = 64 * 1024 * 1024
 #: The cells an adaptive run inferred instead of simulating (outside ``trials/``: never resumed from).
 INFERRED = "inferred.parquet"
 #: Part files of the trials table, in ``trials/``.
@@ -86,6 +88,9 @@ def read_manifest(folder: str | Path) -> dict[str, Any]:
     if not path.is_file():
         raise SomoError(f"{folder} is not a somo-sweep results folder (no {MANIFEST})")
     try:
+        size = path.stat().st_size
+        if size > MAX_MANIFEST_BYTES:
+            raise ValueError(f"{size} bytes, more than any manifest ({MAX_MANIFEST_BYTES})")
         data = json.loads(path.read_text(encoding="utf-8"))
         if not isinstance(data, dict) or not isinstance(data.get("study_hash"), str):
             raise ValueError("not a manifest: no study_hash")

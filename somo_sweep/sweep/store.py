@@ -199,7 +199,7 @@ class ResultStore:
             new = new_manifest(study_hash, resolved, axes)
             new["files"] = [f"{MANIFEST}.damaged"] if damaged and stored else []
             return new
-        other = old["study_hash"] if old is not None else ", ".join(sorted(stored - {study_hash}))
+        other = shown(old["study_hash"] if old is not None else ", ".join(sorted(stored - {study_hash})))
         if overwrite:
             n = self._delete_tool_files(old)
             self.notes.append(f"--overwrite: deleted {n} file(s) of the previous study (hash {other})")

@@ -96,6 +96,31 @@ def test_a_truncated_manifest_is_a_clear_error_for_show_and_is_rebuilt_by_run(tm
     assert len(read_results(out)) == 8
 
 
+def test_an_oversized_manifest_is_damaged_not_read(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    from somo_sweep.sweep import folder as folder_module
+
+    _, out = _finished(tmp_path)
+    manifest = out / "manifest.json"
+    size = manifest.stat().st_size
+    monkeypatch.setattr(folder_module, "MAX_MANIFEST_BYTES", size - 1)
+    res = CliRunner().invoke(app, ["show", str(out)])
+    assert res.exit_code == 2
+    assert f"is damaged ({size} bytes, more than any manifest ({size - 1}))" in res.output
+    monkeypatch.setattr(folder_module, "MAX_MANIFEST_BYTES", size)
+    assert read_manifest(out)["study_hash"]
+
+
+def test_a_study_hash_in_a_damaged_manifest_is_cut_in_the_message(tmp_path: Path) -> None:
+    path, out = _finished(tmp_path)
+    manifest = out / "manifest.json"
+    data = json.loads(manifest.read_text())
+    data["study_hash"] = "x" * 1_000_000
+    manifest.write_text(json.dumps(data))
+    res = _run(path, out)
+    assert res.exit_code == 2 and "holds results of a different study (hash xxx" in res.output
+    assert "… (1000000 characters), this one is" in res.output and len(res.output) < 2000
+
+
 def test_a_lost_manifest_of_another_study_is_refused_then_replaced_with_overwrite(tmp_path: Path) -> None:
     path, out = _finished(tmp_path)
     (out / "manifest.json").unlink()
