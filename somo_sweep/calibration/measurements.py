@@ -16,7 +16,7 @@ from pathlib import Path
 import pandas as pd
 
 from somo_sweep.errors import MeasurementError, did_you_mean, shown
-from somo_sweep.model.files import is_file
+from somo_sweep.model.files import is_file, missing_or_special
 from somo_sweep.model.load import Model
 from somo_sweep.sim.bench import TESTS, BenchSettings, run_bench
 
@@ -90,7 +90,7 @@ def read_measurements(path: str | Path, require_measured: bool = True) -> pd.Dat
     """
     path = Path(path)
     if not is_file(path):
-        raise MeasurementError(path, ["file not found"])
+        raise MeasurementError(path, [missing_or_special(path)])
     size = path.stat().st_size
     if size > MAX_FILE_BYTES:
         limit = f"{MAX_FILE_BYTES // (1024 * 1024)} MiB"

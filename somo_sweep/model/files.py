@@ -26,6 +26,7 @@ __all__ = [
     "is_file",
     "join_path",
     "load_mapping",
+    "missing_or_special",
     "parse_yaml_value",
     "read_text",
 ]
@@ -53,6 +54,18 @@ def is_file(path: Path) -> bool:
         return False
 
 
+def missing_or_special(path: Path) -> str:
+    """Why ``path`` cannot be read as a file: missing, or a folder / device / pipe."""
+    try:
+        exists = path.exists()
+    except (OSError, ValueError):
+        exists = False
+    if not exists:
+        return "file not found"
+    kind = "a folder" if path.is_dir() else "a device, pipe or socket"
+    return f"not a regular file ({kind}); allowed: a text file"
+
+
 def read_text(path: Path) -> str:
     """The UTF-8 text of a user file, refused when too large, binary or not UTF-8.
 
@@ -60,7 +73,7 @@ def read_text(path: Path) -> str:
         DescriptionError: Naming the file, the size or the offset of the offending byte.
     """
     if not is_file(path):
-        raise DescriptionError(path, [Problem("", "file not found")])
+        raise DescriptionError(path, [Problem("", missing_or_special(path))])
     try:
         size = path.stat().st_size
         if size > MAX_FILE_BYTES:

@@ -85,3 +85,9 @@ def test_a_table_above_the_size_limit_is_refused(tmp_path: Path, monkeypatch: py
     (tmp_path / "big.csv").write_text("time_s,a\n" + "0,1\n" * 1000)
     with pytest.raises(SomoError, match=r"big\.csv: file is 4009 bytes; allowed: at most 1024 bytes"):
         resolve_table("big.csv", tmp_path)
+
+
+def test_a_folder_or_a_device_is_named_for_what_it_is(tmp_path: Path) -> None:
+    assert "not a regular file (a folder); allowed: a text file" in _error(tmp_path)
+    assert "not a regular file (a device, pipe or socket)" in _error(Path("/dev/null"))
+    assert "file not found" in _error(tmp_path / "missing.csv")

@@ -220,3 +220,9 @@ def test_measure_refuses_a_huge_body_instead_of_crashing(tmp_path: Path) -> None
     res = CliRunner().invoke(app, args)
     assert res.exit_code == 2 and "Traceback" not in res.output
     assert "n_segments: Input should be less than or equal to 200, got 10000" in res.output
+
+
+def test_a_folder_or_a_device_is_named_for_what_it_is(tmp_path: Path) -> None:
+    assert "<top level>: not a regular file (a folder); allowed: a text file" in _error(tmp_path)
+    assert "not a regular file (a device, pipe or socket)" in _error(Path("/dev/null"))
+    assert "<top level>: file not found" in _error(tmp_path / "missing.yaml")
