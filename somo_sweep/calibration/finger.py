@@ -50,7 +50,7 @@ def read_finger_header(path: str | Path) -> dict[str, Any] | None:
     with path.open("rb") as fh:
         head = [fh.readline(_MAX_LINE_BYTES + 1) for _ in range(_SEARCH_LINES)]
     for number, raw in enumerate(head, start=1):
-        line = raw.decode("utf-8", errors="replace").strip()
+        line = raw.decode("utf-8", errors="replace").lstrip("\ufeff").strip()  # Excel's "CSV UTF-8" BOM
         if not line.lower().startswith(_PREFIX):
             continue
         where = f"line {number}, finger header"

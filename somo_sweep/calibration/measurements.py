@@ -16,7 +16,7 @@ from pathlib import Path
 import pandas as pd
 
 from somo_sweep.errors import MeasurementError, did_you_mean, shown
-from somo_sweep.model.files import is_file, missing_or_special
+from somo_sweep.model.files import decode_utf8, is_file, missing_or_special
 from somo_sweep.model.load import Model
 from somo_sweep.sim.bench import TESTS, BenchSettings, run_bench
 
@@ -97,17 +97,10 @@ def read_measurements(path: str | Path, require_measured: bool = True) -> pd.Dat
         raise MeasurementError(
             path, [f"file is {size} bytes; allowed: at most {limit} (at most {MAX_ROWS} data rows)"]
         )
-    data = path.read_bytes()
-    nul = data.find(b"\x00")
-    if nul >= 0:
-        raise MeasurementError(path, [f"binary file (NUL byte at offset {nul}); allowed: UTF-8 CSV text"])
     try:
-        text = data.decode("utf-8")
-    except UnicodeDecodeError as exc:
-        raise MeasurementError(
-            path,
-            [f"not UTF-8 text: byte 0x{data[exc.start]:02x} at offset {exc.start}; save the file as UTF-8"],
-        ) from None
+        text = decode_utf8(path.read_bytes())
+    except ValueError as exc:
+        raise MeasurementError(path, [str(exc)]) from None
     comment_lines = [i + 1 for i, ln in enumerate(text.splitlines()) if ln.lstrip().startswith("#")]
     try:
         raw = pd.read_csv(

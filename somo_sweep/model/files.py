@@ -23,6 +23,7 @@ __all__ = [
     "MAX_DEPTH",
     "MAX_FILE_BYTES",
     "MAX_VALUES",
+    "decode_utf8",
     "is_file",
     "join_path",
     "load_mapping",
@@ -82,17 +83,43 @@ def read_text(path: Path) -> str:
         data = path.read_bytes()
     except OSError as exc:
         raise DescriptionError(path, [Problem("", f"cannot read the file: {exc.strerror or exc}")]) from None
+    try:
+        return decode_utf8(data)
+    except ValueError as exc:
+        raise DescriptionError(path, [Problem("", str(exc))]) from None
+
+
+#: Byte-order marks of the encodings other than UTF-8 that editors and spreadsheets save in.
+_OTHER_BOMS = {
+    b"\xff\xfe\x00\x00": "UTF-32",
+    b"\x00\x00\xfe\xff": "UTF-32",
+    b"\xff\xfe": "UTF-16",
+    b"\xfe\xff": "UTF-16",
+}
+
+
+def decode_utf8(data: bytes) -> str:
+    """The text of a user file's bytes; a UTF-8 byte-order mark is allowed and dropped.
+
+    Raises:
+        ValueError: UTF-16 / UTF-32 text, a NUL byte (a binary file) or bytes that are not
+            UTF-8, with the offset of the first bad byte and what to do.
+    """
+    for bom, name in _OTHER_BOMS.items():
+        if data.startswith(bom):
+            raise ValueError(
+                f"{name} text (byte-order mark {bom.hex(' ')}); allowed: UTF-8, save the file as UTF-8"
+            )
     nul = data.find(b"\x00")
     if nul >= 0:
-        raise DescriptionError(
-            path, [Problem("", f"binary file (NUL byte at offset {nul}); allowed: UTF-8 text")]
-        )
+        raise ValueError(f"binary file (NUL byte at offset {nul}); allowed: UTF-8 text")
     try:
-        return data.decode("utf-8")
+        return data.decode("utf-8").removeprefix("\ufeff")  # a BOM would offset lines, and JSON refuses it
     except UnicodeDecodeError as exc:
         byte = data[exc.start]
-        msg = f"not UTF-8 text: byte 0x{byte:02x} at offset {exc.start}; save the file as UTF-8"
-        raise DescriptionError(path, [Problem("", msg)]) from None
+        raise ValueError(
+            f"not UTF-8 text: byte 0x{byte:02x} at offset {exc.start}; save the file as UTF-8"
+        ) from None
 
 
 def _parse_error(exc: yaml.YAMLError) -> Problem:

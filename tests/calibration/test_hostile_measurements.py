@@ -9,6 +9,7 @@ from __future__ import annotations
 import time
 from pathlib import Path
 
+import pandas as pd
 import pytest
 
 from somo_sweep.calibration.measurements import MAX_FILE_BYTES, read_measurements
@@ -36,7 +37,7 @@ def test_a_file_above_the_size_limit_is_refused_before_reading(tmp_path: Path) -
 def test_a_binary_file_is_named_binary(tmp_path: Path) -> None:
     path = tmp_path / "m.csv"
     path.write_bytes(HEADER.encode() + b"tip_load,0,\x00\x01,1,,,\n")
-    assert f"binary file (NUL byte at offset {len(HEADER) + 11}); allowed: UTF-8 CSV text" in _error(path)
+    assert f"binary file (NUL byte at offset {len(HEADER) + 11}); allowed: UTF-8 text" in _error(path)
 
 
 @pytest.mark.parametrize(
@@ -91,3 +92,28 @@ def test_a_folder_or_a_device_is_named_for_what_it_is(tmp_path: Path) -> None:
     assert "not a regular file (a folder); allowed: a text file" in _error(tmp_path)
     assert "not a regular file (a device, pipe or socket)" in _error(Path("/dev/null"))
     assert "file not found" in _error(tmp_path / "missing.csv")
+
+
+BUNDLED = Path(__file__).parents[2] / "somo_sweep" / "data" / "tables" / "planar_finger_synthetic.csv"
+
+
+@pytest.mark.parametrize("encoding", ["utf-16", "utf-32"])
+def test_utf16_and_utf32_are_named_with_what_to_do(tmp_path: Path, encoding: str) -> None:
+    path = tmp_path / "m.csv"
+    path.write_bytes(BUNDLED.read_text().encode(encoding))
+    assert f"{encoding.upper()} text (byte-order mark" in _error(path)
+    assert "save the file as UTF-8" in _error(path)
+
+
+def test_excel_utf8_with_a_byte_order_mark_and_crlf_reads_like_the_plain_file(tmp_path: Path) -> None:
+    from somo_sweep.calibration.finger import read_finger_header
+
+    lines = BUNDLED.read_text().splitlines()
+    finger = [ln for ln in lines if ln.startswith("# finger:")]
+    body = finger + [ln for ln in lines if not ln.startswith("#")]  # the finger line first, as Excel keeps it
+    path = tmp_path / "excel.csv"
+    path.write_bytes(b"\xef\xbb\xbf" + "\r\n".join(body).encode() + b"\r\n")
+    plain = tmp_path / "plain.csv"
+    plain.write_text("\n".join(body) + "\n")
+    assert read_finger_header(path) == read_finger_header(plain) is not None
+    pd.testing.assert_frame_equal(read_measurements(path), read_measurements(plain))

@@ -226,3 +226,24 @@ def test_a_folder_or_a_device_is_named_for_what_it_is(tmp_path: Path) -> None:
     assert "<top level>: not a regular file (a folder); allowed: a text file" in _error(tmp_path)
     assert "not a regular file (a device, pipe or socket)" in _error(Path("/dev/null"))
     assert "<top level>: file not found" in _error(tmp_path / "missing.yaml")
+
+
+@pytest.mark.parametrize("suffix", [".json", ".yaml"])
+def test_a_utf8_byte_order_mark_is_read_and_keeps_the_line_numbers(tmp_path: Path, suffix: str) -> None:
+    text = (
+        '{"manipulator": {"name": "f"}, "unknown": 1}'
+        if suffix == ".json"
+        else "manipulator: {}\nunknown: 1\n"
+    )
+    path = tmp_path / f"m{suffix}"
+    path.write_bytes(b"\xef\xbb\xbf" + text.encode())
+    message = _error(path)
+    assert "unknown key 'unknown'" in message and "BOM" not in message
+    if suffix == ".yaml":
+        assert "line 2: unknown" in message
+
+
+def test_utf16_is_named_with_what_to_do(tmp_path: Path) -> None:
+    path = tmp_path / "m.yaml"
+    path.write_bytes("manipulator: {}\n".encode("utf-16"))
+    assert "UTF-16 text (byte-order mark ff fe); allowed: UTF-8, save the file as UTF-8" in _error(path)
