@@ -25,6 +25,7 @@ __all__ = [
     "INPUT_COLUMNS",
     "MEASURED_COLUMNS",
     "OPTIONAL_MEASURED",
+    "RANGES",
     "measurements_csv",
     "read_measurements",
     "simulate_measurements",
@@ -53,6 +54,18 @@ MEASURED_COLUMNS = {
     "tip_load": ["tip_deflection_mm"],
     "blocked_force": ["blocked_force_n"],
     "free_bending": ["tip_x_mm", "tip_z_mm"],
+}
+#: The values a bench can measure, per column (in its unit): generous for any soft finger, so
+#: that only a wrong unit or a typo (1e300 N, a gauge pressure below vacuum) is refused; a
+#: value outside would otherwise be fitted silently into an absurd model.
+RANGES: dict[str, tuple[float, float, str]] = {
+    "pressure_kpa": (-101.325, 1e4, "kPa (gauge: not below vacuum, at most 10 MPa)"),
+    "tip_load_n": (0.0, 1e3, "N"),
+    "tip_deflection_mm": (-1e4, 1e4, "mm"),
+    "blocked_force_n": (-1e3, 1e3, "N"),
+    "tip_x_mm": (-1e4, 1e4, "mm"),
+    "tip_z_mm": (-1e4, 1e4, "mm"),
+    "tip_angle_deg": (-720.0, 720.0, "deg"),
 }
 
 
@@ -150,6 +163,12 @@ def read_measurements(path: str | Path, require_measured: bool = True) -> pd.Dat
                 v = math.nan
             if not math.isnan(v) and not math.isfinite(v):
                 problems.append(f"line {_line_of(i, comment_lines)}, column {c}: {shown(cell)} is not finite")
+            elif c in RANGES and not math.isnan(v) and not RANGES[c][0] <= v <= RANGES[c][1]:
+                low, high, unit = RANGES[c]
+                problems.append(
+                    f"line {_line_of(i, comment_lines)}, column {c}: {v:g} is outside what a bench "
+                    f"measures; allowed: {low:g} to {high:g} {unit}; check the unit"
+                )
             values.append(v)
         out[c] = values
     for c, choices in OPTIONAL.items():
@@ -178,8 +197,6 @@ def read_measurements(path: str | Path, require_measured: bool = True) -> pd.Dat
         for c, owner in OPTIONAL_MEASURED.items():
             if test != owner and not math.isnan(row[c]):
                 problems.append(f"{where}, column {c}: only '{owner}' rows measure it; leave it empty")
-        if test == "tip_load" and row["tip_load_n"] < 0:
-            problems.append(f"{where}, column tip_load_n: {row['tip_load_n']} < 0; loads must be >= 0 N")
     if problems:
         more = len(problems) - MAX_PROBLEMS
         listed = problems[:MAX_PROBLEMS] + ([f"… and {more} more problem(s)"] if more > 0 else [])

@@ -47,6 +47,7 @@ from somo_sweep.model.load import Model
 __all__ = [
     "AXES",
     "CALIBRATION_SETTINGS",
+    "POOR_FIT_RELATIVE_RMSE",
     "CalibrationProblem",
     "CalibrationResult",
     "Parameter",
@@ -60,6 +61,9 @@ __all__ = [
 ]
 
 
+#: Relative RMSE on a calibration test above which ``calibrate`` warns that the model does not fit
+#: (a real finger's noise and missing effects stay well below: 0.9-5 % on the bundled bench files).
+POOR_FIT_RELATIVE_RMSE = 0.25
 #: Forward-difference step on the parameter multipliers (bench results are repeatable to ~1e-5).
 _DIFF_STEP = 1e-3
 
@@ -98,6 +102,10 @@ class CalibrationResult:
     def metric(self, label: str) -> TestMetric:
         """The metric of one test label (``tip_load``, ``tip_load[side]``, ``blocked_force``, ...)."""
         return next(m for m in self.metrics if m.label == label)
+
+    def poor_fits(self, relative_rmse: float = POOR_FIT_RELATIVE_RMSE) -> list[TestMetric]:
+        """The calibration tests the calibrated model misses by more than ``relative_rmse``."""
+        return [m for m in self.metrics if m.role == "calibration" and not m.relative_rmse <= relative_rmse]
 
     def reproduces_within(self, relative_rmse: float) -> bool:
         """Whether every test's relative RMSE is at most ``relative_rmse``."""

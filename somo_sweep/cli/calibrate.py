@@ -107,7 +107,13 @@ def calibrate(
 
     from somo_sweep.calibration.measurements import read_measurements
     from somo_sweep.calibration.report import model_yaml, results_table, summary, with_provenance
-    from somo_sweep.calibration.solve import CALIBRATION_SETTINGS, build_problem, solve_fit, solve_paper
+    from somo_sweep.calibration.solve import (
+        CALIBRATION_SETTINGS,
+        POOR_FIT_RELATIVE_RMSE,
+        build_problem,
+        solve_fit,
+        solve_paper,
+    )
 
     if method not in METHODS:
         fail(SomoError(f"--method '{method}' is not known; allowed: {', '.join(METHODS)}"))
@@ -130,6 +136,16 @@ def calibrate(
     for table in results_table(result):
         console.print(table)
     console.print(f"{result.simulations} bench simulations in {result.wall_time_s:.1f} s")
+    poor = result.poor_fits()
+    if poor:
+        missed = ", ".join(f"the {m.label} rows by {m.relative_rmse:.0%}" for m in poor)
+        typer.echo(
+            f"warning: the calibrated model misses {missed} (relative RMSE; above "
+            f"{POOR_FIT_RELATIVE_RMSE:.0%} the model does not fit the measurements): check the units "
+            "and the finger line, or run somo-sweep diagnose to name what the model lacks; "
+            "the model is written anyway",
+            err=True,
+        )
     header = f"calibrated by somo-sweep calibrate --method {method} from {measurements}"
     output = output or default_output(measurements, "calibration") / "model.yaml"
     outputs: list[tuple[Path, str | bytes]] = [

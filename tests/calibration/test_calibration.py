@@ -344,7 +344,24 @@ GOOD = "tip_load,0,0.05,5,,,\ntip_load,0,0.1,10,,,\nblocked_force,100,,,0.3,,\nb
             HEADER + GOOD + "tip_lod,0,0.1,3,,,\n",
             "line 6, column test: unknown test 'tip_lod' (did you mean 'tip_load'?)",
         ),
-        (HEADER + GOOD + "tip_load,0,-0.1,3,,,\n", "line 6, column tip_load_n: -0.1 < 0"),
+        (
+            HEADER + GOOD + "tip_load,0,-0.1,3,,,\n",
+            "line 6, column tip_load_n: -0.1 is outside what a bench measures; allowed: 0 to 1000 N",
+        ),
+        (
+            HEADER + GOOD + "tip_load,0,1e300,3,,,\n",
+            "line 6, column tip_load_n: 1e+300 is outside what a bench measures; allowed: 0 to 1000 N; "
+            "check the unit",
+        ),
+        (
+            HEADER + GOOD + "blocked_force,-200,,,0.3,,\n",
+            "line 6, column pressure_kpa: -200 is outside what a bench measures; allowed: -101.325 to "
+            "10000 kPa (gauge: not below vacuum, at most 10 MPa)",
+        ),
+        (
+            HEADER + GOOD + "free_bending,100,,,,2e4,3\n",
+            "line 6, column tip_x_mm: 20000 is outside what a bench measures; allowed: -10000 to 10000 mm",
+        ),
         (
             HEADER + "tip_load,0,0.05,5,,,\nblocked_force,100,,,0.3,,\n",
             "column blocked_force_n: 1 blocked_force row(s)",
@@ -411,3 +428,18 @@ def test_synthetic_plan_writes_schema_rows(tmp_path: Path) -> None:
     plan.loc[0, "tip_deflection_mm"], plan.loc[1, "blocked_force_n"] = 3.0, 0.5
     (tmp_path / "p.csv").write_text(measurements_csv(plan))
     assert list(pd.read_csv(tmp_path / "p.csv")["test"]) == ["tip_load", "blocked_force"]
+
+
+def test_a_calibration_that_does_not_fit_warns_and_still_writes_the_model(tmp_path: Path) -> None:
+    text = SYNTHETIC.read_text()
+    first_load = next(ln for ln in text.splitlines() if ln.startswith("tip_load,"))
+    load = first_load.split(",")
+    load[2] = "100"  # 100 N for a deflection of about 1 mm: a unit slip (g entered as N)
+    path = _csv(tmp_path, text.replace(first_load, ",".join(load), 1))
+    out = tmp_path / "model.yaml"
+    res = runner.invoke(app, ["calibrate", str(path), *BUILD, "-o", str(out)])
+    assert res.exit_code == 0, res.output
+    assert "warning: the calibrated model misses the tip_load rows by " in res.output
+    assert "above 25% the model does not fit the measurements" in res.output and out.is_file()
+    good = runner.invoke(app, ["calibrate", str(SYNTHETIC), *BUILD, "-o", str(tmp_path / "good.yaml")])
+    assert good.exit_code == 0 and "warning" not in good.output
