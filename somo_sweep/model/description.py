@@ -17,7 +17,14 @@ from pydantic import AfterValidator, BaseModel, ConfigDict, Field, field_validat
 
 __all__ = [
     "LENGTH_REL_TOL",
+    "MAX_ADDED_INERTIA_KG_M2",
+    "MAX_FRICTION",
+    "MAX_JOINT_COEFFICIENT",
+    "MAX_LENGTH_M",
+    "MAX_MASS_KG",
     "MAX_SEGMENTS",
+    "MIN_LENGTH_M",
+    "MIN_MASS_KG",
     "NAME_PATTERN",
     "Actuation",
     "Actuator",
@@ -42,6 +49,22 @@ NAME_PATTERN = "[A-Za-z0-9_.-]+"
 
 Vec3 = tuple[float, float, float]
 
+# Magnitudes a description may hold, in SI: far beyond any soft robot (world scaling brings
+# small or large robots to Bullet's range), so that only a slipped unit or a typo is refused,
+# with the allowed range, instead of overflowing the modal estimate or Bullet.
+#: Largest length, radius, size or offset, m.
+MAX_LENGTH_M = 100.0
+#: Smallest link dimension, m.
+MIN_LENGTH_M = 1e-6
+#: Smallest and largest link mass, kg.
+MIN_MASS_KG, MAX_MASS_KG = 1e-9, 1e6
+#: Largest stiffness, damping, motor limit or friction torque (per rad or per m).
+MAX_JOINT_COEFFICIENT = 1e9
+#: Largest friction coefficient (lateral, spinning, rolling).
+MAX_FRICTION = 1e3
+#: Largest inertia added to a link, kg·m².
+MAX_ADDED_INERTIA_KG_M2 = 1e3
+
 
 def _check_name(value: str) -> str:
     if not re.fullmatch(NAME_PATTERN, value):
@@ -65,9 +88,9 @@ class Friction(Spec):
     ``anisotropic`` scales the lateral friction along the link's x, y, z axes.
     """
 
-    lateral: float = Field(1.0, ge=0)
-    spinning: float = Field(0.0, ge=0)
-    rolling: float = Field(0.0, ge=0)
+    lateral: float = Field(1.0, ge=0, le=MAX_FRICTION)
+    spinning: float = Field(0.0, ge=0, le=MAX_FRICTION)
+    rolling: float = Field(0.0, ge=0, le=MAX_FRICTION)
     anisotropic: Vec3 | None = None
 
 
@@ -92,11 +115,11 @@ class Link(Spec):
 
     shape: Literal["box", "cylinder", "sphere", "capsule", "stadium"]
     size_m: tuple[float, ...] | None = None
-    radius_m: float | None = Field(None, gt=0)
-    length_m: float | None = Field(None, gt=0)
-    mass_kg: float = Field(gt=0)
+    radius_m: float | None = Field(None, ge=MIN_LENGTH_M, le=MAX_LENGTH_M)
+    length_m: float | None = Field(None, ge=MIN_LENGTH_M, le=MAX_LENGTH_M)
+    mass_kg: float = Field(ge=MIN_MASS_KG, le=MAX_MASS_KG)
     inertia_kg_m2: Vec3 | None = None
-    added_inertia_kg_m2: float = Field(0.0, ge=0)
+    added_inertia_kg_m2: float = Field(0.0, ge=0, le=MAX_ADDED_INERTIA_KG_M2)
     friction: Friction = Friction()
     restitution: float = Field(0.0, ge=0, le=1)
     color_rgba: tuple[float, float, float, float] = (0.55, 0.6, 0.7, 1.0)
@@ -107,8 +130,11 @@ class Link(Spec):
         if needs_size:
             if self.size_m is None or len(self.size_m) not in (2, 3):
                 raise ValueError(f"shape '{self.shape}' needs size_m = [x, y] or [x, y, z] in m")
-            if any(v <= 0 for v in self.size_m):
-                raise ValueError(f"size_m entries must be > 0, got {list(self.size_m)}")
+            if any(not MIN_LENGTH_M <= v <= MAX_LENGTH_M for v in self.size_m):
+                raise ValueError(
+                    f"size_m entries must be from {MIN_LENGTH_M:g} to {MAX_LENGTH_M:g} m, "
+                    f"got {list(self.size_m)}"
+                )
             if self.shape == "stadium" and self.size_m[0] < self.size_m[1]:
                 raise ValueError("stadium needs width_x >= thickness_y (size_m[0] >= size_m[1])")
         elif self.size_m is not None:
@@ -191,18 +217,25 @@ class Joint(Spec):
     axis: Vec3
     offset_m: Vec3 = (0.0, 0.0, 0.0)
     actuated: bool = True
-    stiffness_n_m_per_rad: float | None = Field(None, ge=0)
-    stiffness_n_per_m: float | None = Field(None, ge=0)
-    neutral_rad: float = 0.0
-    neutral_m: float = 0.0
-    damping_n_m_s_per_rad: float | None = Field(None, ge=0)
-    damping_n_s_per_m: float | None = Field(None, ge=0)
-    motor_limit_n_m: float | None = Field(None, ge=0)
-    motor_limit_n: float | None = Field(None, ge=0)
+    stiffness_n_m_per_rad: float | None = Field(None, ge=0, le=MAX_JOINT_COEFFICIENT)
+    stiffness_n_per_m: float | None = Field(None, ge=0, le=MAX_JOINT_COEFFICIENT)
+    neutral_rad: float = Field(0.0, ge=-2 * math.pi, le=2 * math.pi)
+    neutral_m: float = Field(0.0, ge=-MAX_LENGTH_M, le=MAX_LENGTH_M)
+    damping_n_m_s_per_rad: float | None = Field(None, ge=0, le=MAX_JOINT_COEFFICIENT)
+    damping_n_s_per_m: float | None = Field(None, ge=0, le=MAX_JOINT_COEFFICIENT)
+    motor_limit_n_m: float | None = Field(None, ge=0, le=MAX_JOINT_COEFFICIENT)
+    motor_limit_n: float | None = Field(None, ge=0, le=MAX_JOINT_COEFFICIENT)
     limits_rad: tuple[float, float] | None = None
     limits_m: tuple[float, float] | None = None
     stiffening_per_rad2: float = 0.0
-    hysteresis_torque_n_m: float = Field(0.0, ge=0)
+    hysteresis_torque_n_m: float = Field(0.0, ge=0, le=MAX_JOINT_COEFFICIENT)
+
+    @field_validator("offset_m")
+    @classmethod
+    def _offset_bounded(cls, v: Vec3) -> Vec3:
+        if any(abs(c) > MAX_LENGTH_M for c in v):
+            raise ValueError(f"offset_m entries must be within ±{MAX_LENGTH_M:g} m")
+        return v
 
     @field_validator("axis")
     @classmethod
@@ -276,9 +309,9 @@ class Actuator(Spec):
     """
 
     name: Name | None = None
-    length_m: float = Field(gt=0)
+    length_m: float = Field(ge=MIN_LENGTH_M, le=MAX_LENGTH_M)
     n_segments: int | None = Field(None, ge=1, le=MAX_SEGMENTS)
-    segment_length_m: float | None = Field(None, gt=0)
+    segment_length_m: float | None = Field(None, ge=MIN_LENGTH_M, le=MAX_LENGTH_M)
     link: Link
     joints: list[Joint] = Field(min_length=1, max_length=3)
     stiffness_profile: list[float] | None = None
@@ -383,8 +416,8 @@ class Actuation(Spec):
     u = gain · p_sat · tanh(p / p_sat).
     """
 
-    pressure_gain_n_m_per_kpa: float = Field(gt=0)
-    saturation_pressure_kpa: float | None = Field(None, gt=0)
+    pressure_gain_n_m_per_kpa: float = Field(gt=0, le=1e3)
+    saturation_pressure_kpa: float | None = Field(None, gt=0, le=1e6)
 
     def torque_n_m(self, pressure_kpa: float) -> float:
         """Actuation torque in N·m at ``pressure_kpa`` (kPa)."""

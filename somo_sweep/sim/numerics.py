@@ -40,6 +40,7 @@ __all__ = [
     "ChainChoice",
     "ChosenNumerics",
     "choose_numerics",
+    "elastic",
     "stability_limit_s",
     "tidy_floor",
 ]
@@ -61,8 +62,23 @@ TIDY = (1.0, 1.25, 1.5, 2.0, 2.5, 3.0, 4.0, 5.0, 6.0, 8.0)
 
 
 def stability_limit_s(highest_rad_s: float) -> float:
-    """The explicit springs' linear stability limit 2/ω_max, s."""
-    return 2.0 / highest_rad_s
+    """The explicit springs' linear stability limit 2/ω_max, s (no limit without a spring)."""
+    return 2.0 / highest_rad_s if highest_rad_s > 0 else math.inf
+
+
+#: Modes below this fraction of a chain's highest are free (a joint without a spring): they
+#: have no frequency to resolve, keep or shift. The eigensolver leaves a free mode at about
+#: √ε ≈ 1.5e-8 of the highest, and a spring mode this far below the highest would need a
+#: stiffness-to-inertia contrast of 1e12 within one chain.
+FREE_MODE_FRACTION = 1e-6
+
+
+def elastic(frequencies_rad_s: np.ndarray) -> np.ndarray:
+    """The modes held by springs: ``frequencies_rad_s`` without the free ones (ascending)."""
+    w = np.asarray(frequencies_rad_s, dtype=float)
+    if w.size == 0 or not w[-1] > 0:
+        return w[:0]
+    return w[w > FREE_MODE_FRACTION * w[-1]]
 
 
 def tidy_floor(value: float) -> float:
@@ -169,14 +185,15 @@ class ChosenNumerics:
 
 
 def _shift(mats: ChainMatrices, base: np.ndarray, kept: int, j: float) -> float:
-    w = mats.frequencies_rad_s(j)[:kept]
-    return float(np.max(1.0 - w / base[:kept]))
+    """Largest relative drop of the ``kept`` lowest elastic modes from ``base`` (elastic) at J."""
+    w = elastic(mats.frequencies_rad_s(j))[:kept]
+    return float(np.max(1.0 - w / base[: len(w)])) if len(w) else 0.0
 
 
 def _largest_inertia(mats: ChainMatrices, kept: int, max_shift: float) -> float:
     """Largest J (kg·m²) whose kept modes drop by at most ``max_shift`` (geometric bisection)."""
-    base = mats.frequencies_rad_s(0.0)
-    if kept == 0 or base[0] <= 0:
+    base = elastic(mats.frequencies_rad_s(0.0))
+    if kept == 0 or len(base) == 0:
         return 0.0
     scale = float(np.min(np.diag(mats.mass)))  # the lightest joint's own inertia
     lo, hi = 0.0, scale
@@ -209,9 +226,12 @@ def _least_inertia_for(mats: ChainMatrices, step_s: float, upper: float) -> floa
 
 
 def _step_limits(w: np.ndarray, max_step_s: float) -> dict[str, float]:
+    w = elastic(w)
     return {
-        f"stability ({SAFETY:g}·2/ω_max)": SAFETY * stability_limit_s(float(w[-1])),
-        f"lowest-mode resolution (ω_low·dt ≤ {LOWEST_MODE_RAD:.3f})": LOWEST_MODE_RAD / float(w[0]),
+        f"stability ({SAFETY:g}·2/ω_max)": SAFETY * stability_limit_s(float(w[-1])) if len(w) else math.inf,
+        f"lowest-mode resolution (ω_low·dt ≤ {LOWEST_MODE_RAD:.3f})": (
+            LOWEST_MODE_RAD / float(w[0]) if len(w) else math.inf
+        ),
         "largest validated step": max_step_s,
     }
 
@@ -234,8 +254,8 @@ def choose_numerics(
     best: dict[str, tuple[float, str]] = {}
     for manip, floating in model_chains(model):
         m = chain_matrices(manip, floating)
-        if not m.joints:
-            continue
+        if not m.joints or not len(elastic(m.frequencies_rad_s(0.0))):
+            continue  # no spring to resolve: the chain sets no limit
         mats[manip.name] = m
         kept = min(m.axes_per_joint_cycle, len(m.stiffness) - m.rigid_modes)
         upper[manip.name] = _largest_inertia(m, kept, max_shift)
@@ -251,7 +271,7 @@ def choose_numerics(
         kept = min(m.axes_per_joint_cycle, len(m.stiffness) - m.rigid_modes)
         j = _least_inertia_for(m, step, upper[name])
         before = m.modes(0.0)
-        shift = _shift(m, np.asarray(before.frequencies_rad_s), kept, j) if kept else 0.0
+        shift = _shift(m, elastic(np.asarray(before.frequencies_rad_s)), kept, j) if kept else 0.0
         chains[name] = ChainChoice(before, m.modes(j), j, kept, max(shift, 0.0), best[name][0])
     reason = f"{best[decider][1]} of chain '{decider}'"
     return ChosenNumerics(step, chains, reason)

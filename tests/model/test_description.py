@@ -119,7 +119,10 @@ def test_all_problems_are_reported_at_once_with_lines(tmp_path: Path) -> None:
     assert len(problems) >= 3
     assert any("shape" in p.path and "'box'" in p.message for p in problems)  # allowed values listed
     assert any(
-        p.path.endswith("mass_kg") and "greater than 0" in p.message and "-1" in p.message for p in problems
+        p.path.endswith("mass_kg")
+        and "greater than or equal to 0.000000001" in p.message
+        and "-1" in p.message
+        for p in problems
     )
     assert any("lenght_m" in p.message and "did you mean 'length_m'" in p.message for p in problems)
     assert all(p.line is not None for p in problems)

@@ -183,8 +183,13 @@ def test_a_tiny_segment_length_is_refused_before_building_anything() -> None:
     data = load_yaml("ihm_finger.yaml")
     act = data["manipulator"]["actuators"][0]
     del act["n_segments"]
-    act["segment_length_m"] = 1e-9
-    with pytest.raises(DescriptionError, match=r"= 1e\+08 segments; allowed: at most 200"):
+    act["segment_length_m"] = 1e-5
+    with pytest.raises(DescriptionError, match=r"= 10000 segments; allowed: at most 200"):
+        model_from_dict(data, "m.yaml")
+    act["segment_length_m"] = 1e-9  # below any link dimension
+    with pytest.raises(
+        DescriptionError, match=r"segment_length_m: Input should be greater than or equal to 0.000001"
+    ):
         model_from_dict(data, "m.yaml")
 
 

@@ -151,7 +151,7 @@ def test_reader_names_row_and_column_of_every_problem(tmp_path: Path) -> None:
     text = str(err.value)
     assert "line 3, column tip_deflection_mm: 'abc' is not a number" in text
     assert "line 4, column test: unknown test 'tipload' (did you mean 'tip_load'?)" in text
-    assert "line 5, column tip_load_n: -0.1 < 0" in text
+    assert "line 5, column tip_load_n: -0.1 is outside what a bench measures; allowed: 0 to 1000 N" in text
     assert "line 6, column blocked_force_n: empty" in text
 
 

@@ -102,3 +102,44 @@ def test_apply_adds_the_shaping_to_every_segment_link() -> None:
 @pytest.mark.parametrize(("value", "tidy"), [(7.3e-4, 6e-4), (6.25e-4, 6e-4), (1e-3, 1e-3), (2.49e-3, 2e-3)])
 def test_tidy_floor_rounds_down(value: float, tidy: float) -> None:
     assert tidy_floor(value) == pytest.approx(tidy)
+
+
+def _with_stiffness(model: Model, axis: int | None, stiffness: float) -> Model:
+    """``model`` with joint ``axis`` (every axis when None) of every segment at ``stiffness``."""
+    assert model.manipulator is not None
+    acts = [
+        a.model_copy(
+            update={
+                "joints": [
+                    j.model_copy(update={"stiffness_n_m_per_rad": stiffness}) if axis in (None, i) else j
+                    for i, j in enumerate(a.joints)
+                ]
+            }
+        )
+        for a in model.manipulator.actuators
+    ]
+    return Model(manipulator=model.manipulator.model_copy(update={"actuators": acts}))
+
+
+@pytest.mark.parametrize("stiffness", [0.0, 1e-300])
+def test_a_free_hinge_sets_no_limit_and_the_springs_still_decide(stiffness: float) -> None:
+    """A joint without a spring has a zero-frequency mode: it was a division by zero."""
+    # The finger's joint friction stays: a frictionless chain of 20 free hinges under gravity is a
+    # whip whose tip reaches Bullet's speed cap at t = 0.092 s at any step from 0.4 ms to 25 µs
+    # (measured): physics, not numerics.
+    free = _with_stiffness(load_model(FINGER), 0, stiffness)
+    assert free.manipulator is not None
+    w = chain_matrices(free.manipulator).frequencies_rad_s()
+    assert w[0] < 1e-6 * w[-1]  # the free hinges' modes
+    chosen = choose_numerics(free)
+    assert "stability" in chosen.reason  # the remaining springs decide
+    assert tidy_floor(SAFETY * stability_limit_s(w[-1])) <= chosen.time_step_s <= MAX_STEP_S
+    # No step effort: on a free hinge it would spin the links up to Bullet's speed cap for real.
+    # Gravity swings the free hinges through large angles and excites the springs' modes.
+    assert is_stable(chosen.apply(free), chosen.time_step_s, duration_s=1.0, input_n_m=0.0)
+
+
+def test_a_chain_without_any_spring_gets_the_largest_validated_step() -> None:
+    free = _with_stiffness(load_model(FINGER), None, 0.0)
+    chosen = choose_numerics(free)
+    assert chosen.time_step_s == MAX_STEP_S and "no spring" in chosen.reason
