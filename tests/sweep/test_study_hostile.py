@@ -218,3 +218,14 @@ def test_an_os_error_no_command_foresaw_is_one_line_naming_the_file(
     assert info.value.code == 2
     err = capsys.readouterr().err
     assert err.startswith("error: File name too long: qqq") and err.endswith("… (300 characters)\n")
+
+
+def test_a_pinch_grasp_object_wider_than_any_link_is_refused_before_any_trial(tmp_path: Path) -> None:
+    path = make_study(
+        tmp_path,
+        "task: pinch_grasp\nmodel: models/pinch_gripper.yaml\n"
+        "sweep:\n  task.object_width_m: [0.04, 1.0e+300]\n",
+    )
+    assert "line 4: sweep.task.object_width_m: Input should be less than or equal to 100, got 1e+300" in (
+        _problems(path)
+    )

@@ -18,6 +18,7 @@ from typing import Any
 
 from pydantic import BaseModel, ConfigDict, Field, model_validator
 
+from somo_sweep.model.description import MAX_LENGTH_M, MIN_LENGTH_M
 from somo_sweep.tasks.registry import TaskSpec, register
 
 __all__ = [
@@ -105,12 +106,12 @@ class PinchGraspParams(BaseModel):
     model_config = ConfigDict(extra="forbid", frozen=True)
 
     distal_segment_ratio: float = Field(0.2, ge=0, le=1)
-    object_width_m: float = Field(0.040, gt=0)
+    object_width_m: float = Field(0.040, ge=MIN_LENGTH_M, le=MAX_LENGTH_M)
     centering_position_m: float = Field(0.100, gt=0, lt=BASE_DISTANCE_AT_ZERO_CENTERING_M)
-    approach_m: float = 0.100
+    approach_m: float = Field(0.100, ge=-MAX_LENGTH_M, le=MAX_LENGTH_M)
     torque_n_m: float = 0.15
-    lift_m: float = 0.075
-    hand_height_m: float = Field(0.035, gt=0)
+    lift_m: float = Field(0.075, ge=-MAX_LENGTH_M, le=MAX_LENGTH_M)
+    hand_height_m: float = Field(0.035, gt=0, le=MAX_LENGTH_M)
     approach_s: float = Field(1.0, gt=0)
     ramp_s: float = Field(1.0, gt=0)
     lift_s: float = Field(1.0, gt=0)
