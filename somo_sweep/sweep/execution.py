@@ -26,7 +26,7 @@ from typing import Any, Literal
 
 from joblib import Parallel, delayed, parallel_config
 
-from somo_sweep.errors import SomoError, UnstableSimulation
+from somo_sweep.errors import SHOWN_CHARS, SomoError, UnstableSimulation, shown
 from somo_sweep.sweep.jobs import Job
 from somo_sweep.tasks.registry import TaskResult, get_task
 
@@ -336,7 +336,18 @@ def dask_client(scheduler: str | None, timeout_s: float = 15.0) -> Any:
             '--backend dask needs Dask, which is not installed: pip install "somo-sweep[dask]"'
         ) from None
 
+    where = shown(scheduler, 4 * SHOWN_CHARS)
     try:
         return Client(scheduler, timeout=f"{timeout_s}s")
     except (OSError, TimeoutError) as exc:
-        raise SomoError(f"cannot connect to the Dask scheduler at {scheduler}: {exc}") from None
+        raise SomoError(f"cannot connect to the Dask scheduler at {where}: {shown(str(exc), 200)}") from None
+    except ValueError as exc:  # an address Dask cannot parse (unknown scheme, no port, ...)
+        raise SomoError(
+            f"--scheduler {where} is not a Dask address ({shown(str(exc), 200)}); allowed: "
+            "SCHEME://HOST:PORT, e.g. tcp://HOST:8786"
+        ) from None
+    except Exception as exc:  # a server that is not a Dask scheduler answers garbage
+        raise SomoError(
+            f"the server at {where} did not answer as a Dask scheduler ({type(exc).__name__}); "
+            "check the address and port"
+        ) from None

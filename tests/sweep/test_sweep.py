@@ -230,6 +230,36 @@ def test_an_unreachable_dask_scheduler_is_a_clear_error() -> None:
         dask_client("tcp://127.0.0.1:9", timeout_s=1.0)
 
 
+def test_a_scheduler_address_dask_cannot_parse_names_the_form() -> None:
+    with pytest.raises(SomoError, match=r"--scheduler nonsense://x is not a Dask address .*tcp://HOST:8786"):
+        dask_client("nonsense://x", timeout_s=1.0)
+
+
+def test_a_server_that_is_not_a_dask_scheduler_is_a_clear_error() -> None:
+    """A web server on the port answers bytes that Dask reads as a frame length of exabytes."""
+    import socket
+    import threading
+
+    server = socket.socket()
+    server.bind(("127.0.0.1", 0))
+    server.listen(1)
+    port = server.getsockname()[1]
+
+    def answer() -> None:
+        conn, _ = server.accept()
+        with conn:
+            conn.sendall(b"HTTP/1.1 400 Bad Request\r\nContent-Length: 0\r\n\r\n" * 4)
+            conn.recv(1024)
+
+    thread = threading.Thread(target=answer, daemon=True)
+    thread.start()
+    try:
+        with pytest.raises(SomoError, match=rf"127\.0\.0\.1:{port}"):
+            dask_client(f"tcp://127.0.0.1:{port}", timeout_s=3.0)
+    finally:
+        server.close()
+
+
 def test_dask_backend_needs_a_scheduler(tmp_path: Path) -> None:
     res = CliRunner().invoke(app, ["run", str(selftest_study(tmp_path)), "--backend", "dask"])
     assert res.exit_code == 2 and "--backend dask needs --scheduler" in res.output
