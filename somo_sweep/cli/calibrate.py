@@ -9,7 +9,7 @@ from typing import TYPE_CHECKING, Annotated
 
 import typer
 
-from somo_sweep.cli.output import fail, figure_bytes, working, write_atomic
+from somo_sweep.cli.output import checked_jobs, fail, figure_bytes, working, write_atomic
 from somo_sweep.errors import SomoError
 
 if TYPE_CHECKING:
@@ -117,8 +117,10 @@ def calibrate(
 
     if method not in METHODS:
         fail(SomoError(f"--method '{method}' is not known; allowed: {', '.join(METHODS)}"))
-    if jobs < 1:
-        fail(SomoError(f"--jobs must be >= 1, got {jobs}"))
+    try:
+        checked_jobs(jobs)
+    except SomoError as exc:
+        fail(exc)
     console = Console(width=max(Console().width, 100))  # tables fit when piped (default 80)
     try:
         rows = read_measurements(measurements)

@@ -10,7 +10,7 @@ from typing import Annotated
 
 import typer
 
-from somo_sweep.cli.output import fail, figure_bytes, working, write_atomic
+from somo_sweep.cli.output import checked_jobs, fail, figure_bytes, working, write_atomic
 from somo_sweep.errors import SomoError
 
 
@@ -68,8 +68,7 @@ def diagnose(
         names = [e.strip() for e in effects.split(",") if e.strip()] if effects is not None else None
         for name in names or []:
             get_effect(name)
-        if jobs < 1:
-            raise SomoError(f"--jobs must be >= 1, got {jobs}")
+        checked_jobs(jobs)
         rows = read_measurements(measurements)
         settings = replace(CALIBRATION_SETTINGS, gravity_m_s2=gravity_m_s2)
         if model is not None:

@@ -19,15 +19,51 @@ from typing import TYPE_CHECKING, Any, NoReturn
 
 import typer
 
+from somo_sweep.errors import SomoError
+
 if TYPE_CHECKING:
     from matplotlib.figure import Figure
 
     from somo_sweep.paper.artifacts import Artifacts
 
-__all__ = ["fail", "figure_bytes", "state", "working", "write_artifacts", "write_atomic"]
+__all__ = [
+    "MAX_JOBS_PER_CPU",
+    "checked_jobs",
+    "fail",
+    "figure_bytes",
+    "state",
+    "working",
+    "write_artifacts",
+    "write_atomic",
+]
 
 #: Options of the top-level callback (``--debug``, verbosity) that every command reads.
 state: dict[str, Any] = {"debug": False, "verbosity": 1}
+
+
+#: Most worker processes per CPU that ``--jobs`` may ask for (each holds a PyBullet, ~90 MB).
+MAX_JOBS_PER_CPU = 4
+
+
+def checked_jobs(jobs: int, allow_default: bool = False) -> int:
+    """``--jobs`` as given, refused below 1 (0 allowed as "every CPU" with ``allow_default``) or
+    above :data:`MAX_JOBS_PER_CPU` per CPU this process may use (--jobs 1000 would start a
+    thousand processes and exhaust the memory before the first trial).
+
+    Raises:
+        SomoError: Naming the allowed range.
+    """
+    import joblib
+
+    cpus = joblib.cpu_count() or 1
+    limit = MAX_JOBS_PER_CPU * cpus
+    if (jobs == 0 and allow_default) or 1 <= jobs <= limit:
+        return jobs
+    default = " (or 0: every CPU)" if allow_default else ""
+    raise SomoError(
+        f"--jobs must be from 1 to {limit}{default}, got {jobs}: at most {MAX_JOBS_PER_CPU} workers per "
+        f"CPU ({cpus} here); more only share the CPUs, and each holds its own PyBullet"
+    )
 
 
 def fail(exc: BaseException, code: int = 2) -> NoReturn:

@@ -13,7 +13,7 @@ from typing import TYPE_CHECKING, Annotated
 
 import typer
 
-from somo_sweep.cli.output import fail, write_artifacts, write_atomic
+from somo_sweep.cli.output import checked_jobs, fail, write_artifacts, write_atomic
 from somo_sweep.errors import SomoError
 
 if TYPE_CHECKING:
@@ -41,12 +41,20 @@ def _finish(artifacts: Artifacts, out: Path) -> None:
         typer.echo(f"wrote {path}")
 
 
+def _jobs(jobs: int, allow_default: bool = False) -> int:
+    """``--jobs`` checked (:func:`checked_jobs`), or the error and exit 2."""
+    try:
+        return checked_jobs(jobs, allow_default)
+    except SomoError as exc:
+        fail(exc)
+
+
 @app.command()
 def fig3(out: OUT = DEFAULT_OUT, jobs: Annotated[int, typer.Option(help="Worker processes.")] = 2) -> None:
     """Fig. 3: blocked force vs pressure, eq. (8)/(9) and the simulator-in-the-loop fit vs published."""
     from somo_sweep.paper.fig3 import build
 
-    _finish(build(n_jobs=jobs), out)
+    _finish(build(n_jobs=_jobs(jobs)), out)
 
 
 @app.command()
@@ -59,7 +67,7 @@ def fig5(
     """Fig. 5: the in-hand gait against the hardware recording (about 10 min; --quick: one cycle)."""
     from somo_sweep.paper.fig5 import build
 
-    _finish(build(quick=quick, fit_cycles=fit_cycles, n_jobs=jobs), out)
+    _finish(build(quick=quick, fit_cycles=fit_cycles, n_jobs=_jobs(jobs)), out)
 
 
 @app.command()
@@ -132,7 +140,7 @@ def fig6_ablation(
         spec, folder = load_ablation(ablation or ABLATION_FILE)
         configs = configurations(spec, folder, grid, results_root)
         if run:
-            stopped = _run_ablation(configs, jobs, adaptive)
+            stopped = _run_ablation(configs, _jobs(jobs, allow_default=True), adaptive)
             if stopped is not None:
                 typer.echo(
                     "interrupted: finished trials kept; run the same command again to resume", err=True
@@ -342,7 +350,7 @@ def numerics(
                 err=True,
             )
 
-        checks = check_family(family, FAMILY_POINTS[:points], n_jobs=jobs, on_finger=progress_line)
+        checks = check_family(family, FAMILY_POINTS[:points], n_jobs=_jobs(jobs), on_finger=progress_line)
         for line in family_lines(checks):
             typer.echo(line)
         return
@@ -388,7 +396,7 @@ def numerics(
     else:
         fail(SomoError(f"--compare must be half-step or reference, got '{compare}'"))
     typer.echo(f"A: {setup.describe()}\nB: {other.describe()}")
-    result = run_compare(quick_points(study or QUICK_STUDY), setup, other, jobs, perturb_m)
+    result = run_compare(quick_points(study or QUICK_STUDY), setup, other, _jobs(jobs), perturb_m)
     runs = result.pop("runs")
     if save is not None:
         write_atomic(save, json.dumps(runs, default=str))

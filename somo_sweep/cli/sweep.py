@@ -16,7 +16,7 @@ from rich.progress import (
     TimeRemainingColumn,
 )
 
-from somo_sweep.cli.output import fail, figure_bytes, write_atomic
+from somo_sweep.cli.output import checked_jobs, fail, figure_bytes, write_atomic
 from somo_sweep.errors import SomoError, StorageError
 
 if TYPE_CHECKING:  # the heavy modules are imported when a command runs
@@ -91,8 +91,10 @@ def run(
 
     if backend not in ("loky", "dask"):
         fail(SomoError(f"--backend must be loky or dask, got '{backend}'"))
-    if jobs < 0:
-        fail(SomoError(f"--jobs must be >= 1, got {jobs}"))
+    try:
+        checked_jobs(jobs, allow_default=True)
+    except SomoError as exc:
+        fail(exc)
     if max_trials < 1:
         fail(SomoError(f"--max-trials must be >= 1, got {max_trials}"))
     if backend == "dask" and not scheduler:

@@ -286,7 +286,8 @@ def execute(
             todo = list(pending.values())
             try:
                 with parallel_config(backend=backend):
-                    for out in _parallel(backend, n_jobs)(
+                    workers = min(n_jobs, len(todo)) if backend == "loky" else n_jobs  # no idle process
+                    for out in _parallel(backend, workers)(
                         delayed(run_isolated)(j, timeout_s, owner) for j in todo
                     ):
                         pending.pop(out.job_id, None)

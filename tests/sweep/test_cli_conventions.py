@@ -137,3 +137,50 @@ def test_the_cli_default_trial_limit_is_the_librarys() -> None:
     from somo_sweep.sweep.study import MAX_TRIALS
 
     assert CLI_LIMIT == MAX_TRIALS
+
+
+@pytest.mark.parametrize(
+    "argv",
+    [
+        ["run", "STUDY", "--jobs", "1000000"],
+        ["run", "STUDY", "--jobs", "-1"],
+        ["calibrate", "MEASUREMENTS", "--jobs", "0"],
+        ["calibrate", "MEASUREMENTS", "--jobs", "1000000"],
+        ["diagnose", "MEASUREMENTS", "--jobs", "1000000"],
+        ["paper", "fig3", "--jobs", "1000000"],
+    ],
+    ids=["run-huge", "run-negative", "calibrate-zero", "calibrate-huge", "diagnose-huge", "fig3-huge"],
+)
+def test_jobs_beyond_what_the_machine_can_hold_are_refused_before_any_process(
+    tmp_path: Path, argv: list[str]
+) -> None:
+    """--jobs 1000000 used to start that many loky processes (about 90 MB each)."""
+    from somo_sweep.cli.output import MAX_JOBS_PER_CPU
+
+    bench = Path(__file__).parents[2] / "somo_sweep" / "data" / "tables" / "planar_finger_synthetic.csv"
+    argv = [
+        str(selftest_study(tmp_path)) if a == "STUDY" else str(bench) if a == "MEASUREMENTS" else a
+        for a in argv
+    ]
+    res = CliRunner().invoke(app, argv)
+    limit = MAX_JOBS_PER_CPU * (joblib.cpu_count() or 1)
+    assert res.exit_code == 2, res.output
+    assert f"--jobs must be from 1 to {limit}" in res.output and "workers per CPU" in res.output
+    assert not (tmp_path / "results").exists()
+
+
+def test_a_study_smaller_than_jobs_starts_no_idle_worker(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    from somo_sweep.sweep import execution
+
+    asked: list[int] = []
+    real = execution._parallel
+
+    def spy(backend: str, n_jobs: int) -> object:
+        asked.append(n_jobs)
+        return real(backend, n_jobs)  # type: ignore[arg-type]
+
+    monkeypatch.setattr(execution, "_parallel", spy)
+    summary = run_study(load_study(selftest_study(tmp_path, n=3), tmp_path / "out"), n_jobs=8)
+    assert summary.run == 3 and asked == [3]

@@ -155,8 +155,8 @@ def test_bad_ranges_and_overrides_are_all_reported_with_lines(tmp_path: Path) ->
     assert "line 7: sweep.model.manipulator.actuators[0].joints[0].stiffnes_n_m_per_rad: unknown key" in text
     assert "(did you mean 'stiffness_n_m_per_rad'?)" in text
     assert (
-        "line 8: sweep.model.manipulator.actuators[0].length_m: Input should be greater than 0, got -0.2"
-        in text
+        "line 8: sweep.model.manipulator.actuators[0].length_m: "
+        "Input should be greater than or equal to 0.000001, got -0.2" in text
     )
 
 
