@@ -80,8 +80,19 @@ def working(what: str, bench_rows: bool = False) -> Iterator[None]:
 
     With ``bench_rows``, a bar of the bench rows simulated against the solver's running
     estimate of how many it will need at most (:mod:`somo_sweep.calibration.meter`), and
-    the time left at the current pace.
+    the time left at the current pace. Ctrl-C says what it stopped: the commands write
+    their files only after the work (so nothing was written).
     """
+    try:
+        with _progress(what, bench_rows):
+            yield
+    except KeyboardInterrupt:
+        typer.echo(f"interrupted while {what}: nothing was written", err=True)
+        raise
+
+
+@contextmanager
+def _progress(what: str, bench_rows: bool) -> Iterator[None]:
     if state["verbosity"] == 0:
         yield
         return

@@ -184,3 +184,13 @@ def test_a_study_smaller_than_jobs_starts_no_idle_worker(
     monkeypatch.setattr(execution, "_parallel", spy)
     summary = run_study(load_study(selftest_study(tmp_path, n=3), tmp_path / "out"), n_jobs=8)
     assert summary.run == 3 and asked == [3]
+
+
+def test_ctrl_c_during_a_long_step_says_what_stopped_and_that_nothing_was_written(
+    capsys: pytest.CaptureFixture[str],
+) -> None:
+    from somo_sweep.cli.output import working
+
+    with pytest.raises(KeyboardInterrupt), working("calibrating (fit)", bench_rows=True):
+        raise KeyboardInterrupt
+    assert "interrupted while calibrating (fit): nothing was written" in capsys.readouterr().err
