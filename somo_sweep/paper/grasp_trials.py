@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import math
 from collections import Counter
 from pathlib import Path
 from typing import Any
@@ -12,7 +13,7 @@ from somo_sweep.errors import SomoError
 from somo_sweep.paper.artifacts import Artifacts
 from somo_sweep.tasks.pinch_grasp.classify import find_column, reclassify
 
-__all__ = ["find_trial", "grasp_labels", "read_results", "relabel", "render_trial"]
+__all__ = ["MAX_SNAPSHOTS", "find_trial", "grasp_labels", "read_results", "relabel", "render_trial"]
 
 #: The label column the pinch_grasp task stores for each rule (with its default options).
 STORED_LABEL = {"contacts": "label_grasp", "paper": "label_grasp_paper"}
@@ -103,6 +104,10 @@ def find_trial(jobs: list[Any], trial: str) -> Any:
     return hits[0]
 
 
+#: Most snapshots one ``render`` call takes (each is a PNG of the scene).
+MAX_SNAPSHOTS = 100
+
+
 def render_trial(study_path: str | Path, trial: str, times_s: list[float]) -> tuple[Artifacts, str]:
     """Rerun one trial of a pinch_grasp study with a top-view snapshot at each time.
 
@@ -122,6 +127,14 @@ def render_trial(study_path: str | Path, trial: str, times_s: list[float]) -> tu
     job = find_trial(build_jobs(study).jobs, trial)
     params = job.params
     assert isinstance(params, PinchGraspParams)
+    duration_s = params.approach_s + params.ramp_s + params.lift_s + params.hold_s
+    if not 1 <= len(times_s) <= MAX_SNAPSHOTS:
+        raise SomoError(f"--at-s: give 1 to {MAX_SNAPSHOTS} snapshot times, got {len(times_s)}")
+    outside = [t for t in times_s if not (math.isfinite(t) and 0.0 <= t <= duration_s)]
+    if outside:
+        raise SomoError(
+            f"--at-s {outside[0]:g}: a snapshot time must be from 0 to {duration_s:g} s (the trial's length)"
+        )
     images: dict[float, Any] = {}
     camera = Camera(target_m=(params.base_distance_m * 0.5, 0.0, params.hand_height_m))
 
@@ -134,4 +147,9 @@ def render_trial(study_path: str | Path, trial: str, times_s: list[float]) -> tu
         f"_c{params.centering_position_m * 1e3:g}mm"
     )
     out = Artifacts(images={f"{name}_t{t:.2f}s.png": img for t, img in sorted(images.items())})
-    return out, str(result.labels.get("grasp", result.status))
+    label = str(result.labels.get("grasp", result.status))
+    ended = result.metrics.get("ended_early_s")
+    if isinstance(ended, float) and math.isfinite(ended) and any(t > ended for t in times_s):
+        why = result.metrics.get("ended_early_reason", "")
+        label += f" (ended early at {ended:.2f} s: {why}; no snapshot after it)"
+    return out, label
