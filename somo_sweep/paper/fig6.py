@@ -27,6 +27,7 @@ from somo_sweep.tasks.pinch_grasp.params import BASE_DISTANCE_AT_ZERO_CENTERING_
 __all__ = [
     "COLORS",
     "build",
+    "check_max_dsr",
     "draw_dsr_panel",
     "draw_fig6",
     "grasp_table",
@@ -141,11 +142,27 @@ def draw_fig6(axes: Sequence[Any], table: pd.DataFrame, max_dsr: float = 0.5) ->
     return dsrs
 
 
+def check_max_dsr(max_dsr: float, dsrs: Any) -> None:
+    """Refuse a ``--max-dsr`` outside [0, 1], NaN, or below every DSR of the results.
+
+    Raises:
+        SomoError: Naming the allowed range, or the smallest DSR the results hold.
+    """
+    if not (math.isfinite(max_dsr) and 0.0 <= max_dsr <= 1.0):
+        raise SomoError(f"--max-dsr must be from 0 to 1, got {max_dsr:g}")
+    smallest = float(np.min(dsrs)) if len(dsrs) else math.nan
+    if not smallest <= max_dsr + 1e-9:
+        raise SomoError(
+            f"--max-dsr {max_dsr:g} draws nothing: the smallest DSR in the results is {smallest:g}"
+        )
+
+
 def build(table: pd.DataFrame, stem: str = "fig6", max_dsr: float = 0.5) -> Artifacts:
     """The figure, the summary table (CSV) and the headline (JSON, also in ``lines``)."""
     import matplotlib.pyplot as plt
     from matplotlib.patches import Patch
 
+    check_max_dsr(max_dsr, table["distal_segment_ratio"])
     n = sum(1 for d in table["distal_segment_ratio"].unique() if d <= max_dsr + 1e-9)
     cols = min(max(n, 1), 4)
     fig, axes = plt.subplots(

@@ -22,6 +22,7 @@ from somo_sweep.paper.fig6 import (
     CENTERING_LABEL,
     COLORS,
     DSR_DECIMALS,
+    check_max_dsr,
     draw_dsr_panel,
     smallest_all_width_pinch_dsr,
 )
@@ -68,6 +69,7 @@ def build(sides: list[Side], max_dsr: float = 0.5, paper_style: bool = False) ->
     from matplotlib.patches import Patch
 
     tables = pd.concat([s.table for s in sides])
+    check_max_dsr(max_dsr, tables["distal_segment_ratio"])
     dsrs = sorted(
         {round(float(d), DSR_DECIMALS) for d in tables["distal_segment_ratio"] if d <= max_dsr + 1e-9}
     )

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import json
+import re
 from pathlib import Path
 
 import pandas as pd
@@ -209,3 +210,22 @@ def test_cells_an_adaptive_run_inferred_keep_their_stored_label_and_are_drawn(tm
     assert result.exit_code == 0, result.output
     labels = pd.read_csv(folder / "grasp_labels_contacts.csv")
     assert labels["grasp_contacts"].tolist()[-1] == "power" and labels["inferred"].tolist()[-1]
+
+
+@pytest.mark.parametrize(
+    ("max_dsr", "message"),
+    [
+        (float("nan"), "--max-dsr must be from 0 to 1, got nan"),
+        (-5.0, "--max-dsr must be from 0 to 1, got -5"),
+        (2.0, "--max-dsr must be from 0 to 1, got 2"),
+        (0.05, "--max-dsr 0.05 draws nothing: the smallest DSR in the results is 0.1"),
+    ],
+)
+def test_a_max_dsr_that_draws_nothing_is_refused(max_dsr: float, message: str) -> None:
+    """NaN or -5 drew an empty figure and wrote it as if it were Fig. 6."""
+    from somo_sweep.errors import SomoError
+    from somo_sweep.paper.fig6 import check_max_dsr
+
+    with pytest.raises(SomoError, match=re.escape(message)):
+        check_max_dsr(max_dsr, pd.Series([0.1, 0.2, 0.1]))
+    check_max_dsr(0.1, pd.Series([0.1, 0.2]))

@@ -112,6 +112,14 @@ def test_unknown_rule_or_option_is_a_clear_error() -> None:
         classify(evidence({20: 1.0}), "paper", max_proximal_fraction=0.1)
 
 
+@pytest.mark.parametrize("fraction", [math.nan, -1.0, 0.0, 1.5, math.inf])
+def test_a_proximal_fraction_outside_0_1_is_refused(fraction: float) -> None:
+    """NaN or -1 labelled every grasp power, silently."""
+    with pytest.raises(SomoError, match="max_proximal_fraction must be above 0 and at most 1"):
+        classify(evidence({20: 1.0}), "contacts", max_proximal_fraction=fraction)
+    assert classify(evidence({20: 1.0}), "contacts", max_proximal_fraction=1.0) in ("pinch", "power")
+
+
 def _row(per_link: dict[int, float], dsr: float, prefix: str = "") -> dict[str, object]:
     row: dict[str, object] = {
         "task_distal_segment_ratio": dsr,

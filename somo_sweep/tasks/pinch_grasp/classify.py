@@ -186,6 +186,9 @@ def classify(evidence: GraspEvidence, rule: str = "contacts", **options: float) 
                 f"grasp rule '{rule}' takes no option {', '.join(bad)}; "
                 f"allowed: {', '.join(allowed[rule]) or 'none'}"
             )
+        fraction = options.get("max_proximal_fraction", MAX_PROXIMAL_FRACTION)
+        if not (math.isfinite(fraction) and 0.0 < fraction <= 1.0):
+            raise SomoError(f"max_proximal_fraction must be above 0 and at most 1, got {fraction:g}")
     if rule == "paper":
         return _paper(evidence)
     if rule == "contacts":
