@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import math
 from pathlib import Path
 from typing import TYPE_CHECKING, Annotated
 
@@ -95,6 +96,8 @@ def run(
         checked_jobs(jobs, allow_default=True)
     except SomoError as exc:
         fail(exc)
+    if timeout is not None and not (math.isfinite(timeout) and timeout > 0):
+        fail(SomoError(f"--timeout must be a number of seconds > 0, got {timeout:g}"))
     if max_trials < 1:
         fail(SomoError(f"--max-trials must be >= 1, got {max_trials}"))
     if backend == "dask" and not scheduler:

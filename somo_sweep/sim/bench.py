@@ -30,12 +30,13 @@ with it the reported equilibrium would depend on how long one waits.
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 
 import numpy as np
 import pybullet as p
 
-from somo_sweep.errors import SimulationError, UnstableSimulation
+from somo_sweep.errors import SimulationError, SomoError, UnstableSimulation
 from somo_sweep.model.description import Manipulator, Pose
 from somo_sweep.model.load import Model
 from somo_sweep.sim.settings import WorldSettings
@@ -47,6 +48,10 @@ __all__ = ["STATICS", "TESTS", "BenchResult", "BenchSettings", "bench_frame", "r
 TESTS = ("tip_load", "blocked_force", "free_bending")
 #: How a row's equilibrium is found: solved statically, or by dynamic relaxation.
 STATICS = ("solve", "dynamic")
+
+
+#: Largest bench gravity accepted, m/s² (ten times the Earth's: a centrifuge bench at most).
+MAX_GRAVITY_M_S2 = 100.0
 
 
 @dataclass(frozen=True)
@@ -71,6 +76,15 @@ class BenchSettings:
     max_steps: int = 40_000
     gravity_m_s2: float = 9.81
     statics: str = "solve"
+
+    def __post_init__(self) -> None:
+        if not (math.isfinite(self.gravity_m_s2) and 0.0 <= self.gravity_m_s2 <= MAX_GRAVITY_M_S2):
+            raise SomoError(
+                f"gravity on the bench must be from 0 (a horizontal bench) to {MAX_GRAVITY_M_S2:g} m/s², "
+                f"got {self.gravity_m_s2:g}"
+            )
+        if self.statics not in ("solve", "dynamic"):
+            raise SomoError(f"statics must be solve or dynamic, got {self.statics!r}")
 
 
 @dataclass(frozen=True)

@@ -117,3 +117,22 @@ def test_excel_utf8_with_a_byte_order_mark_and_crlf_reads_like_the_plain_file(tm
     plain.write_text("\n".join(body) + "\n")
     assert read_finger_header(path) == read_finger_header(plain) is not None
     pd.testing.assert_frame_equal(read_measurements(path), read_measurements(plain))
+
+
+@pytest.mark.parametrize("gravity", ["nan", "1e300", "-9.81"])
+@pytest.mark.parametrize("command", ["calibrate", "diagnose"])
+def test_bench_gravity_outside_0_to_100_is_refused_and_nothing_written(
+    tmp_path: Path, command: str, gravity: str
+) -> None:
+    """NaN gravity calibrated and wrote a model."""
+    from typer.testing import CliRunner
+
+    from somo_sweep.cli.app import app
+
+    out = tmp_path / "o"
+    args = [command, str(BUNDLED), "--gravity-m-s2", gravity]
+    args += ["-o", str(out / "m.yaml")] if command == "calibrate" else ["--out", str(out)]
+    res = CliRunner().invoke(app, args)
+    assert res.exit_code == 2, res.output
+    assert "gravity on the bench must be from 0 (a horizontal bench) to 100 m/s²" in res.output
+    assert not out.exists()

@@ -194,3 +194,11 @@ def test_ctrl_c_during_a_long_step_says_what_stopped_and_that_nothing_was_writte
     with pytest.raises(KeyboardInterrupt), working("calibrating (fit)", bench_rows=True):
         raise KeyboardInterrupt
     assert "interrupted while calibrating (fit): nothing was written" in capsys.readouterr().err
+
+
+@pytest.mark.parametrize("timeout", ["nan", "-1", "0"])
+def test_a_timeout_that_no_trial_can_meet_is_refused_before_any_trial(tmp_path: Path, timeout: str) -> None:
+    """--timeout nan or -1 stored every trial as an error."""
+    res = _run(selftest_study(tmp_path), tmp_path / "out", "--timeout", timeout)
+    assert res.exit_code == 2 and "--timeout must be a number of seconds > 0" in res.output  # type: ignore[attr-defined]
+    assert not (tmp_path / "out").exists()
