@@ -67,7 +67,11 @@ def fig5(
     """Fig. 5: the in-hand gait against the hardware recording (about 10 min; --quick: one cycle)."""
     from somo_sweep.paper.fig5 import build
 
-    _finish(build(quick=quick, fit_cycles=fit_cycles, n_jobs=_jobs(jobs)), out)
+    try:
+        artifacts = build(quick=quick, fit_cycles=fit_cycles, n_jobs=_jobs(jobs))
+    except SomoError as exc:
+        fail(exc)
+    _finish(artifacts, out)
 
 
 @app.command()
@@ -245,7 +249,7 @@ def palm(
 
 @app.command()
 def speed(
-    repeats: Annotated[int, typer.Option(help="Timed runs per measurement.")] = 3,
+    repeats: Annotated[int, typer.Option(help="Timed runs per measurement.", min=1, max=100)] = 3,
     convergence: Annotated[
         bool, typer.Option("--convergence", help="The time-step convergence table.")
     ] = False,
@@ -287,7 +291,7 @@ def numerics(
     compare: Annotated[
         str | None, typer.Option(help="half-step or reference: label agreement on a study's grid.")
     ] = None,
-    repeats: Annotated[int, typer.Option(help="Timed runs.")] = 3,
+    repeats: Annotated[int, typer.Option(help="Timed runs.", min=1, max=100)] = 3,
     jobs: Annotated[int, typer.Option(help="Worker processes.")] = 2,
     save: Annotated[Path | None, typer.Option(help="Write every trial's result to this JSON file.")] = None,
     study: Annotated[Path | None, typer.Option(help="pinch_grasp study whose grid to compare on.")] = None,

@@ -34,6 +34,7 @@ import pandas as pd
 from matplotlib.axes import Axes
 from scipy.optimize import minimize_scalar
 
+from somo_sweep.errors import SomoError
 from somo_sweep.model.load import Model, load_model
 from somo_sweep.model.tables import bundled_path
 from somo_sweep.paper import fig3
@@ -237,6 +238,11 @@ def build(quick: bool = False, fit_cycles: int = 3, n_jobs: int = 2) -> Artifact
         fit_cycles: Gait cycles the side weight is fitted on (the rest are held out).
         n_jobs: Worker processes for the finger calibration.
     """
+    if not quick and not 1 <= fit_cycles < N_CYCLES:
+        raise SomoError(
+            f"--fit-cycles must be from 1 to {N_CYCLES - 1} (the recording has {N_CYCLES} gait cycles "
+            f"and at least one is held out), got {fit_cycles}"
+        )
     model, hw = load_model(HAND), load_hardware()
     settings = WorldSettings(time_step_s=1e-3)
     base = GaitParams()
