@@ -9,7 +9,7 @@ from typing import TYPE_CHECKING, Annotated
 
 import typer
 
-from somo_sweep.cli.output import checked_jobs, fail, figure_bytes, working, write_atomic
+from somo_sweep.cli.output import check_replaceable, checked_jobs, fail, figure_bytes, working, write_atomic
 from somo_sweep.errors import SomoError
 
 if TYPE_CHECKING:
@@ -123,6 +123,8 @@ def calibrate(
         fail(exc)
     console = Console(width=max(Console().width, 100))  # tables fit when piped (default 80)
     try:
+        output = output or default_output(measurements, "calibration") / "model.yaml"
+        check_replaceable(output, [measurements, model])
         rows = read_measurements(measurements)
         base = base_model(measurements, model, length_mm, segments, mass_g, width_mm, thickness_mm)
         settings = replace(CALIBRATION_SETTINGS, gravity_m_s2=gravity_m_s2)
@@ -149,7 +151,6 @@ def calibrate(
             err=True,
         )
     header = f"calibrated by somo-sweep calibrate --method {method} from {measurements}"
-    output = output or default_output(measurements, "calibration") / "model.yaml"
     outputs: list[tuple[Path, str | bytes]] = [
         (output, model_yaml(with_provenance(result, measurements), header))
     ]

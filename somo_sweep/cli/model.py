@@ -10,7 +10,7 @@ from typing import Annotated
 import pandas as pd
 import typer
 
-from somo_sweep.cli.output import fail, write_atomic
+from somo_sweep.cli.output import check_replaceable, fail, write_atomic
 from somo_sweep.errors import SomoError
 
 __all__ = ["check", "measure"]
@@ -88,6 +88,8 @@ def measure(
     else:
         rows["pressure_kpa"] = vals
     try:
+        if csv is not None:
+            check_replaceable(csv, [model])
         sim = simulate_measurements(load_model(model, allow_outside), rows)
     except SomoError as exc:
         fail(exc)

@@ -12,7 +12,7 @@ import json
 import os
 import stat
 import tempfile
-from collections.abc import Iterator
+from collections.abc import Iterator, Sequence
 from contextlib import contextmanager
 from pathlib import Path
 from typing import TYPE_CHECKING, Any, NoReturn
@@ -27,7 +27,9 @@ if TYPE_CHECKING:
     from somo_sweep.paper.artifacts import Artifacts
 
 __all__ = [
+    "MARKER",
     "MAX_JOBS_PER_CPU",
+    "check_replaceable",
     "checked_jobs",
     "fail",
     "figure_bytes",
@@ -149,6 +151,51 @@ def _mode_for(path: Path) -> int:
         mask = os.umask(0)
         os.umask(mask)
         return 0o666 & ~mask
+
+
+#: What every text file somo-sweep writes says in its first lines (a comment header).
+MARKER = b"somo-sweep"
+#: Bytes of an existing file read to recognise it.
+_HEAD_BYTES = 4096
+
+
+def check_replaceable(path: Path, inputs: Sequence[Path | str | None] = (), kind: str = "text") -> None:
+    """Refuse to replace a file the user may need: one of the command's inputs, or one that
+    somo-sweep did not write (a text file without :data:`MARKER` in its first lines; for
+    ``kind="json"`` a file that is not JSON). A missing file, or one of ours, is fine.
+
+    Call it before the work, so that a wrong name costs nothing.
+
+    Raises:
+        SomoError: Naming the file, why, and that nothing was written.
+    """
+    try:
+        if not path.exists():
+            return
+        if path.is_dir():
+            raise SomoError(f"{path} is a folder; give a file name")
+        for given in inputs:
+            if given is not None and Path(given).exists() and os.path.samefile(path, given):
+                raise SomoError(
+                    f"{path} is this command's input {given}; nothing was written: give another name"
+                )
+        with path.open("rb") as fh:
+            head = fh.read(_HEAD_BYTES if kind == "text" else 64 * 1024 * 1024 + 1)
+    except OSError as exc:
+        raise SomoError(f"cannot check {path} before replacing it: {exc.strerror or exc}") from None
+    if kind == "json":
+        try:
+            json.loads(head)
+            return
+        except ValueError:
+            pass
+    elif MARKER in head:
+        return
+    what = "is not JSON" if kind == "json" else "has no 'somo-sweep' header"
+    raise SomoError(
+        f"{path} exists and {what}: somo-sweep did not write it, so it is not replaced; nothing was "
+        "written: give another file name, or move that file away first"
+    )
 
 
 def write_atomic(path: Path, data: str | bytes) -> Path:

@@ -13,7 +13,7 @@ from typing import TYPE_CHECKING, Annotated
 
 import typer
 
-from somo_sweep.cli.output import checked_jobs, fail, write_artifacts, write_atomic
+from somo_sweep.cli.output import check_replaceable, checked_jobs, fail, write_artifacts, write_atomic
 from somo_sweep.errors import SomoError
 
 if TYPE_CHECKING:
@@ -399,6 +399,11 @@ def numerics(
         other = dataclasses.replace(setup, time_step_s=setup.time_step_s / 2)
     else:
         fail(SomoError(f"--compare must be half-step or reference, got '{compare}'"))
+    if save is not None:
+        try:
+            check_replaceable(save, kind="json")
+        except SomoError as exc:
+            fail(exc)
     typer.echo(f"A: {setup.describe()}\nB: {other.describe()}")
     result = run_compare(quick_points(study or QUICK_STUDY), setup, other, _jobs(jobs), perturb_m)
     runs = result.pop("runs")
@@ -419,6 +424,11 @@ def data(
         from somo_sweep.diagnosis.example import example_csv
     else:
         fail(SomoError(f"unknown data set '{which}'; allowed: synthetic, diagnosis-example"))
+    if out is not None:
+        try:
+            check_replaceable(out)
+        except SomoError as exc:
+            fail(exc)
     text = example_csv()
     if out is None:
         typer.echo(text, nl=False)

@@ -17,7 +17,7 @@ from rich.progress import (
     TimeRemainingColumn,
 )
 
-from somo_sweep.cli.output import checked_jobs, fail, figure_bytes, write_atomic
+from somo_sweep.cli.output import check_replaceable, checked_jobs, fail, figure_bytes, write_atomic
 from somo_sweep.errors import SomoError, StorageError
 
 if TYPE_CHECKING:  # the heavy modules are imported when a command runs
@@ -308,6 +308,8 @@ def recheck(
     from somo_sweep.sweep.study import load_study
 
     try:
+        if report is not None:
+            check_replaceable(report, [study], kind="json")
         result = run_recheck(load_study(study, out, max_trials, allow_outside), trials, seed, _damaged)
     except SomoError as exc:
         fail(exc)

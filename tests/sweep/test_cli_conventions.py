@@ -202,3 +202,45 @@ def test_a_timeout_that_no_trial_can_meet_is_refused_before_any_trial(tmp_path: 
     res = _run(selftest_study(tmp_path), tmp_path / "out", "--timeout", timeout)
     assert res.exit_code == 2 and "--timeout must be a number of seconds > 0" in res.output  # type: ignore[attr-defined]
     assert not (tmp_path / "out").exists()
+
+
+BENCH = Path(__file__).parents[2] / "somo_sweep" / "data" / "tables" / "planar_finger_synthetic.csv"
+FINGER_MODEL = Path(__file__).parents[2] / "somo_sweep" / "data" / "models" / "ihm_finger.yaml"
+
+
+@pytest.mark.parametrize(
+    ("argv", "kind"),
+    [
+        (["calibrate", str(BENCH), "-o", "FILE"], "text"),
+        (["measure", str(FINGER_MODEL), "--test", "tip_load", "--values", "0.1", "--csv", "FILE"], "text"),
+        (["paper", "data", "synthetic", "FILE"], "text"),
+        (["recheck", "STUDY", "-n", "1", "--report", "FILE"], "json"),
+    ],
+    ids=["calibrate", "measure", "paper-data", "recheck"],
+)
+def test_a_file_somo_sweep_did_not_write_is_never_replaced(
+    tmp_path: Path, argv: list[str], kind: str
+) -> None:
+    """`paper data ... /etc/passwd` replaced it; so would `-o notes.txt` have."""
+    precious = tmp_path / "notes.txt"
+    precious.write_text("my own notes\n")
+    study = selftest_study(tmp_path)
+    argv = [str(precious) if a == "FILE" else str(study) if a == "STUDY" else a for a in argv]
+    res = CliRunner().invoke(app, argv)
+    assert res.exit_code == 2, res.output
+    what = "is not JSON" if kind == "json" else "has no 'somo-sweep' header"
+    assert f"{precious} exists and {what}: somo-sweep did not write it, so it is not replaced" in res.output
+    assert precious.read_text() == "my own notes\n"
+
+
+def test_calibrate_never_writes_over_its_own_measurements_and_replaces_its_own_model(tmp_path: Path) -> None:
+    measurements = tmp_path / "m.csv"
+    measurements.write_bytes(BENCH.read_bytes())  # has a somo-sweep header: only the input rule saves it
+    res = CliRunner().invoke(app, ["calibrate", str(measurements), "-o", str(measurements)])
+    assert res.exit_code == 2 and "is this command's input" in res.output
+    assert measurements.read_bytes() == BENCH.read_bytes()
+    model = tmp_path / "model.yaml"
+    for _ in range(2):  # the second run replaces the model the first one wrote
+        res = CliRunner().invoke(app, ["calibrate", str(measurements), "-o", str(model)])
+        assert res.exit_code == 0, res.output
+    assert model.read_text().startswith("# calibrated by somo-sweep calibrate")
