@@ -10,7 +10,7 @@ from typing import Annotated
 
 import typer
 
-from somo_sweep.cli.output import checked_jobs, fail, figure_bytes, working, write_atomic
+from somo_sweep.cli.output import check_replaceable, checked_jobs, fail, figure_bytes, working, write_atomic
 from somo_sweep.errors import SomoError
 
 
@@ -69,6 +69,10 @@ def diagnose(
         for name in names or []:
             get_effect(name)
         checked_jobs(jobs)
+        folder = out or default_output(measurements, "diagnosis")
+        check_replaceable(folder / "model.yaml", [measurements, model])
+        check_replaceable(folder / "report.md", [measurements, model], older_prefix=b"# Diagnosis of ")
+        check_replaceable(folder / "diagnosis.json", [measurements, model], kind="json")
         rows = read_measurements(measurements)
         settings = replace(CALIBRATION_SETTINGS, gravity_m_s2=gravity_m_s2)
         if model is not None:

@@ -159,10 +159,13 @@ MARKER = b"somo-sweep"
 _HEAD_BYTES = 4096
 
 
-def check_replaceable(path: Path, inputs: Sequence[Path | str | None] = (), kind: str = "text") -> None:
+def check_replaceable(
+    path: Path, inputs: Sequence[Path | str | None] = (), kind: str = "text", older_prefix: bytes = b""
+) -> None:
     """Refuse to replace a file the user may need: one of the command's inputs, or one that
     somo-sweep did not write (a text file without :data:`MARKER` in its first lines; for
-    ``kind="json"`` a file that is not JSON). A missing file, or one of ours, is fine.
+    ``kind="json"`` a file that is not JSON). A missing file, or one of ours, is fine;
+    ``older_prefix`` recognises what an earlier version wrote without the header.
 
     Call it before the work, so that a wrong name costs nothing.
 
@@ -189,7 +192,7 @@ def check_replaceable(path: Path, inputs: Sequence[Path | str | None] = (), kind
             return
         except ValueError:
             pass
-    elif MARKER in head:
+    elif MARKER in head or (older_prefix and head.startswith(older_prefix)):
         return
     what = "is not JSON" if kind == "json" else "has no 'somo-sweep' header"
     raise SomoError(

@@ -44,6 +44,7 @@ def report_markdown(result: DiagnosisResult, source: str) -> str:
     after = {m.label: m for m in result.metrics(result.after)}
     none_bic = result.candidate("none").bic
     out = [
+        "<!-- written by somo-sweep diagnose -->",
         f"# Diagnosis of {source}",
         "",
         "\n".join(f"**{ln.strip()}**  " for ln in verdict_lines(result)),

@@ -312,6 +312,8 @@ def test_cli_writes_json_report_model_and_plot(tmp_path: Path) -> None:
     assert [c["name"] for c in record["candidates"]] == sorted(
         ["none", "self_weight"], key=lambda n: next(c["bic"] for c in record["candidates"] if c["name"] == n)
     )
-    assert (out / "report.md").read_text().startswith("# Diagnosis of")
+    assert (
+        (out / "report.md").read_text().startswith("<!-- written by somo-sweep diagnose -->\n# Diagnosis of")
+    )
     assert (out / "diagnosis.png").stat().st_size > 1000
     assert load_model(out / "model.yaml").manipulator is not None

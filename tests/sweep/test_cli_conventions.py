@@ -244,3 +244,16 @@ def test_calibrate_never_writes_over_its_own_measurements_and_replaces_its_own_m
         res = CliRunner().invoke(app, ["calibrate", str(measurements), "-o", str(model)])
         assert res.exit_code == 0, res.output
     assert model.read_text().startswith("# calibrated by somo-sweep calibrate")
+
+
+def test_diagnose_out_folder_keeps_the_users_own_report_and_replaces_its_own(tmp_path: Path) -> None:
+    out = tmp_path / "here"
+    out.mkdir()
+    (out / "report.md").write_text("my report\n")
+    res = CliRunner().invoke(app, ["diagnose", str(BENCH), "--out", str(out), "--effects", "self_weight"])
+    assert res.exit_code == 2 and "report.md exists and has no 'somo-sweep' header" in res.output
+    assert (out / "report.md").read_text() == "my report\n" and len(list(out.iterdir())) == 1
+    (out / "report.md").write_text("# Diagnosis of an earlier version's run\n")  # before the header
+    res = CliRunner().invoke(app, ["diagnose", str(BENCH), "--out", str(out), "--effects", "self_weight"])
+    assert res.exit_code == 0, res.output
+    assert (out / "report.md").read_text().startswith("<!-- written by somo-sweep diagnose -->")
