@@ -12,6 +12,7 @@ from __future__ import annotations
 
 import json
 import math
+import re
 from pathlib import Path
 from typing import Any
 
@@ -213,8 +214,21 @@ def _non_finite(data: Any, path: str, lines: dict[str, int], problems: list[Prob
             todo.extend((v, join_path(where, k if isinstance(k, int) else str(k))) for k, v in items)
 
 
-#: libyaml when available (ten times faster than the pure-Python loader on large files).
-_Loader: Any = getattr(yaml, "CSafeLoader", yaml.SafeLoader)
+class _Loader(getattr(yaml, "CSafeLoader", yaml.SafeLoader)):  # type: ignore[misc]
+    """libyaml when available (ten times faster than the pure-Python loader on large files).
+
+    Numbers follow YAML 1.2 as well as 1.1: PyYAML (YAML 1.1) reads ``1e-3`` and ``4E5``,
+    exponents without a decimal point, as text, so ``time_step_s: 1e-3`` would be the string
+    "1e-3". Here they are floats, as every other YAML and JSON reader has them.
+    """
+
+
+# PyYAML copies the class's resolver table on the first addition, so yaml.SafeLoader is unchanged.
+_Loader.add_implicit_resolver(
+    "tag:yaml.org,2002:float",
+    re.compile(r"^[-+]?(?:[0-9][0-9_]*(?:\.[0-9_]*)?|\.[0-9_]+)[eE][-+]?[0-9]+$"),
+    list("-+0123456789."),
+)
 
 
 def _check_events(text: str) -> None:

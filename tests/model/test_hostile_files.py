@@ -10,6 +10,7 @@ import time
 from pathlib import Path
 
 import pytest
+import yaml
 from conftest import MODELS, load_yaml
 from typer.testing import CliRunner
 
@@ -252,3 +253,24 @@ def test_utf16_is_named_with_what_to_do(tmp_path: Path) -> None:
     path = tmp_path / "m.yaml"
     path.write_bytes("manipulator: {}\n".encode("utf-16"))
     assert "UTF-16 text (byte-order mark ff fe); allowed: UTF-8, save the file as UTF-8" in _error(path)
+
+
+def test_exponents_without_a_decimal_point_are_numbers(tmp_path: Path) -> None:
+    # PyYAML (YAML 1.1) reads 1e-3 as the text "1e-3"; every other reader has it a number.
+    path = _write(tmp_path, 'a: 1e-3\nb: [2E5, -3e+2, .5e1, 1.5e-3]\nc: "1e-3"\nd: 1e\ne: 10\n')
+    data, lines = load_mapping(path)
+    assert data == {"a": 0.001, "b": [200000.0, -300.0, 5.0, 0.0015], "c": "1e-3", "d": "1e", "e": 10}
+    assert isinstance(data["a"], float) and lines["b"] == 2
+    assert yaml.safe_load("1e-3") == "1e-3"  # PyYAML's own loader is left as it is
+
+
+def test_a_model_written_with_exponents_is_the_same_model(tmp_path: Path) -> None:
+    text = (MODELS / "pinch_finger.yaml").read_text()
+    assert "mass_kg: 0.0025" in text and "pressure_gain_n_m_per_kpa: 1.5e-3" in text
+    plain = _write(tmp_path, text, "plain.yaml")
+    exp = _write(
+        tmp_path,
+        text.replace("mass_kg: 0.0025", "mass_kg: 25e-4").replace("1.5e-3", "15e-4"),
+        "exp.yaml",
+    )
+    assert load_model(exp) == load_model(plain)

@@ -51,6 +51,13 @@ def test_range_is_inclusive_and_free_of_round_off() -> None:
     assert values[-1] == 0.7 and values[3] == 0.15 and values[6] == 0.3
 
 
+def test_a_range_written_with_exponents_expands(tmp_path: Path) -> None:
+    # 1e-2 is text to PyYAML; the study reader has it a number, in ranges as in lists.
+    path = write_study(tmp_path, HEAD + "sweep:\n  task.tip_load_n: {start: 1e-2, stop: 4e-2, step: 1e-2}\n")
+    study = load_study(path)
+    assert [p["task.tip_load_n"] for p in study.points()] == [0.01, 0.02, 0.03, 0.04]
+
+
 def test_integer_range_stays_integer() -> None:
     assert expand_axis({"start": 70, "stop": 175, "step": 5}, "x")[0] == list(range(70, 176, 5))
 
