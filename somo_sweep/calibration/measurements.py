@@ -4,7 +4,8 @@ Columns: ``test,pressure_kpa,tip_load_n,tip_deflection_mm,blocked_force_n,tip_x_
 (empty where not applicable), optionally ``tip_angle_deg`` (free bending: the tip's
 angle in the bending plane, 0 straight, positive curling with pressure; what a photo
 of the curled finger gives with its tip position), ``axis`` (``grasp`` / ``side``) and
-``direction`` (``loading`` / ``unloading``). Lines starting with ``#`` are comments.
+``direction`` (``loading`` / ``unloading``). Lines starting with ``#`` are comments. Fields are
+separated by commas, or by ``;`` or tabs when the header has no comma (then ``1,5`` is 1.5).
 """
 
 from __future__ import annotations
@@ -86,6 +87,22 @@ MAX_FILE_BYTES = 8 * 1024 * 1024
 MAX_PROBLEMS = 20
 
 
+def _separator(text: str) -> str:
+    """The field separator: ',' unless the header has none and has ';' or tabs instead.
+
+    Spreadsheets in locales with a decimal comma export "CSV" separated by ';' (and write
+    1,5 for 1.5); a header without a single comma is unambiguous about it.
+    """
+    for line in text.splitlines():
+        stripped = line.strip()
+        if not stripped or stripped.startswith("#"):
+            continue
+        if "," in stripped:
+            return ","
+        return ";" if ";" in stripped else "\t" if "\t" in stripped else ","
+    return ","
+
+
 def read_measurements(path: str | Path, require_measured: bool = True) -> pd.DataFrame:
     """Read and validate a measurement CSV.
 
@@ -115,9 +132,10 @@ def read_measurements(path: str | Path, require_measured: bool = True) -> pd.Dat
     except ValueError as exc:
         raise MeasurementError(path, [str(exc)]) from None
     comment_lines = [i + 1 for i, ln in enumerate(text.splitlines()) if ln.lstrip().startswith("#")]
+    sep = _separator(text)
     try:
         raw = pd.read_csv(
-            io.StringIO(text), comment="#", dtype=str, keep_default_na=False, skip_blank_lines=True
+            io.StringIO(text), sep=sep, comment="#", dtype=str, keep_default_na=False, skip_blank_lines=True
         )
     except (pd.errors.ParserError, pd.errors.EmptyDataError) as exc:
         raise MeasurementError(path, [f"cannot parse CSV: {exc}"]) from None
@@ -154,6 +172,8 @@ def read_measurements(path: str | Path, require_measured: bool = True) -> pd.Dat
             if cell == "":
                 values.append(math.nan)
                 continue
+            if sep != "," and cell.count(",") == 1 and "." not in cell:
+                cell = cell.replace(",", ".")  # a decimal comma (a spreadsheet's ';'-separated export)
             try:
                 v = float(cell)
             except ValueError:

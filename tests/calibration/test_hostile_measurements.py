@@ -119,6 +119,30 @@ def test_excel_utf8_with_a_byte_order_mark_and_crlf_reads_like_the_plain_file(tm
     pd.testing.assert_frame_equal(read_measurements(path), read_measurements(plain))
 
 
+@pytest.mark.parametrize(
+    ("sep", "decimal"),
+    [(";", ","), (";", "."), ("\t", ".")],
+    ids=["semicolon-comma", "semicolon-point", "tab"],
+)
+def test_a_spreadsheet_export_with_semicolons_or_tabs_reads_like_the_plain_file(
+    tmp_path: Path, sep: str, decimal: str
+) -> None:
+    # A spreadsheet in a decimal-comma locale saves "CSV" as 1,5;2,0: the same data.
+    lines = BUNDLED.read_text().splitlines()
+    body = [
+        ln if ln.startswith("#") else sep.join(c.replace(".", decimal) for c in ln.split(",")) for ln in lines
+    ]
+    path = tmp_path / "export.csv"
+    path.write_text("\n".join(body) + "\n")
+    pd.testing.assert_frame_equal(read_measurements(path), read_measurements(BUNDLED))
+
+
+def test_a_semicolon_file_names_a_bad_cell_by_line_and_column(tmp_path: Path) -> None:
+    path = tmp_path / "m.csv"
+    path.write_text(HEADER.replace(",", ";") + "tip_load;0;0,01;1,2,3;;;\n")
+    assert "line 2, column tip_deflection_mm: '1,2,3' is not a number" in _error(path)
+
+
 @pytest.mark.parametrize("gravity", ["nan", "1e300", "-9.81"])
 @pytest.mark.parametrize("command", ["calibrate", "diagnose"])
 def test_bench_gravity_outside_0_to_100_is_refused_and_nothing_written(
