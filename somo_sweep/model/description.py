@@ -440,6 +440,18 @@ class Manipulator(Spec):
         return sum(len(a.actuated_axes) for a in self.actuators)
 
     @property
+    def input_names(self) -> list[str]:
+        """``<actuator>/<joint>`` of each control input, in input order.
+
+        An unnamed actuator is called by its index, an unnamed joint ``axis<i>``.
+        """
+        return [
+            f"{act.name or a_i}/{act.joints[ax].name or f'axis{ax}'}"
+            for a_i, act in enumerate(self.actuators)
+            for ax in act.actuated_axes
+        ]
+
+    @property
     def length_m(self) -> float:
         """Sum of actuator lengths in m (tip links excluded)."""
         return sum(a.length_m for a in self.actuators)

@@ -212,12 +212,10 @@ class _Builder:
                 self.fixed(f"{name}__mount", parent, anchor, mount_xyz_m, mount_rpy)
                 prev, attach_point = anchor, np.zeros(3)
         chain_index, along, input_base = 0, 0.0, len(self.inputs)
+        self.inputs.extend(f"{name}/{input_name}" for input_name in manip.input_names)
         prev_offset = np.zeros(3)
         for a_i, act in enumerate(manip.actuators):
             axes = act.actuated_axes
-            for ax in axes:
-                label = act.joints[ax].name or f"axis{ax}"
-                self.inputs.append(f"{name}/{act.name or a_i}/{label}")
             full = act.segment_link()
             l_seg = act.segment_m
             midpoint = act.joint_placement == "midpoint"

@@ -53,7 +53,8 @@ def plot_status(ax: Axes, df: pd.DataFrame, x: str | None) -> None:
         bottom = counts[status] if bottom is None else bottom + counts[status]
     ax.set_xlabel(_label(x) if x else "")
     ax.set_ylabel("trials")
-    ax.legend(fontsize="small")
+    if len(counts.columns):
+        ax.legend(fontsize="small")
     ax.tick_params(axis="x", labelrotation=45)
 
 
@@ -74,7 +75,8 @@ def plot_labels(ax: Axes, df: pd.DataFrame, x: str | None, label: str) -> None:
     ax.set_xlabel(_label(x) if x else "")
     ax.set_ylabel("ok trials")
     ax.set_title(label.removeprefix("label_") + (f" ({n_inferred} inferred)" if n_inferred else ""))
-    ax.legend(fontsize="small")
+    if len(counts.columns):
+        ax.legend(fontsize="small")
     ax.tick_params(axis="x", labelrotation=45)
 
 
@@ -95,7 +97,7 @@ def plot_metric(
         )
     ax.set_xlabel(_label(x))
     ax.set_ylabel(_label(y))
-    if hue is not None:
+    if hue is not None and groups:  # no ok trial: no lines, so no legend (matplotlib would warn)
         ax.legend(title=hue_title or hue, fontsize="x-small", title_fontsize="x-small")
     ax.grid(alpha=0.3)
 

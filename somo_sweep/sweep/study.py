@@ -45,7 +45,7 @@ import itertools
 import json
 import math
 import os
-from collections.abc import Iterator
+from collections.abc import Callable, Iterator
 from dataclasses import dataclass, field, replace
 from functools import cache
 from pathlib import Path
@@ -53,7 +53,7 @@ from typing import Annotated, Any, Literal
 
 from pydantic import BaseModel, Field
 
-from somo_sweep.errors import DescriptionError, Problem, SomoError
+from somo_sweep.errors import DescriptionError, Problem, SomoError, shown
 from somo_sweep.model.description import Spec
 from somo_sweep.model.files import is_file, load_mapping
 from somo_sweep.model.load import Model, model_from_dict
@@ -567,10 +567,13 @@ def _check_points(study: Study, lines: dict[str, int], problems: list[Problem]) 
     """Resolve every distinct model and parameter set once; report each problem once."""
     seen: set[tuple[str, str]] = set()
     keep = study.n_points <= CHECK_CACHE_POINTS  # a big grid is checked without keeping every set
+    check = study.task.check_model
     for resolve, model in ((study.resolve_model, True), (study.resolve_params, False)):
         for point in _distinct(study, model):
             try:
-                resolve(point, keep)
+                resolved = resolve(point, keep)
+                if model and check is not None:
+                    _check_model_fits(study, point, resolved, check, lines, seen, problems)
             except DescriptionError as exc:
                 for p in exc.problems:
                     where = _blame(p.path, list(study.fixed), [k for k in point if k != "model"])
@@ -581,6 +584,37 @@ def _check_points(study: Study, lines: dict[str, int], problems: list[Problem]) 
                         problems.append(Problem(where, msg, _line(lines, where)))
             if len(problems) >= 20:
                 return
+
+
+def _check_model_fits(
+    study: Study,
+    point: dict[str, Any],
+    resolved: Any,
+    check: Callable[[Model], list[str]],
+    lines: dict[str, int],
+    seen: set[tuple[str, str]],
+    problems: list[Problem],
+) -> None:
+    """Report what the study's task needs and the model (file plus overrides) does not have."""
+    model_path, model = resolved
+    where = "sweep.model" if "model" in point else "model"
+    overrides = [k for k in {**study.fixed, **point} if k.startswith("model.")]
+    with_overrides = (
+        f" with {', '.join(overrides[:3])}{', …' if len(overrides) > 3 else ''}" if overrides else ""
+    )
+    for need in check(model):
+        msg = f"{shown(_as_given(model_path, study.source), 200)}{with_overrides}: {need}"
+        if (where, msg) not in seen:
+            seen.add((where, msg))
+            problems.append(Problem(where, msg, _line(lines, where)))
+
+
+def _as_given(path: Path, source: Path) -> str:
+    """A model file as the study names it: relative to the study's folder when inside it."""
+    try:
+        return str(Path(path).resolve().relative_to(Path(source).resolve().parent))
+    except (ValueError, OSError):
+        return str(path)
 
 
 def _line(lines: dict[str, int], where: str) -> int | None:

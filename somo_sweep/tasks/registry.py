@@ -61,6 +61,9 @@ class TaskSpec:
         metrics: Arrow type of each metric the task returns (``double``, ``int64``, ``bool`` or
             ``string``). The results table's columns for them have these types from the first
             row on; a metric not declared here is typed from its values.
+        check_model: What the task needs of a model, checked when a study is loaded, before any
+            trial runs: ``check_model(model)`` returns one sentence per unmet need (what the model
+            has and what is allowed), none for a model the task can run.
     """
 
     name: str
@@ -69,6 +72,7 @@ class TaskSpec:
     description: str = ""
     tags: tuple[str, ...] = ()
     metrics: Mapping[str, str] = field(default_factory=dict)
+    check_model: Callable[[Model], list[str]] | None = None
 
     @property
     def run(self) -> TaskFn:

@@ -9,6 +9,7 @@ from __future__ import annotations
 import shutil
 import signal
 import textwrap
+import warnings
 from pathlib import Path
 
 import pandas as pd
@@ -21,6 +22,7 @@ from somo_sweep.cli.app import app
 from somo_sweep.errors import SomoError
 from somo_sweep.sweep.execution import dask_client
 from somo_sweep.sweep.jobs import build_jobs, trial_modules
+from somo_sweep.sweep.plots import summary_figure
 from somo_sweep.sweep.runner import run_study
 from somo_sweep.sweep.store import ResultStore, read_manifest, read_results
 from somo_sweep.sweep.study import load_study
@@ -329,3 +331,18 @@ def test_signal_handlers_are_restored_after_a_run(tmp_path: Path) -> None:
     before = (signal.getsignal(signal.SIGINT), signal.getsignal(signal.SIGTERM))
     run_study(load_study(selftest_study(tmp_path, n=2), tmp_path / "out"), n_jobs=1)
     assert (signal.getsignal(signal.SIGINT), signal.getsignal(signal.SIGTERM)) == before
+
+
+def test_plots_of_a_folder_without_one_ok_trial_draw_without_warnings(tmp_path: Path) -> None:
+    # Every trial raised: no lines and no bars to put in a legend (matplotlib warned twice).
+    body = (
+        "name: st\ntask: selftest_crash\nmodel: models/ihm_finger.yaml\n"
+        "params: {sleep_s: 0.0, crash_x: [1, 2, 3], how: raise}\n"
+        "sweep:\n  task.x: [1, 2, 3]\n  task.u: [0.5, 1.5]\n"
+    )
+    summary = run_study(load_study(make_study(tmp_path, body), tmp_path / "out"), n_jobs=1)
+    assert summary.by_status == {"error": 6}
+    df = pd.read_parquet(tmp_path / "out" / "trials")
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        summary_figure(df, read_manifest(tmp_path / "out"))

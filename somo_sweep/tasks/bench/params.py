@@ -6,6 +6,7 @@ from typing import Literal
 
 from pydantic import BaseModel, ConfigDict, Field
 
+from somo_sweep.model.load import Model
 from somo_sweep.tasks.registry import TaskSpec, register
 
 __all__ = ["BenchParams"]
@@ -30,6 +31,16 @@ class BenchParams(BaseModel):
     statics: Literal["solve", "dynamic"] = "solve"
 
 
+def check_manipulator(model: Model) -> list[str]:
+    """The task runs a single manipulator (the bench clamps one manipulator), not an assembly."""
+    if model.manipulator is not None:
+        return []
+    return [
+        "the bench task needs a model with a 'manipulator' section; got an assembly "
+        f"('{model.as_assembly().name}'); allowed: a manipulator model"
+    ]
+
+
 register(
     TaskSpec(
         name="bench",
@@ -45,5 +56,6 @@ register(
             "tip_deflection_mm": "double",
             "blocked_force_n": "double",
         },
+        check_model=check_manipulator,
     )
 )

@@ -7,6 +7,7 @@ from typing import ClassVar
 from pydantic import Field
 
 from somo_sweep.model.description import Spec
+from somo_sweep.model.load import Model
 from somo_sweep.tasks.registry import TaskSpec, register
 
 __all__ = ["GaitParams"]
@@ -46,6 +47,36 @@ METRICS: dict[str, str] = {
 }
 
 
+#: Control inputs of the hand: four fingers, each a grasp and a side axis (the table's 8 pressures).
+N_INPUTS = 8
+
+
+def check_hand(model: Model) -> list[str]:
+    """What the gait needs of its hand: a cylindrical rigid body named 'palm' for the cube to rest
+    on, and 8 control inputs (four fingers' grasp and side axes, from the 8 pressure columns)."""
+    hand = model.as_assembly()
+    needs: list[str] = []
+    palms = [b for b in hand.bodies if b.name == "palm"]
+    if not palms:
+        names = ", ".join(f"'{b.name}'" for b in hand.bodies) or "none"
+        needs.append(
+            "the ihm_gait task needs a rigid body named 'palm' for the cube to start on; the model's "
+            f"bodies: {names}; allowed: an assembly whose bodies include "
+            "{name: palm, link: {shape: cylinder, ...}}"
+        )
+    elif palms[0].link.shape != "cylinder":
+        needs.append(
+            "the palm must be a cylinder (its radius and height place the cube); "
+            f"got shape '{palms[0].link.shape}'; allowed: cylinder"
+        )
+    if hand.n_inputs != N_INPUTS:
+        needs.append(
+            f"the ihm_gait task drives {N_INPUTS} inputs (four fingers' grasp and side axes, from the "
+            f"pressure table's 8 columns); the model has {hand.n_inputs}"
+        )
+    return needs
+
+
 register(
     TaskSpec(
         name="ihm_gait",
@@ -54,5 +85,6 @@ register(
         description="Four-finger hand turning a cube with a finger gait from a pressure table",
         tags=("paper", "fig5", "manipulation"),
         metrics=METRICS,
+        check_model=check_hand,
     )
 )

@@ -36,7 +36,7 @@ from somo_sweep.model.tables import read_table_text
 from somo_sweep.sim.settings import WorldSettings
 from somo_sweep.sim.urdf import plan_rigid_body
 from somo_sweep.sim.world import Body, World
-from somo_sweep.tasks.ihm_gait.params import GaitParams
+from somo_sweep.tasks.ihm_gait.params import GaitParams, check_hand
 from somo_sweep.tasks.registry import TaskResult
 
 __all__ = ["UNBUILDABLE", "GaitParams", "GaitRun", "load_pressure_table", "simulate_gait"]
@@ -119,6 +119,9 @@ def simulate_gait(model: Model, params: GaitParams, settings: WorldSettings, see
             bodies.append(body)
         assembly = assembly.model_copy(update={"bodies": bodies})
         model = Model(assembly=assembly)
+    needs = check_hand(Model(assembly=assembly))
+    if needs:
+        raise SomoError("; ".join(needs))
     palm = next(b for b in assembly.bodies if b.name == "palm")
     palm_top_m = palm.pose.position_m[2] + (palm.link.length_m or 0.0) / 2
     table = load_pressure_table(params.pressure_table)

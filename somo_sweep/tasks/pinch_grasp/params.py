@@ -19,6 +19,7 @@ from typing import Any
 from pydantic import BaseModel, ConfigDict, Field, model_validator
 
 from somo_sweep.model.description import MAX_LENGTH_M, MIN_LENGTH_M
+from somo_sweep.model.load import Model
 from somo_sweep.tasks.registry import TaskSpec, register
 
 __all__ = [
@@ -26,6 +27,7 @@ __all__ = [
     "N_FINGER_LINKS",
     "Numerics",
     "PinchGraspParams",
+    "check_gripper",
     "distal_link_count",
     "link_columns",
 ]
@@ -45,6 +47,48 @@ def distal_link_count(distal_segment_ratio: float) -> int:
     count is taken to the nearest integer, never compared for float equality.
     """
     return math.floor((N_FINGER_LINKS - 1) * distal_segment_ratio + 0.5 + 1e-9)
+
+
+def check_gripper(model: Model) -> list[str]:
+    """What the trial needs of its gripper: two fingers of 20 equal links in two actuators on a
+    driven base (the distal segment ratio moves links between a finger's two actuators, and the
+    contact metrics are stored per link 1 … 20)."""
+    hand = model.as_assembly()
+    needs: list[str] = []
+    if hand.base.mode != "driven":
+        needs.append(
+            "the pinch_grasp task moves the hand along its path, so its base must be driven; "
+            f"got base mode '{hand.base.mode}'; allowed: an assembly with base: {{mode: driven}}"
+        )
+    if len(hand.manipulators) != 2:
+        names = ", ".join(f"'{m.name}'" for m in hand.manipulators)
+        needs.append(
+            f"the pinch_grasp task needs a two-finger gripper; got {len(hand.manipulators)} "
+            f"manipulator(s) ({names}); allowed: an assembly with 2 manipulators"
+        )
+    n_links = N_FINGER_LINKS - 1
+    for mount in hand.manipulators:
+        finger = mount.manipulator
+        if len(finger.actuators) != 2:
+            needs.append(
+                f"finger '{mount.name}' has {len(finger.actuators)} actuator(s); allowed: 2, a proximal "
+                "and a distal one (the distal segment ratio moves links between them)"
+            )
+            continue
+        proximal, distal = finger.actuators
+        links = proximal.segments + distal.segments
+        if links != n_links:
+            needs.append(
+                f"finger '{mount.name}' has {links} links; allowed: {n_links} (the distal segment ratio "
+                f"splits {n_links} links and the contact metrics are stored per link)"
+            )
+        if not math.isclose(proximal.segment_m, distal.segment_m, rel_tol=1e-6):
+            needs.append(
+                f"finger '{mount.name}': proximal links of {proximal.segment_m * 1e3:g} mm and distal "
+                f"links of {distal.segment_m * 1e3:g} mm; allowed: links of one length (the split "
+                "moves links from one actuator to the other)"
+            )
+    return needs
 
 
 def link_columns(prefix: str) -> list[str]:
@@ -194,5 +238,6 @@ register(
         description="Two-finger pinch grasp of a box (SoMo Fig. 6): approach, close, lift 75 mm, hold.",
         tags=("grasp", "paper", "fig6"),
         metrics=METRICS,
+        check_model=check_gripper,
     )
 )

@@ -8,6 +8,7 @@ import numpy as np
 from pydantic import Field
 
 from somo_sweep.model.description import Spec
+from somo_sweep.model.load import Model
 from somo_sweep.tasks.registry import TaskSpec, register
 
 __all__ = ["SnakeParams"]
@@ -35,6 +36,16 @@ METRICS: dict[str, str] = {
 }
 
 
+def check_manipulator(model: Model) -> list[str]:
+    """The task runs a single manipulator (the snake is one manipulator), not an assembly."""
+    if model.manipulator is not None:
+        return []
+    return [
+        "the snake task needs a model with a 'manipulator' section; got an assembly "
+        f"('{model.as_assembly().name}'); allowed: a manipulator model"
+    ]
+
+
 register(
     TaskSpec(
         name="snake",
@@ -43,5 +54,6 @@ register(
         description="Snake crawling by a travelling torque wave, isotropic vs anisotropic friction",
         tags=("paper", "fig8", "locomotion"),
         metrics=METRICS,
+        check_model=check_manipulator,
     )
 )

@@ -7,6 +7,7 @@ from typing import ClassVar
 from pydantic import Field
 
 from somo_sweep.model.description import Spec
+from somo_sweep.model.load import Model
 from somo_sweep.tasks.registry import TaskSpec, register
 
 __all__ = ["WholeArmParams"]
@@ -50,6 +51,16 @@ METRICS: dict[str, str] = {
 }
 
 
+def check_manipulator(model: Model) -> list[str]:
+    """The task runs a single manipulator (the arm is one manipulator), not an assembly."""
+    if model.manipulator is not None:
+        return []
+    return [
+        "the whole_arm task needs a model with a 'manipulator' section; got an assembly "
+        f"('{model.as_assembly().name}'); allowed: a manipulator model"
+    ]
+
+
 register(
     TaskSpec(
         name="whole_arm",
@@ -58,5 +69,6 @@ register(
         description="Continuum arm wraps a ball, lifts it and drops it through a hoop (scripted torques)",
         tags=("paper", "fig7", "manipulation"),
         metrics=METRICS,
+        check_model=check_manipulator,
     )
 )

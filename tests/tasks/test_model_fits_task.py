@@ -1,0 +1,105 @@
+"""A study whose model its task cannot run is refused at load, before any trial.
+
+Before, every trial of such a study ran and ended as ``error`` (24 of 24 for a four-finger
+hand in the pinch-grasp demo), one with a bare ``StopIteration``.
+"""
+
+from __future__ import annotations
+
+import shutil
+from pathlib import Path
+
+import pytest
+from conftest import MODELS
+from typer.testing import CliRunner
+
+from somo_sweep.cli.app import app
+from somo_sweep.errors import DescriptionError, SomoError
+from somo_sweep.model.load import load_model
+from somo_sweep.sim.settings import WorldSettings
+from somo_sweep.sim.world import World
+from somo_sweep.sweep.study import load_study
+from somo_sweep.tasks.ihm_gait.params import GaitParams
+from somo_sweep.tasks.ihm_gait.task import simulate_gait
+from somo_sweep.tasks.pinch_grasp.params import check_gripper
+
+FITS = {
+    "bench": {"ihm_finger", "pinch_finger", "snake", "whole_arm"},
+    "snake": {"ihm_finger", "pinch_finger", "snake", "whole_arm"},
+    "whole_arm": {"ihm_finger", "pinch_finger", "snake", "whole_arm"},
+    "ihm_gait": {"ihm_hand"},
+    "pinch_grasp": {"pinch_gripper"},
+}
+MODEL_NAMES = sorted(p.stem for p in MODELS.glob("*.yaml"))
+
+
+def _study(tmp_path: Path, task: str, model: str, extra: str = "") -> Path:
+    if not (tmp_path / "models").exists():
+        shutil.copytree(MODELS, tmp_path / "models")
+    path = tmp_path / "study.yaml"
+    path.write_text(f"name: fit\ntask: {task}\nmodel: models/{model}.yaml\n{extra}")
+    return path
+
+
+@pytest.mark.parametrize("task", sorted(FITS))
+def test_every_bundled_model_is_accepted_or_refused_at_load(tmp_path: Path, task: str) -> None:
+    assert set(MODEL_NAMES) >= FITS[task]
+    for model in MODEL_NAMES:
+        path = _study(tmp_path, task, model)
+        if model in FITS[task]:
+            load_study(path)
+            continue
+        with pytest.raises(DescriptionError) as info:
+            load_study(path)
+        text = str(info.value)
+        assert f"line 3: model: models/{model}.yaml: " in text, text
+        assert "allowed" in text
+
+
+def test_run_refuses_a_hand_for_the_pinch_task_and_writes_nothing(tmp_path: Path) -> None:
+    path = _study(tmp_path, "pinch_grasp", "ihm_hand")
+    result = CliRunner().invoke(app, ["run", str(path), "--out", str(tmp_path / "out")])
+    assert result.exit_code == 2
+    output = " ".join(result.output.split())
+    assert "got 4 manipulator(s) ('f1', 'f2', 'f3', 'f4'); allowed: an assembly with 2 manipulators" in output
+    assert not (tmp_path / "out").exists()
+
+
+def test_an_override_that_breaks_the_finger_is_named(tmp_path: Path) -> None:
+    # The proximal actuator of the left finger given 20 links: 24 in all, where the split counts 20.
+    key = "model.assembly.manipulators[0].manipulator.actuators[0]"
+    path = _study(tmp_path, "pinch_grasp", "pinch_gripper", f"set:\n  {key}.n_segments: 20\n")
+    with pytest.raises(DescriptionError) as info:
+        load_study(path)
+    text = str(info.value)
+    assert f"with {key}.n_segments: finger 'left' has 24 links; allowed: 20" in text
+    assert "'right'" not in text
+
+
+def test_unequal_proximal_and_distal_links_are_refused() -> None:
+    model = load_model(MODELS / "pinch_gripper.yaml")
+    hand = model.as_assembly()
+    left = hand.manipulators[0]
+    distal = left.manipulator.actuators[1].model_copy(update={"length_m": 0.024})
+    finger = left.manipulator.model_copy(update={"actuators": [left.manipulator.actuators[0], distal]})
+    mounts = [left.model_copy(update={"manipulator": finger}), hand.manipulators[1]]
+    broken = model.model_copy(update={"assembly": hand.model_copy(update={"manipulators": mounts})})
+    assert check_gripper(model) == []
+    assert check_gripper(broken) == [
+        "finger 'left': proximal links of 5 mm and distal links of 6 mm; allowed: links of one length "
+        "(the split moves links from one actuator to the other)"
+    ]
+
+
+def test_the_gait_on_a_finger_says_what_it_needs_instead_of_stopiteration() -> None:
+    with pytest.raises(SomoError, match="needs a rigid body named 'palm'"):
+        simulate_gait(load_model(MODELS / "ihm_finger.yaml"), GaitParams(duration_s=0.01), WorldSettings())
+
+
+@pytest.mark.parametrize("name", ["ihm_hand", "whole_arm", "pinch_gripper"])
+def test_model_input_names_are_the_worlds(name: str) -> None:
+    model = load_model(MODELS / f"{name}.yaml")
+    mounts = [(m.name, m.manipulator) for m in model.as_assembly().manipulators]
+    expected = [f"{mount}/{n}" for mount, manip in mounts for n in manip.input_names]
+    with World(WorldSettings()) as world:
+        assert world.add_model(model).input_names == expected
