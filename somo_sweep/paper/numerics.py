@@ -49,13 +49,14 @@ __all__ = [
 GRIPPER = bundled_path("models", "pinch_gripper.yaml")
 QUICK_STUDY = bundled_path("pinch_grasp_quick.yaml")
 #: Time of one 4-s trial of the original SoMo code (its ``run_single``, DSR 0.2, 40-mm box,
-#: c = 100 mm) on one core of the 2-core reference machine, s: the median of 3 runs made in
-#: turn with ours on 2026-11-24 (its legacy branch, PyBullet 3.2.7 as ours; docs/pinch_grasp.md,
-#: "Speed against the original code"). The facts sheet's older 12.0-13.3 s is not used.
-ORIGINAL_TRIAL_S = 8.2
-#: The original code's trial time over this engine's at the original's numerics, measured in the
-#: same runs (median of 3 pairs; each finger its own body in both).
-ORIGINAL_CODE_OVER_ENGINE = 2.17
+#: c = 100 mm) on one core of the 2-core reference machine, s: the median of the 19 runs made in
+#: turn with ours on 2026-11-24 (7.5-8.9 s; its legacy branch, PyBullet 3.2.7 as ours;
+#: docs/pinch_grasp.md, "Speed against the original code"). The facts sheet's older 12.0-13.3 s
+#: is not used.
+ORIGINAL_TRIAL_S = 8.1
+#: The original code's trial time over this engine's at the original's numerics: the median of
+#: 9 pairs run in turn on 2026-11-24 (1.93-2.26; each finger its own body in both).
+ORIGINAL_CODE_OVER_ENGINE = 2.09
 
 
 @dataclass(frozen=True)
@@ -116,8 +117,8 @@ REFERENCE = Setup(5e-4, 50, Numerics(added_inertia_kg_m2=0.0))
 ORIGINAL_NUMERICS = REFERENCE
 #: ``make bench``'s target for ours vs the original numerics in this engine (issue #16): 20x the
 #: original trial over the engine's per-step advantage as first measured (1.48x, the gripper as one
-#: body). Measured side by side with the original's own layout the advantage is 2.17x
-#: (``ORIGINAL_CODE_OVER_ENGINE``), which makes 20x the original about 9.2x here; the bench prints
+#: body). Measured side by side with the original's own layout the advantage is 2.09x
+#: (``ORIGINAL_CODE_OVER_ENGINE``), which makes 20x the original about 9.6x here; the bench prints
 #: both, and the target stays the issue's.
 RATIO_TARGET = 13.5
 #: The issue's target against the original code itself.
