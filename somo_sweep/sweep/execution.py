@@ -18,6 +18,7 @@ import pickle
 import select
 import signal
 import socket
+import sys
 import threading
 import time
 from collections.abc import Iterable, Iterator
@@ -174,6 +175,10 @@ def run_isolated(job: Job, timeout_s: float | None = None, owner_pid: int | None
         _watch_owner(owner_pid)
     with contextlib.suppress(Exception):  # an import error is the trial's, reported by the child
         _ = get_task(job.task).run  # import the task's modules once per worker, before forking
+        if "pybullet" in sys.modules:  # a simulating task: its child inherits a connected client
+            from somo_sweep.sim.world import keep_spare_client
+
+            keep_spare_client()
     start = time.perf_counter()
     host = socket.gethostname()
     read_fd, write_fd = os.pipe()

@@ -2,6 +2,9 @@
 
 from __future__ import annotations
 
+import os
+import pickle
+from collections.abc import Callable
 from pathlib import Path
 
 import numpy as np
@@ -13,6 +16,7 @@ from somo_sweep.errors import SimulationError
 from somo_sweep.model.description import Pose
 from somo_sweep.model.load import load_model, model_from_dict
 from somo_sweep.model.setpoints import SetpointTable
+from somo_sweep.sim import world as world_module
 from somo_sweep.sim.settings import WorldSettings
 from somo_sweep.sim.urdf import cache_dir, plan_assembly, write_urdf
 from somo_sweep.sim.world import World
@@ -206,3 +210,49 @@ def test_by_default_no_assembly_is_split() -> None:
         assert [len(fixed.bodies), len(driven.bodies)] == [2, 1]  # the IHM hand's palm is a rigid body
     with World(WorldSettings(body_per_manipulator=True)) as world:
         assert len(world.add_model(load_model(MODELS / "ihm_hand.yaml")).bodies) == 6
+
+
+def _in_child(fn: Callable[[], object]) -> object:
+    """``fn()`` run in a forked child, its pickled result returned (as the sweep engine runs trials)."""
+    read_fd, write_fd = os.pipe()
+    pid = os.fork()
+    if pid == 0:
+        os.close(read_fd)
+        code = 1
+        try:
+            with os.fdopen(write_fd, "wb") as fh:
+                fh.write(pickle.dumps(fn()))
+            code = 0
+        finally:
+            os._exit(code)
+    os.close(write_fd)
+    with os.fdopen(read_fd, "rb") as fh:
+        data = fh.read()
+    os.waitpid(pid, 0)
+    return pickle.loads(data)
+
+
+def _sag_and_client() -> tuple[int, list[float], list[float]]:
+    """The client a new World gets, and a finger's joint angles after 0.2 s under gravity."""
+    with World(WorldSettings(time_step_s=1e-3)) as world:
+        handle = world.add_model(load_model(MODELS / "ihm_finger.yaml"))
+        world.step(200)
+        body = handle.bodies[0]
+        body.drive.read()
+        return world.client, body.drive.q.tolist(), body.drive.qd.tolist()
+
+
+def test_a_forked_child_gets_the_spare_client_and_the_same_physics(monkeypatch: pytest.MonkeyPatch) -> None:
+    monkeypatch.setattr(world_module, "_spare_client", None)
+    _, q_fresh, qd_fresh = _in_child(_sag_and_client)  # type: ignore[misc]
+    world_module.keep_spare_client()
+    spare = world_module._spare_client
+    assert spare is not None and spare[1] == os.getpid()
+    child_client, q_spare, qd_spare = _in_child(_sag_and_client)  # type: ignore[misc]
+    assert child_client == spare[0]  # the child took the inherited client ...
+    assert (q_spare, qd_spare) == (q_fresh, qd_fresh)  # ... and it simulates bit for bit alike
+    with World() as here:  # this process never takes its own spare
+        assert here.client != spare[0]
+    world_module.keep_spare_client()  # connecting again keeps the one spare
+    assert world_module._spare_client == spare
+    pb.disconnect(physicsClientId=spare[0])
