@@ -42,6 +42,10 @@ def test_a_wheel_install_runs_the_bundled_example_and_figures_from_an_empty_fold
     ).stdout
     assert where.startswith(str(target))  # the wheel's copy, not the source tree
     assert "24 trial(s) run (ok 24)" in cli("run", "studies/pinch_grasp_demo.yaml", "--jobs", "2")
+    # The README's other studies/... lines: there is no studies/ folder here.
+    assert "ihm_finger: base fixed" in cli("check", "studies/models/ihm_finger.yaml")
+    cli("calibrate", "studies/tables/planar_finger_synthetic.csv", "-o", "results/planar_finger.yaml", "-q")
+    assert (empty / "results" / "planar_finger.yaml").is_file()
     assert "smallest all-width pinch DSR" in cli("paper", "fig6", "results/pinch_grasp_demo", "--out", "figs")
     cli("paper", "fig8", "--quick", "--out", "figs")
     cli("paper", "fig3", "--out", "figs")

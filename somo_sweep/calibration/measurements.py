@@ -19,6 +19,7 @@ import pandas as pd
 from somo_sweep.errors import MeasurementError, did_you_mean, shown
 from somo_sweep.model.files import decode_utf8, is_file, missing_or_special
 from somo_sweep.model.load import Model
+from somo_sweep.model.tables import bundled_if_missing, not_found
 from somo_sweep.sim.bench import TESTS, BenchSettings, run_bench
 
 __all__ = [
@@ -107,7 +108,9 @@ def read_measurements(path: str | Path, require_measured: bool = True) -> pd.Dat
     """Read and validate a measurement CSV.
 
     Args:
-        path: CSV file.
+        path: CSV file. A relative path that does not exist but spells a bundled table
+            (``planar_finger_bench_2.csv`` or ``studies/tables/planar_finger_bench_2.csv``) reads
+            the bundled one (:func:`~somo_sweep.model.tables.bundled_if_missing`).
         require_measured: Whether each row must carry its test's measured columns.
 
     Returns:
@@ -118,9 +121,10 @@ def read_measurements(path: str | Path, require_measured: bool = True) -> pd.Dat
     Raises:
         MeasurementError: Naming every bad row and column at once.
     """
-    path = Path(path)
+    path = bundled_if_missing(path, "tables", ".csv")
     if not is_file(path):
-        raise MeasurementError(path, [missing_or_special(path)])
+        why = missing_or_special(path)
+        raise MeasurementError(path, [not_found(path, "tables", ".csv") if why == "file not found" else why])
     size = path.stat().st_size
     if size > MAX_FILE_BYTES:
         limit = f"{MAX_FILE_BYTES // (1024 * 1024)} MiB"

@@ -69,6 +69,25 @@ app.add_typer(paper.app, name="paper", cls=HelpGroup)
 plain_help(app)
 
 
+#: The options of ``somo-sweep`` itself (:func:`_main`), which users also type after the command.
+GLOBAL_FLAGS = frozenset({"--debug", "--quiet", "-q", "--verbose", "-v"})
+
+
+def global_flags_first(args: list[str]) -> list[str]:
+    """``args`` with the global flags typed after the command moved in front of it.
+
+    ``somo-sweep calibrate m.csv -q`` then means ``somo-sweep -q calibrate m.csv`` instead of
+    "No such option: -q" (no command has options of these names). Nothing after ``--`` moves.
+    """
+    if "--" in args:
+        cut = args.index("--")
+        head, tail = args[:cut], args[cut:]
+    else:
+        head, tail = args, []
+    flags = [a for a in head if a in GLOBAL_FLAGS]
+    return flags + [a for a in head if a not in GLOBAL_FLAGS] + tail
+
+
 def main() -> None:
     """Console-script entry point (figures drawn off-screen).
 
@@ -78,7 +97,7 @@ def main() -> None:
     """
     os.environ.setdefault("MPLBACKEND", "Agg")
     try:
-        app()
+        app(args=global_flags_first(sys.argv[1:]), prog_name="somo-sweep")
     except OSError as exc:
         if state["debug"]:
             raise

@@ -114,6 +114,7 @@ def calibrate(
         solve_fit,
         solve_paper,
     )
+    from somo_sweep.model.tables import bundled_if_missing
 
     if method not in METHODS:
         fail(SomoError(f"--method '{method}' is not known; allowed: {', '.join(METHODS)}"))
@@ -123,6 +124,8 @@ def calibrate(
         fail(exc)
     console = Console(width=max(Console().width, 100))  # tables fit when piped (default 80)
     try:
+        # the README's studies/tables/NAME.csv also from an installed package (no studies/ here)
+        measurements = bundled_if_missing(measurements, "tables", ".csv")
         output = output or default_output(measurements, "calibration") / "model.yaml"
         check_replaceable(output, [measurements, model])
         rows = read_measurements(measurements)

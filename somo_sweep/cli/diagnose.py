@@ -62,6 +62,7 @@ def diagnose(
     from somo_sweep.diagnosis.effects import get_effect
     from somo_sweep.diagnosis.report import report_markdown, verdict_lines
     from somo_sweep.model.load import load_model
+    from somo_sweep.model.tables import bundled_if_missing
 
     start = time.perf_counter()
     try:
@@ -69,6 +70,8 @@ def diagnose(
         for name in names or []:
             get_effect(name)
         checked_jobs(jobs)
+        # the README's studies/tables/NAME.csv also from an installed package (no studies/ here)
+        measurements = bundled_if_missing(measurements, "tables", ".csv")
         folder = out or default_output(measurements, "diagnosis")
         check_replaceable(folder / "model.yaml", [measurements, model])
         check_replaceable(folder / "report.md", [measurements, model], older_prefix=b"# Diagnosis of ")

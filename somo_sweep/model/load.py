@@ -20,7 +20,8 @@ from pydantic import model_validator
 
 from somo_sweep.errors import DescriptionError, Problem
 from somo_sweep.model.description import Assembly, Manipulator, Mount, Spec
-from somo_sweep.model.files import load_mapping
+from somo_sweep.model.files import is_file, load_mapping, missing_or_special
+from somo_sweep.model.tables import bundled_if_missing, not_found
 from somo_sweep.model.validation import validate
 
 __all__ = ["MAX_BODY_LINKS", "Model", "body_links", "load_model", "model_from_dict"]
@@ -184,8 +185,22 @@ def model_from_dict(
     return model
 
 
-def load_model(path: str | Path, allow_outside: bool = False) -> Model:
-    """Load and validate a model file (YAML or JSON); see :func:`model_from_dict`."""
-    path = Path(path)
+def load_model(path: str | Path, allow_outside: bool = False, *, bundled: bool = True) -> Model:
+    """Load and validate a model file (YAML or JSON); see :func:`model_from_dict`.
+
+    Args:
+        path: The model file.
+        allow_outside: Let the file include files outside its own folder.
+        bundled: A relative ``path`` that does not exist but spells a bundled model
+            (``ihm_finger``, ``ihm_finger.yaml``, ``studies/models/ihm_finger.yaml``) loads the
+            bundled one (:func:`~somo_sweep.model.tables.bundled_if_missing`), so the README's
+            examples run from any folder. A study's own model references pass False.
+
+    Raises:
+        DescriptionError: Every problem of the file (a missing file's names the bundled models).
+    """
+    path = bundled_if_missing(path, "models") if bundled else Path(path)
+    if bundled and not is_file(path) and missing_or_special(path) == "file not found":
+        raise DescriptionError(path, [Problem("", not_found(path, "models"))])
     data, lines = load_mapping(path)
     return model_from_dict(data, str(path), path.parent, lines, allow_outside)

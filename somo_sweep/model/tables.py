@@ -12,13 +12,23 @@ copy of the package (a Dask worker, say) can read without the study's files.
 from __future__ import annotations
 
 import hashlib
+import os
 from importlib import resources
 from pathlib import Path
 
 from somo_sweep.errors import SomoError
 from somo_sweep.model.files import is_file
 
-__all__ = ["BUNDLED_PREFIX", "MAX_TABLE_BYTES", "bundled_path", "read_table_text", "resolve_table"]
+__all__ = [
+    "BUNDLED_PREFIX",
+    "MAX_TABLE_BYTES",
+    "bundled_if_missing",
+    "bundled_names",
+    "bundled_path",
+    "not_found",
+    "read_table_text",
+    "resolve_table",
+]
 
 BUNDLED_PREFIX = "bundled:"
 _DIGEST = "#sha256="
@@ -27,6 +37,55 @@ _DIGEST = "#sha256="
 def bundled_path(*parts: str) -> Path:
     """Path of a file bundled in ``somo_sweep/data`` (e.g. ``bundled_path("models", "ihm_hand.yaml")``)."""
     return Path(str(resources.files("somo_sweep.data").joinpath(*parts)))
+
+
+def bundled_if_missing(path: str | Path, folder: str = "", suffix: str = ".yaml") -> Path:
+    """``path`` itself, or the bundled file it spells when ``path`` does not exist.
+
+    The README spells bundled files ``studies/[FOLDER/]NAME``: in a source checkout
+    ``studies`` links to the package's data, but an installed package has no such folder
+    in the user's working directory. So a relative path that does not exist and reads
+    ``NAME``, ``studies/NAME`` or ``studies/FOLDER/NAME`` (``suffix`` may be left off NAME)
+    names the bundled ``somo_sweep/data/[FOLDER/]NAME`` when that file exists. Any other
+    missing path (absolute, or in another folder) is returned unchanged, so a user's own
+    missing file is reported missing, never silently replaced by a bundled one.
+
+    Args:
+        path: The path as the user typed it.
+        folder: The bundled subfolder of this kind of file (``models``, ``tables``; ``""``
+            for studies).
+        suffix: The suffix added to a NAME typed without one.
+    """
+    path = Path(path)
+    try:
+        if path.is_absolute() or os.path.lexists(path):
+            return path
+    except (OSError, ValueError):  # a name no file can have: reported by the reader
+        return path
+    parts = path.parts
+    if parts[:1] == ("studies",):
+        parts = parts[1:]
+        if folder and parts[:1] == (folder,):
+            parts = parts[1:]
+    if len(parts) != 1 or parts[0] in (".", ".."):
+        return path
+    name = parts[0] if Path(parts[0]).suffix else parts[0] + suffix
+    candidate = bundled_path(folder, name) if folder else bundled_path(name)
+    return candidate if is_file(candidate) else path
+
+
+def bundled_names(folder: str = "", suffix: str = ".yaml") -> list[str]:
+    """The names of the bundled files of one kind (``somo_sweep/data/[FOLDER/]*SUFFIX``)."""
+    where = bundled_path(folder) if folder else bundled_path()
+    return sorted(p.name for p in where.iterdir() if p.suffix == suffix and is_file(p))
+
+
+def not_found(path: Path, folder: str = "", suffix: str = ".yaml") -> str:
+    """ "file not found", with the bundled files a user may have meant."""
+    spelled = f"studies/{folder}/NAME" if folder else "studies/NAME"
+    return (
+        f"file not found; bundled files (by NAME or as {spelled}): {', '.join(bundled_names(folder, suffix))}"
+    )
 
 
 #: Largest table read, in bytes (20 times the full-rate hardware recording of the gait).
@@ -52,11 +111,9 @@ def _locate(ref: str, base_dir: Path | None) -> tuple[str, Path]:
     if path.parent == Path(".") and is_file(bundled):
         return BUNDLED_PREFIX + path.name, bundled
     where = f" (looked in {candidates[0].parent})" if candidates else ""
-    raise SomoError(f"table '{ref}' not found{where}; bundled tables: {', '.join(_bundled_names())}")
-
-
-def _bundled_names() -> list[str]:
-    return sorted(p.name for p in bundled_path("tables").iterdir() if p.suffix == ".csv")
+    raise SomoError(
+        f"table '{ref}' not found{where}; bundled tables: {', '.join(bundled_names('tables', '.csv'))}"
+    )
 
 
 def resolve_table(ref: str, base_dir: Path | None = None) -> str:

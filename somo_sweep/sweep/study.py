@@ -57,7 +57,7 @@ from somo_sweep.errors import DescriptionError, Problem, SomoError, shown
 from somo_sweep.model.description import Spec
 from somo_sweep.model.files import is_file, load_mapping
 from somo_sweep.model.load import Model, model_from_dict
-from somo_sweep.model.tables import bundled_path, resolve_table
+from somo_sweep.model.tables import bundled_if_missing, resolve_table
 from somo_sweep.model.validation import validate
 from somo_sweep.sim.settings import WorldSettings
 from somo_sweep.sweep.axes import Axis, axis_length, expand_axis, link_groups, parse_key_path, set_path
@@ -322,7 +322,7 @@ def load_model_dict(path: Path, allow_outside: bool = False) -> dict[str, Any]:
     """A model file's content as a plain dict (includes resolved, defaults omitted)."""
     from somo_sweep.model.load import load_model
 
-    return load_model(path, allow_outside).model_dump(mode="json", exclude_unset=True)
+    return load_model(path, allow_outside, bundled=False).model_dump(mode="json", exclude_unset=True)
 
 
 def _count_trials(raw: StudyFile) -> tuple[int, int]:
@@ -356,14 +356,6 @@ def _nested(path: Path, exc: DescriptionError) -> str:
     return f"{path}: {shown}{more}"
 
 
-def _bundled_if_missing(path: Path) -> Path:
-    if path.exists() or len(path.parts) > 2:
-        return path
-    name = path.name if path.suffix in (".yaml", ".yml", ".json") else f"{path.name}.yaml"
-    candidate = bundled_path(name)
-    return candidate if candidate.is_file() else path
-
-
 def load_study(
     path: str | Path,
     output: str | Path | None = None,
@@ -379,14 +371,15 @@ def load_study(
         max_trials: Refuse a study with more trials (counted before any axis is expanded).
         allow_outside: Let model files include files outside their own folder.
 
-    A path that does not exist but names a bundled study (``pinch_grasp_demo`` or
-    ``pinch_grasp_demo.yaml``, see ``somo_sweep/data``) loads the bundled one, so an installed
-    package runs its examples from any folder.
+    A relative path that does not exist but spells a bundled study (``pinch_grasp_demo``,
+    ``pinch_grasp_demo.yaml`` or ``studies/pinch_grasp_demo.yaml``, see ``somo_sweep/data``)
+    loads the bundled one, so an installed package runs its examples from any folder
+    (:func:`~somo_sweep.model.tables.bundled_if_missing`).
 
     Raises:
         DescriptionError: Every problem of the file at once, with lines and key paths.
     """
-    path = _bundled_if_missing(Path(path))
+    path = bundled_if_missing(path)
     data, lines = load_mapping(path)
     raw = validate(StudyFile, data, str(path), lines)
     src = str(path)

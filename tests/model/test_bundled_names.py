@@ -1,0 +1,151 @@
+"""The README's ``studies/...`` paths work from any folder, as they must for an installed package
+(which has no ``studies/`` beside the user), and a user's own missing file is never replaced by a
+bundled one."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import pytest
+from typer.testing import CliRunner
+
+from somo_sweep.calibration.measurements import read_measurements
+from somo_sweep.cli.app import GLOBAL_FLAGS, app, global_flags_first, main
+from somo_sweep.errors import DescriptionError, MeasurementError
+from somo_sweep.model.load import load_model
+from somo_sweep.model.tables import bundled_if_missing, bundled_path
+
+
+@pytest.fixture
+def empty(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> Path:
+    """An empty working folder: no ``studies/`` link, as after a wheel install."""
+    monkeypatch.chdir(tmp_path)
+    return tmp_path
+
+
+@pytest.mark.parametrize(
+    ("typed", "folder", "suffix", "bundled"),
+    [
+        ("studies/models/ihm_finger.yaml", "models", ".yaml", ("models", "ihm_finger.yaml")),
+        ("ihm_finger.yaml", "models", ".yaml", ("models", "ihm_finger.yaml")),
+        ("ihm_finger", "models", ".yaml", ("models", "ihm_finger.yaml")),
+        (
+            "studies/tables/planar_finger_bench_2.csv",
+            "tables",
+            ".csv",
+            ("tables", "planar_finger_bench_2.csv"),
+        ),
+        ("planar_finger_bench_2", "tables", ".csv", ("tables", "planar_finger_bench_2.csv")),
+        ("studies/pinch_grasp_demo.yaml", "", ".yaml", ("pinch_grasp_demo.yaml",)),
+        ("pinch_grasp_demo", "", ".yaml", ("pinch_grasp_demo.yaml",)),
+    ],
+)
+def test_a_missing_path_spelling_a_bundled_file_finds_it(
+    empty: Path, typed: str, folder: str, suffix: str, bundled: tuple[str, ...]
+) -> None:
+    found = bundled_if_missing(typed, folder, suffix)
+    assert found == bundled_path(*bundled) and found.is_file()
+
+
+@pytest.mark.parametrize(
+    "typed",
+    [
+        "models/ihm_finger.yaml",  # the user's own folder layout: their file is missing
+        "my/studies/models/ihm_finger.yaml",
+        "studies/tables/ihm_finger.yaml",  # a model under the tables' folder
+        "studies/models/nope.yaml",
+        "studies/models/../models/ihm_finger.yaml",
+        "..",
+        "ihm_finger.yaml\x00",
+        "x" * 5000,
+    ],
+)
+def test_other_missing_paths_stay_as_typed(empty: Path, typed: str) -> None:
+    assert bundled_if_missing(typed, "models") == Path(typed)
+
+
+def test_an_absolute_missing_path_stays(empty: Path) -> None:
+    assert bundled_if_missing(empty / "ihm_finger.yaml", "models") == empty / "ihm_finger.yaml"
+
+
+def test_the_users_own_file_wins_over_the_bundled_one(empty: Path) -> None:
+    (empty / "studies" / "models").mkdir(parents=True)
+    mine = empty / "studies" / "models" / "ihm_finger.yaml"
+    mine.write_text("manipulator: {name: mine}\n")
+    assert bundled_if_missing("studies/models/ihm_finger.yaml", "models") == Path(
+        "studies/models/ihm_finger.yaml"
+    )
+    with pytest.raises(DescriptionError):  # the user's (invalid) file is read, not the bundled one
+        load_model("studies/models/ihm_finger.yaml")
+
+
+def test_load_model_and_read_measurements_take_the_readme_paths(empty: Path) -> None:
+    model = load_model("studies/models/ihm_finger.yaml")
+    assert model.manipulator is not None and model.manipulator.name == "ihm_finger"
+    rows = read_measurements("studies/tables/planar_finger_synthetic.csv")
+    assert len(rows) > 0
+
+
+def test_a_missing_model_names_the_bundled_ones_and_a_study_reference_does_not_fall_back(empty: Path) -> None:
+    with pytest.raises(DescriptionError, match=r"file not found; bundled files .*ihm_finger\.yaml"):
+        load_model("studies/models/ihm_fingr.yaml")
+    with pytest.raises(DescriptionError, match=r"file not found$"):
+        load_model("ihm_finger.yaml", bundled=False)
+    with pytest.raises(MeasurementError, match=r"file not found; bundled .*planar_finger_bench_2\.csv"):
+        read_measurements("measurements.csv")
+
+
+def test_calibrate_and_check_run_the_readme_lines_from_an_empty_folder(empty: Path) -> None:
+    runner = CliRunner()
+    res = runner.invoke(app, ["check", "studies/models/ihm_finger.yaml"])
+    assert res.exit_code == 0 and "ihm_finger: base fixed" in res.output, res.output
+    res = runner.invoke(
+        app, ["calibrate", "studies/tables/planar_finger_synthetic.csv", "-o", "results/planar_finger.yaml"]
+    )
+    assert res.exit_code == 0, res.output
+    assert load_model(empty / "results" / "planar_finger.yaml").manipulator is not None
+    assert sorted(p.name for p in empty.iterdir()) == ["results"]  # nothing else written here
+
+
+@pytest.mark.parametrize(
+    ("args", "expected"),
+    [
+        (["calibrate", "m.csv", "-q"], ["-q", "calibrate", "m.csv"]),
+        (
+            ["run", "s.yaml", "--debug", "--jobs", "2", "-v"],
+            ["--debug", "-v", "run", "s.yaml", "--jobs", "2"],
+        ),
+        (["-q", "run", "s.yaml"], ["-q", "run", "s.yaml"]),
+        (["run", "s.yaml", "--", "-q"], ["run", "s.yaml", "--", "-q"]),
+        (["run", "-quiet.yaml"], ["run", "-quiet.yaml"]),
+    ],
+)
+def test_global_flags_typed_after_the_command_move_in_front(args: list[str], expected: list[str]) -> None:
+    assert global_flags_first(args) == expected
+
+
+def test_no_command_has_an_option_named_like_a_global_flag() -> None:
+    """Moving the flags in front would otherwise take them from the command."""
+    import typer.main
+
+    group = typer.main.get_command(app)
+    seen: list[str] = []
+
+    def walk(cmd: object) -> None:
+        for sub in getattr(cmd, "commands", {}).values():
+            seen.extend(o for p in sub.params for o in (*p.opts, *p.secondary_opts))
+            walk(sub)
+
+    walk(group)
+    assert seen and not set(seen) & GLOBAL_FLAGS
+
+
+def test_quiet_after_the_command_works_from_the_console_script(
+    monkeypatch: pytest.MonkeyPatch, capsys: pytest.CaptureFixture[str]
+) -> None:
+    monkeypatch.setattr("sys.argv", ["somo-sweep", "tasks", "-q"])
+    with pytest.raises(SystemExit) as exit_:
+        main()
+    assert exit_.value.code in (0, None)
+    out = capsys.readouterr()
+    assert "pinch_grasp" in out.out and "No such option" not in out.err
