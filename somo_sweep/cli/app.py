@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import os
 import sys
+import warnings
 from typing import Annotated
 
 import typer
@@ -88,6 +89,19 @@ def global_flags_first(args: list[str]) -> list[str]:
     return flags + [a for a in head if a not in GLOBAL_FLAGS] + tail
 
 
+_python_format = warnings.formatwarning
+
+
+def _one_line_for_ours(
+    message: Warning | str, category: type[Warning], filename: str, lineno: int, line: str | None = None
+) -> str:
+    """A skipped part file (:class:`~somo_sweep.sweep.folder.DamagedPartWarning`) as one line,
+    without Python's source line; every other warning as Python shows it."""
+    if category.__name__ == "DamagedPartWarning":
+        return f"warning: {message}\n"
+    return _python_format(message, category, filename, lineno, line)
+
+
 def main() -> None:
     """Console-script entry point (figures drawn off-screen).
 
@@ -96,6 +110,7 @@ def main() -> None:
     (``--debug`` shows it); what was already written stays, as for any other error.
     """
     os.environ.setdefault("MPLBACKEND", "Agg")
+    warnings.formatwarning = _one_line_for_ours
     try:
         app(args=global_flags_first(sys.argv[1:]), prog_name="somo-sweep")
     except OSError as exc:

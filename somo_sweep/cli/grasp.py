@@ -7,7 +7,7 @@ from typing import Annotated
 
 import typer
 
-from somo_sweep.cli.output import fail, write_artifacts, write_atomic
+from somo_sweep.cli.output import fail, write_artifacts, write_outputs
 from somo_sweep.errors import SomoError
 
 __all__ = ["classify", "render"]
@@ -33,9 +33,9 @@ def classify(
     options = {} if max_proximal_fraction is None else {"max_proximal_fraction": max_proximal_fraction}
     try:
         counts, table = relabel(results, rule, **options)
+        (path,) = write_outputs([(results / f"grasp_labels_{rule}.csv", table.to_csv(index=False))])
     except SomoError as exc:
         fail(exc)
-    path = write_atomic(results / f"grasp_labels_{rule}.csv", table.to_csv(index=False))
     for label, n in counts.items():
         typer.echo(f"{label:>10s}  {n}")
     typer.echo(f"labels written to {path}")
@@ -54,11 +54,13 @@ def render(
         times = [float(v) for v in at_s.split(",") if v.strip()]
     except ValueError:
         fail(SomoError(f"--at-s must be comma-separated numbers, got '{at_s}'"))
+    if out.exists() and not out.is_dir():  # before the trial is simulated
+        fail(SomoError(f"--out {out} is a file, not a folder"))
     try:
         images, label = render_trial(study, trial, times)
+        paths = write_artifacts(images, out)
     except SomoError as exc:
         fail(exc)
-    paths = write_artifacts(images, out)
     typer.echo(f"trial {trial}: {label}")
     for path in paths:
         typer.echo(f"wrote {path}")

@@ -29,6 +29,7 @@ if TYPE_CHECKING:
 __all__ = [
     "MARKER",
     "MAX_JOBS_PER_CPU",
+    "check_output",
     "check_replaceable",
     "checked_jobs",
     "fail",
@@ -37,6 +38,7 @@ __all__ = [
     "working",
     "write_artifacts",
     "write_atomic",
+    "write_outputs",
 ]
 
 #: Options of the top-level callback (``--debug``, verbosity) that every command reads.
@@ -164,7 +166,8 @@ def check_replaceable(
 ) -> None:
     """Refuse to replace a file the user may need: one of the command's inputs, or one that
     somo-sweep did not write (a text file without :data:`MARKER` in its first lines; for
-    ``kind="json"`` a file that is not JSON). A missing file, or one of ours, is fine;
+    ``kind="json"`` a file that is not JSON, or a results folder's manifest), or a folder.
+    ``kind="binary"`` checks only for a folder or an input. A missing file, or one of ours, is fine;
     ``older_prefix`` recognises what an earlier version wrote without the header.
 
     Call it before the work, so that a wrong name costs nothing.
@@ -182,16 +185,24 @@ def check_replaceable(
                 raise SomoError(
                     f"{path} is this command's input {given}; nothing was written: give another name"
                 )
+        if kind == "binary":  # only the checks above: the caller recognises its own outputs
+            return
         with path.open("rb") as fh:
             head = fh.read(_HEAD_BYTES if kind == "text" else 64 * 1024 * 1024 + 1)
     except OSError as exc:
         raise SomoError(f"cannot check {path} before replacing it: {exc.strerror or exc}") from None
     if kind == "json":
         try:
-            json.loads(head)
-            return
+            data = json.loads(head)
         except ValueError:
             pass
+        else:
+            if isinstance(data, dict) and "study_hash" in data and "runs" in data:
+                raise SomoError(
+                    f"{path} is a results folder's manifest (its record of every run); it is not "
+                    "replaced and nothing was written: give another file name"
+                )
+            return
     elif MARKER in head or (older_prefix and head.startswith(older_prefix)):
         return
     what = "is not JSON" if kind == "json" else "has no 'somo-sweep' header"
@@ -247,9 +258,59 @@ def _gif(frames: list[Any]) -> bytes:
     return buf.getvalue()
 
 
+def _ours(head: bytes, data: bytes, suffix: str) -> bool:
+    """Whether an existing file (its first bytes ``head``) is an earlier copy of the output
+    ``data``: a figure matplotlib drew (PNG, SVG) or a GIF; a table or text with our header
+    line, or the same first line as ``data`` (a CSV with the same columns)."""
+    if MARKER in head:
+        return True
+    if suffix in (".png", ".svg"):
+        return b"Matplotlib" in head
+    if suffix == ".gif":
+        return head.startswith(b"GIF8")
+    return head.split(b"\n", 1)[0].rstrip(b"\r") == data.split(b"\n", 1)[0].rstrip(b"\r")
+
+
+def check_output(path: Path, data: str | bytes, inputs: Sequence[Path | str | None] = ()) -> bytes:
+    """Refuse to replace a file that is not an earlier copy of this output (see
+    :func:`check_replaceable` for the rules shared with it); returns ``data`` as bytes.
+
+    Raises:
+        SomoError: Naming the file, why, and that nothing was written.
+    """
+    raw = data.encode("utf-8") if isinstance(data, str) else data
+    if path.suffix == ".json":
+        check_replaceable(path, inputs, kind="json")
+        return raw
+    check_replaceable(path, inputs, kind="binary")  # missing, a folder, an input
+    try:
+        if not path.exists():
+            return raw
+        with path.open("rb") as fh:
+            head = fh.read(_HEAD_BYTES)
+    except OSError as exc:
+        raise SomoError(f"cannot check {path} before replacing it: {exc.strerror or exc}") from None
+    if not _ours(head, raw, path.suffix.lower()):
+        raise SomoError(
+            f"{path} exists and is not an earlier copy of this output: somo-sweep did not write it, so "
+            "it is not replaced; nothing was written: give another folder, or move that file away first"
+        )
+    return raw
+
+
+def write_outputs(
+    outputs: Sequence[tuple[Path, str | bytes]], inputs: Sequence[Path | str | None] = ()
+) -> list[Path]:
+    """Check every output (:func:`check_output`), then write each (:func:`write_atomic`).
+
+    So a refused name leaves every file as it was."""
+    checked = [(path, check_output(path, data, inputs)) for path, data in outputs]
+    return [write_atomic(path, data) for path, data in checked]
+
+
 def write_artifacts(artifacts: Artifacts, out: Path) -> list[Path]:
-    """Write every output of a paper figure into ``out``; returns the paths written."""
-    written: list[Path] = []
+    """Write every output of a paper figure into ``out`` (:func:`write_outputs`); returns the paths."""
+    outputs: list[tuple[Path, str | bytes]] = []
     for stem, fig in artifacts.figures.items():
         for i, fmt in enumerate(artifacts.formats):
             last = i == len(artifacts.formats) - 1
@@ -259,15 +320,15 @@ def write_artifacts(artifacts: Artifacts, out: Path) -> list[Path]:
                 import matplotlib.pyplot as plt
 
                 plt.close(fig)
-            written.append(write_atomic(out / f"{stem}.{fmt}", buf.getvalue()))
+            outputs.append((out / f"{stem}.{fmt}", buf.getvalue()))
     for name, data in artifacts.json.items():
-        written.append(write_atomic(out / name, json.dumps(data, indent=2, default=str) + "\n"))
+        outputs.append((out / name, json.dumps(data, indent=2, default=str) + "\n"))
     for name, frame in artifacts.tables.items():
-        written.append(write_atomic(out / name, frame.to_csv(index=False)))
+        outputs.append((out / name, frame.to_csv(index=False)))
     for name, text in artifacts.texts.items():
-        written.append(write_atomic(out / name, text))
+        outputs.append((out / name, text))
     for name, image in artifacts.images.items():
-        written.append(write_atomic(out / name, _png(image)))
+        outputs.append((out / name, _png(image)))
     for name, frames in artifacts.animations.items():
-        written.append(write_atomic(out / name, _gif(frames)))
-    return written
+        outputs.append((out / name, _gif(frames)))
+    return write_outputs(outputs)

@@ -13,7 +13,14 @@ from typing import TYPE_CHECKING, Annotated
 
 import typer
 
-from somo_sweep.cli.output import check_replaceable, checked_jobs, fail, write_artifacts, write_atomic
+from somo_sweep.cli.output import (
+    check_output,
+    check_replaceable,
+    checked_jobs,
+    fail,
+    write_artifacts,
+    write_atomic,
+)
 from somo_sweep.errors import SomoError
 
 if TYPE_CHECKING:
@@ -37,7 +44,11 @@ def _finish(artifacts: Artifacts, out: Path) -> None:
         fail(SomoError(f"--out {out} is a file, not a folder"))
     for line in artifacts.lines:
         typer.echo(line)
-    for path in write_artifacts(artifacts, out):
+    try:
+        written = write_artifacts(artifacts, out)
+    except SomoError as exc:
+        fail(exc)
+    for path in written:
         typer.echo(f"wrote {path}")
 
 
@@ -79,22 +90,45 @@ def fig6(
     results: Annotated[Path, typer.Argument(help="Results folder of a pinch_grasp study.")],
     rule: Annotated[str, typer.Option(help="Grasp rule: contacts or paper.")] = "contacts",
     max_dsr: Annotated[float, typer.Option(help="Largest DSR drawn.")] = 0.5,
-    out: Annotated[Path | None, typer.Option(help="Output folder (default: the results folder).")] = None,
+    out: Annotated[
+        Path | None,
+        typer.Option(
+            help="Output folder (default: the results folder; the headline fig6_RULE.json is also kept "
+            "in the results folder)."
+        ),
+    ] = None,
 ) -> None:
     """Fig. 6: pinch / power / no grasp over centering and width per DSR; the smallest all-width pinch DSR."""
     from somo_sweep.paper.fig6 import build, grasp_table
     from somo_sweep.paper.grasp_trials import read_results
+    from somo_sweep.sweep.folder import read_manifest
 
     stem = f"fig6_{rule}"
     try:
-        artifacts = build(grasp_table(read_results(results), rule), stem=stem, max_dsr=max_dsr)
+        trials = read_results(results)
+        expected = read_manifest(results).get("n_trials")
     except SomoError as exc:
         fail(exc)
+    try:
+        artifacts = build(grasp_table(trials, rule), stem=stem, max_dsr=max_dsr)
+    except SomoError as exc:
+        fail(SomoError(f"{results}: {exc}"))
+    if isinstance(expected, int) and len(trials) < expected:
+        typer.echo(
+            f"note: {len(trials)} of the study's {expected} trials are stored (a run unfinished or "
+            "still going): the figure and its headline are of those only"
+        )
     target = out or results
-    _finish(artifacts, target)
     if target.resolve() != results.resolve():
         # The headline is stored with the results too, wherever the figure goes.
-        write_atomic(results / f"{stem}.json", json.dumps(artifacts.json[f"{stem}.json"], indent=2) + "\n")
+        headline = json.dumps(artifacts.json[f"{stem}.json"], indent=2) + "\n"
+        try:
+            check_output(results / f"{stem}.json", headline)
+        except SomoError as exc:
+            fail(exc)
+    _finish(artifacts, target)
+    if target.resolve() != results.resolve():
+        write_atomic(results / f"{stem}.json", headline)
 
 
 @app.command("fig6-ablation")
@@ -241,9 +275,13 @@ def palm(
     from somo_sweep.sweep.store import read_results
 
     try:
-        artifacts = build(read_results(results), name=results.name)
+        table = read_results(results)
     except SomoError as exc:
         fail(exc)
+    try:
+        artifacts = build(table, name=results.resolve().name or "palm_design")
+    except SomoError as exc:
+        fail(SomoError(f"{results}: {exc}"))
     _finish(artifacts, out)
 
 

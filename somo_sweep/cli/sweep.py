@@ -17,7 +17,14 @@ from rich.progress import (
     TimeRemainingColumn,
 )
 
-from somo_sweep.cli.output import check_replaceable, checked_jobs, fail, figure_bytes, write_atomic
+from somo_sweep.cli.output import (
+    check_replaceable,
+    checked_jobs,
+    fail,
+    figure_bytes,
+    write_atomic,
+    write_outputs,
+)
 from somo_sweep.errors import SomoError, StorageError
 
 if TYPE_CHECKING:  # the heavy modules are imported when a command runs
@@ -234,6 +241,11 @@ def _print_dry_run(st: Study) -> None:
 
 
 def _damaged(path: Path, reason: str) -> None:
+    from somo_sweep.sweep.folder import REPEATS
+
+    if reason.startswith(REPEATS):  # readable, but a copy: its rows are counted once
+        typer.echo(f"warning: part file {path} {reason}", err=True)
+        return
     typer.echo(
         f"warning: skipped damaged part file {path} ({reason}); the next somo-sweep run of this study "
         "moves it to trials/quarantine/ and runs its trials again",
@@ -247,9 +259,11 @@ def _save_plots(folder: Path) -> None:
 
     df, manifest = read_results(folder, _damaged), read_manifest(folder)
     target = folder / "plots"
-    written = [write_atomic(target / "summary.png", figure_bytes(summary_figure(df, manifest), "png", 120))]
-    written.append(
-        write_atomic(target / "summary.svg", figure_bytes(summary_figure(df, manifest), "svg", 120))
+    written = write_outputs(
+        [
+            (target / "summary.png", figure_bytes(summary_figure(df, manifest), "png", 120)),
+            (target / "summary.svg", figure_bytes(summary_figure(df, manifest), "svg", 120)),
+        ]
     )
     record_files(folder, written)
     _out.print(f"plots: {target / 'summary.png'} (and .svg)")
@@ -307,6 +321,10 @@ def recheck(
     from somo_sweep.sweep.recheck import recheck as run_recheck
     from somo_sweep.sweep.study import load_study
 
+    if max_trials < 1:
+        fail(SomoError(f"--max-trials must be >= 1, got {max_trials}"))
+    if not 0 <= seed < 2**63:
+        fail(SomoError(f"--seed must be from 0 to 2**63 - 1, got {seed}"))
     try:
         if report is not None:
             check_replaceable(report, [study], kind="json")

@@ -36,7 +36,15 @@ __all__ = [
 ]
 
 #: Label colours: pinch dark, power light (as in the paper), no grasp white-ish; unstable red.
-COLORS = {"pinch": "#1f3a5f", "power": "#9ec5e8", "no_grasp": "#f2f2f2", "unstable": "#d62728"}
+COLORS = {
+    "pinch": "#1f3a5f",
+    "power": "#9ec5e8",
+    "no_grasp": "#f2f2f2",
+    "unstable": "#d62728",
+    "error": "#7f7f7f",
+}
+#: Colour of any other label (a row a damaged table left without one).
+OTHER_COLOR = "#7f7f7f"
 #: DSR values are grouped after rounding to this many decimals.
 DSR_DECIMALS = 6
 #: Axis labels: the paper's centering position c, and the bases' distance d = 200 mm − c.
@@ -74,11 +82,21 @@ def grasp_table(results: pd.DataFrame, rule: str = "contacts") -> pd.DataFrame:
     return out
 
 
-def smallest_all_width_pinch_dsr(table: pd.DataFrame) -> float | None:
-    """The smallest DSR at which every object width is pinch-grasped at some centering, or None."""
+def smallest_all_width_pinch_dsr(table: pd.DataFrame, failed_as_pinch: bool = False) -> float | None:
+    """The smallest DSR at which every object width is pinch-grasped at some centering, or None.
+
+    Args:
+        table: A :func:`grasp_table`.
+        failed_as_pinch: Count the trials without an outcome (``unstable``, ``error``, no label)
+            as pinches: the smallest DSR the headline could have if they had run.
+    """
     widths = set(table["object_width_m"].round(9))
+    known = set(LABELS)
     for dsr, group in sorted(table.groupby("distal_segment_ratio"), key=lambda kv: kv[0]):
-        pinched = set(group.loc[group["label"] == "pinch", "object_width_m"].round(9))
+        hit = group["label"] == "pinch"
+        if failed_as_pinch:
+            hit |= ~group["label"].isin(known)
+        pinched = set(group.loc[hit, "object_width_m"].round(9))
         if pinched >= widths:
             return float(dsr)
     return None
@@ -118,7 +136,7 @@ def _rect(
     from matplotlib.patches import Rectangle
 
     row = int(np.argmin(np.abs(widths - width_m)))
-    color = COLORS.get(label, "#7f7f7f")
+    color = COLORS.get(label, OTHER_COLOR)
     return Rectangle(
         (x0_mm, row - 0.5),
         dx_mm,
@@ -181,17 +199,30 @@ def build(table: pd.DataFrame, stem: str = "fig6", max_dsr: float = 0.5) -> Arti
         if ax.child_axes:
             ax.child_axes[0].set_xlabel(BASE_DISTANCE_LABEL, fontsize="small")
     best = smallest_all_width_pinch_dsr(table)
-    present = [lab for lab in COLORS if lab in set(table["label"])]
+    labels = set(table["label"])
+    present = [lab for lab in COLORS if lab in labels]
     handles = [Patch(facecolor=COLORS[lab], edgecolor="0.5", label=lab) for lab in present]
+    if labels - set(COLORS):
+        handles.append(Patch(facecolor=OTHER_COLOR, edgecolor="0.5", label="no label"))
     n_inferred = int(table["inferred"].sum()) if "inferred" in table.columns else 0
     if n_inferred:
         handles.append(
             Patch(facecolor="white", edgecolor="0.5", hatch="///", label="inferred (not simulated)")
         )
-    fig.legend(handles=handles, loc="lower center", ncol=len(handles))
+    if handles:
+        fig.legend(handles=handles, loc="lower center", ncol=len(handles))
     headline = (
         "no DSR pinch-grasps every width" if best is None else f"smallest all-width pinch DSR: {best:.2f}"
     )
+    n_failed = int((~table["label"].isin(LABELS)).sum())
+    if n_failed:
+        # A failed trial is not a "not pinched": say how far the headline could move.
+        could = smallest_all_width_pinch_dsr(table, failed_as_pinch=True)
+        if could != best:
+            shown_could = "none" if could is None else f"{could:.2f}"
+            headline += f" ({shown_could} if the {n_failed} trial(s) without an outcome were pinches)"
+        else:
+            headline += f" (the same whatever the {n_failed} trial(s) without an outcome would give)"
     fig.suptitle(
         f"{headline}\nc: the paper's centering position; the finger bases end the approach "
         f"d = {BASE_DISTANCE_AT_ZERO_CENTERING_M * 1e3:g} mm − c from the object's centre",
@@ -199,12 +230,14 @@ def build(table: pd.DataFrame, stem: str = "fig6", max_dsr: float = 0.5) -> Arti
     )
     fig.tight_layout(rect=(0, 0.06, 1, 0.95))
     summary = label_summary(table)
-    info = {
+    info: dict[str, object] = {
         "smallest_all_width_pinch_dsr": best,
         "trials": len(table),
         "inferred": n_inferred,
         "labels": {str(k): int(v) for k, v in table["label"].value_counts().items()},
     }
+    if n_failed:
+        info["trials_without_outcome"] = n_failed
     return Artifacts(
         figures={stem: fig},
         dpi=150,

@@ -7,6 +7,7 @@ from collections import Counter
 from pathlib import Path
 from typing import Any
 
+import numpy as np
 import pandas as pd
 
 from somo_sweep.errors import SomoError
@@ -28,12 +29,36 @@ def read_results(folder: str | Path) -> pd.DataFrame:
     from somo_sweep.sweep.store import read_results as read_trials
 
     folder = Path(folder)
+    if folder.is_file():
+        raise SomoError(f"{folder} is a file; give the results folder (results/<study>)")
     if not folder.is_dir():
         raise SomoError(f"{folder}: no such results folder (run `somo-sweep run STUDY.yaml` first)")
     table = read_trials(folder)
     if table.empty:
         raise SomoError(f"{folder}: no finished trials yet")
+    cols = [str(c) for c in table.columns]
+    simulated = ~inferred_rows(table)
+    for name in ("distal_segment_ratio", "object_width_m", "centering_position_m", "centering_m"):
+        column = find_column(cols, name)
+        if column is None:
+            continue
+        values = pd.to_numeric(table[column], errors="coerce")
+        bad = table.loc[~np.isfinite(values.to_numpy(dtype=float)), "trial"]
+        if len(bad):
+            raise SomoError(f"{folder}: {_trials(bad)} no finite {column}: damaged rows; {_REDO}")
+    bad = table.loc[simulated & table["status"].isna(), "trial"]
+    if len(bad):
+        raise SomoError(f"{folder}: {_trials(bad)} no status: damaged rows; {_REDO}")
     return table
+
+
+_REDO = "move the part file(s) holding them away and run the study again to replace them"
+
+
+def _trials(numbers: pd.Series) -> str:
+    shown = ", ".join(str(n) for n in numbers.head(5))
+    more = f" and {len(numbers) - 5} more" if len(numbers) > 5 else ""
+    return f"trial(s) {shown}{more} have"
 
 
 def inferred_rows(table: pd.DataFrame) -> pd.Series:
@@ -92,7 +117,7 @@ def find_trial(jobs: list[Any], trial: str) -> Any:
     Raises:
         SomoError: Out-of-range index, or an id that matches no job or several.
     """
-    if trial.isdigit():
+    if trial.isascii() and trial.isdigit():  # not '²', which str.isdigit() also accepts
         index = int(trial)
         if index >= len(jobs):
             raise SomoError(f"--trial {index}: the study has {len(jobs)} trials (0 … {len(jobs) - 1})")
@@ -146,7 +171,9 @@ def render_trial(study_path: str | Path, trial: str, times_s: list[float]) -> tu
         f"{study.name}_dsr{params.distal_segment_ratio:.2f}_w{params.object_width_m * 1e3:g}mm"
         f"_c{params.centering_position_m * 1e3:g}mm"
     )
-    out = Artifacts(images={f"{name}_t{t:.2f}s.png": img for t, img in sorted(images.items())})
+    # Two decimals, or as many more as keep snapshots a step apart from sharing a file name.
+    digits = next(d for d in range(2, 10) if len({f"{t:.{d}f}" for t in images}) == len(images))
+    out = Artifacts(images={f"{name}_t{t:.{digits}f}s.png": img for t, img in sorted(images.items())})
     label = str(result.labels.get("grasp", result.status))
     ended = result.metrics.get("ended_early_s")
     if isinstance(ended, float) and math.isfinite(ended) and any(t > ended for t in times_s):

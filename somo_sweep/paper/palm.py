@@ -15,6 +15,7 @@ import numpy as np
 import pandas as pd
 from matplotlib.axes import Axes
 
+from somo_sweep.errors import SomoError
 from somo_sweep.paper.artifacts import Artifacts
 from somo_sweep.tasks.ihm_gait.task import UNBUILDABLE
 
@@ -33,6 +34,15 @@ def palm_table(df: pd.DataFrame) -> pd.DataFrame:
     Designs with no ``ok`` trial keep a row with ``trials`` 0, NaN results and, in
     ``note``, the message of their first failed trial.
     """
+    needed = [
+        c for c in (HEIGHT, DIAMETER, "status", "label_outcome", "rot_z_per_cycle_deg") if c not in df.columns
+    ]
+    if needed:
+        raise SomoError(
+            f"the results lack {', '.join(needed)}: not a palm-design study (task ihm_gait over "
+            "task.palm_height_m x task.palm_diameter_m; somo-sweep run studies/palm_design.yaml)"
+        )
+    # A dimension the study does not sweep is the model's palm's (NaN here): a design of its own.
     df = df.assign(height_mm=(df[HEIGHT] * 1e3).round(1), diameter_mm=(df[DIAMETER] * 1e3).round(1))
     ok = df[df["status"] == "ok"].copy()
     ok["dropped"] = ok["label_outcome"] == "dropped"
@@ -40,13 +50,13 @@ def palm_table(df: pd.DataFrame) -> pd.DataFrame:
     ok["lost"] = ok["label_outcome"] != "held"
     held = ok[~ok["lost"]]
     table = pd.DataFrame(index=pd.MultiIndex.from_frame(df[DESIGN].drop_duplicates().sort_values(DESIGN)))
-    table["trials"] = ok.groupby(DESIGN).size()
+    table["trials"] = ok.groupby(DESIGN, dropna=False).size()
     table["trials"] = table["trials"].fillna(0).astype(int)
-    table["drop_rate"] = ok.groupby(DESIGN)["lost"].mean()
-    table["dropped_rate"] = ok.groupby(DESIGN)["dropped"].mean()
-    table["toppled_rate"] = ok.groupby(DESIGN)["toppled"].mean()
-    table["rot_z_per_cycle_deg"] = held.groupby(DESIGN)["rot_z_per_cycle_deg"].mean()
-    failed = df[df["status"] != "ok"].groupby(DESIGN)["message"].first()
+    table["drop_rate"] = ok.groupby(DESIGN, dropna=False)["lost"].mean()
+    table["dropped_rate"] = ok.groupby(DESIGN, dropna=False)["dropped"].mean()
+    table["toppled_rate"] = ok.groupby(DESIGN, dropna=False)["toppled"].mean()
+    table["rot_z_per_cycle_deg"] = held.groupby(DESIGN, dropna=False)["rot_z_per_cycle_deg"].mean()
+    failed = df[df["status"] != "ok"].groupby(DESIGN, dropna=False)["message"].first()
     table["note"] = failed.where(table["trials"] == 0).reindex(table.index).fillna("")
     return table.reset_index()
 
@@ -72,8 +82,8 @@ def draw_grid(
     image = ax.imshow(
         grid.to_numpy(dtype=float), origin="lower", cmap=cmap, aspect="auto", vmin=vmin, vmax=vmax
     )
-    ax.set_xticks(range(len(grid.columns)), [f"{v:g}" for v in grid.columns])
-    ax.set_yticks(range(len(grid.index)), [f"{v:g}" for v in grid.index])
+    ax.set_xticks(range(len(grid.columns)), [_tick(v) for v in grid.columns])
+    ax.set_yticks(range(len(grid.index)), [_tick(v) for v in grid.index])
     for (i, j), value in np.ndenumerate(grid.to_numpy(dtype=float)):
         shown = f"{value:.2g}" if decimals is None else f"{round(value, decimals) + 0.0:.{decimals}f}"
         text = "x" if not ran[i, j] else "-" if np.isnan(value) else shown
@@ -82,6 +92,10 @@ def draw_grid(
     ax.set_ylabel("palm height (mm)")
     ax.set_title(title)
     plt.colorbar(image, ax=ax)
+
+
+def _tick(value_mm: float) -> str:
+    return "model's" if np.isnan(value_mm) else f"{value_mm:g}"
 
 
 def build(results: pd.DataFrame, name: str = "palm_design") -> Artifacts:

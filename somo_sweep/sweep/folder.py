@@ -10,7 +10,7 @@ from __future__ import annotations
 
 import json
 import warnings
-from collections.abc import Callable
+from collections.abc import Callable, Collection
 from pathlib import Path
 from typing import Any
 
@@ -28,6 +28,8 @@ __all__ = [
     "MANIFEST",
     "PART_GLOB",
     "QUARANTINE",
+    "REPEATS",
+    "DamagedPartWarning",
     "journal_rows",
     "part_files",
     "read_manifest",
@@ -36,6 +38,8 @@ __all__ = [
 ]
 
 MANIFEST = "manifest.json"
+#: How the reason given to ``on_damaged`` for a readable part repeating another's rows starts.
+REPEATS = "repeats"
 #: Largest manifest read; a larger one is damaged (thousands of resumed runs take well under 1 MiB).
 MAX_MANIFEST_BYTES = 64 * 1024 * 1024
 #: The cells an adaptive run inferred instead of simulating (outside ``trials/``: never resumed from).
@@ -58,24 +62,77 @@ def part_files(folder: Path) -> list[Path]:
 
 
 def _damage(path: Path) -> str | None:
-    """Why a part file cannot be read (None if its footer and schema read back)."""
+    """Why a part file cannot be read as one of ours (None if its footer and schema read back
+    and hold the columns every part file has, of the right kinds)."""
     try:
-        pq.read_metadata(path)
+        schema = pq.read_schema(path)
     except (pa.ArrowException, OSError) as exc:
         return "empty file" if path.stat().st_size == 0 else str(exc).split("\n")[0]
+    for name, (is_kind, kind_name) in _CORE.items():
+        if name not in schema.names:
+            return f"no '{name}' column: not a part file of a somo-sweep results folder"
+        kind = schema.field(name).type
+        if not (is_kind(kind) or (is_kind is pa.types.is_string and pa.types.is_large_string(kind))):
+            return f"its '{name}' column holds {kind}, not the {kind_name} somo-sweep writes"
     return None
 
 
-def split_parts(folder: Path) -> tuple[list[Path], list[tuple[Path, str]]]:
-    """(readable part files, [(damaged part file, why)]) of a results folder."""
-    good, bad = [], []
-    for part in part_files(folder):
+#: The columns every part file has, and their kinds (:data:`~somo_sweep.sweep.schema.COLUMNS`).
+_CORE: dict[str, tuple[Callable[[pa.DataType], bool], str]] = {
+    "job_id": (pa.types.is_string, "text"),
+    "trial": (pa.types.is_integer, "whole numbers"),
+    "status": (pa.types.is_string, "text"),
+    "study_hash": (pa.types.is_string, "text"),
+}
+
+
+def split_parts(folder: Path, listed: Collection[str] = ()) -> tuple[list[Path], list[tuple[Path, str]]]:
+    """(readable part files, [(damaged part file, why)]) of a results folder.
+
+    A part is damaged when its footer or schema does not read, when it lacks a column every
+    part has (or holds it as another kind), or when its columns' types conflict with those of
+    the parts before it. Parts the manifest lists (``listed``: its ``trials/NAME`` files) come
+    first, so a stray file never displaces one a run wrote.
+    """
+    good: list[Path] = []
+    bad: list[tuple[Path, str]] = []
+    merged: pa.Schema | None = None
+    for part in sorted(part_files(folder), key=lambda p: f"trials/{p.name}" not in listed):
         reason = _damage(part)
+        if reason is None:
+            schema = pq.read_schema(part)
+            try:
+                merged = (
+                    schema
+                    if merged is None
+                    else pa.unify_schemas([merged, schema], promote_options="permissive")
+                )
+            except (pa.ArrowException, ValueError) as exc:
+                reason = f"columns of other types than the part files before it ({str(exc).splitlines()[0]})"
         if reason is None:
             good.append(part)
         else:
             bad.append((part, reason))
     return good, bad
+
+
+#: The type of each manifest key the commands read (:func:`~somo_sweep.sweep.manifest.new_manifest`).
+_MANIFEST_TYPES: dict[str, type | tuple[type, ...]] = {
+    "study_name": (str, type(None)),
+    "study": dict,
+    "axes": dict,
+    "n_trials": (int, type(None)),
+    "hosts": list,
+    "runs": list,
+    "columns": dict,
+    "files": list,
+}
+_KIND_NAMES: dict[type | tuple[type, ...], str] = {
+    (str, type(None)): "text",
+    dict: "a mapping",
+    (int, type(None)): "a whole number",
+    list: "a list",
+}
 
 
 def read_manifest(folder: str | Path) -> dict[str, Any]:
@@ -94,6 +151,11 @@ def read_manifest(folder: str | Path) -> dict[str, Any]:
         data = json.loads(path.read_text(encoding="utf-8"))
         if not isinstance(data, dict) or not isinstance(data.get("study_hash"), str):
             raise ValueError("not a manifest: no study_hash")
+        for key, kind in _MANIFEST_TYPES.items():
+            if key in data and not isinstance(data[key], kind):
+                raise ValueError(f"its '{key}' is {type(data[key]).__name__}, not {_KIND_NAMES[kind]}")
+        if any(not isinstance(run, dict) for run in data.get("runs", [])):
+            raise ValueError("its 'runs' holds an entry that is not a mapping")
     except (ValueError, UnicodeDecodeError) as exc:
         raise SomoError(
             f"{path} is damaged ({exc}); run the study again with --out {folder} to rebuild it "
@@ -102,8 +164,12 @@ def read_manifest(folder: str | Path) -> dict[str, Any]:
     return data
 
 
+class DamagedPartWarning(UserWarning):
+    """A part file of a results folder was skipped (the command line prints it as one line)."""
+
+
 def _warn(path: Path, reason: str) -> None:
-    warnings.warn(f"skipped damaged part file {path} ({reason})", stacklevel=3)
+    warnings.warn(f"skipped damaged part file {path} ({reason})", DamagedPartWarning, stacklevel=3)
 
 
 def read_results(folder: str | Path, on_damaged: OnDamaged | None = None) -> pd.DataFrame:
@@ -124,15 +190,20 @@ def read_results(folder: str | Path, on_damaged: OnDamaged | None = None) -> pd.
     folder = Path(folder)
     manifest = read_manifest(folder)
     report = on_damaged or _warn
-    good, bad = split_parts(folder)
+    # The parts the manifest lists as written by a run first: a row repeated in a copy is the copy's.
+    good, bad = split_parts(folder, {str(f) for f in manifest.get("files", [])})
     for path, reason in bad:
         report(path, reason)
-    tables = []
+    tables: list[pa.Table] = []
+    names: list[Path] = []
     for part in good:
         try:
-            tables.append(pq.read_table(part))
+            table = pq.read_table(part)
         except (pa.ArrowException, OSError) as exc:  # a footer that reads, pages that do not
             report(part, str(exc).split("\n")[0])
+            continue
+        tables.append(table.append_column(_PART, pa.array([len(names)] * table.num_rows, pa.int64())))
+        names.append(part)
     inferred = _read_inferred(folder, report)
     if not tables and inferred is None:
         return pd.DataFrame(columns=[*(c.name for c in COLUMNS), "inferred"])
@@ -142,13 +213,35 @@ def read_results(folder: str | Path, on_damaged: OnDamaged | None = None) -> pd.
     if inferred is not None:
         done = pa.array(tables[0].column("job_id").to_pylist() if tables else [], type=pa.string())
         tables.append(inferred.filter(pc.invert(pc.is_in(inferred.column("job_id"), value_set=done))))
-    df = pa.concat_tables(tables, promote_options="permissive").to_pandas()
+    try:
+        df = pa.concat_tables(tables, promote_options="permissive").to_pandas()
+    except (pa.ArrowException, ValueError) as exc:
+        raise SomoError(
+            f"{folder / INFERRED} does not fit the part files ({str(exc).splitlines()[0]}); "
+            "run the study again with --adaptive to rebuild it"
+        ) from None
+    if _PART not in df.columns:
+        df[_PART] = pd.Series(pd.NA, index=df.index, dtype="Int64")
+    repeated = df["job_id"].duplicated(keep="first") & df[_PART].notna()
+    for index, rows in df[repeated].groupby(_PART):
+        first = df.loc[df["job_id"].isin(rows["job_id"]) & ~repeated, _PART]
+        where = ", ".join(sorted({names[int(i)].name for i in first.dropna()}))
+        report(names[int(index)], f"{REPEATS} {len(rows)} row(s) stored in {where}: counted once (a copy?)")
+    df = df[~repeated]
     foreign = df[df["study_hash"] != manifest["study_hash"]]
     if len(foreign):
+        parts = sorted({names[int(i)].name for i in foreign[_PART].dropna()}) or [INFERRED]
         raise SomoError(
-            f"{folder}: {len(foreign)} row(s) belong to another study (hash {foreign['study_hash'].iloc[0]})"
+            f"{folder}: {len(foreign)} row(s) belong to another study "
+            f"(hash {foreign['study_hash'].iloc[0]}), in {', '.join(parts)}; move that file away"
         )
+    missing = {c.name: None for c in COLUMNS if c.name not in df.columns}  # parts from an older version
+    df = df.drop(columns=[_PART]).assign(**missing)
     return df.sort_values("trial", kind="stable").reset_index(drop=True)
+
+
+#: A column added while reading: which part file a row came from.
+_PART = "__part_file__"
 
 
 def _read_inferred(folder: Path, report: OnDamaged) -> pa.Table | None:

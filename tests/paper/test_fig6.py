@@ -59,6 +59,36 @@ def test_fig6_build_returns_figure_summary_and_headline() -> None:
     assert out.lines[-1] == "smallest all-width pinch DSR: 0.10"
 
 
+def test_trials_without_an_outcome_are_drawn_in_the_legend_and_qualify_the_headline() -> None:
+    """An all-error folder crashed the legend (ncol=0); failed cells silently moved the headline."""
+    import matplotlib.pyplot as plt
+
+    some = build(
+        tidy(
+            {
+                (0.1, 0.01): ["power", "error"],
+                (0.1, 0.04): ["pinch", "unstable"],
+                (0.3, 0.01): ["pinch", "power"],
+                (0.3, 0.04): ["power", "pinch"],
+            }
+        )
+    )
+    legend = [t.get_text() for t in some.figures["fig6"].legends[0].get_texts()]
+    assert legend == ["pinch", "power", "unstable", "error"]
+    assert some.lines[-1] == (
+        "smallest all-width pinch DSR: 0.30 (0.10 if the 2 trial(s) without an outcome were pinches)"
+    )
+    assert some.json["fig6.json"]["trials_without_outcome"] == 2
+    failed = build(tidy({(0.1, 0.01): ["error", "error"], (0.2, 0.01): ["error"]}))
+    assert (
+        failed.lines[-1]
+        == "no DSR pinch-grasps every width (0.10 if the 3 trial(s) without an outcome were pinches)"
+    )
+    same = build(tidy({(0.1, 0.01): ["pinch", "error"], (0.2, 0.01): ["error", "error"]}))
+    assert same.lines[-1].endswith("(the same whatever the 3 trial(s) without an outcome would give)")
+    plt.close("all")
+
+
 def test_fig6_axis_is_the_papers_centering_with_the_bases_distance_on_top() -> None:
     out = build(tidy({(0.1, 0.01): ["power", "pinch", "pinch"]}))
     ax = out.figures["fig6"].axes[0]

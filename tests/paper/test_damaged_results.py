@@ -1,0 +1,178 @@
+"""Commands that read a results folder, on folders damaged or edited by hand: one line naming the
+file and what is wrong, never a traceback, never a double count, never a user's file replaced."""
+
+from __future__ import annotations
+
+import json
+import shutil
+from pathlib import Path
+
+import pandas as pd
+import pytest
+from test_fig6 import results_folder
+from typer.testing import CliRunner
+
+from somo_sweep.cli.app import app
+from somo_sweep.errors import SomoError
+from somo_sweep.sweep.folder import read_manifest, read_results
+
+
+def _invoke(*args: str) -> tuple[int, str]:
+    res = CliRunner().invoke(app, list(args))
+    assert "Traceback" not in res.output
+    return res.exit_code, res.output
+
+
+def _notes(folder: Path) -> tuple[pd.DataFrame, list[str]]:
+    seen: list[str] = []
+    table = read_results(folder, lambda path, why: seen.append(f"{path.name}: {why}"))
+    return table, seen
+
+
+def test_a_copied_part_file_is_counted_once_and_named(tmp_path: Path) -> None:
+    folder = results_folder(tmp_path)
+    manifest = {"study_hash": "h", "files": ["trials/part-0.parquet"]}
+    (folder / "manifest.json").write_text(json.dumps(manifest))
+    # The copy sorts first; the part the manifest lists is the one kept.
+    shutil.copy(folder / "trials" / "part-0.parquet", folder / "trials" / "part-0.bak.parquet")
+    table, seen = _notes(folder)
+    assert len(table) == 3 and table["job_id"].is_unique and "__part_file__" not in table.columns
+    assert seen == ["part-0.bak.parquet: repeats 3 row(s) stored in part-0.parquet: counted once (a copy?)"]
+    code, out = _invoke("paper", "fig6", str(folder), "--out", str(tmp_path / "f"))
+    assert code == 0 and "3 trials" in out
+
+
+def test_parts_that_are_not_ours_or_clash_are_skipped_by_name(tmp_path: Path) -> None:
+    folder = results_folder(tmp_path)
+    good = pd.read_parquet(folder / "trials" / "part-0.parquet")
+    clash = good.assign(job_id=["x0", "x1", "x2"], trial=["0", "1", "2"])  # trial as text
+    clash.to_parquet(folder / "trials" / "part-1.parquet")
+    good.drop(columns=["status"]).assign(job_id=["y0", "y1", "y2"]).to_parquet(
+        folder / "trials" / "part-2.parquet"
+    )
+    typed = good.assign(job_id=["z0", "z1", "z2"], object_z_m=["a", "b", "c"])  # a metric as text
+    typed.to_parquet(folder / "trials" / "part-3.parquet")
+    table, seen = _notes(folder)
+    assert sorted(table["job_id"]) == ["job0", "job1", "job2"]
+    assert (
+        seen[0]
+        == "part-1.parquet: its 'trial' column holds large_string, not the whole numbers somo-sweep writes"
+    )
+    assert seen[1] == "part-2.parquet: no 'status' column: not a part file of a somo-sweep results folder"
+    assert seen[2].startswith("part-3.parquet: columns of other types than the part files before it")
+    for command in (["show", str(folder)], ["classify", str(folder)]):
+        code, out = _invoke(*command)
+        assert code == 0, out
+
+
+def test_rows_of_another_study_name_their_file(tmp_path: Path) -> None:
+    folder = results_folder(tmp_path)
+    other = pd.read_parquet(folder / "trials" / "part-0.parquet").assign(
+        study_hash="zz", job_id=["a", "b", "c"]
+    )
+    other.to_parquet(folder / "trials" / "my_notes.parquet")
+    with pytest.raises(
+        SomoError, match=r"3 row\(s\) belong to another study \(hash zz\), in my_notes\.parquet"
+    ):
+        read_results(folder)
+
+
+@pytest.mark.parametrize(
+    ("edit", "why"),
+    [
+        ({"axes": ["a"]}, "its 'axes' is list, not a mapping"),
+        ({"runs": "x"}, "its 'runs' is str, not a list"),
+        ({"runs": ["x"]}, "its 'runs' holds an entry that is not a mapping"),
+        ({"n_trials": "24"}, "its 'n_trials' is str, not a whole number"),
+    ],
+)
+def test_a_manifest_edited_into_the_wrong_shape_is_called_damaged(
+    tmp_path: Path, edit: dict[str, object], why: str
+) -> None:
+    folder = results_folder(tmp_path)
+    (folder / "manifest.json").write_text(json.dumps({"study_hash": "h", **edit}))
+    with pytest.raises(SomoError, match="is damaged"):
+        read_manifest(folder)
+    for command in ("show", "plot"):
+        code, out = _invoke(command, str(folder))
+        assert code == 2 and why in out, out
+
+
+def test_non_finite_parameters_and_missing_status_are_named_rows(tmp_path: Path) -> None:
+    folder = results_folder(tmp_path)
+    part = folder / "trials" / "part-0.parquet"
+    table = pd.read_parquet(part)
+    table.loc[1, "task_distal_segment_ratio"] = float("nan")
+    table.to_parquet(part)
+    for command in ("classify", "paper fig6"):
+        code, out = _invoke(*command.split(), str(folder))
+        assert code == 2 and "trial(s) 1 have no finite task_distal_segment_ratio: damaged rows" in out
+    table.loc[1, "task_distal_segment_ratio"] = 0.2
+    table.loc[0, "status"] = None
+    table.to_parquet(part)
+    code, out = _invoke("classify", str(folder))
+    assert code == 2 and "trial(s) 0 have no status" in out
+
+
+def test_an_all_error_folder_draws_a_figure(tmp_path: Path) -> None:
+    folder = results_folder(tmp_path)
+    part = folder / "trials" / "part-0.parquet"
+    pd.read_parquet(part).assign(status="error").to_parquet(part)
+    code, out = _invoke("paper", "fig6", str(folder), "--out", str(tmp_path / "f"))
+    assert code == 0 and "3 trial(s) without an outcome" in out
+
+
+def test_an_unfinished_folder_says_the_figure_is_partial(tmp_path: Path) -> None:
+    folder = results_folder(tmp_path)
+    (folder / "manifest.json").write_text(json.dumps({"study_hash": "h", "n_trials": 24}))
+    code, out = _invoke("paper", "fig6", str(folder), "--out", str(tmp_path / "f"))
+    assert code == 0 and "note: 3 of the study's 24 trials are stored" in out
+
+
+def test_figures_and_labels_never_replace_a_users_file(tmp_path: Path) -> None:
+    folder = results_folder(tmp_path)
+    mine = folder / "grasp_labels_contacts.csv"
+    mine.write_text("my hand-checked labels\n")
+    code, out = _invoke("classify", str(folder))
+    assert code == 2 and "is not an earlier copy of this output" in out
+    assert mine.read_text() == "my hand-checked labels\n"
+    mine.unlink()
+    assert _invoke("classify", str(folder))[0] == 0
+    assert _invoke("classify", str(folder))[0] == 0  # its own earlier copy is replaced
+    out_dir = tmp_path / "figs"
+    out_dir.mkdir()
+    notes = out_dir / "fig6_contacts_summary.csv"
+    notes.write_text("notes\n")
+    code, out = _invoke("paper", "fig6", str(folder), "--out", str(out_dir))
+    assert code == 2 and notes.read_text() == "notes\n"
+    assert sorted(p.name for p in out_dir.iterdir()) == ["fig6_contacts_summary.csv"]  # nothing half-written
+    notes.unlink()
+    for _ in range(2):
+        code, out = _invoke("paper", "fig6", str(folder), "--out", str(out_dir))
+        assert code == 0, out
+
+
+def test_recheck_never_writes_its_report_over_a_results_manifest(tmp_path: Path) -> None:
+    from somo_sweep.cli.output import check_replaceable
+
+    folder = results_folder(tmp_path)
+    (folder / "manifest.json").write_text(json.dumps({"study_hash": "h", "runs": []}))
+    with pytest.raises(SomoError, match="is a results folder's manifest"):
+        check_replaceable(folder / "manifest.json", kind="json")
+
+
+@pytest.mark.parametrize(
+    ("args", "message"),
+    [
+        (["recheck", "STUDY", "--seed", "-5"], "--seed must be from 0"),
+        (["recheck", "STUDY", "--max-trials", "-1"], "--max-trials must be >= 1"),
+        (["paper", "palm", "FOLDER"], "not a palm-design study"),
+    ],
+)
+def test_options_and_folders_of_the_wrong_kind_are_one_line(
+    tmp_path: Path, args: list[str], message: str
+) -> None:
+    folder = results_folder(tmp_path)
+    args = [str(folder) if a == "FOLDER" else str(tmp_path / "s.yaml") if a == "STUDY" else a for a in args]
+    code, out = _invoke(*args, "--out", str(tmp_path / "o"))
+    assert code == 2 and message in out, out
