@@ -104,6 +104,10 @@ def _separator(text: str) -> str:
     return ","
 
 
+#: Most fields a line of a measurement CSV may have (it has at most a dozen columns).
+MAX_FIELDS = 64
+
+
 def read_measurements(path: str | Path, require_measured: bool = True) -> pd.DataFrame:
     """Read and validate a measurement CSV.
 
@@ -135,8 +139,14 @@ def read_measurements(path: str | Path, require_measured: bool = True) -> pd.Dat
         text = decode_utf8(path.read_bytes())
     except ValueError as exc:
         raise MeasurementError(path, [str(exc)]) from None
-    comment_lines = [i + 1 for i, ln in enumerate(text.splitlines()) if ln.lstrip().startswith("#")]
+    lines = text.splitlines()
+    comment_lines = [i + 1 for i, ln in enumerate(lines) if ln.lstrip().startswith("#")]
     sep = _separator(text)
+    for number, ln in enumerate(lines, start=1):  # before pandas makes a column of each field
+        if ln.count(sep) >= MAX_FIELDS and not ln.lstrip().startswith("#"):
+            raise MeasurementError(
+                path, [f"line {number} has {ln.count(sep) + 1} fields; allowed: at most {MAX_FIELDS}"]
+            )
     try:
         raw = pd.read_csv(
             io.StringIO(text), sep=sep, comment="#", dtype=str, keep_default_na=False, skip_blank_lines=True
@@ -144,6 +154,9 @@ def read_measurements(path: str | Path, require_measured: bool = True) -> pd.Dat
     except (pd.errors.ParserError, pd.errors.EmptyDataError) as exc:
         raise MeasurementError(path, [f"cannot parse CSV: {exc}"]) from None
     raw.columns = [c.strip() for c in raw.columns]
+    # A column with no header and no value (a trailing comma on every line, as spreadsheets export).
+    blank = [c for c in raw.columns if c.startswith("Unnamed: ") and not raw[c].str.strip().any()]
+    raw = raw.drop(columns=blank)
     problems: list[str] = []
     missing = [c for c in COLUMNS if c not in raw.columns]
     if missing:

@@ -9,7 +9,8 @@ from typing import TYPE_CHECKING, Annotated
 
 import typer
 
-from somo_sweep.cli.output import check_replaceable, checked_jobs, fail, figure_bytes, working, write_atomic
+from somo_sweep.cli.model import ALLOW_OUTSIDE
+from somo_sweep.cli.output import check_replaceable, checked_jobs, fail, figure_bytes, working, write_outputs
 from somo_sweep.errors import SomoError
 
 if TYPE_CHECKING:
@@ -31,6 +32,7 @@ def base_model(
     mass_g: float | None,
     width_mm: float | None,
     thickness_mm: float | None,
+    allow_outside: bool = False,
 ) -> Model:
     """The model to calibrate: ``--model``, else the CSV's ``# finger:`` line with the flags over it.
 
@@ -41,7 +43,7 @@ def base_model(
     from somo_sweep.model.load import load_model
 
     if model is not None:
-        return load_model(model)
+        return load_model(model, allow_outside)
     flags = {"length_mm": length_mm, "segments": segments, "mass_g": mass_g}
     header = read_finger_header(measurements) if measurements.is_file() else None
     missing = [k for k, v in flags.items() if v is None and k not in (header or {})]
@@ -101,6 +103,7 @@ def calibrate(
     gravity_m_s2: Annotated[
         float, typer.Option(help="Gravity on the bench, m/s² (0: a horizontal, weightless bench).")
     ] = 9.81,
+    allow_outside: ALLOW_OUTSIDE = False,
 ) -> None:
     """Calibrate joint stiffness and pressure→torque gain; write the calibrated model."""
     from rich.console import Console
@@ -128,8 +131,12 @@ def calibrate(
         measurements = bundled_if_missing(measurements, "tables", ".csv")
         output = output or default_output(measurements, "calibration") / "model.yaml"
         check_replaceable(output, [measurements, model])
+        if report is not None:
+            check_replaceable(report / "calibration.json", [measurements, model], kind="json")
         rows = read_measurements(measurements)
-        base = base_model(measurements, model, length_mm, segments, mass_g, width_mm, thickness_mm)
+        base = base_model(
+            measurements, model, length_mm, segments, mass_g, width_mm, thickness_mm, allow_outside
+        )
         settings = replace(CALIBRATION_SETTINGS, gravity_m_s2=gravity_m_s2)
         problem = build_problem(
             rows, base, str(measurements), settings, min_rows_per_parameter=2 if method == "fit" else 1
@@ -167,6 +174,8 @@ def calibrate(
         for metric in result.metrics:
             name = metric.label.replace("[", "_").replace("]", "")
             outputs.append((report / f"{name}.png", _figure_bytes(result, metric.label, "png")))
-    for path, data in outputs:
-        write_atomic(path, data)
+    try:
+        write_outputs(outputs, [measurements, model])
+    except SomoError as exc:
+        fail(exc)
     console.print(f"wrote {', '.join(str(p) for p, _ in outputs)}")

@@ -10,7 +10,16 @@ from typing import Annotated
 
 import typer
 
-from somo_sweep.cli.output import check_replaceable, checked_jobs, fail, figure_bytes, working, write_atomic
+from somo_sweep.cli.model import ALLOW_OUTSIDE
+from somo_sweep.cli.output import (
+    check_output,
+    check_replaceable,
+    checked_jobs,
+    fail,
+    figure_bytes,
+    working,
+    write_atomic,
+)
 from somo_sweep.errors import SomoError
 
 
@@ -51,6 +60,7 @@ def diagnose(
         ),
     ] = 2,
     gravity_m_s2: Annotated[float, typer.Option(help="Gravity on the bench, m/s².")] = 9.81,
+    allow_outside: ALLOW_OUTSIDE = False,
 ) -> None:
     """Find where simulation and measurement disagree, name the missing effect, add it to the model."""
     from somo_sweep.calibration.measurements import read_measurements
@@ -67,6 +77,12 @@ def diagnose(
     start = time.perf_counter()
     try:
         names = [e.strip() for e in effects.split(",") if e.strip()] if effects is not None else None
+        if names == []:
+            from somo_sweep.diagnosis.effects import EFFECTS
+
+            raise SomoError(
+                f"--effects names no effect; allowed: comma-separated names from {', '.join(EFFECTS)}"
+            )
         for name in names or []:
             get_effect(name)
         checked_jobs(jobs)
@@ -79,7 +95,7 @@ def diagnose(
         rows = read_measurements(measurements)
         settings = replace(CALIBRATION_SETTINGS, gravity_m_s2=gravity_m_s2)
         if model is not None:
-            base = load_model(model)
+            base = load_model(model, allow_outside)
         else:
             finger = base_model(measurements, None, None, None, None, None, None)
             with working("calibrating the CSV's finger first", bench_rows=True):
@@ -115,6 +131,12 @@ def diagnose(
         (out / "model.yaml", model_yaml(diagnosed, header)),
         (out / "diagnosis.png", _figure_png(result)),
     ]
+    try:  # the report and model were checked before the work; the figure is checked here
+        for path, data in outputs:
+            if path.suffix == ".png":
+                check_output(path, data, [measurements, model])
+    except SomoError as exc:
+        fail(exc)
     for path, data in outputs:
         write_atomic(path, data)
     for line in verdict_lines(result):

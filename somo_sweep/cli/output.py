@@ -176,6 +176,9 @@ def check_replaceable(
         SomoError: Naming the file, why, and that nothing was written.
     """
     try:
+        for parent in path.parents:  # a file where a folder of the path must be
+            if parent.exists() and not parent.is_dir():
+                raise SomoError(f"{parent} is a file, so {path} cannot be written; nothing was written")
         if not path.exists():
             return
         if path.is_dir():

@@ -259,6 +259,8 @@ def _save_plots(folder: Path) -> None:
 
     df, manifest = read_results(folder, _damaged), read_manifest(folder)
     target = folder / "plots"
+    if target.is_symlink():
+        raise SomoError(f"{target} is a symbolic link; the plots go in the results folder itself: remove it")
     written = write_outputs(
         [
             (target / "summary.png", figure_bytes(summary_figure(df, manifest), "png", 120)),

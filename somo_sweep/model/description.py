@@ -46,6 +46,9 @@ LENGTH_REL_TOL = 1e-6
 MAX_SEGMENTS = 200
 #: What names of manipulators, mounts, bodies, actuators and joints may hold (they become URDF names).
 NAME_PATTERN = "[A-Za-z0-9_.-]+"
+#: Longest such name. The URDF joins a few of them into each link and joint name, and
+#: PyBullet mis-loads names past about 1000 characters (and crashes at 1500).
+MAX_NAME_CHARS = 64
 
 Vec3 = tuple[float, float, float]
 
@@ -67,6 +70,8 @@ MAX_ADDED_INERTIA_KG_M2 = 1e3
 
 
 def _check_name(value: str) -> str:
+    if len(value) > MAX_NAME_CHARS:
+        raise ValueError(f"a name may be at most {MAX_NAME_CHARS} characters long, got {len(value)}")
     if not re.fullmatch(NAME_PATTERN, value):
         raise ValueError(f"a name may hold only letters, digits, '_', '.' and '-' (pattern {NAME_PATTERN})")
     return value

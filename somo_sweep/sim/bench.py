@@ -143,15 +143,18 @@ def _inputs(manip: Manipulator, pressure_kpa: float) -> np.ndarray:
 def stop_geometry(manip: Manipulator, origin_m: np.ndarray, tip_x_m: float) -> tuple[np.ndarray, np.ndarray]:
     """Centre and half extents (m, world) of the bench's frictionless plate.
 
-    Its top face is at the straight tip's underside; it spans the whole finger, from
-    the chain start ``origin_m`` to 50 mm beyond the straight tip (``tip_x_m`` from the
-    chain start): a tip that curls and slides back along x stays on it, and every link
-    that comes to rest on it adds to the total vertical force the protocol reports.
+    Its top face is at the straight finger's underside: the lowest of its links (segments
+    and tip links), so that a tip thinner than the segments does not put the plate inside
+    them. It spans the whole finger, from the chain start ``origin_m`` to 50 mm beyond the
+    straight tip (``tip_x_m`` from the chain start): a tip that curls and slides back along x
+    stays on it, and every link that comes to rest on it adds to the total vertical force
+    the protocol reports.
     """
-    tip = manip.tip_links[-1] if manip.tip_links else manip.actuators[-1].segment_link()
     axis = np.asarray(manip.actuators[0].joints[0].axis)
     bend = np.cross(axis, [0.0, 0.0, 1.0])
-    under = tip.half_extent_m(int(np.argmax(np.abs(bend[:2]))))
+    across = int(np.argmax(np.abs(bend[:2])))
+    links = [a.segment_link() for a in manip.actuators] + list(manip.tip_links)
+    under = max(link.half_extent_m(across) for link in links)
     x_start = float(origin_m[0])
     x_end = tip_x_m + x_start + 0.05
     half = np.array([(x_end - x_start) / 2, 0.05, 0.01])

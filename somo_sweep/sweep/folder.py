@@ -19,7 +19,7 @@ import pyarrow as pa
 import pyarrow.compute as pc
 import pyarrow.parquet as pq
 
-from somo_sweep.errors import SomoError
+from somo_sweep.errors import SomoError, shown
 from somo_sweep.sweep.schema import COLUMNS
 
 __all__ = [
@@ -156,6 +156,15 @@ def read_manifest(folder: str | Path) -> dict[str, Any]:
                 raise ValueError(f"its '{key}' is {type(data[key]).__name__}, not {_KIND_NAMES[kind]}")
         if any(not isinstance(run, dict) for run in data.get("runs", [])):
             raise ValueError("its 'runs' holds an entry that is not a mapping")
+        if any(not isinstance(f, str) for f in data.get("files", [])):
+            raise ValueError("its 'files' holds an entry that is not a file name")
+        for name, info in data.get("columns", {}).items():
+            if not (isinstance(info, dict) and isinstance(info.get("type"), str)):
+                raise ValueError(f"its column '{shown(str(name))}' has no type")
+            try:
+                pa.type_for_alias(info["type"])
+            except ValueError:
+                raise ValueError(f"its column '{shown(str(name))}' has an unknown type") from None
     except (ValueError, UnicodeDecodeError) as exc:
         raise SomoError(
             f"{path} is damaged ({exc}); run the study again with --out {folder} to rebuild it "
@@ -253,7 +262,13 @@ def _read_inferred(folder: Path, report: OnDamaged) -> pa.Table | None:
     except (pa.ArrowException, OSError) as exc:
         report(path, str(exc).split("\n")[0])
         return None
-    return table if "inferred" in table.column_names else None
+    if "inferred" not in table.column_names:
+        return None
+    why = _damage(path)
+    if why is not None:  # readable, but not what an adaptive run writes
+        report(path, why)
+        return None
+    return table
 
 
 def journal_rows(path: Path) -> list[dict[str, Any]]:

@@ -9,11 +9,13 @@ columns with their units and every file the tool wrote in the folder. The lock i
 from __future__ import annotations
 
 import contextlib
+import errno
 import fcntl
 import json
 import os
 import platform
 import socket
+import tempfile
 from datetime import UTC, datetime
 from importlib.metadata import PackageNotFoundError, version
 from pathlib import Path
@@ -25,6 +27,7 @@ from somo_sweep.sweep.folder import MANIFEST, read_manifest
 __all__ = [
     "acquire",
     "describe_changes",
+    "fresh_tmp",
     "new_manifest",
     "now_utc",
     "record_files",
@@ -64,9 +67,24 @@ def new_manifest(study_hash: str, resolved: dict[str, Any], axes: dict[str, str]
     }
 
 
+def fresh_tmp(path: Path) -> Path:
+    """A new, empty temporary file beside ``path`` (``.NAME.RANDOM.tmp``), for an atomic write.
+
+    It is created exclusively under a fresh name, so it can never be a link someone left in
+    the folder: what is written through it stays in the folder. Its permissions are those a
+    plain new file gets (0o666 less the umask).
+    """
+    fd, name = tempfile.mkstemp(dir=path.parent, prefix=f".{path.name}.", suffix=".tmp")
+    os.close(fd)
+    mask = os.umask(0)
+    os.umask(mask)
+    os.chmod(name, 0o666 & ~mask)
+    return Path(name)
+
+
 def write_json(path: Path, data: dict[str, Any]) -> None:
-    """Write JSON atomically (a temporary file in the same folder, then a rename)."""
-    tmp = path.parent / f".{path.name}.tmp"
+    """Write JSON atomically (a fresh temporary file in the same folder, then a rename)."""
+    tmp = fresh_tmp(path)
     try:
         tmp.write_text(json.dumps(data, indent=2, default=str) + "\n", encoding="utf-8")
         os.replace(tmp, path)
@@ -81,7 +99,14 @@ def acquire(path: Path) -> int:
     Raises:
         SomoError: Another run holds it; the message names its pid and host.
     """
-    fd = os.open(path, os.O_RDWR | os.O_CREAT, 0o644)
+    try:  # never through a link left in the folder: the holder line would land in its target
+        fd = os.open(path, os.O_RDWR | os.O_CREAT | os.O_NOFOLLOW, 0o644)
+    except OSError as exc:
+        if exc.errno != errno.ELOOP:
+            raise
+        raise SomoError(
+            f"{path} is a symbolic link, not the folder's lock file; nothing was written: remove it"
+        ) from None
     try:
         fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
     except BlockingIOError:

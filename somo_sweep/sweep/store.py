@@ -28,6 +28,7 @@ from __future__ import annotations
 import contextlib
 import json
 import os
+import re
 import sys
 import uuid
 from datetime import UTC, datetime
@@ -53,6 +54,7 @@ from somo_sweep.sweep.folder import (
 from somo_sweep.sweep.manifest import (
     acquire,
     describe_changes,
+    fresh_tmp,
     new_manifest,
     now_utc,
     record_files,
@@ -65,16 +67,22 @@ from somo_sweep.sweep.schema import COLUMNS, FIXED, arrow_type, merge_types, uni
 __all__ = ["ResultStore", "read_manifest", "read_results", "record_files"]
 
 #: Files a run may find in a folder that is not (yet) a results folder.
-_OWN = {".lock", f".{MANIFEST}.tmp", ".study.yaml.tmp", ".study.json.tmp"}
+_OWN = re.compile(rf"\.lock|\.({re.escape(MANIFEST)}|study\.yaml|study\.json)(\.[^/]*)?\.tmp")
 
 
 def _check_target(folder: Path) -> None:
     """Refuse a file, or a non-empty folder that is not a results folder."""
     if folder.exists() and not folder.is_dir():
         raise SomoError(f"{folder} is a file, not a folder; give --out a folder (new or a results folder)")
+    linked = [name for name in ("trials", "plots", MANIFEST) if (folder / name).is_symlink()]
+    if linked:
+        raise SomoError(
+            f"{folder / linked[0]} is a symbolic link; a results folder's own files and folders must "
+            "be in it (the run would write through the link, outside the folder); nothing was written"
+        )
     if not folder.is_dir() or (folder / MANIFEST).exists() or (folder / "trials").is_dir():
         return
-    others = sorted(p.name for p in folder.iterdir() if p.name not in _OWN)
+    others = sorted(p.name for p in folder.iterdir() if not _OWN.fullmatch(p.name))
     if others:
         shown = ", ".join(others[:3]) + (", …" if len(others) > 3 else "")
         raise SomoError(
@@ -139,6 +147,9 @@ class ResultStore:
             self.trials.mkdir(exist_ok=True)
             for tmp in self.trials.glob(".*.tmp"):
                 tmp.unlink()
+            for tmp in self.folder.glob(".*.tmp"):  # a killed run's manifest or study copy
+                if _OWN.fullmatch(tmp.name):
+                    tmp.unlink()
             self._quarantine()
             self.manifest = self._open(study_hash, resolved, axes, overwrite)
             self._init_types(param_types, column_types or {})
@@ -325,7 +336,7 @@ class ResultStore:
     def copy_study(self, source: Path) -> None:
         """Keep a copy of the study file (``study.yaml`` / ``study.json``)."""
         target = self.folder / f"study{source.suffix}"
-        tmp = self.folder / f".{target.name}.tmp"
+        tmp = fresh_tmp(target)
         try:
             tmp.write_bytes(source.read_bytes())
             os.replace(tmp, target)
@@ -439,7 +450,7 @@ class ResultStore:
             if name not in table.column_names:
                 table = table.append_column(name, pa.nulls(len(table), schema.field(name).type))
         table = table.select(schema.names).cast(schema)
-        tmp = path.parent / f".{path.name}.tmp"
+        tmp = fresh_tmp(path)
         try:
             pq.write_table(table, tmp)
             os.replace(tmp, path)

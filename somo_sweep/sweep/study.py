@@ -338,6 +338,10 @@ def _output(raw: StudyFile, name: str, output: str | Path | None) -> tuple[Path,
     if output is not None:
         return Path(output), None
     key, out = ("output", Path(raw.output)) if raw.output is not None else ("name", RESULTS_ROOT / name)
+    if "\x00" in str(out):
+        return out, Problem(
+            key, "holds a NUL byte, which no folder name can; allowed: a folder inside results/"
+        )
     parts = Path(os.path.normpath(out)).parts
     if out.is_absolute() or ".." in out.parts or len(parts) < 2 or parts[0] != RESULTS_ROOT.name:
         given = raw.output if key == "output" else name

@@ -274,3 +274,14 @@ def test_a_model_written_with_exponents_is_the_same_model(tmp_path: Path) -> Non
         "exp.yaml",
     )
     assert load_model(exp) == load_model(plain)
+
+
+@pytest.mark.parametrize("length", [65, 1017, 1500, 100_000])
+def test_a_name_too_long_is_refused_at_load_not_by_pybullet(length: int) -> None:
+    """1017-1250 characters made PyBullet mis-load the chain (a traceback), 1500 crashed it."""
+    data = load_yaml(MODELS / "pinch_finger.yaml")
+    data["manipulator"]["name"] = "x" * length
+    with pytest.raises(DescriptionError, match=f"a name may be at most 64 characters long, got {length}"):
+        model_from_dict(data, "long.yaml")
+    data["manipulator"]["name"] = "x" * 64
+    assert model_from_dict(data, "long.yaml").manipulator is not None

@@ -220,3 +220,17 @@ def test_blocked_force_keeps_rising_when_the_tip_curls_back_along_the_stop() -> 
     forces = [run_bench(model, "blocked_force", p).value for p in (200.0, 240.0, 300.0)]
     assert all(isinstance(f, float) and f > 1.0 for f in forces)
     assert forces[0] < forces[1] < forces[2]
+
+
+@pytest.mark.parametrize("name", ["pinch_finger", "ihm_finger"])
+def test_unpressurised_blocked_force_is_at_most_the_fingers_weight(name: str) -> None:
+    """Closed-form bound: at 0 kPa the plate can carry no more than the weight of what rests on
+    it. The pinch finger's tip is thinner than its segments; the plate used to sit at the tip's
+    underside, inside the segments, and read 259.55 N for a 56-g finger."""
+    manip = load_model(MODELS / f"{name}.yaml").manipulator
+    assert manip is not None
+    mass_kg = sum(a.segments * a.segment_link().mass_kg for a in manip.actuators)
+    mass_kg += sum(t.mass_kg for t in manip.tip_links)
+    value = run_bench(manip, "blocked_force", pressure_kpa=0.0).value
+    assert isinstance(value, float)
+    assert 0.0 < value <= 9.81 * mass_kg * 1.001

@@ -326,3 +326,41 @@ def test_study_copy_and_manifest_name_what_was_written(tmp_path: Path) -> None:
     run_study(load_study(path, tmp_path / "out"), n_jobs=1)
     manifest = json.loads((tmp_path / "out" / "manifest.json").read_text())
     assert "study.yaml" in manifest["files"] and manifest["runs"][0]["trials_written"] == 1
+
+
+@pytest.mark.parametrize("name", [".lock", ".manifest.json.tmp", ".study.yaml.tmp", "trials", "plots"])
+def test_a_link_left_in_the_folder_never_carries_a_write_outside_it(tmp_path: Path, name: str) -> None:
+    """A resumed run opened .lock and wrote .manifest.json.tmp / .study.yaml.tmp through links."""
+    path, out = _finished(tmp_path)
+    outside = tmp_path / "outside"
+    outside.mkdir()
+    victim = outside / "victim.txt"
+    victim.write_text("my precious notes\n")
+    link = out / name
+    if link.is_dir():
+        link.rename(tmp_path / f"moved-{name}")
+    link.unlink(missing_ok=True)
+    link.symlink_to(outside if name in ("trials", "plots") else victim)
+    res = _run(path, out)
+    assert "Traceback" not in res.output  # type: ignore[attr-defined]
+    assert victim.read_text() == "my precious notes\n" and sorted(os.listdir(outside)) == ["victim.txt"]
+    if name in (".lock", "trials", "plots"):
+        assert res.exit_code == 2 and "is a symbolic link" in res.output, res.output  # type: ignore[attr-defined]
+    else:
+        assert res.exit_code == 0 and not (out / "study.yaml").is_symlink(), res.output  # type: ignore[attr-defined]
+
+
+@pytest.mark.parametrize(
+    ("key", "value"),
+    [("files", [1]), ("files", [None]), ("columns", {"a": 1}), ("columns", {"a": {"type": "?"}})],
+)
+def test_a_manifest_with_wrong_inner_types_is_rebuilt_not_a_traceback(
+    tmp_path: Path, key: str, value: object
+) -> None:
+    path, out = _finished(tmp_path)
+    manifest = json.loads((out / "manifest.json").read_text())
+    manifest[key] = value
+    (out / "manifest.json").write_text(json.dumps(manifest))
+    res = _run(path, out)
+    assert res.exit_code == 0 and "rebuilt from the part files" in res.output, res.output  # type: ignore[attr-defined]
+    assert len(read_results(out)) == 8
