@@ -160,3 +160,42 @@ def test_bench_gravity_outside_0_to_100_is_refused_and_nothing_written(
     assert res.exit_code == 2, res.output
     assert "gravity on the bench must be from 0 (a horizontal bench) to 100 m/s²" in res.output
     assert not out.exists()
+
+
+def test_a_line_of_millions_of_fields_is_refused_by_its_line_before_parsing(tmp_path: Path) -> None:
+    """2,000,000 empty columns took 197 s and 7.27 GB and printed 333 MB of errors."""
+    path = tmp_path / "wide.csv"
+    path.write_text(HEADER + "tip_load,0,0.01,1.0,,," + "," * 2_000_000 + "\n")
+    assert "line 2 has 2000007 fields; allowed: at most 64" in _error(path)  # no column was made
+
+
+def test_a_trailing_comma_on_every_line_reads_like_the_plain_file(tmp_path: Path) -> None:
+    """A spreadsheet export: "unknown column 'Unnamed: 9'" before."""
+    lines = BUNDLED.read_text().splitlines()
+    path = tmp_path / "trailing.csv"
+    path.write_text("\n".join(ln if ln.startswith("#") else ln + "," for ln in lines) + "\n")
+    pd.testing.assert_frame_equal(read_measurements(path), read_measurements(BUNDLED))
+
+
+def test_calibrate_and_diagnose_refuse_bad_output_places_and_empty_effects_before_any_work(
+    tmp_path: Path,
+) -> None:
+    from typer.testing import CliRunner
+
+    from somo_sweep.cli.app import app
+
+    blocker = tmp_path / "a_file"
+    blocker.write_text("mine\n")
+    runner = CliRunner()
+    for args in (
+        ["calibrate", str(BUNDLED), "-o", str(blocker / "x.yaml")],
+        ["calibrate", str(BUNDLED), "-o", str(tmp_path / "m.yaml"), "--report", str(blocker)],
+        ["diagnose", str(BUNDLED), "--out", str(blocker / "sub")],
+    ):
+        res = runner.invoke(app, args)
+        assert res.exit_code == 2 and "is a file, so" in res.output and "bench simulations" not in res.output
+    res = runner.invoke(app, ["diagnose", str(BUNDLED), "--out", str(tmp_path / "d"), "--effects", " , "])
+    assert res.exit_code == 2 and "--effects names no effect; allowed:" in res.output
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["a_file"]
+    res = runner.invoke(app, ["calibrate", str(BUNDLED), "-o", str(tmp_path / "m.yaml"), "--allow-outside"])
+    assert res.exit_code == 0, res.output

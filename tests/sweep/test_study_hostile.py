@@ -229,3 +229,9 @@ def test_a_pinch_grasp_object_wider_than_any_link_is_refused_before_any_trial(tm
     assert "line 4: sweep.task.object_width_m: Input should be less than or equal to 100, got 1e+300" in (
         _problems(path)
     )
+
+
+def test_a_nul_byte_in_output_is_refused_at_its_line(tmp_path: Path) -> None:
+    """It passed --dry-run and then was a ValueError traceback from mkdir."""
+    path = selftest_study(tmp_path, extra='output: "results/x\\u0000y"')
+    assert "output: holds a NUL byte, which no folder name can" in _problems(path)
