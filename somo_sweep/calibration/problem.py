@@ -54,6 +54,9 @@ class CalibrationProblem:
         parameters: What is calibrated, in order.
         settings: Bench numerics.
         source: Name of the measurement file.
+        other_starts: Further starting values (one per parameter, in order) the fit also
+            starts from, keeping the best; for a blocked force that is not linear in the
+            pressure (see :func:`build_problem`).
     """
 
     base: Model
@@ -61,6 +64,7 @@ class CalibrationProblem:
     parameters: tuple[Parameter, ...]
     settings: BenchSettings = CALIBRATION_SETTINGS
     source: str = "<rows>"
+    other_starts: tuple[tuple[float, ...], ...] = ()
 
     @property
     def calibration_rows(self) -> pd.DataFrame:
@@ -171,6 +175,18 @@ def _prepare_rows(rows: pd.DataFrame, manip: Manipulator, source: str) -> pd.Dat
             )
         elif r.pressure_kpa != 0:
             problems.append(f"line {r.line}, column pressure_kpa: side-axis tip_load rows need 0 kPa")
+    # A tip cannot move farther than the finger is long (a typo, or another unit).
+    length_mm = manip.length_m * 1e3
+    for column in ("tip_deflection_mm", "tip_x_mm", "tip_z_mm"):
+        if column not in rows.columns:
+            continue
+        far = rows[np.abs(rows[column].to_numpy(float)) > 2 * length_mm]
+        for r in far.itertuples():
+            problems.append(
+                f"line {r.line}, column {column}: {getattr(r, column):g} mm, farther than a "
+                f"{length_mm:g}-mm finger's tip can move; allowed: at most {2 * length_mm:g} mm; check "
+                "the unit and the finger"
+            )
     if problems:
         raise MeasurementError(source, problems)
     return rows.reset_index(drop=True)
@@ -237,11 +253,13 @@ def build_problem(
             f"column blocked_force_n: {len(blocked)} blocked_force row(s) above 0 kPa; "
             f"calibrating the pressure gain needs at least {min_rows_per_parameter}"
         )
-    elif force_per_kpa(blocked) <= 0 or not np.isfinite(force_per_kpa(blocked)):
-        problems.append(
-            f"column blocked_force_n: the blocked force does not grow with pressure_kpa "
-            f"(lines {_lines(blocked)}, slope {force_per_kpa(blocked):.4g} N/kPa)"
-        )
+    else:
+        slope = force_per_kpa(blocked)
+        if not _grows(slope, blocked):
+            problems.append(
+                f"column blocked_force_n: the blocked force does not grow with pressure_kpa "
+                f"(lines {_lines(blocked)}, slope {slope:.4g} N/kPa)"
+            )
     if not any(j.actuated for j in manip.actuators[0].joints[:1]):
         problems.append("the model's first joint definition is not actuated: no pressure gain to calibrate")
     if problems:
@@ -249,9 +267,31 @@ def build_problem(
     seeded = functools.reduce(lambda m, p: p.apply(m, p.initial), params, manip)
     arms, rel, act = joint_lever_arms(seeded, 0)
     k = seeded.actuators[0].joints[0].stiffness * rel
-    gain = force_per_kpa(blocked) * float(np.sum(arms**2 / k) / np.sum(act * arms / k))
-    params.append(Parameter("pressure_gain_n_m_per_kpa", "N·m/kPa", gain, set_pressure_gain))
-    return CalibrationProblem(base, rows, tuple(params), settings, source)
+    per_slope = float(np.sum(arms**2 / k) / np.sum(act * arms / k))
+    whole, upper = blocked_force_slopes(blocked)
+    params.append(Parameter("pressure_gain_n_m_per_kpa", "N·m/kPa", whole * per_slope, set_pressure_gain))
+    others: tuple[tuple[float, ...], ...] = ()
+    if _grows(upper, blocked) and not 0.8 <= upper / whole <= 1.25:
+        # Not linear: a finger heavy for its stiffness rests on the plate at low pressures
+        # (the force stays at its weight) and lifts off above; from the whole range's slope the
+        # start can sit where the force does not depend on the gain at all, and the fit stays.
+        others = ((*(p.initial for p in params[:-1]), upper * per_slope),)
+    return CalibrationProblem(base, rows, tuple(params), settings, source, others)
+
+
+def blocked_force_slopes(blocked: pd.DataFrame) -> tuple[float, float]:
+    """Slopes of blocked force against pressure (N/kPa): over all rows, and over the rows at or
+    above their median pressure."""
+    upper = blocked[blocked["pressure_kpa"] >= blocked["pressure_kpa"].median()]
+    return force_per_kpa(blocked), force_per_kpa(upper) if len(upper) >= 2 else float("nan")
+
+
+def _grows(slope: float, blocked: pd.DataFrame) -> bool:
+    """Whether the force grows over the pressures by more than rounding (0.1 % of its size)."""
+    p = blocked["pressure_kpa"].to_numpy(float)
+    f = blocked["blocked_force_n"].to_numpy(float)
+    span = float(np.ptp(p)) if len(set(p)) >= 2 else float(np.max(np.abs(p)))
+    return bool(np.isfinite(slope) and slope * span > 1e-3 * float(np.max(np.abs(f))))
 
 
 def _lines(rows: pd.DataFrame, shown: int = 12) -> str:

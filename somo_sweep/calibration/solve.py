@@ -16,8 +16,9 @@ from __future__ import annotations
 
 import math
 import time
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field, replace
+from typing import Any
 
 import numpy as np
 from scipy.optimize import least_squares
@@ -193,6 +194,38 @@ def solve_paper(problem: CalibrationProblem, n_jobs: int = 1) -> CalibrationResu
     return _finish(problem, "paper", values, start, 0, n_jobs, message="eq. (8) and (9) as published")
 
 
+def _chord_fit(
+    fun: Callable[[np.ndarray], np.ndarray], x0: np.ndarray, r0: np.ndarray, max_evaluations: int
+) -> Any:
+    """One trust-region least-squares fit from ``x0`` with the Jacobian taken there only.
+
+    Chord method: the bench responses are close to linear in the parameters' multipliers,
+    so one forward-difference Jacobian at the start serves every iteration (each then costs
+    one evaluation instead of 1 + n_parameters).
+    """
+    jac0 = np.empty((len(r0), len(x0)))
+    for i in range(len(x0)):
+        step = x0.copy()
+        step[i] += _DIFF_STEP
+        # A probe whose rows fail (NaN) says nothing about them: their slope is taken as 0.
+        jac0[:, i] = np.nan_to_num((fun(step) - r0) / _DIFF_STEP, nan=0.0, posinf=0.0, neginf=0.0)
+    cache = {x0.tobytes(): r0}
+
+    def cached(x: np.ndarray) -> np.ndarray:
+        known = cache.pop(x.tobytes(), None)
+        return fun(x) if known is None else known
+
+    return least_squares(
+        cached,
+        x0,
+        jac=lambda x: jac0.copy(),
+        bounds=(1e-3, 1e3),
+        xtol=1e-4,
+        ftol=1e-6,
+        max_nfev=max_evaluations,
+    )
+
+
 def solve_fit(problem: CalibrationProblem, n_jobs: int = 1, max_evaluations: int = 40) -> CalibrationResult:
     """Least squares of the relative residuals of the calibration rows, simulator in the loop.
 
@@ -222,9 +255,10 @@ def solve_fit(problem: CalibrationProblem, n_jobs: int = 1, max_evaluations: int
         return problem.residuals_of(simulated)
 
     n_cal, n_val = len(problem.calibration_rows), len(problem.validation_rows)
-    # At most: the start, one probe per parameter, the evaluations, then the validation rows.
-    meter.expect(n_cal * (1 + len(initial) + max_evaluations) + n_val)
-    x0 = np.ones_like(initial)
+    starts = [np.ones_like(initial)] + [np.asarray(o, float) / initial for o in problem.other_starts]
+    # At most, per start: the start, one probe per parameter, the evaluations; then the validation rows.
+    meter.expect(len(starts) * n_cal * (1 + len(initial) + max_evaluations) + n_val)
+    x0 = starts[0]
     r0 = fun(x0)
     if not np.all(np.isfinite(r0)):
         # The starting model has calibration rows without equilibrium: nothing to fit from.
@@ -239,30 +273,13 @@ def solve_fit(problem: CalibrationProblem, n_jobs: int = 1, max_evaluations: int
             known_failures=memo[x0.tobytes()][1],
             message="not fitted: calibration rows without equilibrium at the starting values",
         )
-    # Chord method: the bench responses are close to linear in the parameters' multipliers,
-    # so one forward-difference Jacobian at the start serves every iteration (each then costs
-    # one evaluation instead of 1 + n_parameters).
-    jac0 = np.empty((len(r0), len(x0)))
-    for i in range(len(x0)):
-        step = x0.copy()
-        step[i] += _DIFF_STEP
-        # A probe whose rows fail (NaN) says nothing about them: their slope is taken as 0.
-        jac0[:, i] = np.nan_to_num((fun(step) - r0) / _DIFF_STEP, nan=0.0, posinf=0.0, neginf=0.0)
-    cache = {x0.tobytes(): r0}
-
-    def cached(x: np.ndarray) -> np.ndarray:
-        known = cache.pop(x.tobytes(), None)
-        return fun(x) if known is None else known
-
-    sol = least_squares(
-        cached,
-        x0,
-        jac=lambda x: jac0.copy(),
-        bounds=(1e-3, 1e3),
-        xtol=1e-4,
-        ftol=1e-6,
-        max_nfev=max_evaluations,
-    )
+    sol = _chord_fit(fun, x0, r0, max_evaluations)
+    for other in starts[1:]:
+        r_other = fun(other)
+        if np.all(np.isfinite(r_other)):
+            candidate = _chord_fit(fun, other, r_other, max_evaluations)
+            if candidate.cost < sol.cost:
+                sol = candidate
     meter.expect(len(problem.rows))  # the fit is done: at most every row once more
     dof = max(len(sol.fun) - len(initial), 1)
     stderr: dict[str, float] = {}

@@ -150,9 +150,30 @@ def calibrate(
     for table in results_table(result):
         console.print(table)
     console.print(f"{result.simulations} bench simulations in {result.wall_time_s:.1f} s")
+    if result.message.startswith("not fitted"):
+        typer.echo(
+            f"error: {measurements}: {result.message}; nothing was written: check those rows (a value "
+            "far from the others, a unit) and the finger line",
+            err=True,
+        )
+        raise typer.Exit(1)
+    if result.failures:
+        typer.echo(f"warning: {result.message}", err=True)
+    for name, rel in result.relative_stderr.items():
+        if not rel <= 1.0:
+            typer.echo(
+                f"warning: {name} is not determined by these rows (relative standard error "
+                f"{rel:.0%}): its value means little; add rows that vary it",
+                err=True,
+            )
     poor = result.poor_fits()
     if poor:
-        missed = ", ".join(f"the {m.label} rows by {m.relative_rmse:.0%}" for m in poor)
+        missed = ", ".join(
+            f"the {m.label} rows by {m.relative_rmse:.0%}"
+            if m.relative_rmse == m.relative_rmse
+            else f"the {m.label} rows (some without equilibrium)"
+            for m in poor
+        )
         typer.echo(
             f"warning: the calibrated model misses {missed} (relative RMSE; above "
             f"{POOR_FIT_RELATIVE_RMSE:.0%} the model does not fit the measurements): check the units "

@@ -443,3 +443,32 @@ def test_a_calibration_that_does_not_fit_warns_and_still_writes_the_model(tmp_pa
     assert "above 25% the model does not fit the measurements" in res.output and out.is_file()
     good = runner.invoke(app, ["calibrate", str(SYNTHETIC), *BUILD, "-o", str(tmp_path / "good.yaml")])
     assert good.exit_code == 0 and "warning" not in good.output
+
+
+def test_a_finger_heavy_for_its_stiffness_is_fitted_from_a_second_start() -> None:
+    """The example finger with its stiffness and gain ÷3 rests on the plate up to ~80 kPa (the
+    blocked force stays at its weight) and lifts off above. From the whole range's slope the
+    fit started where the force does not depend on the gain and stopped at 1/3 of it, with no
+    warning (and ``diagnose`` then named a spurious effect)."""
+    from dataclasses import replace
+
+    from somo_sweep.calibration.synthetic import EXAMPLE_FINGER, example_plan
+
+    truth = planar_finger(
+        **EXAMPLE_FINGER,  # type: ignore[arg-type]
+        stiffness_n_m_per_rad=TRUE_STIFFNESS_N_M_PER_RAD / 3,
+        pressure_gain_n_m_per_kpa=TRUE_GAIN_N_M_PER_KPA / 3,
+    )
+    rows = synthetic_rows(truth, example_plan(), 0.01, np.random.default_rng(0), n_jobs=2)
+    rows["line"] = np.arange(len(rows)) + 2
+    base = planar_finger(**EXAMPLE_FINGER)  # type: ignore[arg-type]
+    problem = build_problem(rows, base)
+    assert len(problem.other_starts) == 1  # the blocked force is not linear in the pressure
+    result = solve_fit(problem, n_jobs=2)
+    assert result.values["stiffness_n_m_per_rad[grasp]"] == pytest.approx(
+        TRUE_STIFFNESS_N_M_PER_RAD / 3, rel=0.03
+    )
+    assert result.values["pressure_gain_n_m_per_kpa"] == pytest.approx(TRUE_GAIN_N_M_PER_KPA / 3, rel=0.03)
+    assert result.reproduces_within(0.05), result.metrics
+    one_start = solve_fit(replace(problem, other_starts=()), n_jobs=2)
+    assert one_start.values["pressure_gain_n_m_per_kpa"] < 0.7 * TRUE_GAIN_N_M_PER_KPA / 3

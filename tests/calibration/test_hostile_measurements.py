@@ -199,3 +199,45 @@ def test_calibrate_and_diagnose_refuse_bad_output_places_and_empty_effects_befor
     assert sorted(p.name for p in tmp_path.iterdir()) == ["a_file"]
     res = runner.invoke(app, ["calibrate", str(BUNDLED), "-o", str(tmp_path / "m.yaml"), "--allow-outside"])
     assert res.exit_code == 0, res.output
+
+
+def test_a_deflection_longer_than_the_finger_is_refused_by_its_line(tmp_path: Path) -> None:
+    """A 1000-mm typo on a 100-mm finger gave an unfitted model, "nan%" and exit 0."""
+    lines = BUNDLED.read_text().splitlines()
+    row = next(i for i, ln in enumerate(lines) if ln.startswith("tip_load,0,0.05,"))
+    fields = lines[row].split(",")
+    fields[3] = "1000"
+    lines[row] = ",".join(fields)
+    path = tmp_path / "typo.csv"
+    path.write_text("\n".join(lines) + "\n")
+    from typer.testing import CliRunner
+
+    from somo_sweep.cli.app import app
+
+    res = CliRunner().invoke(app, ["calibrate", str(path), "-o", str(tmp_path / "m.yaml")])
+    assert res.exit_code == 2, res.output
+    assert (
+        f"line {row + 1}, column tip_deflection_mm: 1000 mm, farther than a 100-mm finger's tip" in res.output
+    )
+    assert not (tmp_path / "m.yaml").exists()
+
+
+def test_a_fit_that_could_not_start_writes_nothing_and_exits_1(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    from dataclasses import replace
+
+    from typer.testing import CliRunner
+
+    from somo_sweep.calibration import solve
+    from somo_sweep.cli.app import app
+
+    real = solve.solve_paper
+
+    def unfitted(problem, n_jobs=1):  # type: ignore[no-untyped-def]
+        return replace(real(problem, n_jobs), message="not fitted: calibration rows without equilibrium")
+
+    monkeypatch.setattr(solve, "solve_fit", unfitted)
+    res = CliRunner().invoke(app, ["calibrate", str(BUNDLED), "-o", str(tmp_path / "m.yaml")])
+    assert res.exit_code == 1 and "not fitted: calibration rows without equilibrium" in res.output
+    assert "nothing was written" in res.output and not (tmp_path / "m.yaml").exists()
