@@ -17,6 +17,7 @@ from typing import Any
 
 from somo_sweep.errors import MeasurementError
 from somo_sweep.model.builders import DEFAULT_THICKNESS_M, DEFAULT_WIDTH_M, planar_finger
+from somo_sweep.model.description import MAX_LENGTH_M, MAX_MASS_KG
 from somo_sweep.model.files import parse_yaml_value
 from somo_sweep.model.load import Model
 
@@ -83,6 +84,20 @@ def _validate(path: Path, where: str, data: dict[Any, Any]) -> dict[str, Any]:
             and value > 0
         ):
             problems.append(f"{where}: {key} must be a finite number > 0, got {value!r}")
+    if not problems:
+        length = data.get("length_mm")
+        if length is not None and length > MAX_LENGTH_M * 1e3:
+            problems.append(f"{where}: length_mm must be at most {MAX_LENGTH_M * 1e3:g}, got {length!r}")
+        for key in ("width_mm", "thickness_mm"):
+            value = data.get(key)
+            if value is not None and length is not None and value > length:
+                problems.append(
+                    f"{where}: {key} {value!r} is more than the finger's length_mm {length!r}; "
+                    "allowed: at most the length (a cross-section, in mm)"
+                )
+        mass = data.get("mass_g")
+        if mass is not None and mass > MAX_MASS_KG * 1e3:
+            problems.append(f"{where}: mass_g must be at most {MAX_MASS_KG * 1e3:g}, got {mass!r}")
     segments = data.get("segments")
     if segments is not None and not (
         isinstance(segments, int) and not isinstance(segments, bool) and 1 <= segments <= 200

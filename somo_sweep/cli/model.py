@@ -68,7 +68,7 @@ def measure(
     allow_outside: ALLOW_OUTSIDE = False,
 ) -> None:
     """Simulate bench protocols and print rows in the measurement CSV schema."""
-    from somo_sweep.calibration.measurements import COLUMNS, measurements_csv, simulate_measurements
+    from somo_sweep.calibration.measurements import COLUMNS, RANGES, measurements_csv, simulate_measurements
     from somo_sweep.model.load import load_model
     from somo_sweep.sim.bench import TESTS
 
@@ -79,6 +79,15 @@ def measure(
         fail(SomoError(f"--pressure-kpa must be a finite number, got {pressure_kpa}"))
     if not vals:
         fail(SomoError("--values needs at least one number"))
+    # What the measurement CSV accepts (so every printed row can be read back by calibrate).
+    column = "tip_load_n" if test == "tip_load" else "pressure_kpa"
+    for name, given in ((column, vals), ("pressure_kpa", [pressure_kpa])):
+        low, high, unit = RANGES[name]
+        outside = [v for v in given if not low <= v <= high]
+        if outside:
+            flag = "--values" if given is vals else "--pressure-kpa"
+            allowed = f"allowed: {low:g} to {high:g} {unit}"
+            fail(SomoError(f"{flag} {outside[0]:g} is outside what a bench measures; {allowed}"))
     rows = pd.DataFrame({c: [float("nan")] * len(vals) for c in COLUMNS})
     rows["test"] = test
     if test == "tip_load":

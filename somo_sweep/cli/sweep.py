@@ -109,6 +109,8 @@ def run(
         fail(SomoError(f"--max-trials must be >= 1, got {max_trials}"))
     if backend == "dask" and not scheduler:
         fail(SomoError("--backend dask needs --scheduler ADDRESS (e.g. tcp://HOST:8786)"))
+    if scheduler and backend != "dask":
+        fail(SomoError(f"--scheduler is for --backend dask; with --backend {backend} the trials run here"))
     if chunk_rows < 1:
         fail(SomoError(f"--chunk-rows must be >= 1, got {chunk_rows}"))
     if out is not None and out.exists() and not out.is_dir():

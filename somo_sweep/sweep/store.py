@@ -176,6 +176,23 @@ class ResultStore:
                 f"damaged part file {part.name} ({reason}) moved to {target}; its trials run again"
             )
 
+    def _quarantine_foreign(self, study_hash: str, manifest: dict[str, Any]) -> None:
+        """Move part files holding rows of another study (copied in by hand) to the quarantine,
+        as ``show`` would otherwise refuse the folder; their rows of this study run again."""
+        for part in self._parts():
+            column = pq.read_table(part, columns=["study_hash"]).column("study_hash")
+            others = {str(h) for h in pc.unique(column).to_pylist()} - {study_hash}
+            if others:
+                target = self.trials / QUARANTINE / f"_{part.name}"
+                target.parent.mkdir(exist_ok=True)
+                os.replace(part, target)
+                rel = part.relative_to(self.folder).as_posix()
+                manifest["files"] = [f for f in manifest["files"] if f != rel]
+                self.notes.append(
+                    f"part file {part.name} holds rows of another study (hash {shown(sorted(others)[0])}): "
+                    f"moved to {target}; any trials of this study in it run again"
+                )
+
     def _stored_hashes(self) -> set[str]:
         hashes: set[str] = set()
         for part in self._parts():
@@ -199,6 +216,8 @@ class ResultStore:
         if old is not None and (old["study_hash"] == study_hash or not stored):
             if old["study_hash"] == study_hash:
                 old.setdefault("files", [])
+                if stored - {study_hash}:
+                    self._quarantine_foreign(study_hash, old)
                 return old
             return new_manifest(study_hash, resolved, axes)
         if old is None and stored <= {study_hash}:

@@ -241,3 +241,43 @@ def test_a_fit_that_could_not_start_writes_nothing_and_exits_1(
     res = CliRunner().invoke(app, ["calibrate", str(BUNDLED), "-o", str(tmp_path / "m.yaml")])
     assert res.exit_code == 1 and "not fitted: calibration rows without equilibrium" in res.output
     assert "nothing was written" in res.output and not (tmp_path / "m.yaml").exists()
+
+
+@pytest.mark.parametrize(
+    ("edit", "message"),
+    [
+        (
+            ("thickness_mm: 15", "thickness_mm: 500"),
+            "thickness_mm 500 is more than the finger's length_mm 100",
+        ),
+        (("length_mm: 100,", "length_mm: 1e9,"), "length_mm must be at most 100000, got 1000000000.0"),
+    ],
+)
+def test_a_finger_line_no_finger_has_is_refused_at_its_line(
+    tmp_path: Path, edit: tuple[str, str], message: str
+) -> None:
+    """Both calibrated with exit 0 (RMSE 7.6e4 N), or failed naming neither the CSV nor the key."""
+    from somo_sweep.calibration.finger import read_finger_header
+
+    path = tmp_path / "finger.csv"
+    path.write_text(BUNDLED.read_text().replace(*edit))
+    with pytest.raises(MeasurementError, match="finger header: " + message.replace(".", r"\.")):
+        read_finger_header(path)
+
+
+@pytest.mark.parametrize(
+    ("test", "values", "message"),
+    [
+        ("tip_load", "5000", "--values 5000 is outside"),
+        ("free_bending", "50000", "--values 50000 is outside"),
+    ],
+)
+def test_measure_refuses_values_the_csv_reader_would_refuse(test: str, values: str, message: str) -> None:
+    """It printed a tip_load row of 5000 N that calibrate then refused."""
+    from typer.testing import CliRunner
+
+    from somo_sweep.cli.app import app
+
+    model = Path(__file__).parents[2] / "somo_sweep" / "data" / "models" / "pinch_finger.yaml"
+    res = CliRunner().invoke(app, ["measure", str(model), "--test", test, "--values", values])
+    assert res.exit_code == 2 and message in res.output and "allowed:" in res.output

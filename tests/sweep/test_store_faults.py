@@ -364,3 +364,24 @@ def test_a_manifest_with_wrong_inner_types_is_rebuilt_not_a_traceback(
     res = _run(path, out)
     assert res.exit_code == 0 and "rebuilt from the part files" in res.output, res.output  # type: ignore[attr-defined]
     assert len(read_results(out)) == 8
+
+
+def test_a_part_of_another_study_copied_in_is_quarantined_by_the_next_run(tmp_path: Path) -> None:
+    """`run` said all was well while `show` refused the folder."""
+    path, out = _finished(tmp_path)
+    other = pd.read_parquet(_parts(out)[0]).assign(study_hash="zz", job_id=lambda d: "x" + d["job_id"])
+    other.to_parquet(out / "trials" / "part-from-elsewhere.parquet")
+    assert CliRunner().invoke(app, ["show", str(out)]).exit_code == 2
+    res = _run(path, out)
+    assert (
+        res.exit_code == 0
+        and "part file part-from-elsewhere.parquet holds rows of another study" in res.output
+    )  # type: ignore[attr-defined]
+    assert (out / "trials" / "quarantine" / "_part-from-elsewhere.parquet").is_file()
+    show = CliRunner().invoke(app, ["show", str(out)])
+    assert show.exit_code == 0 and len(read_results(out)) == 8, show.output
+
+
+def test_a_scheduler_without_the_dask_backend_is_refused(tmp_path: Path) -> None:
+    res = _run(selftest_study(tmp_path), tmp_path / "o", "--scheduler", "tcp://203.0.113.5:8786")
+    assert res.exit_code == 2 and "--scheduler is for --backend dask" in res.output  # type: ignore[attr-defined]
