@@ -10,6 +10,7 @@ separated by commas, or by ``;`` or tabs when the header has no comma (then ``1,
 
 from __future__ import annotations
 
+import csv
 import io
 import math
 from pathlib import Path
@@ -147,6 +148,18 @@ def read_measurements(path: str | Path, require_measured: bool = True) -> pd.Dat
             raise MeasurementError(
                 path, [f"line {number} has {ln.count(sep) + 1} fields; allowed: at most {MAX_FIELDS}"]
             )
+    header_line, header = next(
+        ((n, ln) for n, ln in enumerate(lines, start=1) if ln.strip() and not ln.lstrip().startswith("#")),
+        (0, ""),
+    )
+    try:
+        names = [c.strip() for c in next(csv.reader([header], delimiter=sep))] if header else []
+    except csv.Error:  # a huge field: pandas' own message follows
+        names = []
+    repeated = sorted({c for c in names if c and names.count(c) > 1})
+    if repeated:  # pandas would rename a repeated column to 'name.1'
+        twice = f"column '{shown(repeated[0])}' appears more than once in the header"
+        raise MeasurementError(path, [f"line {header_line}: {twice}"])
     try:
         raw = pd.read_csv(
             io.StringIO(text), sep=sep, comment="#", dtype=str, keep_default_na=False, skip_blank_lines=True

@@ -281,3 +281,10 @@ def test_measure_refuses_values_the_csv_reader_would_refuse(test: str, values: s
     model = Path(__file__).parents[2] / "somo_sweep" / "data" / "models" / "pinch_finger.yaml"
     res = CliRunner().invoke(app, ["measure", str(model), "--test", test, "--values", values])
     assert res.exit_code == 2 and message in res.output and "allowed:" in res.output
+
+
+def test_a_column_named_twice_in_the_header_is_refused_by_its_name(tmp_path: Path) -> None:
+    """pandas renamed it 'tip_load_n.1' and the message named a column the file does not have."""
+    path = tmp_path / "twice.csv"
+    path.write_text(HEADER.replace("tip_deflection_mm", "tip_load_n") + "tip_load,0,0.01,1.0,,,\n")
+    assert "line 1: column 'tip_load_n' appears more than once in the header" in _error(path)
