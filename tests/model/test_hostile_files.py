@@ -285,3 +285,15 @@ def test_a_name_too_long_is_refused_at_load_not_by_pybullet(length: int) -> None
         model_from_dict(data, "long.yaml")
     data["manipulator"]["name"] = "x" * 64
     assert model_from_dict(data, "long.yaml").manipulator is not None
+
+
+@pytest.mark.parametrize(("key", "path"), [("n_segments", ("actuators", 0)), ("mass_kg", ("base", "link"))])
+def test_a_boolean_where_a_number_belongs_is_refused(key: str, path: tuple[object, ...]) -> None:
+    """``n_segments: true`` built a one-segment actuator."""
+    data = load_yaml(MODELS / "pinch_finger.yaml")
+    node = data["manipulator"]
+    for step in path:
+        node = node[step]  # type: ignore[index]
+    node[key] = True  # type: ignore[index]
+    with pytest.raises(DescriptionError, match=f"{key}: expected a number, not a boolean"):
+        model_from_dict(data, "bool.yaml")
