@@ -64,6 +64,7 @@ class DiagnosisProblem:
         noise: Noise level per channel.
         disagreements: Systematic residuals of the model as given.
         source: Measurement file name.
+        notes: What was done to the rows before the diagnosis (repeated rows counted once).
     """
 
     fit: CalibrationProblem
@@ -78,6 +79,7 @@ class DiagnosisProblem:
     noise: dict[str, NoiseEstimate]
     disagreements: list[Disagreement]
     source: str = "<rows>"
+    notes: tuple[str, ...] = ()
 
     @property
     def rows(self) -> pd.DataFrame:
@@ -136,7 +138,7 @@ class DiagnosisProblem:
 
     def describe(self) -> str:
         """Noise levels, disagreements and the effects to try (for the terminal)."""
-        lines = [f"{len(self.rows)} rows from {self.source}; noise per channel:"]
+        lines = [*self.notes, f"{len(self.rows)} rows from {self.source}; noise per channel:"]
         for name, est in self.noise.items():
             unit = next(ch.unit for ch in channels(self.rows) if ch.name == name)
             lines.append(
@@ -175,6 +177,17 @@ def build_diagnosis(
         SomoError: An unknown effect name.
     """
     chosen = [get_effect(n) for n in effects] if effects is not None else list(EFFECTS.values())
+    # A row repeated exactly (a copy) is no second measurement: it would halve the noise
+    # estimate and double its weight in every comparison, and flip the verdict.
+    repeated = rows.duplicated(subset=[c for c in rows.columns if c != "line"], keep="first")
+    notes: tuple[str, ...] = ()
+    if repeated.any():
+        lines = ", ".join(str(v) for v in rows.loc[repeated, "line"].head(5)) if "line" in rows else "?"
+        more = " …" if repeated.sum() > 5 else ""
+        notes = (
+            f"{int(repeated.sum())} row(s) repeat an earlier row exactly (lines {lines}{more}): counted once",
+        )
+        rows = rows[~repeated].reset_index(drop=True)
     base_problem = build_problem(rows, model, source, settings)
     manip = base_problem.manipulator
     base = [replace(p, initial=_current(manip, p.name)) for p in base_problem.parameters]
@@ -206,4 +219,5 @@ def build_diagnosis(
         noise=noise,
         disagreements=find_disagreements(fit.rows, before - measured, noise),
         source=source,
+        notes=notes,
     )

@@ -317,3 +317,20 @@ def test_cli_writes_json_report_model_and_plot(tmp_path: Path) -> None:
     )
     assert (out / "diagnosis.png").stat().st_size > 1000
     assert load_model(out / "model.yaml").manipulator is not None
+
+
+def test_rows_repeated_exactly_are_counted_once() -> None:
+    """The same 36 rows twice halved the noise estimates and turned 'none' into an 'unexplained'
+    disagreement between pairs of identical rows."""
+    from somo_sweep.calibration.measurements import read_measurements
+    from somo_sweep.model.tables import bundled_path
+
+    rows = read_measurements(bundled_path("tables", "planar_finger_synthetic.csv"))
+    twice = pd.concat([rows, rows.assign(line=rows["line"] + 100)], ignore_index=True)
+    once = build_diagnosis(rows, example_finger(), effects=["self_weight"])
+    copied = build_diagnosis(twice, example_finger(), effects=["self_weight"])
+    first = ", ".join(str(v) for v in rows["line"].head(5) + 100)
+    assert copied.notes == (f"36 row(s) repeat an earlier row exactly (lines {first} …): counted once",)
+    assert len(copied.rows) == len(once.rows) == 36 and not once.notes
+    assert {k: v.sigma for k, v in copied.noise.items()} == {k: v.sigma for k, v in once.noise.items()}
+    assert copied.describe().startswith("36 row(s) repeat an earlier row exactly")
