@@ -51,6 +51,7 @@ class RowFailure:
         pressure_kpa: Its pressure.
         tip_load_n: Its tip load.
         cause: Why it failed.
+        line: Its line in the measurement file (None for rows made in code).
     """
 
     row: int
@@ -58,11 +59,13 @@ class RowFailure:
     pressure_kpa: float
     tip_load_n: float
     cause: str
+    line: int | None = None
 
     def describe(self) -> str:
-        """One line for messages."""
+        """One line for messages (the file line when the rows came from a file)."""
         load = f", {self.tip_load_n:g} N" if self.test == "tip_load" else ""
-        return f"row {self.row} ({self.test} at {self.pressure_kpa:g} kPa{load}): {self.cause}"
+        where = f"line {self.line}" if self.line is not None else f"row {self.row}"
+        return f"{where} ({self.test} at {self.pressure_kpa:g} kPa{load}): {self.cause}"
 
 
 @dataclass(frozen=True)
@@ -206,9 +209,12 @@ def simulate_rows(
     else:
         out = joblib.Parallel(n_jobs=n_jobs)(joblib.delayed(_simulate_row)(*a) for a in args)
     meter.count(len(args))
+    lines = rows["line"].tolist() if "line" in rows.columns else [None] * len(args)
     for i, (a, res) in enumerate(zip(args, out, strict=True)):
         if res[-1]:
-            failure = RowFailure(i, a[1], a[3], a[4], res[-1])
+            line = lines[i]
+            known = line is not None and line == line  # not NaN
+            failure = RowFailure(i, a[1], a[3], a[4], res[-1], int(line) if known else None)
             log.warning("bench row without equilibrium: %s", failure.describe())
             if failures is not None:
                 failures.append(failure)

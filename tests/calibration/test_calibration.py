@@ -472,3 +472,12 @@ def test_a_finger_heavy_for_its_stiffness_is_fitted_from_a_second_start() -> Non
     assert result.reproduces_within(0.05), result.metrics
     one_start = solve_fit(replace(problem, other_starts=()), n_jobs=2)
     assert one_start.values["pressure_gain_n_m_per_kpa"] < 0.7 * TRUE_GAIN_N_M_PER_KPA / 3
+
+
+def test_a_row_without_equilibrium_is_named_by_its_file_line() -> None:
+    """Warnings said 'row 15' for what is line 21 of the file."""
+    from somo_sweep.calibration.parameters import RowFailure
+
+    failure = RowFailure(15, "blocked_force", 100.0, 0.0, "no static equilibrium", line=21)
+    assert failure.describe() == "line 21 (blocked_force at 100 kPa): no static equilibrium"
+    assert RowFailure(15, "tip_load", 0.0, 0.5, "x").describe() == "row 15 (tip_load at 0 kPa, 0.5 N): x"
