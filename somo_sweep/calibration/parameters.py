@@ -213,8 +213,8 @@ def simulate_rows(
     for i, (a, res) in enumerate(zip(args, out, strict=True)):
         if res[-1]:
             line = lines[i]
-            known = line is not None and line == line  # not NaN
-            failure = RowFailure(i, a[1], a[3], a[4], res[-1], int(line) if known else None)
+            number = int(line) if line is not None and line == line else None  # not NaN
+            failure = RowFailure(i, a[1], a[3], a[4], res[-1], number)
             log.warning("bench row without equilibrium: %s", failure.describe())
             if failures is not None:
                 failures.append(failure)
