@@ -147,12 +147,25 @@ def _resolve_includes(
             problems.append(Problem(key, f"cannot include {path}"))
             continue
         try:
-            included, _ = load_mapping(path)
+            included, included_lines = load_mapping(path)
         except DescriptionError as exc:
             problems.append(Problem(key, f"cannot include {path}: {exc.problems[0].message}"))
             continue
         if "manipulator" not in included:
             problems.append(Problem(key, f"{path} has no 'manipulator' section"))
+            continue
+        try:  # on its own first, so that a problem is named by the included file's own line
+            model_from_dict(
+                {"manipulator": included["manipulator"]},
+                str(path),
+                path.parent,
+                included_lines,
+                allow_outside,
+            )
+        except DescriptionError as exc:
+            shown = "; ".join(p.render() for p in exc.problems[:3])
+            more = f" (and {len(exc.problems) - 3} more)" if len(exc.problems) > 3 else ""
+            problems.append(Problem(key, f"{path}: {shown}{more}"))
             continue
         mount["manipulator"] = included["manipulator"]
     if problems:

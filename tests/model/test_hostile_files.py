@@ -297,3 +297,19 @@ def test_a_boolean_where_a_number_belongs_is_refused(key: str, path: tuple[objec
     node[key] = True  # type: ignore[index]
     with pytest.raises(DescriptionError, match=f"{key}: expected a number, not a boolean"):
         model_from_dict(data, "bool.yaml")
+
+
+def test_a_bad_value_in_an_included_file_is_named_by_that_file_and_its_line(tmp_path: Path) -> None:
+    """It was named by the including file's 'file:' line and the merged key path."""
+    (tmp_path / "m").mkdir()
+    text = (MODELS / "pinch_finger.yaml").read_text()
+    number = next(i for i, ln in enumerate(text.splitlines(), start=1) if "length_m:" in ln)
+    first = text.splitlines()[number - 1]
+    (tmp_path / "m" / "neg.yaml").write_text(text.replace(first, first.split(":")[0] + ": -1", 1))
+    (tmp_path / "a.yaml").write_text(
+        "assembly:\n  name: asm\n  base: {mode: fixed, link: {shape: box, size_m: [0.05, 0.05, 0.01], "
+        "mass_kg: 0.5}}\n  manipulators:\n    - {name: f1, file: m/neg.yaml}\n"
+    )
+    with pytest.raises(DescriptionError) as info:
+        load_model(tmp_path / "a.yaml")
+    assert f"m/neg.yaml: line {number}: manipulator.actuators[0].length_m" in str(info.value)
