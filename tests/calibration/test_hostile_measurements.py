@@ -288,3 +288,65 @@ def test_a_column_named_twice_in_the_header_is_refused_by_its_name(tmp_path: Pat
     path = tmp_path / "twice.csv"
     path.write_text(HEADER.replace("tip_deflection_mm", "tip_load_n") + "tip_load,0,0.01,1.0,,,\n")
     assert "line 1: column 'tip_load_n' appears more than once in the header" in _error(path)
+
+
+@pytest.mark.parametrize("force", ["-0.5", "0.5"])
+def test_a_constant_blocked_force_is_refused_whatever_the_round_off(tmp_path: Path, force: str) -> None:
+    """-0.5 N at every pressure passed on a +3.8e-19 N/kPa round-off slope and fitted a gain of 2e-18."""
+    from somo_sweep.calibration.solve import build_problem
+    from somo_sweep.model.builders import planar_finger
+
+    lines = [
+        ",".join([*f[:4], force, *f[5:]]) if (f := ln.split(","))[0] == "blocked_force" else ln
+        for ln in BUNDLED.read_text().splitlines()
+    ]
+    path = tmp_path / "flat.csv"
+    path.write_text("\n".join(lines) + "\n")
+    with pytest.raises(MeasurementError, match="the blocked force does not grow with pressure_kpa"):
+        build_problem(read_measurements(path), planar_finger(0.1, 20, 0.02))
+
+
+def test_calibrate_report_never_replaces_a_users_figure(tmp_path: Path) -> None:
+    from typer.testing import CliRunner
+
+    from somo_sweep.cli.app import app
+
+    report = tmp_path / "report"
+    report.mkdir()
+    (report / "tip_load.png").write_text("MINE\n")
+    res = CliRunner().invoke(
+        app, ["calibrate", str(BUNDLED), "-o", str(tmp_path / "m.yaml"), "--report", str(report)]
+    )
+    assert res.exit_code == 2 and "is not an earlier copy of this output" in res.output
+    assert (report / "tip_load.png").read_text() == "MINE\n" and not (tmp_path / "m.yaml").exists()
+    (report / "tip_load.png").unlink()
+    for _ in range(2):  # its own figures are replaced
+        res = CliRunner().invoke(
+            app, ["calibrate", str(BUNDLED), "-o", str(tmp_path / "m.yaml"), "--report", str(report)]
+        )
+        assert res.exit_code == 0, res.output
+
+
+def test_a_parameter_the_rows_do_not_determine_is_warned_about(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """A constant -0.5 N blocked force used to fit a gain at its bound with a 2.6e12 % error, silently."""
+    from dataclasses import replace
+
+    from typer.testing import CliRunner
+
+    from somo_sweep.calibration import solve
+    from somo_sweep.cli.app import app
+
+    real = solve.solve_fit
+
+    def loose(problem, n_jobs=1):  # type: ignore[no-untyped-def]
+        result = real(problem, n_jobs)
+        return replace(
+            result, relative_stderr={**result.relative_stderr, "pressure_gain_n_m_per_kpa": 2.5e10}
+        )
+
+    monkeypatch.setattr(solve, "solve_fit", loose)
+    res = CliRunner().invoke(app, ["calibrate", str(BUNDLED), "-o", str(tmp_path / "m.yaml")])
+    assert res.exit_code == 0
+    assert "warning: pressure_gain_n_m_per_kpa is not determined by these rows" in res.output

@@ -176,3 +176,20 @@ def test_options_and_folders_of_the_wrong_kind_are_one_line(
     args = [str(folder) if a == "FOLDER" else str(tmp_path / "s.yaml") if a == "STUDY" else a for a in args]
     code, out = _invoke(*args, "--out", str(tmp_path / "o"))
     assert code == 2 and message in out, out
+
+
+def test_a_trial_number_in_other_digits_is_not_an_index() -> None:
+    """'²' passed str.isdigit() and then failed int()."""
+    from somo_sweep.paper.grasp_trials import find_trial
+
+    with pytest.raises(SomoError):
+        find_trial([], "²")
+
+
+def test_a_foreign_inferred_table_is_skipped_by_name(tmp_path: Path) -> None:
+    folder = results_folder(tmp_path)
+    pd.DataFrame({"job_id": [1, 2], "inferred": [True, True]}).to_parquet(folder / "inferred.parquet")
+    table, seen = _notes(folder)
+    assert len(table) == 3 and seen == [
+        "inferred.parquet: its 'job_id' column holds int64, not the text somo-sweep writes"
+    ]
