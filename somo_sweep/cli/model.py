@@ -91,8 +91,6 @@ def measure(
     rows = pd.DataFrame({c: [float("nan")] * len(vals) for c in COLUMNS})
     rows["test"] = test
     if test == "tip_load":
-        if any(v < 0 for v in vals):
-            fail(SomoError(f"tip loads must be >= 0 N, got {vals}"))
         rows["pressure_kpa"], rows["tip_load_n"] = pressure_kpa, vals
     else:
         rows["pressure_kpa"] = vals
