@@ -193,3 +193,15 @@ def test_a_foreign_inferred_table_is_skipped_by_name(tmp_path: Path) -> None:
     assert len(table) == 3 and seen == [
         "inferred.parquet: its 'job_id' column holds int64, not the text somo-sweep writes"
     ]
+
+
+def test_an_earlier_copy_of_a_table_with_other_columns_is_still_ours(tmp_path: Path) -> None:
+    """A rerun whose trials have another label set adds a column: its own table is replaced."""
+    from somo_sweep.cli.output import check_output
+
+    path = tmp_path / "fig6_contacts_summary.csv"
+    path.write_text("distal_segment_ratio,object_width_m,no_grasp,pinch,power\n0.1,0.01,0,1,1\n")
+    check_output(path, "distal_segment_ratio,object_width_m,no_grasp,pinch,power,unstable\n")
+    path.write_text("notes\n")
+    with pytest.raises(SomoError, match="is not an earlier copy of this output"):
+        check_output(path, "distal_segment_ratio,object_width_m\n")
