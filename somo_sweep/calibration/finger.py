@@ -49,7 +49,8 @@ def read_finger_header(path: str | Path) -> dict[str, Any] | None:
     """
     path = Path(path)
     with path.open("rb") as fh:
-        head = [fh.readline(_MAX_LINE_BYTES + 1) for _ in range(_SEARCH_LINES)]
+        # Split like the CSV reader: \n, \r\n or a lone \r (old Mac exports) end a line.
+        head = fh.read(_SEARCH_LINES * (_MAX_LINE_BYTES + 2)).splitlines(keepends=True)[:_SEARCH_LINES]
     for number, raw in enumerate(head, start=1):
         line = raw.decode("utf-8", errors="replace").lstrip("\ufeff").strip()  # Excel's "CSV UTF-8" BOM
         if not line.lower().startswith(_PREFIX):

@@ -13,6 +13,7 @@ from __future__ import annotations
 import csv
 import io
 import math
+import re
 from pathlib import Path
 
 import pandas as pd
@@ -105,6 +106,8 @@ def _separator(text: str) -> str:
     return ","
 
 
+#: A number as a measurement CSV writes it (ASCII digits, optional sign, point and exponent; inf).
+_NUMBER = re.compile(r"[+-]?(\d+\.?\d*|\.\d+)([eE][+-]?\d+)?|[+-]?inf(inity)?", re.IGNORECASE | re.ASCII)
 #: Most fields a line of a measurement CSV may have (it has at most a dozen columns).
 MAX_FIELDS = 64
 
@@ -204,8 +207,16 @@ def read_measurements(path: str | Path, require_measured: bool = True) -> pd.Dat
                 continue
             if sep != "," and cell.count(",") == 1 and "." not in cell:
                 cell = cell.replace(",", ".")  # a decimal comma (a spreadsheet's ';'-separated export)
+            if cell.lower().lstrip("+-") == "nan":
+                problems.append(
+                    f"line {_line_of(i, comment_lines)}, column {c}: '{shown(cell)}' is not a measured "
+                    "value; leave the cell empty where nothing was measured"
+                )
+                values.append(math.nan)
+                continue
             try:
-                v = float(cell)
+                # Plain ASCII decimals only: float() would also take '1_000' and other scripts' digits.
+                v = float(cell) if _NUMBER.fullmatch(cell) else float("x")
             except ValueError:
                 problems.append(
                     f"line {_line_of(i, comment_lines)}, column {c}: '{shown(cell)}' is not a number"

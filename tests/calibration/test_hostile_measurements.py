@@ -350,3 +350,30 @@ def test_a_parameter_the_rows_do_not_determine_is_warned_about(
     res = CliRunner().invoke(app, ["calibrate", str(BUNDLED), "-o", str(tmp_path / "m.yaml")])
     assert res.exit_code == 0
     assert "warning: pressure_gain_n_m_per_kpa is not determined by these rows" in res.output
+
+
+@pytest.mark.parametrize(
+    ("cell", "message"),
+    [
+        ("nan", "'nan' is not a measured value; leave the cell empty"),
+        ("1_000", "'1_000' is not a number"),
+        ("\uff11.\uff10", "'\uff11.\uff10' is not a number"),
+        ("inf", "inf is not finite"),
+    ],
+)
+def test_cells_python_would_read_but_a_bench_file_does_not_hold(
+    tmp_path: Path, cell: str, message: str
+) -> None:
+    """'nan' was reported as an empty cell; '1_000' and full-width digits were read as numbers."""
+    path = tmp_path / "cells.csv"
+    path.write_text(HEADER + f"tip_load,0,0.01,{cell},,,\n", encoding="utf-8")
+    assert f"line 2, column tip_deflection_mm: {message}" in _error(path)
+
+
+def test_old_mac_line_endings_keep_the_finger_line(tmp_path: Path) -> None:
+    from somo_sweep.calibration.finger import read_finger_header
+
+    path = tmp_path / "cr.csv"
+    path.write_bytes(BUNDLED.read_bytes().replace(b"\n", b"\r"))
+    assert read_finger_header(path) == read_finger_header(BUNDLED) is not None
+    pd.testing.assert_frame_equal(read_measurements(path), read_measurements(BUNDLED))
