@@ -238,11 +238,17 @@ def fig6_compare(
     from somo_sweep.paper.fig6_compare import Side, build
     from somo_sweep.paper.grasp_trials import read_results
 
+    sides = []
+    for name, rule, folder in ((name_a, rule_a, a), (name_b, rule_b, b)):
+        try:
+            table = read_results(folder)
+        except SomoError as exc:
+            fail(exc)
+        try:
+            sides.append(Side(name, rule, grasp_table(table, rule)))
+        except SomoError as exc:  # the table's problem, named by its folder
+            fail(SomoError(f"{folder}: {exc}"))
     try:
-        sides = [
-            Side(name_a, rule_a, grasp_table(read_results(a), rule_a)),
-            Side(name_b, rule_b, grasp_table(read_results(b), rule_b)),
-        ]
         artifacts = build(sides, max_dsr=max_dsr, paper_style=paper_style)
     except SomoError as exc:
         fail(exc)

@@ -205,3 +205,12 @@ def test_an_earlier_copy_of_a_table_with_other_columns_is_still_ours(tmp_path: P
     path.write_text("notes\n")
     with pytest.raises(SomoError, match="is not an earlier copy of this output"):
         check_output(path, "distal_segment_ratio,object_width_m\n")
+
+
+def test_fig6_compare_names_the_folder_that_is_not_a_pinch_study(tmp_path: Path) -> None:
+    good = results_folder(tmp_path / "good")
+    bad = results_folder(tmp_path / "bad")
+    part = bad / "trials" / "part-0.parquet"
+    pd.read_parquet(part).drop(columns=["task_distal_segment_ratio"]).to_parquet(part)
+    code, out = _invoke("paper", "fig6-compare", str(good), str(bad), "--out", str(tmp_path / "o"))
+    assert code == 2 and f"{bad}: results table lacks distal_segment_ratio" in out.replace("\n", "")
