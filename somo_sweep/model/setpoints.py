@@ -57,6 +57,24 @@ class SetpointTable:
         i = bisect_right(t, time_s) - 1
         return self.values[i] + self._slopes[i] * (time_s - t[i])
 
+    def steady_steps(self, n_steps: int, time_step_s: float) -> list[bool]:
+        """For the times ``i · time_step_s`` (i < ``n_steps``): whether the value at step i is
+        certainly the value at step i − 1.
+
+        True only when both times lie in one stretch where the table holds still (before its
+        first row, after its last, or between two equal rows), so a loop may skip evaluating
+        the table there; step 0 is never steady.
+        """
+        t = np.arange(n_steps) * float(time_step_s)
+        n = len(self._times)
+        # Stretch of each time: −1 before the first row, k between rows k and k + 1, n − 1 after the last.
+        stretch = np.searchsorted(self.times_s, t, side="right") - 1
+        still = np.ones(n + 1, dtype=bool)  # indexed by stretch + 1
+        still[1:n] = np.all(self.values[:-1] == self.values[1:], axis=1)
+        steady = np.zeros(n_steps, dtype=bool)
+        steady[1:] = (stretch[1:] == stretch[:-1]) & still[stretch[1:] + 1]
+        return steady.tolist()
+
     @classmethod
     def constant(cls, values: Sequence[float]) -> SetpointTable:
         """A table holding ``values`` at all times."""

@@ -105,6 +105,9 @@ class SpringDrive:
         self._movable: list[int] | None = None
         self._zero_list = [0.0] * len(joints)
         self._limit_list = self.motor_limit.tolist()
+        # Constants of the held-friction step, worked out once (the hot path's numpy calls are few).
+        self._neg_limit = -self.motor_limit
+        self._sliding_at = self.motor_limit * (1.0 - 1e-9)
 
     def enable_motors(self) -> None:
         """Set the zero-velocity motors (Coulomb limit, SoMo's control limit force) once."""
@@ -206,13 +209,13 @@ class SpringDrive:
             self._qd_before_solve = self.qd
             return efforts
         motor = np.fromiter(map(_fourth, states), float, n)
-        limit = self.motor_limit
         if self._solves % MASS_MATRIX_EVERY == 0:
             self._mass = self._joint_mass_matrix()
         self._solves += 1
         demand = motor - self._mass @ (self.qd - self._qd_before_solve) / self.time_step_s
-        sliding = np.abs(motor) >= limit * (1.0 - 1e-9)
-        held = np.where(sliding, np.clip(motor, -limit, limit), np.clip(demand, -limit, limit))
+        sliding = np.abs(motor) >= self._sliding_at
+        # Clipping after the choice is the same as clipping both: ±F bounds either value.
+        held = np.minimum(np.maximum(np.where(sliding, motor, demand), self._neg_limit), self.motor_limit)
         self._set_motor_rows(False)
         return efforts + held
 
@@ -224,7 +227,11 @@ class SpringDrive:
                 for j in range(p.getNumJoints(self.body, physicsClientId=self.client))
             ]
             self._movable = [j for j, kind in enumerate(kinds) if kind != p.JOINT_FIXED]
-        positions = [s[0] for s in p.getJointStates(self.body, self._movable, physicsClientId=self.client)]
+        if self._movable == self.indices:  # every movable joint is a spring joint: just read
+            positions = self.q.tolist()
+        else:
+            states = p.getJointStates(self.body, self._movable, physicsClientId=self.client)
+            positions = [s[0] for s in states]
         full = np.asarray(p.calculateMassMatrix(self.body, positions, physicsClientId=self.client))
         base = full.shape[0] - len(self._movable)  # 6 for a floating base, 0 for a fixed one
         rows = [base + self._movable.index(j) for j in self.indices]

@@ -27,3 +27,32 @@ def test_returned_values_are_copies() -> None:
 def test_rejects_bad_tables(times: list[float], values: list[float]) -> None:
     with pytest.raises(ValueError):
         SetpointTable(times, values)
+
+
+@pytest.mark.parametrize(
+    ("times", "values", "dt"),
+    [
+        # The pinch trial's torque and path: still, ramp, still; still, move, still, move.
+        ([0.0, 1.0, 2.0], [[0.0, 0.0], [0.0, 0.0], [0.15, 0.15]], 4e-3),
+        ([0.0, 1.0, 2.0, 3.0], [[0.3, 0, 0.035], [0.2, 0, 0.035], [0.2, 0, 0.035], [0.2, 0, 0.11]], 4e-3),
+        # A change shorter than a step, rows off the step grid, a table starting late, one row.
+        ([0.0, 0.0101, 0.0102, 0.05], [1.0, 1.0, 2.0, 2.0], 4e-3),
+        ([0.013, 0.0217, 0.04], [[0.0, -0.0], [5.0, 0.0], [5.0, 0.0]], 1e-3),
+        ([0.5], [[1.0, 2.0]], 0.01),
+    ],
+)
+def test_steady_steps_are_exactly_the_steps_whose_value_repeats(
+    times: list[float], values: list, dt: float
+) -> None:
+    table = SetpointTable(times, values)
+    n = round((times[-1] + 0.03) / dt)
+    steady = table.steady_steps(n, dt)
+    assert len(steady) == n and steady[0] is False
+    assert any(steady)
+    seen = [table(i * dt) for i in range(n)]
+    for i in range(1, n):
+        if steady[i]:  # never claimed where the value moves
+            assert np.array_equal(seen[i], seen[i - 1]), i
+    # ...and claimed wherever both times lie in one still stretch.
+    still = [i for i in range(1, n) if np.array_equal(seen[i], seen[i - 1])]
+    assert sum(steady) >= len(still) - 2 * len(times)

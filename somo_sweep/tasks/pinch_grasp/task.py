@@ -238,6 +238,7 @@ def run_pinch_grasp(
         ended_early_s, reason, touched = float("nan"), "", False
         observe_steps = {min(round(t / dt), n_steps - 1) for t in observe_at_s}
         last_u, last_pose = np.full(n_in, np.nan), np.full(3, np.nan)
+        u_steady, pose_steady = torque.steady_steps(n_steps, dt), path.steady_steps(n_steps, dt)
         try:
             for i in range(n_steps):
                 t = i * dt
@@ -255,14 +256,18 @@ def run_pinch_grasp(
                         ended_early_s = t
                         break
                 # Setpoints are resent only when they change: the torque is constant during the
-                # approach and the hold, the hand's target during the squeeze and the hold.
-                u, pose = torque(t), path(t)
-                if not np.array_equal(u, last_u):
-                    hand.set_inputs(u)
-                    last_u = u
-                if not np.array_equal(pose, last_pose):
-                    world.drive_model(hand, pose, (0.0, 0.0, 0.0))
-                    last_pose = pose
+                # approach and the hold, the hand's target during the squeeze and the hold (and
+                # there they are not even looked up).
+                if not u_steady[i]:
+                    u = torque(t)
+                    if not np.array_equal(u, last_u):
+                        hand.set_inputs(u)
+                        last_u = u
+                if not pose_steady[i]:
+                    pose = path(t)
+                    if not np.array_equal(pose, last_pose):
+                        world.drive_model(hand, pose, (0.0, 0.0, 0.0))
+                        last_pose = pose
                 world.step()
                 if i >= i_hold and (n_steps - 1 - i) % sample_every == 0:
                     probe.sample()
