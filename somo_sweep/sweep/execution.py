@@ -250,6 +250,30 @@ def outcome_of(job: Job, attempt: Attempt, wall_time_s: float = 0.0, host: str =
     )
 
 
+@contextlib.contextmanager
+def _deaf_to_ctrl_c(active: bool) -> Iterator[None]:
+    """Start local worker processes deaf to Ctrl-C, so that only the sweep acts on it.
+
+    A terminal's Ctrl-C goes to every process of the foreground group. A worker hit while still
+    importing printed its traceback over the sweep's message. Processes started here inherit
+    SIGINT ignored (kept across exec; Python then installs no KeyboardInterrupt handler), and
+    the sweep, on Ctrl-C, keeps the finished trials and shuts them down. SIGINT is also held
+    back meanwhile, so a Ctrl-C in this short window reaches the sweep's own handler when it
+    ends (unless a library starting a helper process unblocks it in between: then that one
+    press is lost).
+    """
+    if not active or threading.current_thread() is not threading.main_thread():
+        yield
+        return
+    mask = signal.pthread_sigmask(signal.SIG_BLOCK, {signal.SIGINT})
+    handler = signal.signal(signal.SIGINT, signal.SIG_IGN)
+    try:
+        yield
+    finally:
+        signal.signal(signal.SIGINT, handler)
+        signal.pthread_sigmask(signal.SIG_SETMASK, mask)
+
+
 def _parallel(backend: Backend, n_jobs: int) -> Parallel:
     return Parallel(
         n_jobs=n_jobs if backend == "loky" else -1,
@@ -292,9 +316,11 @@ def execute(
             try:
                 with parallel_config(backend=backend):
                     workers = min(n_jobs, len(todo)) if backend == "loky" else n_jobs  # no idle process
-                    for out in _parallel(backend, workers)(
-                        delayed(run_isolated)(j, timeout_s, owner) for j in todo
-                    ):
+                    with _deaf_to_ctrl_c(backend == "loky"):  # the workers start here
+                        outcomes = _parallel(backend, workers)(
+                            delayed(run_isolated)(j, timeout_s, owner) for j in todo
+                        )
+                    for out in outcomes:
                         pending.pop(out.job_id, None)
                         yield out
             except (KeyboardInterrupt, GeneratorExit):

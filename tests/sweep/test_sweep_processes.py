@@ -189,3 +189,33 @@ def _alive(pid: int) -> bool:
         return False
     status = Path(f"/proc/{pid}/stat")
     return status.exists() and status.read_text().split()[2] != "Z"
+
+
+def test_ctrl_c_to_the_whole_terminal_group_while_workers_start_gives_one_message(tmp_path: Path) -> None:
+    """A terminal's Ctrl-C reaches every process of its group, the workers too, and they may
+    still be importing: only the sweep may answer, with its one message and no traceback."""
+    path = selftest_study(tmp_path, extra="set: {task.sleep_s: 0.2}", n=20)
+    out = tmp_path / "out"
+    proc = subprocess.Popen(
+        [str(CLI), "run", str(path), "--jobs", "2", "--no-plots", "--out", str(out)],
+        stdout=subprocess.PIPE,
+        stderr=subprocess.PIPE,
+        text=True,
+        start_new_session=True,  # its own group, as a shell gives a command
+    )
+    try:
+        deadline = time.monotonic() + 60
+        while len(_descendants(proc.pid)) < 2 and time.monotonic() < deadline:
+            time.sleep(0.01)
+        workers = _descendants(proc.pid)
+        assert len(workers) >= 2, "the workers never started"
+        time.sleep(0.1)  # they are importing now (before the fix: a traceback in 4 runs of 4)
+        os.killpg(proc.pid, signal.SIGINT)  # as Ctrl-C: the sweep and its workers, mid-import
+        _, stderr = proc.communicate(timeout=60)
+    finally:
+        if proc.poll() is None:
+            os.killpg(proc.pid, signal.SIGKILL)
+    assert proc.returncode == 130, stderr
+    assert "Traceback" not in stderr and "KeyboardInterrupt" not in stderr, stderr
+    assert "finished trial(s) kept" in stderr
+    assert _all_gone(workers)
