@@ -89,6 +89,21 @@ def global_flags_first(args: list[str]) -> list[str]:
     return flags + [a for a in head if a not in GLOBAL_FLAGS] + tail
 
 
+def empty_value(args: list[str]) -> str | None:
+    """What was left empty in ``args`` (``--out ""``, ``--out=`` or an empty argument), or None.
+
+    Typer reads an empty path as ``.``, so ``--out "$UNSET"`` would quietly mean this folder; no
+    option or argument of ours takes an empty value.
+    """
+    for i, arg in enumerate(args):
+        if arg == "":
+            before = args[i - 1] if i and args[i - 1].startswith("-") and "=" not in args[i - 1] else None
+            return f"{before} was given an empty value" if before else "an argument is empty"
+        if arg.startswith("--") and arg.endswith("=") and "=" not in arg[:-1]:
+            return f"{arg[:-1]} was given an empty value"
+    return None
+
+
 _python_format = warnings.formatwarning
 
 
@@ -111,8 +126,12 @@ def main() -> None:
     """
     os.environ.setdefault("MPLBACKEND", "Agg")
     warnings.formatwarning = _one_line_for_ours
+    args = global_flags_first(sys.argv[1:])
+    if (empty := empty_value(args)) is not None:
+        print(f"error: {empty} (an unset shell variable?); allowed: any non-empty value", file=sys.stderr)
+        raise SystemExit(2)
     try:
-        app(args=global_flags_first(sys.argv[1:]), prog_name="somo-sweep")
+        app(args=args, prog_name="somo-sweep")
     except OSError as exc:
         if state["debug"]:
             raise

@@ -10,7 +10,7 @@ import pytest
 from typer.testing import CliRunner
 
 from somo_sweep.calibration.measurements import read_measurements
-from somo_sweep.cli.app import GLOBAL_FLAGS, app, global_flags_first, main
+from somo_sweep.cli.app import GLOBAL_FLAGS, app, empty_value, global_flags_first, main
 from somo_sweep.errors import DescriptionError, MeasurementError
 from somo_sweep.model.load import load_model
 from somo_sweep.model.tables import bundled_if_missing, bundled_path
@@ -149,3 +149,33 @@ def test_quiet_after_the_command_works_from_the_console_script(
     assert exit_.value.code in (0, None)
     out = capsys.readouterr()
     assert "pinch_grasp" in out.out and "No such option" not in out.err
+
+
+@pytest.mark.parametrize(
+    ("args", "message"),
+    [
+        (["run", "s.yaml", "--out", ""], "--out was given an empty value"),
+        (["run", "s.yaml", "--out="], "--out was given an empty value"),
+        (["calibrate", "m.csv", "-o", ""], "-o was given an empty value"),
+        (["run", ""], "an argument is empty"),
+        (["run", "s.yaml", "--out", "."], None),
+        (["run", "s.yaml", "--out=results/x"], None),
+    ],
+)
+def test_an_empty_value_is_named(args: list[str], message: str | None) -> None:
+    assert empty_value(args) == message
+
+
+def test_an_empty_folder_is_refused_not_read_as_this_folder(
+    monkeypatch: pytest.MonkeyPatch, capsys: pytest.CaptureFixture[str], tmp_path: Path
+) -> None:
+    """Typer reads "" as ".": --out "$UNSET" wrote the results into the current folder."""
+    monkeypatch.chdir(tmp_path)
+    monkeypatch.setattr(
+        "sys.argv", ["somo-sweep", "run", str(bundled_path("finger_pressure_sweep.yaml")), "--out", ""]
+    )
+    with pytest.raises(SystemExit) as exit_:
+        main()
+    assert exit_.value.code == 2
+    assert "--out was given an empty value" in capsys.readouterr().err
+    assert list(tmp_path.iterdir()) == []
