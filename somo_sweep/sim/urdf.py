@@ -119,7 +119,11 @@ class _Builder:
         s = self.scale
         link = info.link
         if link is None:
-            self.parts.append(f'<link name="{info.name}"/>')
+            # Massless, said explicitly: a link without inertial data gets 1 kg and 1 kg·m² in Bullet.
+            self.parts.append(
+                f'<link name="{info.name}"><inertial><mass value="0"/>'
+                '<inertia ixx="0" iyy="0" izz="0" ixy="0" ixz="0" iyz="0"/></inertial></link>'
+            )
             self.links.append(info)
             return
         c = centre_m * s

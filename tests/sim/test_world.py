@@ -256,3 +256,67 @@ def test_a_forked_child_gets_the_spare_client_and_the_same_physics(monkeypatch: 
     world_module.keep_spare_client()  # connecting again keeps the one spare
     assert world_module._spare_client == spare
     pb.disconnect(physicsClientId=spare[0])
+
+
+def _tilted_thumb_on_an_arm(roll_rad: float) -> dict:
+    """A fixed palm, a horizontal arm on it, and a thumb without base link on the arm's tip."""
+    sphere = {"shape": "sphere", "radius_m": 0.004, "mass_kg": 0.001}
+    return {
+        "assembly": {
+            "name": "hand",
+            "base": {"mode": "fixed", "link": {"shape": "box", "size_m": [0.06, 0.06, 0.02], "mass_kg": 0.2}},
+            "manipulators": [
+                {
+                    "name": "arm",
+                    "pose": {"rpy_rad": [0.0, 1.5707963, 0.0]},
+                    "manipulator": {
+                        "actuators": [
+                            {
+                                "length_m": 0.1,
+                                "n_segments": 2,
+                                "link": {"shape": "capsule", "radius_m": 0.01, "mass_kg": 0.02},
+                                "joints": [{"axis": [0, 1, 0], "stiffness_n_m_per_rad": 5.0}],
+                            }
+                        ],
+                        "tip_links": [{"shape": "box", "size_m": [0.04, 0.02, 0.01], "mass_kg": 0.01}],
+                    },
+                },
+                {
+                    "name": "thumb",
+                    "attach_to": "arm",
+                    "pose": {"rpy_rad": [roll_rad, 0.0, 0.0]},
+                    "manipulator": {
+                        "actuators": [
+                            {
+                                "length_m": 0.04,
+                                "n_segments": 4,
+                                "link": sphere,
+                                "joints": [{"axis": [1, 0, 0], "stiffness_n_m_per_rad": 0.05}],
+                            }
+                        ]
+                    },
+                },
+            ],
+        }
+    }
+
+
+def test_a_tilted_mount_without_base_link_adds_no_mass() -> None:
+    """Its anchor link has no shape; Bullet gave a link without inertial data 1 kg (8 mm more sag)."""
+    masses, tips = [], []
+    for roll in (0.0, 1e-3):
+        model = model_from_dict(_tilted_thumb_on_an_arm(roll))
+        with World(WorldSettings(time_step_s=2e-4)) as world:
+            hand = world.add_model(model)
+            body = hand.bodies[0]
+            masses.append(
+                sum(
+                    pb.getDynamicsInfo(body.id, i, physicsClientId=world.client)[0]
+                    for i in body.link_index.values()
+                )
+            )
+            world.step(2500)
+            tips.append(world.tip_position(body, "arm"))
+    # kg as declared: arm, arm tip, thumb (Bullet reports a fixed base's mass as 0).
+    assert masses[0] == pytest.approx(masses[1]) == pytest.approx(0.04 + 0.01 + 0.004)
+    np.testing.assert_allclose(tips[0], tips[1], atol=2e-4)  # the arm sags the same, within 0.2 mm
