@@ -76,6 +76,15 @@ MAX_JOINT_COEFFICIENT = 1e9
 MAX_FRICTION = 1e3
 #: Largest inertia added to a link, kg·m².
 MAX_ADDED_INERTIA_KG_M2 = 1e3
+#: Largest principal moment of a link's given inertia, kg·m² (the largest mass at the largest size).
+MAX_INERTIA_KG_M2 = MAX_MASS_KG * MAX_LENGTH_M**2
+#: Largest stiffness gradient along an actuator, 1/m, and the largest factor it may give a joint.
+MAX_GRADIENT_PER_M = 1e6
+MAX_GRADIENT_FACTOR = 1e6
+#: Largest cubic stiffening coefficient, 1/rad² (either sign).
+MAX_STIFFENING_PER_RAD2 = 1e6
+#: Largest joint limit, rad (a revolute joint's limits, either sign: many turns).
+MAX_LIMIT_RAD = 1e3
 
 
 def _check_name(value: str) -> str:
@@ -129,6 +138,13 @@ class Friction(Spec):
     rolling: float = Field(0.0, ge=0, le=MAX_FRICTION)
     anisotropic: Vec3 | None = None
 
+    @field_validator("anisotropic")
+    @classmethod
+    def _anisotropic_bounded(cls, v: Vec3 | None) -> Vec3 | None:
+        if v is not None and any(not 0 <= c <= MAX_FRICTION for c in v):
+            raise ValueError(f"anisotropic entries must be from 0 to {MAX_FRICTION:g}")
+        return v
+
 
 SHAPES = ("box", "cylinder", "sphere", "capsule", "stadium")
 
@@ -159,6 +175,29 @@ class Link(Spec):
     friction: Friction = Friction()
     restitution: float = Field(0.0, ge=0, le=1)
     color_rgba: tuple[float, float, float, float] = (0.55, 0.6, 0.7, 1.0)
+
+    @field_validator("inertia_kg_m2")
+    @classmethod
+    def _inertia_physical(cls, v: Vec3 | None) -> Vec3 | None:
+        """Principal moments of a real body: positive, bounded, each at most the sum of the other two."""
+        if v is None:
+            return v
+        if any(not 0 < c <= MAX_INERTIA_KG_M2 for c in v):
+            raise ValueError(f"inertia_kg_m2 entries must be > 0 and <= {MAX_INERTIA_KG_M2:g} kg·m²")
+        a, b, c = v
+        if a > (b + c) * (1 + 1e-9) or b > (a + c) * (1 + 1e-9) or c > (a + b) * (1 + 1e-9):
+            raise ValueError(
+                f"inertia_kg_m2 {list(v)} is no body's: each principal moment must be at most the sum "
+                "of the other two (triangle inequality)"
+            )
+        return v
+
+    @field_validator("color_rgba")
+    @classmethod
+    def _color_in_range(cls, v: tuple[float, float, float, float]) -> tuple[float, float, float, float]:
+        if any(not 0 <= c <= 1 for c in v):
+            raise ValueError("color_rgba entries must be from 0 to 1")
+        return v
 
     @model_validator(mode="after")
     def _dimensions_fit_shape(self) -> Link:
@@ -263,8 +302,18 @@ class Joint(Spec):
     motor_limit_n: float | None = Field(None, ge=0, le=MAX_JOINT_COEFFICIENT)
     limits_rad: tuple[float, float] | None = None
     limits_m: tuple[float, float] | None = None
-    stiffening_per_rad2: float = 0.0
+    stiffening_per_rad2: float = Field(0.0, ge=-MAX_STIFFENING_PER_RAD2, le=MAX_STIFFENING_PER_RAD2)
     hysteresis_torque_n_m: float = Field(0.0, ge=0, le=MAX_JOINT_COEFFICIENT)
+
+    @field_validator("limits_rad", "limits_m")
+    @classmethod
+    def _limits_bounded(
+        cls, v: tuple[float, float] | None, info: ValidationInfo
+    ) -> tuple[float, float] | None:
+        bound, unit = (MAX_LIMIT_RAD, "rad") if info.field_name == "limits_rad" else (MAX_LENGTH_M, "m")
+        if v is not None and any(abs(c) > bound for c in v):
+            raise ValueError(f"{info.field_name} entries must be within ±{bound:g} {unit}")
+        return v
 
     @field_validator("offset_m")
     @classmethod
@@ -351,7 +400,7 @@ class Actuator(Spec):
     link: Link
     joints: list[Joint] = Field(min_length=1, max_length=3)
     stiffness_profile: list[float] | None = None
-    stiffness_gradient_per_m: float = 0.0
+    stiffness_gradient_per_m: float = Field(0.0, ge=-MAX_GRADIENT_PER_M, le=MAX_GRADIENT_PER_M)
     joint_placement: Literal["midpoint", "start"] = "midpoint"
 
     @model_validator(mode="after")
@@ -392,6 +441,12 @@ class Actuator(Spec):
             raise ValueError(
                 f"stiffness_gradient_per_m = {self.stiffness_gradient_per_m} makes the last joint's "
                 f"stiffness <= 0; allowed: > {-1 / last_m if last_m > 0 else '-inf'} 1/m"
+            )
+        if 1 + self.stiffness_gradient_per_m * last_m > MAX_GRADIENT_FACTOR:
+            raise ValueError(
+                f"stiffness_gradient_per_m = {self.stiffness_gradient_per_m} multiplies the last joint's "
+                f"stiffness by {1 + self.stiffness_gradient_per_m * last_m:.3g}; allowed: at most "
+                f"{MAX_GRADIENT_FACTOR:g} ({(MAX_GRADIENT_FACTOR - 1) / last_m:.6g} 1/m here)"
             )
         return self
 

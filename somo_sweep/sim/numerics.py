@@ -29,6 +29,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from somo_sweep.model.description import MAX_ADDED_INERTIA_KG_M2
 from somo_sweep.model.load import Model
 from somo_sweep.sim.modes import ChainMatrices, ChainModes, chain_matrices, model_chains, shaped
 
@@ -196,9 +197,12 @@ def _largest_inertia(mats: ChainMatrices, kept: int, max_shift: float) -> float:
     if kept == 0 or len(base) == 0:
         return 0.0
     scale = float(np.min(np.diag(mats.mass)))  # the lightest joint's own inertia
-    lo, hi = 0.0, scale
+    # Never past what a link may be given (a chain heavy for its springs would grow J to overflow).
+    lo, hi = 0.0, min(scale, MAX_ADDED_INERTIA_KG_M2)
     while _shift(mats, base, kept, hi) <= max_shift:
-        lo, hi = hi, hi * 10
+        if hi >= MAX_ADDED_INERTIA_KG_M2:
+            return MAX_ADDED_INERTIA_KG_M2
+        lo, hi = hi, min(hi * 10, MAX_ADDED_INERTIA_KG_M2)
     lo = lo or hi * 1e-6
     if _shift(mats, base, kept, lo) > max_shift:
         return 0.0

@@ -281,3 +281,65 @@ def test_errors_cross_process_boundaries_with_their_fields(error: Exception) -> 
     copy = pickle.loads(pickle.dumps(error))
     assert type(copy) is type(error) and str(copy) == str(error)
     assert vars(copy) == vars(error)
+
+
+def _finger(link: dict | None = None, joint: dict | None = None, **actuator: object) -> dict:
+    return {
+        "manipulator": {
+            "actuators": [
+                {
+                    "length_m": 0.1,
+                    "n_segments": 5,
+                    "link": {"shape": "box", "size_m": [0.02, 0.01], "mass_kg": 0.01, **(link or {})},
+                    "joints": [{"axis": [1, 0, 0], "stiffness_n_m_per_rad": 1.0, **(joint or {})}],
+                    **actuator,
+                }
+            ]
+        }
+    }
+
+
+@pytest.mark.parametrize(
+    ("description", "where", "message"),
+    [
+        (_finger(link={"inertia_kg_m2": [0, 0, 0]}), "link.inertia_kg_m2", "> 0"),
+        (_finger(link={"inertia_kg_m2": [-1e-6, 1e-9, 1e-9]}), "link.inertia_kg_m2", "> 0"),
+        (_finger(link={"inertia_kg_m2": [1e30, 1e30, 1e30]}), "link.inertia_kg_m2", "<= 1e+10"),
+        (_finger(link={"inertia_kg_m2": [1e-6, 1e-9, 1e-9]}), "link.inertia_kg_m2", "triangle inequality"),
+        (
+            _finger(link={"friction": {"anisotropic": [-1, 1e30, 0]}}),
+            "friction.anisotropic",
+            "from 0 to 1000",
+        ),
+        (_finger(link={"color_rgba": [2, -1, 0, 5]}), "link.color_rgba", "from 0 to 1"),
+        (_finger(joint={"limits_rad": [-1e300, 1e300]}), "joints[0].limits_rad", "±1000 rad"),
+        (_finger(joint={"stiffening_per_rad2": -1e300}), "joints[0].stiffening_per_rad2", "1000000"),
+        (_finger(stiffness_gradient_per_m=1e300), "stiffness_gradient_per_m", "1000000"),
+        (_finger(stiffness_gradient_per_m=1e6, length_m=10.0), "actuators[0]", "multiplies the last joint's"),
+    ],
+)
+def test_physical_bounds_of_every_number_are_enforced(description: dict, where: str, message: str) -> None:
+    """A value no real finger has was accepted and overflowed the modal estimate or Bullet."""
+    with pytest.raises(DescriptionError) as err:
+        model_from_dict(description)
+    assert where in str(err.value) and message in str(err.value)
+
+
+def test_a_real_inertia_and_anisotropic_friction_are_kept() -> None:
+    model = model_from_dict(
+        _finger(link={"inertia_kg_m2": [2e-7, 2e-7, 1e-7], "friction": {"anisotropic": [1, 0.1, 1]}})
+    )
+    link = model.manipulator.actuators[0].link
+    assert link.inertia_kg_m2 == (2e-7, 2e-7, 1e-7) and link.friction.anisotropic == (1, 0.1, 1)
+
+
+def test_automatic_numerics_of_a_heavy_chain_stay_bounded() -> None:
+    """99-m links of 1000 t on the stiffest springs: the shaping search grew to inf (a traceback)."""
+    from somo_sweep.model.description import MAX_ADDED_INERTIA_KG_M2
+    from somo_sweep.sim.numerics import choose_numerics
+
+    heavy = _finger(link={"size_m": [99, 99], "mass_kg": 999999.0}, joint={"stiffness_n_m_per_rad": 1e9})
+    heavy["manipulator"]["actuators"][0]["length_m"] = 99.0
+    chosen = choose_numerics(model_from_dict(heavy))
+    assert 0 < chosen.time_step_s <= 4e-3
+    assert all(0 <= c.added_inertia_kg_m2 <= MAX_ADDED_INERTIA_KG_M2 for c in chosen.chains.values())
