@@ -52,6 +52,27 @@ def check(
             f"{plan.name}: base {plan.mode}, {len(plan.links)} links, {len(plan.joints)} spring joints, "
             f"inputs: {', '.join(plan.inputs) or 'none'}"
         )
+    assembly = m.as_assembly()
+    for mount in assembly.manipulators if m.assembly is not None else []:
+        own = mount.manipulator.base.mode
+        if own != "fixed" and own != assembly.base.mode:  # fixed: a finger file's own default
+            typer.echo(
+                f"note: {mount.name}: its own base mode '{own}' is not used; a mounted manipulator moves "
+                f"with the assembly's base ('{assembly.base.mode}')"
+            )
+    for mount in assembly.manipulators:
+        for a_i, act in enumerate(mount.manipulator.actuators):
+            link = act.segment_link()
+            half = (link.half_extent_m(0), link.half_extent_m(1))
+            for j_i, joint in enumerate(act.joints):
+                off = joint.offset_m
+                if abs(off[0]) > half[0] * (1 + 1e-9) or abs(off[1]) > half[1] * (1 + 1e-9):
+                    typer.echo(
+                        f"note: {mount.name}: actuator {act.name or a_i}, joint {joint.name or j_i}: "
+                        f"offset_m {list(off)} puts the axis outside the link's cross-section (half "
+                        f"widths {half[0]:g}, {half[1]:g} m): the links hinge apart, not on their faces "
+                        "(a length in mm where m was meant?)"
+                    )
     typer.echo("automatic numerics (used when a study gives no simulation:):")
     for line in choose_numerics(m).describe():
         typer.echo(f"  {line}")

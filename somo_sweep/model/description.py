@@ -421,6 +421,13 @@ class Actuator(Spec):
                 )
         n = self.segments
         lz = self.link.length_z_m
+        radius = self.link.radius_m or 0.0
+        short = self.length_m / n < 2 * radius * (1 - LENGTH_REL_TOL)
+        if self.link.shape == "capsule" and lz is None and short:
+            raise ValueError(
+                f"capsule links of radius_m {radius:g} need segments of at least 2 * radius_m = "
+                f"{2 * radius:g} m (caps included), got length_m / segments = {self.length_m / n:.6g} m"
+            )
         if lz is not None and self.link.shape != "sphere":
             seg = self.length_m / n
             if abs(lz - seg) > LENGTH_REL_TOL * seg:
@@ -524,6 +531,17 @@ class Manipulator(Spec):
     actuators: list[Actuator] = Field(min_length=1)
     tip_links: list[Link] = []
     actuation: Actuation | None = None
+
+    @model_validator(mode="after")
+    def _inputs_named_apart(self) -> Manipulator:
+        names = self.input_names
+        repeated = sorted({n for n in names if names.count(n) > 1})
+        if repeated:
+            raise ValueError(
+                f"control inputs must have distinct names, repeated: {', '.join(repeated)}; "
+                "allowed: a different name for each actuator (and each joint within one)"
+            )
+        return self
 
     @property
     def n_inputs(self) -> int:

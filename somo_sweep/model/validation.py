@@ -70,7 +70,10 @@ def _describe(err: Any, root: type[BaseModel]) -> str:
         listing = f"; allowed keys: {', '.join(allowed)}" if allowed else ""
         return f"unknown key '{shown(str(loc[-1]))}'{hint}{listing}"
     value = err.get("input")
-    got = "" if kind == "missing" else f", got {shown(repr(value))}"
+    # A check across the fields of a section names what it found itself; echoing the whole
+    # section (hundreds of characters) would only bury that.
+    section = isinstance(value, (dict, list, tuple)) and kind == "value_error" and len(repr(value)) > 80
+    got = "" if kind == "missing" or section else f", got {shown(repr(value))}"
     msg = err["msg"]
     if kind == "literal_error":
         return f"{msg}{got}"

@@ -332,6 +332,7 @@ def run_bench(
         from somo_sweep.sim.statics import solve_row
 
         _inputs(manip, pressure_kpa)  # a pressure without an actuation map is an error, as below
+        bench_frame(manip)  # so is a chain the bench cannot hold (not "no static equilibrium")
         row = solve_row(manip, test, pressure_kpa, tip_load_n, settings, direction)
         if not row.status.converged:
             raise SimulationError(

@@ -411,17 +411,26 @@ class World:
 
     def check_thrown(self) -> None:
         """Raise if a free body left the scene, moves at Bullet's speed cap, or is not finite."""
+        names = {b.id: b.plan.name for b in self.bodies}
         for body_id in self._free:
+            name = f"body '{names.get(body_id, body_id)}'"
             pos = np.asarray(p.getBasePositionAndOrientation(body_id, physicsClientId=self.client)[0])
             dist = float(np.linalg.norm(pos)) / self.scale
             if not np.isfinite(dist):
-                raise UnstableSimulation("nan", self.time_s, f"body {body_id} position")
+                raise UnstableSimulation("nan", self.time_s, f"{name} position")
             if dist > THROWN_DISTANCE_M:
-                raise UnstableSimulation("thrown", self.time_s, f"body {body_id} at {dist:.1f} m")
-            # Bullet caps base speeds at 100 scaled units (100/Y m/s); a body pinned there blew up.
+                raise UnstableSimulation("thrown", self.time_s, f"{name} at {dist:.1f} m")
+            # Bullet caps base speeds at 100 scaled units (100/Y m/s): past it the motion is wrong,
+            # whether the body blew up or only fell far.
             lin, ang = p.getBaseVelocity(body_id, physicsClientId=self.client)
             if max(np.abs(lin).max(), np.abs(ang).max()) >= 0.99 * MAX_JOINT_SPEED_RAD_S:
-                raise UnstableSimulation("speed_cap", self.time_s, f"body {body_id} at Bullet's speed cap")
+                cap = MAX_JOINT_SPEED_RAD_S / self.scale
+                raise UnstableSimulation(
+                    "speed_cap",
+                    self.time_s,
+                    f"{name} at Bullet's speed cap, {cap:g} m/s or {MAX_JOINT_SPEED_RAD_S:g} rad/s at world "
+                    f"scale {self.scale:g} (a smaller scale raises the linear cap)",
+                )
 
     # ----------------------------------------------------------------- reading
     def link_frame(self, body: Body, link: str) -> tuple[np.ndarray, np.ndarray]:

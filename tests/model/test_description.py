@@ -343,3 +343,31 @@ def test_automatic_numerics_of_a_heavy_chain_stay_bounded() -> None:
     chosen = choose_numerics(model_from_dict(heavy))
     assert 0 < chosen.time_step_s <= 4e-3
     assert all(0 <= c.added_inertia_kg_m2 <= MAX_ADDED_INERTIA_KG_M2 for c in chosen.chains.values())
+
+
+def test_capsule_segments_shorter_than_their_caps_are_refused_when_the_length_is_left_out() -> None:
+    """Written out, such a length was refused; left out, 12-mm capsules were built in 10-mm segments."""
+    capsule = {"shape": "capsule", "radius_m": 0.006, "mass_kg": 0.002}
+    with pytest.raises(DescriptionError) as err:
+        model_from_dict(_finger(link=capsule | {"size_m": None}, length_m=0.06, n_segments=6))
+    text = str(err.value)
+    assert "manipulator.actuators[0]" in text and "at least 2 * radius_m = 0.012 m" in text
+    assert "(301 characters)" not in text and "'link':" not in text  # the section is not echoed
+    model_from_dict(_finger(link=capsule | {"size_m": None}, length_m=0.06, n_segments=5))  # 12 mm: fits
+
+
+def test_inputs_with_the_same_name_are_refused() -> None:
+    joint = {"name": "j", "axis": [1, 0, 0], "stiffness_n_m_per_rad": 1.0}
+    act = {
+        "name": "a",
+        "length_m": 0.05,
+        "n_segments": 5,
+        "link": {"shape": "sphere", "radius_m": 0.004, "mass_kg": 0.001},
+    }
+    with pytest.raises(DescriptionError, match="repeated: a/j"):
+        model_from_dict(
+            {"manipulator": {"actuators": [act | {"joints": [joint]}, act | {"joints": [joint]}]}}
+        )
+    model_from_dict(
+        {"manipulator": {"actuators": [act | {"joints": [joint]}, act | {"name": "b", "joints": [joint]}]}}
+    )

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import json
 from pathlib import Path
 
 import numpy as np
@@ -237,3 +238,53 @@ def test_unpressurised_blocked_force_is_at_most_the_fingers_weight(name: str) ->
     value = run_bench(manip, "blocked_force", pressure_kpa=0.0).value
     assert isinstance(value, float)
     assert 0.0 < value <= 9.81 * mass_kg * 1.001
+
+
+def test_a_chain_bending_about_its_own_axis_is_refused_as_such_not_as_an_equilibrium() -> None:
+    data = ihm_finger_dict()
+    data["manipulator"]["actuators"][0]["joints"][0]["axis"] = [0, 0, 1]
+    with pytest.raises(SimulationError) as err:
+        run_bench(model_from_dict(data), "free_bending", 0.0)
+    assert "must not be the chain axis (z)" in str(err.value)
+    assert "no static equilibrium" not in str(err.value)
+
+
+def test_check_says_when_a_mounted_manipulators_own_base_mode_is_not_used(tmp_path: Path) -> None:
+    finger = {
+        "actuators": [
+            {
+                "length_m": 0.04,
+                "n_segments": 2,
+                "link": {"shape": "box", "size_m": [0.01, 0.01], "mass_kg": 0.001},
+                "joints": [{"axis": [1, 0, 0], "stiffness_n_m_per_rad": 1.0}],
+            }
+        ]
+    }
+    hand = {
+        "assembly": {
+            "name": "hand",
+            "base": {"mode": "fixed"},
+            "manipulators": [
+                {"name": "a", "manipulator": finger | {"base": {"mode": "free"}}},
+                {"name": "b", "manipulator": finger | {"base": {"mode": "fixed"}}},
+            ],
+        }
+    }
+    path = tmp_path / "hand.json"
+    path.write_text(json.dumps(hand))
+    res = CliRunner().invoke(app, ["check", str(path)])
+    assert res.exit_code == 0, res.output
+    assert "note: a: its own base mode 'free' is not used" in res.output and "note: b" not in res.output
+
+
+def test_check_notes_a_joint_axis_outside_its_link(tmp_path: Path) -> None:
+    """A finger written in mm (offset 6 where 0.006 m was meant) passed without a word."""
+    data = ihm_finger_dict()
+    data["manipulator"]["actuators"][0]["joints"][0]["offset_m"] = [0.0, -6.0, 0.0]
+    path = tmp_path / "mm.json"
+    path.write_text(json.dumps(data))
+    res = CliRunner().invoke(app, ["check", str(path)])
+    assert res.exit_code == 0, res.output
+    assert "puts the axis outside the link's cross-section" in res.output
+    path.write_text(json.dumps(ihm_finger_dict()))
+    assert "outside the link" not in CliRunner().invoke(app, ["check", str(path)]).output

@@ -320,3 +320,21 @@ def test_a_tilted_mount_without_base_link_adds_no_mass() -> None:
     # kg as declared: arm, arm tip, thumb (Bullet reports a fixed base's mass as 0).
     assert masses[0] == pytest.approx(masses[1]) == pytest.approx(0.04 + 0.01 + 0.004)
     np.testing.assert_allclose(tips[0], tips[1], atol=2e-4)  # the arm sags the same, within 0.2 mm
+
+
+def test_a_body_at_bullets_speed_cap_is_named_with_the_cap_in_si() -> None:
+    """A free fall reaches 100 scaled units per second: at scale 100 that is 1 m/s, after 0.1 s."""
+    from somo_sweep.errors import UnstableSimulation
+    from somo_sweep.model.description import Link, RigidBody
+    from somo_sweep.sim.urdf import plan_rigid_body
+
+    with World(WorldSettings(time_step_s=1e-3, scale=100.0, check_every=10)) as world:
+        ball = RigidBody(
+            name="ball",
+            link=Link(shape="sphere", radius_m=0.01, mass_kg=0.01),
+            pose=Pose(position_m=(0, 0, 1)),
+        )
+        world.load_plan(plan_rigid_body(ball, world.scale))
+        with pytest.raises(UnstableSimulation) as err:
+            world.step(1000)
+    assert "body 'ball' at Bullet's speed cap, 1 m/s" in str(err.value) and 0.09 <= world.time_s <= 0.12
