@@ -243,8 +243,12 @@ def _print_dry_run(st: Study) -> None:
 
 
 def _damaged(path: Path, reason: str) -> None:
-    from somo_sweep.sweep.folder import REPEATS
+    from somo_sweep.sweep.folder import INFERRED, REPEATS
 
+    if path.name == INFERRED and path.parent.joinpath("manifest.json").exists():
+        what = reason.removeprefix(REPEATS).strip() if reason.startswith(REPEATS) else f"skipped ({reason})"
+        typer.echo(f"warning: {path}: {what}; the next adaptive run of this study rebuilds it", err=True)
+        return
     if reason.startswith(REPEATS):  # readable, but a copy: its rows are counted once
         typer.echo(f"warning: part file {path} {reason}", err=True)
         return

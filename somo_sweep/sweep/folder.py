@@ -268,6 +268,28 @@ def _read_inferred(folder: Path, report: OnDamaged) -> pa.Table | None:
     if why is not None:  # readable, but not what an adaptive run writes
         report(path, why)
         return None
+    # Every row of this file is inferred, whatever its column says (a hand edit must not pass
+    # an inferred cell off as simulated); rows without a job, trial or status are not cells;
+    # a job is counted once.
+    table = table.set_column(
+        table.column_names.index("inferred"), "inferred", pa.array([True] * table.num_rows, pa.bool_())
+    )
+    whole = pc.and_(
+        pc.and_(pc.is_valid(table.column("job_id")), pc.is_valid(table.column("trial"))),
+        pc.is_valid(table.column("status")),
+    )
+    if not pc.all(whole).as_py() and table.num_rows:
+        broken = table.num_rows - pc.sum(whole).as_py()
+        report(path, f"{REPEATS} {broken} row(s) without a job, trial or status: left out")
+        table = table.filter(whole)
+    ids = table.column("job_id").to_pylist()
+    first_of: dict[str, int] = {}
+    for i, job in enumerate(ids):
+        first_of.setdefault(job, i)
+    first = sorted(first_of.values())
+    if len(first) < table.num_rows:
+        report(path, f"{REPEATS} {table.num_rows - len(first)} repeated row(s): counted once")
+        table = table.take(pa.array(first, pa.int64()))
     return table
 
 

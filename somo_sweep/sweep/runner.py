@@ -71,6 +71,7 @@ class RunSummary:
         rounds: Adaptive rounds that ran trials in this run.
         simulated_cells: Adaptive: grid cells simulated when the run ended (earlier runs included).
         inferred: Adaptive: trials written as inferred (0 until the last round completes).
+        sampling_notes: Adaptive: what the refinement could not do as asked (for the user).
     """
 
     folder: Path
@@ -87,6 +88,7 @@ class RunSummary:
     rounds: list[RoundSummary] = field(default_factory=list)
     simulated_cells: int = 0
     inferred: int = 0
+    sampling_notes: list[str] = field(default_factory=list)
 
     @property
     def trials_per_s(self) -> float:
@@ -270,7 +272,7 @@ def run_study(
         summary.skipped = len(table.jobs) - len(todo)
         summary.stored_errors = sum(1 for j in table.jobs if done.get(j.job_id) == "error")
         known: Known = store.stored_labels() if plan else {}
-        store.clear_inferred()
+        store.check_inferred()  # refuse a folder in its place now, not after the trials
         store.start_run(
             {
                 "backend": backend,
@@ -323,14 +325,17 @@ def run_study(
                     try:
                         store.write(buffer)
                         buffer = []
-                        if plan and status == "completed":
-                            inferred = plan.inferred_rows(known, table.study_hash)
-                            store.write_inferred(inferred)
-                            summary.inferred = len(inferred)
+                        if status == "completed":  # an earlier run's inferred cells stay until then
+                            store.clear_inferred()
+                            if plan:
+                                inferred = plan.inferred_rows(known, table.study_hash)
+                                store.write_inferred(inferred)
+                                summary.inferred = len(inferred)
                     except OSError as exc:
                         failure, status = exc, "failed"
                 summary.wall_time_s = time.perf_counter() - start
                 summary.simulated_cells = plan.simulated_cells if plan else 0
+                summary.sampling_notes = list(plan.notes) if plan else []
                 extra = (
                     {
                         "rounds": [vars(r) for r in summary.rounds],

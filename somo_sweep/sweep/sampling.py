@@ -83,6 +83,9 @@ class AdaptivePlan:
         self.keys = np.full(self.grid.shape, UNKNOWN, dtype=np.int64)
         self._codes: dict[str, int] = {}
         self._checked = False
+        self._index: dict[str, int] | None = None
+        #: What the user should know about the refinement (printed with the run's summary).
+        self.notes: list[str] = []
 
     def describe(self) -> str:
         """What the plan does, in one paragraph (for ``--dry-run``)."""
@@ -109,11 +112,21 @@ class AdaptivePlan:
         return self._codes.setdefault(text, len(self._codes))
 
     def _check_labels(self, known: Known) -> None:
-        """Every label the study names must come out of its ``ok`` trials."""
-        seen = {n for status, labels in known.values() if status == "ok" for n in labels}
-        if self._checked or not seen:
+        """Every label the study names must come out of its ``ok`` trials.
+
+        Without any label (a task that gives none, and none named) refinement follows the
+        trials' status alone, and :attr:`notes` says so.
+        """
+        oks = [labels for status, labels in known.values() if status == "ok"]
+        if self._checked or not oks:
             return
         self._checked = True
+        seen = {n for labels in oks for n in labels}
+        if not seen and not self.labels:
+            self.notes.append(
+                f"task {self.study.task.name} gives no labels: refinement followed the trials' status "
+                "only, and inferred cells have a status and no metrics"
+            )
         unknown = [n for n in self.labels if n not in seen]
         if unknown:
             raise DescriptionError(
@@ -122,11 +135,32 @@ class AdaptivePlan:
                     Problem(
                         "adaptive.labels",
                         f"'{n}' is not a label of task {self.study.task.name}; its trials give: "
-                        + ", ".join(sorted(seen)),
+                        + (", ".join(sorted(seen)) or "none"),
                     )
                     for n in unknown
                 ],
             )
+
+    def _merge_stored(self, known: Known) -> bool:
+        """Give the plan the keys of cells stored in the folder that it never asked for.
+
+        An earlier run with other adaptive settings, or a full-grid run, may have stored them;
+        a box that would be filled across such a cell of another key is then not settled.
+        Returns whether any key was added.
+        """
+        if self._index is None:
+            self._index = {j.job_id: i for i, j in enumerate(self.jobs)}
+        points = {self._index[job_id] // self.study.repeats for job_id in known if job_id in self._index}
+        added = False
+        for point in sorted(points):
+            cell = tuple(int(i) for i in np.unravel_index(point, self.grid.shape)) if self.grid.shape else ()
+            if self.keys[cell] != UNKNOWN:
+                continue
+            code = self._cell_key(cell, known)
+            if code is not None:
+                self.keys[cell] = code
+                added = True
+        return added
 
     def rounds(self, known: Known) -> Iterator[Batch]:
         """The rounds still to run; finished rounds are replayed from ``known``, not rerun.
@@ -137,11 +171,16 @@ class AdaptivePlan:
         Raises:
             DescriptionError: ``adaptive.labels`` names a label the task does not give.
         """
-        number = 0
+        number, merged = 0, False
         while True:
             cells = next_cells(self.grid, self.keys)
             if not cells:
-                return
+                # The plan's own rounds are replayed first, exactly as they ran; cells stored by
+                # other runs join only then, and refinement goes on if they disagree.
+                if merged or not self._merge_stored(known):
+                    return
+                merged = True
+                continue
             todo = [j for c in cells for j in self.cell_jobs(c) if j.job_id not in known]
             if todo:
                 yield Batch(number, len(cells), todo)
@@ -155,7 +194,7 @@ class AdaptivePlan:
 
     @property
     def simulated_cells(self) -> int:
-        """Cells the plan has simulated so far."""
+        """Cells simulated so far (by this plan or stored by earlier runs)."""
         return int((self.keys != UNKNOWN).sum())
 
     def inferred_rows(self, known: Known, study_hash: str) -> list[dict[str, Any]]:

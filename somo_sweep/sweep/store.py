@@ -39,7 +39,7 @@ import pyarrow as pa
 import pyarrow.compute as pc
 import pyarrow.parquet as pq
 
-from somo_sweep.errors import SomoError, shown
+from somo_sweep.errors import SomoError, StorageError, shown
 from somo_sweep.sweep.folder import (
     INFERRED,
     JOURNAL_GLOB,
@@ -426,10 +426,27 @@ class ResultStore:
         self.manifest["hosts"] = hosts
         self._write_manifest()
 
-    def clear_inferred(self) -> None:
-        """Remove the inferred cells of an earlier adaptive run (they are rebuilt when one completes)."""
+    def check_inferred(self) -> None:
+        """Raise if something other than our file (or a link) sits where the inferred cells go.
+
+        Raises:
+            StorageError: A folder or another non-file there, which the run will not delete.
+        """
         path = self.folder / INFERRED
-        if path.exists():
+        if (path.exists() or path.is_symlink()) and not (path.is_symlink() or path.is_file()):
+            raise StorageError(
+                f"{path} is not a file (a folder?); adaptive runs write their inferred cells there. "
+                "Move it away and run the same command again"
+            )
+
+    def clear_inferred(self) -> None:
+        """Remove the inferred cells of an earlier run (an adaptive run then writes its own).
+
+        A link there is removed, never what it points to.
+        """
+        self.check_inferred()
+        path = self.folder / INFERRED
+        if path.exists() or path.is_symlink():
             path.unlink()
         self._forget(path)
         self._write_manifest()

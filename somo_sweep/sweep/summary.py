@@ -72,6 +72,8 @@ def print_run_summary(console: Console, summary: RunSummary) -> None:
                 f"adaptive: {summary.simulated_cells} grid cells simulated, {summary.inferred} trial(s) "
                 "inferred (stored with inferred = true)"
             )
+        for note in summary.sampling_notes:
+            console.print(f"adaptive: note: {note}")
     if summary.by_label:
         console.print("labels: " + ", ".join(f"{k} {v}" for k, v in sorted(summary.by_label.items())))
     console.print(

@@ -11,13 +11,15 @@ from pathlib import Path
 
 import numpy as np
 import pandas as pd
+import pyarrow as pa
 import pyarrow.parquet as pq
 import pytest
 from test_sweep import make_study, results_only
 from typer.testing import CliRunner
 
 from somo_sweep.cli.app import app
-from somo_sweep.errors import DescriptionError
+from somo_sweep.errors import DescriptionError, SomoError
+from somo_sweep.model.tables import bundled_path
 from somo_sweep.sweep.adaptive import UNKNOWN, AdaptiveGrid, default_stride, infer, next_cells
 from somo_sweep.sweep.jobs import build_jobs
 from somo_sweep.sweep.runner import run_study
@@ -267,3 +269,51 @@ def test_show_and_plot_count_inferred_cells_apart(tmp_path: Path) -> None:
     res = CliRunner().invoke(app, ["plot", str(tmp_path / "out")])
     assert res.exit_code == 0, res.output
     assert (tmp_path / "out" / "plots" / "summary.png").stat().st_size > 0
+
+
+def test_other_adaptive_settings_on_a_finished_folder_never_infer_against_stored_cells(
+    tmp_path: Path,
+) -> None:
+    """Stored cells the new plan never asked for (here: a finer earlier run) take part in its
+    decisions: a coarse stride on the same folder had inferred 37 labels wrong, 'agreeing'."""
+    out = tmp_path / "out"
+    run_study(load_study(study_2d(tmp_path), out), n_jobs=2)
+    coarse = study_2d(tmp_path, extra="adaptive: {labels: [region], coarse_step: 16}")
+    summary = run_study(load_study(coarse, out), n_jobs=2)
+    df = read_results(out)
+    assert (df["label_region"] == region(df, 5.5)).all()
+    assert summary.simulated_cells == (~df["inferred"]).sum()  # every stored cell counts
+
+
+def test_a_named_label_is_refused_when_the_task_gives_none(tmp_path: Path) -> None:
+    """The bench task gives no labels: a typo in adaptive.labels went through, and 2/3 of the
+    cells were inferred from the trials' status without a word."""
+    text = bundled_path("finger_pressure_sweep.yaml").read_text() + "sampling: adaptive\n"
+    bad = make_study(tmp_path, text + "adaptive: {labels: [grasp]}\n", name="bad.yaml")
+    with pytest.raises(DescriptionError, match="'grasp' is not a label of task bench; its trials give: none"):
+        run_study(load_study(bad, tmp_path / "bad"), n_jobs=2)
+    summary = run_study(load_study(make_study(tmp_path, text, name="ok.yaml"), tmp_path / "ok"), n_jobs=2)
+    assert any(
+        "gives no labels: refinement followed the trials' status only" in n for n in summary.sampling_notes
+    )
+
+
+def test_a_hand_edited_inferred_file_cannot_pass_cells_off_as_simulated(tmp_path: Path) -> None:
+    out = tmp_path / "out"
+    run_study(load_study(study_2d(tmp_path), out), n_jobs=1)
+    before = read_results(out)
+    table = pq.read_table(out / "inferred.parquet")
+    edited = pa.concat_tables([table, table.slice(0, 5)])  # five rows twice
+    edited = edited.set_column(
+        edited.column_names.index("inferred"), "inferred", pa.array([False] * edited.num_rows)
+    )
+    pq.write_table(edited, out / "inferred.parquet")
+    reasons: list[str] = []
+    after = read_results(out, lambda path, why: reasons.append(why))
+    pd.testing.assert_frame_equal(after, before)
+    assert any("5 repeated row(s): counted once" in r for r in reasons)
+    (out / "inferred.parquet").unlink()
+    (out / "inferred.parquet").mkdir()
+    with pytest.raises(SomoError, match="is not a file"):
+        run_study(load_study(study_2d(tmp_path), out), n_jobs=1)
+    assert (out / "inferred.parquet").is_dir()  # left where it was
