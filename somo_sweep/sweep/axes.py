@@ -124,7 +124,22 @@ def axis_length(spec: Any) -> int | None:
 def expand_axis(spec: Any, where: str) -> tuple[list[Any], list[Problem]]:
     """Values of one axis spec; problems are reported against key path ``where``."""
     if isinstance(spec, list):
-        return (spec, []) if spec else ([], [Problem(where, "an axis needs at least one value, got []")])
+        if not spec:
+            return [], [Problem(where, "an axis needs at least one value, got []")]
+        first: dict[Any, int] = {}
+        for i, value in enumerate(spec):
+            number = isinstance(value, int | float) and not isinstance(value, bool)
+            key = ("number", float(value)) if number else ("other", repr(value))
+            if key in first:  # the same trial twice: refused here, so --dry-run says it too
+                return [], [
+                    Problem(
+                        where,
+                        f"value {value!r} is given twice (entries {first[key]} and {i}); "
+                        "allowed: distinct values",
+                    )
+                ]
+            first[key] = i
+        return spec, []
     if not isinstance(spec, dict):
         return [], [
             Problem(
