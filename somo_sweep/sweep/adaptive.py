@@ -20,7 +20,8 @@ simulated instead.
 
 Decisions depend only on the keys of the cells this procedure asked for, so the cells
 simulated are the same whatever order trials finish in, and an interrupted refinement
-replays its finished rounds from the stored keys without simulating them again. A label
+replays its finished rounds from the stored keys without simulating them again (cells
+stored by other runs are added only after that, by :class:`~somo_sweep.sweep.sampling.AdaptivePlan`). A label
 region that fits between two coarse cells of the same key is not seen; a smaller
 ``stride`` trades trials for that risk.
 """
