@@ -316,7 +316,9 @@ def execute(
             try:
                 with parallel_config(backend=backend):
                     workers = min(n_jobs, len(todo)) if backend == "loky" else n_jobs  # no idle process
-                    with _deaf_to_ctrl_c(backend == "loky"):  # the workers start here
+                    # Worker processes start here. With one worker none starts: this process runs
+                    # the trials and keeps hearing Ctrl-C at once.
+                    with _deaf_to_ctrl_c(backend == "loky" and workers > 1):
                         outcomes = _parallel(backend, workers)(
                             delayed(run_isolated)(j, timeout_s, owner) for j in todo
                         )
