@@ -193,9 +193,14 @@ def run(
         except Exception as exc:  # the results are safe; a plot problem must not fail the run
             _err.print(f"warning: summary plots not drawn ({type(exc).__name__}: {exc}); try somo-sweep plot")
     if summary.errors and not allow_errors:
+        between = (
+            f", and {summary.inferred_errors} inferred cell(s) between them are marked error without running"
+            if summary.inferred_errors
+            else ""
+        )
         typer.echo(
-            f"{summary.errors} of {summary.total} trial(s) ended in error (exit code 1); see somo-sweep show "
-            f"{st.output}; --retry-errors runs them again, --allow-errors accepts them",
+            f"{summary.errors} of {summary.total} trial(s) ended in error{between} (exit code 1); see "
+            f"somo-sweep show {st.output}; --retry-errors runs them again, --allow-errors accepts them",
             err=True,
         )
         raise typer.Exit(1)

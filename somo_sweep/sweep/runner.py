@@ -71,6 +71,8 @@ class RunSummary:
         rounds: Adaptive rounds that ran trials in this run.
         simulated_cells: Adaptive: grid cells simulated when the run ended (earlier runs included).
         inferred: Adaptive: trials written as inferred (0 until the last round completes).
+        inferred_errors: Adaptive: how many of those lie between trials that ended in error, and so
+            carry status ``error`` though they never ran (not counted in :attr:`errors`).
         sampling_notes: Adaptive: what the refinement could not do as asked (for the user).
     """
 
@@ -88,6 +90,7 @@ class RunSummary:
     rounds: list[RoundSummary] = field(default_factory=list)
     simulated_cells: int = 0
     inferred: int = 0
+    inferred_errors: int = 0
     sampling_notes: list[str] = field(default_factory=list)
 
     @property
@@ -273,11 +276,14 @@ def run_study(
         summary.stored_errors = sum(1 for j in table.jobs if done.get(j.job_id) == "error")
         known: Known = store.stored_labels() if plan else {}
         store.check_inferred()  # refuse a folder in its place now, not after the trials
+        # A grid run simulates every cell not stored; an adaptive run only those its rounds pick,
+        # which are not known yet: it records how many it could pick, and its rounds at the end.
+        planned = {"cells_not_stored": len(todo)} if plan else {"to_run": len(todo)}
         store.start_run(
             {
                 "backend": backend,
                 "n_jobs": n_jobs if backend == "loky" else None,
-                "to_run": len(todo),
+                **planned,
                 "sampling": summary.sampling,
             }
         )
@@ -331,6 +337,7 @@ def run_study(
                                 inferred = plan.inferred_rows(known, table.study_hash)
                                 store.write_inferred(inferred)
                                 summary.inferred = len(inferred)
+                                summary.inferred_errors = sum(r["status"] == "error" for r in inferred)
                     except OSError as exc:
                         failure, status = exc, "failed"
                 summary.wall_time_s = time.perf_counter() - start
@@ -341,6 +348,7 @@ def run_study(
                         "rounds": [vars(r) for r in summary.rounds],
                         "simulated_cells": summary.simulated_cells,
                         "inferred_trials": summary.inferred,
+                        "inferred_errors": summary.inferred_errors,
                     }
                     if plan
                     else None

@@ -68,9 +68,10 @@ def print_run_summary(console: Console, summary: RunSummary) -> None:
         rounds = ", ".join(f"round {r.number}: {r.cells} cells, {r.run} run" for r in summary.rounds)
         console.print(f"adaptive: {rounds or 'no round left to run'}")
         if summary.interrupted is None:
+            as_error = f", {summary.inferred_errors} of them as error" if summary.inferred_errors else ""
             console.print(
                 f"adaptive: {summary.simulated_cells} grid cells simulated, {summary.inferred} trial(s) "
-                "inferred (stored with inferred = true)"
+                f"inferred (stored with inferred = true{as_error})"
             )
         for note in summary.sampling_notes:
             console.print(f"adaptive: note: {note}")

@@ -134,6 +134,10 @@ def test_an_adaptive_run_labels_every_cell_as_the_full_grid_would(
     assert summary.run == summary.simulated_cells == (~df["inferred"]).sum() < 0.6 * n_cells
     assert summary.inferred == df["inferred"].sum() > 0
     assert [r.number for r in summary.rounds] == list(range(len(summary.rounds))) and len(summary.rounds) >= 3
+    # The manifest says what the run could have simulated and what it did, not a grid's "to run".
+    run = read_manifest(tmp_path / "out")["runs"][-1]
+    assert "to_run" not in run and run["cells_not_stored"] == n_cells
+    assert run["simulated_cells"] == run["trials_finished"] == summary.run
 
 
 def test_inferred_cells_are_marked_have_no_metrics_and_stay_out_of_the_trials(tmp_path: Path) -> None:
@@ -185,10 +189,15 @@ def test_an_interrupted_adaptive_run_resumes_its_rounds_without_rerunning_trials
 
 def test_failed_trials_are_a_label_of_their_own_and_are_refined_around(tmp_path: Path) -> None:
     extra = "set: {task.crash_x: [-3.0, -2.0, -1.0], task.how: raise}"
-    run_study(load_study(study_2d(tmp_path, "selftest_crash", extra), tmp_path / "out"), n_jobs=2)
+    summary = run_study(load_study(study_2d(tmp_path, "selftest_crash", extra), tmp_path / "out"), n_jobs=2)
     df = read_results(tmp_path / "out")
     failed = df["task_x"].isin([-3.0, -2.0, -1.0])
     assert (df.loc[failed, "status"] == "error").all() and (df.loc[~failed, "status"] == "ok").all()
+    # Inferred cells inside the failing band carry error too; the run counts them apart.
+    inferred_errors = int((df["inferred"] & failed).sum())
+    assert inferred_errors > 0 and summary.inferred_errors == inferred_errors
+    assert summary.errors == int((~df["inferred"] & failed).sum())
+    assert read_manifest(tmp_path / "out")["runs"][-1]["inferred_errors"] == inferred_errors
     ok = df[~failed]
     assert (ok["label_region"] == region(ok, 5.5)).all()
 

@@ -68,6 +68,7 @@ def test_run_writes_one_row_per_trial_with_params_metrics_labels_and_provenance(
     assert manifest["study_hash"] == df["study_hash"].iloc[0]
     assert {"python", "pybullet", "somo-sweep"} <= set(manifest["versions"])
     assert manifest["hosts"] and manifest["runs"][0]["status"] == "completed"
+    assert manifest["runs"][0]["to_run"] == 8 and "cells_not_stored" not in manifest["runs"][0]
     assert manifest["runs"][0]["start_utc"] and manifest["runs"][0]["end_utc"]
     schema = pq.read_schema(next((tmp_path / "out" / "trials").glob("*.parquet")))
     assert schema.field("wall_time_s").metadata == {b"unit": b"s"}
