@@ -17,6 +17,7 @@ import numpy as np
 from pydantic import (
     AfterValidator,
     BaseModel,
+    BeforeValidator,
     ConfigDict,
     Field,
     ValidationInfo,
@@ -26,12 +27,16 @@ from pydantic import (
 
 __all__ = [
     "LENGTH_REL_TOL",
+    "MAX_ACTUATORS",
     "MAX_ADDED_INERTIA_KG_M2",
     "MAX_FRICTION",
     "MAX_JOINT_COEFFICIENT",
     "MAX_LENGTH_M",
     "MAX_MASS_KG",
+    "MAX_MOUNTS",
+    "MAX_RIGID_BODIES",
     "MAX_SEGMENTS",
+    "MAX_TIP_LINKS",
     "MIN_LENGTH_M",
     "MIN_MASS_KG",
     "NAME_PATTERN",
@@ -97,6 +102,26 @@ def _check_name(value: str) -> str:
 
 #: A name that is safe in URDF and in file names.
 Name = Annotated[str, AfterValidator(_check_name)]
+
+#: Most actuators and tip links of one manipulator (a manipulator is one body, whose links
+#: PyBullet limits to 127 besides its base: see ``load.py``).
+MAX_ACTUATORS = 127
+MAX_TIP_LINKS = 127
+#: Most manipulators and rigid bodies of one assembly: far beyond any hand or array of fingers,
+#: and what keeps a model's links (each manipulator at most 128) and its checks bounded.
+MAX_MOUNTS = 100
+MAX_RIGID_BODIES = 256
+
+
+def _at_most(limit: int, what: str) -> BeforeValidator:
+    """Refuse a list longer than ``limit`` before validating its items (bounded time)."""
+
+    def check(value: Any) -> Any:
+        if isinstance(value, list | tuple) and len(value) > limit:
+            raise ValueError(f"{len(value)} {what}; allowed: at most {limit}")
+        return value
+
+    return BeforeValidator(check)
 
 
 class Spec(BaseModel):
@@ -528,8 +553,8 @@ class Manipulator(Spec):
 
     name: Name = "manipulator"
     base: Base = Base()
-    actuators: list[Actuator] = Field(min_length=1)
-    tip_links: list[Link] = []
+    actuators: Annotated[list[Actuator], _at_most(MAX_ACTUATORS, "actuators")] = Field(min_length=1)
+    tip_links: Annotated[list[Link], _at_most(MAX_TIP_LINKS, "tip links")] = []
     actuation: Actuation | None = None
 
     @model_validator(mode="after")
@@ -604,8 +629,8 @@ class Assembly(Spec):
 
     name: Name = "assembly"
     base: Base = Base()
-    manipulators: list[Mount] = Field(min_length=1)
-    bodies: list[RigidBody] = []
+    manipulators: Annotated[list[Mount], _at_most(MAX_MOUNTS, "manipulators")] = Field(min_length=1)
+    bodies: Annotated[list[RigidBody], _at_most(MAX_RIGID_BODIES, "rigid bodies")] = []
 
     @model_validator(mode="after")
     def _unique_names(self) -> Assembly:

@@ -180,6 +180,38 @@ def test_more_segments_than_an_actuator_may_have_is_refused() -> None:
     )
 
 
+@pytest.mark.parametrize(
+    ("where", "what", "limit"),
+    [("manipulators", "manipulators", 100), ("bodies", "rigid bodies", 256)],
+)
+def test_an_assembly_with_thousands_of_parts_is_refused_at_once(where: str, what: str, limit: int) -> None:
+    # 2500 fingers of 122 links each took 3 min and 0.9 GB to check before the limit.
+    finger = load_yaml("ihm_finger.yaml")["manipulator"]
+    box = {"shape": "box", "size_m": [0.01, 0.01, 0.01], "mass_kg": 0.01}
+    items = {
+        "manipulators": [{"name": f"f{i}", "manipulator": finger} for i in range(2500)],
+        "bodies": [{"name": f"b{i}", "link": box} for i in range(2500)],
+    }
+    assembly = {"manipulators": [{"name": "f", "manipulator": finger}], where: items[where]}
+    start = time.perf_counter()
+    with pytest.raises(DescriptionError) as info:
+        model_from_dict({"assembly": assembly}, "m.yaml")
+    assert time.perf_counter() - start < 5.0
+    assert f"assembly.{where}: 2500 {what}; allowed: at most {limit}" in str(info.value)
+
+
+def test_a_manipulator_with_more_actuators_than_a_body_has_links_is_refused() -> None:
+    data = load_yaml("ihm_finger.yaml")
+    act = data["manipulator"]["actuators"][0]
+    data["manipulator"]["actuators"] = [{**act, "name": f"a{i}"} for i in range(200)]
+    with pytest.raises(DescriptionError, match=r"manipulator.actuators: 200 actuators; allowed: at most 127"):
+        model_from_dict(data, "m.yaml")
+    data["manipulator"]["actuators"] = [act]
+    data["manipulator"]["tip_links"] = [{"shape": "sphere", "radius_m": 0.01, "mass_kg": 0.01}] * 128
+    with pytest.raises(DescriptionError, match=r"manipulator.tip_links: 128 tip links; allowed: at most 127"):
+        model_from_dict(data, "m.yaml")
+
+
 def test_a_tiny_segment_length_is_refused_before_building_anything() -> None:
     data = load_yaml("ihm_finger.yaml")
     act = data["manipulator"]["actuators"][0]
