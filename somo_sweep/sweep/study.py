@@ -581,6 +581,30 @@ def _check_points(study: Study, lines: dict[str, int], problems: list[Problem]) 
                         problems.append(Problem(where, msg, _line(lines, where)))
             if len(problems) >= 20:
                 return
+    if study.task.check_params is not None and not problems:
+        _check_pairs(study, study.task.check_params, lines, problems)
+
+
+#: Most models (and parameter sets) a task's ``check_params`` sees when a study is loaded: each
+#: distinct model with the first parameter set, each distinct parameter set with the first model.
+CHECK_PAIRS = 32
+
+
+def _check_pairs(
+    study: Study, check: Callable[[Model, Any], list[str]], lines: dict[str, int], problems: list[Problem]
+) -> None:
+    """Report what the task needs of a model and its parameters together (e.g. a torque table)."""
+    models = list(itertools.islice(_distinct(study, True), CHECK_PAIRS))
+    param_sets = list(itertools.islice(_distinct(study, False), CHECK_PAIRS))
+    pairs = [(m, param_sets[0]) for m in models] + [(models[0], q) for q in param_sets[1:]]
+    seen: set[str] = set()
+    for model_point, param_point in pairs:
+        _, model = study.resolve_model(model_point, False)
+        params = study.resolve_params(param_point, False)
+        for need in check(model, params):
+            if need not in seen:
+                seen.add(need)
+                problems.append(Problem("params", need, _line(lines, "params")))
 
 
 def _check_model_fits(

@@ -64,6 +64,9 @@ class TaskSpec:
         check_model: What the task needs of a model, checked when a study is loaded, before any
             trial runs: ``check_model(model)`` returns one sentence per unmet need (what the model
             has and what is allowed), none for a model the task can run.
+        check_params: What the task needs of a model and its parameters together (a torque table
+            with one column per input of the model), checked when a study is loaded:
+            ``check_params(model, params)`` returns one sentence per unmet need.
     """
 
     name: str
@@ -73,6 +76,7 @@ class TaskSpec:
     tags: tuple[str, ...] = ()
     metrics: Mapping[str, str] = field(default_factory=dict)
     check_model: Callable[[Model], list[str]] | None = None
+    check_params: Callable[[Model, Any], list[str]] | None = None
 
     @property
     def run(self) -> TaskFn:

@@ -26,10 +26,13 @@ from somo_sweep.tasks.pinch_grasp.params import check_gripper
 FITS = {
     "bench": {"ihm_finger", "pinch_finger", "snake", "whole_arm"},
     "snake": {"ihm_finger", "pinch_finger", "snake", "whole_arm"},
-    "whole_arm": {"ihm_finger", "pinch_finger", "snake", "whole_arm"},
+    "whole_arm": {"whole_arm"},
     "ihm_gait": {"ihm_hand"},
     "pinch_grasp": {"pinch_gripper"},
 }
+#: Models a task could run but not with its default parameters: the bundled torque table's
+#: columns are the whole arm's ten inputs.
+MISFIT_PARAMS = {"whole_arm": {"ihm_finger", "pinch_finger", "snake"}}
 MODEL_NAMES = sorted(p.stem for p in MODELS.glob("*.yaml"))
 
 
@@ -52,8 +55,28 @@ def test_every_bundled_model_is_accepted_or_refused_at_load(tmp_path: Path, task
         with pytest.raises(DescriptionError) as info:
             load_study(path)
         text = str(info.value)
+        if model in MISFIT_PARAMS.get(task, ()):
+            assert "params: torque_table " in text and "columns must be time_s, " in text, text
+            continue
         assert f"line 3: model: models/{model}.yaml: " in text, text
         assert "allowed" in text
+
+
+def test_a_torque_table_that_does_not_fit_the_arm_is_refused_at_load(tmp_path: Path) -> None:
+    # Before, every trial ran and ended as error with the same message.
+    path = _study(tmp_path, "whole_arm", "ihm_finger")
+    with pytest.raises(DescriptionError) as info:
+        load_study(path)
+    text = str(info.value)
+    assert "whole_arm_torques_n_m.csv does not fit the model's 2 inputs: columns must be time_s, " in text
+    assert "got time_s, a1_bend_x_n_m" in text
+    table = tmp_path / "finger_torques.csv"
+    table.write_text("time_s,finger_grasp_n_m,finger_side_n_m\n0,0,0\n1,0.01,0\n")
+    load_study(_study(tmp_path, "whole_arm", "ihm_finger", f"params: {{torque_table: {table}}}\n"))
+    table.write_text("time_s,finger_side_n_m,finger_grasp_n_m\n0,0,0\n1,0.01,0\n")  # inputs out of order
+    wrong = "columns must be time_s, finger_grasp_n_m, finger_side_n_m; got time_s, finger_side_n_m"
+    with pytest.raises(DescriptionError, match=wrong):
+        load_study(_study(tmp_path, "whole_arm", "ihm_finger", f"params: {{torque_table: {table}}}\n"))
 
 
 def test_run_refuses_a_hand_for_the_pinch_task_and_writes_nothing(tmp_path: Path) -> None:

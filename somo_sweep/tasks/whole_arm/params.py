@@ -10,7 +10,7 @@ from somo_sweep.model.description import Spec
 from somo_sweep.model.load import Model
 from somo_sweep.tasks.registry import TaskSpec, register
 
-__all__ = ["WholeArmParams"]
+__all__ = ["WholeArmParams", "check_torque_table", "torque_columns"]
 
 #: The bundled torque table (a package data file).
 DEFAULT_TABLE = "whole_arm_torques_n_m.csv"
@@ -61,6 +61,42 @@ def check_manipulator(model: Model) -> list[str]:
     ]
 
 
+def torque_columns(input_names: list[str]) -> list[str]:
+    """The torque table's columns for a loaded arm's inputs (``<arm>/<actuator>/<axis>``).
+
+    ``time_s``, then ``<actuator>_<axis>_n_m`` for each input.
+    """
+    return ["time_s"] + ["_".join(n.split("/")[1:]) + "_n_m" for n in input_names]
+
+
+def check_torque_table(model: Model, params: WholeArmParams) -> list[str]:
+    """The torque table has one column per input of the model, in input order (read: its header)."""
+    if model.manipulator is None:
+        return []  # check_manipulator says so
+    import io
+
+    import pandas as pd
+
+    from somo_sweep.errors import SomoError
+    from somo_sweep.model.tables import read_table_text
+
+    arm = model.manipulator
+    want = torque_columns([f"{arm.name}/{name}" for name in arm.input_names])
+    try:
+        name, text = read_table_text(params.torque_table)
+        got = [str(c) for c in pd.read_csv(io.StringIO(text), comment="#", nrows=0).columns]
+    except SomoError as exc:
+        return [str(exc)]
+    except (ValueError, pd.errors.ParserError) as exc:
+        return [f"torque_table: cannot read its header ({str(exc).splitlines()[0]})"]
+    if got == want:
+        return []
+    return [
+        f"torque_table {name} does not fit the model's {len(want) - 1} inputs: columns must be "
+        f"{', '.join(want)}; got {', '.join(got) or 'none'}"
+    ]
+
+
 register(
     TaskSpec(
         name="whole_arm",
@@ -70,5 +106,6 @@ register(
         tags=("paper", "fig7", "manipulation"),
         metrics=METRICS,
         check_model=check_manipulator,
+        check_params=check_torque_table,
     )
 )

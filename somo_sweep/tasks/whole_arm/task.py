@@ -33,7 +33,7 @@ from somo_sweep.sim.settings import WorldSettings
 from somo_sweep.sim.urdf import plan_rigid_body
 from somo_sweep.sim.world import World
 from somo_sweep.tasks.registry import TaskResult
-from somo_sweep.tasks.whole_arm.params import WholeArmParams
+from somo_sweep.tasks.whole_arm.params import WholeArmParams, torque_columns
 
 __all__ = ["WholeArmParams", "WholeArmRun", "load_torque_table", "simulate_whole_arm"]
 
@@ -122,7 +122,7 @@ def load_torque_table(path: str | Path, input_names: list[str]) -> SetpointTable
     """
     path, text = read_table_text(str(path))
     frame = pd.read_csv(io.StringIO(text), comment="#")
-    want = ["time_s"] + ["_".join(n.split("/")[1:]) + "_n_m" for n in input_names]
+    want = torque_columns(input_names)
     if list(frame.columns) != want:
         raise SomoError(f"{path}: columns must be {', '.join(want)}; got {', '.join(frame.columns)}")
     return SetpointTable(frame["time_s"].to_numpy(), frame[want[1:]].to_numpy())
