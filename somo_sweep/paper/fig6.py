@@ -183,12 +183,11 @@ def build(table: pd.DataFrame, stem: str = "fig6", max_dsr: float = 0.5) -> Arti
     check_max_dsr(max_dsr, table["distal_segment_ratio"])
     n = sum(1 for d in table["distal_segment_ratio"].unique() if d <= max_dsr + 1e-9)
     cols = min(max(n, 1), 4)
-    fig, axes = plt.subplots(
-        math.ceil(max(n, 1) / cols),
-        cols,
-        figsize=(3.2 * cols, 2.6 * math.ceil(max(n, 1) / cols)),
-        squeeze=False,
-    )
+    rows = math.ceil(max(n, 1) / cols)
+    # Panels 3.2 x 2.6 in, plus room for the two-line title above and the legend below; never
+    # narrower than the title's second line (a one- or two-DSR study clipped it).
+    width_in, height_in = max(3.2 * cols, 9.0), 2.6 * rows + 1.4
+    fig, axes = plt.subplots(rows, cols, figsize=(width_in, height_in), squeeze=False, layout="constrained")
     flat = list(axes.ravel())
     draw_fig6(flat, table, max_dsr)
     for ax in axes[-1]:
@@ -210,7 +209,7 @@ def build(table: pd.DataFrame, stem: str = "fig6", max_dsr: float = 0.5) -> Arti
             Patch(facecolor="white", edgecolor="0.5", hatch="///", label="inferred (not simulated)")
         )
     if handles:
-        fig.legend(handles=handles, loc="lower center", ncol=len(handles))
+        fig.legend(handles=handles, loc="outside lower center", ncol=len(handles))
     headline = (
         "no DSR pinch-grasps every width" if best is None else f"smallest all-width pinch DSR: {best:.2f}"
     )
@@ -228,7 +227,6 @@ def build(table: pd.DataFrame, stem: str = "fig6", max_dsr: float = 0.5) -> Arti
         f"d = {BASE_DISTANCE_AT_ZERO_CENTERING_M * 1e3:g} mm − c from the object's centre",
         fontsize="medium",
     )
-    fig.tight_layout(rect=(0, 0.06, 1, 0.95))
     summary = label_summary(table)
     info: dict[str, object] = {
         "smallest_all_width_pinch_dsr": best,
