@@ -214,6 +214,8 @@ def read_results(folder: str | Path, on_damaged: OnDamaged | None = None) -> pd.
         tables.append(table.append_column(_PART, pa.array([len(names)] * table.num_rows, pa.int64())))
         names.append(part)
     inferred = _read_inferred(folder, report)
+    if inferred is not None:
+        inferred = _inferred_cells(inferred, tables, manifest, folder / INFERRED, report)
     if not tables and inferred is None:
         return pd.DataFrame(columns=[*(c.name for c in COLUMNS), "inferred"])
     if tables:
@@ -291,6 +293,41 @@ def _read_inferred(folder: Path, report: OnDamaged) -> pa.Table | None:
         report(path, f"{REPEATS} {table.num_rows - len(first)} repeated row(s): counted once")
         table = table.take(pa.array(first, pa.int64()))
     return table
+
+
+def _inferred_cells(
+    inferred: pa.Table, simulated: list[pa.Table], manifest: dict[str, Any], path: Path, report: OnDamaged
+) -> pa.Table:
+    """The inferred rows that are cells of the study and not simulated under another job id.
+
+    An adaptive run writes one row per grid cell it did not simulate, numbered as the study's
+    trials. A row numbered outside the study (0 … ``n_trials`` − 1), or numbered as a trial
+    that is stored simulated under another job id (an edit, or a file of another run of the
+    study), is not such a cell: it is left out and reported.
+    """
+    trials = inferred.column("trial")
+    n_trials = manifest.get("n_trials")
+    keep = pc.is_valid(trials)
+    if isinstance(n_trials, int) and not isinstance(n_trials, bool):
+        inside = pc.and_(pc.greater_equal(trials, 0), pc.less(trials, n_trials))
+        outside = inferred.num_rows - pc.sum(pc.cast(inside, pa.int64())).as_py()
+        if outside:
+            last = n_trials - 1
+            why = f"{outside} row(s) numbered outside the study's trials 0 … {last}: left out"
+            report(path, f"{REPEATS} {why}")
+            keep = pc.and_(keep, inside)
+    done_ids: set[str] = set()
+    done_trials: set[int] = set()
+    for table in simulated:
+        done_ids.update(table.column("job_id").to_pylist())
+        done_trials.update(table.column("trial").to_pylist())
+    ids, numbers = inferred.column("job_id").to_pylist(), trials.to_pylist()
+    clash = pa.array([n in done_trials and j not in done_ids for j, n in zip(ids, numbers, strict=True)])
+    n_clash = pc.sum(pc.cast(clash, pa.int64())).as_py() or 0
+    if n_clash:
+        report(path, f"{REPEATS} {n_clash} row(s) numbered as simulated trials with another job id: left out")
+        keep = pc.and_(keep, pc.invert(clash))
+    return inferred.filter(keep)
 
 
 def journal_rows(path: Path) -> list[dict[str, Any]]:

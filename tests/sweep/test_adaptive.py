@@ -326,3 +326,20 @@ def test_a_hand_edited_inferred_file_cannot_pass_cells_off_as_simulated(tmp_path
     with pytest.raises(SomoError, match="is not a file"):
         run_study(load_study(study_2d(tmp_path), out), n_jobs=1)
     assert (out / "inferred.parquet").is_dir()  # left where it was
+
+
+def test_inferred_rows_that_are_not_cells_of_the_study_are_left_out(tmp_path: Path) -> None:
+    out = tmp_path / "out"
+    run_study(load_study(study_2d(tmp_path), out), n_jobs=1)
+    before = read_results(out)
+    table = pq.read_table(out / "inferred.parquet")
+    simulated_trial = int(before.loc[~before["inferred"], "trial"].iloc[0])
+    extra = table.slice(0, 3).to_pydict()
+    extra["job_id"] = ["made-up-1", "made-up-2", "made-up-3"]
+    extra["trial"] = [17 * 17, -1, simulated_trial]  # past the grid, negative, a simulated trial's
+    pq.write_table(pa.concat_tables([table, pa.table(extra, schema=table.schema)]), out / "inferred.parquet")
+    reasons: list[str] = []
+    after = read_results(out, lambda path, why: reasons.append(why))
+    pd.testing.assert_frame_equal(after, before)
+    assert any("2 row(s) numbered outside the study's trials 0 … 288: left out" in r for r in reasons)
+    assert any("1 row(s) numbered as simulated trials with another job id: left out" in r for r in reasons)
