@@ -74,7 +74,8 @@ def _check_target(folder: Path) -> None:
     """Refuse a file, or a non-empty folder that is not a results folder."""
     if folder.exists() and not folder.is_dir():
         raise SomoError(f"{folder} is a file, not a folder; give --out a folder (new or a results folder)")
-    linked = [name for name in ("trials", "plots", MANIFEST) if (folder / name).is_symlink()]
+    own = ("trials", f"trials/{QUARANTINE}", "plots", MANIFEST)
+    linked = [name for name in own if (folder / name).is_symlink()]
     if linked:
         raise SomoError(
             f"{folder / linked[0]} is a symbolic link; a results folder's own files and folders must "
@@ -92,10 +93,19 @@ def _check_target(folder: Path) -> None:
 
 
 def _inside(folder: Path, rel: str) -> Path | None:
-    """``folder / rel`` if ``rel`` is a plain relative path inside ``folder``, else None."""
+    """``folder / rel`` if ``rel`` is a plain relative path inside ``folder``, else None.
+
+    Every folder on the way must be a real folder, not a link: a link to a folder elsewhere
+    would take ``rel`` (say ``evil/victim.txt`` in a hand-edited manifest) outside ``folder``.
+    """
     path = Path(rel)
     if path.is_absolute() or ".." in path.parts or not path.parts:
         return None
+    step = folder
+    for part in path.parts[:-1]:
+        step = step / part
+        if step.is_symlink() or not step.is_dir():
+            return None
     return folder / path
 
 

@@ -151,6 +151,38 @@ def test_overwrite_deletes_only_the_files_the_tool_wrote(tmp_path: Path) -> None
     assert len(read_results(out)) == 3 and not (out / "plots" / "summary.png").exists()
 
 
+def test_overwrite_never_deletes_through_a_linked_folder(tmp_path: Path) -> None:
+    """A manifest listing ``evil/victim.txt``, ``evil`` a link to a folder elsewhere, made
+    --overwrite delete the file outside the results folder."""
+    path = selftest_study(tmp_path)
+    out = tmp_path / "out"
+    assert CliRunner().invoke(app, ["run", str(path), "--out", str(out), "-j", "1"]).exit_code == 0
+    elsewhere = tmp_path / "elsewhere"
+    elsewhere.mkdir()
+    (elsewhere / "victim.txt").write_text("precious")
+    (out / "evil").symlink_to(elsewhere)
+    manifest = json.loads((out / "manifest.json").read_text())
+    manifest["files"].append("evil/victim.txt")
+    (out / "manifest.json").write_text(json.dumps(manifest))
+    path.write_text(path.read_text().replace("stop: 8", "stop: 3"))
+    res = _run(path, out, "--overwrite")
+    assert res.exit_code == 0, res.output
+    assert (elsewhere / "victim.txt").read_text() == "precious"
+
+
+def test_a_linked_quarantine_is_refused_before_anything_moves(tmp_path: Path) -> None:
+    path = selftest_study(tmp_path)
+    out = tmp_path / "out"
+    assert CliRunner().invoke(app, ["run", str(path), "--out", str(out), "-j", "1"]).exit_code == 0
+    elsewhere = tmp_path / "elsewhere"
+    elsewhere.mkdir()
+    (out / "trials" / "quarantine").symlink_to(elsewhere)
+    _parts(out)[0].write_bytes(b"damaged")  # would be moved to the quarantine
+    res = _run(path, out)
+    assert res.exit_code == 2 and "trials/quarantine is a symbolic link" in res.output, res.output
+    assert list(elsewhere.iterdir()) == []
+
+
 def test_a_folder_that_is_not_a_results_folder_is_refused_even_with_overwrite(tmp_path: Path) -> None:
     path = selftest_study(tmp_path)
     mine = tmp_path / "mine"
