@@ -8,9 +8,11 @@ and runs its trials again).
 
 from __future__ import annotations
 
+import contextlib
 import json
 import warnings
-from collections.abc import Callable, Collection
+from collections import Counter
+from collections.abc import Callable, Collection, Mapping
 from pathlib import Path
 from typing import Any
 
@@ -30,6 +32,7 @@ __all__ = [
     "QUARANTINE",
     "REPEATS",
     "DamagedPartWarning",
+    "declared_types",
     "journal_rows",
     "part_files",
     "read_manifest",
@@ -86,21 +89,50 @@ _CORE: dict[str, tuple[Callable[[pa.DataType], bool], str]] = {
 }
 
 
-def split_parts(folder: Path, listed: Collection[str] = ()) -> tuple[list[Path], list[tuple[Path, str]]]:
+def split_parts(
+    folder: Path,
+    listed: Collection[str] = (),
+    declared: Mapping[str, str] | None = None,
+    max_rows: int | None = None,
+) -> tuple[list[Path], list[tuple[Path, str]]]:
     """(readable part files, [(damaged part file, why)]) of a results folder.
 
-    A part is damaged when its footer or schema does not read, when it lacks a column every
-    part has (or holds it as another kind), or when its columns' types conflict with those of
-    the parts before it. Parts the manifest lists (``listed``: its ``trials/NAME`` files) come
-    first, so a stray file never displaces one a run wrote.
+    A part is damaged when it is not a regular file, when its footer or schema does not read,
+    when it lacks a column every part has (or holds it as another kind), when it holds more
+    rows than the study has trials (``max_rows``), or when a column holds another type than
+    the folder's: the type the manifest records for it (``declared``: column → Arrow type
+    alias), else the type most parts give it. So one edited part is set aside, never the
+    parts that agree with each other, whatever their names. Parts the manifest lists
+    (``listed``: its ``trials/NAME`` files) come first, so on a tie a stray file never
+    displaces one a run wrote.
     """
     good: list[Path] = []
     bad: list[tuple[Path, str]] = []
-    merged: pa.Schema | None = None
+    schemas: dict[Path, pa.Schema] = {}
     for part in sorted(part_files(folder), key=lambda p: f"trials/{p.name}" not in listed):
-        reason = _damage(part)
+        reason = None if part.is_file() else "not a regular file"
+        reason = reason or _damage(part)
         if reason is None:
-            schema = pq.read_schema(part)
+            try:
+                rows = pq.read_metadata(part).num_rows
+                if max_rows is not None and rows > max_rows:
+                    reason = f"{rows} rows, more than the study's {max_rows} trials"
+                else:
+                    schemas[part] = pq.read_schema(part)
+            except (pa.ArrowException, OSError) as exc:
+                reason = str(exc).split("\n")[0]
+        if reason is not None:
+            bad.append((part, reason))
+    reference = _reference_types(list(schemas.values()), declared or {})
+    merged: pa.Schema | None = None
+    for part, schema in schemas.items():
+        reason = None
+        for field in schema:
+            want = reference.get(field.name)
+            if want is not None and not _fits(field.type, want):
+                reason = f"its '{shown(field.name)}' column holds {field.type}, where the results hold {want}"
+                break
+        if reason is None:
             try:
                 merged = (
                     schema
@@ -114,6 +146,49 @@ def split_parts(folder: Path, listed: Collection[str] = ()) -> tuple[list[Path],
         else:
             bad.append((part, reason))
     return good, bad
+
+
+def _reference_types(schemas: list[pa.Schema], declared: Mapping[str, str]) -> dict[str, pa.DataType]:
+    """Each column's type in a folder: as the manifest declares it, else the most parts' (first on a tie)."""
+    counts: dict[str, Counter[pa.DataType]] = {}
+    for schema in schemas:
+        for field in schema:
+            if not pa.types.is_null(field.type):  # an all-missing column fits any type
+                counts.setdefault(field.name, Counter())[field.type] += 1
+    out = {name: c.most_common(1)[0][0] for name, c in counts.items()}
+    for name, alias in declared.items():
+        with contextlib.suppress(ValueError, TypeError):
+            out[name] = pa.type_for_alias(alias)
+    return out
+
+
+def _fits(kind: pa.DataType, want: pa.DataType) -> bool:
+    """Whether a column of type ``kind`` can be read together with the folder's ``want``."""
+    if kind == want or pa.types.is_null(kind):
+        return True
+    try:
+        pa.unify_schemas([pa.schema([("c", want)]), pa.schema([("c", kind)])], promote_options="permissive")
+    except (pa.ArrowException, ValueError):
+        return False
+    return True
+
+
+def declared_types(manifest: Mapping[str, Any]) -> dict[str, str]:
+    """Column → Arrow type alias, as a results folder's manifest records them."""
+    columns = manifest.get("columns")
+    if not isinstance(columns, dict):
+        return {}
+    return {
+        str(n): info["type"]
+        for n, info in columns.items()
+        if isinstance(info, dict) and isinstance(info.get("type"), str)
+    }
+
+
+def _max_rows(manifest: Mapping[str, Any]) -> int | None:
+    """The most rows one part file of the folder's study can hold: its number of trials."""
+    n = manifest.get("n_trials")
+    return n if isinstance(n, int) and not isinstance(n, bool) and n > 0 else None
 
 
 #: The type of each manifest key the commands read (:func:`~somo_sweep.sweep.manifest.new_manifest`).
@@ -200,7 +275,9 @@ def read_results(folder: str | Path, on_damaged: OnDamaged | None = None) -> pd.
     manifest = read_manifest(folder)
     report = on_damaged or _warn
     # The parts the manifest lists as written by a run first: a row repeated in a copy is the copy's.
-    good, bad = split_parts(folder, {str(f) for f in manifest.get("files", [])})
+    good, bad = split_parts(
+        folder, {str(f) for f in manifest.get("files", [])}, declared_types(manifest), _max_rows(manifest)
+    )
     for path, reason in bad:
         report(path, reason)
     tables: list[pa.Table] = []

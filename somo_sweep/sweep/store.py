@@ -46,6 +46,7 @@ from somo_sweep.sweep.folder import (
     MANIFEST,
     PART_GLOB,
     QUARANTINE,
+    declared_types,
     journal_rows,
     read_manifest,
     read_results,
@@ -177,7 +178,18 @@ class ResultStore:
     # -- opening ---------------------------------------------------------------------------
 
     def _quarantine(self) -> None:
-        _, bad = split_parts(self.folder)
+        try:  # judged as every reader judges them: the manifest's files first, its column types
+            manifest = read_manifest(self.folder)
+            listed = {str(f) for f in manifest.get("files", [])}
+            declared, n_trials = declared_types(manifest), manifest.get("n_trials")
+        except SomoError:  # no manifest yet, or a damaged one (rebuilt from the parts)
+            listed, declared, n_trials = set(), {}, None
+        max_rows = (
+            n_trials
+            if isinstance(n_trials, int) and not isinstance(n_trials, bool) and n_trials > 0
+            else None
+        )
+        _, bad = split_parts(self.folder, listed, declared, max_rows)
         for part, reason in bad:
             target = self.trials / QUARANTINE / f"_{part.name}"
             target.parent.mkdir(exist_ok=True)

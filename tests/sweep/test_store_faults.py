@@ -40,6 +40,37 @@ def _run(path: Path, out: Path, *extra: str) -> object:
     return CliRunner().invoke(app, ["run", str(path), "--out", str(out), "-j", "1", "--no-plots", *extra])
 
 
+def test_one_retyped_part_is_set_aside_not_the_parts_that_agree(tmp_path: Path) -> None:
+    """The first part's ``task_x`` rewritten as text: the three parts after it were called
+    damaged (their types differ from the one before them), and the run moved them away."""
+    path, out = _finished(tmp_path, n=16)
+    parts = _parts(out)
+    assert len(parts) == 4
+    table = pq.read_table(parts[0])
+    i = table.column_names.index("task_x")
+    as_text = pa.array([str(v) for v in table.column(i).to_pylist()])
+    pq.write_table(table.set_column(i, "task_x", as_text), parts[0])
+    skipped: list[tuple[Path, str]] = []
+    df = read_results(out, lambda part, why: skipped.append((part, why)))
+    assert [p for p, _ in skipped] == [parts[0]] and len(df) == 12
+    assert "its 'task_x' column holds string, where the results hold double" in skipped[0][1]
+    res = _run(path, out)
+    assert res.exit_code == 0, res.output
+    assert sorted(p.name for p in (out / "trials" / "quarantine").iterdir()) == [f"_{parts[0].name}"]
+    assert all(p.exists() for p in parts[1:]) and len(read_results(out)) == 16
+
+
+def test_a_part_with_more_rows_than_the_study_has_trials_is_not_read(tmp_path: Path) -> None:
+    """One row repeated three million times in a 1.3 MB file took 9.6 GB to show."""
+    _, out = _finished(tmp_path)
+    first = _parts(out)[0]
+    table = pq.read_table(first)
+    pq.write_table(pa.concat_tables([table] * 5), first)  # 20 rows in a study of 8 trials
+    skipped: list[str] = []
+    df = read_results(out, lambda part, why: skipped.append(why))
+    assert skipped == ["20 rows, more than the study's 8 trials"] and len(df) == 4
+
+
 def test_a_truncated_part_is_quarantined_and_its_trials_run_again(tmp_path: Path) -> None:
     path, out = _finished(tmp_path)
     first = _parts(out)[0]
