@@ -8,6 +8,7 @@ message and exits with code 2 (1 for a :class:`StorageError`). Errors carry stru
 from __future__ import annotations
 
 import difflib
+import re
 from collections.abc import Iterable, Sequence
 from dataclasses import dataclass
 from pathlib import Path
@@ -22,6 +23,7 @@ __all__ = [
     "StorageError",
     "UnstableSimulation",
     "did_you_mean",
+    "printable",
     "shown",
 ]
 
@@ -130,6 +132,16 @@ def shown(value: str, limit: int = SHOWN_CHARS) -> str:
     if len(value) <= limit:
         return value
     return f"{value[:limit]}… ({len(value)} characters)"
+
+
+#: Characters a terminal acts on rather than shows: C0 and C1 controls (escape sequences
+#: that retitle the window or clear the screen start with them) and bidirectional overrides.
+_UNPRINTABLE = re.compile("[\x00-\x1f\x7f-\x9f\u202a-\u202e\u2066-\u2069]")
+
+
+def printable(value: str) -> str:
+    """A stored value made safe to print: control characters shown escaped (``\\x1b``)."""
+    return _UNPRINTABLE.sub(lambda m: m.group().encode("unicode_escape").decode("ascii"), value)
 
 
 def did_you_mean(word: str, choices: Iterable[str]) -> str:

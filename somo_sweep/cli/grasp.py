@@ -8,7 +8,7 @@ from typing import Annotated
 import typer
 
 from somo_sweep.cli.output import fail, write_artifacts, write_outputs
-from somo_sweep.errors import SomoError
+from somo_sweep.errors import SomoError, printable, shown
 
 __all__ = ["classify", "render"]
 
@@ -37,7 +37,7 @@ def classify(
     except SomoError as exc:
         fail(exc)
     for label, n in counts.items():
-        typer.echo(f"{label:>10s}  {n}")
+        typer.echo(f"{printable(shown(str(label), 200)):>10s}  {n}")  # a status is stored text
     typer.echo(f"labels written to {path}")
 
 

@@ -6,8 +6,10 @@ from typing import Any
 
 import pandas as pd
 from rich.console import Console
+from rich.markup import escape
 from rich.table import Table
 
+from somo_sweep.errors import printable, shown
 from somo_sweep.sweep.runner import RunSummary
 
 __all__ = ["breakdown", "inferred_mask", "label_columns", "print_results", "print_run_summary"]
@@ -47,13 +49,19 @@ def breakdown(df: pd.DataFrame, column: str) -> pd.DataFrame:
     return pd.concat(parts, axis=1).fillna(0).astype(int)
 
 
+def _text(value: object, limit: int = 200) -> str:
+    """A stored value (a label, a message, a name from the manifest) as rich prints it verbatim:
+    markup escaped (``[/tmp/x]`` in an error message broke ``show``), control characters shown."""
+    return escape(printable(shown(str(value), limit)))
+
+
 def _table(title: str, frame: pd.DataFrame, index_name: str) -> Table:
-    table = Table(title=title, title_justify="left")
-    table.add_column(index_name)
+    table = Table(title=_text(title), title_justify="left")
+    table.add_column(_text(index_name))
     for c in frame.columns:
-        table.add_column(str(c), justify="right")
+        table.add_column(_text(c), justify="right")
     for idx, row in frame.iterrows():
-        table.add_row(str(idx), *(str(v) for v in row))
+        table.add_row(_text(idx), *(_text(v) for v in row))
     return table
 
 
@@ -74,12 +82,12 @@ def print_run_summary(console: Console, summary: RunSummary) -> None:
                 f"inferred (stored with inferred = true{as_error})"
             )
         for note in summary.sampling_notes:
-            console.print(f"adaptive: note: {note}")
+            console.print(f"adaptive: note: {_text(note, 2000)}")
     if summary.by_label:
-        console.print("labels: " + ", ".join(f"{k} {v}" for k, v in sorted(summary.by_label.items())))
+        console.print("labels: " + ", ".join(f"{_text(k)} {v}" for k, v in sorted(summary.by_label.items())))
     console.print(
         f"wall time {summary.wall_time_s:.1f} s, {summary.trials_per_s:.2f} trials/s; "
-        f"results in {summary.folder}"
+        f"results in {_text(summary.folder, 2000)}"
     )
 
 
@@ -94,13 +102,13 @@ def print_results(console: Console, df: pd.DataFrame, manifest: dict[str, Any]) 
             f"of {total} trials"
         )
     console.print(
-        f"[bold]{manifest.get('study_name')}[/bold]: {stored}, "
-        f"study hash {manifest['study_hash']}, task {manifest.get('study', {}).get('task')}"
+        f"[bold]{_text(manifest.get('study_name'))}[/bold]: {stored}, "
+        f"study hash {_text(manifest['study_hash'])}, task {_text(manifest.get('study', {}).get('task'))}"
     )
     for run in manifest.get("runs", []):
         console.print(
-            f"  run {run.get('start_utc')} → {run.get('end_utc')}: {run.get('status')}, "
-            f"{run.get('trials_written', 0)} trial(s), backend {run.get('backend')}"
+            f"  run {_text(run.get('start_utc'))} → {_text(run.get('end_utc'))}: {_text(run.get('status'))}, "
+            f"{_text(run.get('trials_written', 0))} trial(s), backend {_text(run.get('backend'))}"
         )
     if df.empty:
         return
@@ -110,7 +118,7 @@ def print_results(console: Console, df: pd.DataFrame, manifest: dict[str, Any]) 
         counts = _by_sampling(df[label].fillna("-"), inferred)
         console.print(_table(f"trials by {label.removeprefix('label_')}", counts, "value"))
     for key, column in manifest.get("axes", {}).items():
-        if column in df.columns:
+        if isinstance(column, str) and column in df.columns:  # a hand-edited manifest may hold anything
             console.print(_table(f"by {key}", breakdown(df, column), column))
     simulated = df[~inferred]
     bad = simulated[simulated["status"] != "ok"]
@@ -120,7 +128,7 @@ def print_results(console: Console, df: pd.DataFrame, manifest: dict[str, Any]) 
         for name in ("status", "message", "trials"):
             table.add_column(name, justify="right" if name == "trials" else "left")
         for (status, message), n in counts.items():
-            table.add_row(str(status), str(message), str(n))
+            table.add_row(_text(status), _text(message, 500), str(n))
         console.print(table)
     console.print(
         f"wall time per trial: mean {simulated['wall_time_s'].mean():.3f} s; {len(simulated) - len(bad)} "

@@ -448,3 +448,24 @@ def test_a_part_of_another_study_copied_in_is_quarantined_by_the_next_run(tmp_pa
 def test_a_scheduler_without_the_dask_backend_is_refused(tmp_path: Path) -> None:
     res = _run(selftest_study(tmp_path), tmp_path / "o", "--scheduler", "tcp://203.0.113.5:8786")
     assert res.exit_code == 2 and "--scheduler is for --backend dask" in res.output  # type: ignore[attr-defined]
+
+
+def test_show_prints_stored_text_verbatim_and_terminal_controls_escaped(tmp_path: Path) -> None:
+    """An error message quoting a path in brackets crashed ``show`` (rich markup); an escape
+    sequence in a stored status retitled the terminal and cleared the screen."""
+    _, out = _finished(tmp_path)
+    first = _parts(out)[0]
+    table = pq.read_table(first)
+    n = table.num_rows
+    table = table.set_column(table.column_names.index("status"), "status", pa.array(["error"] * n))
+    message = "OSError: cannot read [/tmp/models/finger.yaml] [red]x\x1b]0;PWNED\x07\x1b[2J"
+    table = table.set_column(table.column_names.index("message"), "message", pa.array([message] * n))
+    pq.write_table(table, first)
+    manifest = json.loads((out / "manifest.json").read_text())
+    manifest["study_name"] = "[/oops]"
+    manifest["axes"] = {"task.x": ["not", "a", "column"]}
+    (out / "manifest.json").write_text(json.dumps(manifest))
+    res = CliRunner().invoke(app, ["show", str(out)], env={"COLUMNS": "400"})
+    assert res.exit_code == 0, res.output
+    assert "[/oops]" in res.output and "[/tmp/models/finger.yaml] [red]x" in res.output
+    assert "\x1b" not in res.output and "\\x1b]0;PWNED\\x07\\x1b[2J" in res.output
