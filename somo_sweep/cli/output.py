@@ -184,6 +184,11 @@ def check_replaceable(
             return
         if path.is_dir():
             raise SomoError(f"{path} is a folder; give a file name")
+        if not stat.S_ISREG(path.stat().st_mode):  # opening a FIFO to look at it would wait forever
+            raise SomoError(
+                f"{path} is not a regular file (a FIFO, a device or a socket); it is not replaced and "
+                "nothing was written: move it away or give another name"
+            )
         for given in inputs:
             if given is not None and Path(given).exists() and os.path.samefile(path, given):
                 raise SomoError(

@@ -6,7 +6,10 @@ import os
 import stat
 from pathlib import Path
 
+import pytest
+
 from somo_sweep.cli.output import write_atomic
+from somo_sweep.errors import SomoError
 
 
 def test_a_new_file_gets_the_umask_permissions_not_the_temporary_files(tmp_path: Path) -> None:
@@ -26,3 +29,15 @@ def test_an_existing_file_keeps_its_mode(tmp_path: Path) -> None:
     path.chmod(0o640)
     write_atomic(path, b"new")
     assert path.read_bytes() == b"new" and stat.S_IMODE(path.stat().st_mode) == 0o640
+
+
+def test_a_fifo_where_an_output_goes_is_refused_not_waited_on(tmp_path: Path) -> None:
+    """``plot``, ``classify`` and ``paper fig6`` opened it to see whether they wrote it, and hung."""
+    from somo_sweep.cli.output import write_outputs
+
+    for name in ("summary.png", "labels.csv", "fig6.json"):
+        fifo = tmp_path / name
+        os.mkfifo(fifo)
+        with pytest.raises(SomoError, match=f"{name} is not a regular file"):
+            write_outputs([(fifo, "data")])
+        assert stat.S_ISFIFO(fifo.stat().st_mode)
