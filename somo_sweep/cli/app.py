@@ -17,7 +17,7 @@ import typer
 from somo_sweep.cli import calibrate, diagnose, grasp, model, paper, sweep
 from somo_sweep.cli.help import HelpGroup, plain_help
 from somo_sweep.cli.output import state
-from somo_sweep.errors import SHOWN_CHARS, shown
+from somo_sweep.errors import SHOWN_CHARS, printable, shown
 
 __all__ = ["app", "main"]
 
@@ -104,6 +104,21 @@ def empty_value(args: list[str]) -> str | None:
     return None
 
 
+def not_utf8(args: list[str]) -> str | None:
+    """The first argument holding bytes that are not UTF-8 (a folder named in Latin-1), shown, or None.
+
+    Python keeps such bytes as lone surrogates; pyarrow cannot open a path holding them and
+    failed with a traceback deep in ``show``, ``plot`` and ``paper fig6``.
+    """
+    for arg in args:
+        try:
+            arg.encode("utf-8")
+        except UnicodeEncodeError:
+            raw = arg.encode("utf-8", "surrogateescape")
+            return printable(shown(raw.decode("utf-8", "backslashreplace"), 4 * SHOWN_CHARS))
+    return None
+
+
 _python_format = warnings.formatwarning
 
 
@@ -129,6 +144,13 @@ def main() -> None:
     args = global_flags_first(sys.argv[1:])
     if (empty := empty_value(args)) is not None:
         print(f"error: {empty} (an unset shell variable?); allowed: any non-empty value", file=sys.stderr)
+        raise SystemExit(2)
+    if (bad := not_utf8(args)) is not None:
+        print(
+            f"error: '{bad}' holds bytes that are not UTF-8 text; allowed: UTF-8 names (rename the file or "
+            "folder, e.g. with convmv)",
+            file=sys.stderr,
+        )
         raise SystemExit(2)
     try:
         app(args=args, prog_name="somo-sweep")

@@ -4,6 +4,7 @@ bundled one."""
 
 from __future__ import annotations
 
+import os
 from pathlib import Path
 
 import pytest
@@ -179,3 +180,17 @@ def test_an_empty_folder_is_refused_not_read_as_this_folder(
     assert exit_.value.code == 2
     assert "--out was given an empty value" in capsys.readouterr().err
     assert list(tmp_path.iterdir()) == []
+
+
+def test_a_path_that_is_not_utf8_is_named_not_a_traceback(
+    monkeypatch: pytest.MonkeyPatch, capsys: pytest.CaptureFixture[str], tmp_path: Path
+) -> None:
+    """A folder named in Latin-1 ended show, plot and paper fig6 in pyarrow's UnicodeEncodeError."""
+    name = os.fsdecode(b"r\xe9sultats")  # a lone surrogate where the byte is not UTF-8
+    monkeypatch.setattr("sys.argv", ["somo-sweep", "show", str(tmp_path / name)])
+    with pytest.raises(SystemExit) as exit_:
+        main()
+    assert exit_.value.code == 2
+    err = capsys.readouterr().err
+    assert "r\\xe9sultats' holds bytes that are not UTF-8 text; allowed: UTF-8 names" in err
+    assert "Traceback" not in err
