@@ -64,13 +64,20 @@ def part_files(folder: Path) -> list[Path]:
     return sorted(trials.glob("*.parquet")) if trials.is_dir() else []
 
 
-def _damage(path: Path) -> str | None:
+def _damage(path: Path, part: bool = True) -> str | None:
     """Why a part file cannot be read as one of ours (None if its footer and schema read back
     and hold the columns every part file has, of the right kinds)."""
     try:
         schema = pq.read_schema(path)
     except (pa.ArrowException, OSError) as exc:
         return "empty file" if path.stat().st_size == 0 else str(exc).split("\n")[0]
+    names = schema.names
+    twice = sorted(n for n, k in Counter(names).items() if k > 1)
+    if twice:
+        return f"its column '{shown(twice[0])}' appears twice"
+    reserved = [n for n in (_PART, "inferred" if part else _PART) if n in names]
+    if reserved:  # a reader's own column, or an inferred cell's mark: never in what a run writes
+        return f"it holds a column '{reserved[0]}', which somo-sweep never writes there"
     for name, (is_kind, kind_name) in _CORE.items():
         if name not in schema.names:
             return f"no '{name}' column: not a part file of a somo-sweep results folder"
@@ -343,7 +350,7 @@ def _read_inferred(folder: Path, report: OnDamaged) -> pa.Table | None:
         return None
     if "inferred" not in table.column_names:
         return None
-    why = _damage(path)
+    why = _damage(path, part=False)
     if why is not None:  # readable, but not what an adaptive run writes
         report(path, why)
         return None

@@ -469,3 +469,19 @@ def test_show_prints_stored_text_verbatim_and_terminal_controls_escaped(tmp_path
     assert res.exit_code == 0, res.output
     assert "[/oops]" in res.output and "[/tmp/models/finger.yaml] [red]x" in res.output
     assert "\x1b" not in res.output and "\\x1b]0;PWNED\\x07\\x1b[2J" in res.output
+
+
+@pytest.mark.parametrize("column", ["status", "__part_file__", "inferred"])
+def test_a_part_with_a_repeated_or_reserved_column_is_set_aside(tmp_path: Path, column: str) -> None:
+    """A second ``status`` column was a KeyError in every reader and in ``run`` (the folder was
+    stuck); a ``__part_file__`` column an ArrowInvalid; an ``inferred`` one blamed inferred.parquet."""
+    path, out = _finished(tmp_path)
+    first = _parts(out)[0]
+    table = pq.read_table(first)
+    pq.write_table(table.append_column(column, pa.array(["x"] * table.num_rows)), first)
+    skipped: list[str] = []
+    assert len(read_results(out, lambda part, why: skipped.append(why))) == 4
+    assert len(skipped) == 1 and f"'{column}'" in skipped[0]
+    res = _run(path, out)
+    assert res.exit_code == 0, res.output
+    assert len(read_results(out)) == 8
