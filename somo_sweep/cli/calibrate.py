@@ -10,7 +10,15 @@ from typing import TYPE_CHECKING, Annotated
 import typer
 
 from somo_sweep.cli.model import ALLOW_OUTSIDE
-from somo_sweep.cli.output import check_replaceable, checked_jobs, fail, figure_bytes, working, write_outputs
+from somo_sweep.cli.output import (
+    check_replaceable,
+    checked_jobs,
+    fail,
+    figure_bytes,
+    plain,
+    working,
+    write_outputs,
+)
 from somo_sweep.errors import SomoError
 
 if TYPE_CHECKING:
@@ -20,8 +28,15 @@ METHODS = ("fit", "paper")
 
 
 def default_output(measurements: Path, kind: str) -> Path:
-    """``results/<kind>/<CSV name>``: where a command writes when the user names no output."""
-    return Path("results") / kind / measurements.stem
+    """``results/<kind>/<CSV name>``: where a command writes when the user names no output.
+
+    A name that is a path step (``...csv`` has the stem ``..``) would lead out of
+    ``results/<kind>``: its dots become underscores.
+    """
+    stem = measurements.stem
+    if stem.strip(".") == "":
+        stem = "_" * len(stem) or "_"
+    return Path("results") / kind / stem
 
 
 def base_model(
@@ -133,6 +148,12 @@ def calibrate(
         check_replaceable(output, [measurements, model])
         if report is not None:
             check_replaceable(report / "calibration.json", [measurements, model], kind="json")
+            in_report = plain(output).parent == plain(report)
+            if in_report and (output.name == "calibration.json" or output.suffix.lower() == ".png"):
+                raise SomoError(
+                    f"-o {output} is a file the report writes in --report {report} (calibration.json and "
+                    "one PNG per metric); nothing was written: give the model another name"
+                )
         rows = read_measurements(measurements)
         base = base_model(
             measurements, model, length_mm, segments, mass_g, width_mm, thickness_mm, allow_outside

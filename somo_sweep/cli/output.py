@@ -176,6 +176,7 @@ def check_replaceable(
     Raises:
         SomoError: Naming the file, why, and that nothing was written.
     """
+    path = plain(path)
     try:
         for parent in path.parents:  # a file where a folder of the path must be
             if parent.exists() and not parent.is_dir():
@@ -221,12 +222,23 @@ def check_replaceable(
     )
 
 
+def plain(path: Path) -> Path:
+    """``path`` with its ``..`` and ``.`` steps taken out, as the checks and the write both see it.
+
+    ``nosuch/../notes.yaml`` names ``notes.yaml``, but a check that looks for it finds no
+    ``nosuch`` and so no file to protect, while the write creates ``nosuch`` and replaces
+    ``notes.yaml``: every output path is made plain first.
+    """
+    return Path(os.path.normpath(path))
+
+
 def write_atomic(path: Path, data: str | bytes) -> Path:
     """Write through a temporary file in the same folder, then rename; returns ``path``.
 
     The file gets the permissions a plain ``open(path, "w")`` would give it (an existing
     file's mode, else 0o666 less the umask), not the temporary file's private 0o600.
     """
+    path = plain(path)
     path.parent.mkdir(parents=True, exist_ok=True)
     fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=f".{path.name}.", suffix=".tmp")
     try:
@@ -295,6 +307,7 @@ def check_output(path: Path, data: str | bytes, inputs: Sequence[Path | str | No
         SomoError: Naming the file, why, and that nothing was written.
     """
     raw = data.encode("utf-8") if isinstance(data, str) else data
+    path = plain(path)
     if path.suffix == ".json":
         check_replaceable(path, inputs, kind="json")
         return raw
@@ -320,7 +333,13 @@ def write_outputs(
     """Check every output (:func:`check_output`), then write each (:func:`write_atomic`).
 
     So a refused name leaves every file as it was."""
-    checked = [(path, check_output(path, data, inputs)) for path, data in outputs]
+    paths = [plain(path) for path, _ in outputs]
+    twice = next((p for i, p in enumerate(paths) if p in paths[:i]), None)
+    if twice is not None:
+        raise SomoError(f"two outputs would be written to {twice}; nothing was written: give them apart")
+    checked = [
+        (path, check_output(path, data, inputs)) for path, (_, data) in zip(paths, outputs, strict=True)
+    ]
     return [write_atomic(path, data) for path, data in checked]
 
 

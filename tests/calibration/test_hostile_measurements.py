@@ -201,6 +201,38 @@ def test_calibrate_and_diagnose_refuse_bad_output_places_and_empty_effects_befor
     assert res.exit_code == 0, res.output
 
 
+def test_a_dotted_output_path_is_checked_where_it_writes(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """``-o nosuch/../notes.yaml`` passed every check (no ``nosuch``, so no file to protect) and then
+    replaced notes.yaml, or the input CSV; a CSV named ``...csv`` wrote into results/."""
+    from typer.testing import CliRunner
+
+    from somo_sweep.cli.app import app
+
+    monkeypatch.chdir(tmp_path)
+    bench = tmp_path / "bench.csv"
+    bench.write_bytes(BUNDLED.read_bytes())
+    (tmp_path / "notes.yaml").write_text("my notes\n")
+    (tmp_path / "report.md").write_text("# My lab report\n")
+    runner = CliRunner()
+    res = runner.invoke(app, ["calibrate", "bench.csv", "-o", "nosuch/../notes.yaml"])
+    assert res.exit_code == 2 and "notes.yaml exists and has no 'somo-sweep' header" in res.output
+    res = runner.invoke(app, ["calibrate", "bench.csv", "-o", "nosuch/../bench.csv"])
+    assert res.exit_code == 2 and "is this command's input" in res.output
+    res = runner.invoke(app, ["diagnose", "bench.csv", "--out", "nosuch/.."])
+    assert res.exit_code == 2 and "report.md exists and has no 'somo-sweep' header" in res.output
+    res = runner.invoke(app, ["calibrate", "bench.csv", "-o", "r/calibration.json", "--report", "r"])
+    assert res.exit_code == 2 and "is a file the report writes in --report r" in res.output
+    assert (
+        tmp_path / "notes.yaml"
+    ).read_text() == "my notes\n" and bench.read_bytes() == BUNDLED.read_bytes()
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["bench.csv", "notes.yaml", "report.md"]
+    from somo_sweep.cli.calibrate import default_output
+
+    assert default_output(Path("...csv"), "calibration") == Path("results/calibration/__")
+
+
 def test_a_deflection_longer_than_the_finger_is_refused_by_its_line(tmp_path: Path) -> None:
     """A 1000-mm typo on a 100-mm finger gave an unfitted model, "nan%" and exit 0."""
     lines = BUNDLED.read_text().splitlines()
