@@ -4,7 +4,8 @@ Columns: ``test,pressure_kpa,tip_load_n,tip_deflection_mm,blocked_force_n,tip_x_
 (empty where not applicable), optionally ``tip_angle_deg`` (free bending: the tip's
 angle in the bending plane, 0 straight, positive curling with pressure; what a photo
 of the curled finger gives with its tip position), ``axis`` (``grasp`` / ``side``) and
-``direction`` (``loading`` / ``unloading``). Lines starting with ``#`` are comments. Fields are
+``direction`` (``loading`` / ``unloading``). Lines starting with ``#`` are comments (a ``#``
+inside a line is data: ``#N/A`` is a bad value); blank lines are skipped. Fields are
 separated by commas, or by ``;`` or tabs when the header has no comma (then ``1,5`` is 1.5).
 """
 
@@ -73,13 +74,10 @@ RANGES: dict[str, tuple[float, float, str]] = {
 }
 
 
-def _line_of(row: int, comment_lines: list[int]) -> int:
-    """File line (1-based) of data row ``row`` (0-based), skipping comment lines."""
-    line = row + 2  # header is line 1 before comments are counted
-    for c in comment_lines:
-        if c <= line:
-            line += 1
-    return line
+def _line(row: int, row_lines: list[int]) -> int:
+    """File line (1-based) of data row ``row`` (0-based); past the known lines (a quoted field
+    holding a line break joins two), the last known line."""
+    return row_lines[min(row, len(row_lines) - 1)] if row_lines else row + 2
 
 
 #: Most data rows a measurement file may have (a bench session has tens to hundreds).
@@ -144,7 +142,11 @@ def read_measurements(path: str | Path, require_measured: bool = True) -> pd.Dat
     except ValueError as exc:
         raise MeasurementError(path, [str(exc)]) from None
     lines = text.splitlines()
-    comment_lines = [i + 1 for i, ln in enumerate(lines) if ln.lstrip().startswith("#")]
+    # Comments are whole lines starting with '#' (after blanks); a '#' inside a line is data
+    # ('#N/A' from a spreadsheet is a bad value, not the end of the row). Blank lines are
+    # skipped too, and every row keeps its file line for the messages.
+    kept = [(n, ln) for n, ln in enumerate(lines, start=1) if ln.strip() and not ln.lstrip().startswith("#")]
+    row_lines = [n for n, _ in kept[1:]]
     sep = _separator(text)
     for number, ln in enumerate(lines, start=1):  # before pandas makes a column of each field
         if ln.count(sep) >= MAX_FIELDS and not ln.lstrip().startswith("#"):
@@ -165,7 +167,11 @@ def read_measurements(path: str | Path, require_measured: bool = True) -> pd.Dat
         raise MeasurementError(path, [f"line {header_line}: {twice}"])
     try:
         raw = pd.read_csv(
-            io.StringIO(text), sep=sep, comment="#", dtype=str, keep_default_na=False, skip_blank_lines=True
+            io.StringIO("\n".join(ln for _, ln in kept)),
+            sep=sep,
+            dtype=str,
+            keep_default_na=False,
+            skip_blank_lines=True,
         )
     except (pd.errors.ParserError, pd.errors.EmptyDataError) as exc:
         raise MeasurementError(path, [f"cannot parse CSV: {exc}"]) from None
@@ -209,7 +215,7 @@ def read_measurements(path: str | Path, require_measured: bool = True) -> pd.Dat
                 cell = cell.replace(",", ".")  # a decimal comma (a spreadsheet's ';'-separated export)
             if cell.lower().lstrip("+-") == "nan":
                 problems.append(
-                    f"line {_line_of(i, comment_lines)}, column {c}: '{shown(cell)}' is not a measured "
+                    f"line {_line(i, row_lines)}, column {c}: '{shown(cell)}' is not a measured "
                     "value; leave the cell empty where nothing was measured"
                 )
                 values.append(math.nan)
@@ -218,16 +224,14 @@ def read_measurements(path: str | Path, require_measured: bool = True) -> pd.Dat
                 # Plain ASCII decimals only: float() would also take '1_000' and other scripts' digits.
                 v = float(cell) if _NUMBER.fullmatch(cell) else float("x")
             except ValueError:
-                problems.append(
-                    f"line {_line_of(i, comment_lines)}, column {c}: '{shown(cell)}' is not a number"
-                )
+                problems.append(f"line {_line(i, row_lines)}, column {c}: '{shown(cell)}' is not a number")
                 v = math.nan
             if not math.isnan(v) and not math.isfinite(v):
-                problems.append(f"line {_line_of(i, comment_lines)}, column {c}: {shown(cell)} is not finite")
+                problems.append(f"line {_line(i, row_lines)}, column {c}: {shown(cell)} is not finite")
             elif c in RANGES and not math.isnan(v) and not RANGES[c][0] <= v <= RANGES[c][1]:
                 low, high, unit = RANGES[c]
                 problems.append(
-                    f"line {_line_of(i, comment_lines)}, column {c}: {v:g} is outside what a bench "
+                    f"line {_line(i, row_lines)}, column {c}: {v:g} is outside what a bench "
                     f"measures; allowed: {low:g} to {high:g} {unit}; check the unit"
                 )
             values.append(v)
@@ -238,10 +242,10 @@ def read_measurements(path: str | Path, require_measured: bool = True) -> pd.Dat
             for i, cell in enumerate(out[c]):
                 if cell not in choices and cell != "":
                     problems.append(
-                        f"line {_line_of(i, comment_lines)}, column {c}: '{shown(cell)}' "
+                        f"line {_line(i, row_lines)}, column {c}: '{shown(cell)}' "
                         f"{did_you_mean(cell, choices)}; allowed: {', '.join(choices)}"
                     )
-    out["line"] = [_line_of(i, comment_lines) for i in range(len(out))]
+    out["line"] = [_line(i, row_lines) for i in range(len(out))]
     for _, row in out.iterrows():
         where = f"line {row['line']}"
         test = row["test"]
