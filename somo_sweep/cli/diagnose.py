@@ -85,6 +85,8 @@ def diagnose(
             )
         for name in names or []:
             get_effect(name)
+        if names is not None:  # each once, in the order given (a repeat counted twice in the verdict)
+            names = list(dict.fromkeys(names))
         checked_jobs(jobs)
         # the README's studies/tables/NAME.csv also from an installed package (no studies/ here)
         measurements = bundled_if_missing(measurements, "tables", ".csv")
@@ -99,7 +101,15 @@ def diagnose(
         else:
             finger = base_model(measurements, None, None, None, None, None, None)
             with working("calibrating the CSV's finger first", bench_rows=True):
-                base = solve_fit(build_problem(rows, finger, str(measurements), settings), n_jobs=jobs).model
+                first = solve_fit(build_problem(rows, finger, str(measurements), settings), n_jobs=jobs)
+            if first.message.startswith("not fitted"):  # as calibrate: no model to diagnose
+                typer.echo(
+                    f"error: {measurements}: calibrating the CSV's finger first: {first.message}; nothing "
+                    "was written: check those rows (a value far from the others, a unit) and the finger line",
+                    err=True,
+                )
+                raise typer.Exit(1)
+            base = first.model
             typer.echo("calibrated the finger of the CSV's '# finger:' line first (somo-sweep calibrate)")
         with working("simulating the model as given", bench_rows=True):
             problem = build_diagnosis(rows, base, str(measurements), settings, names, n_jobs=jobs)

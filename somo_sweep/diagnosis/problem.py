@@ -27,6 +27,7 @@ from somo_sweep.diagnosis.noise import (
     estimate_noise,
     find_disagreements,
 )
+from somo_sweep.errors import SomoError
 from somo_sweep.model.description import Manipulator
 from somo_sweep.model.load import Model
 from somo_sweep.sim.bench import BenchSettings
@@ -191,6 +192,15 @@ def build_diagnosis(
     base_problem = build_problem(rows, model, source, settings)
     manip = base_problem.manipulator
     base = [replace(p, initial=_current(manip, p.name)) for p in base_problem.parameters]
+    hidden = [e.name for e in chosen if not e.applies_to(base_problem.rows)]
+    if hidden and effects is not None:  # asked for by name: say why it is not tried
+        why = "a direction column with both loading and unloading rows"
+        if len(hidden) == len(chosen):
+            raise SomoError(
+                f"{source}: --effects {', '.join(hidden)}: these rows cannot reveal it (it needs {why}); "
+                "allowed: effects these rows can show, or add such rows"
+            )
+        notes = (*notes, f"effect(s) {', '.join(hidden)} not tried: these rows lack {why}")
     sized = tuple(
         (e, e.parameter(manip, base_problem.rows)) for e in chosen if e.applies_to(base_problem.rows)
     )

@@ -334,3 +334,69 @@ def test_rows_repeated_exactly_are_counted_once() -> None:
     assert len(copied.rows) == len(once.rows) == 36 and not once.notes
     assert {k: v.sigma for k, v in copied.noise.items()} == {k: v.sigma for k, v in once.noise.items()}
     assert copied.describe().startswith("36 row(s) repeat an earlier row exactly")
+
+
+def test_an_effect_these_rows_cannot_reveal_is_named_when_asked_for() -> None:
+    """--effects hysteresis on rows without a direction printed "effects tried: " and exited 0."""
+    from somo_sweep.calibration.measurements import read_measurements
+    from somo_sweep.model.tables import bundled_path
+
+    rows = read_measurements(bundled_path("tables", "planar_finger_synthetic.csv"))
+    with pytest.raises(SomoError, match="--effects hysteresis: these rows cannot reveal it"):
+        build_diagnosis(rows, example_finger(), effects=["hysteresis"])
+    both = build_diagnosis(rows, example_finger(), effects=["hysteresis", "self_weight"])
+    assert [e.name for e, _ in both.effects] == ["self_weight"]
+    assert any("effect(s) hysteresis not tried: these rows lack a direction column" in n for n in both.notes)
+
+
+def test_cli_an_effect_given_twice_is_tried_once(tmp_path: Path) -> None:
+    """actuation_saturation twice made the verdict 'unexplained'; 5000 times ran without end."""
+    rows = synthetic_rows(
+        example_finger(),
+        bench_plan([0.05, 0.1], [120.0, 240.0], [120.0, 240.0]),
+        0.01,
+        np.random.default_rng(0),
+        SETTINGS,
+    )
+    csv = tmp_path / "bench.csv"
+    csv.write_text(measurements_csv(rows))
+    model = tmp_path / "model.yaml"
+    model.write_text(model_yaml(example_finger()))
+    res = runner.invoke(
+        app,
+        [
+            "diagnose",
+            str(csv),
+            "--model",
+            str(model),
+            "--out",
+            str(tmp_path / "o"),
+            "--effects",
+            ",".join(["self_weight"] * 5000),
+        ],
+    )
+    assert res.exit_code == 0, res.output
+    record = json.loads((tmp_path / "o" / "diagnosis.json").read_text())
+    assert sorted(c["name"] for c in record["candidates"]) == ["none", "self_weight"]
+
+
+def test_cli_stops_when_its_own_first_calibration_fails(tmp_path: Path) -> None:
+    """A very soft finger pushing 20x harder: calibrate exits 1 and writes nothing; diagnose went on
+    with the unfitted model for 148 s and wrote a model and report (tip-angle noise 2390 deg)."""
+    from somo_sweep.calibration.measurements import read_measurements
+    from somo_sweep.model.tables import bundled_path
+
+    src = bundled_path("tables", "planar_finger_synthetic.csv")
+    rows = read_measurements(src).drop(columns="line")
+    rows["tip_deflection_mm"] = rows["tip_load_n"] * 1900.0
+    rows["blocked_force_n"] *= 20.0
+    finger = next(ln for ln in src.read_text().splitlines() if ln.startswith("# finger:"))
+    csv = tmp_path / "soft_strong.csv"
+    csv.write_text(finger + "\n" + rows.to_csv(index=False))
+    out = tmp_path / "o"
+    res = runner.invoke(app, ["diagnose", str(csv), "--out", str(out)])
+    assert res.exit_code == 1, res.output
+    assert (
+        "calibrating the CSV's finger first: not fitted" in res.output and "nothing was written" in res.output
+    )
+    assert not out.exists()
