@@ -127,11 +127,12 @@ SHOWN_CHARS = 60
 def shown(value: str, limit: int = SHOWN_CHARS) -> str:
     """A user value as a message quotes it: cut to ``limit`` characters with its length said.
 
-    A hostile file's 50-MB cell must not become a 50-MB error message.
+    A hostile file's 50-MB cell must not become a 50-MB error message, nor its escape sequences
+    commands to the terminal: control characters are shown escaped (:func:`printable`).
     """
     if len(value) <= limit:
-        return value
-    return f"{value[:limit]}… ({len(value)} characters)"
+        return printable(value)
+    return f"{printable(value[:limit])}… ({len(value)} characters)"
 
 
 #: Characters a terminal acts on rather than shows: C0 and C1 controls (escape sequences

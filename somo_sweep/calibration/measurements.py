@@ -165,13 +165,45 @@ def read_measurements(path: str | Path, require_measured: bool = True) -> pd.Dat
     if repeated:  # pandas would rename a repeated column to 'name.1'
         twice = f"column '{shown(repeated[0])}' appears more than once in the header"
         raise MeasurementError(path, [f"line {header_line}: {twice}"])
+    body = [ln for _, ln in kept]
+    if names:
+        # A row with more fields than the header: pandas made its first field the row's index
+        # and shifted every value one column left ("'grasp' is not a number" 21 times). Empty
+        # extra fields (a trailing comma on the data rows only) are dropped; others are refused.
+        width, longer = len(names), []
+        for i, (number, ln) in enumerate(kept[1:], start=1):
+            if ln.count(sep) < width:
+                continue
+            try:
+                fields = next(csv.reader([ln], delimiter=sep))
+            except csv.Error:
+                continue
+            if len(fields) <= width:
+                continue
+            if any(f.strip() for f in fields[width:]):
+                longer.append(
+                    f"line {number} has {len(fields)} fields, the header (line {header_line}) {width}"
+                )
+            else:
+                line = io.StringIO()
+                csv.writer(line, delimiter=sep, lineterminator="").writerow(fields[:width])
+                body[i] = line.getvalue()
+        if longer:
+            raise MeasurementError(
+                path,
+                [
+                    *longer[:MAX_PROBLEMS],
+                    *([f"… {len(longer) - MAX_PROBLEMS} more"] if len(longer) > MAX_PROBLEMS else []),
+                ],
+            )
     try:
         raw = pd.read_csv(
-            io.StringIO("\n".join(ln for _, ln in kept)),
+            io.StringIO("\n".join(body)),
             sep=sep,
             dtype=str,
             keep_default_na=False,
             skip_blank_lines=True,
+            index_col=False,
         )
     except (pd.errors.ParserError, pd.errors.EmptyDataError) as exc:
         raise MeasurementError(path, [f"cannot parse CSV: {exc}"]) from None

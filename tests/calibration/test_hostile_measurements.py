@@ -448,3 +448,26 @@ def test_many_comment_lines_cost_no_more_than_reading_them(tmp_path: Path) -> No
     start = time.perf_counter()
     assert len(read_measurements(path)) == len(rows)
     assert time.perf_counter() - start < 30.0
+
+
+def test_a_trailing_comma_on_the_data_rows_only_reads_like_the_plain_file(tmp_path: Path) -> None:
+    """pandas took the first field of such rows for an index and shifted every value one column:
+    "'grasp' is not a number" on every row."""
+    lines = BUNDLED.read_text().splitlines()
+    header = next(i for i, ln in enumerate(lines) if ln.startswith("test,"))
+    path = tmp_path / "trailing.csv"
+    path.write_text("\n".join(ln + "," if i > header else ln for i, ln in enumerate(lines)) + "\n")
+    pd.testing.assert_frame_equal(read_measurements(path), read_measurements(BUNDLED))
+    lines[header + 3] += ",0.5"  # a value past the header: refused, not dropped
+    path.write_text("\n".join(lines) + "\n")
+    assert f"line {header + 4} has 10 fields, the header (line {header + 1}) 9" in _error(path)
+
+
+def test_terminal_control_characters_in_a_cell_are_shown_escaped(tmp_path: Path) -> None:
+    lines = BUNDLED.read_text().splitlines()
+    header = next(i for i, ln in enumerate(lines) if ln.startswith("test,"))
+    lines[header + 1] = lines[header + 1].replace("tip_load", "tip\x1b[2J\x1b]0;pwned\x07load", 1)
+    path = tmp_path / "esc.csv"
+    path.write_text("\n".join(lines) + "\n")
+    text = _error(path)
+    assert "\x1b" not in text and "\x07" not in text and "tip\\x1b[2J\\x1b]0;pwned\\x07load" in text
