@@ -181,6 +181,12 @@ def check_replaceable(
         for parent in path.parents:  # a file where a folder of the path must be
             if parent.exists() and not parent.is_dir():
                 raise SomoError(f"{parent} is a file, so {path} cannot be written; nothing was written")
+        # The nearest folder that exists must let us create in it: found now, not after the work.
+        nearest = next((p for p in path.parents if p.exists()), Path("."))
+        if not os.access(nearest, os.W_OK | os.X_OK):
+            raise SomoError(
+                f"cannot write {path}: {nearest} is read-only or not ours to write in; nothing was written"
+            )
         if not path.exists():
             return
         if path.is_dir():
@@ -239,13 +245,19 @@ def write_atomic(path: Path, data: str | bytes) -> Path:
     file's mode, else 0o666 less the umask), not the temporary file's private 0o600.
     """
     path = plain(path)
-    path.parent.mkdir(parents=True, exist_ok=True)
-    fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=f".{path.name}.", suffix=".tmp")
+    try:
+        path.parent.mkdir(parents=True, exist_ok=True)
+        fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=f".{path.name}.", suffix=".tmp")
+    except OSError as exc:  # named as the file the user asked for, not our temporary one
+        raise OSError(exc.errno, exc.strerror or str(exc), str(path)) from None
     try:
         with os.fdopen(fd, "wb") as fh:
             fh.write(data.encode("utf-8") if isinstance(data, str) else data)
         os.chmod(tmp, _mode_for(path))
         os.replace(tmp, path)
+    except OSError as exc:
+        Path(tmp).unlink(missing_ok=True)
+        raise OSError(exc.errno, exc.strerror or str(exc), str(path)) from None
     except BaseException:
         Path(tmp).unlink(missing_ok=True)
         raise

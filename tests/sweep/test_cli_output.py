@@ -41,3 +41,32 @@ def test_a_fifo_where_an_output_goes_is_refused_not_waited_on(tmp_path: Path) ->
         with pytest.raises(SomoError, match=f"{name} is not a regular file"):
             write_outputs([(fifo, "data")])
         assert stat.S_ISFIFO(fifo.stat().st_mode)
+
+
+def test_a_folder_we_cannot_write_in_is_found_before_the_work(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """A read-only output folder was found only when writing, after the whole calibration."""
+    from somo_sweep.cli.output import check_replaceable
+
+    real = os.access
+    monkeypatch.setattr(os, "access", lambda p, mode: False if Path(p) == tmp_path else real(p, mode))
+    with pytest.raises(SomoError, match=f"cannot write {tmp_path}/sub/m.yaml: {tmp_path} is read-only"):
+        check_replaceable(tmp_path / "sub" / "m.yaml")
+
+
+def test_a_failed_write_names_the_file_asked_for_not_the_temporary_one(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    import errno
+
+    def refuse(src: object, dst: object) -> None:
+        raise OSError(errno.EROFS, "Read-only file system", str(src))
+
+    monkeypatch.setattr(os, "replace", refuse)
+    with pytest.raises(OSError) as info:
+        write_atomic(tmp_path / "model.yaml", "x")
+    assert (
+        info.value.filename == str(tmp_path / "model.yaml") and info.value.strerror == "Read-only file system"
+    )
+    assert list(tmp_path.iterdir()) == []
