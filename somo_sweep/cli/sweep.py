@@ -248,7 +248,13 @@ def _print_dry_run(st: Study) -> None:
 
 
 def _damaged(path: Path, reason: str) -> None:
-    from somo_sweep.sweep.folder import INFERRED, REPEATS
+    from somo_sweep.sweep.folder import INFERRED, REPEATS, UNREADABLE
+
+    if reason.startswith(UNREADABLE):
+        typer.echo(
+            f"warning: part file {path} {reason}: its trials are left out; give read access to it", err=True
+        )
+        return
 
     if path.name == INFERRED and path.parent.joinpath("manifest.json").exists():
         what = reason.removeprefix(REPEATS).strip() if reason.startswith(REPEATS) else f"skipped ({reason})"

@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import contextlib
 import json
+import os
 import warnings
 from collections import Counter
 from collections.abc import Callable, Collection, Mapping
@@ -31,6 +32,7 @@ __all__ = [
     "PART_GLOB",
     "QUARANTINE",
     "REPEATS",
+    "UNREADABLE",
     "DamagedPartWarning",
     "declared_types",
     "journal_rows",
@@ -43,6 +45,8 @@ __all__ = [
 MANIFEST = "manifest.json"
 #: How the reason given to ``on_damaged`` for a readable part repeating another's rows starts.
 REPEATS = "repeats"
+#: How the reason for a part we may not read starts (its trials are left out; it is not moved).
+UNREADABLE = "cannot be read"
 #: Largest manifest read; a larger one is damaged (thousands of resumed runs take well under 1 MiB).
 MAX_MANIFEST_BYTES = 64 * 1024 * 1024
 #: The cells an adaptive run inferred instead of simulating (outside ``trials/``: never resumed from).
@@ -59,9 +63,20 @@ OnDamaged = Callable[[Path, str], None]
 
 
 def part_files(folder: Path) -> list[Path]:
-    """The part files of a results folder, sorted (none if it has no ``trials/``)."""
+    """The part files of a results folder, sorted (none if it has no ``trials/``).
+
+    Raises:
+        SomoError: ``trials`` is not a folder, or one we may not read (its parts would look
+            missing, and the study unfinished).
+    """
     trials = folder / "trials"
-    return sorted(trials.glob("*.parquet")) if trials.is_dir() else []
+    if not trials.exists():
+        return []
+    if not trials.is_dir():
+        raise SomoError(f"{trials} is not a folder; a results folder keeps its trials there: move it away")
+    if not os.access(trials, os.R_OK | os.X_OK):
+        raise SomoError(f"cannot read {trials}: permission denied; give read access to it and its files")
+    return sorted(trials.glob("*.parquet"))
 
 
 def _damage(path: Path, part: bool = True) -> str | None:
@@ -118,6 +133,8 @@ def split_parts(
     schemas: dict[Path, pa.Schema] = {}
     for part in sorted(part_files(folder), key=lambda p: f"trials/{p.name}" not in listed):
         reason = None if part.is_file() else "not a regular file"
+        if reason is None and not os.access(part, os.R_OK):  # not damaged: never set aside for it
+            reason = f"{UNREADABLE} (permission denied)"
         reason = reason or _damage(part)
         if reason is None:
             try:
@@ -247,6 +264,11 @@ def read_manifest(folder: str | Path) -> dict[str, Any]:
                 pa.type_for_alias(info["type"])
             except ValueError:
                 raise ValueError(f"its column '{shown(str(name))}' has an unknown type") from None
+    except RecursionError:
+        raise SomoError(
+            f"{path} is damaged (nested too deeply for a manifest); run the study again with --out {folder} "
+            "to rebuild it from the trials"
+        ) from None
     except (ValueError, UnicodeDecodeError) as exc:
         raise SomoError(
             f"{path} is damaged ({exc}); run the study again with --out {folder} to rebuild it "
@@ -311,10 +333,13 @@ def read_results(folder: str | Path, on_damaged: OnDamaged | None = None) -> pd.
     try:
         df = pa.concat_tables(tables, promote_options="permissive").to_pandas()
     except (pa.ArrowException, ValueError) as exc:
-        raise SomoError(
-            f"{folder / INFERRED} does not fit the part files ({str(exc).splitlines()[0]}); "
-            "run the study again with --adaptive to rebuild it"
-        ) from None
+        if inferred is None or len(tables) < 2:
+            raise SomoError(
+                f"{folder}: the trials cannot be read together ({str(exc).splitlines()[0]})"
+            ) from None
+        # The inferred cells do not fit the simulated trials: set them aside, keep the trials.
+        report(folder / INFERRED, f"does not fit the part files ({str(exc).splitlines()[0]})")
+        df = tables[0].to_pandas()
     if _PART not in df.columns:
         df[_PART] = pd.Series(pd.NA, index=df.index, dtype="Int64")
     repeated = df["job_id"].duplicated(keep="first") & df[_PART].notna()
@@ -341,7 +366,10 @@ _PART = "__part_file__"
 
 def _read_inferred(folder: Path, report: OnDamaged) -> pa.Table | None:
     path = folder / INFERRED
-    if not path.is_file():
+    if not (path.exists() or path.is_symlink()):
+        return None
+    if not path.is_file():  # a folder, a FIFO, a dangling link: its cells are missing, say so
+        report(path, "not a regular file")
         return None
     try:
         table = pq.read_table(path)
@@ -349,6 +377,7 @@ def _read_inferred(folder: Path, report: OnDamaged) -> pa.Table | None:
         report(path, str(exc).split("\n")[0])
         return None
     if "inferred" not in table.column_names:
+        report(path, "no 'inferred' column: not the inferred cells of an adaptive run")
         return None
     why = _damage(path, part=False)
     if why is not None:  # readable, but not what an adaptive run writes

@@ -46,6 +46,7 @@ from somo_sweep.sweep.folder import (
     MANIFEST,
     PART_GLOB,
     QUARANTINE,
+    UNREADABLE,
     declared_types,
     journal_rows,
     read_manifest,
@@ -190,6 +191,12 @@ class ResultStore:
             else None
         )
         _, bad = split_parts(self.folder, listed, declared, max_rows)
+        unreadable = [part for part, reason in bad if reason.startswith(UNREADABLE)]
+        if unreadable:  # not damaged: moving it away would rerun trials that are safely stored
+            raise SomoError(
+                f"cannot read {unreadable[0]}: permission denied; give read access to it and run the same "
+                "command again (nothing was moved)"
+            )
         for part, reason in bad:
             target = self.trials / QUARANTINE / f"_{part.name}"
             target.parent.mkdir(exist_ok=True)

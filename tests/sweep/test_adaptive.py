@@ -343,3 +343,24 @@ def test_inferred_rows_that_are_not_cells_of_the_study_are_left_out(tmp_path: Pa
     pd.testing.assert_frame_equal(after, before)
     assert any("2 row(s) numbered outside the study's trials 0 … 288: left out" in r for r in reasons)
     assert any("1 row(s) numbered as simulated trials with another job id: left out" in r for r in reasons)
+
+
+def test_an_inferred_file_that_does_not_fit_is_set_aside_and_the_trials_still_read(tmp_path: Path) -> None:
+    """A retyped column in inferred.parquet made every reader refuse the whole folder; one without
+    its inferred column, or a folder in its place, lost the inferred cells without a word."""
+    out = tmp_path / "out"
+    run_study(load_study(study_2d(tmp_path), out), n_jobs=1)
+    table = pq.read_table(out / "inferred.parquet")
+    (out / "inferred.parquet").unlink()
+    simulated = read_results(out)  # what the parts alone give
+    i = table.column_names.index("task_x")
+    as_text = pa.array([str(v) for v in table.column(i).to_pylist()])
+    pq.write_table(table.set_column(i, "task_x", as_text), out / "inferred.parquet")
+    reasons: list[str] = []
+    df = read_results(out, lambda path, why: reasons.append(why))
+    pd.testing.assert_frame_equal(df, simulated)
+    assert len(reasons) == 1 and reasons[0].startswith("does not fit the part files")
+    pq.write_table(table.drop_columns(["inferred"]), out / "inferred.parquet")
+    reasons.clear()
+    pd.testing.assert_frame_equal(read_results(out, lambda path, why: reasons.append(why)), simulated)
+    assert reasons == ["no 'inferred' column: not the inferred cells of an adaptive run"]

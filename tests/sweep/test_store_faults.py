@@ -485,3 +485,34 @@ def test_a_part_with_a_repeated_or_reserved_column_is_set_aside(tmp_path: Path, 
     res = _run(path, out)
     assert res.exit_code == 0, res.output
     assert len(read_results(out)) == 8
+
+
+def test_a_part_we_may_not_read_is_left_out_by_readers_and_never_moved(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """A part without read permission was called damaged, and the next run moved it to the
+    quarantine and ran its trials again; an unreadable trials/ read as an unfinished study."""
+    path, out = _finished(tmp_path)
+    first = _parts(out)[0]
+    real = os.access
+    monkeypatch.setattr(os, "access", lambda p, mode: False if Path(p) == first else real(p, mode))
+    skipped: list[str] = []
+    assert len(read_results(out, lambda part, why: skipped.append(why))) == 4
+    assert skipped == ["cannot be read (permission denied)"]
+    res = _run(path, out)
+    assert res.exit_code == 2 and f"cannot read {first}: permission denied" in res.output, res.output
+    assert first.exists() and not (out / "trials" / "quarantine").exists()
+    trials = out / "trials"
+    monkeypatch.setattr(os, "access", lambda p, mode: False if Path(p) == trials else real(p, mode))
+    with pytest.raises(SomoError, match=f"cannot read {trials}: permission denied"):
+        read_results(out)
+
+
+def test_trials_as_a_file_is_named_not_read_as_no_trials(tmp_path: Path) -> None:
+    _, out = _finished(tmp_path)
+    for part in _parts(out):
+        part.unlink()
+    (out / "trials").rmdir()
+    (out / "trials").write_text("not a folder")
+    with pytest.raises(SomoError, match="trials is not a folder"):
+        read_results(out)
