@@ -7,12 +7,15 @@ reader never sees half a file), and every figure through :func:`figure_bytes`.
 
 from __future__ import annotations
 
+import contextlib
+import glob
 import io
 import json
 import os
 import re
 import stat
 import tempfile
+import time
 from collections.abc import Iterator, Sequence
 from contextlib import contextmanager
 from pathlib import Path
@@ -238,6 +241,22 @@ def plain(path: Path) -> Path:
     return Path(os.path.normpath(path))
 
 
+#: Age (s) past which a temporary file of ours beside an output is a killed writer's leftover.
+STALE_TMP_S = 300.0
+
+
+def _clear_stale_temporaries(path: Path) -> None:
+    """Remove what a killed write of ``path`` left: ``.NAME.*.tmp`` files beside it, older than
+    :data:`STALE_TMP_S` (a write in progress elsewhere is younger). Only regular files."""
+    now = time.time()
+    with contextlib.suppress(OSError):
+        for tmp in path.parent.glob(f".{glob.escape(path.name)}.*.tmp"):
+            with contextlib.suppress(OSError):
+                info = tmp.lstat()
+                if stat.S_ISREG(info.st_mode) and now - info.st_mtime > STALE_TMP_S:
+                    tmp.unlink()
+
+
 def write_atomic(path: Path, data: str | bytes) -> Path:
     """Write through a temporary file in the same folder, then rename; returns ``path``.
 
@@ -245,6 +264,7 @@ def write_atomic(path: Path, data: str | bytes) -> Path:
     file's mode, else 0o666 less the umask), not the temporary file's private 0o600.
     """
     path = plain(path)
+    _clear_stale_temporaries(path)
     try:
         path.parent.mkdir(parents=True, exist_ok=True)
         fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=f".{path.name}.", suffix=".tmp")

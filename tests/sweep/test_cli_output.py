@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import os
 import stat
+import time
 from pathlib import Path
 
 import pytest
@@ -70,3 +71,21 @@ def test_a_failed_write_names_the_file_asked_for_not_the_temporary_one(
         info.value.filename == str(tmp_path / "model.yaml") and info.value.strerror == "Read-only file system"
     )
     assert list(tmp_path.iterdir()) == []
+
+
+def test_a_killed_writers_temporary_file_is_cleared_by_the_next_write(tmp_path: Path) -> None:
+    """A plot or figure killed between writing and renaming left .NAME.*.tmp forever."""
+    old = tmp_path / ".summary.png.abc123.tmp"
+    old.write_bytes(b"half a figure")
+    os.utime(old, (time.time() - 3600, time.time() - 3600))
+    fresh = tmp_path / ".summary.png.def456.tmp"  # another writer's, right now: kept
+    fresh.write_bytes(b"in progress")
+    other = tmp_path / ".notes.txt.abc123.tmp"  # not this output's
+    other.write_bytes(b"x")
+    os.utime(other, (time.time() - 3600, time.time() - 3600))
+    write_atomic(tmp_path / "summary.png", b"png")
+    assert sorted(p.name for p in tmp_path.iterdir()) == [
+        ".notes.txt.abc123.tmp",
+        ".summary.png.def456.tmp",
+        "summary.png",
+    ]
