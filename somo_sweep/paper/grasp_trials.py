@@ -10,7 +10,7 @@ from typing import Any
 import numpy as np
 import pandas as pd
 
-from somo_sweep.errors import SomoError
+from somo_sweep.errors import SomoError, shown
 from somo_sweep.paper.artifacts import Artifacts
 from somo_sweep.tasks.pinch_grasp.classify import find_column, reclassify
 
@@ -101,7 +101,19 @@ def relabel(
     """
     folder = Path(folder)
     table = read_results(folder)
-    labels = grasp_labels(table, rule, **options)
+    try:
+        labels = grasp_labels(table, rule, **options)
+    except SomoError as exc:
+        if "lacks the columns needed to classify grasps" not in str(exc):
+            raise
+        from somo_sweep.sweep.store import read_manifest
+
+        study = read_manifest(folder).get("study")
+        task = study.get("task") if isinstance(study, dict) else None
+        raise SomoError(
+            f"{folder} holds trials of task '{shown(str(task))}', not pinch_grasp: there are no grasps to "
+            "classify; allowed: a results folder of a pinch_grasp study"
+        ) from None
     cols = [str(c) for c in table.columns]
     names = ("job_id", "distal_segment_ratio", "object_width_m", "centering_position_m", "centering_m")
     keep = [c for c in (find_column(cols, n) for n in names) if c is not None]

@@ -10,9 +10,14 @@ from rich.markup import escape
 from rich.table import Table
 
 from somo_sweep.errors import printable, shown
+from somo_sweep.sweep.folder import MANIFEST
 from somo_sweep.sweep.runner import RunSummary
 
 __all__ = ["breakdown", "inferred_mask", "label_columns", "print_results", "print_run_summary"]
+
+
+#: Runs ``show`` lists, the latest.
+SHOWN_RUNS = 10
 
 
 def label_columns(df: pd.DataFrame) -> list[str]:
@@ -105,7 +110,10 @@ def print_results(console: Console, df: pd.DataFrame, manifest: dict[str, Any]) 
         f"[bold]{_text(manifest.get('study_name'))}[/bold]: {stored}, "
         f"study hash {_text(manifest['study_hash'])}, task {_text(manifest.get('study', {}).get('task'))}"
     )
-    for run in manifest.get("runs", []):
+    runs = manifest.get("runs", [])
+    if len(runs) > SHOWN_RUNS:  # a folder resumed thousands of times: its latest runs
+        console.print(f"  … {len(runs) - SHOWN_RUNS} earlier run(s) (all in {MANIFEST})")
+    for run in runs[-SHOWN_RUNS:]:
         console.print(
             f"  run {_text(run.get('start_utc'))} → {_text(run.get('end_utc'))}: {_text(run.get('status'))}, "
             f"{_text(run.get('trials_written', 0))} trial(s), backend {_text(run.get('backend'))}"

@@ -214,3 +214,34 @@ def test_fig6_compare_names_the_folder_that_is_not_a_pinch_study(tmp_path: Path)
     pd.read_parquet(part).drop(columns=["task_distal_segment_ratio"]).to_parquet(part)
     code, out = _invoke("paper", "fig6-compare", str(good), str(bad), "--out", str(tmp_path / "o"))
     assert code == 2 and f"{bad}: results table lacks distal_segment_ratio" in out.replace("\n", "")
+
+
+def test_classify_on_another_tasks_folder_names_the_folder_and_its_task(tmp_path: Path) -> None:
+    """It listed some 50 missing columns, and neither the folder nor the task."""
+    folder = results_folder(tmp_path)
+    manifest = read_manifest(folder)
+    manifest["study"] = {**manifest.get("study", {}), "task": "bench"}
+    (folder / "manifest.json").write_text(json.dumps(manifest))
+    table = pd.read_parquet(folder / "trials" / "part-0.parquet")
+    table.drop(columns=[c for c in table.columns if c.startswith("hold_")]).to_parquet(
+        folder / "trials" / "part-0.parquet"
+    )
+    code, out = _invoke("classify", str(folder))
+    assert code == 2 and f"{folder} holds trials of task 'bench', not pinch_grasp" in out
+
+
+def test_show_lists_the_latest_runs_of_a_folder_resumed_thousands_of_times(tmp_path: Path) -> None:
+    folder = results_folder(tmp_path)
+    manifest = read_manifest(folder)
+    run = {
+        "start_utc": "t0",
+        "end_utc": "t1",
+        "status": "interrupted",
+        "trials_written": 0,
+        "backend": "loky",
+    }
+    manifest["runs"] = [dict(run, start_utc=f"start{i}") for i in range(5000)]
+    (folder / "manifest.json").write_text(json.dumps(manifest))
+    code, out = _invoke("show", str(folder))
+    assert code == 0 and "… 4990 earlier run(s) (all in manifest.json)" in out
+    assert "start4999" in out and "start4989" not in out and out.count("  run start") == 10
