@@ -33,9 +33,12 @@ FINGER_KEYS = {
     "joint_placement": "midpoint or start",
 }
 REQUIRED = ("length_mm", "segments", "mass_g")
+#: Most segments of the planar finger: with its base and tip link, PyBullet's 128 links of a body.
+MAX_FINGER_SEGMENTS = 126
 _PREFIX = "# finger:"
-#: Only the file's first lines are searched, so a huge file costs nothing here.
-_SEARCH_LINES = 50
+#: Only the comment lines above the CSV header are searched, at most this many bytes of them,
+#: so a huge file costs nothing here.
+_SEARCH_BYTES = 1024 * 1024
 #: Longest header line read, in bytes (a longer one is cut and then refused).
 _MAX_LINE_BYTES = 4096
 
@@ -50,11 +53,20 @@ def read_finger_header(path: str | Path) -> dict[str, Any] | None:
     path = Path(path)
     with path.open("rb") as fh:
         # Split like the CSV reader: \n, \r\n or a lone \r (old Mac exports) end a line.
-        head = fh.read(_SEARCH_LINES * (_MAX_LINE_BYTES + 2)).splitlines(keepends=True)[:_SEARCH_LINES]
+        head = fh.read(_SEARCH_BYTES).splitlines(keepends=True)
+    found: list[tuple[int, bytes, str]] = []
     for number, raw in enumerate(head, start=1):
         line = raw.decode("utf-8", errors="replace").lstrip("\ufeff").strip()  # Excel's "CSV UTF-8" BOM
-        if not line.lower().startswith(_PREFIX):
-            continue
+        if line and not line.startswith("#"):
+            break  # the column header: the finger line is among the comments above it
+        if line.lower().startswith(_PREFIX):
+            found.append((number, raw, line))
+    if len(found) > 1:
+        lines = " and ".join(str(n) for n, _, _ in found[:2])
+        raise MeasurementError(
+            path, [f"lines {lines}: the finger header is given twice; allowed: one '# finger:' line"]
+        )
+    for number, raw, line in found:
         where = f"line {number}, finger header"
         example = "write a mapping, e.g. {length_mm: 100, segments: 20, mass_g: 20}"
         if len(raw) > _MAX_LINE_BYTES:
@@ -101,9 +113,12 @@ def _validate(path: Path, where: str, data: dict[Any, Any]) -> dict[str, Any]:
             problems.append(f"{where}: mass_g must be at most {MAX_MASS_KG * 1e3:g}, got {mass!r}")
     segments = data.get("segments")
     if segments is not None and not (
-        isinstance(segments, int) and not isinstance(segments, bool) and 1 <= segments <= 200
+        isinstance(segments, int) and not isinstance(segments, bool) and 1 <= segments <= MAX_FINGER_SEGMENTS
     ):
-        problems.append(f"{where}: segments must be a whole number from 1 to 200, got {segments!r}")
+        problems.append(
+            f"{where}: segments must be a whole number from 1 to {MAX_FINGER_SEGMENTS} (a base, the "
+            f"segments and a tip in PyBullet's 128 links of a body), got {segments!r}"
+        )
     if data.get("joint_placement", "midpoint") not in ("midpoint", "start"):
         problems.append(
             f"{where}: joint_placement must be midpoint or start, got {data['joint_placement']!r}"
@@ -113,9 +128,20 @@ def _validate(path: Path, where: str, data: dict[Any, Any]) -> dict[str, Any]:
     return dict(data)
 
 
-def finger_from_header(header: dict[str, Any], **overrides: Any) -> Model:
-    """The planar finger of a header (mm and g as written), with flag values overriding it."""
-    values = {**header, **{k: v for k, v in overrides.items() if v is not None}}
+def finger_from_header(header: dict[str, Any], source: str | Path = "<flags>", **overrides: Any) -> Model:
+    """The planar finger of a header (mm and g as written), with flag values overriding it.
+
+    Flag values are held to the header's rules (``--segments 150`` was refused later by the
+    body's link limit, without the file or the flag; ``--width-mm 500`` passed).
+
+    Raises:
+        MeasurementError: A flag value the header would refuse, named as the flag.
+    """
+    given = {k: v for k, v in overrides.items() if v is not None}
+    values = {**header, **given}
+    if given:
+        flags = ", ".join(f"--{k.replace('_', '-')} {v:g}" for k, v in given.items())
+        _validate(Path(source), f"with {flags}", values)
     return planar_finger(
         float(values["length_mm"]) * 1e-3,
         int(values["segments"]),

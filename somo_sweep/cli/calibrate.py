@@ -69,7 +69,9 @@ def base_model(
             f"'# finger: {{length_mm: 100, segments: 20, mass_g: 20}}' above the CSV header "
             f"(keys: {', '.join(FINGER_KEYS)}), or pass {flags_missing}"
         )
-    return finger_from_header(header or {}, **flags, width_mm=width_mm, thickness_mm=thickness_mm)
+    return finger_from_header(
+        header or {}, str(measurements), **flags, width_mm=width_mm, thickness_mm=thickness_mm
+    )
 
 
 def _figure_bytes(result: object, label: str, fmt: str) -> bytes:

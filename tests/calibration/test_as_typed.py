@@ -65,7 +65,8 @@ def test_a_csv_without_finger_line_or_model_says_how_to_give_one(tmp_path: Path)
         ),
         (
             "# finger: {length_mm: 100, segments: 0, mass_g: 20}",
-            "segments must be a whole number from 1 to 200, got 0",
+            "segments must be a whole number from 1 to 126 (a base, the segments and a tip in PyBullet's "
+            "128 links of a body), got 0",
         ),
         (
             "# finger: {length_mm: .nan, segments: 20, mass_g: 20}",

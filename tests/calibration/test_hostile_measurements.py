@@ -471,3 +471,36 @@ def test_terminal_control_characters_in_a_cell_are_shown_escaped(tmp_path: Path)
     path.write_text("\n".join(lines) + "\n")
     text = _error(path)
     assert "\x1b" not in text and "\x07" not in text and "tip\\x1b[2J\\x1b]0;pwned\\x07load" in text
+
+
+def test_the_finger_line_is_found_above_the_header_once(tmp_path: Path) -> None:
+    """With 50 comment lines above it, '# finger:' was not found ("add a line '# finger: …'");
+    with two, the first silently won."""
+    from somo_sweep.calibration.finger import read_finger_header
+
+    lines = BUNDLED.read_text().splitlines()
+    finger = next(ln for ln in lines if ln.startswith("# finger:"))
+    path = tmp_path / "notes.csv"
+    path.write_text("\n".join([*(f"# note {i}" for i in range(60)), *lines]) + "\n")
+    assert read_finger_header(path) == read_finger_header(BUNDLED)
+    path.write_text("\n".join([finger.replace("segments: 20", "segments: 10"), *lines]) + "\n")
+    with pytest.raises(MeasurementError, match="the finger header is given twice"):
+        read_finger_header(path)
+
+
+def test_finger_flags_are_held_to_the_header_rules_and_named(tmp_path: Path) -> None:
+    """--segments 150 failed on PyBullet's link limit without the file or the flag; --width-mm 500
+    (refused in the header) passed."""
+    from somo_sweep.calibration.finger import finger_from_header, read_finger_header
+
+    header = read_finger_header(BUNDLED)
+    assert header is not None
+    with pytest.raises(
+        MeasurementError, match=r"with --segments 150: segments must be a whole number from 1 to 126"
+    ):
+        finger_from_header(header, str(BUNDLED), segments=150)
+    with pytest.raises(
+        MeasurementError, match=r"with --width-mm 500: width_mm 500.0 is more than the finger's length"
+    ):
+        finger_from_header(header, str(BUNDLED), width_mm=500.0)
+    assert finger_from_header(header, str(BUNDLED), segments=126).manipulator is not None
