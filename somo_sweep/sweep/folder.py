@@ -349,6 +349,14 @@ def read_results(folder: str | Path, on_damaged: OnDamaged | None = None) -> pd.
         report(names[int(index)], f"{REPEATS} {len(rows)} row(s) stored in {where}: counted once (a copy?)")
     df = df[~repeated]
     foreign = df[df["study_hash"] != manifest["study_hash"]]
+    if len(foreign) and len(foreign) == len(df) and foreign["study_hash"].nunique() == 1:
+        # Every row agrees with every other and none with the manifest: the manifest is the odd one.
+        raise SomoError(
+            f"{folder / MANIFEST} records study hash {shown(str(manifest['study_hash']))}, but every "
+            f"trial in the folder holds {shown(str(foreign['study_hash'].iloc[0]))} (a manifest copied "
+            "from another folder?); move the manifest away and run the study again with --out "
+            f"{folder}: it is rebuilt from the trials"
+        )
     if len(foreign):
         parts = sorted({names[int(i)].name for i in foreign[_PART].dropna()}) or [INFERRED]
         raise SomoError(

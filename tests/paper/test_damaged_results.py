@@ -59,7 +59,9 @@ def test_parts_that_are_not_ours_or_clash_are_skipped_by_name(tmp_path: Path) ->
         == "part-1.parquet: its 'trial' column holds large_string, not the whole numbers somo-sweep writes"
     )
     assert seen[1] == "part-2.parquet: no 'status' column: not a part file of a somo-sweep results folder"
-    assert seen[2].startswith("part-3.parquet: columns of other types than the part files before it")
+    assert seen[2] == (
+        "part-3.parquet: its 'object_z_m' column holds large_string, where the results hold double"
+    )
     for command in (["show", str(folder)], ["classify", str(folder)]):
         code, out = _invoke(*command)
         assert code == 0, out
@@ -245,3 +247,17 @@ def test_show_lists_the_latest_runs_of_a_folder_resumed_thousands_of_times(tmp_p
     code, out = _invoke("show", str(folder))
     assert code == 0 and "… 4990 earlier run(s) (all in manifest.json)" in out
     assert "start4999" in out and "start4989" not in out and out.count("  run start") == 10
+
+
+def test_a_manifest_of_another_folder_is_named_not_the_parts_that_agree(tmp_path: Path) -> None:
+    """Every part was blamed ("move that file away") when only the manifest was foreign."""
+    folder = results_folder(tmp_path)
+    manifest = read_manifest(folder)
+    hash_of_parts = pd.read_parquet(folder / "trials")["study_hash"].iloc[0]
+    manifest["study_hash"] = "0123456789abcdef"
+    (folder / "manifest.json").write_text(json.dumps(manifest))
+    with pytest.raises(SomoError) as info:
+        read_results(folder)
+    text = str(info.value)
+    assert "manifest.json records study hash 0123456789abcdef, but every trial" in text
+    assert f"holds {hash_of_parts}" in text and "move the manifest away" in text
