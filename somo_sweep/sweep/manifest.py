@@ -130,12 +130,13 @@ def release(fd: int) -> None:
 def record_files(folder: Path, paths: list[Path]) -> None:
     """List files the tool wrote into a results folder (e.g. plots) in its manifest.
 
-    Skipped when a run holds the folder (it rewrites the manifest) or the manifest is unreadable;
-    a file left unlisted is only ever kept by ``--overwrite``, never deleted.
+    Skipped when a run holds the folder (it rewrites the manifest), its lock cannot be taken, or
+    the manifest is unreadable; a file left unlisted is only ever kept by ``--overwrite``, never
+    deleted.
     """
     try:
         lock = acquire(folder / ".lock")
-    except SomoError:
+    except (SomoError, OSError):  # held by a run, or not a lock file (a folder): the files stay unlisted
         return
     try:
         manifest = read_manifest(folder)

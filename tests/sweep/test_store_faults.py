@@ -516,3 +516,13 @@ def test_trials_as_a_file_is_named_not_read_as_no_trials(tmp_path: Path) -> None
     (out / "trials").write_text("not a folder")
     with pytest.raises(SomoError, match="trials is not a folder"):
         read_results(out)
+
+
+def test_plot_with_a_folder_where_the_lock_goes_draws_and_exits_0(tmp_path: Path) -> None:
+    """It wrote the plots, then exited 2 with "Is a directory: .lock"."""
+    _, out = _finished(tmp_path)
+    (out / ".lock").unlink(missing_ok=True)
+    (out / ".lock").mkdir()
+    res = CliRunner().invoke(app, ["plot", str(out)])
+    assert res.exit_code == 0, res.output
+    assert (out / "plots" / "summary.png").is_file()
