@@ -526,3 +526,12 @@ def test_plot_with_a_folder_where_the_lock_goes_draws_and_exits_0(tmp_path: Path
     res = CliRunner().invoke(app, ["plot", str(out)])
     assert res.exit_code == 0, res.output
     assert (out / "plots" / "summary.png").is_file()
+
+
+def test_a_fifo_among_the_parts_is_skipped_not_waited_on(tmp_path: Path) -> None:
+    """Reading it hung show, plot, classify and paper fig6 until killed."""
+    _, out = _finished(tmp_path)
+    os.mkfifo(out / "trials" / "part-x.parquet")
+    skipped: list[str] = []
+    assert len(read_results(out, lambda part, why: skipped.append(why))) == 8
+    assert skipped == ["not a regular file"]
