@@ -261,3 +261,13 @@ def test_a_manifest_of_another_folder_is_named_not_the_parts_that_agree(tmp_path
     text = str(info.value)
     assert "manifest.json records study hash 0123456789abcdef, but every trial" in text
     assert f"holds {hash_of_parts}" in text and "move the manifest away" in text
+
+
+def test_a_manifest_nested_too_deeply_is_named_damaged(tmp_path: Path) -> None:
+    """A 400 KB manifest nested 200,000 deep was a RecursionError in every reader."""
+    folder = results_folder(tmp_path)
+    (folder / "manifest.json").write_text("[" * 200_000 + "]" * 200_000)
+    with pytest.raises(SomoError, match=r"manifest.json is damaged \(nested too deeply for a manifest\)"):
+        read_manifest(folder)
+    code, out = _invoke("show", str(folder))
+    assert code == 2 and "nested too deeply" in out
