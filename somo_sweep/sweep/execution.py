@@ -134,6 +134,14 @@ def _watch_owner(owner_pid: int) -> None:
     threading.Thread(target=watch, name="somo-sweep-owner-watch", daemon=True).start()
 
 
+def _start_local_worker(owner_pid: int) -> None:
+    """Initializer of a local (loky) worker, which the sweep's process started: exit at once if
+    that process is already gone (killed while this worker was still importing), else watch it."""
+    if os.getppid() != owner_pid:
+        os._exit(1)
+    _watch_owner(owner_pid)
+
+
 def _call(job: Job, time_step_s: float) -> TaskResult:
     spec = get_task(job.task)
     try:
@@ -314,7 +322,12 @@ def execute(
         while pending:
             todo = list(pending.values())
             try:
-                with parallel_config(backend=backend):
+                # Local workers watch for the sweep's death from their start, not from their first
+                # trial: a run killed while they were still importing left them for loky's 300 s.
+                watch = (
+                    {"initializer": _start_local_worker, "initargs": (owner,)} if backend == "loky" else {}
+                )
+                with parallel_config(backend=backend, **watch):
                     workers = min(n_jobs, len(todo)) if backend == "loky" else n_jobs  # no idle process
                     # Worker processes start here. With one worker none starts: this process runs
                     # the trials and keeps hearing Ctrl-C at once.

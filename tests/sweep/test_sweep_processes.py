@@ -219,3 +219,37 @@ def test_ctrl_c_to_the_whole_terminal_group_while_workers_start_gives_one_messag
     assert "Traceback" not in stderr and "KeyboardInterrupt" not in stderr, stderr
     assert "finished trial(s) kept" in stderr
     assert _all_gone(workers)
+
+
+def test_a_run_killed_while_its_workers_start_leaves_no_process(tmp_path: Path) -> None:
+    """Workers killed before their first trial (still importing) had no watcher yet and lingered
+    for loky's 300 s idle timeout, about 200 MB each."""
+    path = selftest_study(tmp_path, extra="set: {task.sleep_s: 0.5}", n=8)
+    proc = subprocess.Popen(
+        [str(CLI), "run", str(path), "--jobs", "2", "--no-plots", "--out", str(tmp_path / "out")],
+        stdout=subprocess.DEVNULL,
+        stderr=subprocess.DEVNULL,
+    )
+    try:
+        deadline = time.monotonic() + 60
+        children: list[int] = []
+        while time.monotonic() < deadline and proc.poll() is None:
+            children = [p for p in _descendants(proc.pid) if "LokyProcess" in _cmdline(p)]
+            if len(children) >= 2:
+                break
+            time.sleep(0.01)
+        everything = _descendants(proc.pid)
+        proc.send_signal(signal.SIGKILL)
+        proc.wait(timeout=60)
+    finally:
+        if proc.poll() is None:
+            proc.kill()
+    assert len(children) >= 2, "expected two worker processes"
+    assert _all_gone(everything)
+
+
+def _cmdline(pid: int) -> str:
+    try:
+        return Path(f"/proc/{pid}/cmdline").read_bytes().replace(b"\0", b" ").decode(errors="replace")
+    except OSError:
+        return ""
