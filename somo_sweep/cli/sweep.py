@@ -85,6 +85,16 @@ def run(
             "stored as inferred (default: the study's sampling:, else exhaustive).",
         ),
     ] = None,
+    robust: Annotated[
+        int | None,
+        typer.Option(
+            "--robust",
+            metavar="K",
+            help="Run K perturbed replicas of the cells that matter (label boundaries, plus a 10 % audit "
+            "of the rest) and store each cell's majority label, agreement and robust flag "
+            "(default: the study's robustness:, else 0).",
+        ),
+    ] = None,
     chunk_rows: Annotated[int, typer.Option(help="Rows per Parquet part file.", hidden=True)] = 50,
 ) -> None:
     """Run a study: every trial missing from its results folder, in parallel, into Parquet.
@@ -95,7 +105,7 @@ def run(
 
     from somo_sweep.sweep.jobs import build_jobs
     from somo_sweep.sweep.runner import run_study
-    from somo_sweep.sweep.study import load_study
+    from somo_sweep.sweep.study import load_study, with_replicas
 
     if backend not in ("loky", "dask"):
         fail(SomoError(f"--backend must be loky or dask, got '{backend}'"))
@@ -119,6 +129,8 @@ def run(
         st = load_study(study, out, max_trials, allow_outside)
         if adaptive is not None:
             st.sampling = "adaptive" if adaptive else "grid"
+        if robust is not None:
+            st = with_replicas(st, robust)
         if dry_run:
             _print_dry_run(st)
             return
@@ -147,9 +159,12 @@ def run(
         live.append(progress)
 
     def new_round(batch: Batch) -> None:
-        name = st.name if batch.number is None else f"round {batch.number}: {batch.cells} cells"
-        if batch.number == 0:
-            name += " (coarse)"
+        if batch.kind == "replicas":
+            name = f"replicas {batch.number}: {batch.cells} cells x {st.robustness.replicas}"
+        else:
+            name = st.name if batch.number is None else f"round {batch.number}: {batch.cells} cells"
+            if batch.number == 0:
+                name += " (coarse)"
         live[0].add_task(name, total=len(batch.jobs), rate=0.0)
 
     def advanced(_: object) -> None:

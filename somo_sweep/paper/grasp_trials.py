@@ -95,9 +95,12 @@ def relabel(
     """Relabel every trial of a results folder.
 
     Returns:
-        Counts per label (``unstable``/``error`` for trials that are not ``ok``) and the table
-        (job id, the three sweep parameters, ``grasp_<rule>``; an old folder's ``centering_m``,
-        the bases' distance before the paper's centering position, is kept under its own name).
+        Counts per label (``unstable``/``error`` for trials that are not ``ok``; a cell with
+        robustness replicas counts with its majority) and the table, one row per cell: job id,
+        the three sweep parameters, ``grasp_<rule>`` (the cell's own trial), and where replicas
+        ran ``grasp_<rule>_majority``, ``grasp_<rule>_agreement``, ``replicas`` and ``robust``
+        (:func:`somo_sweep.sweep.robustness.fold`); an old folder's ``centering_m``, the bases'
+        distance before the paper's centering position, is kept under its own name.
     """
     folder = Path(folder)
     table = read_results(folder)
@@ -114,13 +117,27 @@ def relabel(
             f"{folder} holds trials of task '{shown(str(task))}', not pinch_grasp: there are no grasps to "
             "classify; allowed: a results folder of a pinch_grasp study"
         ) from None
+    from somo_sweep.sweep.robustness import fold
+
     cols = [str(c) for c in table.columns]
     names = ("job_id", "distal_segment_ratio", "object_width_m", "centering_position_m", "centering_m")
     keep = [c for c in (find_column(cols, n) for n in names) if c is not None]
-    out = table[keep].copy()
-    out[f"grasp_{rule}"] = labels
-    out["inferred"] = inferred_rows(table)
-    return dict(sorted(Counter(str(v) for v in labels).items())), out
+    name = f"grasp_{rule}"
+    runs = table[[*keep, *(c for c in ("trial", "replica") if c in cols)]].copy()
+    runs["status"] = "ok"  # a run that is not ok carries its status as its label already
+    runs[name] = labels
+    runs["inferred"] = inferred_rows(table)
+    cells = fold(runs, [name])
+    out = cells[[*keep, name, "inferred"]].copy()
+    if (cells["replicas"] > 0).any():
+        out[f"{name}_majority"] = cells[f"{name}_majority"]
+        out[f"{name}_agreement"] = cells[f"{name}_agreement"].where(cells["replicas"] > 0)
+        out["replicas"] = cells["replicas"]
+        out["robust"] = cells["robust"]
+        counted = out[f"{name}_majority"]
+    else:
+        counted = out[name]
+    return dict(sorted(Counter(str(v) for v in counted).items())), out
 
 
 def find_trial(jobs: list[Any], trial: str) -> Any:

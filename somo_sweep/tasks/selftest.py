@@ -10,7 +10,8 @@
 
 With ``region_radius_m`` set, every task also labels ``region`` ``inside`` or ``outside`` the
 ball of that radius around the origin in (x, u, v): a known label boundary in up to three
-dimensions, for the adaptive-sampling tests.
+dimensions, for the adaptive-sampling tests. Their robustness replicas (:func:`perturb`) move
+``x`` by up to ``jitter`` (``x_offset``), so cells within ``jitter`` of a boundary can flip.
 
 They let the robustness tests run in real loky and Dask worker processes in milliseconds.
 """
@@ -59,6 +60,8 @@ class SelftestParams(BaseModel):
             the seed) as it returns, so that fault-injection tests can count finished trials.
         notify_fifo: If set, a named pipe that gets one byte as each trial returns, so that a
             test can block until trials finish instead of polling (no reader: nothing sent).
+        jitter: Largest shift of ``x`` a robustness replica draws (:func:`perturb`).
+        x_offset: Shift of ``x`` in the labels (a replica's draw).
     """
 
     model_config = ConfigDict(extra="forbid", frozen=True)
@@ -75,6 +78,8 @@ class SelftestParams(BaseModel):
     none_x: list[float] = Field(default_factory=list)
     done_dir: str = ""
     notify_fifo: str = ""
+    jitter: float = Field(0.0, ge=0)
+    x_offset: float = 0.0
 
 
 def _notify(fifo: str) -> None:
@@ -106,9 +111,10 @@ def _result(params: SelftestParams, seed: int) -> TaskResult:
 
 
 def _labels(params: SelftestParams) -> dict[str, str]:
-    labels = {"sign": "positive" if params.x > 0 else "non_positive"}
+    x = params.x + params.x_offset
+    labels = {"sign": "positive" if x > 0 else "non_positive"}
     if params.region_radius_m > 0:
-        inside = params.x**2 + params.u**2 + params.v**2 < params.region_radius_m**2
+        inside = x**2 + params.u**2 + params.v**2 < params.region_radius_m**2
         labels["region"] = "inside" if inside else "outside"
     return labels
 
@@ -136,9 +142,26 @@ def _unstable(model: Model, params: SelftestParams, settings: WorldSettings, see
     return _result(params, seed)
 
 
+def perturb(params: SelftestParams, rng: np.random.Generator) -> SelftestParams:
+    """A robustness replica: ``x_offset`` moved by a uniform draw within ±``jitter``."""
+    shift = float(rng.uniform(-params.jitter, params.jitter))
+    return params.model_copy(update={"x_offset": params.x_offset + shift})
+
+
 for _name, _fn, _text in (
     ("selftest_sleep", "_sleep", "Sleeps and returns y = x² (engine tests)."),
     ("selftest_crash", "_crash", "Kills its process for chosen x (engine tests)."),
     ("selftest_unstable", "_unstable", "Reports a blow-up for chosen x (engine tests)."),
 ):
-    register(TaskSpec(_name, f"{__name__}:{_fn}", SelftestParams, _text, ("selftest",), METRICS))
+    register(
+        TaskSpec(
+            _name,
+            f"{__name__}:{_fn}",
+            SelftestParams,
+            _text,
+            ("selftest",),
+            METRICS,
+            perturb=perturb,
+            perturbation="x moved by up to ±jitter",
+        )
+    )

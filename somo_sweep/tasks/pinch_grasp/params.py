@@ -16,7 +16,8 @@ from __future__ import annotations
 import math
 from typing import Any
 
-from pydantic import BaseModel, ConfigDict, Field, model_validator
+import numpy as np
+from pydantic import BaseModel, ConfigDict, Field, field_validator, model_validator
 
 from somo_sweep.model.description import MAX_LENGTH_M, MIN_LENGTH_M
 from somo_sweep.model.load import Model
@@ -30,6 +31,7 @@ __all__ = [
     "check_gripper",
     "distal_link_count",
     "link_columns",
+    "perturb",
 ]
 
 #: Link numbers stored per trial: 20 segments and the fingertip.
@@ -38,6 +40,12 @@ N_FINGER_LINKS = 21
 #: distance d from the object's centre (its hand offset h in scaled units gives d = 100 + 50·h
 #: and c = 100 − 50·h, in mm).
 BASE_DISTANCE_AT_ZERO_CENTERING_M = 0.200
+#: Robustness replicas (:func:`perturb`): the object starts up to this far off its spot in x and
+#: in y, m, and its friction coefficient is scaled by up to ± this fraction.
+JITTER_M = 0.5e-3
+FRICTION_SPREAD = 0.05
+#: Largest start offset of the object a study may set, m.
+MAX_OFFSET_M = 0.05
 
 
 def distal_link_count(distal_segment_ratio: float) -> int:
@@ -142,6 +150,11 @@ class PinchGraspParams(BaseModel):
         restitution: Restitution of the object, the finger links and the fingertips (Bullet
             multiplies a pair's values; the ground and the base boxes keep theirs). ``None``
             keeps the model file's on the fingers (0 in the bundled finger) and 0 on the object.
+        object_offset_m: Where the object starts, (x, y) from the study's nominal spot, m:
+            robustness replicas move it by up to ``JITTER_M`` (:func:`perturb`).
+        object_friction_scale: Multiplies the object's friction coefficient (so every contact
+            pair the object is in: Bullet multiplies a pair's values); replicas draw it within
+            ±``FRICTION_SPREAD``.
 
     The last three are the Fig. 6 ablation's physical factors (docs/pinch_grasp.md,
     :mod:`somo_sweep.paper.fig6_ablation`); their defaults are our physical model.
@@ -166,6 +179,15 @@ class PinchGraspParams(BaseModel):
     spring_scale: float = Field(1.0, gt=0)
     finger_spinning_friction_m: float | None = Field(None, ge=0)
     restitution: float | None = Field(None, ge=0, le=1)
+    object_offset_m: tuple[float, float] = (0.0, 0.0)
+    object_friction_scale: float = Field(1.0, gt=0, le=10)
+
+    @field_validator("object_offset_m")
+    @classmethod
+    def _small_offset(cls, value: tuple[float, float]) -> tuple[float, float]:
+        if not all(math.isfinite(v) and abs(v) <= MAX_OFFSET_M for v in value):
+            raise ValueError(f"each offset must be finite and within ±{MAX_OFFSET_M:g} m, got {list(value)}")
+        return value
 
     @model_validator(mode="before")
     @classmethod
@@ -230,6 +252,21 @@ METRICS: dict[str, str] = {
     "ended_early_reason": "string",
 }
 
+
+def perturb(params: PinchGraspParams, rng: np.random.Generator) -> PinchGraspParams:
+    """A robustness replica of a trial: the object moved by up to ±0.5 mm in x and in y, and its
+    friction coefficient scaled by a factor within ±5 % (uniform draws from ``rng``)."""
+    dx, dy = rng.uniform(-JITTER_M, JITTER_M, size=2)
+    scale = rng.uniform(1.0 - FRICTION_SPREAD, 1.0 + FRICTION_SPREAD)
+    x0, y0 = params.object_offset_m
+    return params.model_copy(
+        update={
+            "object_offset_m": (float(x0 + dx), float(y0 + dy)),
+            "object_friction_scale": float(params.object_friction_scale * scale),
+        }
+    )
+
+
 register(
     TaskSpec(
         name="pinch_grasp",
@@ -239,5 +276,10 @@ register(
         tags=("grasp", "paper", "fig6"),
         metrics=METRICS,
         check_model=check_gripper,
+        perturb=perturb,
+        perturbation=(
+            f"the object starts up to ±{JITTER_M * 1e3:g} mm off its spot in x and y, its friction "
+            f"coefficient within ±{FRICTION_SPREAD:.0%}"
+        ),
     )
 )
