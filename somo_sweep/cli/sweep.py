@@ -28,6 +28,9 @@ from somo_sweep.cli.output import (
 from somo_sweep.errors import SomoError, StorageError
 
 if TYPE_CHECKING:  # the heavy modules are imported when a command runs
+    from collections.abc import Callable, Iterator
+
+    from somo_sweep.sweep.jobs import Job
     from somo_sweep.sweep.runner import RunSummary
     from somo_sweep.sweep.sampling import Batch
     from somo_sweep.sweep.study import Study
@@ -134,10 +137,15 @@ def run(
         if dry_run:
             _print_dry_run(st)
             return
-        table = build_jobs(st)
     except SomoError as exc:
         fail(exc)
     n_jobs = jobs or joblib.cpu_count() or 1
+    try:
+        if st.simulation is None:
+            st = auto_step(st, n_jobs, backend, scheduler, timeout)
+        table = build_jobs(st)
+    except SomoError as exc:
+        fail(exc)
     live: list[Progress] = []  # the progress bar, once the results folder is open
 
     def started(summary: RunSummary) -> None:
@@ -221,6 +229,49 @@ def run(
         raise typer.Exit(1)
 
 
+def auto_step(
+    st: Study,
+    n_jobs: int,
+    backend: str,
+    scheduler: str | None,
+    timeout: float | None,
+    stream: Callable[[str], None] | None = None,
+) -> Study:
+    """The study with its step chosen by label convergence (or the choice stored in its folder);
+    what it does is written to ``stream`` (default: stderr)."""
+    from dataclasses import replace
+
+    from somo_sweep.sweep.convergence import choose_step, outcomes_of, stored_choice
+    from somo_sweep.sweep.execution import execute
+    from somo_sweep.sweep.folder import read_manifest
+
+    say = stream or (lambda text: typer.echo(text, err=True))
+    choice = None
+    if (st.output / "manifest.json").is_file():
+        try:
+            choice = stored_choice(read_manifest(st.output), st)
+        except SomoError:  # a damaged manifest: the run rebuilds it; the step is chosen again
+            choice = None
+    if choice is not None:
+        say(f"automatic step {choice.step_s * 1e3:g} ms (chosen earlier, from {st.output})")
+    else:
+        say(
+            "no simulation: block: choosing the time step from this study's own cells (label convergence "
+            "against half the step)"
+        )
+
+        def run_jobs(batch: list[Job]) -> Iterator[tuple[str, str, dict[str, str]]]:
+            return outcomes_of(execute(batch, backend, n_jobs, scheduler, timeout))  # type: ignore[arg-type]
+
+        def rung(step_s: float, runs: int) -> None:
+            say(f"  trying {step_s * 1e3:g} ms: {runs} sample run(s)")
+
+        choice = choose_step(st, run_jobs, on_rung=rung)
+        for line in choice.describe():
+            say(f"  {line}")
+    return replace(st, auto_step_s=choice.step_s, convergence=choice.as_dict())
+
+
 def _progress() -> Progress:
     return Progress(
         TextColumn("[bold]{task.description}"),
@@ -247,13 +298,21 @@ def _print_dry_run(st: Study) -> None:
         typer.echo(describe(st))
     jobs = first_jobs(st, DRY_ROWS)
     if st.simulation is None:
+        from somo_sweep.sim.numerics import step_ladder
+
+        steps, why = step_ladder(st.resolve_model(next(iter(st.points())))[1])
+        typer.echo(
+            "automatic numerics (no simulation: block): the run chooses the step by label convergence "
+            f"on a sample of these cells, trying {', '.join(f'{h * 1e3:g}' for h in steps)} ms (starting "
+            f"guess set by {why}); the jobs below show the starting (modal) choice:"
+        )
         shown: set[str] = set()
         for job in jobs:
             if job.numerics is not None and job.columns["model_hash"] not in shown:
                 shown.add(job.columns["model_hash"])
-                typer.echo(f"automatic numerics (no simulation: block), model {job.columns['model_file']}:")
+                typer.echo(f"  model {job.columns['model_file']}:")
                 for line in job.numerics.describe():
-                    typer.echo(f"  {line}")
+                    typer.echo(f"    {line}")
     else:
         typer.echo(f"simulation: time step {st.simulation.time_step_s * 1e3:g} ms (from the study file)")
     frame = jobs_frame(jobs)

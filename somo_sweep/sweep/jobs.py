@@ -240,7 +240,7 @@ def iter_jobs(study: Study) -> Iterator[Job]:
     for point in study.points():
         model_path, given, params = study.resolve(point)
         if id(given) not in prepared:
-            prepared[id(given)] = _prepare(given, fixed_settings)
+            prepared[id(given)] = _prepare(given, fixed_settings, study.auto_step_s)
         model, model_hash, settings, numerics = prepared[id(given)]
         values = {**study.fixed, **point}
         columns: dict[str, Any] = {}
@@ -336,14 +336,15 @@ def _run_module(task: str) -> str:
 
 
 def _prepare(
-    model: Model, fixed: WorldSettings | None
+    model: Model, fixed: WorldSettings | None, auto_step_s: float | None = None
 ) -> tuple[Model, str, WorldSettings, ChosenNumerics | None]:
-    """The model and settings a trial runs: as given, or with the automatic numerics applied."""
+    """The model and settings a trial runs: as given, or with the automatic numerics applied
+    (the step chosen by convergence with the least shaping it needs, else the modal choice)."""
     if fixed is not None:
         return model, model.content_hash(), fixed, None
-    from somo_sweep.sim.numerics import choose_numerics  # loads PyBullet: only when needed
+    from somo_sweep.sim.numerics import choose_numerics, numerics_for_step  # loads PyBullet
 
-    chosen = choose_numerics(model)
+    chosen = choose_numerics(model) if auto_step_s is None else numerics_for_step(model, auto_step_s)
     shaped = chosen.apply(model)
     return shaped, shaped.content_hash(), WorldSettings(time_step_s=chosen.time_step_s), chosen
 
@@ -378,7 +379,7 @@ def build_jobs(study: Study) -> JobTable:
         "repeats": study.repeats,
         "seed": study.seed,
         "simulation": (
-            {"auto": auto_numerics(jobs)}
+            {"auto": auto_numerics(jobs), **({"convergence": study.convergence} if study.convergence else {})}
             if study.simulation is None
             else study.simulation.model_dump(mode="json")
         ),

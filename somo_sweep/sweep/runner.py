@@ -27,7 +27,7 @@ from typing import Any
 import joblib
 import numpy as np
 
-from somo_sweep.errors import StorageError
+from somo_sweep.errors import SomoError, StorageError
 from somo_sweep.sweep.execution import Backend, Outcome, dask_client, execute
 from somo_sweep.sweep.jobs import Job, JobTable, build_jobs
 from somo_sweep.sweep.robustness import ReplicaPlan
@@ -263,6 +263,21 @@ def run_study(
         SomoError: Folder locked, different study in the folder, Dask unreachable.
         DescriptionError: ``adaptive.labels`` names a label the task does not give.
     """
+    if table is None and study.simulation is None and study.auto_step_s is None:
+        from dataclasses import replace
+
+        from somo_sweep.sweep.convergence import choose_step, outcomes_of, stored_choice
+        from somo_sweep.sweep.folder import read_manifest
+
+        choice = None
+        with contextlib.suppress(SomoError, OSError):
+            choice = stored_choice(read_manifest(study.output), study)
+        if choice is None:
+            workers = n_jobs or joblib.cpu_count() or 1
+            choice = choose_step(
+                study, lambda jobs: outcomes_of(execute(jobs, backend, workers, scheduler, timeout_s))
+            )
+        study = replace(study, auto_step_s=choice.step_s, convergence=choice.as_dict())
     table = table or build_jobs(study)
     adaptive = study.sampling == "adaptive" if adaptive is None else adaptive
     n_jobs = n_jobs or joblib.cpu_count() or 1

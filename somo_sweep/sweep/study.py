@@ -212,6 +212,10 @@ class Study:
         sampling: ``grid`` (every trial) or ``adaptive`` (see :mod:`somo_sweep.sweep.adaptive`).
         adaptive: Settings of adaptive sampling.
         robustness: Robustness replicas (:class:`Robustness`).
+        auto_step_s: Without ``simulation``: the step chosen by label convergence
+            (:mod:`somo_sweep.sweep.convergence`), each model shaped for it; None: the modal
+            choice (:func:`~somo_sweep.sim.numerics.choose_numerics`), the starting guess.
+        convergence: The record of that choice (for the manifest), or None.
     """
 
     name: str
@@ -230,6 +234,8 @@ class Study:
     sampling: str = "grid"
     adaptive: Adaptive = field(default_factory=Adaptive)
     robustness: Robustness = field(default_factory=Robustness)
+    auto_step_s: float | None = None
+    convergence: dict[str, Any] | None = None
     _models: dict[str, Model] = field(default_factory=dict, repr=False)
     _bases: dict[str, dict[str, Any]] = field(default_factory=dict, repr=False)
     _params: dict[str, BaseModel] = field(default_factory=dict, repr=False)

@@ -62,6 +62,9 @@ class SelftestParams(BaseModel):
             test can block until trials finish instead of polling (no reader: nothing sent).
         jitter: Largest shift of ``x`` a robustness replica draws (:func:`perturb`).
         x_offset: Shift of ``x`` in the labels (a replica's draw).
+        coarse_above_s: If > 0, the label ``step`` is ``coarse`` at time steps above this, s,
+            else ``fine``: a label that converges only below a known step.
+        label_the_step: Label ``dt`` with the time step itself: a label that never converges.
     """
 
     model_config = ConfigDict(extra="forbid", frozen=True)
@@ -80,6 +83,8 @@ class SelftestParams(BaseModel):
     notify_fifo: str = ""
     jitter: float = Field(0.0, ge=0)
     x_offset: float = 0.0
+    coarse_above_s: float = Field(0.0, ge=0)
+    label_the_step: bool = False
 
 
 def _notify(fifo: str) -> None:
@@ -93,7 +98,7 @@ def _notify(fifo: str) -> None:
         os.close(fd)
 
 
-def _result(params: SelftestParams, seed: int) -> TaskResult:
+def _result(params: SelftestParams, seed: int, step_s: float = 0.0) -> TaskResult:
     time.sleep(params.sleep_s)
     noise = np.random.default_rng(seed).normal()  # a NumPy scalar, as tasks often return
     if params.done_dir:
@@ -106,13 +111,17 @@ def _result(params: SelftestParams, seed: int) -> TaskResult:
             "noise": noise,
             "time_s": params.sleep_s,
         },
-        labels=_labels(params),
+        labels=_labels(params, step_s),
     )
 
 
-def _labels(params: SelftestParams) -> dict[str, str]:
+def _labels(params: SelftestParams, step_s: float = 0.0) -> dict[str, str]:
     x = params.x + params.x_offset
     labels = {"sign": "positive" if x > 0 else "non_positive"}
+    if params.coarse_above_s > 0:
+        labels["step"] = "coarse" if step_s > params.coarse_above_s else "fine"
+    if params.label_the_step:
+        labels["dt"] = f"{step_s:.6g}"
     if params.region_radius_m > 0:
         inside = x**2 + params.u**2 + params.v**2 < params.region_radius_m**2
         labels["region"] = "inside" if inside else "outside"
@@ -120,7 +129,7 @@ def _labels(params: SelftestParams) -> dict[str, str]:
 
 
 def _sleep(model: Model, params: SelftestParams, settings: WorldSettings, seed: int) -> TaskResult:
-    return _result(params, seed)
+    return _result(params, seed, settings.time_step_s)
 
 
 def _crash(model: Model, params: SelftestParams, settings: WorldSettings, seed: int) -> TaskResult:
@@ -139,7 +148,7 @@ def _unstable(model: Model, params: SelftestParams, settings: WorldSettings, see
     too_large = params.unstable_above_step_s == 0 or settings.time_step_s > params.unstable_above_step_s
     if params.x in params.unstable_x and too_large:
         raise UnstableSimulation("speed_cap", 0.123, "(selftest)")
-    return _result(params, seed)
+    return _result(params, seed, settings.time_step_s)
 
 
 def perturb(params: SelftestParams, rng: np.random.Generator) -> SelftestParams:
