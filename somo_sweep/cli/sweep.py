@@ -3,6 +3,8 @@
 from __future__ import annotations
 
 import math
+from collections.abc import Iterator
+from contextlib import contextmanager
 from pathlib import Path
 from typing import TYPE_CHECKING, Annotated
 
@@ -28,7 +30,7 @@ from somo_sweep.cli.output import (
 from somo_sweep.errors import SomoError, StorageError
 
 if TYPE_CHECKING:  # the heavy modules are imported when a command runs
-    from collections.abc import Callable, Iterator
+    from collections.abc import Callable
 
     from somo_sweep.sweep.jobs import Job
     from somo_sweep.sweep.runner import RunSummary
@@ -142,7 +144,15 @@ def run(
     n_jobs = jobs or joblib.cpu_count() or 1
     try:
         if st.simulation is None:
-            st = auto_step(st, n_jobs, backend, scheduler, timeout)
+            with _term_as_interrupt() as caught:
+                try:
+                    st = auto_step(st, n_jobs, backend, scheduler, timeout)
+                except KeyboardInterrupt:
+                    _err.print(
+                        "interrupted while choosing the time step: no trial of the study ran yet; run the "
+                        "same command again to start over"
+                    )
+                    raise typer.Exit(128 + (caught[0] if caught else 2)) from None
         table = build_jobs(st)
     except SomoError as exc:
         fail(exc)
@@ -227,6 +237,24 @@ def run(
             err=True,
         )
         raise typer.Exit(1)
+
+
+@contextmanager
+def _term_as_interrupt() -> Iterator[list[int]]:
+    """SIGTERM raises KeyboardInterrupt in the block, as Ctrl-C does (the signal is recorded)."""
+    import signal
+
+    caught: list[int] = []
+
+    def handler(signum: int, frame: object) -> None:
+        caught.append(signum)
+        raise KeyboardInterrupt
+
+    old = signal.signal(signal.SIGTERM, handler)
+    try:
+        yield caught
+    finally:
+        signal.signal(signal.SIGTERM, old)
 
 
 def auto_step(

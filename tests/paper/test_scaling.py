@@ -27,6 +27,7 @@ model: models/ihm_finger.yaml
 params: {sleep_s: 0.2}
 sweep:
   task.x: {start: 1, stop: 6, step: 1}
+simulation: {time_step_s: 1.0e-3}
 """
 
 

@@ -144,3 +144,30 @@ def test_a_task_without_labels_takes_the_modal_step_after_one_sample_run(tmp_pat
     choice = choose_step(study, counted)  # type: ignore[arg-type]
     assert runs == [3] and choice.rungs == [] and choice.step_s == 1.5e-3
     assert choice.reason.startswith("the task gives no labels to converge; the modal rule")
+
+
+@pytest.mark.parametrize("signum", [2, 15], ids=["SIGINT", "SIGTERM"])
+def test_a_signal_while_the_step_is_chosen_stops_cleanly(tmp_path: Path, signum: int) -> None:
+    import os
+    import subprocess
+    import sys
+    import time
+
+    body = "task: selftest_sleep\nmodel: models/ihm_finger.yaml\nparams: {sleep_s: 0.5}\nsweep: {task.x: [1, 2]}\n"
+    path = make_study(tmp_path, body)
+    proc = subprocess.Popen(
+        [sys.executable, "-m", "somo_sweep", "run", str(path), "--out", str(tmp_path / "out"), "-j", "1"],
+        stderr=subprocess.PIPE,
+        text=True,
+    )
+    assert proc.stderr is not None
+    seen = ""
+    while "trying" not in seen and proc.poll() is None:
+        seen += proc.stderr.readline()
+    time.sleep(0.3)
+    assert proc.poll() is None, seen + proc.communicate()[1]
+    os.kill(proc.pid, signum)
+    rest = proc.communicate(timeout=60)[1]
+    assert proc.returncode == 128 + signum, seen + rest
+    assert "interrupted while choosing the time step" in rest and "Traceback" not in rest
+    assert not (tmp_path / "out" / "trials").exists()
