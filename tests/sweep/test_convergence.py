@@ -153,7 +153,8 @@ def test_a_signal_while_the_step_is_chosen_stops_cleanly(tmp_path: Path, signum:
     import sys
     import time
 
-    body = "task: selftest_sleep\nmodel: models/ihm_finger.yaml\nparams: {sleep_s: 0.5}\nsweep: {task.x: [1, 2]}\n"
+    body = "task: selftest_sleep\nmodel: models/ihm_finger.yaml\nparams: {sleep_s: 0.5}\n"
+    body += "sweep: {task.x: [1, 2]}\n"
     path = make_study(tmp_path, body)
     proc = subprocess.Popen(
         [sys.executable, "-m", "somo_sweep", "run", str(path), "--out", str(tmp_path / "out"), "-j", "1"],
