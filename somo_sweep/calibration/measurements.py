@@ -84,8 +84,6 @@ def _line(row: int, row_lines: list[int]) -> int:
 MAX_ROWS = 5000
 #: Largest measurement file read, in bytes (5000 rows of a bench file take well under 1 MiB).
 MAX_FILE_BYTES = 8 * 1024 * 1024
-#: Problems listed per file; the rest are counted.
-MAX_PROBLEMS = 20
 
 
 def _separator(text: str) -> str:
@@ -189,13 +187,7 @@ def read_measurements(path: str | Path, require_measured: bool = True) -> pd.Dat
                 csv.writer(line, delimiter=sep, lineterminator="").writerow(fields[:width])
                 body[i] = line.getvalue()
         if longer:
-            raise MeasurementError(
-                path,
-                [
-                    *longer[:MAX_PROBLEMS],
-                    *([f"… {len(longer) - MAX_PROBLEMS} more"] if len(longer) > MAX_PROBLEMS else []),
-                ],
-            )
+            raise MeasurementError(path, longer)
     try:
         raw = pd.read_csv(
             io.StringIO("\n".join(body)),
@@ -295,9 +287,7 @@ def read_measurements(path: str | Path, require_measured: bool = True) -> pd.Dat
             if test != owner and not math.isnan(row[c]):
                 problems.append(f"{where}, column {c}: only '{owner}' rows measure it; leave it empty")
     if problems:
-        more = len(problems) - MAX_PROBLEMS
-        listed = problems[:MAX_PROBLEMS] + ([f"… and {more} more problem(s)"] if more > 0 else [])
-        raise MeasurementError(path, listed)
+        raise MeasurementError(path, problems)
     return out.reset_index(drop=True)
 
 

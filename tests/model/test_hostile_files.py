@@ -345,3 +345,13 @@ def test_a_bad_value_in_an_included_file_is_named_by_that_file_and_its_line(tmp_
     with pytest.raises(DescriptionError) as info:
         load_model(tmp_path / "a.yaml")
     assert f"m/neg.yaml: line {number}: manipulator.actuators[0].length_m" in str(info.value)
+
+
+def test_a_file_with_many_problems_lists_twenty_and_counts_them_all(tmp_path: Path) -> None:
+    data = load_yaml("ihm_finger.yaml")
+    data["manipulator"].update({f"unknown_{i}": 1 for i in range(25)})
+    with pytest.raises(DescriptionError) as info:
+        model_from_dict(data, "m.yaml")
+    text = str(info.value)
+    assert len(info.value.problems) == 25 and text.startswith("m.yaml: 25 problem(s)\n")
+    assert text.count("\n  - ") == 20 and text.endswith("\n  … and 5 more problem(s)")

@@ -189,7 +189,7 @@ BIG = "z" * 1_000_000
 )
 def test_a_megabyte_value_or_key_is_cut_in_the_message(tmp_path: Path, body: str, message: str) -> None:
     text = _problems(make_study(tmp_path, HEAD + body))
-    assert message in text and "… (100000" in text
+    assert message in text and "(1000000 characters)" in text
     assert len(text) < 1500
 
 
@@ -235,3 +235,10 @@ def test_a_nul_byte_in_output_is_refused_at_its_line(tmp_path: Path) -> None:
     """It passed --dry-run and then was a ValueError traceback from mkdir."""
     path = selftest_study(tmp_path, extra='output: "results/x\\u0000y"')
     assert "output: holds a NUL byte, which no folder name can" in _problems(path)
+
+
+def test_a_long_name_is_cut_with_its_own_length_said(tmp_path: Path) -> None:
+    """A 300-character name was reported as "(302 characters)": the length of its repr."""
+    path = make_study(tmp_path, f"name: {'a' * 300}\n" + HEAD)
+    text = _problems(path)
+    assert f"name: String should have at most 100 characters, got '{'a' * 60}…' (300 characters)" in text
