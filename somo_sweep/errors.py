@@ -195,7 +195,7 @@ _OS_CAUSES: dict[int, tuple[str, str]] = {
     errno.EACCES: ("permission denied", "give yourself write access there, or give a folder of yours"),
     errno.EPERM: ("operation not permitted", "give yourself write access there, or give a folder of yours"),
     errno.ELOOP: (
-        "a symbolic link on the way leads back to itself (a link loop)",
+        "a symbolic link on the way leads back to itself, a link loop",
         "remove or repair that link",
     ),
     errno.ENAMETOOLONG: ("the name is longer than the file system allows", "give a shorter name"),

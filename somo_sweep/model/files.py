@@ -10,15 +10,19 @@ infinite numbers, are reported with their key path and line.
 
 from __future__ import annotations
 
+import contextlib
+import errno
 import json
 import math
+import os
 import re
+import stat
 from pathlib import Path
 from typing import Any
 
 import yaml
 
-from somo_sweep.errors import DescriptionError, Problem
+from somo_sweep.errors import DescriptionError, Problem, os_cause, shown
 
 __all__ = [
     "MAX_DEPTH",
@@ -57,14 +61,21 @@ def is_file(path: Path) -> bool:
 
 
 def missing_or_special(path: Path) -> str:
-    """Why ``path`` cannot be read as a file: missing, or a folder / device / pipe."""
+    """Why ``path`` cannot be read as a file: ``file not found`` (exactly, when it is missing),
+    a link to nothing, a link loop, a name too long, …, or a folder / device / pipe."""
     try:
-        exists = path.exists()
-    except (OSError, ValueError):
-        exists = False
-    if not exists:
+        info = os.stat(path)
+    except ValueError:  # a NUL byte in the name: no file has it
         return "file not found"
-    kind = "a folder" if path.is_dir() else "a device, pipe or socket"
+    except OSError as exc:
+        if exc.errno != errno.ENOENT:  # a link loop, a name too long, a folder we may not enter, …
+            cause, advice = os_cause(exc)
+            return f"cannot be opened: {cause}; {advice}"
+        with contextlib.suppress(OSError, ValueError):
+            if path.is_symlink():
+                return f"a symbolic link to {shown(os.readlink(path), 200)}, which does not exist"
+        return "file not found"
+    kind = "a folder" if stat.S_ISDIR(info.st_mode) else "a device, pipe or socket"
     return f"not a regular file ({kind}); allowed: a text file"
 
 

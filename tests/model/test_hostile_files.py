@@ -355,3 +355,24 @@ def test_a_file_with_many_problems_lists_twenty_and_counts_them_all(tmp_path: Pa
     text = str(info.value)
     assert len(info.value.problems) == 25 and text.startswith("m.yaml: 25 problem(s)\n")
     assert text.count("\n  - ") == 20 and text.endswith("\n  … and 5 more problem(s)")
+
+
+@pytest.mark.parametrize("command", [["check"], ["run", "--dry-run"], ["calibrate"], ["diagnose"]])
+def test_a_symbolic_link_loop_is_named_a_loop_not_a_missing_file(tmp_path: Path, command: list[str]) -> None:
+    """A study that is a link loop was reported as "file not found"."""
+    (tmp_path / "a.yaml").symlink_to(tmp_path / "b.yaml")
+    (tmp_path / "b.yaml").symlink_to(tmp_path / "a.yaml")
+    res = CliRunner().invoke(app, [command[0], str(tmp_path / "a.yaml"), *command[1:]])
+    assert res.exit_code == 2 and "Traceback" not in res.output
+    assert "a symbolic link on the way leads back to itself, a link loop (Too many levels" in res.output
+    assert "remove or repair that link" in res.output and "not found" not in res.output
+
+
+def test_a_study_whose_model_is_a_link_to_nothing_says_so(tmp_path: Path) -> None:
+    (tmp_path / "gone.yaml").symlink_to(tmp_path / "deleted.yaml")
+    study = tmp_path / "s.yaml"
+    study.write_text("task: selftest_sleep\nmodel: gone.yaml\n")
+    res = CliRunner().invoke(app, ["run", str(study), "--dry-run"])
+    assert res.exit_code == 2
+    link, target = tmp_path / "gone.yaml", tmp_path / "deleted.yaml"
+    assert f"model file {link}: a symbolic link to {target}, which does not exist" in res.output
