@@ -22,9 +22,32 @@ from somo_sweep.cli.output import (
 from somo_sweep.errors import SomoError
 
 if TYPE_CHECKING:
+    import pandas as pd
+
     from somo_sweep.model.load import Model
 
 METHODS = ("fit", "paper")
+
+KEEP_DUPLICATES = Annotated[
+    bool,
+    typer.Option(
+        "--keep-duplicates",
+        help="Count rows that repeat an earlier row exactly (every field equal) as separate "
+        "measurements [default: each once, with a warning naming the lines].",
+    ),
+]
+
+
+def counted_rows(rows: pd.DataFrame, measurements: Path, keep_duplicates: bool) -> pd.DataFrame:
+    """The rows a command uses: a row repeating an earlier one exactly is counted once (unless
+    ``keep_duplicates``), and either way a warning on stderr names the lines."""
+    from somo_sweep.calibration.repeats import describe_repeats, drop_repeats, find_repeats
+
+    repeats = find_repeats(rows)
+    if not repeats:
+        return rows
+    typer.echo(f"warning: {measurements}: {describe_repeats(repeats, kept=keep_duplicates)}", err=True)
+    return rows if keep_duplicates else drop_repeats(rows, repeats)
 
 
 def default_output(measurements: Path, kind: str) -> Path:
@@ -121,6 +144,7 @@ def calibrate(
         float, typer.Option(help="Gravity on the bench, m/s² (0: a horizontal, weightless bench).")
     ] = 9.81,
     allow_outside: ALLOW_OUTSIDE = False,
+    keep_duplicates: KEEP_DUPLICATES = False,
 ) -> None:
     """Calibrate joint stiffness and pressure→torque gain; write the calibrated model."""
     from rich.console import Console
@@ -156,7 +180,7 @@ def calibrate(
                     f"-o {output} is a file the report writes in --report {report} (calibration.json and "
                     "one PNG per metric); nothing was written: give the model another name"
                 )
-        rows = read_measurements(measurements)
+        rows = counted_rows(read_measurements(measurements), measurements, keep_duplicates)
         base = base_model(
             measurements, model, length_mm, segments, mass_g, width_mm, thickness_mm, allow_outside
         )

@@ -10,6 +10,7 @@ from typing import Annotated
 
 import typer
 
+from somo_sweep.cli.calibrate import KEEP_DUPLICATES
 from somo_sweep.cli.model import ALLOW_OUTSIDE
 from somo_sweep.cli.output import (
     check_output,
@@ -61,12 +62,13 @@ def diagnose(
     ] = 2,
     gravity_m_s2: Annotated[float, typer.Option(help="Gravity on the bench, m/s².")] = 9.81,
     allow_outside: ALLOW_OUTSIDE = False,
+    keep_duplicates: KEEP_DUPLICATES = False,
 ) -> None:
     """Find where simulation and measurement disagree, name the missing effect, add it to the model."""
     from somo_sweep.calibration.measurements import read_measurements
     from somo_sweep.calibration.report import model_yaml
     from somo_sweep.calibration.solve import CALIBRATION_SETTINGS, build_problem, solve_fit
-    from somo_sweep.cli.calibrate import base_model, default_output
+    from somo_sweep.cli.calibrate import base_model, counted_rows, default_output
     from somo_sweep.diagnosis.diagnose import build_diagnosis
     from somo_sweep.diagnosis.diagnose import diagnose as run_diagnosis
     from somo_sweep.diagnosis.effects import get_effect
@@ -94,7 +96,7 @@ def diagnose(
         check_replaceable(folder / "model.yaml", [measurements, model])
         check_replaceable(folder / "report.md", [measurements, model], older_prefix=b"# Diagnosis of ")
         check_replaceable(folder / "diagnosis.json", [measurements, model], kind="json")
-        rows = read_measurements(measurements)
+        rows = counted_rows(read_measurements(measurements), measurements, keep_duplicates)
         settings = replace(CALIBRATION_SETTINGS, gravity_m_s2=gravity_m_s2)
         if model is not None:
             base = load_model(model, allow_outside)
@@ -112,7 +114,9 @@ def diagnose(
             base = first.model
             typer.echo("calibrated the finger of the CSV's '# finger:' line first (somo-sweep calibrate)")
         with working("simulating the model as given", bench_rows=True):
-            problem = build_diagnosis(rows, base, str(measurements), settings, names, n_jobs=jobs)
+            problem = build_diagnosis(
+                rows, base, str(measurements), settings, names, n_jobs=jobs, keep_duplicates=True
+            )
         typer.echo(problem.describe())
         with working(f"refitting with {len(problem.effects)} effects", bench_rows=True):
             result = run_diagnosis(problem, n_jobs=jobs)
