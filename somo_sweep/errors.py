@@ -27,6 +27,7 @@ __all__ = [
     "UnstableSimulation",
     "did_you_mean",
     "os_cause",
+    "os_error_for",
     "printable",
     "quoted",
     "shown",
@@ -225,11 +226,23 @@ def os_cause(exc: OSError) -> tuple[str, str]:
     Returns:
         (cause, advice); advice is a phrase the caller completes (e.g. "…, then run again").
     """
-    code = exc.errno
+    code = exc.errno if isinstance(exc.errno, int) else None
     if code is None and (found := _ERRNO_IN_TEXT.search(str(exc))):
         code = int(found.group(1))
-    system = exc.strerror or (os.strerror(code) if code is not None else str(exc).splitlines()[0])
+    # pyarrow's strerror is a sentence around the system's words: the words alone, by errno.
+    system = os.strerror(code) if code is not None else exc.strerror or str(exc).splitlines()[0]
     if code in _OS_CAUSES:
         cause, advice = _OS_CAUSES[code]
         return f"{cause} ({system})", advice
     return system, "fix that"
+
+
+def os_error_for(exc: OSError, path: str | os.PathLike[str]) -> OSError:
+    """``exc`` as raised for ``path``: a temporary file's error named as the file it stands for
+    (the errno kept, also when pyarrow gives it only in its text)."""
+    code = exc.errno if isinstance(exc.errno, int) else None
+    if code is None and (found := _ERRNO_IN_TEXT.search(str(exc))):
+        code = int(found.group(1))
+    if not isinstance(code, int):
+        return OSError(None, exc.strerror or str(exc).splitlines()[0], str(path))
+    return OSError(code, os.strerror(code), str(path))

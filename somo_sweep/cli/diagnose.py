@@ -19,7 +19,7 @@ from somo_sweep.cli.output import (
     fail,
     figure_bytes,
     working,
-    write_atomic,
+    write_checked,
 )
 from somo_sweep.errors import SomoError
 
@@ -151,8 +151,10 @@ def diagnose(
                 check_output(path, data, [measurements, model])
     except SomoError as exc:
         fail(exc)
-    for path, data in outputs:
-        write_atomic(path, data)
+    try:
+        write_checked(outputs)
+    except SomoError as exc:
+        fail(exc)
     for line in verdict_lines(result):
         typer.echo(line)
     typer.echo(

@@ -23,7 +23,7 @@ from typing import TYPE_CHECKING, Any, NoReturn
 
 import typer
 
-from somo_sweep.errors import SomoError
+from somo_sweep.errors import SomoError, StorageError, os_cause
 
 if TYPE_CHECKING:
     from matplotlib.figure import Figure
@@ -42,6 +42,7 @@ __all__ = [
     "working",
     "write_artifacts",
     "write_atomic",
+    "write_checked",
     "write_outputs",
 ]
 
@@ -74,12 +75,13 @@ def checked_jobs(jobs: int, allow_default: bool = False) -> int:
     )
 
 
-def fail(exc: BaseException, code: int = 2) -> NoReturn:
-    """Print a user error (traceback only with ``--debug``) and exit with ``code``."""
+def fail(exc: BaseException, code: int | None = None) -> NoReturn:
+    """Print a user error (traceback only with ``--debug``) and exit with ``code`` (default: 1
+    for a :class:`~somo_sweep.errors.StorageError`, a failed write; 2 for bad input)."""
     if state["debug"]:
         raise exc
     typer.echo(f"error: {exc}", err=True)
-    raise typer.Exit(code)
+    raise typer.Exit(code if code is not None else 1 if isinstance(exc, StorageError) else 2)
 
 
 @contextmanager
@@ -372,7 +374,32 @@ def write_outputs(
     checked = [
         (path, check_output(path, data, inputs)) for path, (_, data) in zip(paths, outputs, strict=True)
     ]
-    return [write_atomic(path, data) for path, data in checked]
+    return write_checked(checked)
+
+
+def write_checked(outputs: Sequence[tuple[Path, str | bytes]]) -> list[Path]:
+    """Write outputs already checked, in order (:func:`write_atomic`); returns the paths.
+
+    Raises:
+        StorageError: One could not be written: names it, the cause (a full disk, a read-only
+            one, …), which files were written before it and which not, and what to do.
+    """
+    written: list[Path] = []
+    for i, (path, data) in enumerate(outputs):
+        try:
+            written.append(write_atomic(path, data))
+        except OSError as exc:
+            cause, advice = os_cause(exc)
+            left = [str(p) for p, _ in outputs[i:]]
+            done = (
+                f"{', '.join(str(p) for p in written)} written, {', '.join(left)} not"
+                if written
+                else "nothing was written"
+            )
+            raise StorageError(
+                f"cannot write {plain(path)}: {cause}; {done}: {advice}, then run the same command again"
+            ) from None
+    return written
 
 
 def write_artifacts(artifacts: Artifacts, out: Path) -> list[Path]:

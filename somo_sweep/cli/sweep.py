@@ -290,11 +290,15 @@ def _save_plots(folder: Path) -> None:
 
 def show(results: Annotated[Path, typer.Argument(help="Results folder, e.g. results/<study>.")]) -> None:
     """Print a results folder's summary: counts by status and label, per-axis breakdown."""
+    from somo_sweep.sweep.folder import pending_journal_rows
+    from somo_sweep.sweep.lock import holder_now
     from somo_sweep.sweep.store import read_manifest, read_results
     from somo_sweep.sweep.summary import print_results
 
     try:
-        print_results(_out, read_results(results, _damaged), read_manifest(results))
+        df, manifest = read_results(results, _damaged), read_manifest(results)
+        pending = pending_journal_rows(results, manifest["study_hash"], set(df["job_id"]))
+        print_results(_out, df, manifest, holder_now(results), pending)
     except SomoError as exc:
         fail(exc)
 

@@ -37,6 +37,7 @@ __all__ = [
     "declared_types",
     "journal_rows",
     "part_files",
+    "pending_journal_rows",
     "read_manifest",
     "read_results",
     "split_parts",
@@ -463,3 +464,22 @@ def journal_rows(path: Path) -> list[dict[str, Any]]:
             if isinstance(row, dict) and isinstance(row.get("job_id"), str):
                 rows.append(row)
     return rows
+
+
+def pending_journal_rows(folder: str | Path, study_hash: str, stored: Collection[str]) -> dict[str, int]:
+    """Finished trials in the journals of runs that ended without storing them (killed), by run id.
+
+    Only rows of ``study_hash`` whose job is not in ``stored`` count, each job once: what the
+    next run of the study recovers.
+    """
+    counts: dict[str, int] = {}
+    seen = set(stored)
+    with contextlib.suppress(OSError):
+        for journal in sorted((Path(folder) / "trials").glob(JOURNAL_GLOB)):
+            run_id = journal.name.removeprefix(".journal-").removesuffix(".jsonl")
+            with contextlib.suppress(OSError):
+                for row in journal_rows(journal):
+                    if row.get("study_hash") == study_hash and row["job_id"] not in seen:
+                        seen.add(row["job_id"])
+                        counts[run_id] = counts.get(run_id, 0) + 1
+    return counts

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import os
 import sys
 from pathlib import Path
 
@@ -257,3 +258,25 @@ def test_diagnose_out_folder_keeps_the_users_own_report_and_replaces_its_own(tmp
     res = CliRunner().invoke(app, ["diagnose", str(BENCH), "--out", str(out), "--effects", "self_weight"])
     assert res.exit_code == 0, res.output
     assert (out / "report.md").read_text().startswith("<!-- written by somo-sweep diagnose -->")
+
+
+def test_the_resource_trackers_leak_list_is_filtered_for_the_processes_a_run_starts(
+    monkeypatch: pytest.MonkeyPatch,
+) -> None:
+    """Loky's resource tracker is a process of its own that outlives a killed run; it printed its
+    list of "leaked" semaphores (which it then removes) under the user's prompt."""
+    import subprocess
+
+    from somo_sweep.cli.app import _quiet_resource_tracker
+
+    monkeypatch.setenv("PYTHONWARNINGS", "error::DeprecationWarning")
+    _quiet_resource_tracker()
+    _quiet_resource_tracker()
+    assert os.environ["PYTHONWARNINGS"] == "error::DeprecationWarning,ignore:resource_tracker:UserWarning"
+    tracker = (
+        "import warnings; warnings.warn('resource_tracker: There appear to be 8 leaked semlock objects')"
+    )
+    ours = "import warnings; warnings.warn('something else')"
+    for code, shown in ((tracker, False), (ours, True)):
+        err = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True).stderr
+        assert ("UserWarning" in err) == shown, err
