@@ -8,6 +8,7 @@ reader never sees half a file), and every figure through :func:`figure_bytes`.
 from __future__ import annotations
 
 import contextlib
+import errno
 import glob
 import io
 import json
@@ -189,8 +190,10 @@ def check_replaceable(
         # The nearest folder that exists must let us create in it: found now, not after the work.
         nearest = next((p for p in path.parents if p.exists()), Path("."))
         if not os.access(nearest, os.W_OK | os.X_OK):
+            code = errno.EROFS if _read_only_disk(nearest) else errno.EACCES
+            cause, advice = os_cause(OSError(code, os.strerror(code)))
             raise SomoError(
-                f"cannot write {path}: {nearest} is read-only or not ours to write in; nothing was written"
+                f"cannot write {path}: {nearest} is read-only to us: {cause}; nothing was written: {advice}"
             )
         if not path.exists():
             return
@@ -231,6 +234,14 @@ def check_replaceable(
         f"{path} exists and {what}: somo-sweep did not write it, so it is not replaced; nothing was "
         "written: give another file name, or move that file away first"
     )
+
+
+def _read_only_disk(folder: Path) -> bool:
+    """Whether ``folder`` is on a file system mounted read-only (not just a folder we may not write)."""
+    try:
+        return bool(os.statvfs(folder).f_flag & os.ST_RDONLY)
+    except (OSError, AttributeError):
+        return False
 
 
 def plain(path: Path) -> Path:
