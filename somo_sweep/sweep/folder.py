@@ -343,12 +343,8 @@ def read_results(folder: str | Path, on_damaged: OnDamaged | None = None) -> pd.
         df = tables[0].to_pandas()
     if _PART not in df.columns:
         df[_PART] = pd.Series(pd.NA, index=df.index, dtype="Int64")
-    repeated = df["job_id"].duplicated(keep="first") & df[_PART].notna()
-    for index, rows in df[repeated].groupby(_PART):
-        first = df.loc[df["job_id"].isin(rows["job_id"]) & ~repeated, _PART]
-        where = ", ".join(sorted({names[int(i)].name for i in first.dropna()}))
-        report(names[int(index)], f"{REPEATS} {len(rows)} row(s) stored in {where}: counted once (a copy?)")
-    df = df[~repeated]
+    # Rows of another study first: one that shares cells with this one has the same job ids, and
+    # its part is foreign, not a copy of ours.
     foreign = df[df["study_hash"] != manifest["study_hash"]]
     if len(foreign) and len(foreign) == len(df) and foreign["study_hash"].nunique() == 1:
         # Every row agrees with every other and none with the manifest: the manifest is the odd one.
@@ -364,6 +360,12 @@ def read_results(folder: str | Path, on_damaged: OnDamaged | None = None) -> pd.
             f"{folder}: {len(foreign)} row(s) belong to another study "
             f"(hash {foreign['study_hash'].iloc[0]}), in {', '.join(parts)}; move that file away"
         )
+    repeated = df["job_id"].duplicated(keep="first") & df[_PART].notna()
+    for index, rows in df[repeated].groupby(_PART):
+        first = df.loc[df["job_id"].isin(rows["job_id"]) & ~repeated, _PART]
+        where = ", ".join(sorted({names[int(i)].name for i in first.dropna()}))
+        report(names[int(index)], f"{REPEATS} {len(rows)} row(s) stored in {where}: counted once (a copy?)")
+    df = df[~repeated]
     missing = {c.name: None for c in COLUMNS if c.name not in df.columns}  # parts from an older version
     df = df.drop(columns=[_PART]).assign(**missing)
     return df.sort_values("trial", kind="stable").reset_index(drop=True)

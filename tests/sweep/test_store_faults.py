@@ -6,6 +6,7 @@ import errno
 import json
 import os
 import re
+import shutil
 from pathlib import Path
 
 import pandas as pd
@@ -671,6 +672,24 @@ def test_a_part_of_another_study_copied_in_is_quarantined_by_the_next_run(tmp_pa
     assert (out / "trials" / "quarantine" / "_part-from-elsewhere.parquet").is_file()
     show = CliRunner().invoke(app, ["show", str(out)])
     assert show.exit_code == 0 and len(read_results(out)) == 8, show.output
+
+
+def test_a_part_of_another_study_sharing_job_ids_is_one_foreign_study_error(tmp_path: Path) -> None:
+    """A study sharing cells with this one has the same job ids: its part copied in was also
+    reported as "repeats 4 row(s) … (a copy?)" beside the foreign-study error."""
+    path, out = _finished(tmp_path)
+    other = make_study(tmp_path / "b", (tmp_path / "study.yaml").read_text().replace("stop: 8", "stop: 4"))
+    run_study(load_study(other, tmp_path / "b" / "out"), n_jobs=1)
+    (copy,) = _parts(tmp_path / "b" / "out")
+    assert set(pd.read_parquet(copy)["job_id"]) <= set(read_results(out)["job_id"])  # the same cells
+    shutil.copy(copy, out / "trials" / "part-from-b.parquet")
+    res = CliRunner().invoke(app, ["show", str(out)])
+    assert res.exit_code == 2 and "4 row(s) belong to another study" in res.output, res.output
+    assert "in part-from-b.parquet; move that file away" in res.output
+    assert "repeats" not in res.output and "a copy?" not in res.output
+    ran = _run(path, out)
+    assert ran.exit_code == 0 and "part file part-from-b.parquet holds rows of another study" in ran.output
+    assert "repeats" not in ran.output and len(read_results(out)) == 8
 
 
 def test_a_scheduler_without_the_dask_backend_is_refused(tmp_path: Path) -> None:
