@@ -251,6 +251,11 @@ def read_manifest(folder: str | Path) -> dict[str, Any]:
         data = json.loads(path.read_text(encoding="utf-8"))
         if not isinstance(data, dict) or not isinstance(data.get("study_hash"), str):
             raise ValueError("not a manifest: no study_hash")
+        trials = data.get("n_trials")
+        if trials is not None and (isinstance(trials, bool) or not isinstance(trials, int) or trials < 1):
+            # true is an int to Python, and a count below 1 no study has: "0 of True trials stored"
+            given = shown(json.dumps(trials, default=str))
+            raise ValueError(f"its 'n_trials' is {given}, not a whole number of trials of at least 1")
         for key, kind in _MANIFEST_TYPES.items():
             if key in data and not isinstance(data[key], kind):
                 raise ValueError(f"its '{key}' is {type(data[key]).__name__}, not {_KIND_NAMES[kind]}")

@@ -376,7 +376,7 @@ class ResultStore:
             self.write(list(rows.values()))
             self.rows_written = 0  # written now, but finished by the killed run
             whose = self._credit(by_run)
-            source = "their journals" if whose == "earlier runs" else "its journal"
+            source = "their journals" if len(by_run) > 1 else "its journal"
             self.notes.append(f"recovered {len(rows)} finished trial(s) of {whose} from {source}")
         for journal in journals:
             journal.unlink()
@@ -399,9 +399,8 @@ class ResultStore:
                 run["trials_written"] = run.get("trials_written", 0) + n
             statuses.add(run.get("status") if run is not None else None)
         status = statuses.pop() if len(statuses) == 1 else None
-        return {"aborted": "a killed run", "failed": "a run that stopped itself"}.get(
-            status or "", "earlier runs"
-        )
+        unknown = "an earlier run" if len(by_run) == 1 else "earlier runs"
+        return {"aborted": "a killed run", "failed": "a run that stopped itself"}.get(status or "", unknown)
 
     # -- reading -----------------------------------------------------------------------------
 

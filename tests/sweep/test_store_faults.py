@@ -644,7 +644,14 @@ def test_a_link_left_in_the_folder_never_carries_a_write_outside_it(tmp_path: Pa
 
 @pytest.mark.parametrize(
     ("key", "value"),
-    [("files", [1]), ("files", [None]), ("columns", {"a": 1}), ("columns", {"a": {"type": "?"}})],
+    [
+        ("files", [1]),
+        ("files", [None]),
+        ("columns", {"a": 1}),
+        ("columns", {"a": {"type": "?"}}),
+        ("n_trials", True),
+        ("n_trials", -5),
+    ],
 )
 def test_a_manifest_with_wrong_inner_types_is_rebuilt_not_a_traceback(
     tmp_path: Path, key: str, value: object
@@ -656,6 +663,24 @@ def test_a_manifest_with_wrong_inner_types_is_rebuilt_not_a_traceback(
     res = _run(path, out)
     assert res.exit_code == 0 and "rebuilt from the part files" in res.output, res.output  # type: ignore[attr-defined]
     assert len(read_results(out)) == 8
+
+
+@pytest.mark.parametrize(
+    ("value", "said"), [(True, "true"), (-5, "-5"), (0, "0"), (2.5, "2.5"), ("8", '"8"')]
+)
+def test_a_trial_count_no_study_has_is_refused_not_printed(tmp_path: Path, value: object, said: str) -> None:
+    """``n_trials: true`` in a manifest showed "0 of True trials stored"; -5, "of -5 trials"."""
+    _, out = _finished(tmp_path)
+    manifest = json.loads((out / "manifest.json").read_text())
+    manifest["n_trials"] = value
+    (out / "manifest.json").write_text(json.dumps(manifest))
+    for command in ("show", "plot"):
+        res = CliRunner().invoke(app, [command, str(out)])
+        assert res.exit_code == 2 and "Traceback" not in res.output, res.output
+        assert (
+            f"manifest.json is damaged (its 'n_trials' is {said}, not a whole number of trials of at least "
+            f"1); run the study again with --out {out} to rebuild it from the trials"
+        ) in res.output
 
 
 def test_a_part_of_another_study_copied_in_is_quarantined_by_the_next_run(tmp_path: Path) -> None:
