@@ -2,7 +2,6 @@
 
 from __future__ import annotations
 
-import json
 from dataclasses import replace
 from pathlib import Path
 from typing import TYPE_CHECKING, Annotated
@@ -15,6 +14,7 @@ from somo_sweep.cli.output import (
     checked_jobs,
     fail,
     figure_bytes,
+    json_report,
     plain,
     working,
     write_outputs,
@@ -27,6 +27,8 @@ if TYPE_CHECKING:
     from somo_sweep.model.load import Model
 
 METHODS = ("fit", "paper")
+#: Keys of every ``calibration.json`` (earlier versions wrote it without the JSON mark).
+CALIBRATION_KEYS = frozenset({"method", "measurements", "parameters", "tests", "somo_sweep_version"})
 
 KEEP_DUPLICATES = Annotated[
     bool,
@@ -173,7 +175,9 @@ def calibrate(
         output = output or default_output(measurements, "calibration") / "model.yaml"
         check_replaceable(output, [measurements, model])
         if report is not None:
-            check_replaceable(report / "calibration.json", [measurements, model], kind="json")
+            check_replaceable(
+                report / "calibration.json", [measurements, model], kind="json", older_keys=CALIBRATION_KEYS
+            )
             in_report = plain(output).parent == plain(report)
             if in_report and (output.name == "calibration.json" or output.suffix.lower() == ".png"):
                 raise SomoError(
@@ -233,12 +237,7 @@ def calibrate(
         (output, model_yaml(with_provenance(result, measurements), header))
     ]
     if report is not None:
-        outputs.append(
-            (
-                report / "calibration.json",
-                json.dumps(summary(result, measurements), indent=2, ensure_ascii=False) + "\n",
-            )
-        )
+        outputs.append((report / "calibration.json", json_report(summary(result, measurements), "calibrate")))
         for metric in result.metrics:
             name = metric.label.replace("[", "_").replace("]", "")
             outputs.append((report / f"{name}.png", _figure_bytes(result, metric.label, "png")))

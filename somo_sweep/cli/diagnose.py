@@ -2,7 +2,6 @@
 
 from __future__ import annotations
 
-import json
 import time
 from dataclasses import replace
 from pathlib import Path
@@ -18,10 +17,14 @@ from somo_sweep.cli.output import (
     checked_jobs,
     fail,
     figure_bytes,
+    json_report,
     working,
     write_checked,
 )
 from somo_sweep.errors import SomoError
+
+#: Keys of every ``diagnosis.json`` (earlier versions wrote it without the JSON mark).
+DIAGNOSIS_KEYS = frozenset({"missing_effect", "best_candidate", "verdict", "candidates"})
 
 
 def _figure_png(result: object) -> bytes:
@@ -95,7 +98,9 @@ def diagnose(
         folder = out or default_output(measurements, "diagnosis")
         check_replaceable(folder / "model.yaml", [measurements, model])
         check_replaceable(folder / "report.md", [measurements, model], older_prefix=b"# Diagnosis of ")
-        check_replaceable(folder / "diagnosis.json", [measurements, model], kind="json")
+        check_replaceable(
+            folder / "diagnosis.json", [measurements, model], kind="json", older_keys=DIAGNOSIS_KEYS
+        )
         rows = counted_rows(read_measurements(measurements), measurements, keep_duplicates)
         settings = replace(CALIBRATION_SETTINGS, gravity_m_s2=gravity_m_s2)
         if model is not None:
@@ -140,7 +145,7 @@ def diagnose(
         f"diagnosed by somo-sweep diagnose from {measurements} and {record['model']}: {result.missing_effect}"
     )
     outputs: list[tuple[Path, str | bytes]] = [
-        (out / "diagnosis.json", json.dumps(record, indent=2, ensure_ascii=False) + "\n"),
+        (out / "diagnosis.json", json_report(record, "diagnose")),
         (out / "report.md", report_markdown(result, str(measurements))),
         (out / "model.yaml", model_yaml(diagnosed, header)),
         (out / "diagnosis.png", _figure_png(result)),

@@ -32,6 +32,7 @@ if TYPE_CHECKING:
     from somo_sweep.paper.artifacts import Artifacts
 
 __all__ = [
+    "JSON_MARKER",
     "MARKER",
     "MAX_JOBS_PER_CPU",
     "check_output",
@@ -39,6 +40,7 @@ __all__ = [
     "checked_jobs",
     "fail",
     "figure_bytes",
+    "json_report",
     "state",
     "working",
     "write_artifacts",
@@ -164,18 +166,45 @@ def _mode_for(path: Path) -> int:
 
 #: What every text file somo-sweep writes says in its first lines (a comment header).
 MARKER = b"somo-sweep"
+#: The key that marks a JSON report as somo-sweep's (JSON has no comments): ``"somo-sweep COMMAND"``.
+JSON_MARKER = "written_by"
+
+
+def json_report(data: dict[str, Any], command: str) -> str:
+    """A JSON report's text, marked as written by ``somo-sweep COMMAND`` (its first key), so that a
+    later run replaces it and never a user's own file of the same name (:func:`check_replaceable`)."""
+    return json.dumps({JSON_MARKER: f"somo-sweep {command}", **data}, indent=2, ensure_ascii=False) + "\n"
+
+
+def _our_json(data: Any, older_keys: frozenset[str]) -> bool:
+    """Whether parsed JSON is a report of ours: marked (:func:`json_report`), or written by an
+    earlier version without the mark (an object holding every one of ``older_keys``)."""
+    if not isinstance(data, dict):
+        return False
+    mark = data.get(JSON_MARKER)
+    if isinstance(mark, str) and mark.startswith("somo-sweep"):
+        return True
+    return bool(older_keys) and older_keys <= data.keys()
+
+
 #: Bytes of an existing file read to recognise it.
 _HEAD_BYTES = 4096
 
 
 def check_replaceable(
-    path: Path, inputs: Sequence[Path | str | None] = (), kind: str = "text", older_prefix: bytes = b""
+    path: Path,
+    inputs: Sequence[Path | str | None] = (),
+    kind: str = "text",
+    older_prefix: bytes = b"",
+    older_keys: frozenset[str] = frozenset(),
 ) -> None:
     """Refuse to replace a file the user may need: one of the command's inputs, or one that
-    somo-sweep did not write (a text file without :data:`MARKER` in its first lines; for
-    ``kind="json"`` a file that is not JSON, or a results folder's manifest), or a folder.
-    ``kind="binary"`` checks only for a folder or an input. A missing file, or one of ours, is fine;
-    ``older_prefix`` recognises what an earlier version wrote without the header.
+    somo-sweep did not write, or a folder. Not ours: a text file without :data:`MARKER` in its
+    first lines; for ``kind="json"`` (a report) a file that is not a JSON object with the
+    :data:`JSON_MARKER` key (``older_keys``: or every one of these keys, as an earlier version
+    wrote it); for ``kind="any-json"`` (figure data) a file that is not JSON, or a results folder's
+    manifest. ``kind="binary"`` checks only for a folder or an input. A missing file, or one of
+    ours, is fine; ``older_prefix`` recognises what an earlier version wrote without the header.
 
     Call it before the work, so that a wrong name costs nothing.
 
@@ -215,21 +244,25 @@ def check_replaceable(
             head = fh.read(_HEAD_BYTES if kind == "text" else 64 * 1024 * 1024 + 1)
     except OSError as exc:
         raise SomoError(f"cannot check {path} before replacing it: {exc.strerror or exc}") from None
-    if kind == "json":
+    if kind in ("json", "any-json"):
         try:
             data = json.loads(head)
         except ValueError:
-            pass
+            data = None
         else:
             if isinstance(data, dict) and "study_hash" in data and "runs" in data:
                 raise SomoError(
                     f"{path} is a results folder's manifest (its record of every run); it is not "
                     "replaced and nothing was written: give another file name"
                 )
-            return
+            if kind == "any-json" or _our_json(data, older_keys):
+                return
     elif MARKER in head or (older_prefix and head.startswith(older_prefix)):
         return
-    what = "is not JSON" if kind == "json" else "has no 'somo-sweep' header"
+    what = {
+        "json": f'has no "{JSON_MARKER}": "somo-sweep …" key',
+        "any-json": "is not JSON",
+    }.get(kind, "has no 'somo-sweep' header")
     raise SomoError(
         f"{path} exists and {what}: somo-sweep did not write it, so it is not replaced; nothing was "
         "written: give another file name, or move that file away first"
@@ -354,7 +387,7 @@ def check_output(path: Path, data: str | bytes, inputs: Sequence[Path | str | No
     raw = data.encode("utf-8") if isinstance(data, str) else data
     path = plain(path)
     if path.suffix == ".json":
-        check_replaceable(path, inputs, kind="json")
+        check_replaceable(path, inputs, kind="any-json")
         return raw
     check_replaceable(path, inputs, kind="binary")  # missing, a folder, an input
     try:

@@ -445,7 +445,7 @@ def numerics(
         fail(SomoError(f"--compare must be half-step or reference, got '{compare}'"))
     if save is not None:
         try:
-            check_replaceable(save, kind="json")
+            check_replaceable(save, kind="any-json")
         except SomoError as exc:
             fail(exc)
     typer.echo(f"A: {setup.describe()}\nB: {other.describe()}")

@@ -22,6 +22,7 @@ from somo_sweep.cli.output import (
     checked_jobs,
     fail,
     figure_bytes,
+    json_report,
     write_atomic,
     write_outputs,
 )
@@ -38,6 +39,8 @@ _out = Console()
 MAX_TRIALS = 1_000_000
 #: Rows a dry run prints.
 DRY_ROWS = 10
+#: Keys of every ``recheck --report`` file (earlier versions wrote it without the JSON mark).
+RECHECK_KEYS = frozenset({"trials", "columns_compared", "identical", "mismatches"})
 
 ALLOW_OUTSIDE = Annotated[
     bool,
@@ -350,12 +353,12 @@ def recheck(
         fail(SomoError(f"--seed must be from 0 to 2**63 - 1, got {seed}"))
     try:
         if report is not None:
-            check_replaceable(report, [study], kind="json")
+            check_replaceable(report, [study], kind="json", older_keys=RECHECK_KEYS)
         result = run_recheck(load_study(study, out, max_trials, allow_outside), trials, seed, _damaged)
     except SomoError as exc:
         fail(exc)
     if report is not None:
-        write_atomic(report, json.dumps(result.to_dict(), indent=1, default=str))
+        write_atomic(report, json_report(json.loads(json.dumps(result.to_dict(), default=str)), "recheck"))
     n_bad = len({m.trial for m in result.mismatches})
     typer.echo(
         f"re-ran {len(result.trials)} trial(s) {sorted(result.trials)}: "

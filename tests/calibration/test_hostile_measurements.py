@@ -545,3 +545,57 @@ def test_a_stray_quote_inside_a_field_joins_no_lines(tmp_path: Path) -> None:
     text = _error(path)
     assert f"line {header + 2}, column axis: 'gr\"asp' is not allowed" in text
     assert f"line {header + 4}, column tip_load_n: 'zero' is not a number" in text
+
+
+@pytest.mark.parametrize(
+    ("command", "name"), [("calibrate", "calibration.json"), ("diagnose", "diagnosis.json")]
+)
+def test_a_users_own_json_report_is_never_replaced(tmp_path: Path, command: str, name: str) -> None:
+    """A user's own calibration.json / diagnosis.json in the report folder was replaced: any JSON
+    passed for ours. Ours now carry "written_by": "somo-sweep COMMAND"."""
+    from typer.testing import CliRunner
+
+    from somo_sweep.cli.app import app
+
+    report = tmp_path / "report"
+    report.mkdir()
+    mine = '{"my": "lab notes", "method": "by hand"}\n'
+    (report / name).write_text(mine)
+    where = ["--report", str(report), "-o", str(tmp_path / "m.yaml")] if command == "calibrate" else []
+    args = [command, str(BUNDLED), *(where or ["--out", str(report)]), "--model", "ihm_finger"]
+    res = CliRunner().invoke(app, args)
+    assert res.exit_code == 2, res.output
+    assert (
+        f'{report / name} exists and has no "written_by": "somo-sweep …" key: somo-sweep did not write it, '
+        "so it is not replaced; nothing was written"
+    ) in res.output
+    assert "bench simulations" not in res.output and (report / name).read_text() == mine
+    assert sorted(p.name for p in report.iterdir()) == [name] and not (tmp_path / "m.yaml").exists()
+
+
+def test_calibrate_marks_its_json_report_and_replaces_it_and_an_older_unmarked_one(tmp_path: Path) -> None:
+    import json
+
+    from typer.testing import CliRunner
+
+    from somo_sweep.cli.app import app
+
+    report = tmp_path / "report"
+    args = [
+        "calibrate",
+        str(BUNDLED),
+        "--method",
+        "paper",
+        "-o",
+        str(tmp_path / "m.yaml"),
+        "--report",
+        str(report),
+    ]
+    assert CliRunner().invoke(app, args).exit_code == 0
+    written = json.loads((report / "calibration.json").read_text())
+    assert next(iter(written.items())) == ("written_by", "somo-sweep calibrate")
+    older = {k: v for k, v in written.items() if k != "written_by"}  # as an earlier version wrote it
+    (report / "calibration.json").write_text(json.dumps(older))
+    res = CliRunner().invoke(app, args)
+    assert res.exit_code == 0, res.output
+    assert json.loads((report / "calibration.json").read_text())["written_by"] == "somo-sweep calibrate"

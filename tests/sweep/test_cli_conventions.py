@@ -229,7 +229,7 @@ def test_a_file_somo_sweep_did_not_write_is_never_replaced(
     argv = [str(precious) if a == "FILE" else str(study) if a == "STUDY" else a for a in argv]
     res = CliRunner().invoke(app, argv)
     assert res.exit_code == 2, res.output
-    what = "is not JSON" if kind == "json" else "has no 'somo-sweep' header"
+    what = 'has no "written_by": "somo-sweep …" key' if kind == "json" else "has no 'somo-sweep' header"
     assert f"{precious} exists and {what}: somo-sweep did not write it, so it is not replaced" in res.output
     assert precious.read_text() == "my own notes\n"
 
