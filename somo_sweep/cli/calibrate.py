@@ -14,6 +14,7 @@ from somo_sweep.cli.output import (
     checked_jobs,
     fail,
     figure_bytes,
+    file_target,
     json_report,
     plain,
     working,
@@ -35,7 +36,7 @@ KEEP_DUPLICATES = Annotated[
     typer.Option(
         "--keep-duplicates",
         help="Count rows that repeat an earlier row exactly (every field equal) as separate "
-        "measurements [default: each once, with a warning naming the lines].",
+        "measurements \\[default: each once, with a warning naming the lines].",
     ),
 ]
 
@@ -115,9 +116,13 @@ def calibrate(
         Path, typer.Argument(help="Measurement CSV (tip_load / blocked_force / free_bending).")
     ],
     output: Annotated[
-        Path | None,
+        str | None,
         typer.Option(
-            "-o", "--output", help="Calibrated model YAML [default: results/calibration/CSV-NAME/model.yaml]."
+            "-o",
+            "--output",
+            metavar="<path>",
+            help="Calibrated model YAML; a folder (out/, or one that exists) gets model.yaml in it "
+            "\\[default: results/calibration/CSV-NAME/model.yaml].",
         ),
     ] = None,
     model: Annotated[Path | None, typer.Option(help="Base manipulator model to calibrate.")] = None,
@@ -130,9 +135,11 @@ def calibrate(
     mass_g: Annotated[
         float | None, typer.Option(help="Finger mass, g (overrides the CSV's finger line).")
     ] = None,
-    width_mm: Annotated[float | None, typer.Option(help="Link width (joint axis), mm [default: 20].")] = None,
+    width_mm: Annotated[
+        float | None, typer.Option(help="Link width (joint axis), mm \\[default: 20].")
+    ] = None,
     thickness_mm: Annotated[
-        float | None, typer.Option(help="Link thickness (bending), mm [default: 15].")
+        float | None, typer.Option(help="Link thickness (bending), mm \\[default: 15].")
     ] = None,
     method: Annotated[str, typer.Option(help="fit (simulator in the loop) or paper (eq. 8 and 9).")] = "fit",
     report: Annotated[Path | None, typer.Option(help="Folder for plots and a JSON summary.")] = None,
@@ -172,16 +179,18 @@ def calibrate(
     try:
         # the README's studies/tables/NAME.csv also from an installed package (no studies/ here)
         measurements = bundled_if_missing(measurements, "tables", ".csv")
-        output = output or default_output(measurements, "calibration") / "model.yaml"
-        check_replaceable(output, [measurements, model])
+        target = (
+            file_target(output, "model.yaml") or default_output(measurements, "calibration") / "model.yaml"
+        )
+        check_replaceable(target, [measurements, model])
         if report is not None:
             check_replaceable(
                 report / "calibration.json", [measurements, model], kind="json", older_keys=CALIBRATION_KEYS
             )
-            in_report = plain(output).parent == plain(report)
-            if in_report and (output.name == "calibration.json" or output.suffix.lower() == ".png"):
+            in_report = plain(target).parent == plain(report)
+            if in_report and (target.name == "calibration.json" or target.suffix.lower() == ".png"):
                 raise SomoError(
-                    f"-o {output} is a file the report writes in --report {report} (calibration.json and "
+                    f"-o {target} is a file the report writes in --report {report} (calibration.json and "
                     "one PNG per metric); nothing was written: give the model another name"
                 )
         rows = counted_rows(read_measurements(measurements), measurements, keep_duplicates)
@@ -234,7 +243,7 @@ def calibrate(
         )
     header = f"calibrated by somo-sweep calibrate --method {method} from {measurements}"
     outputs: list[tuple[Path, str | bytes]] = [
-        (output, model_yaml(with_provenance(result, measurements), header))
+        (target, model_yaml(with_provenance(result, measurements), header))
     ]
     if report is not None:
         outputs.append((report / "calibration.json", json_report(summary(result, measurements), "calibrate")))

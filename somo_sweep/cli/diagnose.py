@@ -47,12 +47,12 @@ def diagnose(
     model: Annotated[
         Path | None,
         typer.Option(
-            help="Calibrated model (from somo-sweep calibrate) [default: calibrate the CSV's finger first]."
+            help="Calibrated model (from somo-sweep calibrate) \\[default: calibrate the CSV's finger first]."
         ),
     ] = None,
     out: Annotated[
         Path | None,
-        typer.Option(help="Folder for the report files [default: results/diagnosis/CSV-NAME]."),
+        typer.Option(help="Folder for the report files \\[default: results/diagnosis/CSV-NAME]."),
     ] = None,
     effects: Annotated[
         str | None, typer.Option(help="Comma-separated effects to try (default: every registered one).")

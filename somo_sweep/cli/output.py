@@ -40,6 +40,7 @@ __all__ = [
     "checked_jobs",
     "fail",
     "figure_bytes",
+    "file_target",
     "json_report",
     "state",
     "working",
@@ -275,6 +276,24 @@ def _read_only_disk(folder: Path) -> bool:
         return bool(os.statvfs(folder).f_flag & os.ST_RDONLY)
     except (OSError, AttributeError):
         return False
+
+
+def file_target(given: str | None, default_name: str) -> Path | None:
+    """An output file option as meant: a folder (``out/``, ending in a slash, or an existing
+    folder) gets the file ``default_name`` in it; anything else names the file itself.
+
+    The option must reach here as text: ``Path("out/")`` is ``out``, and the slash that says
+    "a folder" is lost (``-o out/`` wrote a file named ``out``).
+    """
+    if given is None:
+        return None
+    path = Path(given)
+    slashed = given.endswith(("/", os.sep)) or given in (".", "..") or given.endswith(("/.", "/.."))
+    try:
+        folder = slashed or path.is_dir()
+    except OSError:  # a name too long to be a folder is a file name (refused where it is written)
+        folder = False
+    return path / default_name if folder else path
 
 
 def plain(path: Path) -> Path:

@@ -280,3 +280,37 @@ def test_the_resource_trackers_leak_list_is_filtered_for_the_processes_a_run_sta
     for code, shown in ((tracker, False), (ours, True)):
         err = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True).stderr
         assert ("UserWarning" in err) == shown, err
+
+
+@pytest.mark.parametrize(
+    ("argv", "name"),
+    [
+        (["calibrate", str(BENCH), "--method", "paper", "-o", "OUT"], "model.yaml"),
+        (
+            ["measure", str(FINGER_MODEL), "--test", "tip_load", "--values", "0.1", "--csv", "OUT"],
+            "measurements.csv",
+        ),
+        (["recheck", "STUDY", "-n", "1", "--report", "OUT"], "recheck.json"),
+    ],
+    ids=["calibrate", "measure", "recheck"],
+)
+@pytest.mark.parametrize("how", ["slash", "existing", "file"])
+def test_an_output_file_option_given_a_folder_writes_into_it(
+    tmp_path: Path, argv: list[str], name: str, how: str
+) -> None:
+    """``-o out/`` wrote a file named ``out``. A folder (a trailing slash, or one that exists)
+    gets the file under its documented name; a plain new name is still the file itself."""
+    study = selftest_study(tmp_path)
+    if argv[0] == "recheck":
+        run_study(load_study(study, tmp_path / "results"), n_jobs=1)
+        argv = [*argv, "--out", str(tmp_path / "results")]
+    out = tmp_path / "out"
+    if how == "existing":
+        out.mkdir()
+    given = f"{out}/" if how == "slash" else str(out)
+    res = CliRunner().invoke(app, [given if a == "OUT" else str(study) if a == "STUDY" else a for a in argv])
+    assert res.exit_code == 0, res.output
+    if how == "file":
+        assert out.is_file()
+    else:
+        assert out.is_dir() and sorted(os.listdir(out)) == [name]
