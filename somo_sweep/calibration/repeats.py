@@ -39,23 +39,27 @@ def find_repeats(rows: pd.DataFrame) -> dict[int, list[int]]:
     return groups
 
 
-#: Groups of repeated rows a message names; the others are counted.
-SHOWN_REPEATS = 10
+#: Repeated rows a message names by line; the others are counted.
+SHOWN_REPEATS = 20
 
 
 def describe_repeats(groups: dict[int, list[int]], kept: bool) -> str:
     """The repeats :func:`find_repeats` found, in words: which line repeats which, what "exact"
     means, and whether they are counted once or kept (``--keep-duplicates``)."""
     n = sum(len(later) for later in groups.values())
-    named = []
-    for line, later in list(groups.items())[:SHOWN_REPEATS]:
-        lines = ", ".join(str(v) for v in later)
+    named: list[str] = []
+    counted = 0  # repeated rows named by line: a file of one row 5000 times stays one short line
+    for line, later in groups.items():
+        if counted >= SHOWN_REPEATS:
+            break
+        cut = later[: SHOWN_REPEATS - counted]
+        lines = ", ".join(str(v) for v in cut) + (", …" if len(cut) < len(later) else "")
         named.append(
             f"line {lines} repeats line {line}" if len(later) == 1 else f"lines {lines} repeat line {line}"
         )
-    if len(groups) > SHOWN_REPEATS:
-        rest = sum(len(later) for later in list(groups.values())[SHOWN_REPEATS:])
-        named.append(f"… and {rest} more row(s)")
+        counted += len(cut)
+    if counted < n:
+        named.append(f"… {n - counted} more row(s)")
     what = (
         f"{n} row(s) repeat an earlier row exactly ({'; '.join(named)}): every field is equal as read "
         "(the same test, axis and direction, numbers equal in value, the same empty cells)"

@@ -62,7 +62,13 @@ class FolderLock:
     def record_stop(self, record: dict[str, Any]) -> bool:
         """Write a stop record (``{"stopped": START_UTC, ...}``) over the holder line, in place: no
         new disk space is needed. Returns whether it was written."""
-        text = json.dumps(record, default=str).encode()[:LOCK_BYTES]
+        record = dict(record)
+        text = json.dumps(record, default=str).encode()
+        while len(text) > LOCK_BYTES and record.get("cause"):  # a long path: cut the cause, keep JSON
+            record["cause"] = str(record["cause"])[: len(str(record["cause"])) // 2] + "…"
+            text = json.dumps(record, default=str).encode()
+        if len(text) > LOCK_BYTES:
+            return False
         try:
             return os.pwrite(self.fd, text.ljust(LOCK_BYTES), 0) == LOCK_BYTES
         except OSError:

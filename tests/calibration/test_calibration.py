@@ -563,3 +563,14 @@ def test_diagnose_takes_keep_duplicates_and_counts_repeats_once_by_default(
         assert f"repeat line {line})" in res.output
     n = len(read_measurements(SYNTHETIC))
     assert seen == [(n, True), (n + 4, True)]
+
+
+def test_a_row_repeated_thousands_of_times_is_named_in_one_short_line() -> None:
+    from somo_sweep.calibration.repeats import describe_repeats
+
+    text = describe_repeats({2: list(range(3, 5003))}, kept=False)
+    lines = ", ".join(str(n) for n in range(3, 23))
+    assert text.startswith(
+        f"5000 row(s) repeat an earlier row exactly (lines {lines}, … repeat line 2; … 4980 more"
+    )
+    assert len(text) < 600

@@ -807,3 +807,22 @@ def test_a_fifo_among_the_parts_is_skipped_not_waited_on(tmp_path: Path) -> None
     skipped: list[str] = []
     assert len(read_results(out, lambda part, why: skipped.append(why))) == 8
     assert skipped == ["not a regular file"]
+
+
+def test_a_stop_record_with_a_long_cause_still_reads_back(tmp_path: Path) -> None:
+    """A long file name in the cause must not cut the record's JSON (the next run would say killed)."""
+    from somo_sweep.sweep.lock import LOCK_BYTES, acquire
+
+    path = tmp_path / ".lock"
+    lock = acquire(path)
+    assert lock.record_stop({"stopped": "2026-01-01T00:00:00+00:00", "cause": "é" * 2000})
+    lock.release(remove=False)
+    assert path.stat().st_size == LOCK_BYTES
+    again = acquire(path)
+    try:
+        record = again.stop_record
+        assert record is not None and record["stopped"] == "2026-01-01T00:00:00+00:00"
+        assert record["cause"].startswith("éé") and record["cause"].endswith("…")
+    finally:
+        again.release()
+    assert not path.exists()
