@@ -20,6 +20,7 @@ import fcntl
 import json
 import os
 import socket
+import stat
 from dataclasses import dataclass
 from datetime import UTC, datetime
 from pathlib import Path
@@ -104,6 +105,10 @@ def _cannot(path: Path, exc: OSError) -> StorageError:
     )
 
 
+def _not_a_lock(path: Path, what: str) -> SomoError:
+    return SomoError(f"{path} is {what}, not the folder's lock file; nothing was written: move it away")
+
+
 def _open(path: Path) -> tuple[int, bool] | None:
     """(descriptor, created) of the lock file; None if it vanished between two tries."""
     try:  # never through a link left in the folder: the holder line would land in its target
@@ -112,17 +117,18 @@ def _open(path: Path) -> tuple[int, bool] | None:
         pass
     except OSError as exc:
         raise _cannot(path, exc) from None
-    try:
-        return os.open(path, os.O_RDWR | os.O_NOFOLLOW), False
+    try:  # non-blocking: a FIFO left there must not hold the run
+        fd = os.open(path, os.O_RDWR | os.O_NOFOLLOW | os.O_NONBLOCK)
     except FileNotFoundError:
         return None
     except OSError as exc:
         if exc.errno in (errno.ELOOP, errno.EISDIR):
-            what = "a symbolic link" if exc.errno == errno.ELOOP else "a folder"
-            raise SomoError(
-                f"{path} is {what}, not the folder's lock file; nothing was written: move it away"
-            ) from None
+            raise _not_a_lock(path, "a symbolic link" if exc.errno == errno.ELOOP else "a folder") from None
         raise _cannot(path, exc) from None
+    if not stat.S_ISREG(os.fstat(fd).st_mode):
+        os.close(fd)
+        raise _not_a_lock(path, "not a regular file (a FIFO, a device or a socket)")
+    return fd, False
 
 
 def acquire(path: Path) -> FolderLock:
@@ -173,10 +179,12 @@ def holder_now(folder: Path) -> str | None:
     Read-only: a missing lock file is not created, and a free one is not kept.
     """
     try:
-        fd = os.open(folder / LOCK_NAME, os.O_RDONLY | os.O_NOFOLLOW)
+        fd = os.open(folder / LOCK_NAME, os.O_RDONLY | os.O_NOFOLLOW | os.O_NONBLOCK)
     except OSError:
         return None
     try:
+        if not stat.S_ISREG(os.fstat(fd).st_mode):  # not a lock file: no run could hold it
+            return None
         try:
             fcntl.flock(fd, fcntl.LOCK_SH | fcntl.LOCK_NB)
         except BlockingIOError:

@@ -826,3 +826,12 @@ def test_a_stop_record_with_a_long_cause_still_reads_back(tmp_path: Path) -> Non
     finally:
         again.release()
     assert not path.exists()
+
+
+def test_a_fifo_where_the_lock_goes_is_named_and_never_waited_on(tmp_path: Path) -> None:
+    path, out = _finished(tmp_path)
+    os.mkfifo(out / ".lock")
+    res = CliRunner().invoke(app, ["show", str(out)])
+    assert res.exit_code == 0 and "8 of 8 trials stored" in res.output, res.output
+    res = _run(path, out)
+    assert res.exit_code == 2 and f"{out / '.lock'} is not a regular file (a FIFO" in res.output, res.output
