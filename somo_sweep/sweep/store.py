@@ -191,12 +191,25 @@ class ResultStore:
             self._heal_schemas()
             self._recover(study_hash)
             self._write_manifest()
-        except BaseException:
+        except BaseException as exc:
+            stop = self._lock.stop_record if self._lock is not None else None
+            if (
+                stop is not None and self._lock is not None
+            ):  # not yet in the manifest: keep it for the next run
+                self._keep_lock_file = self._lock.record_stop(stop)
             self.close()
             if created:  # a start that failed on a new folder leaves no empty folder behind
                 with contextlib.suppress(OSError):
                     self.trials.rmdir()
                     self.folder.rmdir()
+            if isinstance(exc, OSError):  # a full disk while setting the folder in order
+                cause, advice = os_cause(exc)
+                where = f"cannot write {exc.filename}" if exc.filename else "cannot write in it"
+                raise StorageError(
+                    f"cannot open the results folder {self.folder}: {where}: {cause}; what it holds is "
+                    f"intact (finished trials of a killed run stay in its journal): {advice}, then run "
+                    "the same command again"
+                ) from None
             raise
 
     # -- opening ---------------------------------------------------------------------------
@@ -453,10 +466,17 @@ class ResultStore:
     def copy_study(self, source: Path) -> None:
         """Keep a copy of the study file (``study.yaml`` / ``study.json``)."""
         target = self.folder / f"study{source.suffix}"
-        tmp = fresh_tmp(target)
+        text = source.read_bytes()
         try:
-            tmp.write_bytes(source.read_bytes())
+            tmp = fresh_tmp(target)
+        except OSError as exc:
+            raise os_error_for(exc, target) from None
+        try:
+            tmp.write_bytes(text)
             os.replace(tmp, target)
+        except OSError as exc:
+            tmp.unlink(missing_ok=True)
+            raise os_error_for(exc, target) from None
         except BaseException:
             tmp.unlink(missing_ok=True)
             raise

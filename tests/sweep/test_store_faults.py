@@ -492,6 +492,13 @@ def test_a_run_that_stopped_on_a_full_disk_is_not_reported_killed(
     monkeypatch.undo()
     assert read_manifest(out)["runs"][-1]["status"] == "running"  # the manifest could not say more
     assert '"stopped"' in (out / ".lock").read_text()  # the lock file says it instead
+    monkeypatch.setattr(store_module.pq, "write_table", _DiskFull(allowed=0))
+    with pytest.raises(StorageError) as info:  # still full when the next run recovers the journal
+        run_study(load_study(path, out), n_jobs=1)
+    assert str(info.value).startswith(f"cannot open the results folder {out}: cannot write {out / 'trials'}")
+    assert "the disk is full (No space left on device); what it holds is intact" in str(info.value)
+    monkeypatch.undo()
+    assert '"stopped"' in (out / ".lock").read_text()  # kept for the run that gets through
     summary = run_study(load_study(path, out), n_jobs=1)
     note = next(n for n in summary.notes if "stopped itself" in n)
     assert "(cannot write " in note and ": the disk is full (No space left on device)): marked failed" in note
