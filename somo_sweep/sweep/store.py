@@ -356,7 +356,8 @@ class ResultStore:
                 run.update(status="aborted", aborted_found_utc=now_utc())
                 holder = f" ({shown(left, 200)})" if left else ""
                 self.notes.append(
-                    f"the run started {run.get('start_utc')}{holder} was killed: marked aborted"
+                    f"the run started {run.get('start_utc')}{holder} was killed (or its disk could not "
+                    "be written even to record its end): marked aborted"
                 )
 
     def _heal_schemas(self) -> None:

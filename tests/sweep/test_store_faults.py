@@ -241,14 +241,14 @@ def test_out_pointing_at_a_file_is_a_clear_error(tmp_path: Path) -> None:
 class _DiskFull:
     """``pq.write_table`` that succeeds ``allowed`` times, then fails as a full disk does."""
 
-    def __init__(self, allowed: int):
-        self.allowed = allowed
+    def __init__(self, allowed: int, code: int = errno.ENOSPC):
+        self.allowed, self.code = allowed, code
         self.real = pq.write_table
 
     def __call__(self, table: pa.Table, where: Path, **kwargs: object) -> None:
         if self.allowed <= 0:
             Path(where).write_bytes(b"PAR1 half a file")  # a partial write, as the disk filled up
-            raise OSError(errno.ENOSPC, os.strerror(errno.ENOSPC))
+            raise OSError(self.code, os.strerror(self.code))
         self.allowed -= 1
         self.real(table, where, **kwargs)
 
@@ -319,7 +319,8 @@ def test_finished_trials_of_a_killed_run_are_recovered_from_its_journal(tmp_path
     summary = run_study(load_study(path, out), n_jobs=1)  # the stale lock does not stop it
     assert (summary.skipped, summary.run) == (5, 3)
     assert "recovered 5 finished trial(s) of a killed run from its journal" in summary.notes
-    assert any(f"(pid {pid} on " in note and "was killed: marked aborted" in note for note in summary.notes)
+    killed = "was killed (or its disk could not be written even to record its end): marked aborted"
+    assert any(f"(pid {pid} on " in note and killed in note for note in summary.notes)
     assert read_manifest(out)["runs"][0]["status"] == "aborted"
     assert not (out / ".lock").exists()
 
@@ -463,14 +464,22 @@ def test_a_results_folder_on_a_read_only_disk_is_told_so(
     assert "free space" not in res.output
 
 
+@pytest.mark.parametrize(
+    ("code", "cause"),
+    [
+        (errno.ENOSPC, "the disk is full (No space left on device)"),
+        (errno.EROFS, "the file system is read-only (Read-only file system)"),
+    ],
+    ids=["full", "read-only"],
+)
 def test_a_run_that_stopped_on_a_full_disk_is_not_reported_killed(
-    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch, code: int, cause: str
 ) -> None:
-    """After a disk-full stop whose end could not be written to the manifest either, the next
-    run said the earlier one "was killed: marked aborted"."""
+    """After a disk-full (or read-only) stop whose end could not be written to the manifest
+    either, the next run said the earlier one "was killed: marked aborted"."""
     path = selftest_study(tmp_path)
     out = tmp_path / "out"
-    full, real_json, filled = _DiskFull(allowed=1), store_module.write_json, []
+    full, real_json, filled = _DiskFull(allowed=1, code=code), store_module.write_json, []
 
     def parts(table: pa.Table, where: Path, **kwargs: object) -> None:
         try:
@@ -481,14 +490,15 @@ def test_a_run_that_stopped_on_a_full_disk_is_not_reported_killed(
 
     def manifest(where: Path, data: dict[str, object]) -> None:
         if filled:  # once full, the disk is full for the manifest too
-            _enospc()
+            raise OSError(code, os.strerror(code))
         real_json(where, data)
 
     monkeypatch.setattr(store_module.pq, "write_table", parts)
     monkeypatch.setattr(store_module, "write_json", manifest)
     with pytest.raises(StorageError) as info:
         run_study(load_study(path, out), n_jobs=1, chunk_rows=2)
-    assert "the disk is full (No space left on device)" in str(info.value)
+    assert cause in str(info.value)
+    assert ("free space" in str(info.value)) == (code == errno.ENOSPC)
     monkeypatch.undo()
     assert read_manifest(out)["runs"][-1]["status"] == "running"  # the manifest could not say more
     assert '"stopped"' in (out / ".lock").read_text()  # the lock file says it instead
@@ -501,11 +511,11 @@ def test_a_run_that_stopped_on_a_full_disk_is_not_reported_killed(
     assert '"stopped"' in (out / ".lock").read_text()  # kept for the run that gets through
     summary = run_study(load_study(path, out), n_jobs=1)
     note = next(n for n in summary.notes if "stopped itself" in n)
-    assert "(cannot write " in note and ": the disk is full (No space left on device)): marked failed" in note
+    assert "(cannot write " in note and f": {cause}): marked failed" in note
     assert not any("killed" in n for n in summary.notes), summary.notes
     assert "recovered 2 finished trial(s) of a run that stopped itself from its journal" in summary.notes
     first = read_manifest(out)["runs"][0]
-    assert first["status"] == "failed" and "the disk is full" in first["failure"]
+    assert first["status"] == "failed" and cause in first["failure"]
     assert (first["trials_finished"], first["trials_written"], first["trials_recovered"]) == (4, 2 + 2, 2)
     assert len(read_results(out)) == 8 and not (out / ".lock").exists()
 
@@ -555,7 +565,8 @@ def test_a_run_left_running_by_a_killed_process_is_marked_aborted(tmp_path: Path
     summary = run_study(study, n_jobs=1)
     runs = read_manifest(study.output)["runs"]
     assert [r["status"] for r in runs] == ["aborted", "completed"]
-    assert any("was killed: marked aborted" in note for note in summary.notes)
+    killed = "was killed (or its disk could not be written even to record its end): marked aborted"
+    assert any(killed in note for note in summary.notes)
 
 
 def test_a_column_empty_in_the_first_part_takes_numbers_on_resume(tmp_path: Path) -> None:
