@@ -509,6 +509,8 @@ def test_a_run_that_stopped_on_a_full_disk_is_not_reported_killed(
     assert "the disk is full (No space left on device); what it holds is intact" in str(info.value)
     monkeypatch.undo()
     assert '"stopped"' in (out / ".lock").read_text()  # kept for the run that gets through
+    assert CliRunner().invoke(app, ["plot", str(out)]).exit_code == 0  # plot takes the lock too ...
+    assert '"stopped"' in (out / ".lock").read_text()  # ... and leaves the record
     summary = run_study(load_study(path, out), n_jobs=1)
     note = next(n for n in summary.notes if "stopped itself" in n)
     assert "(cannot write " in note and f": {cause}): marked failed" in note
