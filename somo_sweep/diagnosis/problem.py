@@ -18,6 +18,7 @@ import pandas as pd
 
 from somo_sweep.calibration import meter
 from somo_sweep.calibration.metrics import measured_array
+from somo_sweep.calibration.repeats import describe_repeats, drop_repeats, find_repeats
 from somo_sweep.calibration.solve import CALIBRATION_SETTINGS, CalibrationProblem, Parameter, build_problem
 from somo_sweep.diagnosis.effects import EFFECTS, Effect, EffectParameter, get_effect
 from somo_sweep.diagnosis.noise import (
@@ -162,6 +163,7 @@ def build_diagnosis(
     settings: BenchSettings = CALIBRATION_SETTINGS,
     effects: Sequence[str] | None = None,
     n_jobs: int = 1,
+    keep_duplicates: bool = False,
 ) -> DiagnosisProblem:
     """Simulate the rows with ``model``, estimate the noise and set up the effect fits.
 
@@ -172,6 +174,9 @@ def build_diagnosis(
         settings: Bench numerics.
         effects: Effect names to try (default: every registered effect the rows can reveal).
         n_jobs: Worker processes for the bench rows.
+        keep_duplicates: Count rows repeating an earlier row exactly
+            (:func:`~somo_sweep.calibration.measurements.find_repeats`) as separate measurements;
+            by default each is counted once and :attr:`DiagnosisProblem.notes` says so.
 
     Raises:
         MeasurementError: Rows the calibration cannot use (too few, wrong columns).
@@ -180,15 +185,11 @@ def build_diagnosis(
     chosen = [get_effect(n) for n in effects] if effects is not None else list(EFFECTS.values())
     # A row repeated exactly (a copy) is no second measurement: it would halve the noise
     # estimate and double its weight in every comparison, and flip the verdict.
-    repeated = rows.duplicated(subset=[c for c in rows.columns if c != "line"], keep="first")
     notes: tuple[str, ...] = ()
-    if repeated.any():
-        lines = ", ".join(str(v) for v in rows.loc[repeated, "line"].head(5)) if "line" in rows else "?"
-        more = " …" if repeated.sum() > 5 else ""
-        notes = (
-            f"{int(repeated.sum())} row(s) repeat an earlier row exactly (lines {lines}{more}): counted once",
-        )
-        rows = rows[~repeated].reset_index(drop=True)
+    repeats = find_repeats(rows) if not keep_duplicates else {}
+    if repeats:
+        notes = (describe_repeats(repeats, kept=False),)
+        rows = drop_repeats(rows, repeats)
     base_problem = build_problem(rows, model, source, settings)
     manip = base_problem.manipulator
     base = [replace(p, initial=_current(manip, p.name)) for p in base_problem.parameters]

@@ -329,8 +329,10 @@ def test_rows_repeated_exactly_are_counted_once() -> None:
     twice = pd.concat([rows, rows.assign(line=rows["line"] + 100)], ignore_index=True)
     once = build_diagnosis(rows, example_finger(), effects=["self_weight"])
     copied = build_diagnosis(twice, example_finger(), effects=["self_weight"])
-    first = ", ".join(str(v) for v in rows["line"].head(5) + 100)
-    assert copied.notes == (f"36 row(s) repeat an earlier row exactly (lines {first} …): counted once",)
+    first = "; ".join(f"line {v + 100} repeats line {v}" for v in rows["line"].head(20))
+    (note,) = copied.notes
+    assert note.startswith(f"36 row(s) repeat an earlier row exactly ({first}; … 16 more row(s))")
+    assert "each is counted once" in note
     assert len(copied.rows) == len(once.rows) == 36 and not once.notes
     assert {k: v.sigma for k, v in copied.noise.items()} == {k: v.sigma for k, v in once.noise.items()}
     assert copied.describe().startswith("36 row(s) repeat an earlier row exactly")
