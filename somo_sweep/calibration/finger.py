@@ -27,7 +27,7 @@ __all__ = ["FINGER_KEYS", "finger_from_header", "read_finger_header"]
 FINGER_KEYS = {
     "length_mm": "bending length, mm",
     "segments": "number of links (and joints), 1-200",
-    "mass_g": "mass of the bending part, g",
+    "mass_g": "mass of the bending part, g; 0: weightless",
     "width_mm": "link width along the joint axis, mm",
     "thickness_mm": "link thickness in the bending direction, mm",
     "joint_placement": "midpoint or start",
@@ -90,13 +90,15 @@ def _validate(path: Path, where: str, data: dict[Any, Any]) -> dict[str, Any]:
     problems += [f"{where}: {k} ({FINGER_KEYS[k]}) is required" for k in REQUIRED if k not in data]
     for key in ("length_mm", "mass_g", "width_mm", "thickness_mm"):
         value = data.get(key)
+        least = 0 if key == "mass_g" else None  # 0 g: a weightless finger (its weight left out)
         if value is not None and not (
             isinstance(value, int | float)
             and not isinstance(value, bool)
             and math.isfinite(value)
-            and value > 0
+            and (value > 0 or value == least)
         ):
-            problems.append(f"{where}: {key} must be a finite number > 0, got {value!r}")
+            bound = ">= 0" if least == 0 else "> 0"
+            problems.append(f"{where}: {key} must be a finite number {bound}, got {value!r}")
     if not problems:
         length = data.get("length_mm")
         if length is not None and length > MAX_LENGTH_M * 1e3:
