@@ -335,9 +335,10 @@ def run_bench(
         bench_frame(manip)  # so is a chain the bench cannot hold (not "no static equilibrium")
         row = solve_row(manip, test, pressure_kpa, tip_load_n, settings, direction)
         if not row.status.converged:
-            raise SimulationError(
-                f"bench {test} at {pressure_kpa} kPa: no static equilibrium ({row.status.cause})"
-            )
+            cause = row.status.cause
+            if not cause.startswith("no stable equilibrium"):  # proven absent, or the solver's failure
+                cause = f"no static equilibrium found ({cause})"
+            raise SimulationError(f"bench {test} at {pressure_kpa} kPa: {cause}")
         return BenchResult(row.value, row.status.iterations)
     rig = _Rig(manip, settings)
     try:
