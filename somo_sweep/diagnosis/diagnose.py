@@ -178,6 +178,9 @@ class DiagnosisResult:
             ],
             "score": "BIC = sum over channels n_c ln(RSS_c / n_c) + k ln(n)",
             "residual_entries": (len(self.problem.normalised(self.problem.before))),
+            "bench_stop_z_mm": (
+                "underside" if (stop := self.problem.fit.settings.stop_z_m) is None else stop * 1e3
+            ),
             "rmse_before": rmse(self.problem.before),
             "rmse_after": rmse(self.after),
             "noise": _noise_dict(self.noise),

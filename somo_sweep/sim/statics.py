@@ -34,8 +34,9 @@ Newton step:
 
 Candidate plate contacts are the lowest points of every link's collision shape
 (box corners, sphere bottoms, the lowest points of cylinder rims); the plate's top
-is exactly at the straight chain's underside, as in the continuum (the simulated
-bench's contacts rest Bullet's contact slop deeper, see
+is at the straight chain's underside, as in the continuum, unless
+``BenchSettings.stop_z_m`` puts it lower (the simulated bench's contacts rest Bullet's
+contact slop deeper, see
 :data:`somo_sweep.sim.bench.BULLET_CONTACT_SLOP`). URDF joint limits are constraints
 too. An equilibrium is only reported if the energy's Hessian is positive definite on the active contacts'
 tangent space (a stable one, as relaxation would find).
@@ -51,6 +52,7 @@ import math
 from collections import OrderedDict
 from collections.abc import Callable
 from dataclasses import dataclass
+from dataclasses import replace as dataclass_replace
 
 import numpy as np
 
@@ -65,6 +67,7 @@ from somo_sweep.sim.bench import (
     _manipulator,
     _static_rig,
     bench_frame,
+    check_stop,
 )
 from somo_sweep.sim.chain_kinematics import BenchBody, Kin
 from somo_sweep.sim.no_equilibrium import existence_proven, largest_moments_n_m, proof_of_no_equilibrium
@@ -196,12 +199,24 @@ class StaticChain:
         manip: The manipulator.
         scale: World scale factor (the dynamic bench's ``BenchSettings.scale``).
         added_inertia_kg_m2: The bench's inertia shaping (kept so the body is the dynamic one's).
+        stop_z_m: Height of the blocked-force stop's top relative to the straight finger's centre
+            line, m (None: its underside; :func:`~somo_sweep.sim.bench.stop_geometry`).
     """
 
-    def __init__(self, manip: Manipulator, scale: float = 20.0, added_inertia_kg_m2: float = 1e-5):
+    def __init__(
+        self,
+        manip: Manipulator,
+        scale: float = 20.0,
+        added_inertia_kg_m2: float = 1e-5,
+        stop_z_m: float | None = None,
+    ):
         self.manip = manip
         plan = plan_manipulator(_static_rig(manip, added_inertia_kg_m2), scale)
         self.body = _body(manip, plan, scale)
+        check_stop(manip, stop_z_m)
+        self.plate = (
+            self.body.plate if stop_z_m is None else dataclass_replace(self.body.plate, top_m=stop_z_m)
+        )
         joints = plan.joints
         self.k = np.array([j.stiffness for j in joints], float)
         self.q0 = np.array([j.neutral for j in joints], float)
@@ -243,7 +258,7 @@ class StaticChain:
         """Every candidate contact: points, links, gaps to the plate (m), whether over the plate."""
         b = self.body
         r, links, drop = b.features.lowest(kin)
-        plate = b.plate
+        plate = self.plate
         on = (
             (r[:, 0] >= plate.x_range_m[0] - 1e-9)
             & (r[:, 0] <= plate.x_range_m[1])
@@ -686,7 +701,7 @@ def _failed(test: str, eq: _Equilibrium, where: str = "", iterations: int | None
 
 # --------------------------------------------------------------------- caches
 _BODIES: OrderedDict[tuple[str, float, tuple[float, ...]], BenchBody] = OrderedDict()
-_CHAINS: OrderedDict[tuple[str, float, float], StaticChain] = OrderedDict()
+_CHAINS: OrderedDict[tuple[str, float, float, float | None], StaticChain] = OrderedDict()
 
 
 def _body(manip: Manipulator, plan: BodyPlan, scale: float) -> BenchBody:
@@ -704,14 +719,19 @@ def _body(manip: Manipulator, plan: BodyPlan, scale: float) -> BenchBody:
     return body
 
 
-def static_chain(manip: Manipulator, scale: float = 20.0, added_inertia_kg_m2: float = 1e-5) -> StaticChain:
-    """The (cached) static chain of a manipulator; keyed on its JSON and the bench's scale."""
-    key = (manip.model_dump_json(), float(scale), float(added_inertia_kg_m2))
+def static_chain(
+    manip: Manipulator,
+    scale: float = 20.0,
+    added_inertia_kg_m2: float = 1e-5,
+    stop_z_m: float | None = None,
+) -> StaticChain:
+    """The (cached) static chain of a manipulator; keyed on its JSON, the bench's scale and stop."""
+    key = (manip.model_dump_json(), float(scale), float(added_inertia_kg_m2), stop_z_m)
     chain = _CHAINS.get(key)
     if chain is not None and chain.body.world.client >= 0:
         _CHAINS.move_to_end(key)
         return chain
-    chain = StaticChain(manip, scale, added_inertia_kg_m2)
+    chain = StaticChain(manip, scale, added_inertia_kg_m2, stop_z_m)
     _CHAINS[key] = chain
     while len(_CHAINS) > CHAIN_CACHE:
         _CHAINS.popitem(last=False)
@@ -759,7 +779,7 @@ def solve_row(
         if not math.isfinite(pressure_kpa):
             raise SimulationError(f"pressure_kpa must be finite, got {pressure_kpa}")
         manip = _manipulator(model)
-        chain = static_chain(manip, st.scale, st.added_inertia_kg_m2)
+        chain = static_chain(manip, st.scale, st.added_inertia_kg_m2, st.stop_z_m)
         return chain.solve(test, pressure_kpa, tip_load_n, direction, st.gravity_m_s2)
     except Exception as exc:  # a row's failure is data, not an abort
         return RowSolution(nan, SolveStatus(False, 0, math.nan, f"{type(exc).__name__}: {exc}"))
