@@ -66,9 +66,8 @@ class BenchHeader:
         under_mm = finger_underside_m(manip) * 1e3
         if self.stop_z_mm is None:
             return (
-                f"bench: blocked-force stop at the straight finger's underside, {-under_mm:.4g} mm from its "
-                f"centre line (half its {2 * under_mm:.4g} mm thickness; the default: state "
-                "'# bench: {stop_z_mm: ...}' in the CSV if your stop was elsewhere)"
+                f"bench: blocked-force stop at the finger's underside, {-under_mm:.4g} mm from its centre "
+                "line (the default; a CSV line '# bench: {stop_z_mm: ...}' moves it)"
             )
         gap = -self.stop_z_mm - under_mm
         return (

@@ -174,6 +174,7 @@ def check_cell(name: str, seed: int, noise_rel: float) -> None:
             "named": result.missing_effect,
             "gap_before": before,
             "gap_after": after,
+            "combined_before": result.combined_before,
             "combined_after": result.combined_after,
             "parameters": values,
             "stderr": errors,

@@ -1,8 +1,10 @@
 """Bench statics solved directly (somo_sweep.sim.statics) against dynamic relaxation and closed forms.
 
-Run as a script for the agreement table and the timings over a larger sample::
+Run as a script for the agreement table and the timings over a larger sample, or for the
+failure count of random rows of the always-finds-its-equilibrium family::
 
-    PYTHONPATH=. python tests/test_statics.py [cases]
+    cd tests && PYTHONPATH=. python sim/test_statics.py [cases [seed]]
+    cd tests && PYTHONPATH=. python sim/test_statics.py equilibria ROWS MAX_CURL_DEG SEED
 """
 
 from __future__ import annotations
@@ -618,11 +620,10 @@ def _tapered_finger(
 def test_a_finger_that_has_an_equilibrium_always_finds_it(**kw: Any) -> None:
     """Springs that never soften always have an equilibrium (a coercive energy; docs/physics.md):
     stiffness profiles up to 10:1 either way, weightless to 100 g, tip loads up to K·L, and at
-    the largest pressure (240 kPa) curls up to 10 turns: a calibrated finger curls about one
-    turn at most, and a diagnosis fit may try its gain ×10 against its stiffness (the base
-    parameters' bounds). Every row must solve. Before issue 33 a soft tip curled past 4π was
-    refused as "a joint turned past 4π: no equilibrium" (4 of 1000 random rows of this family,
-    none here once the fit's range is left out)."""
+    the largest pressure (240 kPa) curls up to 10 turns (a calibrated finger curls about one
+    turn at most, a fit's trial points further). Every row must solve. Before issue 33 a soft
+    tip curled past 4π was refused as "a joint turned past 4π: no equilibrium" (3 of 1000
+    random rows of this family failed; the explicit examples are such rows)."""
     manip = _tapered_finger(
         kw["segments"],
         kw["tip_stiffness"],
@@ -688,9 +689,40 @@ def _timings(segments: int, repeat: int = 3) -> dict[str, float]:
     return {"solve_ms": 1e3 * min(best), "dynamic_ms": 1e3 * float(np.median(dyn))}
 
 
+def _equilibria(n: int, max_curl_deg: float, seed: int) -> None:
+    """Random rows of the family of ``test_a_finger_that_has_an_equilibrium_always_finds_it``
+    (curls log-uniform from 10° to ``max_curl_deg``): prints every failure and the count."""
+    rng = np.random.default_rng(seed)
+    failed, iterations = 0, []
+    for _ in range(n):
+        k = float(rng.uniform(5, 80))
+        manip = _tapered_finger(
+            int(rng.choice([5, 10, 20])),
+            k,
+            float(rng.choice([0.0, 0.005, 0.02, 0.06, 0.1])),
+            float(rng.choice([0.001, 0.015])),
+            float(np.exp(rng.uniform(-np.log(10), np.log(10)))),
+            float(rng.uniform(-1, 1)),
+            float(np.exp(rng.uniform(np.log(10), np.log(max_curl_deg)))),
+        )
+        test = str(rng.choice(["tip_load", "blocked_force", "free_bending"]))
+        row = solve_row(manip, test, 240 * float(rng.uniform()), float(rng.uniform()) * k * 0.1)
+        iterations.append(row.status.iterations)
+        if not row.ok:
+            failed += 1
+            print(f"failed: {test}: {row.status.cause}")
+    print(
+        f"{failed} of {n} rows failed; Newton iterations median {np.median(iterations):g}, "
+        f"max {max(iterations)}"
+    )
+
+
 if __name__ == "__main__":
     import sys
 
+    if sys.argv[1:2] == ["equilibria"]:  # equilibria ROWS MAX_CURL_DEG SEED
+        _equilibria(int(sys.argv[2]), float(sys.argv[3]), int(sys.argv[4]))
+        sys.exit()
     n = int(sys.argv[1]) if len(sys.argv) > 1 else 40
     rng = np.random.default_rng(int(sys.argv[2]) if len(sys.argv) > 2 else 7)
     fingers = [sample_finger(rng) for _ in range(n)]
