@@ -26,6 +26,7 @@ if TYPE_CHECKING:
     import pandas as pd
 
     from somo_sweep.model.load import Model
+    from somo_sweep.sim.bench import BenchSettings
 
 METHODS = ("fit", "paper")
 #: Keys of every ``calibration.json`` (earlier versions wrote it without the JSON mark).
@@ -98,6 +99,20 @@ def base_model(
     return finger_from_header(
         header or {}, str(measurements), **flags, width_mm=width_mm, thickness_mm=thickness_mm
     )
+
+
+def bench_settings(measurements: Path, base: Model, settings: BenchSettings) -> tuple[BenchSettings, str]:
+    """``settings`` with the CSV's ``# bench:`` stop, checked against the finger, and the line saying so.
+
+    Raises:
+        MeasurementError: A bad ``# bench:`` line, or a stop this finger would start inside or never reach.
+    """
+    from somo_sweep.calibration.bench_header import BenchHeader, read_bench_header
+
+    header = read_bench_header(measurements) if measurements.is_file() else BenchHeader()
+    if base.manipulator is None:  # an assembly: build_problem refuses it with its own message
+        return settings, ""
+    return header.settings(settings, base.manipulator), header.describe(base.manipulator)
 
 
 def _figure_bytes(result: object, label: str, fmt: str) -> bytes:
@@ -197,7 +212,10 @@ def calibrate(
         base = base_model(
             measurements, model, length_mm, segments, mass_g, width_mm, thickness_mm, allow_outside
         )
-        settings = replace(CALIBRATION_SETTINGS, gravity_m_s2=gravity_m_s2)
+        settings, bench_line = bench_settings(
+            measurements, base, replace(CALIBRATION_SETTINGS, gravity_m_s2=gravity_m_s2)
+        )
+        console.print(bench_line, markup=False)
         problem = build_problem(
             rows, base, str(measurements), settings, min_rows_per_parameter=2 if method == "fit" else 1
         )

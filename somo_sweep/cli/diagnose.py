@@ -71,7 +71,7 @@ def diagnose(
     from somo_sweep.calibration.measurements import read_measurements
     from somo_sweep.calibration.report import model_yaml
     from somo_sweep.calibration.solve import CALIBRATION_SETTINGS, build_problem, solve_fit
-    from somo_sweep.cli.calibrate import base_model, counted_rows, default_output
+    from somo_sweep.cli.calibrate import base_model, bench_settings, counted_rows, default_output
     from somo_sweep.diagnosis.diagnose import build_diagnosis
     from somo_sweep.diagnosis.diagnose import diagnose as run_diagnosis
     from somo_sweep.diagnosis.effects import get_effect
@@ -105,8 +105,12 @@ def diagnose(
         settings = replace(CALIBRATION_SETTINGS, gravity_m_s2=gravity_m_s2)
         if model is not None:
             base = load_model(model, allow_outside)
+            settings, bench_line = bench_settings(measurements, base, settings)
+            typer.echo(bench_line)
         else:
             finger = base_model(measurements, None, None, None, None, None, None)
+            settings, bench_line = bench_settings(measurements, finger, settings)
+            typer.echo(bench_line)
             with working("calibrating the CSV's finger first", bench_rows=True):
                 first = solve_fit(build_problem(rows, finger, str(measurements), settings), n_jobs=jobs)
             if first.message.startswith("not fitted"):  # as calibrate: no model to diagnose

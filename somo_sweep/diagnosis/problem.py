@@ -4,7 +4,7 @@ Building it runs step 1 of the workflow (simulate every row with the model,
 residuals per channel, noise levels, systematic disagreements); the result can
 be inspected (``describe()``) before any effect is fitted. The fit space
 extends the calibration problem with one :class:`~somo_sweep.calibration.solve.Parameter`
-per effect (the calibration's extension hook), so every candidate is a point
+per effect parameter (the calibration's extension hook), so every candidate is a point
 ``z`` of one problem: value = start + z·scale, z = 0 is the model as given.
 """
 
@@ -54,7 +54,7 @@ class DiagnosisProblem:
 
     Attributes:
         fit: Calibration problem over *all* rows whose parameters are the base ones
-            (stiffness, gain) followed by one per effect.
+            (stiffness, gain) followed by those of every effect.
         n_base: Number of base parameters at the front of ``fit.parameters``.
         effects: The effects tried, with their sized parameters (same order as after ``n_base``).
         start: Value of every parameter in the model as given (fit units).
@@ -71,7 +71,7 @@ class DiagnosisProblem:
 
     fit: CalibrationProblem
     n_base: int
-    effects: tuple[tuple[Effect, EffectParameter], ...]
+    effects: tuple[tuple[Effect, tuple[EffectParameter, ...]], ...]
     start: np.ndarray
     scale: np.ndarray
     lower: np.ndarray
@@ -131,12 +131,18 @@ class DiagnosisProblem:
         """Entries of each channel in :meth:`normalised`, in order."""
         return [int(ch.rows.sum()) for ch in channels(self.rows)]
 
-    def effect_index(self, name: str) -> int:
-        """Position of an effect's parameter in the fit vector."""
-        for i, (effect, _) in enumerate(self.effects):
+    def effect_columns(self, name: str) -> tuple[int, ...]:
+        """Positions of an effect's parameters in the fit vector."""
+        start = self.n_base
+        for effect, pars in self.effects:
             if effect.name == name:
-                return self.n_base + i
+                return tuple(range(start, start + len(pars)))
+            start += len(pars)
         raise KeyError(name)
+
+    def effect_parameters(self, name: str) -> tuple[EffectParameter, ...]:
+        """The sized parameters of an effect."""
+        return next(pars for effect, pars in self.effects if effect.name == name)
 
     def describe(self) -> str:
         """Noise levels, disagreements and the effects to try (for the terminal)."""
@@ -203,16 +209,18 @@ def build_diagnosis(
             )
         notes = (*notes, f"effect(s) {', '.join(hidden)} not tried: these rows lack {why}")
     sized = tuple(
-        (e, e.parameter(manip, base_problem.rows)) for e in chosen if e.applies_to(base_problem.rows)
+        (e, e.parameters(manip, base_problem.rows)) for e in chosen if e.applies_to(base_problem.rows)
     )
-    extra = [Parameter(ep.name, ep.unit, abs(ep.probe), ep.apply) for _, ep in sized]
+    flat = [ep for _, pars in sized for ep in pars]
+    extra = [Parameter(ep.name, ep.unit, abs(ep.probe), ep.apply) for ep in flat]
     fit = replace(base_problem, parameters=(*base, *extra))
-    start = np.array([p.initial for p in base] + [ep.current for _, ep in sized])
-    scale = np.array([p.initial for p in base] + [ep.probe for _, ep in sized])
-    lo = [-0.9] * len(base) + [(ep.lower - ep.current) / ep.probe for _, ep in sized]
-    hi = [9.0] * len(base) + [(ep.upper - ep.current) / ep.probe for _, ep in sized]
-    # A negative probe (a softening gradient) flips the bounds in z.
-    lower, upper = np.minimum(lo, hi), np.maximum(lo, hi)
+    start = np.array([p.initial for p in base] + [ep.current for ep in flat])
+    scale = np.array([p.initial for p in base] + [ep.probe for ep in flat])
+    lo = [-0.9] * len(base) + [(ep.lower - ep.current) / ep.probe for ep in flat]
+    hi = [9.0] * len(base) + [(ep.upper - ep.current) / ep.probe for ep in flat]
+    # A negative probe (a softening taper) flips the bounds in z; the model as given (z = 0)
+    # stays inside them even when its own value lies beyond what a fit would try.
+    lower, upper = np.minimum(np.minimum(lo, hi), 0.0), np.maximum(np.maximum(lo, hi), 0.0)
     measured = measured_array(fit.rows)
     meter.expect(len(fit.rows))
     before = fit.simulate(start.tolist(), fit.rows, n_jobs)

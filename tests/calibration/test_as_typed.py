@@ -61,7 +61,7 @@ def test_a_csv_without_finger_line_or_model_says_how_to_give_one(tmp_path: Path)
     [
         (
             "# finger: {length_mm: 100, segments: 20}",
-            "line 1, finger header: mass_g (mass of the bending part, g) is required",
+            "line 1, finger header: mass_g (mass of the bending part, g; 0: weightless) is required",
         ),
         (
             "# finger: {length_mm: 100, segments: 0, mass_g: 20}",
@@ -71,6 +71,10 @@ def test_a_csv_without_finger_line_or_model_says_how_to_give_one(tmp_path: Path)
         (
             "# finger: {length_mm: .nan, segments: 20, mass_g: 20}",
             "length_mm must be a finite number > 0, got nan",
+        ),
+        (
+            "# finger: {length_mm: 100, segments: 20, mass_g: -1}",
+            "mass_g must be a finite number >= 0, got -1",  # 0 is a weightless finger
         ),
         (
             "# finger: {lenght_mm: 100, segments: 20, mass_g: 20}",

@@ -288,6 +288,23 @@ def test_side_view_bends_the_side_joints_with_their_own_lever_arms() -> None:
     assert 0.05 / (float(deflection_mm) * 1e-3) == pytest.approx(closed, rel=0.01)  # type: ignore[arg-type]
 
 
+def test_side_view_keeps_every_joints_stiffness_under_a_taper_and_a_gradient() -> None:
+    """The side view drops the first segment; profile, gradient and taper are evaluated where each
+    remaining joint sits on the whole finger (before, the gradient moved by one segment)."""
+    manip = load_model(MODELS / "ihm_finger.yaml").manipulator
+    assert manip is not None
+    act = manip.actuators[0].model_copy(
+        update={"stiffness_gradient_per_m": 3.0, "stiffness_tip_ratio": 0.2, "stiffness_taper_shape": 0.0}
+    )
+    manip = manip.model_copy(update={"actuators": [act]})
+    side = side_view(manip).actuators[0]
+    for i in range(side.segments):
+        kept = side.joint_of_segment(i).stiffness * side.stiffness_factor(i)
+        assert kept == pytest.approx(
+            act.joint_of_segment(i + 1).stiffness * act.stiffness_factor(i + 1), rel=1e-12
+        )
+
+
 def test_fig3_data_reproduce_the_published_values_and_say_so() -> None:
     assert "NOT measured" in FIG3.read_text().splitlines()[0]
     rows = read_measurements(FIG3)
