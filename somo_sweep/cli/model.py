@@ -10,7 +10,7 @@ from typing import Annotated
 import pandas as pd
 import typer
 
-from somo_sweep.cli.output import check_replaceable, checked_jobs, fail, write_atomic
+from somo_sweep.cli.output import check_replaceable, checked_jobs, fail, file_target, write_atomic
 from somo_sweep.errors import SomoError
 
 __all__ = ["check", "measure"]
@@ -135,7 +135,14 @@ def measure(
         str, typer.Option(help="Comma-separated pressures in kPa (tip loads in N for tip_load).")
     ],
     pressure_kpa: Annotated[float, typer.Option(help="Pressure for tip_load rows, kPa.")] = 0.0,
-    csv: Annotated[Path | None, typer.Option(help="Also write the rows to this CSV file.")] = None,
+    csv: Annotated[
+        str | None,
+        typer.Option(
+            metavar="<path>",
+            help="Also write the rows to this CSV file; a folder (out/, or one that exists) gets "
+            "measurements.csv in it.",
+        ),
+    ] = None,
     allow_outside: ALLOW_OUTSIDE = False,
 ) -> None:
     """Simulate bench protocols and print rows in the measurement CSV schema."""
@@ -165,13 +172,14 @@ def measure(
         rows["pressure_kpa"], rows["tip_load_n"] = pressure_kpa, vals
     else:
         rows["pressure_kpa"] = vals
+    target = file_target(csv, "measurements.csv")
     try:
-        if csv is not None:
-            check_replaceable(csv, [model])
+        if target is not None:
+            check_replaceable(target, [model])
         sim = simulate_measurements(load_model(model, allow_outside), rows)
     except SomoError as exc:
         fail(exc)
     text = measurements_csv(sim, header=f"simulated with somo-sweep measure from {model}")
-    if csv is not None:
-        write_atomic(csv, text)
+    if target is not None:
+        write_atomic(target, text)
     sys.stdout.write(text)

@@ -24,6 +24,8 @@ from somo_sweep.cli.output import (
     checked_jobs,
     fail,
     figure_bytes,
+    file_target,
+    json_report,
     write_atomic,
     write_outputs,
 )
@@ -43,6 +45,8 @@ _out = Console()
 MAX_TRIALS = 1_000_000
 #: Rows a dry run prints.
 DRY_ROWS = 10
+#: Keys of every ``recheck --report`` file (earlier versions wrote it without the JSON mark).
+RECHECK_KEYS = frozenset({"trials", "columns_compared", "identical", "mismatches"})
 
 ALLOW_OUTSIDE = Annotated[
     bool,
@@ -392,11 +396,15 @@ def _save_plots(folder: Path) -> None:
 
 def show(results: Annotated[Path, typer.Argument(help="Results folder, e.g. results/<study>.")]) -> None:
     """Print a results folder's summary: counts by status and label, per-axis breakdown."""
+    from somo_sweep.sweep.folder import pending_journal_rows
+    from somo_sweep.sweep.lock import holder_now
     from somo_sweep.sweep.store import read_manifest, read_results
     from somo_sweep.sweep.summary import print_results
 
     try:
-        print_results(_out, read_results(results, _damaged), read_manifest(results))
+        df, manifest = read_results(results, _damaged), read_manifest(results)
+        pending = pending_journal_rows(results, manifest["study_hash"], set(df["job_id"]))
+        print_results(_out, df, manifest, holder_now(results), pending)
     except SomoError as exc:
         fail(exc)
 
@@ -430,7 +438,14 @@ def recheck(
         Path | None,
         typer.Option("--out", help="Results folder, anywhere (default: the study's, inside results/)."),
     ] = None,
-    report: Annotated[Path | None, typer.Option(help="Also write the comparison as JSON here.")] = None,
+    report: Annotated[
+        str | None,
+        typer.Option(
+            metavar="<path>",
+            help="Also write the comparison as JSON here; a folder (out/, or one that exists) gets "
+            "recheck.json in it.",
+        ),
+    ] = None,
     max_trials: Annotated[
         int, typer.Option("--max-trials", help="Refuse a study with more trials than this.")
     ] = MAX_TRIALS,
@@ -446,14 +461,15 @@ def recheck(
         fail(SomoError(f"--max-trials must be >= 1, got {max_trials}"))
     if not 0 <= seed < 2**63:
         fail(SomoError(f"--seed must be from 0 to 2**63 - 1, got {seed}"))
+    target = file_target(report, "recheck.json")
     try:
-        if report is not None:
-            check_replaceable(report, [study], kind="json")
+        if target is not None:
+            check_replaceable(target, [study], kind="json", older_keys=RECHECK_KEYS)
         result = run_recheck(load_study(study, out, max_trials, allow_outside), trials, seed, _damaged)
     except SomoError as exc:
         fail(exc)
-    if report is not None:
-        write_atomic(report, json.dumps(result.to_dict(), indent=1, default=str))
+    if target is not None:
+        write_atomic(target, json_report(json.loads(json.dumps(result.to_dict(), default=str)), "recheck"))
     n_bad = len({m.trial for m in result.mismatches})
     typer.echo(
         f"re-ran {len(result.trials)} trial(s) {sorted(result.trials)}: "

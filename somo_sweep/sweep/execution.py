@@ -15,13 +15,15 @@ import contextlib
 import ctypes
 import os
 import pickle
+import re
 import select
 import signal
 import socket
 import sys
 import threading
 import time
-from collections.abc import Iterable, Iterator
+import warnings
+from collections.abc import Callable, Generator, Iterable, Iterator
 from dataclasses import dataclass, field, replace
 from typing import Any, Literal
 
@@ -291,6 +293,31 @@ def _parallel(backend: Backend, n_jobs: int) -> Parallel:
     )
 
 
+#: joblib's warning when its output generator is closed early, and the counts it names.
+_CUT_SHORT = re.compile(
+    r"(\d+) tasks have been successfully executed|(\d+) tasks which were still being processed"
+)
+
+
+def _close(outcomes: Iterator[Outcome], on_stop: Callable[[int], None] | None) -> None:
+    """Close joblib's output generator; its warning about the trials cut short becomes ``on_stop``."""
+    close = getattr(outcomes, "close", None)
+    if close is None:
+        return
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        close()
+    cut = 0
+    for warning in caught:
+        found = _CUT_SHORT.findall(str(warning.message))
+        if not found:  # not joblib's note about the trials cut short: shown as it came
+            warnings.warn_explicit(warning.message, warning.category, warning.filename, warning.lineno)
+            continue
+        cut += sum(int(a or b) for a, b in found)
+    if cut and on_stop is not None:
+        on_stop(cut)
+
+
 def execute(
     jobs: Iterable[Job],
     backend: Backend = "loky",
@@ -298,8 +325,13 @@ def execute(
     scheduler: str | None = None,
     timeout_s: float | None = None,
     client: Any = None,
-) -> Iterator[Outcome]:
+    on_stop: Callable[[int], None] | None = None,
+) -> Generator[Outcome, None, None]:
     """Run jobs and yield their outcomes as they finish (in completion order).
+
+    Closing the iterator early (the caller stopped) cancels the trials still running; joblib's
+    warning about them is not shown: ``on_stop`` gets how many there were (trials running, or
+    returned but not yet handed out), so that the caller can say it in its own words.
 
     Args:
         jobs: The jobs to run.
@@ -308,6 +340,7 @@ def execute(
         scheduler: Dask scheduler address, e.g. ``tcp://10.0.0.5:8786`` (``dask`` only).
         timeout_s: Per-trial wall-time limit, s.
         client: A connected Dask client (``dask`` only; default: connect to ``scheduler``).
+        on_stop: Called with the number of trials cut short when the iterator is closed early.
 
     Raises:
         SomoError: The Dask scheduler cannot be reached, or workers keep dying.
@@ -335,9 +368,12 @@ def execute(
                         outcomes = _parallel(backend, workers)(
                             delayed(run_isolated)(j, timeout_s, owner) for j in todo
                         )
-                    for out in outcomes:
-                        pending.pop(out.job_id, None)
-                        yield out
+                    try:
+                        for out in outcomes:
+                            pending.pop(out.job_id, None)
+                            yield out
+                    finally:
+                        _close(outcomes, on_stop)
             except (KeyboardInterrupt, GeneratorExit):
                 raise
             except Exception as exc:  # a worker process itself died (not a trial): restart the pool

@@ -18,7 +18,7 @@ import signal
 import threading
 import time
 from collections import Counter
-from collections.abc import Callable, Iterator
+from collections.abc import Callable, Generator, Iterator
 from contextlib import contextmanager
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -27,7 +27,7 @@ from typing import Any
 import joblib
 import numpy as np
 
-from somo_sweep.errors import SomoError, StorageError
+from somo_sweep.errors import SomoError, StorageError, os_cause
 from somo_sweep.sweep.execution import Backend, Outcome, dask_client, execute
 from somo_sweep.sweep.jobs import Job, JobTable, build_jobs
 from somo_sweep.sweep.robustness import ReplicaPlan
@@ -308,6 +308,7 @@ def run_study(
     plan = AdaptivePlan(study, table) if adaptive else None
     replicas = ReplicaPlan(study, table) if study.robustness.replicas > 0 else None
     failure: OSError | None = None
+    cut_short: list[int] = []  # trials running (or returned, not yet received) when the run stopped
     try:
         store.copy_study(study.source)
         if retry_errors:
@@ -336,6 +337,7 @@ def run_study(
         own = plan.rounds(known) if plan else iter([Batch(None, len(todo), todo)])
         batches = _with_replicas(own, replicas, plan, known, table.study_hash)
         last_flush = time.perf_counter()
+        outcomes: Generator[Outcome, None, None] | None = None
         with _SignalGuard() as guard:
             status = "completed"
             try:
@@ -346,7 +348,10 @@ def run_study(
                     if on_round:
                         on_round(batch)
                     by_id = {j.job_id: j for j in batch.jobs}
-                    for out in execute(batch.jobs, backend, n_jobs, scheduler, timeout_s, client):
+                    outcomes = execute(
+                        batch.jobs, backend, n_jobs, scheduler, timeout_s, client, on_stop=cut_short.append
+                    )
+                    for out in outcomes:
                         with guard.protect():
                             row = outcome_row(by_id[out.job_id], out, table.study_hash)
                             if summary.rounds:
@@ -374,6 +379,8 @@ def run_study(
                 status = "interrupted"
             except OSError as exc:
                 failure, status = exc, "failed"
+            if outcomes is not None:  # stopped early: the trials still running are cancelled, counted
+                outcomes.close()
             with guard.protect(stop_after=False):
                 if failure is None:
                     try:
@@ -391,7 +398,7 @@ def run_study(
                 summary.wall_time_s = time.perf_counter() - start
                 summary.simulated_cells = plan.simulated_cells if plan else 0
                 summary.sampling_notes = list(plan.notes) if plan else []
-                extra: dict[str, Any] | None = (
+                extra: dict[str, Any] = (
                     {
                         "rounds": [vars(r) for r in summary.rounds],
                         "simulated_cells": summary.simulated_cells,
@@ -399,13 +406,18 @@ def run_study(
                         "inferred_errors": summary.inferred_errors,
                     }
                     if plan
-                    else None
+                    else {}
                 )
                 if replicas is not None:
                     summary.robustness = {**replicas.summary(), "replicas_run": summary.replicas_run}
-                    extra = {**(extra or {}), "robustness": summary.robustness}
-                with contextlib.suppress(OSError):
+                    extra["robustness"] = summary.robustness
+                if failure is not None:
+                    extra["failure"] = _failure_text(failure, study.output)
+                try:
                     store.end_run(status, summary.run, extra)
+                except OSError:  # not even the manifest: the lock file says it in place
+                    if failure is not None:
+                        store.record_stop(extra["failure"], summary.run)
                 ended = True
     except OSError as exc:
         failure = exc
@@ -421,11 +433,22 @@ def run_study(
         if client is not None:
             client.close()
     if failure is not None:
-        reason = failure.strerror or str(failure)
+        cause, advice = os_cause(failure)
+        running = f"; the {sum(cut_short)} trial(s) still running were stopped" if sum(cut_short) else ""
         raise StorageError(
-            f"stopped: cannot write the results in {study.output} ({reason}). {summary.run} trial(s) "
-            f"finished in this run and {written} of them are in the table, intact; free space and run the "
-            "same command again: finished trials not yet in the table are recovered from the run's "
-            "journal, the others run again"
+            f"stopped: cannot write {_failed_file(failure, study.output)}: {cause}. {summary.run} trial(s) "
+            f"finished in this run and {written} of them are in the table, intact{running}. To go on: "
+            f"{advice}, then run the same command again: finished trials not yet in the table are "
+            "recovered from the run's journal, the others run again"
         )
     return summary
+
+
+def _failed_file(failure: OSError, folder: Path) -> str:
+    """The file a write failed on (inside the results folder when the error does not say)."""
+    return str(failure.filename) if failure.filename else f"the results in {folder}"
+
+
+def _failure_text(failure: OSError, folder: Path) -> str:
+    """A failure as the manifest records it: which file, and the cause."""
+    return f"cannot write {_failed_file(failure, folder)}: {os_cause(failure)[0]}"

@@ -55,7 +55,7 @@ from pydantic import BaseModel, Field
 
 from somo_sweep.errors import DescriptionError, Problem, SomoError, shown
 from somo_sweep.model.description import Spec
-from somo_sweep.model.files import is_file, load_mapping
+from somo_sweep.model.files import is_file, load_mapping, missing_or_special
 from somo_sweep.model.load import Model, model_from_dict
 from somo_sweep.model.tables import bundled_if_missing, resolve_table
 from somo_sweep.model.validation import validate
@@ -391,6 +391,12 @@ def _output(raw: StudyFile, name: str, output: str | Path | None) -> tuple[Path,
     return out, None
 
 
+def _no_model(path: Path) -> str:
+    """Why a study's model file cannot be read: missing, or a link loop, a folder, …"""
+    why = missing_or_special(path)
+    return f"model file not found: {path}" if why == "file not found" else f"model file {path}: {why}"
+
+
 def _nested(path: Path, exc: DescriptionError) -> str:
     """The problems of an included file, in one line (never a line of its content)."""
     shown = "; ".join(p.render() for p in exc.problems[:3])
@@ -447,7 +453,7 @@ def load_study(
     folder = path.parent
     model_path = folder / raw.model
     if not is_file(model_path):
-        problems.append(Problem("model", f"model file not found: {model_path}", line("model")))
+        problems.append(Problem("model", _no_model(model_path), line("model")))
     name = raw.name or path.stem
     out, misplaced = _output(raw, name, output)
     if misplaced is not None:
@@ -472,7 +478,7 @@ def load_study(
             values = [str(folder / str(v)) for v in values]
             for v in values:
                 if not is_file(Path(v)):
-                    problems.append(Problem(where, f"model file not found: {v}", line(where)))
+                    problems.append(Problem(where, _no_model(Path(v)), line(where)))
         else:
             try:
                 parse_key_path(key)

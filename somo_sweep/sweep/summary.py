@@ -154,8 +154,50 @@ def print_run_summary(console: Console, summary: RunSummary) -> None:
     )
 
 
-def print_results(console: Console, df: pd.DataFrame, manifest: dict[str, Any]) -> None:
-    """Header (study, hash, completeness, runs), counts by status and label, per-axis tables."""
+def _run_line(run: dict[str, Any], holder: str | None, pending: int) -> str:
+    """One run as ``show`` lists it: when it ran, how it ended and the trials it stored.
+
+    A run the manifest still calls ``running`` is running only while a process holds the
+    folder's lock (``holder``); otherwise it was killed, and its finished trials (``pending``)
+    wait in its journal for the next run.
+    """
+    start, status, n = _text(run.get("start_utc")), run.get("status"), run.get("trials_written", 0)
+    backend = f"backend {_text(run.get('backend'))}"
+    if status == "running" and holder is not None:
+        return f"run {start} → still running ({_text(holder)}): {pending} trial(s) finished so far, {backend}"
+    if status == "running":
+        return (
+            f"run {start} → killed (no end recorded): {pending} finished trial(s) in its journal, "
+            f"stored by the next run of the study; {backend}"
+        )
+    if status == "aborted":
+        recovered = run.get("trials_recovered", 0)
+        return (
+            f"run {start} → killed (found {_text(run.get('aborted_found_utc'))}): aborted, {_text(n)} "
+            f"trial(s) stored ({_text(recovered)} recovered from its journal), {backend}"
+        )
+    why = f" ({_text(run.get('failure'), 500)})" if status == "failed" and run.get("failure") else ""
+    return f"run {start} → {_text(run.get('end_utc'))}: {_text(status)}{why}, {_text(n)} trial(s), {backend}"
+
+
+def print_results(
+    console: Console,
+    df: pd.DataFrame,
+    manifest: dict[str, Any],
+    holder: str | None = None,
+    pending: dict[str, int] | None = None,
+) -> None:
+    """Header (study, hash, completeness, runs), counts by status and label, per-axis tables.
+
+    Args:
+        console: Where to print.
+        df: The folder's trials (:func:`~somo_sweep.sweep.folder.read_results`).
+        manifest: Its manifest.
+        holder: Who holds the folder's lock now (a run in progress), or None.
+        pending: Finished trials waiting in the journals of killed runs, by run id
+            (:func:`~somo_sweep.sweep.folder.pending_journal_rows`).
+    """
+    pending = pending or {}
     total = manifest.get("n_trials") or 0
     replica_runs = 0
     if not df.empty:
@@ -171,6 +213,10 @@ def print_results(console: Console, df: pd.DataFrame, manifest: dict[str, Any]) 
         )
     if replica_runs:
         stored += f", and {replica_runs} robustness replica run(s)"
+    if sum(pending.values()) and holder is None:
+        stored += f" (and {sum(pending.values())} finished in a killed run's journal, stored by the next run)"
+    elif sum(pending.values()):
+        stored += f" (and {sum(pending.values())} finished in the running run's journal)"
     console.print(
         f"[bold]{_text(manifest.get('study_name'))}[/bold]: {stored}, "
         f"study hash {_text(manifest['study_hash'])}, task {_text(manifest.get('study', {}).get('task'))}"
@@ -178,11 +224,12 @@ def print_results(console: Console, df: pd.DataFrame, manifest: dict[str, Any]) 
     runs = manifest.get("runs", [])
     if len(runs) > SHOWN_RUNS:  # a folder resumed thousands of times: its latest runs
         console.print(f"  … {len(runs) - SHOWN_RUNS} earlier run(s) (all in {MANIFEST})")
+    unclaimed = sum(n for run_id, n in pending.items() if all(r.get("run_id") != run_id for r in runs))
     for run in runs[-SHOWN_RUNS:]:
-        console.print(
-            f"  run {_text(run.get('start_utc'))} → {_text(run.get('end_utc'))}: {_text(run.get('status'))}, "
-            f"{_text(run.get('trials_written', 0))} trial(s), backend {_text(run.get('backend'))}"
-        )
+        waiting = pending.get(str(run.get("run_id")), 0)
+        if run.get("status") == "running" and "run_id" not in run:  # an older version's run: no id
+            waiting += unclaimed
+        console.print(f"  {_run_line(run, holder, waiting)}")
     if df.empty:
         return
     counts = _by_sampling(df["status"].rename("status"), inferred)
