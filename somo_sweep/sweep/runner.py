@@ -101,8 +101,8 @@ class RunSummary:
 
     @property
     def trials_per_s(self) -> float:
-        """Trials run per second of wall time."""
-        return self.run / self.wall_time_s if self.wall_time_s > 0 else 0.0
+        """Trials (robustness replicas included) run per second of wall time."""
+        return (self.run + self.replicas_run) / self.wall_time_s if self.wall_time_s > 0 else 0.0
 
     @property
     def errors(self) -> int:
