@@ -200,7 +200,7 @@ class Tracer:
     def sample(self) -> None:
         p, s = self.p, self.scale
         # run_single loads the plane (0), the two fingers (1, 2), then the object (3).
-        row: dict[str, float] = {"t_s": self.n * self.dt}
+        row: dict[str, object] = {"t_s": self.n * self.dt}
         pos, orn = p.getBasePositionAndOrientation(3)
         rpy = p.getEulerFromQuaternion(orn)
         row.update({f"obj_{a}_m": v / s for a, v in zip("xyz", pos, strict=True)})
@@ -214,6 +214,7 @@ class Tracer:
                 row[f"f{f}_q{j:02d}_rad"] = q[j]
             cps = p.getContactPoints(f, 3)
             row[f"f{f}_obj_contacts"] = len(cps)
+            row[f"f{f}_obj_points"] = [(c[3], *(v / s for v in c[5]), *c[7], c[8] / s, c[9] / s) for c in cps]
             row[f"f{f}_obj_force_n"] = sum(c[9] for c in cps) / s
             row[f"f{f}_obj_mean_link"] = (sum(c[3] for c in cps) / len(cps) + 1) if cps else float("nan")
         row["obj_ground_contacts"] = len(p.getContactPoints(3, 0))
@@ -308,6 +309,7 @@ def main() -> None:
     ap.add_argument("--cell", action="append", help="one cell 'DSR,width_mm,c_mm' (repeatable)")
     ap.add_argument("--restitution", default="0", help="restitution of object and fingers, or 'original'")
     ap.add_argument("--trace", type=Path, help="write a 10-ms trace (JSON lines) of each cell here")
+    ap.add_argument("--trace-every", type=int, default=20, help="steps between --trace samples (20: 10 ms)")
     ap.add_argument(
         "--inspect", type=Path, help="write full dumps of every body (JSON) at --inspect-steps here"
     )
@@ -364,7 +366,11 @@ def run_cells(
     from somo.sweep import iter_utils
 
     steps = tuple(int(x) for x in args.inspect_steps.split(",")) if args.inspect else ()
-    tracer = Tracer(every=20, scale=20.0, inspect_steps=steps) if (args.trace or args.inspect) else None
+    tracer = (
+        Tracer(every=args.trace_every, scale=20.0, inspect_steps=steps)
+        if (args.trace or args.inspect)
+        else None
+    )
     for dsr, width, c in todo:
         cfg, h = cell_config(region, dsr, width, c, work)
         iter_utils.add_tmp("_tmp")
