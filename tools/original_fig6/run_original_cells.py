@@ -45,6 +45,7 @@ import math
 import os
 import random
 import shutil
+import signal
 import sys
 import tempfile
 import time
@@ -339,6 +340,7 @@ def main() -> None:
     patch_environment(somo)
     patch_restitution(restitution)
     work = Path(tempfile.mkdtemp(prefix="somo_orig_"))
+    signal.signal(signal.SIGTERM, lambda *_: sys.exit(143))  # a killed run still removes `work`
     try:
         run_cells(args, todo, region, work, restitution, out)
     finally:
