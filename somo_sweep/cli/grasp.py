@@ -46,6 +46,13 @@ def classify(
             f"rule {rule}, {len(shaky)} not (counts above are majorities; per cell: grasp_{rule}_majority, "
             f"grasp_{rule}_agreement, robust)"
         )
+    legacy = table.attrs.get("rows_without_final_counts", 0)
+    if legacy:
+        typer.echo(
+            f"note: {legacy} trials were stored before the final step's per-part contact counts "
+            "(final_contact_count_link01 ...): they are relabelled from their stored mean link where it "
+            "decides the label, 'unknown' where it does not; re-run them (somo-sweep run) for exact labels"
+        )
     typer.echo(f"labels written to {path}")
 
 
