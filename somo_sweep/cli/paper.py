@@ -300,6 +300,10 @@ def robust_cost(
     ] = Path("results/reference"),
     rounds: Annotated[int, typer.Option(help="Alternating rounds of the one-trial timing.")] = 3,
     jobs: Annotated[int, typer.Option("--jobs", "-j", help="Workers of the two study runs.")] = 2,
+    work: Annotated[
+        Path | None,
+        typer.Option(help="Keep the two results folders here (before/, robust/; default: temporary)."),
+    ] = None,
 ) -> None:
     """What robust labels cost: one trial, and the quick study plain before vs robust (K = 4) now."""
     import json
@@ -309,9 +313,11 @@ def robust_cost(
 
     if rounds < 1 or jobs < 1:
         fail(SomoError(f"--rounds and --jobs must be >= 1, got {rounds} and {jobs}"))
+    if work is not None and (work / "before").exists():
+        fail(SomoError(f"--work {work} already holds a run (before/): the benchmark times fresh runs"))
     with tempfile.TemporaryDirectory(prefix="somo-sweep-robust-cost-") as tmp:
         try:
-            report = cost_runs(Path(tmp), rounds=rounds, n_jobs=jobs)
+            report = cost_runs(work or Path(tmp), rounds=rounds, n_jobs=jobs)
         except SomoError as exc:
             fail(exc)
     for line in cost_lines(report):

@@ -141,15 +141,18 @@ class Numerics(BaseModel):
     """Numerical regularisation applied on top of the model file (not physics).
 
     Attributes:
-        added_inertia_kg_m2: Inertia shaping added to each finger link's principal
-            moments (lowers the chain's highest mode; statics unchanged).
+        added_inertia_kg_m2: Inertia shaping added to each finger link's principal moments
+            (lowers the chain's highest mode so a larger explicit step is stable). ``None`` (the
+            default) keeps the model's: none in the bundled finger, or what a study without
+            ``simulation:`` chose for its step (:mod:`somo_sweep.sweep.convergence`). Shaping
+            moves labels (docs/pinch_grasp.md, "Numerics"), so the bundled studies use none.
         damping_n_m_s_per_rad: Viscous damping of every finger joint (``None`` keeps the file's).
         motor_limit_n_m: Coulomb motor limit of every finger joint (``None`` keeps the file's).
     """
 
     model_config = ConfigDict(extra="forbid", frozen=True)
 
-    added_inertia_kg_m2: float = Field(3e-5, ge=0)
+    added_inertia_kg_m2: float | None = Field(None, ge=0)
     damping_n_m_s_per_rad: float | None = Field(None, ge=0)
     motor_limit_n_m: float | None = Field(None, ge=0)
 

@@ -106,8 +106,9 @@ def split_finger(
     def tuned(act: Actuator, n: int, actuated: bool) -> Actuator:
         link = surface(act.link.with_length_z(seg_m))
         joints = list(act.joints)
-        if numerics is not None:
+        if numerics is not None and numerics.added_inertia_kg_m2 is not None:
             link = link.model_copy(update={"added_inertia_kg_m2": numerics.added_inertia_kg_m2})
+        if numerics is not None:
             upd: dict[str, float] = {}
             if numerics.damping_n_m_s_per_rad is not None:
                 upd["damping_n_m_s_per_rad"] = numerics.damping_n_m_s_per_rad
