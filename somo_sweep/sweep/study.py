@@ -94,7 +94,7 @@ class Simulation(Spec):
     body per finger plus the palm, at a lower cost per step
     (:func:`somo_sweep.sim.urdf.plan_assembly`). The hand moves the same, but knife-edge
     contact outcomes can come out the other way, so check a study's results before opting
-    in (docs/pinch_grasp.md, "One body per finger").
+    in (docs/pinch_grasp.md, "Engine settings").
 
     ``friction_rows_every: 2`` solves the joints' Coulomb friction every other step; on the step
     between, a sliding joint keeps its friction torque and a stuck one gets its static demand
