@@ -190,12 +190,13 @@ def render_trial(study_path: str | Path, trial: str, times_s: list[float]) -> tu
     """
     from somo_sweep.sim.render import Camera, snapshot
     from somo_sweep.sim.world import World
+    from somo_sweep.sweep.convergence import with_stored_step
     from somo_sweep.sweep.jobs import build_jobs
     from somo_sweep.sweep.study import load_study
     from somo_sweep.tasks.pinch_grasp.params import PinchGraspParams
     from somo_sweep.tasks.pinch_grasp.task import run_pinch_grasp
 
-    study = load_study(study_path)
+    study = with_stored_step(load_study(study_path))
     if study.task.name != "pinch_grasp":
         raise SomoError(f"{study_path}: render needs a pinch_grasp study, this one runs '{study.task.name}'")
     job = find_trial(build_jobs(study).jobs, trial)

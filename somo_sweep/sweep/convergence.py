@@ -33,7 +33,15 @@ import numpy as np
 from somo_sweep.sweep.jobs import Job, code_version, iter_jobs, replica_jobs
 from somo_sweep.sweep.study import Study
 
-__all__ = ["SAMPLE_CELLS", "Rung", "StepChoice", "choose_step", "outcomes_of", "stored_choice"]
+__all__ = [
+    "SAMPLE_CELLS",
+    "Rung",
+    "StepChoice",
+    "choose_step",
+    "outcomes_of",
+    "stored_choice",
+    "with_stored_step",
+]
 
 #: Cells of a study sampled per candidate step (fewer if the study has fewer).
 SAMPLE_CELLS = 8
@@ -227,6 +235,23 @@ def stored_choice(manifest: dict[str, Any], study: Study) -> StepChoice | None:
     if not choice.sample or choice.sample != _sample(study, len(choice.sample)):
         return None
     return choice if math.isfinite(choice.step_s) and choice.step_s > 0 else None
+
+
+def with_stored_step(study: Study) -> Study:
+    """``study`` with the step its results folder recorded, if it has no ``simulation:`` and the
+    folder holds a choice for it (else unchanged: its jobs then show the modal starting guess)."""
+    from somo_sweep.errors import SomoError
+    from somo_sweep.sweep.folder import read_manifest
+
+    if study.simulation is not None or study.auto_step_s is not None:
+        return study
+    try:
+        choice = stored_choice(read_manifest(study.output), study)
+    except (SomoError, OSError):
+        return study
+    if choice is None:
+        return study
+    return replace(study, auto_step_s=choice.step_s, convergence=choice.as_dict())
 
 
 def outcomes_of(results: Iterator[Any]) -> Iterator[tuple[str, str, dict[str, str]]]:

@@ -202,3 +202,15 @@ def test_with_adaptive_sampling_replicas_go_to_simulated_boundary_cells_never_to
     assert (replicated.index.isin(cells.index[~near])).sum() <= summary.robustness["audited_cells"]
     assert summary.robustness["boundary_cells"] > 0 and summary.robustness["audited_cells"] > 0
     assert cells.loc[~near, "robust"].dropna().all()  # a 0.4 shift flips nothing far from the circle
+
+
+def test_recheck_reruns_replicas_as_well_as_trials(tmp_path: Path) -> None:
+    from somo_sweep.sweep.recheck import recheck
+
+    path = sign_study(tmp_path, jitter=1.0, xs="[-3, -2, -0.01, 0.01, 2, 3]")
+    study = with_replicas(load_study(path, tmp_path / "out"), 8)
+    run_study(study, n_jobs=1)
+    stored = read_results(tmp_path / "out")
+    assert (stored["replica"] > 0).sum() == 24
+    report = recheck(study, n_trials=len(stored))
+    assert report.mismatches == [] and sorted(set(report.trials)) == [0, 1, 2, 3, 4, 5]
