@@ -229,4 +229,11 @@ def render_trial(study_path: str | Path, trial: str, times_s: list[float]) -> tu
     if isinstance(ended, float) and math.isfinite(ended) and any(t > ended for t in times_s):
         why = result.metrics.get("ended_early_reason", "")
         label += f" (ended early at {ended:.2f} s: {why}; no snapshot after it)"
+    label += f"; step {job.settings.time_step_s * 1e3:g} ms"
+    if study.simulation is None and study.auto_step_s is None:
+        # No step chosen yet: the jobs carry the modal starting guess, which a sweep may reject.
+        label += (
+            " (the automatic step's starting guess: this study has not chosen its step yet; "
+            "`somo-sweep check STUDY.yaml` or a run chooses it, then render uses that)"
+        )
     return out, label
