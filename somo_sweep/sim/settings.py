@@ -37,7 +37,7 @@ class WorldSettings:
             the scaled world's units, so linear rows count in (Y·m/s)² and joint rows in
             (rad/s)²). None keeps Bullet's 1e-7, at which a pinch trial runs all its
             iterations; larger values cut steps whose constraints settle early (docs/pinch_grasp.md,
-            "Solver early exit"). Must be finite and > 0.
+            "Engine settings"). Must be finite and > 0.
         clamp_speed_cap: Let a run go on when a joint or a body reaches Bullet's speed cap
             (Bullet clamps the speed and steps on, as the original SoMo code let it). False
             (default) stops the run as unstable there: past the cap the motion is wrong. For
