@@ -172,3 +172,20 @@ def test_a_signal_while_the_step_is_chosen_stops_cleanly(tmp_path: Path, signum:
     assert proc.returncode == 128 + signum, seen + rest
     assert "interrupted while choosing the time step" in rest and "Traceback" not in rest
     assert not (tmp_path / "out" / "trials").exists()
+
+
+def test_check_of_a_study_prints_the_choice_and_why_and_writes_nothing(tmp_path: Path) -> None:
+    path = study_file(tmp_path, "coarse_above_s: 0.0025")
+    before = sorted(p.relative_to(tmp_path) for p in tmp_path.rglob("*"))
+    res = CliRunner().invoke(app, ["check", str(path), "-j", "1"], terminal_width=300)
+    assert res.exit_code == 0, res.output
+    assert "conv: task selftest_sleep, 6 trials" in res.output
+    assert "trying 4 ms: 18 sample run(s)" in res.output
+    assert "4 ms: not converged: 0 of 6 robust sample cells (of 6) agree with 2 ms" in res.output
+    assert "chosen: 2 ms" in res.output
+    assert sorted(p.relative_to(tmp_path) for p in tmp_path.rglob("*")) == before
+    given = path.read_text() + "simulation: {time_step_s: 1.0e-3}\n"
+    path.write_text(given)
+    res = CliRunner().invoke(app, ["check", str(path)])
+    assert res.exit_code == 0, res.output
+    assert "simulation: time step 1 ms, from the study file" in res.output and "trying" not in res.output
