@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import math
 from collections import Counter
+from collections.abc import Sequence
 from pathlib import Path
 from typing import Any
 
@@ -123,7 +124,7 @@ def relabel(
     return dict(sorted(Counter(str(v) for v in labels).items())), out
 
 
-def find_trial(jobs: list[Any], trial: str) -> Any:
+def find_trial(jobs: Sequence[Any], trial: str) -> Any:
     """The job of a trial given by (a prefix of) its job id or by its 0-based grid index.
 
     Raises:

@@ -13,7 +13,7 @@ import json
 import os
 import warnings
 from collections import Counter
-from collections.abc import Callable, Collection, Mapping
+from collections.abc import Callable, Collection, Iterator, Mapping
 from pathlib import Path
 from typing import Any
 
@@ -451,9 +451,8 @@ def _inferred_cells(
     return inferred.filter(keep)
 
 
-def journal_rows(path: Path) -> list[dict[str, Any]]:
-    """The rows of a journal file; a line cut short by a killed process is left out."""
-    rows = []
+def journal_rows(path: Path) -> Iterator[dict[str, Any]]:
+    """The rows of a journal file, one at a time; a line cut short by a killed process is left out."""
     with path.open("rb") as fh:
         for line in fh:
             try:
@@ -461,5 +460,4 @@ def journal_rows(path: Path) -> list[dict[str, Any]]:
             except ValueError:
                 continue
             if isinstance(row, dict) and isinstance(row.get("job_id"), str):
-                rows.append(row)
-    return rows
+                yield row

@@ -20,7 +20,7 @@ import pandas as pd
 
 from somo_sweep.errors import SomoError
 from somo_sweep.sweep.execution import outcome_of, run_job
-from somo_sweep.sweep.jobs import Job, build_jobs
+from somo_sweep.sweep.jobs import build_jobs
 from somo_sweep.sweep.runner import outcome_row
 from somo_sweep.sweep.store import read_manifest, read_results
 from somo_sweep.sweep.study import Study
@@ -110,13 +110,15 @@ def recheck(
         raise SomoError(f"{folder} holds no finished trials yet")
     if n_trials < 1:
         raise SomoError(f"the number of trials to recheck must be >= 1, got {n_trials}")
-    by_id: dict[str, Job] = {j.job_id: j for j in table.jobs}
     rng = np.random.default_rng(seed)
     picks = rng.choice(len(stored), size=min(n_trials, len(stored)), replace=False)
+    trials = table.trial_of([str(stored.iloc[int(i)]["job_id"]) for i in picks])
     report = RecheckReport()
-    for index in picks:
+    for index, trial in zip(picks, trials, strict=True):
         row = stored.iloc[int(index)]
-        job = by_id[str(row["job_id"])]
+        if trial < 0:
+            raise SomoError(f"{folder}: stored job {row['job_id']} is not a trial of the study; run it again")
+        job = table.jobs[int(trial)]
         out = outcome_of(job, run_job(job))
         fresh = outcome_row(job, out, table.study_hash)
         report.trials.append(job.trial)

@@ -45,6 +45,7 @@ import itertools
 import json
 import math
 import os
+from collections import OrderedDict
 from collections.abc import Callable, Iterator
 from dataclasses import dataclass, field, replace
 from functools import cache
@@ -65,8 +66,11 @@ from somo_sweep.tasks.registry import TaskSpec, get_task
 
 __all__ = [
     "MAX_TRIALS",
+    "MODEL_CACHE",
+    "PARAMS_CACHE",
     "RESULTS_ROOT",
     "Adaptive",
+    "RecentCache",
     "Simulation",
     "Study",
     "StudyFile",
@@ -81,6 +85,29 @@ MAX_TRIALS = 1_000_000
 RESULTS_ROOT = Path("results")
 #: Up to this many grid points, the models and parameters checked at load are kept for the jobs.
 CHECK_CACHE_POINTS = 10_000
+#: Most models, and parameter sets, a study keeps built (the most recently used): a study's memory
+#: stays flat in its number of trials, whatever its number of distinct models.
+MODEL_CACHE = 128
+PARAMS_CACHE = 1024
+
+
+class RecentCache(OrderedDict[str, Any]):
+    """A dict that keeps only its ``size`` most recently used entries."""
+
+    def __init__(self, size: int) -> None:
+        super().__init__()
+        self.size = size
+
+    def __getitem__(self, key: str) -> Any:
+        value = super().__getitem__(key)
+        self.move_to_end(key)
+        return value
+
+    def __setitem__(self, key: str, value: Any) -> None:
+        super().__setitem__(key, value)
+        self.move_to_end(key)
+        while len(self) > self.size:
+            self.popitem(last=False)
 
 
 class Simulation(Spec):
@@ -198,9 +225,9 @@ class Study:
     allow_outside: bool = False
     sampling: str = "grid"
     adaptive: Adaptive = field(default_factory=Adaptive)
-    _models: dict[str, Model] = field(default_factory=dict, repr=False)
+    _models: dict[str, Model] = field(default_factory=lambda: RecentCache(MODEL_CACHE), repr=False)
     _bases: dict[str, dict[str, Any]] = field(default_factory=dict, repr=False)
-    _params: dict[str, BaseModel] = field(default_factory=dict, repr=False)
+    _params: dict[str, BaseModel] = field(default_factory=lambda: RecentCache(PARAMS_CACHE), repr=False)
 
     @property
     def n_points(self) -> int:
@@ -227,6 +254,18 @@ class Study:
                 point.update(part)
             yield point
 
+    def point_at(self, index: int) -> dict[str, Any]:
+        """The grid point at ``index`` of :meth:`points` (built alone, the others not expanded)."""
+        values = {a.key: a.values for a in self.axes}
+        picks: list[int] = []
+        for g in reversed(self.groups):
+            index, i = divmod(index, len(values[g[0]]))
+            picks.append(i)
+        point: dict[str, Any] = {}
+        for g, i in zip(self.groups, reversed(picks), strict=True):
+            point.update((k, values[k][i]) for k in g)
+        return point
+
     def _model_base(self, path: Path) -> dict[str, Any]:
         key = str(path)
         if key not in self._bases:
@@ -243,6 +282,12 @@ class Study:
         path, model = self.resolve_model(point)
         return path, model, self.resolve_params(point)
 
+    def model_key(self, point: dict[str, Any]) -> str:
+        """What identifies the model of one grid point: its file and its overrides, as text."""
+        values = {**self.fixed, **point}
+        over = {k: v for k, v in values.items() if k.startswith("model.")}
+        return _canonical([str(values.get("model", self.model_path)), over])
+
     def resolve_model(self, point: dict[str, Any], cache: bool = True) -> tuple[Path, Model]:
         """The model file and the model (with its overrides applied) of one grid point.
 
@@ -251,7 +296,7 @@ class Study:
         values = {**self.fixed, **point}
         model_path = Path(values.get("model", self.model_path))
         over = {k: v for k, v in values.items() if k.startswith("model.")}
-        key = _canonical([str(model_path), over])
+        key = self.model_key(point)
         if key in self._models:
             return model_path, self._models[key]
         data = copy.deepcopy(self._model_base(model_path))
@@ -272,6 +317,11 @@ class Study:
             self._models[key] = model
         return model_path, model
 
+    def params_key(self, point: dict[str, Any]) -> str:
+        """What identifies the task parameters of one grid point: their overrides, as text."""
+        values = {**self.fixed, **point}
+        return _canonical({k: v for k, v in values.items() if k.startswith("task.")})
+
     def resolve_params(self, point: dict[str, Any], cache: bool = True) -> BaseModel:
         """The task parameters (an instance of the task's ``params_model``) of one grid point.
 
@@ -279,7 +329,7 @@ class Study:
         """
         values = {**self.fixed, **point}
         over = {k: v for k, v in values.items() if k.startswith("task.")}
-        key = _canonical(over)
+        key = self.params_key(point)
         if key in self._params:
             return self._params[key]
         data = copy.deepcopy(self.params)
@@ -515,8 +565,8 @@ def derive_study(study: Study, overrides: dict[str, Any], name: str, output: str
         name=name,
         fixed={**study.fixed, **overrides},
         output=Path(output),
-        _models={},
-        _params={},
+        _models=RecentCache(MODEL_CACHE),
+        _params=RecentCache(PARAMS_CACHE),
     )
     derived._bases = study._bases  # model files are shared; overrides are applied per trial
     _check_points(derived, {}, problems)
