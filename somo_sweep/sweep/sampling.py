@@ -56,10 +56,29 @@ def _refinable(values: tuple[Any, ...]) -> bool:
 
 
 def grid_of(study: Study) -> AdaptiveGrid:
-    """The study's grid: one dimension per axis group, refined where numeric and monotonic."""
+    """The study's grid: one dimension per axis group, refined where numeric and monotonic.
+
+    A ``cells:`` table is a dimension run row by row, never refined: its rows are points chosen
+    one by one, not samples of an axis.
+
+    Raises:
+        DescriptionError: The study's only dimension is its ``cells:`` table (nothing to refine).
+    """
     axes = {a.key: a.values for a in study.axes}
     shape = [len(axes[g[0]]) for g in study.groups]
-    refined = [all(_refinable(axes[k]) for k in g) for g in study.groups]
+    refined = [all(_refinable(axes[k]) for k in g) and not study.is_cells(g) for g in study.groups]
+    if study.cells is not None and not any(refined):
+        raise DescriptionError(
+            study.source,
+            [
+                Problem(
+                    "sampling",
+                    "adaptive sampling refines numeric sweep: axes, and this study has none besides its "
+                    f"cells: table, whose {len(study.cells.rows)} rows each run; allowed: sampling: grid "
+                    "(or --exhaustive), or a numeric sweep: axis to refine",
+                )
+            ],
+        )
     return AdaptiveGrid.build(shape, refined, study.adaptive.coarse_step)
 
 
@@ -260,9 +279,11 @@ def describe(study: Study, grid: AdaptiveGrid | None = None) -> str:
     grid = grid or grid_of(study)
     dims = []
     for g, n, refined, stride in zip(study.groups, grid.shape, grid.refined, grid.strides, strict=True):
-        name = " + ".join(g)
+        if study.is_cells(g):
+            dims.append(f"  cells ({', '.join(g)}): {n} rows, every row (not refined)")
+            continue
         how = f"refined, coarse: {_nth(stride)} and the last" if refined else "every value (not refined)"
-        dims.append(f"  {name}: {n} values, {how}")
+        dims.append(f"  {' + '.join(g)}: {n} values, {how}")
     labels = ", ".join(f"label_{_label_name(n)}" for n in study.adaptive.labels) or "every label_* column"
     reps = study.repeats
     return "\n".join(

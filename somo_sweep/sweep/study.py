@@ -13,8 +13,10 @@ A study file (YAML or JSON) looks like this; paths are relative to the study fil
       task.pressure_kpa: {start: 0, stop: 200, step: 25}        # inclusive, round-off safe
       model.manipulator.actuators[0].joints[0].stiffness_n_m_per_rad: [0.15, 0.2186, 0.30]
       task.tip_load_n: {start: 0.0, stop: 0.2, num: 9}          # linspace
-    link:                                # axes zipped together instead of crossed (same lengths)
-      - [task.pressure_kpa, task.tip_load_n]
+    link:                                # axes zipped together instead of crossed (same lengths;
+      - [task.pressure_kpa, task.tip_load_n]   # a value may repeat, a combination may not)
+    cells: tables/cells.csv              # or an inline list of rows: explicit parameter rows
+                                         # (somo_sweep.sweep.cells), crossed with any sweep axes
     repeats: 1                           # trials per grid point, each with its own seed
     seed: 0                              # base seed; trial seeds derive from it and the point
     simulation: {time_step_s: 5.0e-4, scale: 20, solver_iterations: 50, gravity_m_s2: [0, 0, -9.81]}
@@ -28,7 +30,8 @@ In YAML flow style (``{...}``) quote keys holding ``[i]``; block style needs no 
 Key paths start with ``model.`` (any field of the model file, list items as ``[i]``)
 or ``task.`` (a task parameter, nested with dots). The axis ``model`` (no path) sweeps
 over model files. An axis is a list, ``{values: [...]}``, ``{start, stop, step}``
-(inclusive) or ``{start, stop, num}`` (evenly spaced, inclusive).
+(inclusive) or ``{start, stop, num}`` (evenly spaced, inclusive). ``cells:`` gives rows of
+values instead (:mod:`somo_sweep.sweep.cells`): the rows are one dimension, their keys zipped.
 
 Every trial's model and task parameters are validated when the study is loaded,
 so a bad value fails before anything runs, naming the file, line and key path. The
@@ -62,6 +65,7 @@ from somo_sweep.model.tables import bundled_if_missing, resolve_table
 from somo_sweep.model.validation import validate
 from somo_sweep.sim.settings import WorldSettings
 from somo_sweep.sweep.axes import Axis, axis_length, expand_axis, link_groups, parse_key_path, set_path
+from somo_sweep.sweep.cells import Cells, cells_key, parse_cells
 from somo_sweep.tasks.registry import TaskSpec, get_task
 
 __all__ = [
@@ -175,6 +179,7 @@ class StudyFile(Spec):
     set: dict[str, Any] = Field(default_factory=dict)
     sweep: dict[str, Any] = Field(default_factory=dict)
     link: list[list[str]] = Field(default_factory=list)
+    cells: Any = None
     repeats: int = Field(1, ge=1)
     seed: int = Field(0, ge=0)
     simulation: Simulation | None = None
@@ -208,6 +213,8 @@ class Study:
         allow_outside: Model includes may name files outside the model's folder.
         sampling: ``grid`` (every trial) or ``adaptive`` (see :mod:`somo_sweep.sweep.adaptive`).
         adaptive: Settings of adaptive sampling.
+        cells: The study's ``cells:`` table, or None. Its keys are axes too (``axes``), zipped
+            as the first group of ``groups``.
     """
 
     name: str
@@ -225,6 +232,7 @@ class Study:
     allow_outside: bool = False
     sampling: str = "grid"
     adaptive: Adaptive = field(default_factory=Adaptive)
+    cells: Cells | None = None
     _models: dict[str, Model] = field(default_factory=lambda: RecentCache(MODEL_CACHE), repr=False)
     _bases: dict[str, dict[str, Any]] = field(default_factory=dict, repr=False)
     _params: dict[str, BaseModel] = field(default_factory=lambda: RecentCache(PARAMS_CACHE), repr=False)
@@ -241,6 +249,16 @@ class Study:
 
     def _axis(self, key: str) -> Axis:
         return next(a for a in self.axes if a.key == key)
+
+    def is_cells(self, group: list[str]) -> bool:
+        """Whether an axis group is the ``cells:`` table (run row by row, never refined)."""
+        return self.cells is not None and tuple(group) == self.cells.keys
+
+    @property
+    def sweep_axes(self) -> list[Axis]:
+        """The axes of ``sweep:`` (the study's axes without the ``cells:`` keys)."""
+        keys = set(self.cells.keys) if self.cells is not None else set()
+        return [a for a in self.axes if a.key not in keys]
 
     def points(self) -> Iterator[dict[str, Any]]:
         """Every grid point as {axis key: value}, last axis varying fastest."""
@@ -375,11 +393,16 @@ def load_model_dict(path: Path, allow_outside: bool = False) -> dict[str, Any]:
     return load_model(path, allow_outside, bundled=False).model_dump(mode="json", exclude_unset=True)
 
 
-def _count_trials(raw: StudyFile) -> tuple[int, int]:
-    """(grid points, trials) of a study file, from its axis specs alone (nothing expanded)."""
+def _count_trials(raw: StudyFile, rows: int = 1) -> tuple[int, int]:
+    """(grid points, trials) of a study file, from its axis specs alone (nothing expanded).
+
+    Args:
+        raw: The study file.
+        rows: Rows of its ``cells:`` table (1 without one).
+    """
     sizes = {k: n for k, spec in raw.sweep.items() if (n := axis_length(spec)) is not None}
     groups = link_groups(raw.link, list(sizes), sizes, {}, [])
-    points = math.prod(sizes[g[0]] for g in groups if g)
+    points = math.prod(sizes[g[0]] for g in groups if g) * rows
     return points, points * raw.repeats
 
 
@@ -441,20 +464,24 @@ def load_study(
     def line(key: str) -> int | None:
         return lines.get(key)
 
-    n_points, n_trials = _count_trials(raw)
+    folder = path.parent
+    try:
+        task = get_task(raw.task)
+    except SomoError as exc:
+        raise DescriptionError(src, [Problem("task", str(exc), line("task"))]) from None
+    cells: Cells | None = None
+    problems: list[Problem] = []
+    if raw.cells is not None:
+        cells, problems = parse_cells(raw.cells, folder, lines, sorted(task.params_model.model_fields))
+    n_points, n_trials = _count_trials(raw, len(cells.rows) if cells else 1)
     if n_trials > max_trials:
         msg = (
             f"the study has {n_trials} trials ({n_points} grid points x {raw.repeats} repeat(s)); "
             f"allowed: at most {max_trials}; pass --max-trials {n_trials} to run it anyway"
         )
-        raise DescriptionError(src, [Problem("sweep" if raw.sweep else "repeats", msg, line("sweep"))])
+        key = "sweep" if raw.sweep else "cells" if cells else "repeats"
+        raise DescriptionError(src, [*problems, Problem(key, msg, line(key))])
 
-    problems: list[Problem] = []
-    try:
-        task = get_task(raw.task)
-    except SomoError as exc:
-        raise DescriptionError(src, [Problem("task", str(exc), line("task"))]) from None
-    folder = path.parent
     model_path = folder / raw.model
     if not is_file(model_path):
         problems.append(Problem("model", f"model file not found: {model_path}", line("model")))
@@ -472,9 +499,10 @@ def load_study(
             continue
         fixed[key] = value
     axes: list[Axis] = []
+    linked = {k for group in raw.link for k in group}
     for key, spec in raw.sweep.items():
         where = f"sweep.{key}"
-        values, found = expand_axis(spec, where)
+        values, found = expand_axis(spec, where, distinct=key not in linked)
         before = len(problems)
         for p in found:
             problems.append(Problem(p.path, p.message, line(p.path) or line(where)))
@@ -495,6 +523,15 @@ def load_study(
     groups = link_groups(
         raw.link, [a.key for a in axes], {a.key: len(a.values) for a in axes}, lines, problems
     )
+    linked_ok = len(problems) == n_before
+    if linked_ok:
+        _check_combinations(raw.link, axes, bad, lines, problems)
+    if cells is not None:
+        before = len(problems)
+        axes = _cell_axes(cells, raw, folder, lines, problems) + axes
+        groups = [list(cells.keys), *groups]
+        if len(problems) > before:
+            bad.update(cells.keys)
     study = Study(
         name,
         path,
@@ -511,15 +548,19 @@ def load_study(
         allow_outside,
         raw.sampling,
         raw.adaptive,
+        cells,
     )
     bases_ok = _check_bases(study, lines, problems)
     if problems and bases_ok:
         # Check the trials of the good axes too, so that every problem is reported at once.
         good = [a for a in axes if a.key not in bad]
-        linked_ok = len(problems) == n_before
         study.axes = good
+        # The cells table stays one group: its columns crossed would be rows x rows x ... points.
         study.groups = (
-            [[k for k in g if k not in bad] for g in groups] if linked_ok else [[a.key] for a in good]
+            [[k for k in g if k not in bad] for g in groups]
+            if linked_ok
+            else [list(g) for g in groups if study.is_cells(g) and not bad.intersection(g)]
+            + [[a.key] for a in good if cells is None or a.key not in cells.keys]
         )
         study.groups = [g for g in study.groups if g]
         _check_points(study, lines, problems)
@@ -530,6 +571,57 @@ def load_study(
     if problems:
         raise DescriptionError(src, problems)
     return study
+
+
+def _check_combinations(
+    link: list[list[str]], axes: list[Axis], bad: set[str], lines: dict[str, int], problems: list[Problem]
+) -> None:
+    """Refuse a combination of linked values given twice (the same trial twice), naming both entries.
+
+    A linked axis may repeat a value (0.16 with two widths, say): its group's combinations count.
+    """
+    values = {a.key: a.values for a in axes}
+    for i, group in enumerate(link):
+        keys = [k for k in group if k in values]
+        if len(keys) < 2 or bad.intersection(keys):
+            continue
+        first: dict[tuple[Any, ...], int] = {}
+        for n, combo in enumerate(zip(*(values[k] for k in keys), strict=True)):
+            ident = tuple(cells_key(v) for v in combo)
+            if ident not in first:
+                first[ident] = n
+                continue
+            given = ", ".join(f"{k}={shown(repr(v), 40)}" for k, v in zip(keys, combo, strict=True))
+            where = f"link[{i}]"
+            msg = (
+                f"entries {first[ident]} and {n} of its axes give the same values ({given}): the same "
+                "trial twice; allowed: distinct combinations (a value may repeat in one axis)"
+            )
+            problems.append(Problem(where, msg, lines.get(where)))
+            break
+
+
+def _cell_axes(
+    cells: Cells, raw: StudyFile, folder: Path, lines: dict[str, int], problems: list[Problem]
+) -> list[Axis]:
+    """One axis per key of the ``cells:`` table (a ``model`` column names files beside the study)."""
+    at = lines.get("cells")
+    for key in cells.keys:
+        for other, what in ((raw.sweep, "a sweep axis"), (raw.set, "set in set:")):
+            if key in other:
+                msg = f"key '{key}' is also {what}; allowed: a key is swept, set or given in cells, once"
+                problems.append(Problem("cells", msg, at))
+    axes = []
+    for key in cells.keys:
+        values = cells.column(key)
+        if key == "model":
+            values = tuple(str(folder / str(v)) for v in values)
+            for where, v in zip(cells.where, values, strict=True):
+                if not is_file(Path(v)):
+                    problems.append(Problem("cells", f"{where}: model file not found: {v}", at))
+                    break
+        axes.append(Axis(key, values))
+    return axes
 
 
 def derive_study(study: Study, overrides: dict[str, Any], name: str, output: str | Path) -> Study:
@@ -628,7 +720,7 @@ def _check_points(study: Study, lines: dict[str, int], problems: list[Problem]) 
                     msg = p.message if same else f"{p.path}: {p.message}"
                     if (where, msg) not in seen:
                         seen.add((where, msg))
-                        problems.append(Problem(where, msg, _line(lines, where)))
+                        problems.append(_in_cells(study, where, point, msg, lines))
             if len(problems) >= 20:
                 return
     if study.task.check_params is not None and not problems:
@@ -669,6 +761,8 @@ def _check_model_fits(
     """Report what the study's task needs and the model (file plus overrides) does not have."""
     model_path, model = resolved
     where = "sweep.model" if "model" in point else "model"
+    if study.cells is not None and "model" in study.cells.keys:
+        where = "cells"
     overrides = [k for k in {**study.fixed, **point} if k.startswith("model.")]
     with_overrides = (
         f" with {', '.join(overrides[:3])}{', …' if len(overrides) > 3 else ''}" if overrides else ""
@@ -678,6 +772,19 @@ def _check_model_fits(
         if (where, msg) not in seen:
             seen.add((where, msg))
             problems.append(Problem(where, msg, _line(lines, where)))
+
+
+def _in_cells(study: Study, where: str, point: dict[str, Any], msg: str, lines: dict[str, int]) -> Problem:
+    """A problem blamed on ``where``; one in a ``cells:`` key names the first row giving the value."""
+    key = where.removeprefix("sweep.")
+    cells = study.cells
+    if cells is None or not where.startswith("sweep.") or key not in cells.keys:
+        return Problem(where, msg, _line(lines, where))
+    row = cells.row_of(point) or 0
+    if cells.file is None:  # inline: the row's key in the study file
+        at = f"{cells.where[row]}.{key}"
+        return Problem(at, msg, lines.get(at, lines.get("cells")))
+    return Problem("cells", f"{cells.where[row]}, column '{key}': {msg}", lines.get("cells"))
 
 
 def _as_given(path: Path, source: Path) -> str:
