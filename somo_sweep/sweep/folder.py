@@ -116,6 +116,7 @@ def split_parts(
     listed: Collection[str] = (),
     declared: Mapping[str, str] | None = None,
     max_rows: int | None = None,
+    schemas: dict[Path, pa.Schema] | None = None,
 ) -> tuple[list[Path], list[tuple[Path, str]]]:
     """(readable part files, [(damaged part file, why)]) of a results folder.
 
@@ -126,11 +127,11 @@ def split_parts(
     alias), else the type most parts give it. So one edited part is set aside, never the
     parts that agree with each other, whatever their names. Parts the manifest lists
     (``listed``: its ``trials/NAME`` files) come first, so on a tie a stray file never
-    displaces one a run wrote.
+    displaces one a run wrote. ``schemas``, if given, receives the schema of each readable part.
     """
     good: list[Path] = []
     bad: list[tuple[Path, str]] = []
-    schemas: dict[Path, pa.Schema] = {}
+    found: dict[Path, pa.Schema] = {}
     for part in sorted(part_files(folder), key=lambda p: f"trials/{p.name}" not in listed):
         reason = None if part.is_file() else "not a regular file"
         if reason is None and not os.access(part, os.R_OK):  # not damaged: never set aside for it
@@ -142,14 +143,16 @@ def split_parts(
                 if max_rows is not None and rows > max_rows:
                     reason = f"{rows} rows, more than the study's {max_rows} trials"
                 else:
-                    schemas[part] = pq.read_schema(part)
+                    found[part] = pq.read_schema(part)
             except (pa.ArrowException, OSError) as exc:
                 reason = str(exc).split("\n")[0]
         if reason is not None:
             bad.append((part, reason))
-    reference = _reference_types(list(schemas.values()), declared or {})
+    if schemas is not None:
+        schemas.update(found)
+    reference = _reference_types(list(found.values()), declared or {})
     merged: pa.Schema | None = None
-    for part, schema in schemas.items():
+    for part, schema in found.items():
         reason = None
         for field in schema:
             want = reference.get(field.name)

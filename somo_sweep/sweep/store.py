@@ -149,6 +149,7 @@ class ResultStore:
         self.notes: list[str] = []
         self.rows_written = 0
         self._journal: IO[str] | None = None
+        self._schemas: dict[Path, pa.Schema] = {}  # of the part files, read once on opening
         try:
             _check_target(self.folder)
             self.folder.mkdir(parents=True, exist_ok=True)
@@ -191,7 +192,7 @@ class ResultStore:
             if isinstance(n_trials, int) and not isinstance(n_trials, bool) and n_trials > 0
             else None
         )
-        _, bad = split_parts(self.folder, listed, declared, max_rows)
+        _, bad = split_parts(self.folder, listed, declared, max_rows, self._schemas)
         unreadable = [part for part, reason in bad if reason.startswith(UNREADABLE)]
         if unreadable:  # not damaged: moving it away would rerun trials that are safely stored
             raise SomoError(
@@ -226,8 +227,7 @@ class ResultStore:
     def _stored_hashes(self) -> set[str]:
         hashes: set[str] = set()
         for part in self._parts():
-            column = pq.read_table(part, columns=["study_hash"]).column("study_hash")
-            hashes.update(str(h) for h in pc.unique(column).to_pylist())
+            hashes.update(_study_hashes(part))
         for journal in self.trials.glob(JOURNAL_GLOB):
             hashes.update(str(r.get("study_hash")) for r in journal_rows(journal))
         return hashes
@@ -312,7 +312,8 @@ class ResultStore:
         """Give every part the current schema (a rewrite cut short by a full disk leaves mixed ones)."""
         parts = self._parts()
         schema = self._schema()
-        if any(pq.read_schema(p).remove_metadata() != schema.remove_metadata() for p in parts):
+        read = [self._schemas.get(p) or pq.read_schema(p) for p in parts]
+        if any(s.remove_metadata() != schema.remove_metadata() for s in read):
             for part in parts:
                 self._atomic(pq.read_table(part), part, schema)
 
@@ -567,6 +568,21 @@ class ResultStore:
         if self._lock is not None:
             release(self._lock)
             self._lock = None
+
+
+def _study_hashes(part: Path) -> set[str]:
+    """The study hashes in a part file: from its row groups' statistics when every one has them,
+    null-free and one value (a part a run wrote), else from the column itself."""
+    meta = pq.read_metadata(part)
+    index = meta.schema.to_arrow_schema().get_field_index("study_hash")
+    found: set[str] = set()
+    for i in range(meta.num_row_groups):
+        stats = meta.row_group(i).column(index).statistics if index >= 0 else None
+        if stats is None or not stats.has_min_max or stats.null_count != 0 or stats.min != stats.max:
+            column = pq.read_table(part, columns=["study_hash"]).column("study_hash")
+            return {str(h) for h in pc.unique(column).to_pylist()}
+        found.add(str(stats.min))
+    return found
 
 
 def _column(values: list[Any], kind: pa.DataType) -> pa.Array:
