@@ -31,7 +31,9 @@ __all__ = [
     "dask_client",
     "dask_environment",
     "run_on_dask",
+    "run_remote",
     "threads",
+    "trial_code",
 ]
 
 #: Tasks out per worker thread: the one running and the next, already on its worker.
@@ -102,6 +104,36 @@ def dask_client(scheduler: str | None, timeout_s: float = 15.0) -> Any:
         ) from None
 
 
+def trial_code(task: str) -> str:
+    """The code version (:func:`~somo_sweep.sweep.jobs.code_version`) of a task's trials here."""
+    from somo_sweep.sweep.jobs import code_version
+    from somo_sweep.tasks.registry import get_task
+
+    return code_version(get_task(task).run_path.partition(":")[0])
+
+
+def run_remote(job: Job, timeout_s: float | None, code: str) -> Outcome:
+    """One trial on a Dask worker, refused where the worker would run other trial code.
+
+    A job's id names the code its trial runs (the sweep's): a worker with another somo-sweep (or
+    edited sources) would store results under ids they do not belong to.
+
+    Raises:
+        SomoError: The worker's trial code differs from ``code``.
+    """
+    import socket
+
+    from somo_sweep.sweep.execution import run_isolated
+
+    here = trial_code(job.task)
+    if here != code:
+        raise SomoError(
+            f"the worker on {socket.gethostname()} has somo-sweep code {here} for task {job.task}, the "
+            f"sweep {code}"
+        )
+    return run_isolated(job, timeout_s)
+
+
 def threads(client: Any) -> int:
     """Worker threads the cluster of ``client`` has now (0 if none, or the scheduler is gone)."""
     try:
@@ -127,9 +159,10 @@ def run_on_dask(
     from distributed import as_completed
     from distributed.scheduler import KilledWorker
 
-    from somo_sweep.sweep.execution import Outcome, run_isolated
+    from somo_sweep.sweep.execution import Outcome
 
     source = iter(jobs)
+    codes: dict[str, str] = {}
     in_flight: dict[str, tuple[Job, Any]] = {}
     done = as_completed(loop=client.loop)
     run = uuid.uuid4().hex[:8]
@@ -141,7 +174,8 @@ def run_on_dask(
             if job is None:
                 return
             key = f"somo-trial-{job.job_id}-{run}"
-            future = client.submit(run_isolated, job, timeout_s, key=key, pure=False)
+            code = codes.get(job.task) or codes.setdefault(job.task, trial_code(job.task))
+            future = client.submit(run_remote, job, timeout_s, code, key=key, pure=False)
             in_flight[key] = (job, future)
             done.add(future)
 
@@ -164,8 +198,8 @@ def run_on_dask(
                 raise SomoError(
                     f"a Dask worker could not run trial {job.trial} ({type(exc).__name__}: "
                     f"{shown(str(exc), 300)}); every worker needs the same somo-sweep as this machine "
-                    '(pip install "somo-sweep[dask]"). Finished trials are kept: run the same command '
-                    "again to resume"
+                    '(pip install "somo-sweep[dask]" of the same version, or the same checkout). Finished '
+                    "trials are kept: run the same command again to resume"
                 )
             else:  # cancelled or lost: the scheduler is gone
                 raise SomoError(
