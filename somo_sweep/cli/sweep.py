@@ -93,6 +93,7 @@ def run(
     """
     import joblib
 
+    from somo_sweep.sweep.execution import start_workers, stop_workers
     from somo_sweep.sweep.jobs import build_jobs
     from somo_sweep.sweep.runner import run_study
     from somo_sweep.sweep.study import load_study
@@ -122,10 +123,19 @@ def run(
         if dry_run:
             _print_dry_run(st)
             return
+        n_jobs = jobs or joblib.cpu_count() or 1
+        if backend == "loky":  # the workers start and import while the jobs are built
+            start_workers(min(n_jobs, st.n_trials), st.task.name)
         table = build_jobs(st)
     except SomoError as exc:
+        stop_workers()
         fail(exc)
-    n_jobs = jobs or joblib.cpu_count() or 1
+    except KeyboardInterrupt:
+        stop_workers()
+        typer.echo(
+            "interrupted while building the job table, before any trial: nothing was written", err=True
+        )
+        raise typer.Exit(130) from None
     live: list[Progress] = []  # the progress bar, once the results folder is open
 
     def started(summary: RunSummary) -> None:
@@ -181,6 +191,7 @@ def run(
         fail(exc, code=1 if isinstance(exc, StorageError) else 2)
     finally:
         stop()
+        stop_workers()  # started, but the run ended before its first trial (nothing to do, an error)
     from somo_sweep.sweep.summary import print_run_summary
 
     print_run_summary(_out, summary)

@@ -28,7 +28,6 @@ from pathlib import Path
 from typing import TYPE_CHECKING, Any, overload
 
 import numpy as np
-import pandas as pd
 from pydantic import BaseModel
 
 from somo_sweep.errors import DescriptionError, Problem
@@ -37,6 +36,8 @@ from somo_sweep.sim.settings import WorldSettings
 from somo_sweep.sweep.study import MODEL_CACHE, PARAMS_CACHE, RecentCache, Study
 
 if TYPE_CHECKING:
+    import pandas as pd
+
     from somo_sweep.sim.numerics import ChosenNumerics
 
 __all__ = [
@@ -396,6 +397,8 @@ class JobTable:
 
 def jobs_frame(jobs: Sequence[Job]) -> pd.DataFrame:
     """Jobs as a DataFrame (id, trial, repeat, seed and parameter columns)."""
+    import pandas as pd  # not at import: a worker imports this module and never needs pandas
+
     return pd.DataFrame(
         [
             {"job_id": j.job_id, "trial": j.trial, "repeat": j.repeat, "seed": j.seed, **j.columns}

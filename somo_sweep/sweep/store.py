@@ -345,7 +345,7 @@ class ResultStore:
         parts = self._parts()
         if not parts:
             return {}
-        table = pq.read_table(parts, columns=["job_id", "status"])
+        table = _read_columns(parts, ["job_id", "status"])
         return dict(zip(table.column("job_id").to_pylist(), table.column("status").to_pylist(), strict=True))
 
     def stored_labels(self) -> dict[str, tuple[str, dict[str, str]]]:
@@ -372,7 +372,7 @@ class ResultStore:
         parts = self._parts()
         if not parts:
             return np.empty(0, dtype="S16"), np.empty(0, dtype="S16")
-        table = pq.read_table(parts, columns=["job_id", "status"])
+        table = _read_columns(parts, ["job_id", "status"])
         ids = table.column("job_id").cast(pa.binary()).to_numpy(zero_copy_only=False).astype("S16")
         errors = pc.equal(table.column("status"), "error").to_numpy(zero_copy_only=False)
         return ids, ids[errors.astype(bool)]
@@ -570,6 +570,19 @@ class ResultStore:
             self._lock = None
 
 
+def _read_columns(parts: list[Path], columns: list[str]) -> pa.Table:
+    """Some columns of part files, read one file at a time on this thread.
+
+    ``pq.read_table`` of a list of files goes through Arrow's dataset layer and its thread
+    pools: on resume of a 200-part folder that left 34 MB more resident in the sweep's process,
+    this 7 MB.
+    """
+    return pa.concat_tables(
+        [pq.ParquetFile(part).read(columns=columns, use_threads=False) for part in parts],
+        promote_options="permissive",
+    )
+
+
 def _study_hashes(part: Path) -> set[str]:
     """The study hashes in a part file: from its row groups' statistics when every one has them,
     null-free and one value (a part a run wrote), else from the column itself."""
@@ -579,7 +592,7 @@ def _study_hashes(part: Path) -> set[str]:
     for i in range(meta.num_row_groups):
         stats = meta.row_group(i).column(index).statistics if index >= 0 else None
         if stats is None or not stats.has_min_max or stats.null_count != 0 or stats.min != stats.max:
-            column = pq.read_table(part, columns=["study_hash"]).column("study_hash")
+            column = _read_columns([part], ["study_hash"]).column("study_hash")
             return {str(h) for h in pc.unique(column).to_pylist()}
         found.add(str(stats.min))
     return found
