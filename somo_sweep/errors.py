@@ -8,12 +8,15 @@ message and exits with code 2 (1 for a :class:`StorageError`). Errors carry stru
 from __future__ import annotations
 
 import difflib
+import errno
+import os
 import re
 from collections.abc import Iterable, Sequence
 from dataclasses import dataclass
 from pathlib import Path
 
 __all__ = [
+    "MAX_LISTED",
     "SHOWN_CHARS",
     "DescriptionError",
     "MeasurementError",
@@ -23,13 +26,28 @@ __all__ = [
     "StorageError",
     "UnstableSimulation",
     "did_you_mean",
+    "os_cause",
+    "os_error_for",
     "printable",
+    "quoted",
     "shown",
 ]
 
 
 class SomoError(Exception):
     """Base class of every error somo-sweep raises on purpose."""
+
+
+#: Problems an error message lists; the others are counted in one line ("… and 88 more problem(s)").
+MAX_LISTED = 20
+
+
+def _listing(source: str, rendered: Sequence[str]) -> str:
+    """``SOURCE: N problem(s)`` (N counts every problem) and the first :data:`MAX_LISTED` of them."""
+    lines = [f"{source}: {len(rendered)} problem(s)", *(f"  - {p}" for p in rendered[:MAX_LISTED])]
+    if len(rendered) > MAX_LISTED:
+        lines.append(f"  … and {len(rendered) - MAX_LISTED} more problem(s)")
+    return "\n".join(lines)
 
 
 @dataclass(frozen=True)
@@ -56,6 +74,8 @@ class Problem:
 class DescriptionError(SomoError):
     """A description or study file is invalid; lists every problem at once.
 
+    The message counts every problem and lists the first :data:`MAX_LISTED`.
+
     Args:
         source: File name (or ``<dict>`` for Python input).
         problems: All problems found, in file order.
@@ -64,9 +84,7 @@ class DescriptionError(SomoError):
     def __init__(self, source: str | Path, problems: Sequence[Problem]):
         self.source = str(source)
         self.problems = list(problems)
-        head = f"{self.source}: {len(self.problems)} problem(s)"
-        body = "\n".join(f"  - {p.render()}" for p in self.problems)
-        super().__init__(f"{head}\n{body}")
+        super().__init__(_listing(self.source, [p.render() for p in self.problems]))
 
     def __reduce__(self) -> tuple[type, tuple[str, list[Problem]]]:
         # Rebuilt from its fields when it crosses a process boundary (joblib, Dask).
@@ -76,16 +94,17 @@ class DescriptionError(SomoError):
 class MeasurementError(SomoError):
     """A measurement CSV is invalid (missing columns, bad cells, unknown tests).
 
+    The message counts every problem and lists the first :data:`MAX_LISTED`.
+
     Args:
         source: CSV file name.
-        problems: Human-readable problems, each naming row and column.
+        problems: Every problem found (human-readable, each naming row and column).
     """
 
     def __init__(self, source: str | Path, problems: Sequence[str]):
         self.source = str(source)
         self.problems = list(problems)
-        body = "\n".join(f"  - {p}" for p in self.problems)
-        super().__init__(f"{self.source}: {len(self.problems)} problem(s)\n{body}")
+        super().__init__(_listing(self.source, self.problems))
 
     def __reduce__(self) -> tuple[type, tuple[str, list[str]]]:
         return type(self), (self.source, self.problems)
@@ -135,6 +154,15 @@ def shown(value: str, limit: int = SHOWN_CHARS) -> str:
     return f"{printable(value[:limit])}… ({len(value)} characters)"
 
 
+def quoted(value: object, limit: int = SHOWN_CHARS) -> str:
+    """A user value as ``got …`` quotes it: text in quotes, cut as :func:`shown` cuts it, the length
+    said being the text's own (not that of its ``repr``, two quotes longer); others as ``repr``."""
+    if not isinstance(value, str) or len(value) <= limit:
+        return shown(repr(value), limit)
+    cut = repr(value[:limit])
+    return f"{printable(cut[:-1])}…{cut[-1]} ({len(value)} characters)"
+
+
 #: Characters a terminal acts on rather than shows: C0 and C1 controls (escape sequences
 #: that retitle the window or clear the screen start with them) and bidirectional overrides.
 _UNPRINTABLE = re.compile("[\x00-\x1f\x7f-\x9f\u202a-\u202e\u2066-\u2069]")
@@ -155,3 +183,66 @@ def did_you_mean(word: str, choices: Iterable[str]) -> str:
         return ""
     close = difflib.get_close_matches(word, options, n=1, cutoff=0.6)
     return f" (did you mean '{close[0]}'?)" if close else ""
+
+
+#: What an operating-system error means for the user, and what to do about it, by errno.
+_OS_CAUSES: dict[int, tuple[str, str]] = {
+    errno.ENOSPC: ("the disk is full", "free space on that disk"),
+    errno.EDQUOT: ("the disk quota is used up", "free space within the quota"),
+    errno.EROFS: (
+        "the file system is read-only",
+        "remount it read-write, or give a folder on a writable disk",
+    ),
+    errno.EACCES: ("permission denied", "give yourself write access there, or give a folder of yours"),
+    errno.EPERM: ("operation not permitted", "give yourself write access there, or give a folder of yours"),
+    errno.ELOOP: (
+        "a symbolic link on the way leads back to itself, a link loop",
+        "remove or repair that link",
+    ),
+    errno.ENAMETOOLONG: ("the name is longer than the file system allows", "give a shorter name"),
+    errno.ENOTDIR: ("a step of the path is a file, not a folder", "move that file away or give another path"),
+    errno.EISDIR: ("it is a folder", "give a file name"),
+    errno.ENOENT: (
+        "a folder of the path is gone (removed while the command ran?)",
+        "give a folder that exists",
+    ),
+    errno.EIO: (
+        "input/output error (a failing disk, or a network disk that went away)",
+        "check the disk or the network mount",
+    ),
+    errno.EFBIG: ("the file is larger than the file system allows", "give a folder on another disk"),
+    errno.EMFILE: ("too many files are open", "raise the limit (ulimit -n) or use fewer --jobs"),
+    errno.ENFILE: ("the system has too many files open", "close other programs or use fewer --jobs"),
+}
+_ERRNO_IN_TEXT = re.compile(r"\[errno (\d+)\]", re.IGNORECASE)
+
+
+def os_cause(exc: OSError) -> tuple[str, str]:
+    """What an operating-system error means and what fits as advice, in words (no path).
+
+    The cause keeps the system's own words (``the disk is full (No space left on device)``),
+    so that it can be looked up. A pyarrow error carries its errno only in its text.
+
+    Returns:
+        (cause, advice); advice is a phrase the caller completes (e.g. "…, then run again").
+    """
+    code = exc.errno if isinstance(exc.errno, int) else None
+    if code is None and (found := _ERRNO_IN_TEXT.search(str(exc))):
+        code = int(found.group(1))
+    # pyarrow's strerror is a sentence around the system's words: the words alone, by errno.
+    system = os.strerror(code) if code is not None else exc.strerror or str(exc).splitlines()[0]
+    if code in _OS_CAUSES:
+        cause, advice = _OS_CAUSES[code]
+        return f"{cause} ({system})", advice
+    return system, "fix that"
+
+
+def os_error_for(exc: OSError, path: str | os.PathLike[str]) -> OSError:
+    """``exc`` as raised for ``path``: a temporary file's error named as the file it stands for
+    (the errno kept, also when pyarrow gives it only in its text)."""
+    code = exc.errno if isinstance(exc.errno, int) else None
+    if code is None and (found := _ERRNO_IN_TEXT.search(str(exc))):
+        code = int(found.group(1))
+    if not isinstance(code, int):
+        return OSError(None, exc.strerror or str(exc).splitlines()[0], str(path))
+    return OSError(code, os.strerror(code), str(path))

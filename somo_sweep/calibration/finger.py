@@ -21,13 +21,13 @@ from somo_sweep.model.description import MAX_LENGTH_M, MAX_MASS_KG
 from somo_sweep.model.files import parse_yaml_value
 from somo_sweep.model.load import Model
 
-__all__ = ["FINGER_KEYS", "finger_from_header", "read_finger_header"]
+__all__ = ["FINGER_KEYS", "finger_from_header", "read_finger_header", "read_header_mapping"]
 
 #: Header keys with their meaning; the first three are required.
 FINGER_KEYS = {
     "length_mm": "bending length, mm",
     "segments": "number of links (and joints), 1-200",
-    "mass_g": "mass of the bending part, g",
+    "mass_g": "mass of the bending part, g; 0: weightless",
     "width_mm": "link width along the joint axis, mm",
     "thickness_mm": "link thickness in the bending direction, mm",
     "joint_placement": "midpoint or start",
@@ -50,6 +50,23 @@ def read_finger_header(path: str | Path) -> dict[str, Any] | None:
         MeasurementError: A header line that is not a mapping, an unknown key, a missing
             required key or a value out of range (the message names the line and the key).
     """
+    found = read_header_mapping(path, _PREFIX, "finger header", "{length_mm: 100, segments: 20, mass_g: 20}")
+    if found is None:
+        return None
+    number, data = found
+    return _validate(Path(path), f"line {number}, finger header", data)
+
+
+def read_header_mapping(
+    path: str | Path, prefix: str, what: str, example: str
+) -> tuple[int, dict[Any, Any]] | None:
+    """The YAML mapping of a ``# <key>:`` comment line above a CSV's header, with its line number.
+
+    Only the comment lines above the column header are searched. None when there is no such line.
+
+    Raises:
+        MeasurementError: The line given twice, too long, or not a mapping (naming the line).
+    """
     path = Path(path)
     with path.open("rb") as fh:
         # Split like the CSV reader: \n, \r\n or a lone \r (old Mac exports) end a line.
@@ -58,28 +75,28 @@ def read_finger_header(path: str | Path) -> dict[str, Any] | None:
     for number, raw in enumerate(head, start=1):
         line = raw.decode("utf-8", errors="replace").lstrip("\ufeff").strip()  # Excel's "CSV UTF-8" BOM
         if line and not line.startswith("#"):
-            break  # the column header: the finger line is among the comments above it
-        if line.lower().startswith(_PREFIX):
+            break  # the column header: the header lines are among the comments above it
+        if line.lower().startswith(prefix):
             found.append((number, raw, line))
     if len(found) > 1:
         lines = " and ".join(str(n) for n, _, _ in found[:2])
         raise MeasurementError(
-            path, [f"lines {lines}: the finger header is given twice; allowed: one '# finger:' line"]
+            path, [f"lines {lines}: the {what} is given twice; allowed: one '{prefix}' line"]
         )
     for number, raw, line in found:
-        where = f"line {number}, finger header"
-        example = "write a mapping, e.g. {length_mm: 100, segments: 20, mass_g: 20}"
+        where = f"line {number}, {what}"
+        hint = f"write a mapping, e.g. {example}"
         if len(raw) > _MAX_LINE_BYTES:
             raise MeasurementError(
-                path, [f"{where}: longer than {_MAX_LINE_BYTES} bytes; allowed: one short line; {example}"]
+                path, [f"{where}: longer than {_MAX_LINE_BYTES} bytes; allowed: one short line; {hint}"]
             )
         try:
-            data = parse_yaml_value(line[len(_PREFIX) :])
+            data = parse_yaml_value(line[len(prefix) :])
         except ValueError as exc:
-            raise MeasurementError(path, [f"{where}: {exc}; {example}"]) from None
+            raise MeasurementError(path, [f"{where}: {exc}; {hint}"]) from None
         if not isinstance(data, dict):
-            raise MeasurementError(path, [f"{where}: {example}"])
-        return _validate(path, where, data)
+            raise MeasurementError(path, [f"{where}: {hint}"])
+        return number, data
     return None
 
 
@@ -90,13 +107,15 @@ def _validate(path: Path, where: str, data: dict[Any, Any]) -> dict[str, Any]:
     problems += [f"{where}: {k} ({FINGER_KEYS[k]}) is required" for k in REQUIRED if k not in data]
     for key in ("length_mm", "mass_g", "width_mm", "thickness_mm"):
         value = data.get(key)
+        least = 0 if key == "mass_g" else None  # 0 g: a weightless finger (its weight left out)
         if value is not None and not (
             isinstance(value, int | float)
             and not isinstance(value, bool)
             and math.isfinite(value)
-            and value > 0
+            and (value > 0 or value == least)
         ):
-            problems.append(f"{where}: {key} must be a finite number > 0, got {value!r}")
+            bound = ">= 0" if least == 0 else "> 0"
+            problems.append(f"{where}: {key} must be a finite number {bound}, got {value!r}")
     if not problems:
         length = data.get("length_mm")
         if length is not None and length > MAX_LENGTH_M * 1e3:

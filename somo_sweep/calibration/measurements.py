@@ -75,17 +75,65 @@ RANGES: dict[str, tuple[float, float, str]] = {
 
 
 def _line(row: int, row_lines: list[int]) -> int:
-    """File line (1-based) of data row ``row`` (0-based); past the known lines (a quoted field
-    holding a line break joins two), the last known line."""
+    """File line (1-based) of data row ``row`` (0-based); past the known lines, the last known line."""
     return row_lines[min(row, len(row_lines) - 1)] if row_lines else row + 2
+
+
+def _open_at_end(line: str, sep: str, quoted: bool) -> bool:
+    """Whether a quoted field is still open at the end of ``line`` (``quoted``: open at its start).
+
+    As the CSV readers have it: a field is quoted when ``"`` is its first character, ``""``
+    inside it is one quote, and a ``"`` elsewhere in an unquoted field is just a character.
+    """
+    i = 0
+    while True:
+        j = line.find('"', i)
+        if j < 0:
+            return quoted
+        if quoted:
+            if line[j + 1 : j + 2] == '"':  # a quote inside the field
+                i = j + 2
+                continue
+            quoted = False
+        else:  # j == 0 only on a row's first line: a continuation line starts inside the field
+            quoted = j == 0 or line[j - 1] == sep
+        i = j + 1
+
+
+def _records(lines: list[str], sep: str) -> list[tuple[int, str]]:
+    """The header and data rows of a CSV's lines, each with its first line (1-based).
+
+    Comments are whole lines starting with '#' (after blanks); a '#' inside a line is data
+    ('#N/A' from a spreadsheet is a bad value, not the end of the row). Blank lines are
+    skipped too. A quoted field holding a line break makes one row of several lines (a blank
+    or '#' line inside it is part of the field), so the rows after it keep their own lines.
+
+    Raises:
+        ValueError: A quoted field is still open at the end of the file (naming its line).
+    """
+    records: list[tuple[int, str]] = []
+    i = 0
+    while i < len(lines):
+        first = i
+        if lines[i].strip() and not lines[i].lstrip().startswith("#"):
+            still_open = _open_at_end(lines[i], sep, quoted=False)
+            while still_open and i + 1 < len(lines):
+                i += 1
+                still_open = _open_at_end(lines[i], sep, quoted=True)
+            if still_open:
+                raise ValueError(
+                    f'line {first + 1}: a field opens a quote (") that is never closed; close it, or '
+                    "remove the quote"
+                )
+            records.append((first + 1, "\n".join(lines[first : i + 1])))
+        i += 1
+    return records
 
 
 #: Most data rows a measurement file may have (a bench session has tens to hundreds).
 MAX_ROWS = 5000
 #: Largest measurement file read, in bytes (5000 rows of a bench file take well under 1 MiB).
 MAX_FILE_BYTES = 8 * 1024 * 1024
-#: Problems listed per file; the rest are counted.
-MAX_PROBLEMS = 20
 
 
 def _separator(text: str) -> str:
@@ -142,23 +190,22 @@ def read_measurements(path: str | Path, require_measured: bool = True) -> pd.Dat
     except ValueError as exc:
         raise MeasurementError(path, [str(exc)]) from None
     lines = text.splitlines()
-    # Comments are whole lines starting with '#' (after blanks); a '#' inside a line is data
-    # ('#N/A' from a spreadsheet is a bad value, not the end of the row). Blank lines are
-    # skipped too, and every row keeps its file line for the messages.
-    kept = [(n, ln) for n, ln in enumerate(lines, start=1) if ln.strip() and not ln.lstrip().startswith("#")]
-    row_lines = [n for n, _ in kept[1:]]
     sep = _separator(text)
     for number, ln in enumerate(lines, start=1):  # before pandas makes a column of each field
         if ln.count(sep) >= MAX_FIELDS and not ln.lstrip().startswith("#"):
             raise MeasurementError(
                 path, [f"line {number} has {ln.count(sep) + 1} fields; allowed: at most {MAX_FIELDS}"]
             )
-    header_line, header = next(
-        ((n, ln) for n, ln in enumerate(lines, start=1) if ln.strip() and not ln.lstrip().startswith("#")),
-        (0, ""),
-    )
+    # Every row keeps its first file line for the messages (a quoted field holding a line break
+    # makes one row of two lines).
     try:
-        names = [c.strip() for c in next(csv.reader([header], delimiter=sep))] if header else []
+        kept = _records(lines, sep)
+    except ValueError as exc:
+        raise MeasurementError(path, [str(exc)]) from None
+    row_lines = [n for n, _ in kept[1:]]
+    header_line, header = kept[0] if kept else (0, "")
+    try:
+        names = [c.strip() for c in next(csv.reader(io.StringIO(header), delimiter=sep))] if header else []
     except csv.Error:  # a huge field: pandas' own message follows
         names = []
     repeated = sorted({c for c in names if c and names.count(c) > 1})
@@ -175,7 +222,7 @@ def read_measurements(path: str | Path, require_measured: bool = True) -> pd.Dat
             if ln.count(sep) < width:
                 continue
             try:
-                fields = next(csv.reader([ln], delimiter=sep))
+                fields = next(csv.reader(io.StringIO(ln), delimiter=sep))
             except csv.Error:
                 continue
             if len(fields) <= width:
@@ -189,13 +236,7 @@ def read_measurements(path: str | Path, require_measured: bool = True) -> pd.Dat
                 csv.writer(line, delimiter=sep, lineterminator="").writerow(fields[:width])
                 body[i] = line.getvalue()
         if longer:
-            raise MeasurementError(
-                path,
-                [
-                    *longer[:MAX_PROBLEMS],
-                    *([f"… {len(longer) - MAX_PROBLEMS} more"] if len(longer) > MAX_PROBLEMS else []),
-                ],
-            )
+            raise MeasurementError(path, longer)
     try:
         raw = pd.read_csv(
             io.StringIO("\n".join(body)),
@@ -274,8 +315,8 @@ def read_measurements(path: str | Path, require_measured: bool = True) -> pd.Dat
             for i, cell in enumerate(out[c]):
                 if cell not in choices and cell != "":
                     problems.append(
-                        f"line {_line(i, row_lines)}, column {c}: '{shown(cell)}' "
-                        f"{did_you_mean(cell, choices)}; allowed: {', '.join(choices)}"
+                        f"line {_line(i, row_lines)}, column {c}: '{shown(cell)}' is not "
+                        f"allowed{did_you_mean(cell, choices)}; allowed: {', '.join(choices)}"
                     )
     out["line"] = [_line(i, row_lines) for i in range(len(out))]
     for _, row in out.iterrows():
@@ -295,9 +336,7 @@ def read_measurements(path: str | Path, require_measured: bool = True) -> pd.Dat
             if test != owner and not math.isnan(row[c]):
                 problems.append(f"{where}, column {c}: only '{owner}' rows measure it; leave it empty")
     if problems:
-        more = len(problems) - MAX_PROBLEMS
-        listed = problems[:MAX_PROBLEMS] + ([f"… and {more} more problem(s)"] if more > 0 else [])
-        raise MeasurementError(path, listed)
+        raise MeasurementError(path, problems)
     return out.reset_index(drop=True)
 
 

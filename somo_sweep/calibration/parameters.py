@@ -123,7 +123,9 @@ def side_view(manip: Manipulator) -> Manipulator:
     first = manip.actuators[0]
     n = first.segments
     joints = [first.joints[(i + 1) % len(first.joints)] for i in range(len(first.joints))]
-    profile = first.stiffness_profile[1:] if first.stiffness_profile else None
+    # Every remaining joint keeps its stiffness: profile, gradient and taper are evaluated where
+    # the joint sits on the whole finger and written as the shorter chain's profile.
+    profile = [first.stiffness_factor(i) for i in range(1, n)]
     act = first.model_copy(
         update={
             "length_m": first.length_m - first.segment_m,
@@ -131,6 +133,9 @@ def side_view(manip: Manipulator) -> Manipulator:
             "segment_length_m": None,
             "joints": joints,
             "stiffness_profile": profile,
+            "stiffness_gradient_per_m": 0.0,
+            "stiffness_tip_ratio": 1.0,
+            "stiffness_taper_shape": 1.0,
         }
     )
     return manip.model_copy(update={"actuators": [act, *manip.actuators[1:]]})

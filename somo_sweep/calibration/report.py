@@ -31,6 +31,11 @@ def _version(package: str) -> str:
         return "unknown"
 
 
+def _stop_mm(stop_z_m: float | None) -> float | str:
+    """The blocked-force stop for reports: mm from the finger's centre line, or the default's name."""
+    return "underside" if stop_z_m is None else stop_z_m * 1e3
+
+
 def summary(result: CalibrationResult, source: str | Path | None = None) -> dict[str, Any]:
     """Plain-data summary of a calibration (the JSON report and the model's provenance).
 
@@ -55,6 +60,7 @@ def summary(result: CalibrationResult, source: str | Path | None = None) -> dict
             }
             for p in result.problem.parameters
         },
+        "bench_stop_z_mm": _stop_mm(result.problem.settings.stop_z_m),
         "calibration_lines": [int(n) for n in result.problem.calibration_rows["line"]],
         "validation_lines": [int(n) for n in result.problem.validation_rows["line"]],
         "tests": [m.as_dict() for m in result.metrics],

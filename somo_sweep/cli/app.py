@@ -17,7 +17,7 @@ import typer
 from somo_sweep.cli import calibrate, diagnose, grasp, model, paper, sweep
 from somo_sweep.cli.help import HelpGroup, plain_help
 from somo_sweep.cli.output import state
-from somo_sweep.errors import SHOWN_CHARS, printable, shown
+from somo_sweep.errors import SHOWN_CHARS, os_cause, printable, shown
 
 __all__ = ["app", "main"]
 
@@ -132,6 +132,22 @@ def _one_line_for_ours(
     return _python_format(message, category, filename, lineno, line)
 
 
+#: The warning of loky's resource tracker (a process of its own) when the sweep it served was
+#: killed: it names the semaphores and folders the workers left, then removes them.
+_TRACKER_NOTE = "ignore:resource_tracker:UserWarning"
+
+
+def _quiet_resource_tracker() -> None:
+    """Keep loky's resource tracker from printing its "leaked semlock objects" list after a killed
+    run (SIGKILL, out of memory): it cleans them up itself, so nothing has leaked and there is
+    nothing to do, and the next run already says the run was killed. The tracker outlives the
+    sweep's process, so its warning cannot be reworded here: it is filtered in the environment
+    it starts with (the sweep's own warnings are unchanged)."""
+    given = os.environ.get("PYTHONWARNINGS", "")
+    if _TRACKER_NOTE not in given.split(","):
+        os.environ["PYTHONWARNINGS"] = f"{given},{_TRACKER_NOTE}" if given else _TRACKER_NOTE
+
+
 def main() -> None:
     """Console-script entry point (figures drawn off-screen).
 
@@ -140,6 +156,7 @@ def main() -> None:
     (``--debug`` shows it); what was already written stays, as for any other error.
     """
     os.environ.setdefault("MPLBACKEND", "Agg")
+    _quiet_resource_tracker()
     warnings.formatwarning = _one_line_for_ours
     args = global_flags_first(sys.argv[1:])
     if (empty := empty_value(args)) is not None:
@@ -157,6 +174,7 @@ def main() -> None:
     except OSError as exc:
         if state["debug"]:
             raise
-        name = f": {shown(str(exc.filename), 4 * SHOWN_CHARS)}" if exc.filename else ""
-        print(f"error: {exc.strerror or exc}{name}", file=sys.stderr)
+        cause, advice = os_cause(exc)
+        name = f"{shown(str(exc.filename), 4 * SHOWN_CHARS)}: " if exc.filename else ""
+        print(f"error: {name}{cause}; {advice}, then run the same command again", file=sys.stderr)
         raise SystemExit(2) from None

@@ -2,7 +2,6 @@
 
 from __future__ import annotations
 
-import json
 from dataclasses import replace
 from pathlib import Path
 from typing import TYPE_CHECKING, Annotated
@@ -15,6 +14,8 @@ from somo_sweep.cli.output import (
     checked_jobs,
     fail,
     figure_bytes,
+    file_target,
+    json_report,
     plain,
     working,
     write_outputs,
@@ -22,9 +23,35 @@ from somo_sweep.cli.output import (
 from somo_sweep.errors import SomoError
 
 if TYPE_CHECKING:
+    import pandas as pd
+
     from somo_sweep.model.load import Model
+    from somo_sweep.sim.bench import BenchSettings
 
 METHODS = ("fit", "paper")
+#: Keys of every ``calibration.json`` (earlier versions wrote it without the JSON mark).
+CALIBRATION_KEYS = frozenset({"method", "measurements", "parameters", "tests", "somo_sweep_version"})
+
+KEEP_DUPLICATES = Annotated[
+    bool,
+    typer.Option(
+        "--keep-duplicates",
+        help="Count rows that repeat an earlier row exactly (every field equal) as separate "
+        "measurements \\[default: each once, with a warning naming the lines].",
+    ),
+]
+
+
+def counted_rows(rows: pd.DataFrame, measurements: Path, keep_duplicates: bool) -> pd.DataFrame:
+    """The rows a command uses: a row repeating an earlier one exactly is counted once (unless
+    ``keep_duplicates``), and either way a warning on stderr names the lines."""
+    from somo_sweep.calibration.repeats import describe_repeats, drop_repeats, find_repeats
+
+    repeats = find_repeats(rows)
+    if not repeats:
+        return rows
+    typer.echo(f"warning: {measurements}: {describe_repeats(repeats, kept=keep_duplicates)}", err=True)
+    return rows if keep_duplicates else drop_repeats(rows, repeats)
 
 
 def default_output(measurements: Path, kind: str) -> Path:
@@ -74,6 +101,20 @@ def base_model(
     )
 
 
+def bench_settings(measurements: Path, base: Model, settings: BenchSettings) -> tuple[BenchSettings, str]:
+    """``settings`` with the CSV's ``# bench:`` stop, checked against the finger, and the line saying so.
+
+    Raises:
+        MeasurementError: A bad ``# bench:`` line, or a stop this finger would start inside or never reach.
+    """
+    from somo_sweep.calibration.bench_header import BenchHeader, read_bench_header
+
+    header = read_bench_header(measurements) if measurements.is_file() else BenchHeader()
+    if base.manipulator is None:  # an assembly: build_problem refuses it with its own message
+        return settings, ""
+    return header.settings(settings, base.manipulator), header.describe(base.manipulator)
+
+
 def _figure_bytes(result: object, label: str, fmt: str) -> bytes:
     import matplotlib.pyplot as plt
 
@@ -90,9 +131,13 @@ def calibrate(
         Path, typer.Argument(help="Measurement CSV (tip_load / blocked_force / free_bending).")
     ],
     output: Annotated[
-        Path | None,
+        str | None,
         typer.Option(
-            "-o", "--output", help="Calibrated model YAML [default: results/calibration/CSV-NAME/model.yaml]."
+            "-o",
+            "--output",
+            metavar="<path>",
+            help="Calibrated model YAML; a folder (out/, or one that exists) gets model.yaml in it "
+            "\\[default: results/calibration/CSV-NAME/model.yaml].",
         ),
     ] = None,
     model: Annotated[Path | None, typer.Option(help="Base manipulator model to calibrate.")] = None,
@@ -105,9 +150,11 @@ def calibrate(
     mass_g: Annotated[
         float | None, typer.Option(help="Finger mass, g (overrides the CSV's finger line).")
     ] = None,
-    width_mm: Annotated[float | None, typer.Option(help="Link width (joint axis), mm [default: 20].")] = None,
+    width_mm: Annotated[
+        float | None, typer.Option(help="Link width (joint axis), mm \\[default: 20].")
+    ] = None,
     thickness_mm: Annotated[
-        float | None, typer.Option(help="Link thickness (bending), mm [default: 15].")
+        float | None, typer.Option(help="Link thickness (bending), mm \\[default: 15].")
     ] = None,
     method: Annotated[str, typer.Option(help="fit (simulator in the loop) or paper (eq. 8 and 9).")] = "fit",
     report: Annotated[Path | None, typer.Option(help="Folder for plots and a JSON summary.")] = None,
@@ -121,6 +168,7 @@ def calibrate(
         float, typer.Option(help="Gravity on the bench, m/s² (0: a horizontal, weightless bench).")
     ] = 9.81,
     allow_outside: ALLOW_OUTSIDE = False,
+    keep_duplicates: KEEP_DUPLICATES = False,
 ) -> None:
     """Calibrate joint stiffness and pressure→torque gain; write the calibrated model."""
     from rich.console import Console
@@ -146,21 +194,28 @@ def calibrate(
     try:
         # the README's studies/tables/NAME.csv also from an installed package (no studies/ here)
         measurements = bundled_if_missing(measurements, "tables", ".csv")
-        output = output or default_output(measurements, "calibration") / "model.yaml"
-        check_replaceable(output, [measurements, model])
+        target = (
+            file_target(output, "model.yaml") or default_output(measurements, "calibration") / "model.yaml"
+        )
+        check_replaceable(target, [measurements, model])
         if report is not None:
-            check_replaceable(report / "calibration.json", [measurements, model], kind="json")
-            in_report = plain(output).parent == plain(report)
-            if in_report and (output.name == "calibration.json" or output.suffix.lower() == ".png"):
+            check_replaceable(
+                report / "calibration.json", [measurements, model], kind="json", older_keys=CALIBRATION_KEYS
+            )
+            in_report = plain(target).parent == plain(report)
+            if in_report and (target.name == "calibration.json" or target.suffix.lower() == ".png"):
                 raise SomoError(
-                    f"-o {output} is a file the report writes in --report {report} (calibration.json and "
+                    f"-o {target} is a file the report writes in --report {report} (calibration.json and "
                     "one PNG per metric); nothing was written: give the model another name"
                 )
-        rows = read_measurements(measurements)
+        rows = counted_rows(read_measurements(measurements), measurements, keep_duplicates)
         base = base_model(
             measurements, model, length_mm, segments, mass_g, width_mm, thickness_mm, allow_outside
         )
-        settings = replace(CALIBRATION_SETTINGS, gravity_m_s2=gravity_m_s2)
+        settings, bench_line = bench_settings(
+            measurements, base, replace(CALIBRATION_SETTINGS, gravity_m_s2=gravity_m_s2)
+        )
+        console.print(bench_line, markup=False)
         problem = build_problem(
             rows, base, str(measurements), settings, min_rows_per_parameter=2 if method == "fit" else 1
         )
@@ -206,15 +261,10 @@ def calibrate(
         )
     header = f"calibrated by somo-sweep calibrate --method {method} from {measurements}"
     outputs: list[tuple[Path, str | bytes]] = [
-        (output, model_yaml(with_provenance(result, measurements), header))
+        (target, model_yaml(with_provenance(result, measurements), header))
     ]
     if report is not None:
-        outputs.append(
-            (
-                report / "calibration.json",
-                json.dumps(summary(result, measurements), indent=2, ensure_ascii=False) + "\n",
-            )
-        )
+        outputs.append((report / "calibration.json", json_report(summary(result, measurements), "calibrate")))
         for metric in result.metrics:
             name = metric.label.replace("[", "_").replace("]", "")
             outputs.append((report / f"{name}.png", _figure_bytes(result, metric.label, "png")))

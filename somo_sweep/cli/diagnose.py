@@ -2,7 +2,6 @@
 
 from __future__ import annotations
 
-import json
 import time
 from dataclasses import replace
 from pathlib import Path
@@ -10,6 +9,7 @@ from typing import Annotated
 
 import typer
 
+from somo_sweep.cli.calibrate import KEEP_DUPLICATES
 from somo_sweep.cli.model import ALLOW_OUTSIDE
 from somo_sweep.cli.output import (
     check_output,
@@ -17,10 +17,14 @@ from somo_sweep.cli.output import (
     checked_jobs,
     fail,
     figure_bytes,
+    json_report,
     working,
-    write_atomic,
+    write_checked,
 )
 from somo_sweep.errors import SomoError
+
+#: Keys of every ``diagnosis.json`` (earlier versions wrote it without the JSON mark).
+DIAGNOSIS_KEYS = frozenset({"missing_effect", "best_candidate", "verdict", "candidates"})
 
 
 def _figure_png(result: object) -> bytes:
@@ -43,12 +47,12 @@ def diagnose(
     model: Annotated[
         Path | None,
         typer.Option(
-            help="Calibrated model (from somo-sweep calibrate) [default: calibrate the CSV's finger first]."
+            help="Calibrated model (from somo-sweep calibrate) \\[default: calibrate the CSV's finger first]."
         ),
     ] = None,
     out: Annotated[
         Path | None,
-        typer.Option(help="Folder for the report files [default: results/diagnosis/CSV-NAME]."),
+        typer.Option(help="Folder for the report files \\[default: results/diagnosis/CSV-NAME]."),
     ] = None,
     effects: Annotated[
         str | None, typer.Option(help="Comma-separated effects to try (default: every registered one).")
@@ -61,12 +65,13 @@ def diagnose(
     ] = 2,
     gravity_m_s2: Annotated[float, typer.Option(help="Gravity on the bench, m/s².")] = 9.81,
     allow_outside: ALLOW_OUTSIDE = False,
+    keep_duplicates: KEEP_DUPLICATES = False,
 ) -> None:
     """Find where simulation and measurement disagree, name the missing effect, add it to the model."""
     from somo_sweep.calibration.measurements import read_measurements
     from somo_sweep.calibration.report import model_yaml
     from somo_sweep.calibration.solve import CALIBRATION_SETTINGS, build_problem, solve_fit
-    from somo_sweep.cli.calibrate import base_model, default_output
+    from somo_sweep.cli.calibrate import base_model, bench_settings, counted_rows, default_output
     from somo_sweep.diagnosis.diagnose import build_diagnosis
     from somo_sweep.diagnosis.diagnose import diagnose as run_diagnosis
     from somo_sweep.diagnosis.effects import get_effect
@@ -93,13 +98,19 @@ def diagnose(
         folder = out or default_output(measurements, "diagnosis")
         check_replaceable(folder / "model.yaml", [measurements, model])
         check_replaceable(folder / "report.md", [measurements, model], older_prefix=b"# Diagnosis of ")
-        check_replaceable(folder / "diagnosis.json", [measurements, model], kind="json")
-        rows = read_measurements(measurements)
+        check_replaceable(
+            folder / "diagnosis.json", [measurements, model], kind="json", older_keys=DIAGNOSIS_KEYS
+        )
+        rows = counted_rows(read_measurements(measurements), measurements, keep_duplicates)
         settings = replace(CALIBRATION_SETTINGS, gravity_m_s2=gravity_m_s2)
         if model is not None:
             base = load_model(model, allow_outside)
+            settings, bench_line = bench_settings(measurements, base, settings)
+            typer.echo(bench_line)
         else:
             finger = base_model(measurements, None, None, None, None, None, None)
+            settings, bench_line = bench_settings(measurements, finger, settings)
+            typer.echo(bench_line)
             with working("calibrating the CSV's finger first", bench_rows=True):
                 first = solve_fit(build_problem(rows, finger, str(measurements), settings), n_jobs=jobs)
             if first.message.startswith("not fitted"):  # as calibrate: no model to diagnose
@@ -112,7 +123,9 @@ def diagnose(
             base = first.model
             typer.echo("calibrated the finger of the CSV's '# finger:' line first (somo-sweep calibrate)")
         with working("simulating the model as given", bench_rows=True):
-            problem = build_diagnosis(rows, base, str(measurements), settings, names, n_jobs=jobs)
+            problem = build_diagnosis(
+                rows, base, str(measurements), settings, names, n_jobs=jobs, keep_duplicates=True
+            )
         typer.echo(problem.describe())
         with working(f"refitting with {len(problem.effects)} effects", bench_rows=True):
             result = run_diagnosis(problem, n_jobs=jobs)
@@ -136,7 +149,7 @@ def diagnose(
         f"diagnosed by somo-sweep diagnose from {measurements} and {record['model']}: {result.missing_effect}"
     )
     outputs: list[tuple[Path, str | bytes]] = [
-        (out / "diagnosis.json", json.dumps(record, indent=2, ensure_ascii=False) + "\n"),
+        (out / "diagnosis.json", json_report(record, "diagnose")),
         (out / "report.md", report_markdown(result, str(measurements))),
         (out / "model.yaml", model_yaml(diagnosed, header)),
         (out / "diagnosis.png", _figure_png(result)),
@@ -147,8 +160,10 @@ def diagnose(
                 check_output(path, data, [measurements, model])
     except SomoError as exc:
         fail(exc)
-    for path, data in outputs:
-        write_atomic(path, data)
+    try:
+        write_checked(outputs)
+    except SomoError as exc:
+        fail(exc)
     for line in verdict_lines(result):
         typer.echo(line)
     typer.echo(

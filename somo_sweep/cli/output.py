@@ -8,6 +8,7 @@ reader never sees half a file), and every figure through :func:`figure_bytes`.
 from __future__ import annotations
 
 import contextlib
+import errno
 import glob
 import io
 import json
@@ -23,7 +24,7 @@ from typing import TYPE_CHECKING, Any, NoReturn
 
 import typer
 
-from somo_sweep.errors import SomoError
+from somo_sweep.errors import SomoError, StorageError, os_cause
 
 if TYPE_CHECKING:
     from matplotlib.figure import Figure
@@ -31,6 +32,7 @@ if TYPE_CHECKING:
     from somo_sweep.paper.artifacts import Artifacts
 
 __all__ = [
+    "JSON_MARKER",
     "MARKER",
     "MAX_JOBS_PER_CPU",
     "check_output",
@@ -38,10 +40,13 @@ __all__ = [
     "checked_jobs",
     "fail",
     "figure_bytes",
+    "file_target",
+    "json_report",
     "state",
     "working",
     "write_artifacts",
     "write_atomic",
+    "write_checked",
     "write_outputs",
 ]
 
@@ -74,12 +79,13 @@ def checked_jobs(jobs: int, allow_default: bool = False) -> int:
     )
 
 
-def fail(exc: BaseException, code: int = 2) -> NoReturn:
-    """Print a user error (traceback only with ``--debug``) and exit with ``code``."""
+def fail(exc: BaseException, code: int | None = None) -> NoReturn:
+    """Print a user error (traceback only with ``--debug``) and exit with ``code`` (default: 1
+    for a :class:`~somo_sweep.errors.StorageError`, a failed write; 2 for bad input)."""
     if state["debug"]:
         raise exc
     typer.echo(f"error: {exc}", err=True)
-    raise typer.Exit(code)
+    raise typer.Exit(code if code is not None else 1 if isinstance(exc, StorageError) else 2)
 
 
 @contextmanager
@@ -161,18 +167,45 @@ def _mode_for(path: Path) -> int:
 
 #: What every text file somo-sweep writes says in its first lines (a comment header).
 MARKER = b"somo-sweep"
+#: The key that marks a JSON report as somo-sweep's (JSON has no comments): ``"somo-sweep COMMAND"``.
+JSON_MARKER = "written_by"
+
+
+def json_report(data: dict[str, Any], command: str) -> str:
+    """A JSON report's text, marked as written by ``somo-sweep COMMAND`` (its first key), so that a
+    later run replaces it and never a user's own file of the same name (:func:`check_replaceable`)."""
+    return json.dumps({JSON_MARKER: f"somo-sweep {command}", **data}, indent=2, ensure_ascii=False) + "\n"
+
+
+def _our_json(data: Any, older_keys: frozenset[str]) -> bool:
+    """Whether parsed JSON is a report of ours: marked (:func:`json_report`), or written by an
+    earlier version without the mark (an object holding every one of ``older_keys``)."""
+    if not isinstance(data, dict):
+        return False
+    mark = data.get(JSON_MARKER)
+    if isinstance(mark, str) and mark.startswith("somo-sweep"):
+        return True
+    return bool(older_keys) and older_keys <= data.keys()
+
+
 #: Bytes of an existing file read to recognise it.
 _HEAD_BYTES = 4096
 
 
 def check_replaceable(
-    path: Path, inputs: Sequence[Path | str | None] = (), kind: str = "text", older_prefix: bytes = b""
+    path: Path,
+    inputs: Sequence[Path | str | None] = (),
+    kind: str = "text",
+    older_prefix: bytes = b"",
+    older_keys: frozenset[str] = frozenset(),
 ) -> None:
     """Refuse to replace a file the user may need: one of the command's inputs, or one that
-    somo-sweep did not write (a text file without :data:`MARKER` in its first lines; for
-    ``kind="json"`` a file that is not JSON, or a results folder's manifest), or a folder.
-    ``kind="binary"`` checks only for a folder or an input. A missing file, or one of ours, is fine;
-    ``older_prefix`` recognises what an earlier version wrote without the header.
+    somo-sweep did not write, or a folder. Not ours: a text file without :data:`MARKER` in its
+    first lines; for ``kind="json"`` (a report) a file that is not a JSON object with the
+    :data:`JSON_MARKER` key (``older_keys``: or every one of these keys, as an earlier version
+    wrote it); for ``kind="any-json"`` (figure data) a file that is not JSON, or a results folder's
+    manifest. ``kind="binary"`` checks only for a folder or an input. A missing file, or one of
+    ours, is fine; ``older_prefix`` recognises what an earlier version wrote without the header.
 
     Call it before the work, so that a wrong name costs nothing.
 
@@ -187,8 +220,10 @@ def check_replaceable(
         # The nearest folder that exists must let us create in it: found now, not after the work.
         nearest = next((p for p in path.parents if p.exists()), Path("."))
         if not os.access(nearest, os.W_OK | os.X_OK):
+            code = errno.EROFS if _read_only_disk(nearest) else errno.EACCES
+            cause, advice = os_cause(OSError(code, os.strerror(code)))
             raise SomoError(
-                f"cannot write {path}: {nearest} is read-only or not ours to write in; nothing was written"
+                f"cannot write {path}: {nearest} is read-only to us: {cause}; nothing was written: {advice}"
             )
         if not path.exists():
             return
@@ -210,25 +245,55 @@ def check_replaceable(
             head = fh.read(_HEAD_BYTES if kind == "text" else 64 * 1024 * 1024 + 1)
     except OSError as exc:
         raise SomoError(f"cannot check {path} before replacing it: {exc.strerror or exc}") from None
-    if kind == "json":
+    if kind in ("json", "any-json"):
         try:
             data = json.loads(head)
         except ValueError:
-            pass
+            data = None
         else:
             if isinstance(data, dict) and "study_hash" in data and "runs" in data:
                 raise SomoError(
                     f"{path} is a results folder's manifest (its record of every run); it is not "
                     "replaced and nothing was written: give another file name"
                 )
-            return
+            if kind == "any-json" or _our_json(data, older_keys):
+                return
     elif MARKER in head or (older_prefix and head.startswith(older_prefix)):
         return
-    what = "is not JSON" if kind == "json" else "has no 'somo-sweep' header"
+    what = {
+        "json": f'has no "{JSON_MARKER}": "somo-sweep …" key',
+        "any-json": "is not JSON",
+    }.get(kind, "has no 'somo-sweep' header")
     raise SomoError(
         f"{path} exists and {what}: somo-sweep did not write it, so it is not replaced; nothing was "
         "written: give another file name, or move that file away first"
     )
+
+
+def _read_only_disk(folder: Path) -> bool:
+    """Whether ``folder`` is on a file system mounted read-only (not just a folder we may not write)."""
+    try:
+        return bool(os.statvfs(folder).f_flag & os.ST_RDONLY)
+    except (OSError, AttributeError):
+        return False
+
+
+def file_target(given: str | None, default_name: str) -> Path | None:
+    """An output file option as meant: a folder (``out/``, ending in a slash, or an existing
+    folder) gets the file ``default_name`` in it; anything else names the file itself.
+
+    The option must reach here as text: ``Path("out/")`` is ``out``, and the slash that says
+    "a folder" is lost (``-o out/`` wrote a file named ``out``).
+    """
+    if given is None:
+        return None
+    path = Path(given)
+    slashed = given.endswith(("/", os.sep)) or given in (".", "..") or given.endswith(("/.", "/.."))
+    try:
+        folder = slashed or path.is_dir()
+    except OSError:  # a name too long to be a folder is a file name (refused where it is written)
+        folder = False
+    return path / default_name if folder else path
 
 
 def plain(path: Path) -> Path:
@@ -341,7 +406,7 @@ def check_output(path: Path, data: str | bytes, inputs: Sequence[Path | str | No
     raw = data.encode("utf-8") if isinstance(data, str) else data
     path = plain(path)
     if path.suffix == ".json":
-        check_replaceable(path, inputs, kind="json")
+        check_replaceable(path, inputs, kind="any-json")
         return raw
     check_replaceable(path, inputs, kind="binary")  # missing, a folder, an input
     try:
@@ -372,7 +437,32 @@ def write_outputs(
     checked = [
         (path, check_output(path, data, inputs)) for path, (_, data) in zip(paths, outputs, strict=True)
     ]
-    return [write_atomic(path, data) for path, data in checked]
+    return write_checked(checked)
+
+
+def write_checked(outputs: Sequence[tuple[Path, str | bytes]]) -> list[Path]:
+    """Write outputs already checked, in order (:func:`write_atomic`); returns the paths.
+
+    Raises:
+        StorageError: One could not be written: names it, the cause (a full disk, a read-only
+            one, …), which files were written before it and which not, and what to do.
+    """
+    written: list[Path] = []
+    for i, (path, data) in enumerate(outputs):
+        try:
+            written.append(write_atomic(path, data))
+        except OSError as exc:
+            cause, advice = os_cause(exc)
+            left = [str(p) for p, _ in outputs[i:]]
+            done = (
+                f"{', '.join(str(p) for p in written)} written, {', '.join(left)} not"
+                if written
+                else "nothing was written"
+            )
+            raise StorageError(
+                f"cannot write {plain(path)}: {cause}; {done}: {advice}, then run the same command again"
+            ) from None
+    return written
 
 
 def write_artifacts(artifacts: Artifacts, out: Path) -> list[Path]:

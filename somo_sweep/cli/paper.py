@@ -18,8 +18,10 @@ from somo_sweep.cli.output import (
     check_replaceable,
     checked_jobs,
     fail,
+    file_target,
     write_artifacts,
     write_atomic,
+    write_outputs,
 )
 from somo_sweep.errors import SomoError
 
@@ -291,6 +293,42 @@ def palm(
     _finish(artifacts, out)
 
 
+@app.command("robust-cost")
+def robust_cost(
+    out: Annotated[
+        Path, typer.Option("--out", help="Folder for the JSON record (the study runs go to a temporary one).")
+    ] = Path("results/reference"),
+    rounds: Annotated[int, typer.Option(help="Alternating rounds of the one-trial timing.")] = 3,
+    jobs: Annotated[int, typer.Option("--jobs", "-j", help="Workers of the two study runs.")] = 2,
+    work: Annotated[
+        Path | None,
+        typer.Option(help="Keep the two results folders here (before/, robust/; default: temporary)."),
+    ] = None,
+) -> None:
+    """What robust labels cost: one trial, and the quick study plain before vs robust (K = 4) now."""
+    import json
+    import tempfile
+
+    from somo_sweep.paper.robust_cost import cost_lines, cost_runs
+
+    if rounds < 1 or jobs < 1:
+        fail(SomoError(f"--rounds and --jobs must be >= 1, got {rounds} and {jobs}"))
+    if work is not None and (work / "before").exists():
+        fail(SomoError(f"--work {work} already holds a run (before/): the benchmark times fresh runs"))
+    with tempfile.TemporaryDirectory(prefix="somo-sweep-robust-cost-") as tmp:
+        try:
+            report = cost_runs(work or Path(tmp), rounds=rounds, n_jobs=jobs)
+        except SomoError as exc:
+            fail(exc)
+    for line in cost_lines(report):
+        typer.echo(line)
+    try:
+        (path,) = write_outputs([(out / "robust_cost.json", json.dumps(report.as_dict(), indent=2) + "\n")])
+    except SomoError as exc:
+        fail(exc)
+    typer.echo(f"wrote {path}")
+
+
 @app.command()
 def speed(
     repeats: Annotated[int, typer.Option(help="Timed runs per measurement.", min=1, max=100)] = 3,
@@ -389,7 +427,14 @@ def numerics(
     ] = None,
     repeats: Annotated[int, typer.Option(help="Timed runs.", min=1, max=100)] = 3,
     jobs: Annotated[int, typer.Option(help="Worker processes.")] = 2,
-    save: Annotated[Path | None, typer.Option(help="Write every trial's result to this JSON file.")] = None,
+    save: Annotated[
+        str | None,
+        typer.Option(
+            metavar="<path>",
+            help="Write every trial's result to this JSON file; a folder (out/, or one that exists) gets "
+            "numerics_runs.json in it.",
+        ),
+    ] = None,
     study: Annotated[Path | None, typer.Option(help="pinch_grasp study whose grid to compare on.")] = None,
     a: Annotated[
         str | None,
@@ -495,23 +540,35 @@ def numerics(
         other = dataclasses.replace(setup, time_step_s=setup.time_step_s / 2)
     else:
         fail(SomoError(f"--compare must be half-step or reference, got '{compare}'"))
-    if save is not None:
+    target = file_target(save, "numerics_runs.json")
+    if target is not None:
         try:
-            check_replaceable(save, kind="json")
+            check_replaceable(target, kind="any-json")
         except SomoError as exc:
             fail(exc)
     typer.echo(f"A: {setup.describe()}\nB: {other.describe()}")
     result = run_compare(quick_points(study or QUICK_STUDY), setup, other, _jobs(jobs), perturb_m)
     runs = result.pop("runs")
-    if save is not None:
-        write_atomic(save, json.dumps(runs, default=str))
+    if target is not None:
+        write_atomic(target, json.dumps(runs, default=str))
     typer.echo(json.dumps(result, indent=1, default=str))
+
+
+#: The bundled table each data set regenerates (its name in a folder given as OUT).
+DATA_NAMES = {"synthetic": "planar_finger_synthetic.csv", "diagnosis-example": "planar_finger_bench_2.csv"}
 
 
 @app.command()
 def data(
     which: Annotated[str, typer.Argument(help="synthetic or diagnosis-example.")],
-    out: Annotated[Path | None, typer.Argument(help="CSV file to write (default: print).")] = None,
+    out: Annotated[
+        str | None,
+        typer.Argument(
+            metavar="OUT",
+            help="CSV file to write (default: print); a folder (out/, or one that exists) gets the bundled "
+            "table's name in it.",
+        ),
+    ] = None,
 ) -> None:
     """Regenerate a bundled synthetic bench table (simulated, not measured)."""
     if which == "synthetic":
@@ -520,13 +577,14 @@ def data(
         from somo_sweep.diagnosis.example import example_csv
     else:
         fail(SomoError(f"unknown data set '{which}'; allowed: synthetic, diagnosis-example"))
-    if out is not None:
+    target = file_target(out, DATA_NAMES[which])
+    if target is not None:
         try:
-            check_replaceable(out)
+            check_replaceable(target)
         except SomoError as exc:
             fail(exc)
     text = example_csv()
-    if out is None:
+    if target is None:
         typer.echo(text, nl=False)
     else:
-        typer.echo(f"wrote {write_atomic(out, text)}")
+        typer.echo(f"wrote {write_atomic(target, text)}")

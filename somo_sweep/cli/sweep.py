@@ -3,6 +3,8 @@
 from __future__ import annotations
 
 import math
+from collections.abc import Iterator
+from contextlib import contextmanager
 from pathlib import Path
 from typing import TYPE_CHECKING, Annotated
 
@@ -22,12 +24,17 @@ from somo_sweep.cli.output import (
     checked_jobs,
     fail,
     figure_bytes,
+    file_target,
+    json_report,
     write_atomic,
     write_outputs,
 )
-from somo_sweep.errors import SomoError, StorageError
+from somo_sweep.errors import SomoError, StorageError, os_cause, shown
 
 if TYPE_CHECKING:  # the heavy modules are imported when a command runs
+    from collections.abc import Callable
+
+    from somo_sweep.sweep.jobs import Job
     from somo_sweep.sweep.runner import RunSummary
     from somo_sweep.sweep.sampling import Batch
     from somo_sweep.sweep.study import Study
@@ -38,6 +45,8 @@ _out = Console()
 MAX_TRIALS = 1_000_000
 #: Rows a dry run prints.
 DRY_ROWS = 10
+#: Keys of every ``recheck --report`` file (earlier versions wrote it without the JSON mark).
+RECHECK_KEYS = frozenset({"trials", "columns_compared", "identical", "mismatches"})
 
 ALLOW_OUTSIDE = Annotated[
     bool,
@@ -85,6 +94,16 @@ def run(
             "stored as inferred (default: the study's sampling:, else exhaustive).",
         ),
     ] = None,
+    robust: Annotated[
+        int | None,
+        typer.Option(
+            "--robust",
+            metavar="K",
+            help="Run K perturbed replicas of the cells that matter (label boundaries, plus a 10 % audit "
+            "of the rest) and store each cell's majority label, agreement and robust flag "
+            "(default: the study's robustness:, else 0).",
+        ),
+    ] = None,
     chunk_rows: Annotated[int, typer.Option(help="Rows per Parquet part file.", hidden=True)] = 50,
 ) -> None:
     """Run a study: every trial missing from its results folder, in parallel, into Parquet.
@@ -96,7 +115,7 @@ def run(
     from somo_sweep.sweep.execution import start_workers, stop_workers
     from somo_sweep.sweep.jobs import build_jobs
     from somo_sweep.sweep.runner import run_study
-    from somo_sweep.sweep.study import load_study
+    from somo_sweep.sweep.study import load_study, with_replicas
 
     if backend not in ("loky", "dask"):
         fail(SomoError(f"--backend must be loky or dask, got '{backend}'"))
@@ -120,12 +139,25 @@ def run(
         st = load_study(study, out, max_trials, allow_outside)
         if adaptive is not None:
             st.sampling = "adaptive" if adaptive else "grid"
+        if robust is not None:
+            st = with_replicas(st, robust)
         if dry_run:
             _print_dry_run(st)
             return
         n_jobs = jobs or joblib.cpu_count() or 1
         if backend == "loky":  # the workers start and import while the jobs are built
             start_workers(min(n_jobs, st.n_trials), st.task.name)
+        if st.simulation is None:
+            with _term_as_interrupt() as caught:
+                try:
+                    st = auto_step(st, n_jobs, backend, scheduler, timeout)
+                except KeyboardInterrupt:
+                    stop_workers()
+                    _err.print(
+                        "interrupted while choosing the time step: no trial of the study ran yet; run the "
+                        "same command again to start over"
+                    )
+                    raise typer.Exit(128 + (caught[0] if caught else 2)) from None
         table = build_jobs(st)
     except SomoError as exc:
         stop_workers()
@@ -157,9 +189,12 @@ def run(
         live.append(progress)
 
     def new_round(batch: Batch) -> None:
-        name = st.name if batch.number is None else f"round {batch.number}: {batch.cells} cells"
-        if batch.number == 0:
-            name += " (coarse)"
+        if batch.kind == "replicas":
+            name = f"replicas {batch.number}: {batch.cells} cells x {st.robustness.replicas}"
+        else:
+            name = st.name if batch.number is None else f"round {batch.number}: {batch.cells} cells"
+            if batch.number == 0:
+                name += " (coarse)"
         live[0].add_task(name, total=len(batch.jobs), rate=0.0)
 
     def advanced(_: object) -> None:
@@ -189,6 +224,14 @@ def run(
     except SomoError as exc:
         stop()
         fail(exc, code=1 if isinstance(exc, StorageError) else 2)
+    except KeyboardInterrupt:  # while the results folder was opened, before the run's own handler
+        stop()
+        typer.echo(
+            "interrupted while opening the results folder, before any trial: finished trial(s) kept; run the "
+            "same command again to resume",
+            err=True,
+        )
+        raise typer.Exit(130) from None
     finally:
         stop()
         stop_workers()  # started, but the run ended before its first trial (nothing to do, an error)
@@ -217,6 +260,75 @@ def run(
         raise typer.Exit(1)
 
 
+@contextmanager
+def _term_as_interrupt() -> Iterator[list[int]]:
+    """SIGTERM raises KeyboardInterrupt in the block, as Ctrl-C does (the signal is recorded)."""
+    import signal
+
+    caught: list[int] = []
+
+    def handler(signum: int, frame: object) -> None:
+        caught.append(signum)
+        raise KeyboardInterrupt
+
+    old = signal.signal(signal.SIGTERM, handler)
+    try:
+        yield caught
+    finally:
+        signal.signal(signal.SIGTERM, old)
+
+
+def auto_step(
+    st: Study,
+    n_jobs: int,
+    backend: str,
+    scheduler: str | None,
+    timeout: float | None,
+    stream: Callable[[str], None] | None = None,
+) -> Study:
+    """The study with its step chosen by label convergence (or the choice stored in its folder);
+    what it does is written to ``stream`` (default: stderr)."""
+    from dataclasses import replace
+
+    from somo_sweep.sweep.convergence import choose_step, outcomes_of, stored_choice
+    from somo_sweep.sweep.execution import execute
+    from somo_sweep.sweep.folder import read_manifest
+
+    say = stream or (lambda text: typer.echo(text, err=True))
+    choice = None
+    try:
+        stored = (st.output / "manifest.json").is_file()
+    except OSError as exc:  # a name no folder can have: said now, before any sample trial runs
+        cause, advice = os_cause(exc)
+        raise SomoError(
+            f"cannot create the results folder {shown(str(st.output), 200)}: {cause}; nothing was written: "
+            f"{advice}, then run the same command again"
+        ) from None
+    if stored:
+        try:
+            choice = stored_choice(read_manifest(st.output), st)
+        except SomoError:  # a damaged manifest: the run rebuilds it; the step is chosen again
+            choice = None
+    if choice is not None:
+        say(f"automatic step {choice.step_s * 1e3:g} ms (chosen earlier, from {st.output})")
+    else:
+        say(
+            "no simulation: block: choosing the time step from this study's own cells (label convergence "
+            "against half the step)"
+        )
+
+        def run_jobs(batch: list[Job]) -> Iterator[tuple[str, str, dict[str, str]]]:
+            return outcomes_of(execute(batch, backend, n_jobs, scheduler, timeout))  # type: ignore[arg-type]
+
+        def rung(step_s: float, runs: int) -> None:
+            say(f"  trying {step_s * 1e3:g} ms: {runs} sample run(s)")
+
+        choice = choose_step(st, run_jobs, on_rung=rung)
+        for line in choice.describe():
+            say(f"  {line}")
+    return replace(st, auto_step_s=choice.step_s, convergence=choice.as_dict())
+
+
 def _progress() -> Progress:
     return Progress(
         TextColumn("[bold]{task.description}"),
@@ -243,13 +355,21 @@ def _print_dry_run(st: Study) -> None:
         typer.echo(describe(st))
     jobs = first_jobs(st, DRY_ROWS)
     if st.simulation is None:
+        from somo_sweep.sim.numerics import step_ladder
+
+        steps, why = step_ladder(st.resolve_model(next(iter(st.points())))[1])
+        typer.echo(
+            "automatic numerics (no simulation: block): the run chooses the step by label convergence "
+            f"on a sample of these cells, trying {', '.join(f'{h * 1e3:g}' for h in steps)} ms (starting "
+            f"guess set by {why}); the jobs below show the starting (modal) choice:"
+        )
         shown: set[str] = set()
         for job in jobs:
             if job.numerics is not None and job.columns["model_hash"] not in shown:
                 shown.add(job.columns["model_hash"])
-                typer.echo(f"automatic numerics (no simulation: block), model {job.columns['model_file']}:")
+                typer.echo(f"  model {job.columns['model_file']}:")
                 for line in job.numerics.describe():
-                    typer.echo(f"  {line}")
+                    typer.echo(f"    {line}")
     else:
         typer.echo(f"simulation: time step {st.simulation.time_step_s * 1e3:g} ms (from the study file)")
     frame = jobs_frame(jobs)
@@ -301,11 +421,15 @@ def _save_plots(folder: Path) -> None:
 
 def show(results: Annotated[Path, typer.Argument(help="Results folder, e.g. results/<study>.")]) -> None:
     """Print a results folder's summary: counts by status and label, per-axis breakdown."""
+    from somo_sweep.sweep.folder import pending_journal_rows
+    from somo_sweep.sweep.lock import holder_now
     from somo_sweep.sweep.store import read_manifest, read_results
     from somo_sweep.sweep.summary import print_results
 
     try:
-        print_results(_out, read_results(results, _damaged), read_manifest(results))
+        df, manifest = read_results(results, _damaged), read_manifest(results)
+        pending = pending_journal_rows(results, manifest["study_hash"], set(df["job_id"]))
+        print_results(_out, df, manifest, holder_now(results), pending)
     except SomoError as exc:
         fail(exc)
 
@@ -339,7 +463,14 @@ def recheck(
         Path | None,
         typer.Option("--out", help="Results folder, anywhere (default: the study's, inside results/)."),
     ] = None,
-    report: Annotated[Path | None, typer.Option(help="Also write the comparison as JSON here.")] = None,
+    report: Annotated[
+        str | None,
+        typer.Option(
+            metavar="<path>",
+            help="Also write the comparison as JSON here; a folder (out/, or one that exists) gets "
+            "recheck.json in it.",
+        ),
+    ] = None,
     max_trials: Annotated[
         int, typer.Option("--max-trials", help="Refuse a study with more trials than this.")
     ] = MAX_TRIALS,
@@ -355,14 +486,15 @@ def recheck(
         fail(SomoError(f"--max-trials must be >= 1, got {max_trials}"))
     if not 0 <= seed < 2**63:
         fail(SomoError(f"--seed must be from 0 to 2**63 - 1, got {seed}"))
+    target = file_target(report, "recheck.json")
     try:
-        if report is not None:
-            check_replaceable(report, [study], kind="json")
+        if target is not None:
+            check_replaceable(target, [study], kind="json", older_keys=RECHECK_KEYS)
         result = run_recheck(load_study(study, out, max_trials, allow_outside), trials, seed, _damaged)
     except SomoError as exc:
         fail(exc)
-    if report is not None:
-        write_atomic(report, json.dumps(result.to_dict(), indent=1, default=str))
+    if target is not None:
+        write_atomic(target, json_report(json.loads(json.dumps(result.to_dict(), default=str)), "recheck"))
     n_bad = len({m.trial for m in result.mismatches})
     typer.echo(
         f"re-ran {len(result.trials)} trial(s) {sorted(result.trials)}: "

@@ -35,7 +35,8 @@ import numpy as np
 from somo_sweep.calibration import meter
 from somo_sweep.calibration.metrics import TestMetric, per_test_metrics
 from somo_sweep.calibration.parameters import simulate_rows
-from somo_sweep.diagnosis.fit import CandidateFit, fit_candidate, jacobian, predict
+from somo_sweep.diagnosis.effects import EFFECTS
+from somo_sweep.diagnosis.fit import CandidateFit, fit_candidate, jacobian, predict, standard_errors
 from somo_sweep.diagnosis.noise import NoiseEstimate, estimate_noise, find_disagreements
 from somo_sweep.diagnosis.problem import DiagnosisProblem, build_diagnosis
 from somo_sweep.model.load import Model, model_from_dict
@@ -131,6 +132,24 @@ class DiagnosisResult:
         names = self.problem.parameter_names
         return {names[i]: float(values[i]) for i in fit.columns}
 
+    def stderr(self, fit: CandidateFit) -> dict[str, float]:
+        """Standard errors (fit units) of a refined candidate's parameters ({} when only predicted)."""
+        return standard_errors(self.problem, fit)
+
+    def describe_effects(self, fit: CandidateFit | None = None) -> list[str]:
+        """The fitted effect(s) of a candidate (default: the best) in words, with uncertainties."""
+        fit = fit or self.candidate(self.best_candidate)
+        if fit.name == "none":
+            return []
+        values, errors = self.parameters(fit), self.stderr(fit)
+        manip = self.problem.fit.manipulator
+        out = []
+        for name in fit.name.split("+"):
+            effect = EFFECTS[name]
+            if effect.explain is not None:
+                out.append(f"{name}: {effect.explain(manip, values, errors)}")
+        return out
+
     def as_dict(self) -> dict[str, Any]:
         """The ``diagnosis.json`` content."""
 
@@ -143,10 +162,12 @@ class DiagnosisResult:
             "missing_effect": self.missing_effect,
             "best_candidate": self.best_candidate,
             "verdict": self.verdict,
+            "effect_description": self.describe_effects(),
             "candidates": [
                 {
                     "name": c.name,
                     "parameters": self.parameters(c),
+                    "parameter_stderr": self.stderr(c),
                     "chi2": c.chi2,
                     "bic": c.bic,
                     "delta_bic_to_none": c.bic - self.candidate("none").bic,
@@ -157,6 +178,9 @@ class DiagnosisResult:
             ],
             "score": "BIC = sum over channels n_c ln(RSS_c / n_c) + k ln(n)",
             "residual_entries": (len(self.problem.normalised(self.problem.before))),
+            "bench_stop_z_mm": (
+                "underside" if (stop := self.problem.fit.settings.stop_z_m) is None else stop * 1e3
+            ),
             "rmse_before": rmse(self.problem.before),
             "rmse_after": rmse(self.after),
             "noise": _noise_dict(self.noise),
@@ -191,7 +215,7 @@ def _decide(candidates: list[CandidateFit]) -> tuple[str, str]:
 
 def _pair_columns(problem: DiagnosisProblem, a: CandidateFit, b: CandidateFit) -> tuple[int, ...]:
     base = tuple(range(problem.n_base))
-    return (*base, problem.effect_index(a.name), problem.effect_index(b.name))
+    return (*base, *problem.effect_columns(a.name), *problem.effect_columns(b.name))
 
 
 def _outcome(
@@ -243,7 +267,7 @@ def diagnose(
     jac = jacobian(problem, n_jobs)
     base = tuple(range(problem.n_base))
     predicted = {
-        e.name: predict(problem, jac, e.name, (*base, problem.effect_index(e.name)))
+        e.name: predict(problem, jac, e.name, (*base, *problem.effect_columns(e.name)))
         for e, _ in problem.effects
     }
     fits = {"none": fit_candidate(problem, jac, "none", base, n_jobs, max_evaluations)}

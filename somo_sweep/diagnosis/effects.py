@@ -1,39 +1,59 @@
 """Registry of physical effects a bench model may be missing, each a native model feature.
 
-Every effect has one parameter whose value 0 means "off" and whose ``apply``
-writes it into the manipulator's schema fields, so a model with the effect
-added is an ordinary model file usable by every study:
+Every effect has one or two fitted parameters whose values at the model's own are "as
+given" (0 = off for a model without the effect), and whose ``apply`` writes them into the
+manipulator's schema fields, so a model with the effect added is an ordinary model file
+usable by every study:
 
-============================  ===========================================  ==============================
-effect                        fitted parameter (unit)                      schema field written
 * ``nonlinear_stiffness``: ``stiffening_per_rad2`` (1/rad²) → ``Joint.stiffening_per_rad2``;
 * ``actuation_saturation``: ``saturation_per_kpa2`` = 1/p_sat² (1/kPa²) →
   ``Actuation.saturation_pressure_kpa``;
-* ``stiffness_gradient``: ``stiffness_gradient_per_m`` (1/m) → ``Actuator.stiffness_gradient_per_m``;
-* ``self_weight``: ``extra_mass_fraction`` (1) → ``Link.mass_kg`` × (1 + value);
+* ``stiffness_gradient``: ``stiffness_log_tip_ratio`` = ln r (1) and ``stiffness_taper_shape``
+  λ (1) → ``Actuator.stiffness_tip_ratio`` and ``Actuator.stiffness_taper_shape``: a monotone
+  profile from the base to r times the base stiffness at the tip, linear in stiffness
+  (λ = 1), in thickness (1/3), exponential (0) or linear in compliance (−1), positive for
+  every value the fit may try (:func:`~somo_sweep.model.description.taper_factor`);
+* ``self_weight``: ``added_mass_kg`` (kg) → ``Link.mass_kg`` of every actuator link, the
+  added mass spread along the length: an absolute mass, so a model told 0 g can be given
+  its weight, and no upper bound short of a weight the finger could not lift;
 * ``hysteresis``: ``hysteresis_torque_n_m`` (N·m) → ``Joint.hysteresis_torque_n_m``.
 
 ``saturation_per_kpa2`` is fitted instead of p_sat because the torque change is
-close to linear in it (gain·p·(1 − p²/(3·p_sat²)) for p ≪ p_sat) and 0 is "off".
+close to linear in it (gain·p·(1 − p²/(3·p_sat²)) for p ≪ p_sat) and 0 is "off"; the
+ratio is fitted as ln r for the same reason, and because every real number is a ratio > 0.
 """
 
 from __future__ import annotations
 
 import math
-from collections.abc import Callable
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 
 import pandas as pd
 
 from somo_sweep.errors import SomoError, did_you_mean
-from somo_sweep.model.description import Manipulator
+from somo_sweep.model.description import MAX_MASS_KG, MIN_MASS_KG, Manipulator
 
-__all__ = ["EFFECTS", "Effect", "EffectParameter", "add_effect", "get_effect"]
+__all__ = ["EFFECTS", "TAPER_SHAPES", "Effect", "EffectParameter", "add_effect", "get_effect", "taper_name"]
+
+#: Bench gravity used to size the weight parameter, m/s² (the bench's own may differ).
+_G = 9.81
+#: Named shapes of the stiffness taper (λ of the Box-Cox family).
+TAPER_SHAPES = {
+    1.0: "linear in stiffness",
+    1 / 3: "linear in thickness (EI ∝ t³)",
+    0.0: "exponential",
+    -1.0: "linear in compliance",
+}
+#: A taper shape whose standard error exceeds this is reported as not resolved by the rows.
+SHAPE_RESOLVED_STDERR = 0.35
+#: Largest tip-to-base stiffness ratio the fit may try, either way.
+MAX_FIT_RATIO = 50.0
 
 
 @dataclass(frozen=True)
 class EffectParameter:
-    """The fitted parameter of an effect on one model and data set.
+    """One fitted parameter of an effect on one model and data set.
 
     Attributes:
         name: Parameter name with unit.
@@ -41,8 +61,8 @@ class EffectParameter:
         probe: Typical size (finite-difference step and fit scale), in ``unit``.
         lower: Lower bound, in ``unit``.
         upper: Upper bound, in ``unit``.
-        apply: ``apply(manipulator, value)``: the manipulator with the effect at ``value`` (0 = off).
-        current: The value the model already has (0 when the effect is off).
+        apply: ``apply(manipulator, value)``: the manipulator with the parameter at ``value``.
+        current: The value the model already has (0 for an effect that is off).
     """
 
     name: str
@@ -54,6 +74,9 @@ class EffectParameter:
     current: float = 0.0
 
 
+Explain = Callable[[Manipulator, dict[str, float], dict[str, float]], str]
+
+
 @dataclass(frozen=True)
 class Effect:
     """A registered effect.
@@ -62,15 +85,18 @@ class Effect:
         name: Registry name (the vocabulary of ``diagnosis.json``).
         summary: One line for reports.
         field: The schema field(s) the effect writes.
-        parameter: ``parameter(manipulator, rows)`` sizes the fitted parameter for a model and data.
+        parameters: ``parameters(manipulator, rows)`` sizes the fitted parameters for a model
+            and data (at least one; the first is the effect's size, 0 or its current value = as given).
         needs_direction: Only testable when rows carry both ``loading`` and ``unloading``.
+        explain: ``explain(model_as_given, values, standard_errors)``: the fitted effect in words.
     """
 
     name: str
     summary: str
     field: str
-    parameter: Callable[[Manipulator, pd.DataFrame], EffectParameter]
+    parameters: Callable[[Manipulator, pd.DataFrame], tuple[EffectParameter, ...]]
     needs_direction: bool = False
+    explain: Explain | None = None
 
     def applies_to(self, rows: pd.DataFrame) -> bool:
         """Whether the rows can reveal this effect."""
@@ -91,6 +117,10 @@ def _joints(manip: Manipulator, **update: float) -> Manipulator:
         for act in manip.actuators
     ]
     return manip.model_copy(update={"actuators": acts})
+
+
+def _actuators(manip: Manipulator, **update: float) -> Manipulator:
+    return manip.model_copy(update={"actuators": [a.model_copy(update=update) for a in manip.actuators]})
 
 
 def set_stiffening(manip: Manipulator, value: float) -> Manipulator:
@@ -114,20 +144,37 @@ def set_saturation(manip: Manipulator, value: float) -> Manipulator:
 
 
 def set_gradient(manip: Manipulator, value: float) -> Manipulator:
-    """Linear stiffness gradient of every actuator, in 1/m."""
-    acts = [act.model_copy(update={"stiffness_gradient_per_m": value}) for act in manip.actuators]
+    """Linear stiffness gradient of every actuator, in 1/m (model field; not fitted)."""
+    return _actuators(manip, stiffness_gradient_per_m=value)
+
+
+def set_log_tip_ratio(manip: Manipulator, value: float) -> Manipulator:
+    """Taper of every actuator: tip-to-base stiffness ratio exp(``value``)."""
+    return _actuators(manip, stiffness_tip_ratio=math.exp(value))
+
+
+def set_taper_shape(manip: Manipulator, value: float) -> Manipulator:
+    """Shape λ of every actuator's taper (1 linear, 0 exponential, −1 linear in compliance)."""
+    return _actuators(manip, stiffness_taper_shape=value)
+
+
+def actuator_mass_kg(manip: Manipulator) -> float:
+    """Mass of the actuators' links (the bending body, without tip links), kg."""
+    return sum(a.link.mass_kg * a.segments for a in manip.actuators)
+
+
+def add_mass(manip: Manipulator, value: float) -> Manipulator:
+    """``value`` kg more on the actuators' links, spread evenly along their length.
+
+    A link never goes below the schema's least mass (a negative value removes mass down to it).
+    """
+    length = sum(a.length_m for a in manip.actuators)
+    acts = []
+    for act in manip.actuators:
+        per_link = value * act.length_m / length / act.segments
+        mass = min(max(act.link.mass_kg + per_link, MIN_MASS_KG), MAX_MASS_KG)
+        acts.append(act.model_copy(update={"link": act.link.model_copy(update={"mass_kg": mass})}))
     return manip.model_copy(update={"actuators": acts})
-
-
-def scale_mass(manip: Manipulator, value: float) -> Manipulator:
-    """Link masses (actuators and tip links) times (1 + value)."""
-    factor = 1 + value
-    acts = [
-        act.model_copy(update={"link": act.link.model_copy(update={"mass_kg": act.link.mass_kg * factor})})
-        for act in manip.actuators
-    ]
-    tips = [t.model_copy(update={"mass_kg": t.mass_kg * factor}) for t in manip.tip_links]
-    return manip.model_copy(update={"actuators": acts, "tip_links": tips})
 
 
 def _max_torque_n_m(manip: Manipulator, rows: pd.DataFrame) -> float:
@@ -144,45 +191,117 @@ def _n_joints(manip: Manipulator) -> int:
     return sum(act.segments for act in manip.actuators)
 
 
-def _stiffening(manip: Manipulator, rows: pd.DataFrame) -> EffectParameter:
+def _stiffening(manip: Manipulator, rows: pd.DataFrame) -> tuple[EffectParameter, ...]:
     # A 1 rad total bend over N joints is ~1/N rad per joint: probe +20 % stiffness there.
     # Upper bound: beyond ~+70 % the stiffened explicit springs outrun the bench's step.
     n = _n_joints(manip)
     now = manip.actuators[0].joints[0].stiffening_per_rad2
-    return EffectParameter(
-        "stiffening_per_rad2", "1/rad²", 0.2 * n * n, -0.5 * n * n, 0.5 * n * n, set_stiffening, now
+    return (
+        EffectParameter(
+            "stiffening_per_rad2", "1/rad²", 0.2 * n * n, -0.5 * n * n, 0.5 * n * n, set_stiffening, now
+        ),
     )
 
 
-def _saturation(manip: Manipulator, rows: pd.DataFrame) -> EffectParameter:
+def _saturation(manip: Manipulator, rows: pd.DataFrame) -> tuple[EffectParameter, ...]:
     p_max = max(float(rows["pressure_kpa"].abs().max()), 1.0)
     # probe: p_sat = 2·p_max (−8 % torque at p_max); upper: p_sat = p_max / 3.
     p_sat = manip.actuation.saturation_pressure_kpa if manip.actuation else None
     now = p_sat**-2 if p_sat else 0.0
-    return EffectParameter(
-        "saturation_per_kpa2", "1/kPa²", (2 * p_max) ** -2, 0.0, 9 / p_max**2, set_saturation, now
+    return (
+        EffectParameter(
+            "saturation_per_kpa2", "1/kPa²", (2 * p_max) ** -2, 0.0, 9 / p_max**2, set_saturation, now
+        ),
     )
 
 
-def _gradient(manip: Manipulator, rows: pd.DataFrame) -> EffectParameter:
-    length = manip.actuators[0].length_m
-    n = manip.actuators[0].segments
-    lowest = -0.9 * n / (max(n - 1, 1) * length)
-    now = manip.actuators[0].stiffness_gradient_per_m
-    return EffectParameter(
-        "stiffness_gradient_per_m", "1/m", -0.2 / length, lowest, 5 / length, set_gradient, now
+def _taper(manip: Manipulator, rows: pd.DataFrame) -> tuple[EffectParameter, ...]:
+    act = manip.actuators[0]
+    # probe: the tip 22 % softer than the base; the fit may try 1:50 to 50:1.
+    lim = math.log(MAX_FIT_RATIO)
+    ratio = EffectParameter(
+        "stiffness_log_tip_ratio",
+        "1",
+        -0.25,
+        -lim,
+        lim,
+        set_log_tip_ratio,
+        math.log(act.stiffness_tip_ratio),
     )
+    shape = EffectParameter(
+        "stiffness_taper_shape", "1", 0.5, -2.0, 2.0, set_taper_shape, act.stiffness_taper_shape
+    )
+    return ratio, shape
 
 
-def _mass(manip: Manipulator, rows: pd.DataFrame) -> EffectParameter:
-    return EffectParameter("extra_mass_fraction", "1", 0.2, -0.9, 3.0, scale_mass)
+def _mass(manip: Manipulator, rows: pd.DataFrame) -> tuple[EffectParameter, ...]:
+    mass = actuator_mass_kg(manip)
+    lever_m = manip.length_m / 2
+    torque = _max_torque_n_m(manip, rows)
+    # probe: 20 % of the stated mass, or a weight whose moment at mid-length is 3 % of the
+    # largest actuation (or tip-load) moment when the stated mass is about nothing.
+    probe = max(0.2 * mass, 0.03 * torque / (_G * lever_m))
+    # Down to 5 % of the stated mass; up to a weight whose moment is 50 times that torque
+    # (a finger that could not lift itself by far), at least 100 times the stated mass.
+    upper = min(max(50 * torque / (_G * lever_m), 100 * mass), MAX_MASS_KG)
+    return (EffectParameter("added_mass_kg", "kg", probe, -0.95 * mass, upper, add_mass),)
 
 
-def _hysteresis(manip: Manipulator, rows: pd.DataFrame) -> EffectParameter:
+def _hysteresis(manip: Manipulator, rows: pd.DataFrame) -> tuple[EffectParameter, ...]:
     torque = _max_torque_n_m(manip, rows)
     now = manip.actuators[0].joints[0].hysteresis_torque_n_m
-    return EffectParameter(
-        "hysteresis_torque_n_m", "N·m", 0.03 * torque, 0.0, 0.5 * torque, set_hysteresis, now
+    return (
+        EffectParameter(
+            "hysteresis_torque_n_m", "N·m", 0.03 * torque, 0.0, 0.5 * torque, set_hysteresis, now
+        ),
+    )
+
+
+def _pm(value: float, err: float | None, fmt: str = ".3g") -> str:
+    """``value ± err`` (the error to 2 significant digits; "not determined" when infinite)."""
+    if err is None:
+        return f"{value:{fmt}}"
+    if not math.isfinite(err):
+        return f"{value:{fmt}} (not determined by these rows)"
+    return f"{value:{fmt}} ± {err:.2g}"
+
+
+def explain_mass(manip: Manipulator, values: dict[str, float], stderr: dict[str, float]) -> str:
+    """The fitted weight in grams: what the finger weighs and what the model was told."""
+    stated = actuator_mass_kg(manip) * 1e3
+    added = values["added_mass_kg"] * 1e3
+    err = stderr.get("added_mass_kg")
+    err_g = err * 1e3 if err is not None else None
+    told = "0 g (weightless)" if stated < 1e-3 else f"{stated:.3g} g"
+    return (
+        f"the finger's bending body weighs {_pm(stated + added, err_g)} g; the model was told "
+        f"{told} ({_pm(added, err_g)} g added, spread along the length)"
+    )
+
+
+def taper_name(shape: float, stderr: float | None = None) -> str:
+    """The named taper shape nearest to λ = ``shape`` (or "not resolved" when too uncertain)."""
+    nearest = min(TAPER_SHAPES, key=lambda lam: abs(lam - shape))
+    if stderr is not None and not stderr <= SHAPE_RESOLVED_STDERR:
+        return f"shape not resolved by these rows (nearest: {TAPER_SHAPES[nearest]})"
+    return TAPER_SHAPES[nearest]
+
+
+def explain_taper(manip: Manipulator, values: dict[str, float], stderr: dict[str, float]) -> str:
+    """The fitted taper: tip-to-base stiffness ratio and the profile's named shape."""
+    log_r = values["stiffness_log_tip_ratio"]
+    ratio = math.exp(log_r)
+    err = stderr.get("stiffness_log_tip_ratio")
+    ratio_err = ratio * err if err is not None else None  # d r = r · d ln r
+    shape = values.get("stiffness_taper_shape", manip.actuators[0].stiffness_taper_shape)
+    shape_err = stderr.get("stiffness_taper_shape")
+    way = "stiffer" if ratio >= 1 else "softer"
+    inverse_err = ratio_err / ratio**2 if ratio_err is not None else None
+    tip_base = f"{_pm(ratio, ratio_err)} : 1" if ratio >= 1 else f"1 : {_pm(1 / ratio, inverse_err)}"
+    return (
+        f"the tip is {way} than the base, tip:base stiffness {tip_base}; profile "
+        f"{taper_name(shape, shape_err)} (λ = {_pm(shape, shape_err, '.2f')}; 1 linear, 0 exponential, "
+        "−1 linear in compliance)"
     )
 
 
@@ -203,15 +322,18 @@ EFFECTS: dict[str, Effect] = {
         ),
         Effect(
             "stiffness_gradient",
-            "joint stiffness varies linearly along the finger: k·(1 + g·s)",
-            "actuators[].stiffness_gradient_per_m",
-            _gradient,
+            "joint stiffness changes monotonically along the finger: a taper from the base to r "
+            "times the base stiffness at the tip, of a fitted shape",
+            "actuators[].stiffness_tip_ratio, actuators[].stiffness_taper_shape",
+            _taper,
+            explain=explain_taper,
         ),
         Effect(
             "self_weight",
-            "the finger's weight is missing or underestimated: link masses × (1 + f)",
+            "the finger's weight is missing or underestimated: mass added along its links",
             "actuators[].link.mass_kg",
             _mass,
+            explain=explain_mass,
         ),
         Effect(
             "hysteresis",
@@ -237,9 +359,24 @@ def get_effect(name: str) -> Effect:
     return EFFECTS[name]
 
 
-def add_effect(manip: Manipulator, name: str, value: float, rows: pd.DataFrame | None = None) -> Manipulator:
-    """The manipulator with effect ``name`` at ``value`` (in the effect parameter's unit)."""
+def add_effect(
+    manip: Manipulator, name: str, *values: float, rows: pd.DataFrame | None = None
+) -> Manipulator:
+    """The manipulator with effect ``name`` at ``values`` (in its parameters' units, in order).
+
+    Parameters not given keep the model's value (e.g. the taper's shape: linear by default).
+    """
     effect = get_effect(name)
-    return effect.parameter(manip, rows if rows is not None else pd.DataFrame({"pressure_kpa": [1.0]})).apply(
-        manip, value
-    )
+    sized = effect.parameters(manip, rows if rows is not None else pd.DataFrame({"pressure_kpa": [1.0]}))
+    if not 1 <= len(values) <= len(sized):
+        raise SomoError(
+            f"effect '{name}' takes 1 to {len(sized)} values ({', '.join(p.name for p in sized)}), "
+            f"got {len(values)}"
+        )
+    for par, value in zip(sized, _as_floats(values), strict=False):
+        manip = par.apply(manip, value)
+    return manip
+
+
+def _as_floats(values: Sequence[float]) -> list[float]:
+    return [float(v) for v in values]

@@ -26,7 +26,15 @@ from scipy.optimize import lsq_linear
 from somo_sweep.diagnosis.problem import DiagnosisProblem
 from somo_sweep.errors import SimulationError
 
-__all__ = ["BASE_STEP", "CandidateFit", "Jacobian", "fit_candidate", "jacobian", "predict"]
+__all__ = [
+    "BASE_STEP",
+    "CandidateFit",
+    "Jacobian",
+    "fit_candidate",
+    "jacobian",
+    "predict",
+    "standard_errors",
+]
 
 #: Forward-difference step of the base parameters (relative; bench repeatable to ~1e-5).
 BASE_STEP = 2e-3
@@ -99,10 +107,14 @@ def bic(problem: DiagnosisProblem, r: np.ndarray, k: int) -> float:
 def _step(
     problem: DiagnosisProblem, matrix: np.ndarray, cols: tuple[int, ...], z: np.ndarray, r: np.ndarray
 ) -> np.ndarray:
-    c = list(cols)
+    # A column without any slope (the taper's shape while the taper is off) takes no step:
+    # the residuals cannot tell where it should go.
+    c = [i for i in cols if np.any(matrix[:, i] != 0)]
+    out = np.zeros_like(z)
+    if not c:
+        return out
     lo, hi = problem.lower[c] - z[c], problem.upper[c] - z[c]
     sol = lsq_linear(matrix[:, c], -r, bounds=(lo, hi))
-    out = np.zeros_like(z)
     out[c] = sol.x
     return out
 
@@ -188,3 +200,27 @@ def fit_candidate(
     return CandidateFit(
         name, cols, z, chi2, bic(problem, r, len(cols)), simulated, True, done + evaluations, matrix
     )
+
+
+def standard_errors(problem: DiagnosisProblem, fit: CandidateFit) -> dict[str, float]:
+    """Standard error of each fitted parameter of a refined candidate (fit units; {} if only predicted).
+
+    From the candidate's Jacobian at its end point (forward differences, then Broyden updates
+    along the steps taken): covariance s²·(JᵀJ)⁻¹ in z with s² = χ² / (n − k), the residual
+    variance per degree of freedom, so a misfit widens the errors instead of hiding behind a
+    noise estimate. A parameter the rows do not determine gets an infinite error.
+    """
+    if fit.matrix is None:
+        return {}
+    cols = list(fit.columns)
+    jm = fit.matrix[:, cols]
+    n, k = jm.shape
+    s2 = fit.chi2 / max(n - k, 1)
+    jtj = jm.T @ jm
+    seen = np.diag(jtj) > 0
+    var = np.full(k, np.inf)
+    if seen.any():
+        var[seen] = np.diag(np.linalg.pinv(jtj[np.ix_(seen, seen)])) * s2
+    err = np.sqrt(np.maximum(var, 0.0)) * np.abs(problem.scale[cols])
+    names = problem.parameter_names
+    return {names[i]: float(e) for i, e in zip(cols, err, strict=True)}

@@ -4,7 +4,7 @@ Building it runs step 1 of the workflow (simulate every row with the model,
 residuals per channel, noise levels, systematic disagreements); the result can
 be inspected (``describe()``) before any effect is fitted. The fit space
 extends the calibration problem with one :class:`~somo_sweep.calibration.solve.Parameter`
-per effect (the calibration's extension hook), so every candidate is a point
+per effect parameter (the calibration's extension hook), so every candidate is a point
 ``z`` of one problem: value = start + z·scale, z = 0 is the model as given.
 """
 
@@ -18,6 +18,7 @@ import pandas as pd
 
 from somo_sweep.calibration import meter
 from somo_sweep.calibration.metrics import measured_array
+from somo_sweep.calibration.repeats import describe_repeats, drop_repeats, find_repeats
 from somo_sweep.calibration.solve import CALIBRATION_SETTINGS, CalibrationProblem, Parameter, build_problem
 from somo_sweep.diagnosis.effects import EFFECTS, Effect, EffectParameter, get_effect
 from somo_sweep.diagnosis.noise import (
@@ -53,7 +54,7 @@ class DiagnosisProblem:
 
     Attributes:
         fit: Calibration problem over *all* rows whose parameters are the base ones
-            (stiffness, gain) followed by one per effect.
+            (stiffness, gain) followed by those of every effect.
         n_base: Number of base parameters at the front of ``fit.parameters``.
         effects: The effects tried, with their sized parameters (same order as after ``n_base``).
         start: Value of every parameter in the model as given (fit units).
@@ -70,7 +71,7 @@ class DiagnosisProblem:
 
     fit: CalibrationProblem
     n_base: int
-    effects: tuple[tuple[Effect, EffectParameter], ...]
+    effects: tuple[tuple[Effect, tuple[EffectParameter, ...]], ...]
     start: np.ndarray
     scale: np.ndarray
     lower: np.ndarray
@@ -130,12 +131,18 @@ class DiagnosisProblem:
         """Entries of each channel in :meth:`normalised`, in order."""
         return [int(ch.rows.sum()) for ch in channels(self.rows)]
 
-    def effect_index(self, name: str) -> int:
-        """Position of an effect's parameter in the fit vector."""
-        for i, (effect, _) in enumerate(self.effects):
+    def effect_columns(self, name: str) -> tuple[int, ...]:
+        """Positions of an effect's parameters in the fit vector."""
+        start = self.n_base
+        for effect, pars in self.effects:
             if effect.name == name:
-                return self.n_base + i
+                return tuple(range(start, start + len(pars)))
+            start += len(pars)
         raise KeyError(name)
+
+    def effect_parameters(self, name: str) -> tuple[EffectParameter, ...]:
+        """The sized parameters of an effect."""
+        return next(pars for effect, pars in self.effects if effect.name == name)
 
     def describe(self) -> str:
         """Noise levels, disagreements and the effects to try (for the terminal)."""
@@ -162,6 +169,7 @@ def build_diagnosis(
     settings: BenchSettings = CALIBRATION_SETTINGS,
     effects: Sequence[str] | None = None,
     n_jobs: int = 1,
+    keep_duplicates: bool = False,
 ) -> DiagnosisProblem:
     """Simulate the rows with ``model``, estimate the noise and set up the effect fits.
 
@@ -172,6 +180,9 @@ def build_diagnosis(
         settings: Bench numerics.
         effects: Effect names to try (default: every registered effect the rows can reveal).
         n_jobs: Worker processes for the bench rows.
+        keep_duplicates: Count rows repeating an earlier row exactly
+            (:func:`~somo_sweep.calibration.measurements.find_repeats`) as separate measurements;
+            by default each is counted once and :attr:`DiagnosisProblem.notes` says so.
 
     Raises:
         MeasurementError: Rows the calibration cannot use (too few, wrong columns).
@@ -180,15 +191,11 @@ def build_diagnosis(
     chosen = [get_effect(n) for n in effects] if effects is not None else list(EFFECTS.values())
     # A row repeated exactly (a copy) is no second measurement: it would halve the noise
     # estimate and double its weight in every comparison, and flip the verdict.
-    repeated = rows.duplicated(subset=[c for c in rows.columns if c != "line"], keep="first")
     notes: tuple[str, ...] = ()
-    if repeated.any():
-        lines = ", ".join(str(v) for v in rows.loc[repeated, "line"].head(5)) if "line" in rows else "?"
-        more = " …" if repeated.sum() > 5 else ""
-        notes = (
-            f"{int(repeated.sum())} row(s) repeat an earlier row exactly (lines {lines}{more}): counted once",
-        )
-        rows = rows[~repeated].reset_index(drop=True)
+    repeats = find_repeats(rows) if not keep_duplicates else {}
+    if repeats:
+        notes = (describe_repeats(repeats, kept=False),)
+        rows = drop_repeats(rows, repeats)
     base_problem = build_problem(rows, model, source, settings)
     manip = base_problem.manipulator
     base = [replace(p, initial=_current(manip, p.name)) for p in base_problem.parameters]
@@ -202,16 +209,18 @@ def build_diagnosis(
             )
         notes = (*notes, f"effect(s) {', '.join(hidden)} not tried: these rows lack {why}")
     sized = tuple(
-        (e, e.parameter(manip, base_problem.rows)) for e in chosen if e.applies_to(base_problem.rows)
+        (e, e.parameters(manip, base_problem.rows)) for e in chosen if e.applies_to(base_problem.rows)
     )
-    extra = [Parameter(ep.name, ep.unit, abs(ep.probe), ep.apply) for _, ep in sized]
+    flat = [ep for _, pars in sized for ep in pars]
+    extra = [Parameter(ep.name, ep.unit, abs(ep.probe), ep.apply) for ep in flat]
     fit = replace(base_problem, parameters=(*base, *extra))
-    start = np.array([p.initial for p in base] + [ep.current for _, ep in sized])
-    scale = np.array([p.initial for p in base] + [ep.probe for _, ep in sized])
-    lo = [-0.9] * len(base) + [(ep.lower - ep.current) / ep.probe for _, ep in sized]
-    hi = [9.0] * len(base) + [(ep.upper - ep.current) / ep.probe for _, ep in sized]
-    # A negative probe (a softening gradient) flips the bounds in z.
-    lower, upper = np.minimum(lo, hi), np.maximum(lo, hi)
+    start = np.array([p.initial for p in base] + [ep.current for ep in flat])
+    scale = np.array([p.initial for p in base] + [ep.probe for ep in flat])
+    lo = [-0.9] * len(base) + [(ep.lower - ep.current) / ep.probe for ep in flat]
+    hi = [9.0] * len(base) + [(ep.upper - ep.current) / ep.probe for ep in flat]
+    # A negative probe (a softening taper) flips the bounds in z; the model as given (z = 0)
+    # stays inside them even when its own value lies beyond what a fit would try.
+    lower, upper = np.minimum(np.minimum(lo, hi), 0.0), np.maximum(np.maximum(lo, hi), 0.0)
     measured = measured_array(fit.rows)
     meter.expect(len(fit.rows))
     before = fit.simulate(start.tolist(), fit.rows, n_jobs)

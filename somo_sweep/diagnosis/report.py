@@ -20,6 +20,13 @@ def test_labels(result: DiagnosisResult) -> list[str]:
     return labels
 
 
+def _value(value: float, stderr: float | None) -> str:
+    """``value`` (4 significant digits), ``± stderr`` when known."""
+    if stderr is None:
+        return f"{value:.4g}"
+    return f"{value:.4g} ± {stderr:.2g}"
+
+
 def verdict_lines(result: DiagnosisResult) -> list[str]:
     """The short verdict printed by the CLI."""
     lines = [f"missing effect: {result.missing_effect} ({result.verdict})"]
@@ -30,7 +37,10 @@ def verdict_lines(result: DiagnosisResult) -> list[str]:
         held = (
             "  fitted" if result.missing_effect != "unexplained" else "  best attempt (in the written model)"
         )
-        lines.append(f"{held}: " + ", ".join(f"{k} = {v:.4g}" for k, v in result.parameters(fit).items()))
+        errors = result.stderr(fit)
+        values = result.parameters(fit).items()
+        lines.append(f"{held}: " + ", ".join(f"{k} = {_value(v, errors.get(k))}" for k, v in values))
+        lines += [f"  {line}" for line in result.describe_effects(fit)]
     lines.append(
         f"combined noise-normalised score: before {result.combined_before:.2f}, "
         f"after {result.combined_after:.2f}"
@@ -60,7 +70,8 @@ def report_markdown(result: DiagnosisResult, source: str) -> str:
     out += ["", "## Candidates (BIC = Σ_c n_c·ln(RSS_c/n_c) + k·ln n, best first)", ""]
     out += ["| candidate | χ² | BIC | ΔBIC vs none | refined | parameters |", "|---|---|---|---|---|---|"]
     for c in result.candidates:
-        pars = ", ".join(f"{k} = {v:.4g}" for k, v in result.parameters(c).items())
+        errors = result.stderr(c)
+        pars = ", ".join(f"{k} = {_value(v, errors.get(k))}" for k, v in result.parameters(c).items())
         out.append(
             f"| {c.name} | {c.chi2:.1f} | {c.bic:.1f} | {c.bic - none_bic:+.1f} | "
             f"{'simulated' if c.refined else 'linear prediction'} | {pars} |"

@@ -7,6 +7,7 @@ are only starting points.
 
 from __future__ import annotations
 
+from somo_sweep.model.description import MIN_MASS_KG
 from somo_sweep.model.load import Model, model_from_dict
 
 __all__ = ["DEFAULT_THICKNESS_M", "DEFAULT_WIDTH_M", "planar_finger"]
@@ -41,7 +42,8 @@ def planar_finger(
     Args:
         length_m: Bending length of the finger, in m.
         segments: Number of links (and joints), ≥ 1.
-        mass_kg: Total mass of the links, in kg (spread evenly).
+        mass_kg: Total mass of the links, in kg (spread evenly); 0 makes them weightless (each
+            at the schema's least mass, 1e-9 kg).
         width_m: Link extent along the joint axis, in m.
         thickness_m: Link extent in the bending direction, in m.
         stiffness_n_m_per_rad: Joint stiffness, in N·m/rad.
@@ -69,7 +71,8 @@ def planar_finger(
                     "link": {
                         "shape": "box",
                         "size_m": [width_m, thickness_m],
-                        "mass_kg": mass_kg / max(segments, 1),
+                        # 0 g: weightless links, each at the schema's least mass
+                        "mass_kg": mass_kg / max(segments, 1) if mass_kg != 0 else MIN_MASS_KG,
                     },
                     "joints": [
                         {

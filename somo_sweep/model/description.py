@@ -36,6 +36,8 @@ __all__ = [
     "MAX_MOUNTS",
     "MAX_RIGID_BODIES",
     "MAX_SEGMENTS",
+    "MAX_TAPER_RATIO",
+    "MAX_TAPER_SHAPE",
     "MAX_TIP_LINKS",
     "MIN_LENGTH_M",
     "MIN_MASS_KG",
@@ -52,6 +54,7 @@ __all__ = [
     "Pose",
     "RigidBody",
     "Spec",
+    "taper_factor",
 ]
 
 #: Relative tolerance when a length must be a whole number of segments.
@@ -86,6 +89,10 @@ MAX_INERTIA_KG_M2 = MAX_MASS_KG * MAX_LENGTH_M**2
 #: Largest stiffness gradient along an actuator, 1/m, and the largest factor it may give a joint.
 MAX_GRADIENT_PER_M = 1e6
 MAX_GRADIENT_FACTOR = 1e6
+#: Largest tip-to-base stiffness ratio of an actuator's taper, either way (1e-6 to 1e6).
+MAX_TAPER_RATIO = 1e6
+#: Largest magnitude of the taper's shape exponent (1 linear, 0 exponential, −1 linear compliance).
+MAX_TAPER_SHAPE = 10.0
 #: Largest cubic stiffening coefficient, 1/rad² (either sign).
 MAX_STIFFENING_PER_RAD2 = 1e6
 #: Largest joint limit, rad (a revolute joint's limits, either sign: many turns).
@@ -188,6 +195,9 @@ class Link(Spec):
     ``added_inertia_kg_m2`` is added to each principal moment (inertia shaping: it
     lowers a chain's highest natural frequency so larger time steps stay stable,
     and leaves every static equilibrium unchanged).
+    ``offset_m`` shifts the link's shape and centre of mass off the chain's centre line, in
+    the link's own frame (e.g. a fingertip flush with the finger's inner face, as in the
+    original SoMo pinch finger); the chain's length and joints do not move.
     """
 
     shape: Literal["box", "cylinder", "sphere", "capsule", "stadium"]
@@ -200,6 +210,14 @@ class Link(Spec):
     friction: Friction = Friction()
     restitution: float = Field(0.0, ge=0, le=1)
     color_rgba: tuple[float, float, float, float] = (0.55, 0.6, 0.7, 1.0)
+    offset_m: Vec3 = (0.0, 0.0, 0.0)
+
+    @field_validator("offset_m")
+    @classmethod
+    def _offset_bounded(cls, v: Vec3) -> Vec3:
+        if any(not (math.isfinite(c) and abs(c) <= MAX_LENGTH_M) for c in v):
+            raise ValueError(f"offset_m entries must be finite and at most {MAX_LENGTH_M:g} m in size")
+        return v
 
     @field_validator("inertia_kg_m2")
     @classmethod
@@ -406,14 +424,44 @@ class Joint(Spec):
         return self.limits_rad if self.type == "revolute" else self.limits_m
 
 
+def taper_factor(x: float, ratio: float, shape: float) -> float:
+    """A monotone stiffness profile from 1 at x = 0 to ``ratio`` at x = 1 (x = s / L).
+
+    The Box-Cox family f(x) = (1 + (r^λ − 1)·x)^(1/λ), exp(x·ln r) at λ = 0: f^λ (or ln f) is
+    linear in x. λ = 1 is linear in stiffness, 1/3 linear in thickness (EI ∝ t³), 0
+    exponential, −1 linear in compliance. The base 1 + (r^λ − 1)·x lies between 1 and r^λ, so
+    f > 0 for every r > 0 and every λ; smooth in λ through 0 (computed as
+    log1p(expm1(λ·ln r)·x) / λ).
+    """
+    if ratio == 1.0 or x <= 0.0:
+        return 1.0
+    if x >= 1.0:
+        return ratio
+    log_ratio = math.log(ratio)
+    t = shape * log_ratio
+    if abs(t) < 1e-8:  # near the exponential: its expansion to first order in λ (error ~ t²)
+        return math.exp(log_ratio * x + 0.5 * shape * log_ratio**2 * x * (1 - x))
+    if t > -30.0:  # accurate for small t
+        log_base = math.log1p(math.expm1(t) * x)
+    else:  # e^t underflows against 1: ln((1 − x) + x·e^t) without it
+        a, b = math.log1p(-x), t + math.log(x)
+        high = max(a, b)
+        log_base = high + math.log1p(math.exp(min(a, b) - high))
+    return math.exp(log_base / shape)
+
+
 class Actuator(Spec):
     """A continuum actuator: ``n_segments`` equal links joined by spring joints.
 
     Give either ``n_segments`` or ``segment_length_m``; a length that is not a
     whole number of segments (within ``LENGTH_REL_TOL``) is rejected.
     ``stiffness_profile`` multiplies the stiffness of each segment's joint;
-    ``stiffness_gradient_per_m`` (effect, default 0) multiplies it further by
-    (1 + g·s), s the joint's distance from the actuator start in m.
+    ``stiffness_gradient_per_m`` (default 0) multiplies it further by
+    (1 + g·s), s the joint's distance from the actuator start in m; the taper (effect
+    ``stiffness_gradient``, default off) by :func:`taper_factor` of x = s / ``length_m``:
+    a monotone profile from 1 at the base to ``stiffness_tip_ratio`` at the tip, of shape
+    ``stiffness_taper_shape`` (λ: 1 linear in stiffness, 1/3 linear in thickness for EI ∝ t³,
+    0 exponential, −1 linear in compliance), positive for every ratio and shape.
     ``joint_placement``: ``midpoint`` (default; joints at the segment midpoints, second-order
     convergence to a continuous finger) or ``start`` (SoMo's: a joint at each link's start).
     """
@@ -426,6 +474,8 @@ class Actuator(Spec):
     joints: list[Joint] = Field(min_length=1, max_length=3)
     stiffness_profile: list[float] | None = None
     stiffness_gradient_per_m: float = Field(0.0, ge=-MAX_GRADIENT_PER_M, le=MAX_GRADIENT_PER_M)
+    stiffness_tip_ratio: float = Field(1.0, ge=1 / MAX_TAPER_RATIO, le=MAX_TAPER_RATIO)
+    stiffness_taper_shape: float = Field(1.0, ge=-MAX_TAPER_SHAPE, le=MAX_TAPER_SHAPE)
     joint_placement: Literal["midpoint", "start"] = "midpoint"
 
     @model_validator(mode="after")
@@ -515,9 +565,11 @@ class Actuator(Spec):
         return (i + 0.5 if self.joint_placement == "midpoint" else i) * self.segment_m
 
     def stiffness_factor(self, i: int) -> float:
-        """Stiffness multiplier of segment ``i`` (profile times the gradient factor at its joint)."""
+        """Stiffness multiplier of segment ``i`` (profile, gradient and taper at its joint)."""
         profile = self.stiffness_profile[i] if self.stiffness_profile else 1.0
-        return profile * (1 + self.stiffness_gradient_per_m * self.joint_position_m(i))
+        s = self.joint_position_m(i)
+        taper = taper_factor(s / self.length_m, self.stiffness_tip_ratio, self.stiffness_taper_shape)
+        return profile * (1 + self.stiffness_gradient_per_m * s) * taper
 
     @property
     def actuated_axes(self) -> list[int]:

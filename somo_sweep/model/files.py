@@ -10,15 +10,19 @@ infinite numbers, are reported with their key path and line.
 
 from __future__ import annotations
 
+import contextlib
+import errno
 import json
 import math
+import os
 import re
+import stat
 from pathlib import Path
 from typing import Any
 
 import yaml
 
-from somo_sweep.errors import DescriptionError, Problem
+from somo_sweep.errors import DescriptionError, Problem, os_cause, shown
 
 __all__ = [
     "MAX_DEPTH",
@@ -57,14 +61,21 @@ def is_file(path: Path) -> bool:
 
 
 def missing_or_special(path: Path) -> str:
-    """Why ``path`` cannot be read as a file: missing, or a folder / device / pipe."""
+    """Why ``path`` cannot be read as a file: ``file not found`` (exactly, when it is missing),
+    a link to nothing, a link loop, a name too long, …, or a folder / device / pipe."""
     try:
-        exists = path.exists()
-    except (OSError, ValueError):
-        exists = False
-    if not exists:
+        info = os.stat(path)
+    except ValueError:  # a NUL byte in the name: no file has it
         return "file not found"
-    kind = "a folder" if path.is_dir() else "a device, pipe or socket"
+    except OSError as exc:
+        if exc.errno != errno.ENOENT:  # a link loop, a name too long, a folder we may not enter, …
+            cause, advice = os_cause(exc)
+            return f"cannot be opened: {cause}; {advice}"
+        with contextlib.suppress(OSError, ValueError):
+            if path.is_symlink():
+                return f"a symbolic link to {shown(os.readlink(path), 200)}, which does not exist"
+        return "file not found"
+    kind = "a folder" if stat.S_ISDIR(info.st_mode) else "a device, pipe or socket"
     return f"not a regular file ({kind}); allowed: a text file"
 
 
@@ -292,16 +303,82 @@ def parse_yaml_value(text: str) -> Any:
     return data
 
 
-def _json_pairs(problems: list[Problem]) -> Any:
-    def hook(pairs: list[tuple[str, Any]]) -> dict[str, Any]:
-        out: dict[str, Any] = {}
-        for key, value in pairs:
-            if key in out:
-                problems.append(Problem(key, f"key '{key}' is given twice in one object; allowed: once"))
-            out[key] = value
-        return out
+#: A JSON token the line scanner steps over whole: a string, or a number or literal.
+_JSON_STRING = re.compile(r'"(?:[^"\\]|\\.)*"')
+_JSON_SCALAR = re.compile(r"[^\s,:\[\]{}]+")
+_JSON_BLANK = re.compile(r"[ \t\r\n]+")
 
-    return hook
+
+def _json_lines(text: str, problems: list[Problem]) -> dict[str, int]:
+    """The line of every key path of a JSON text that parsed (``a.b[0].c`` → 1-based line).
+
+    A key's line is the line of the key, an array item's the line where it starts, as for
+    YAML. A key given twice in one object is reported with both lines.
+    """
+    lines: dict[str, int] = {}
+    # One frame per open object or array: [path, is_object, next index, current key, keys seen].
+    stack: list[list[Any]] = []
+    line, i, n = 1, 0, len(text)
+
+    def value_path() -> str:
+        if not stack:
+            return ""
+        path, is_object, index, key, _ = stack[-1]
+        return join_path(path, key if is_object else index)
+
+    def value_starts() -> str:
+        where = value_path()
+        if not stack or not stack[-1][1]:  # the top level, or an array item: where it starts
+            lines[where] = line
+        return where
+
+    expect_key = False
+    while i < n:
+        ch = text[i]
+        if ch in " \t\r\n":
+            blank = _JSON_BLANK.match(text, i)
+            end = blank.end() if blank else i + 1
+            line += text.count("\n", i, end)
+            i = end
+            continue
+        if ch in "{[":
+            stack.append([value_starts(), ch == "{", 0, "", {}])
+            expect_key = ch == "{"
+        elif ch in "}]":
+            stack.pop()
+            expect_key = False
+        elif ch == ",":
+            if stack[-1][1]:
+                expect_key = True
+            else:
+                stack[-1][2] += 1
+        elif ch == ":":
+            expect_key = False
+        else:
+            token = (_JSON_STRING if ch == '"' else _JSON_SCALAR).match(text, i)
+            end = token.end() if token else i + 1
+            if expect_key:
+                frame = stack[-1]
+                frame[3] = key = json.loads(text[i:end])
+                child = join_path(frame[0], key)
+                if key in frame[4]:
+                    problems.append(
+                        Problem(
+                            child,
+                            f"key '{key}' is given twice (lines {frame[4][key]} and {line}); "
+                            "allowed: each key once per object",
+                            line,
+                        )
+                    )
+                else:
+                    frame[4][key] = line
+                lines[child] = line
+            else:
+                value_starts()
+            i = end
+            continue
+        i += 1
+    return lines
 
 
 def _check_json(data: Any) -> None:
@@ -326,8 +403,7 @@ def load_mapping(path: str | Path) -> tuple[dict[str, Any], dict[str, int]]:
         path: File to read (``.yaml``, ``.yml`` or ``.json``).
 
     Returns:
-        The parsed mapping and a dict from key path to 1-based line number
-        (empty for JSON).
+        The parsed mapping and a dict from key path to 1-based line number.
 
     Raises:
         DescriptionError: The file is missing, too large, not UTF-8, unparsable, not a
@@ -339,11 +415,12 @@ def load_mapping(path: str | Path) -> tuple[dict[str, Any], dict[str, int]]:
     problems: list[Problem] = []
     try:
         if path.suffix.lower() == ".json":
-            data = json.loads(text, object_pairs_hook=_json_pairs(problems))
+            data = json.loads(text)
             try:
                 _check_json(data)
             except ValueError as exc:
                 raise DescriptionError(path, [Problem("", str(exc))]) from None
+            lines = _json_lines(text, problems)
         else:
             data = _load_yaml(text, problems, lines)
     except yaml.YAMLError as exc:

@@ -120,7 +120,11 @@ def _include_path(ref: Path, folder: Path, allow_outside: bool) -> Path | str:
 
 
 def _resolve_includes(
-    data: dict[str, Any], folder: Path | None, source: str, allow_outside: bool = False
+    data: dict[str, Any],
+    folder: Path | None,
+    source: str,
+    allow_outside: bool = False,
+    lines: dict[str, int] | None = None,
 ) -> dict[str, Any]:
     # Top-level keys starting with "_" hold YAML anchors (&link ... *link) and are not part of the model.
     data = {k: copy.deepcopy(v) for k, v in data.items() if not str(k).startswith("_")}
@@ -133,26 +137,29 @@ def _resolve_includes(
             continue
         value = mount.pop("file")
         key = f"assembly.manipulators[{i}].file"
+        line = (lines or {}).get(key)
         if not isinstance(value, str) or not value.strip():
             problems.append(
-                Problem(key, f"must be a model file's path, got a {type(value).__name__}: {value!r:.60}")
+                Problem(
+                    key, f"must be a model file's path, got a {type(value).__name__}: {value!r:.60}", line
+                )
             )
             continue
         ref = Path(value)
         if "manipulator" in mount:
-            problems.append(Problem(key, "give either 'file' or 'manipulator', not both"))
+            problems.append(Problem(key, "give either 'file' or 'manipulator', not both", line))
             continue
         path = _include_path(ref, folder or Path("."), allow_outside)
         if isinstance(path, str):
-            problems.append(Problem(key, f"cannot include {path}"))
+            problems.append(Problem(key, f"cannot include {path}", line))
             continue
         try:
             included, included_lines = load_mapping(path)
         except DescriptionError as exc:
-            problems.append(Problem(key, f"cannot include {path}: {exc.problems[0].message}"))
+            problems.append(Problem(key, f"cannot include {path}: {exc.problems[0].message}", line))
             continue
         if "manipulator" not in included:
-            problems.append(Problem(key, f"{path} has no 'manipulator' section"))
+            problems.append(Problem(key, f"{path} has no 'manipulator' section", line))
             continue
         try:  # on its own first, so that a problem is named by the included file's own line
             model_from_dict(
@@ -165,7 +172,7 @@ def _resolve_includes(
         except DescriptionError as exc:
             shown = "; ".join(p.render() for p in exc.problems[:3])
             more = f" (and {len(exc.problems) - 3} more)" if len(exc.problems) > 3 else ""
-            problems.append(Problem(key, f"{path}: {shown}{more}"))
+            problems.append(Problem(key, f"{path}: {shown}{more}", line))
             continue
         mount["manipulator"] = included["manipulator"]
     if problems:
@@ -193,7 +200,7 @@ def model_from_dict(
     Raises:
         DescriptionError: Listing every problem.
     """
-    model = validate(Model, _resolve_includes(data, folder, source, allow_outside), source, lines)
+    model = validate(Model, _resolve_includes(data, folder, source, allow_outside, lines), source, lines)
     _check_bodies(model, source, lines)
     return model
 

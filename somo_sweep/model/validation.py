@@ -13,7 +13,7 @@ from typing import Any, TypeVar
 
 from pydantic import BaseModel, ValidationError
 
-from somo_sweep.errors import DescriptionError, Problem, did_you_mean, shown
+from somo_sweep.errors import DescriptionError, Problem, did_you_mean, quoted, shown
 from somo_sweep.model.files import join_path
 
 __all__ = ["validate"]
@@ -73,7 +73,7 @@ def _describe(err: Any, root: type[BaseModel]) -> str:
     # A check across the fields of a section names what it found itself; echoing the whole
     # section (hundreds of characters) would only bury that.
     section = isinstance(value, (dict, list, tuple)) and kind == "value_error" and len(repr(value)) > 80
-    got = "" if kind == "missing" or section else f", got {shown(repr(value))}"
+    got = "" if kind == "missing" or section else f", got {quoted(value)}"
     msg = err["msg"]
     if kind == "literal_error":
         return f"{msg}{got}"

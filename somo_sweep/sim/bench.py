@@ -6,9 +6,9 @@ positive pressure curls the tip toward −z:
 * ``tip_load``: a dead-weight tip force ``tip_load_n`` (downward) at
   ``pressure_kpa``; ``tip_deflection_mm`` is the extra downward tip
   displacement relative to the unloaded finger at the same pressure.
-* ``blocked_force``: a frictionless horizontal stop at the height of the
-  straight finger's tip underside; ``blocked_force_n`` is the total vertical
-  contact force at ``pressure_kpa``.
+* ``blocked_force``: a frictionless horizontal stop, by default at the height of the
+  straight finger's underside (``BenchSettings.stop_z_m`` puts it elsewhere below it);
+  ``blocked_force_n`` is the total vertical contact force at ``pressure_kpa``.
 * ``free_bending``: no contact; ``tip_x_mm``, ``tip_z_mm`` are the tip position
   relative to the base (the chain start), z up, and ``tip_angle_deg`` the angle of the
   tip's chain axis in the x–z plane: 0 along +x (straight), positive curling toward
@@ -43,7 +43,17 @@ from somo_sweep.sim.settings import WorldSettings
 from somo_sweep.sim.urdf import plan_manipulator
 from somo_sweep.sim.world import Body, World
 
-__all__ = ["STATICS", "TESTS", "BenchResult", "BenchSettings", "bench_frame", "run_bench", "stop_geometry"]
+__all__ = [
+    "STATICS",
+    "TESTS",
+    "BenchResult",
+    "BenchSettings",
+    "bench_frame",
+    "check_stop",
+    "finger_underside_m",
+    "run_bench",
+    "stop_geometry",
+]
 
 TESTS = ("tip_load", "blocked_force", "free_bending")
 #: How a row's equilibrium is found: solved statically, or by dynamic relaxation.
@@ -52,6 +62,9 @@ STATICS = ("solve", "dynamic")
 
 #: Largest bench gravity accepted, m/s² (ten times the Earth's: a centrifuge bench at most).
 MAX_GRAVITY_M_S2 = 100.0
+#: Largest distance of the blocked-force stop from the finger's centre line, m (a typo guard;
+#: the finger's own geometry bounds it further, see :func:`stop_geometry`).
+MAX_STOP_DEPTH_M = 100.0
 
 
 @dataclass(frozen=True)
@@ -67,6 +80,8 @@ class BenchSettings:
         gravity_m_s2: Magnitude of gravity (along −z), m/s².
         statics: ``solve`` (static equilibrium solved directly, :mod:`somo_sweep.sim.statics`) or
             ``dynamic`` (dynamic relaxation; ``time_step_s``, ``tolerance_m``, ``max_steps``).
+        stop_z_m: Height of the blocked-force stop's top face relative to the straight finger's
+            centre line, m (z up; negative below it); None: the straight finger's underside.
     """
 
     time_step_s: float = 5e-4
@@ -76,8 +91,16 @@ class BenchSettings:
     max_steps: int = 40_000
     gravity_m_s2: float = 9.81
     statics: str = "solve"
+    stop_z_m: float | None = None
 
     def __post_init__(self) -> None:
+        if self.stop_z_m is not None and not (
+            math.isfinite(self.stop_z_m) and abs(self.stop_z_m) <= MAX_STOP_DEPTH_M
+        ):
+            raise SomoError(
+                f"the bench stop's height must be a finite number of at most {MAX_STOP_DEPTH_M:g} m "
+                f"either way, got {self.stop_z_m!r}"
+            )
         if not (math.isfinite(self.gravity_m_s2) and 0.0 <= self.gravity_m_s2 <= MAX_GRAVITY_M_S2):
             raise SomoError(
                 f"gravity on the bench must be from 0 (a horizontal bench) to {MAX_GRAVITY_M_S2:g} m/s², "
@@ -140,25 +163,62 @@ def _inputs(manip: Manipulator, pressure_kpa: float) -> np.ndarray:
     return np.asarray(u, dtype=float)
 
 
-def stop_geometry(manip: Manipulator, origin_m: np.ndarray, tip_x_m: float) -> tuple[np.ndarray, np.ndarray]:
-    """Centre and half extents (m, world) of the bench's frictionless plate.
+def finger_underside_m(manip: Manipulator) -> float:
+    """Depth of the straight finger's underside below its centre line, m (> 0).
 
-    Its top face is at the straight finger's underside: the lowest of its links (segments
-    and tip links), so that a tip thinner than the segments does not put the plate inside
-    them. It spans the whole finger, from the chain start ``origin_m`` to 50 mm beyond the
-    straight tip (``tip_x_m`` from the chain start): a tip that curls and slides back along x
-    stays on it, and every link that comes to rest on it adds to the total vertical force
-    the protocol reports.
+    The lowest of its links (segments and tip links) in the bending direction.
     """
     axis = np.asarray(manip.actuators[0].joints[0].axis)
     bend = np.cross(axis, [0.0, 0.0, 1.0])
     across = int(np.argmax(np.abs(bend[:2])))
     links = [a.segment_link() for a in manip.actuators] + list(manip.tip_links)
-    under = max(link.half_extent_m(across) for link in links)
+    return max(link.half_extent_m(across) for link in links)
+
+
+def check_stop(manip: Manipulator, stop_z_m: float | None) -> None:
+    """Refuse a stop the straight finger would cut into or could never reach.
+
+    Raises:
+        SimulationError: ``stop_z_m`` above the underside (−``finger_underside_m``) or more than
+            the finger's length below its centre line.
+    """
+    if stop_z_m is None:
+        return
+    under, length = finger_underside_m(manip), manip.length_m
+    if stop_z_m > -under * (1 - 1e-9):  # at the underside itself: the default
+        raise SimulationError(
+            f"the blocked-force stop at {stop_z_m * 1e3:g} mm from the finger's centre line is above the "
+            f"straight finger's underside ({-under * 1e3:g} mm: half its {2 * under * 1e3:g} mm thickness), "
+            f"so the finger would start inside it; allowed: from {-length * 1e3:g} to {-under * 1e3:g} mm "
+            "(or give the finger's real thickness)"
+        )
+    if stop_z_m < -length:
+        raise SimulationError(
+            f"the blocked-force stop at {stop_z_m * 1e3:g} mm is more than the finger's length "
+            f"({length * 1e3:g} mm) below its centre line; allowed: from {-length * 1e3:g} to "
+            f"{-under * 1e3:g} mm"
+        )
+
+
+def stop_geometry(
+    manip: Manipulator, origin_m: np.ndarray, tip_x_m: float, stop_z_m: float | None = None
+) -> tuple[np.ndarray, np.ndarray]:
+    """Centre and half extents (m, world) of the bench's frictionless plate.
+
+    Its top face is at ``stop_z_m`` from the straight finger's centre line (checked by
+    :func:`check_stop`), by default at the straight finger's underside: the lowest of its
+    links (segments and tip links), so that a tip thinner than the segments does not put the
+    plate inside them. It spans the whole finger, from the chain start ``origin_m`` to 50 mm
+    beyond the straight tip (``tip_x_m`` from the chain start): a tip that curls and slides
+    back along x stays on it, and every link that comes to rest on it adds to the total
+    vertical force the protocol reports.
+    """
+    check_stop(manip, stop_z_m)
+    top = -finger_underside_m(manip) if stop_z_m is None else stop_z_m
     x_start = float(origin_m[0])
     x_end = tip_x_m + x_start + 0.05
     half = np.array([(x_end - x_start) / 2, 0.05, 0.01])
-    centre = np.array([x_start + half[0], 0.0, -under - half[2]])
+    centre = np.array([x_start + half[0], 0.0, top - half[2]])
     return centre, half
 
 
@@ -229,7 +289,7 @@ class _Rig:
     def add_stop(self) -> int:
         """A static frictionless plate whose top face is at the straight tip's underside
         (raised by :data:`PLATE_RAISE`)."""
-        centre, half = stop_geometry(self.manip, self.origin, float(self.tip_m()[0]))
+        centre, half = stop_geometry(self.manip, self.origin, float(self.tip_m()[0]), self.settings.stop_z_m)
         s = self.world.scale
         cid = self.world.client
         shape = p.createCollisionShape(p.GEOM_BOX, halfExtents=(half * s).tolist(), physicsClientId=cid)
@@ -335,9 +395,10 @@ def run_bench(
         bench_frame(manip)  # so is a chain the bench cannot hold (not "no static equilibrium")
         row = solve_row(manip, test, pressure_kpa, tip_load_n, settings, direction)
         if not row.status.converged:
-            raise SimulationError(
-                f"bench {test} at {pressure_kpa} kPa: no static equilibrium ({row.status.cause})"
-            )
+            cause = row.status.cause
+            if not cause.startswith("no stable equilibrium"):  # proven absent, or the solver's failure
+                cause = f"no static equilibrium found ({cause})"
+            raise SimulationError(f"bench {test} at {pressure_kpa} kPa: {cause}")
         return BenchResult(row.value, row.status.iterations)
     rig = _Rig(manip, settings)
     try:

@@ -257,6 +257,30 @@ class BenchBody:
         rev = self.revolute[:, None]
         return Kin(com, frame, rot, np.where(rev, axes, 0.0), np.where(rev, 0.0, axes), frame[self.indices])
 
+    def reach_m(self) -> np.ndarray:
+        """(joints, points) longest distance from each joint's axis to each weight and the tip, m.
+
+        Points: the centres of mass of the heavy links, then the tip point. The distance along
+        the chain (joint origin to joint origin, then to the point) bounds the distance in every
+        configuration and does not depend on it (revolute joints); 0 where a point does not
+        move with the joint.
+        """
+        kin = self.kinematics(np.zeros(len(self.indices)))
+        links = np.append(self.heavy, self.tip_link)
+        points = np.concatenate([kin.com[self.heavy], self.tip_point(kin)[None, :]])
+        order = np.argsort(self.indices)
+        reach = np.zeros((len(self.indices), len(points)))
+        for col, (link, point) in enumerate(zip(links, points, strict=True)):
+            moving = [int(j) for j in order if self.subtree[j, link] > 0]  # root first
+            if not moving:
+                continue
+            acc = float(np.linalg.norm(point - kin.origin[moving[-1]]))
+            for t in range(len(moving) - 1, -1, -1):
+                reach[moving[t], col] = acc
+                if t:
+                    acc += float(np.linalg.norm(kin.origin[moving[t]] - kin.origin[moving[t - 1]]))
+        return reach
+
     def tip_point(self, kin: Kin) -> np.ndarray:
         return kin.frame[self.tip_link] + kin.rot[self.tip_link] @ self.tip_local
 

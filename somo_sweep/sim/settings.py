@@ -37,7 +37,13 @@ class WorldSettings:
             the scaled world's units, so linear rows count in (Y·m/s)² and joint rows in
             (rad/s)²). None keeps Bullet's 1e-7, at which a pinch trial runs all its
             iterations; larger values cut steps whose constraints settle early (docs/pinch_grasp.md,
-            "Solver early exit"). Must be finite and > 0.
+            "Engine settings"). Must be finite and > 0.
+        clamp_speed_cap: Let a run go on when a joint or a body reaches Bullet's speed cap
+            (Bullet clamps the speed and steps on, as the original SoMo code let it). False
+            (default) stops the run as unstable there: past the cap the motion is wrong. For
+            reproducing the original's runs only (a finger snapping shut once the object it
+            held has fallen out reaches the cap at 0.5 ms without inertia shaping). NaN and
+            thrown bodies stop the run either way.
     """
 
     time_step_s: float = 5e-4
@@ -48,6 +54,7 @@ class WorldSettings:
     body_per_manipulator: bool = False
     friction_rows_every: int = 1
     solver_residual_threshold: float | None = None
+    clamp_speed_cap: bool = False
 
     def __post_init__(self) -> None:
         if self.friction_rows_every not in (1, 2):

@@ -34,8 +34,9 @@ Newton step:
 
 Candidate plate contacts are the lowest points of every link's collision shape
 (box corners, sphere bottoms, the lowest points of cylinder rims); the plate's top
-is exactly at the straight chain's underside, as in the continuum (the simulated
-bench's contacts rest Bullet's contact slop deeper, see
+is at the straight chain's underside, as in the continuum, unless
+``BenchSettings.stop_z_m`` puts it lower (the simulated bench's contacts rest Bullet's
+contact slop deeper, see
 :data:`somo_sweep.sim.bench.BULLET_CONTACT_SLOP`). URDF joint limits are constraints
 too. An equilibrium is only reported if the energy's Hessian is positive definite on the active contacts'
 tangent space (a stable one, as relaxation would find).
@@ -49,7 +50,9 @@ from __future__ import annotations
 
 import math
 from collections import OrderedDict
+from collections.abc import Callable
 from dataclasses import dataclass
+from dataclasses import replace as dataclass_replace
 
 import numpy as np
 
@@ -64,8 +67,10 @@ from somo_sweep.sim.bench import (
     _manipulator,
     _static_rig,
     bench_frame,
+    check_stop,
 )
 from somo_sweep.sim.chain_kinematics import BenchBody, Kin
+from somo_sweep.sim.no_equilibrium import existence_proven, largest_moments_n_m, proof_of_no_equilibrium
 from somo_sweep.sim.plan import BodyPlan
 from somo_sweep.sim.urdf import plan_manipulator
 
@@ -78,17 +83,24 @@ __all__ = [
     "static_chain",
 ]
 
-#: Newton iterations per solve (per continuation stage) and in all for one equilibrium. Most
-#: rows take 3–10; a limp chain swinging down under its weight, or a curled finger rolling
-#: over the plate (one contact change per link), take tens.
+#: Newton iterations of the first solve (the full load at once), of one continuation stage, and
+#: in all for one equilibrium. Most rows take 3–10; a limp chain swinging down under its weight,
+#: or a curled finger rolling over the plate (one contact change per link), take tens.
 MAX_ITERATIONS = 200
+STAGE_ITERATIONS = 40
 MAX_ITERATIONS_TOTAL = 600
-#: Continuation stages tried, in order, when the full load does not converge at once.
-RAMPS = (4, 16)
+#: Continuation: first step (share of the load path), and the smallest step before giving up.
+FIRST_STEP = 0.25
+MIN_STEP = 1 / 4096
 #: Largest joint change of one Newton step, rad (m for prismatic joints: ×0.01).
 STEP_CAP_RAD = 0.6
-#: A joint turning more than this far from its neutral has no equilibrium in reach, rad.
-RUNAWAY_RAD = 4 * math.pi
+#: A joint this far from its neutral means the iteration diverged (a guard: with springs that
+#: never soften every accepted step lowers a coercive energy, so it cannot happen), rad.
+DIVERGED_RAD = 1e3
+#: Times the contact penalty may grow tenfold to make the Newton matrix positive definite.
+PENALTY_RAISES = 7
+#: Solved equilibria a chain remembers per kind of row, as starts for continuation.
+SOLVED_MEMO = 16
 #: Converged when the generalized force imbalance is below this fraction of the torque scale.
 RTOL = 1e-9
 #: Also converged when the Newton step is below ``STALL_STEP_RAD`` (the configuration no longer
@@ -149,6 +161,37 @@ class _Equilibrium:
     contacts: int = 0
 
 
+@dataclass(frozen=True, eq=False)
+class _Load:
+    """What a row loads the chain with: joint torques (N·m), tip load (N, down), gravity (m/s²)."""
+
+    u: np.ndarray
+    tip_n: float
+    gravity: float
+
+    def parts(self) -> tuple[np.ndarray, float, float]:
+        return self.u, self.tip_n, self.gravity
+
+    def toward(self, other: _Load, share: float) -> _Load:
+        """The load ``share`` of the way to ``other`` (a straight line in load space)."""
+        if share >= 1.0:
+            return other
+        return _Load(
+            self.u + share * (other.u - self.u),
+            self.tip_n + share * (other.tip_n - self.tip_n),
+            self.gravity + share * (other.gravity - self.gravity),
+        )
+
+    def key(self) -> bytes:
+        return np.append(self.u, [self.tip_n, self.gravity]).tobytes()
+
+    def __eq__(self, other: object) -> bool:
+        return isinstance(other, _Load) and self.key() == other.key()
+
+    def __hash__(self) -> int:
+        return hash(self.key())
+
+
 class StaticChain:
     """A manipulator clamped on the bench, ready for static solves (body shared per URDF).
 
@@ -156,12 +199,24 @@ class StaticChain:
         manip: The manipulator.
         scale: World scale factor (the dynamic bench's ``BenchSettings.scale``).
         added_inertia_kg_m2: The bench's inertia shaping (kept so the body is the dynamic one's).
+        stop_z_m: Height of the blocked-force stop's top relative to the straight finger's centre
+            line, m (None: its underside; :func:`~somo_sweep.sim.bench.stop_geometry`).
     """
 
-    def __init__(self, manip: Manipulator, scale: float = 20.0, added_inertia_kg_m2: float = 1e-5):
+    def __init__(
+        self,
+        manip: Manipulator,
+        scale: float = 20.0,
+        added_inertia_kg_m2: float = 1e-5,
+        stop_z_m: float | None = None,
+    ):
         self.manip = manip
         plan = plan_manipulator(_static_rig(manip, added_inertia_kg_m2), scale)
         self.body = _body(manip, plan, scale)
+        check_stop(manip, stop_z_m)
+        self.plate = (
+            self.body.plate if stop_z_m is None else dataclass_replace(self.body.plate, top_m=stop_z_m)
+        )
         joints = plan.joints
         self.k = np.array([j.stiffness for j in joints], float)
         self.q0 = np.array([j.neutral for j in joints], float)
@@ -170,6 +225,12 @@ class StaticChain:
         self.input_index = np.array([j.input_index for j in joints], int)
         self.n_inputs = len(plan.inputs)
         self._free: OrderedDict[tuple[float, float, float], _Equilibrium] = OrderedDict()
+        # Solved equilibria (load, q) per plate flag: starts for continuation from the last rows.
+        self._solved: dict[bool, OrderedDict[bytes, tuple[_Load, np.ndarray]]] = {
+            False: OrderedDict(),
+            True: OrderedDict(),
+        }
+        self._reach: np.ndarray | None = None
 
     # ----------------------------------------------------------------- loads
     def joint_torques(self, pressure_kpa: float) -> np.ndarray:
@@ -197,7 +258,7 @@ class StaticChain:
         """Every candidate contact: points, links, gaps to the plate (m), whether over the plate."""
         b = self.body
         r, links, drop = b.features.lowest(kin)
-        plate = b.plate
+        plate = self.plate
         on = (
             (r[:, 0] >= plate.x_range_m[0] - 1e-9)
             & (r[:, 0] <= plate.x_range_m[1])
@@ -213,42 +274,173 @@ class StaticChain:
         gravity: float = 9.81,
         plate: bool = False,
         q_start: np.ndarray | None = None,
+        start_load: tuple[np.ndarray, float, float] | None = None,
     ) -> _Equilibrium:
         """Minimise the energy under joint torques ``u`` (N·m) and tip load ``tip_n`` (N, down).
 
-        Tries the full load from ``q_start`` (default: straight), then continuation: the load
-        ramped in ``RAMPS`` equal steps, each solved from the last. Iterations are bounded
-        by ``MAX_ITERATIONS_TOTAL``.
+        In order, until one converges to a stable equilibrium:
+
+        1. Newton on the full load from ``q_start`` (default: the straight finger);
+        2. continuation from ``q_start``, an equilibrium of ``start_load`` (u, tip load,
+           gravity; default: the straight finger, which is one of no load at all): the load
+           moves along the straight line to the target in steps that halve when a stage fails
+           (down to ``MIN_STEP``) and double when it converges;
+        3. the same from the straight, unloaded finger (when ``q_start`` was another start);
+        4. the same from the equilibrium of the nearest load this chain has solved before
+           (the last rows).
+
+        A failure is "no equilibrium" only with a proof
+        (:func:`~somo_sweep.sim.no_equilibrium.proof_of_no_equilibrium`); otherwise the cause
+        says the solver found none. Iterations are bounded by ``MAX_ITERATIONS_TOTAL``.
         """
-        start = np.zeros(len(self.k)) if q_start is None else q_start.copy()
-        per_solve = MAX_ITERATIONS
-        budget = MAX_ITERATIONS_TOTAL
-        first = eq = self._newton(start, u, tip_n, gravity, plate, min(per_solve, budget))
-        budget -= eq.iterations
-        if eq.converged:
-            return eq
-        for stages in RAMPS:
-            q = start.copy()
-            for i in range(1, stages + 1):
-                if budget <= 0:
+        n = len(self.k)
+        target = _Load(np.asarray(u, float), float(tip_n), float(gravity))
+        straight = (np.zeros(n), _Load(np.zeros(n), 0.0, 0.0))
+        if q_start is None:
+            begin = straight
+        else:
+            su, stip, sg = start_load if start_load is not None else (u, 0.0, gravity)
+            begin = (np.asarray(q_start, float).copy(), _Load(np.asarray(su, float), stip, sg))
+        guard = self._turn_guard(target, plate)
+        budget = [MAX_ITERATIONS_TOTAL]
+        first = self._newton(begin[0], *target.parts(), plate, min(MAX_ITERATIONS, budget[0]), guard)
+        budget[0] -= first.iterations
+        eq = first
+        if not eq.converged:
+            starts = [begin] if begin[1] != target else []
+            if q_start is not None:
+                starts.append(straight)
+            tried = len(starts)
+            for q0, load0 in starts:
+                eq = self._continue(q0, load0, target, plate, budget, guard)
+                if eq.converged:
                     break
-                s = i / stages
-                eq = self._newton(q, u * s, tip_n * s, gravity, plate, min(per_solve, budget))
-                budget -= eq.iterations
-                if not eq.converged:
-                    break
-                q = eq.q
-            if eq.converged:
-                eq.iterations = MAX_ITERATIONS_TOTAL - budget
-                return eq
-        first.iterations = MAX_ITERATIONS_TOTAL - budget
-        first.cause += f"; load continuation in {' and '.join(map(str, RAMPS))} steps failed too"
-        return first
+            if not eq.converged:
+                near = self._nearest_solved(target, plate)
+                if near is not None:
+                    tried += 1
+                    eq = self._continue(near[1], near[0], target, plate, budget, guard)
+            if not eq.converged:
+                first.iterations = MAX_ITERATIONS_TOTAL - budget[0]
+                first.cause = self._failure_cause(first.cause, target, plate, tried)
+                return first
+        eq.iterations = MAX_ITERATIONS_TOTAL - budget[0]
+        self._remember(target, plate, eq.q)
+        return eq
+
+    def _continue(
+        self, q: np.ndarray, start: _Load, target: _Load, plate: bool, budget: list[int], guard: np.ndarray
+    ) -> _Equilibrium:
+        """Follow the equilibrium from ``q`` (one of ``start``) to ``target`` with adaptive steps."""
+        done, step = 0.0, FIRST_STEP
+        eq = _Equilibrium(q, False, 0, math.inf, "no continuation stage ran")
+        while budget[0] > 0:
+            trial = min(1.0, done + step)
+            load = start.toward(target, trial)
+            stage = self._newton(q, *load.parts(), plate, min(STAGE_ITERATIONS, budget[0]), guard)
+            budget[0] -= stage.iterations
+            if stage.converged:
+                done, q, eq = trial, stage.q, stage
+                if done >= 1.0:
+                    return eq
+                step = min(2 * step, 1.0 - done)
+            else:
+                eq = stage
+                step /= 2
+                if step < MIN_STEP:
+                    eq.cause = f"continuation stopped at {done:.4g} of the load ({stage.cause})"
+                    return eq
+        eq.converged = False
+        eq.cause = eq.cause or "iteration budget spent"
+        return eq
+
+    def _remember(self, load: _Load, plate: bool, q: np.ndarray) -> None:
+        memo = self._solved[plate]
+        key = load.key()
+        memo[key] = (load, q.copy())
+        memo.move_to_end(key)
+        while len(memo) > SOLVED_MEMO:
+            memo.popitem(last=False)
+
+    def _nearest_solved(self, target: _Load, plate: bool) -> tuple[_Load, np.ndarray] | None:
+        """The remembered equilibrium whose load is nearest the target (torque scale)."""
+        memo = self._solved[plate]
+        if not memo:
+            return None
+        length = float(np.max(self.reach_m(), initial=0.0))
+        weight = float(np.sum(self.body.mass[self.body.heavy])) * length
+
+        def distance(load: _Load) -> float:
+            return float(
+                np.sum(np.abs(load.u - target.u))
+                + abs(load.tip_n - target.tip_n) * length
+                + abs(load.gravity - target.gravity) * weight
+            )
+
+        return min(memo.values(), key=lambda item: distance(item[0]))
+
+    def reach_m(self) -> np.ndarray:
+        """(joints, force points) longest reach from each joint's axis to each weight and the tip, m.
+
+        The path length along the chain (joint origins to the point), the same in every
+        configuration (revolute joints); 0 where the point does not move with the joint.
+        """
+        if self._reach is None:
+            self._reach = self.body.reach_m()
+        return self._reach
+
+    def _moments(self, load: _Load) -> np.ndarray:
+        b = self.body
+        forces = np.append(b.mass[b.heavy] * load.gravity, load.tip_n)
+        return largest_moments_n_m(self.reach_m(), forces)
+
+    def _turn_guard(self, load: _Load, plate: bool) -> np.ndarray:
+        """Per joint: past this |Δq| a softening spring cannot hold any stable equilibrium, rad."""
+        guard = np.full(len(self.k), DIVERGED_RAD)
+        soft = np.flatnonzero(self.k3 < 0)
+        if len(soft) and self.body.all_revolute:
+            moments = self._moments(load)
+            a = -self.k3[soft] / self.k[soft]
+            zero = 1 / np.sqrt(a)  # the spring's torque is 0 again there
+            stable = np.sqrt((1 + moments[soft] / self.k[soft]) / (3 * a))
+            guard[soft] = np.minimum(2 * np.maximum(zero, stable), DIVERGED_RAD)
+        return guard
+
+    def _failure_cause(self, cause: str, load: _Load, plate: bool, continuations: int) -> str:
+        """The proven reason there is no equilibrium, or what the solver tried."""
+        proof = ""
+        if self.body.all_revolute and not existence_proven(self.k, self.k3):
+            limited = np.zeros(len(self.k), bool)
+            limited[self.body.limited] = True
+            proof = proof_of_no_equilibrium(self.k, self.k3, load.u, self._moments(load), plate, limited)
+        if proof:
+            return proof
+        exists = existence_proven(self.k, self.k3)
+        why = "one exists (springs that never soften)" if exists else "none is proven absent"
+        tried = (
+            f"; continuation in adaptive steps from {continuations} start(s) failed too"
+            if continuations
+            else ""
+        )
+        return f"the solver found no equilibrium although {why}: {cause}{tried}"
 
     def _newton(
-        self, q: np.ndarray, u: np.ndarray, tip_n: float, gravity: float, plate: bool, max_iter: int
+        self,
+        q: np.ndarray,
+        u: np.ndarray,
+        tip_n: float,
+        gravity: float,
+        plate: bool,
+        max_iter: int,
+        guard: np.ndarray | None = None,
     ) -> _Equilibrium:
-        """Newton iterations on the energy (SQP with the plate and joint limits as constraints)."""
+        """Newton iterations on the energy (SQP with the plate and joint limits as constraints).
+
+        Each step is line-searched on the ℓ1 merit; when the Newton direction gives no descent
+        a diagonally scaled gradient step is tried before giving up. ``guard``: per joint, the
+        |Δq| past which the iteration stops (softening springs; see :meth:`_turn_guard`).
+        """
+        guard = np.full(len(q), DIVERGED_RAD) if guard is None else guard
         b = self.body
         k, k3, q0 = self.k, self.k3, self.q0
         n = len(q)
@@ -324,7 +516,14 @@ class StaticChain:
                     sigma = float(np.max(np.abs(np.diag(hess)))) / max(
                         float(np.max(np.sum(rows_h**2, 1))), 1e-300
                     )
-                    hmod = hess + sigma * rows_h.T @ rows_h
+                    penalty = rows_h.T @ rows_h
+                    # Raised until the sum is positive definite (a weak penalty left the
+                    # eigenvalue flip below to bend the step: linear convergence, ~0.8 per step).
+                    for _ in range(PENALTY_RAISES):
+                        hmod = hess + sigma * penalty
+                        if _is_positive_definite(hmod):
+                            break
+                        sigma *= 10.0
             hmod = positive_definite(hmod)
             d, lam, why = solve_qp(hmod, -resid, a, -g)
             if d is None:
@@ -355,26 +554,31 @@ class StaticChain:
                 d = d * shrink
             rho = max(rho, 1.5 * float(np.max(lam, initial=0.0)))
             merit = energy + rho * viol
-            slope = -float(resid @ d) - rho * viol
-            alpha, accepted = 1.0, False
-            for _ in range(40):
-                trial = q + alpha * d
-                e_t, v_t, kin_t = merit_parts(trial)
-                if np.isfinite(e_t) and e_t + rho * v_t <= merit + 1e-4 * alpha * min(slope, 0.0) + noise[0]:
-                    accepted = True
-                    break
-                alpha *= 0.5
-            if not accepted:
+
+            found = _line_search(merit_parts, q, d, resid, rho, viol, merit, noise[0])
+            if found is None:
+                # No descent along the Newton direction: a gradient step scaled by the Hessian's
+                # diagonal (same constraints), which descends whenever the point is not stationary.
+                diag = np.abs(np.diag(hmod))
+                scaled = np.diag(np.maximum(diag, 1e-9 * max(float(np.max(diag, initial=0.0)), 1e-300)))
+                dg, _, _ = solve_qp(scaled, -resid, a, -g)
+                if dg is not None:
+                    shrink = float(np.min(cap / np.maximum(np.abs(dg), 1e-300)))
+                    found = _line_search(
+                        merit_parts, q, dg * min(shrink, 1.0), resid, rho, viol, merit, noise[0]
+                    )
+            if found is None:
                 return _Equilibrium(q, False, it, residual, "line search stalled (no descent)")
-            q, energy, viol, kin = trial, e_t, v_t, kin_t
-            if np.max(np.abs(q - q0)) > RUNAWAY_RAD:
-                return _Equilibrium(
-                    q,
-                    False,
-                    it,
-                    residual,
-                    "a joint turned past 4π: no equilibrium (softening past its peak?)",
+            q, energy, viol, kin = found
+            turned = np.abs(q - q0)
+            if np.any(turned > guard):
+                j = int(np.argmax(turned - guard))
+                why = (
+                    f"joint {j} turned {turned[j]:.3g} rad, past where its softening spring can hold"
+                    if guard[j] < DIVERGED_RAD
+                    else f"joint {j} turned past {DIVERGED_RAD:g} rad (the iteration diverged)"
                 )
+                return _Equilibrium(q, False, it, residual, why)
         return _Equilibrium(q, False, max_iter, residual, f"no convergence in {max_iter} iterations")
 
     def _stability(self, hess: np.ndarray, a: np.ndarray, g: np.ndarray, lam: np.ndarray) -> str:
@@ -439,8 +643,11 @@ class StaticChain:
             if not free.converged:
                 return _failed(test, free, "unloaded state: ")
             z0 = b.tip_point(b.kinematics(free.q))[2]
-            u = self.joint_torques(pressure_kpa) - approach * self.hysteresis
-            eq = self.equilibrium(u, tip_load_n, gravity_m_s2, q_start=free.q)
+            free_u = self.joint_torques(pressure_kpa)
+            u = free_u - approach * self.hysteresis
+            eq = self.equilibrium(
+                u, tip_load_n, gravity_m_s2, q_start=free.q, start_load=(free_u, 0.0, gravity_m_s2)
+            )
             iters = free.iterations + eq.iterations
             if not eq.converged:
                 return _failed(test, eq, "loaded state: ", iters)
@@ -454,6 +661,36 @@ class StaticChain:
         return RowSolution(eq.force_n, SolveStatus(True, eq.iterations, eq.residual, "", eq.contacts))
 
 
+def _line_search(
+    merit_parts: Callable[[np.ndarray], tuple[float, float, Kin]],
+    q: np.ndarray,
+    direction: np.ndarray,
+    resid: np.ndarray,
+    rho: float,
+    viol: float,
+    merit: float,
+    noise: float,
+) -> tuple[np.ndarray, float, float, Kin] | None:
+    """Backtracking (Armijo) on the ℓ1 merit E + ρ·violation along ``direction``; None: no descent."""
+    slope = -float(resid @ direction) - rho * viol
+    alpha = 1.0
+    for _ in range(40):
+        trial = q + alpha * direction
+        e_t, v_t, kin_t = merit_parts(trial)
+        if np.isfinite(e_t) and e_t + rho * v_t <= merit + 1e-4 * alpha * min(slope, 0.0) + noise:
+            return trial, e_t, v_t, kin_t
+        alpha *= 0.5
+    return None
+
+
+def _is_positive_definite(h: np.ndarray) -> bool:
+    try:
+        np.linalg.cholesky(0.5 * (h + h.T))
+    except np.linalg.LinAlgError:
+        return False
+    return True
+
+
 def _failed(test: str, eq: _Equilibrium, where: str = "", iterations: int | None = None) -> RowSolution:
     nan: float | tuple[float, float, float] = (
         (math.nan, math.nan, math.nan) if test == "free_bending" else math.nan
@@ -464,7 +701,7 @@ def _failed(test: str, eq: _Equilibrium, where: str = "", iterations: int | None
 
 # --------------------------------------------------------------------- caches
 _BODIES: OrderedDict[tuple[str, float, tuple[float, ...]], BenchBody] = OrderedDict()
-_CHAINS: OrderedDict[tuple[str, float, float], StaticChain] = OrderedDict()
+_CHAINS: OrderedDict[tuple[str, float, float, float | None], StaticChain] = OrderedDict()
 
 
 def _body(manip: Manipulator, plan: BodyPlan, scale: float) -> BenchBody:
@@ -482,14 +719,19 @@ def _body(manip: Manipulator, plan: BodyPlan, scale: float) -> BenchBody:
     return body
 
 
-def static_chain(manip: Manipulator, scale: float = 20.0, added_inertia_kg_m2: float = 1e-5) -> StaticChain:
-    """The (cached) static chain of a manipulator; keyed on its JSON and the bench's scale."""
-    key = (manip.model_dump_json(), float(scale), float(added_inertia_kg_m2))
+def static_chain(
+    manip: Manipulator,
+    scale: float = 20.0,
+    added_inertia_kg_m2: float = 1e-5,
+    stop_z_m: float | None = None,
+) -> StaticChain:
+    """The (cached) static chain of a manipulator; keyed on its JSON, the bench's scale and stop."""
+    key = (manip.model_dump_json(), float(scale), float(added_inertia_kg_m2), stop_z_m)
     chain = _CHAINS.get(key)
     if chain is not None and chain.body.world.client >= 0:
         _CHAINS.move_to_end(key)
         return chain
-    chain = StaticChain(manip, scale, added_inertia_kg_m2)
+    chain = StaticChain(manip, scale, added_inertia_kg_m2, stop_z_m)
     _CHAINS[key] = chain
     while len(_CHAINS) > CHAIN_CACHE:
         _CHAINS.popitem(last=False)
@@ -537,7 +779,7 @@ def solve_row(
         if not math.isfinite(pressure_kpa):
             raise SimulationError(f"pressure_kpa must be finite, got {pressure_kpa}")
         manip = _manipulator(model)
-        chain = static_chain(manip, st.scale, st.added_inertia_kg_m2)
+        chain = static_chain(manip, st.scale, st.added_inertia_kg_m2, st.stop_z_m)
         return chain.solve(test, pressure_kpa, tip_load_n, direction, st.gravity_m_s2)
     except Exception as exc:  # a row's failure is data, not an abort
         return RowSolution(nan, SolveStatus(False, 0, math.nan, f"{type(exc).__name__}: {exc}"))

@@ -15,7 +15,7 @@ from __future__ import annotations
 
 import contextlib
 import uuid
-from collections.abc import Iterable, Iterator
+from collections.abc import Callable, Iterable, Iterator
 from typing import TYPE_CHECKING, Any
 
 from somo_sweep.errors import SHOWN_CHARS, SomoError, shown
@@ -143,7 +143,10 @@ def threads(client: Any) -> int:
 
 
 def run_on_dask(
-    jobs: Iterable[Job], client: Any, timeout_s: float | None = None
+    jobs: Iterable[Job],
+    client: Any,
+    timeout_s: float | None = None,
+    on_stop: Callable[[int], None] | None = None,
 ) -> Iterator[tuple[Job, Outcome]]:
     """Run jobs on the cluster of ``client``; yield each with its outcome as it finishes.
 
@@ -151,6 +154,8 @@ def run_on_dask(
         jobs: The jobs (read as workers free up).
         client: A connected ``dask.distributed.Client``.
         timeout_s: Per-trial wall-time limit, s.
+        on_stop: Called with the number of trials taken off the cluster when the iterator is closed
+            early (or stops on an error).
 
     Raises:
         SomoError: The scheduler is lost, or a worker cannot run trials at all (somo-sweep missing
@@ -214,3 +219,5 @@ def run_on_dask(
             futures = [f for _, f in in_flight.values()]
             with contextlib.suppress(Exception):  # the scheduler may be gone already
                 client.cancel(futures)
+            if on_stop is not None:
+                on_stop(len(futures))

@@ -16,6 +16,7 @@ import ctypes
 import importlib
 import os
 import pickle
+import re
 import select
 import signal
 import socket
@@ -23,7 +24,7 @@ import sys
 import threading
 import time
 import warnings
-from collections.abc import Iterable, Iterator, Sized
+from collections.abc import Callable, Generator, Iterable, Iterator, Sized
 from dataclasses import dataclass, field, replace
 from typing import Any, Literal
 
@@ -301,6 +302,31 @@ def _parallel(n_jobs: int) -> Parallel:
     return Parallel(n_jobs=n_jobs, return_as="generator_unordered", batch_size=1, pre_dispatch="2*n_jobs")
 
 
+#: joblib's warning when its output generator is closed early, and the counts it names.
+_CUT_SHORT = re.compile(
+    r"(\d+) tasks have been successfully executed|(\d+) tasks which were still being processed"
+)
+
+
+def _close(outcomes: Iterator[Outcome], on_stop: Callable[[int], None] | None) -> None:
+    """Close joblib's output generator; its warning about the trials cut short becomes ``on_stop``."""
+    close = getattr(outcomes, "close", None)
+    if close is None:
+        return
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        close()
+    cut = 0
+    for warning in caught:
+        found = _CUT_SHORT.findall(str(warning.message))
+        if not found:  # not joblib's note about the trials cut short: shown as it came
+            warnings.warn_explicit(warning.message, warning.category, warning.filename, warning.lineno)
+            continue
+        cut += sum(int(a or b) for a, b in found)
+    if cut and on_stop is not None:
+        on_stop(cut)
+
+
 def run_jobs(
     jobs: Iterable[Job],
     backend: Backend = "loky",
@@ -308,11 +334,16 @@ def run_jobs(
     scheduler: str | None = None,
     timeout_s: float | None = None,
     client: Any = None,
-) -> Iterator[tuple[Job, Outcome]]:
+    on_stop: Callable[[int], None] | None = None,
+) -> Generator[tuple[Job, Outcome], None, None]:
     """Run jobs and yield each with its outcome as it finishes (in completion order).
 
     ``jobs`` is read as the workers take them, and only the jobs in flight are held (a few per
     worker), so a study of any size runs in the same memory.
+
+    Closing the iterator early (the caller stopped) cancels the trials still running; joblib's
+    warning about them is not shown: ``on_stop`` gets how many there were (trials running, or
+    returned but not yet handed out), so that the caller can say it in its own words.
 
     Args:
         jobs: The jobs to run.
@@ -322,6 +353,7 @@ def run_jobs(
         scheduler: Dask scheduler address, e.g. ``tcp://10.0.0.5:8786`` (``dask`` only).
         timeout_s: Per-trial wall-time limit, s.
         client: A connected Dask client (``dask`` only; default: connect to ``scheduler``).
+        on_stop: Called with the number of trials cut short when the iterator is closed early.
 
     Raises:
         SomoError: The Dask scheduler cannot be reached or is lost, or workers keep dying.
@@ -330,12 +362,12 @@ def run_jobs(
         own = client is None
         client = dask_client(scheduler) if own else client
         try:
-            yield from run_on_dask(jobs, client, timeout_s)
+            yield from run_on_dask(jobs, client, timeout_s, on_stop)
         finally:
             if own:
                 client.close()
         return
-    yield from _run_local(jobs, n_jobs, timeout_s)
+    yield from _run_local(jobs, n_jobs, timeout_s, on_stop)
 
 
 #: Warm-up calls of the workers :func:`start_workers` started, drained before the first trial.
@@ -369,7 +401,9 @@ def stop_workers() -> None:
             started.close()  # type: ignore[attr-defined]
 
 
-def _run_local(jobs: Iterable[Job], n_jobs: int, timeout_s: float | None) -> Iterator[tuple[Job, Outcome]]:
+def _run_local(
+    jobs: Iterable[Job], n_jobs: int, timeout_s: float | None, on_stop: Callable[[int], None] | None
+) -> Iterator[tuple[Job, Outcome]]:
     """The loky backend: worker processes on this machine, restarted if one of them dies."""
     while _starting:  # workers started ahead: let their warm-up finish (a failure shows below)
         with contextlib.suppress(Exception):
@@ -400,8 +434,11 @@ def _run_local(jobs: Iterable[Job], n_jobs: int, timeout_s: float | None) -> Ite
                 # the trials and keeps hearing Ctrl-C at once.
                 with _deaf_to_ctrl_c(workers > 1):
                     outcomes = _parallel(workers)(feed())
-                for out in outcomes:
-                    yield in_flight.pop(out.job_id), out
+                try:
+                    for out in outcomes:
+                        yield in_flight.pop(out.job_id), out
+                finally:
+                    _close(outcomes, on_stop)
             if not in_flight:
                 return
             again.extend(in_flight.values())  # dispatched by a pool that died as it was replaced
@@ -425,7 +462,9 @@ def execute(
     scheduler: str | None = None,
     timeout_s: float | None = None,
     client: Any = None,
-) -> Iterator[Outcome]:
+    on_stop: Callable[[int], None] | None = None,
+) -> Generator[Outcome, None, None]:
     """Run jobs and yield their outcomes as they finish (:func:`run_jobs` without the jobs)."""
-    for _, out in run_jobs(jobs, backend, n_jobs, scheduler, timeout_s, client):
-        yield out
+    with contextlib.closing(run_jobs(jobs, backend, n_jobs, scheduler, timeout_s, client, on_stop)) as pairs:
+        for _, out in pairs:
+            yield out

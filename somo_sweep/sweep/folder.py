@@ -23,7 +23,7 @@ import pyarrow.compute as pc
 import pyarrow.parquet as pq
 
 from somo_sweep.errors import SomoError, shown
-from somo_sweep.sweep.schema import COLUMNS
+from somo_sweep.sweep.schema import COLUMNS, MAX_REPLICAS
 
 __all__ = [
     "INFERRED",
@@ -36,7 +36,9 @@ __all__ = [
     "DamagedPartWarning",
     "declared_types",
     "journal_rows",
+    "max_part_rows",
     "part_files",
+    "pending_journal_rows",
     "read_manifest",
     "read_results",
     "split_parts",
@@ -212,10 +214,19 @@ def declared_types(manifest: Mapping[str, Any]) -> dict[str, str]:
     }
 
 
-def _max_rows(manifest: Mapping[str, Any]) -> int | None:
-    """The most rows one part file of the folder's study can hold: its number of trials."""
+def max_part_rows(manifest: Mapping[str, Any]) -> int | None:
+    """The most rows one part file of the folder's study can hold: its trials, and their
+    robustness replicas if a run asked for some (each run records its ``replicas`` at its start)."""
     n = manifest.get("n_trials")
-    return n if isinstance(n, int) and not isinstance(n, bool) and n > 0 else None
+    if not (isinstance(n, int) and not isinstance(n, bool) and n > 0):
+        return None
+    runs = manifest.get("runs")
+    asked = 0
+    for run in runs if isinstance(runs, list) else []:
+        k = run.get("replicas") if isinstance(run, dict) else None
+        if isinstance(k, int) and not isinstance(k, bool) and k > asked:
+            asked = k
+    return n * (1 + min(asked, MAX_REPLICAS))
 
 
 #: The type of each manifest key the commands read (:func:`~somo_sweep.sweep.manifest.new_manifest`).
@@ -253,6 +264,11 @@ def read_manifest(folder: str | Path) -> dict[str, Any]:
         data = json.loads(path.read_text(encoding="utf-8"))
         if not isinstance(data, dict) or not isinstance(data.get("study_hash"), str):
             raise ValueError("not a manifest: no study_hash")
+        trials = data.get("n_trials")
+        if trials is not None and (isinstance(trials, bool) or not isinstance(trials, int) or trials < 1):
+            # true is an int to Python, and a count below 1 no study has: "0 of True trials stored"
+            given = shown(json.dumps(trials, default=str))
+            raise ValueError(f"its 'n_trials' is {given}, not a whole number of trials of at least 1")
         for key, kind in _MANIFEST_TYPES.items():
             if key in data and not isinstance(data[key], kind):
                 raise ValueError(f"its '{key}' is {type(data[key]).__name__}, not {_KIND_NAMES[kind]}")
@@ -308,7 +324,7 @@ def read_results(folder: str | Path, on_damaged: OnDamaged | None = None) -> pd.
     report = on_damaged or _warn
     # The parts the manifest lists as written by a run first: a row repeated in a copy is the copy's.
     good, bad = split_parts(
-        folder, {str(f) for f in manifest.get("files", [])}, declared_types(manifest), _max_rows(manifest)
+        folder, {str(f) for f in manifest.get("files", [])}, declared_types(manifest), max_part_rows(manifest)
     )
     for path, reason in bad:
         report(path, reason)
@@ -345,12 +361,8 @@ def read_results(folder: str | Path, on_damaged: OnDamaged | None = None) -> pd.
         df = tables[0].to_pandas()
     if _PART not in df.columns:
         df[_PART] = pd.Series(pd.NA, index=df.index, dtype="Int64")
-    repeated = df["job_id"].duplicated(keep="first") & df[_PART].notna()
-    for index, rows in df[repeated].groupby(_PART):
-        first = df.loc[df["job_id"].isin(rows["job_id"]) & ~repeated, _PART]
-        where = ", ".join(sorted({names[int(i)].name for i in first.dropna()}))
-        report(names[int(index)], f"{REPEATS} {len(rows)} row(s) stored in {where}: counted once (a copy?)")
-    df = df[~repeated]
+    # Rows of another study first: one that shares cells with this one has the same job ids, and
+    # its part is foreign, not a copy of ours.
     foreign = df[df["study_hash"] != manifest["study_hash"]]
     if len(foreign) and len(foreign) == len(df) and foreign["study_hash"].nunique() == 1:
         # Every row agrees with every other and none with the manifest: the manifest is the odd one.
@@ -366,6 +378,12 @@ def read_results(folder: str | Path, on_damaged: OnDamaged | None = None) -> pd.
             f"{folder}: {len(foreign)} row(s) belong to another study "
             f"(hash {foreign['study_hash'].iloc[0]}), in {', '.join(parts)}; move that file away"
         )
+    repeated = df["job_id"].duplicated(keep="first") & df[_PART].notna()
+    for index, rows in df[repeated].groupby(_PART):
+        first = df.loc[df["job_id"].isin(rows["job_id"]) & ~repeated, _PART]
+        where = ", ".join(sorted({names[int(i)].name for i in first.dropna()}))
+        report(names[int(index)], f"{REPEATS} {len(rows)} row(s) stored in {where}: counted once (a copy?)")
+    df = df[~repeated]
     missing = {c.name: None for c in COLUMNS if c.name not in df.columns}  # parts from an older version
     df = df.drop(columns=[_PART]).assign(**missing)
     return df.sort_values("trial", kind="stable").reset_index(drop=True)
@@ -464,3 +482,22 @@ def journal_rows(path: Path) -> Iterator[dict[str, Any]]:
                 continue
             if isinstance(row, dict) and isinstance(row.get("job_id"), str):
                 yield row
+
+
+def pending_journal_rows(folder: str | Path, study_hash: str, stored: Collection[str]) -> dict[str, int]:
+    """Finished trials in the journals of runs that ended without storing them (killed), by run id.
+
+    Only rows of ``study_hash`` whose job is not in ``stored`` count, each job once: what the
+    next run of the study recovers.
+    """
+    counts: dict[str, int] = {}
+    seen = set(stored)
+    with contextlib.suppress(OSError):
+        for journal in sorted((Path(folder) / "trials").glob(JOURNAL_GLOB)):
+            run_id = journal.name.removeprefix(".journal-").removesuffix(".jsonl")
+            with contextlib.suppress(OSError):
+                for row in journal_rows(journal):
+                    if row.get("study_hash") == study_hash and row["job_id"] not in seen:
+                        seen.add(row["job_id"])
+                        counts[run_id] = counts.get(run_id, 0) + 1
+    return counts

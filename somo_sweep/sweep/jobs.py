@@ -21,7 +21,7 @@ import itertools
 import json
 import os
 from collections.abc import Iterable, Iterator, Sequence
-from dataclasses import asdict, dataclass, field
+from dataclasses import asdict, dataclass, field, replace
 from functools import cache, cached_property
 from importlib.metadata import PackageNotFoundError, version
 from pathlib import Path
@@ -53,6 +53,7 @@ __all__ = [
     "jobs_frame",
     "param_column",
     "pybullet_version",
+    "replica_jobs",
     "trial_modules",
 ]
 
@@ -172,6 +173,8 @@ class Job:
         columns: The parameter columns of this trial (flattened, unit-suffixed names).
         numerics: The automatic numerics applied to ``model`` and ``settings`` (None when the
             study gives its own ``simulation:``).
+        replica: 0 for the study's own trial; 1, 2, … for its robustness replicas
+            (:func:`replica_jobs`), which share its ``trial`` and grid values.
     """
 
     job_id: str
@@ -184,6 +187,7 @@ class Job:
     settings: WorldSettings
     columns: dict[str, Any]
     numerics: ChosenNumerics | None = None
+    replica: int = 0
 
 
 @dataclass(frozen=True)
@@ -245,7 +249,7 @@ class JobMaker:
         model_path, given = self.study.resolve_model(point)
         info = self.models.get(key)
         if info is None:
-            shaped, model_hash, settings, numerics = _prepare(given, self.fixed)
+            shaped, model_hash, settings, numerics = _prepare(given, self.fixed, self.study.auto_step_s)
             model_file = os.path.relpath(model_path, self.study.source.parent)
             info = _ModelInfo(model_file, model_hash, settings, _json(asdict(settings)), numerics)
             self.models[key] = info
@@ -436,15 +440,79 @@ def iter_jobs(study: Study) -> Iterator[Job]:
         yield job
 
 
+def _job_id(
+    task: str,
+    params: BaseModel,
+    model_hash: str,
+    settings: WorldSettings,
+    seed: int,
+    code: str,
+    engine: str,
+    replica: int = 0,
+) -> str:
+    """The id of a trial: a hash of everything it runs (a replica's number too)."""
+    identity: dict[str, Any] = {
+        "task": task,
+        "params": params.model_dump(mode="json"),
+        "model": model_hash,
+        "settings": asdict(settings),
+        "seed": seed,
+        "code": code,
+        "pybullet": engine,
+    }
+    if replica:
+        identity["replica"] = replica
+    return _hash(identity)
+
+
+def replica_jobs(job: Job, n: int, perturb: Any) -> list[Job]:
+    """The robustness replicas 1 … ``n`` of a trial (:mod:`somo_sweep.sweep.robustness`).
+
+    Replica r runs the task's ``perturb`` of the trial's parameters, drawn from a generator
+    seeded with (trial seed, r), and the odd-numbered ones run at half the trial's time step, so
+    one replica or more always checks the step too. A replica is a pure function of the trial and
+    r: the same replica has the same id and outcome in every run.
+
+    Args:
+        job: The study's trial (replica 0).
+        n: Number of replicas.
+        perturb: The task's ``perturb(params, rng)``.
+    """
+    code = code_version(_run_module(job.task))
+    engine = pybullet_version()
+    out = []
+    for r in range(1, n + 1):
+        rng = np.random.default_rng([job.seed, r])
+        params = perturb(job.params, rng)
+        step = job.settings.time_step_s / 2 if r % 2 else job.settings.time_step_s
+        settings = replace(job.settings, time_step_s=step)
+        columns = {k: v for k, v in job.columns.items() if not k.startswith("task_")}
+        flat: dict[str, Any] = {}
+        _flatten("task", params.model_dump(mode="json"), flat)
+        columns = {**flat, **columns}
+        job_id = _job_id(
+            job.task, params, str(job.columns["model_hash"]), settings, job.seed, code, engine, r
+        )
+        out.append(replace(job, job_id=job_id, params=params, settings=settings, columns=columns, replica=r))
+    return out
+
+
+def _run_module(task: str) -> str:
+    from somo_sweep.tasks.registry import get_task
+
+    return get_task(task).run_path.partition(":")[0]
+
+
 def _prepare(
-    model: Model, fixed: WorldSettings | None
+    model: Model, fixed: WorldSettings | None, auto_step_s: float | None = None
 ) -> tuple[Model, str, WorldSettings, ChosenNumerics | None]:
-    """The model and settings a trial runs: as given, or with the automatic numerics applied."""
+    """The model and settings a trial runs: as given, or with the automatic numerics applied
+    (the step chosen by convergence with the least shaping it needs, else the modal choice)."""
     if fixed is not None:
         return model, model.content_hash(), fixed, None
-    from somo_sweep.sim.numerics import choose_numerics  # loads PyBullet: only when needed
+    from somo_sweep.sim.numerics import choose_numerics, numerics_for_step  # loads PyBullet
 
-    chosen = choose_numerics(model)
+    chosen = choose_numerics(model) if auto_step_s is None else numerics_for_step(model, auto_step_s)
     shaped = chosen.apply(model)
     return shaped, shaped.content_hash(), WorldSettings(time_step_s=chosen.time_step_s), chosen
 
@@ -503,7 +571,10 @@ def build_jobs(study: Study) -> JobTable:
         "repeats": study.repeats,
         "seed": study.seed,
         "simulation": (
-            {"auto": {m.model_hash: m.numerics.as_dict() for m in maker.models.values() if m.numerics}}
+            {
+                "auto": {m.model_hash: m.numerics.as_dict() for m in maker.models.values() if m.numerics},
+                **({"convergence": study.convergence} if study.convergence else {}),
+            }
             if study.simulation is None
             else study.simulation.model_dump(mode="json")
         ),

@@ -2,19 +2,16 @@
 
 The manifest (``manifest.json``) records the study (hash, resolved content, axes), every
 run (start, end, status, backend, the versions it ran with, rows written), the hosts, the
-columns with their units and every file the tool wrote in the folder. The lock is a
-``flock`` on ``.lock`` that holds the pid and host of the run holding it.
+columns with their units and every file the tool wrote in the folder. The lock on the folder
+is :mod:`somo_sweep.sweep.lock`.
 """
 
 from __future__ import annotations
 
 import contextlib
-import errno
-import fcntl
 import json
 import os
 import platform
-import socket
 import tempfile
 from datetime import UTC, datetime
 from importlib.metadata import PackageNotFoundError, version
@@ -23,15 +20,14 @@ from typing import Any
 
 from somo_sweep.errors import SomoError
 from somo_sweep.sweep.folder import MANIFEST, read_manifest
+from somo_sweep.sweep.lock import LOCK_NAME, acquire
 
 __all__ = [
-    "acquire",
     "describe_changes",
     "fresh_tmp",
     "new_manifest",
     "now_utc",
     "record_files",
-    "release",
     "versions",
     "write_json",
 ]
@@ -93,40 +89,6 @@ def write_json(path: Path, data: dict[str, Any]) -> None:
         raise
 
 
-def acquire(path: Path) -> int:
-    """Take the folder lock ``path`` (a file descriptor to :func:`release`).
-
-    Raises:
-        SomoError: Another run holds it; the message names its pid and host.
-    """
-    try:  # never through a link left in the folder: the holder line would land in its target
-        fd = os.open(path, os.O_RDWR | os.O_CREAT | os.O_NOFOLLOW, 0o644)
-    except OSError as exc:
-        if exc.errno != errno.ELOOP:
-            raise
-        raise SomoError(
-            f"{path} is a symbolic link, not the folder's lock file; nothing was written: remove it"
-        ) from None
-    try:
-        fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
-    except BlockingIOError:
-        holder = os.pread(fd, 400, 0).decode(errors="replace").strip() or "another process"
-        os.close(fd)
-        raise SomoError(
-            f"{path.parent} is in use by another somo-sweep run ({holder}); "
-            "wait for it to finish or stop it, or use another --out folder"
-        ) from None
-    os.ftruncate(fd, 0)
-    os.pwrite(fd, f"pid {os.getpid()} on {socket.gethostname()} since {now_utc()}".encode(), 0)
-    return fd
-
-
-def release(fd: int) -> None:
-    """Release a lock taken with :func:`acquire`."""
-    fcntl.flock(fd, fcntl.LOCK_UN)
-    os.close(fd)
-
-
 def record_files(folder: Path, paths: list[Path]) -> None:
     """List files the tool wrote into a results folder (e.g. plots) in its manifest.
 
@@ -135,7 +97,7 @@ def record_files(folder: Path, paths: list[Path]) -> None:
     deleted.
     """
     try:
-        lock = acquire(folder / ".lock")
+        lock = acquire(folder / LOCK_NAME)
     except (SomoError, OSError):  # held by a run, or not a lock file (a folder): the files stay unlisted
         return
     try:
@@ -147,7 +109,9 @@ def record_files(folder: Path, paths: list[Path]) -> None:
     except (SomoError, OSError, ValueError):
         pass
     finally:
-        release(lock)
+        if lock.stop_record is not None:  # the next run reports the run that stopped itself
+            lock.record_stop(lock.stop_record)
+        lock.release(remove=lock.stop_record is None)
 
 
 def describe_changes(old: dict[str, Any], new: dict[str, Any]) -> str:

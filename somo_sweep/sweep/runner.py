@@ -18,7 +18,7 @@ import signal
 import threading
 import time
 from collections import Counter
-from collections.abc import Callable, Iterator
+from collections.abc import Callable, Generator, Iterator
 from contextlib import contextmanager
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -27,10 +27,11 @@ from typing import Any
 import joblib
 import numpy as np
 
-from somo_sweep.errors import StorageError
+from somo_sweep.errors import SomoError, StorageError, os_cause
 from somo_sweep.sweep.dask_backend import threads as _threads
-from somo_sweep.sweep.execution import Backend, Outcome, dask_client, run_jobs
+from somo_sweep.sweep.execution import Backend, Outcome, dask_client, execute, run_jobs
 from somo_sweep.sweep.jobs import Job, JobTable, build_jobs
+from somo_sweep.sweep.robustness import ReplicaPlan
 from somo_sweep.sweep.sampling import AdaptivePlan, Batch, Known
 from somo_sweep.sweep.schema import FIXED
 from somo_sweep.sweep.store import ResultStore
@@ -45,11 +46,12 @@ FLUSH_INTERVAL_S = 10.0
 
 @dataclass
 class RoundSummary:
-    """One adaptive round of a run: its number, its cells and the trials run for it now."""
+    """One round of a run (adaptive or replicas): its number, its cells and the trials run now."""
 
     number: int
     cells: int
     run: int = 0
+    kind: str = "trials"
 
 
 @dataclass
@@ -75,6 +77,8 @@ class RunSummary:
         inferred_errors: Adaptive: how many of those lie between trials that ended in error, and so
             carry status ``error`` though they never ran (not counted in :attr:`errors`).
         sampling_notes: Adaptive: what the refinement could not do as asked (for the user).
+        replicas_run: Robustness replicas run now (not counted in :attr:`run`).
+        robustness: What the replica plan did (:meth:`ReplicaPlan.summary`), or None.
     """
 
     folder: Path
@@ -93,11 +97,13 @@ class RunSummary:
     inferred: int = 0
     inferred_errors: int = 0
     sampling_notes: list[str] = field(default_factory=list)
+    replicas_run: int = 0
+    robustness: dict[str, Any] | None = None
 
     @property
     def trials_per_s(self) -> float:
-        """Trials run per second of wall time."""
-        return self.run / self.wall_time_s if self.wall_time_s > 0 else 0.0
+        """Trials (robustness replicas included) run per second of wall time."""
+        return (self.run + self.replicas_run) / self.wall_time_s if self.wall_time_s > 0 else 0.0
 
     @property
     def errors(self) -> int:
@@ -111,6 +117,7 @@ def outcome_row(job: Job, out: Outcome, study_hash: str) -> dict[str, Any]:
         "job_id": job.job_id,
         "trial": job.trial,
         "repeat": job.repeat,
+        "replica": job.replica,
         "seed": job.seed,
         "status": out.status,
         "message": out.message,
@@ -189,6 +196,25 @@ class _SignalGuard:
             raise _Stop(signum)
 
 
+def _with_replicas(
+    own: Iterator[Batch],
+    replicas: ReplicaPlan | None,
+    plan: AdaptivePlan | None,
+    known: Known,
+    study_hash: str,
+) -> Iterator[Batch]:
+    """The study's own batches, then (once they are all done) the replica rounds."""
+    yield from own
+    if replicas is None:
+        return
+    inferred: dict[int, tuple[str, dict[str, str]]] = {}
+    if plan is not None:
+        for row in plan.inferred_rows(known, study_hash):
+            labels = {k.removeprefix("label_"): v for k, v in row.items() if k.startswith("label_") and v}
+            inferred[int(row["trial"])] = (str(row["status"]), labels)
+    yield from replicas.rounds(known, inferred)
+
+
 def _declared_types(study: Study, table: JobTable) -> dict[str, str]:
     """Column types of the task's declared metrics, under the column names rows use."""
     taken = FIXED | set(table.jobs[0].columns if len(table.jobs) else ())
@@ -238,6 +264,21 @@ def run_study(
         SomoError: Folder locked, different study in the folder, Dask unreachable.
         DescriptionError: ``adaptive.labels`` names a label the task does not give.
     """
+    if table is None and study.simulation is None and study.auto_step_s is None:
+        from dataclasses import replace
+
+        from somo_sweep.sweep.convergence import choose_step, outcomes_of, stored_choice
+        from somo_sweep.sweep.folder import read_manifest
+
+        choice = None
+        with contextlib.suppress(SomoError, OSError):
+            choice = stored_choice(read_manifest(study.output), study)
+        if choice is None:
+            workers = n_jobs or joblib.cpu_count() or 1
+            choice = choose_step(
+                study, lambda jobs: outcomes_of(execute(jobs, backend, workers, scheduler, timeout_s))
+            )
+        study = replace(study, auto_step_s=choice.step_s, convergence=choice.as_dict())
     table = table or build_jobs(study)
     adaptive = study.sampling == "adaptive" if adaptive is None else adaptive
     n_jobs = n_jobs or joblib.cpu_count() or 1
@@ -262,7 +303,9 @@ def run_study(
     buffer: list[dict[str, Any]] = []
     summary = RunSummary(study.output, len(table.ids), 0, notes=list(store.notes))
     summary.sampling = "adaptive" if adaptive else "grid"
+    replicas = ReplicaPlan(study, table) if study.robustness.replicas > 0 else None
     failure: OSError | None = None
+    cut_short: list[int] = []  # trials running (or returned, not yet received) when the run stopped
     try:
         store.copy_study(study.source)
         if retry_errors:
@@ -271,7 +314,7 @@ def run_study(
         todo = table.select(np.flatnonzero(~table.among(stored)))
         summary.skipped = len(table.ids) - len(todo)
         summary.stored_errors = int(table.among(errors).sum())
-        known: Known = store.stored_labels() if plan else {}
+        known: Known = store.stored_labels() if plan or replicas else {}
         if client is not None and not _threads(client):
             summary.notes.append("the Dask scheduler has no worker yet: the trials wait for workers to join")
         store.check_inferred()  # refuse a folder in its place now, not after the trials
@@ -284,30 +327,40 @@ def run_study(
                 "n_jobs": n_jobs if backend == "loky" else None,
                 **planned,
                 "sampling": summary.sampling,
+                **({"replicas": study.robustness.replicas} if replicas else {}),
             }
         )
         started = True
         if on_start:
             on_start(summary)
-        batches = plan.rounds(known) if plan else iter([Batch(None, len(todo), todo)])
+        own = plan.rounds(known) if plan else iter([Batch(None, len(todo), todo)])
+        batches = _with_replicas(own, replicas, plan, known, table.study_hash)
         last_flush = time.perf_counter()
+        outcomes: Generator[tuple[Job, Outcome], None, None] | None = None
         with _SignalGuard() as guard:
             status = "completed"
             try:
                 for batch in batches:
+                    is_replica = batch.kind == "replicas"
                     if batch.number is not None:
-                        summary.rounds.append(RoundSummary(batch.number, batch.cells))
+                        summary.rounds.append(RoundSummary(batch.number, batch.cells, kind=batch.kind))
                     if on_round:
                         on_round(batch)
-                    for job, out in run_jobs(batch.jobs, backend, n_jobs, scheduler, timeout_s, client):
+                    outcomes = run_jobs(
+                        batch.jobs, backend, n_jobs, scheduler, timeout_s, client, on_stop=cut_short.append
+                    )
+                    for job, out in outcomes:
                         with guard.protect():
                             row = outcome_row(job, out, table.study_hash)
-                            summary.run += 1
                             if summary.rounds:
                                 summary.rounds[-1].run += 1
-                            summary.by_status[out.status] += 1
-                            summary.by_label.update(f"{k}={v}" for k, v in out.labels.items())
-                            if plan:
+                            if is_replica:
+                                summary.replicas_run += 1
+                            else:
+                                summary.run += 1
+                                summary.by_status[out.status] += 1
+                                summary.by_label.update(f"{k}={v}" for k, v in out.labels.items())
+                            if plan or replicas:  # what the rounds to come are chosen from
                                 known[out.job_id] = (out.status, dict(out.labels))
                             store.journal(row)
                             buffer.append(row)
@@ -325,6 +378,8 @@ def run_study(
                 status = "interrupted"
             except OSError as exc:
                 failure, status = exc, "failed"
+            if outcomes is not None:  # stopped early: the trials still running are cancelled, counted
+                outcomes.close()
             with guard.protect(stop_after=False):
                 if failure is None:
                     try:
@@ -342,7 +397,7 @@ def run_study(
                 summary.wall_time_s = time.perf_counter() - start
                 summary.simulated_cells = plan.simulated_cells if plan else 0
                 summary.sampling_notes = list(plan.notes) if plan else []
-                extra = (
+                extra: dict[str, Any] = (
                     {
                         "rounds": [vars(r) for r in summary.rounds],
                         "simulated_cells": summary.simulated_cells,
@@ -350,10 +405,18 @@ def run_study(
                         "inferred_errors": summary.inferred_errors,
                     }
                     if plan
-                    else None
+                    else {}
                 )
-                with contextlib.suppress(OSError):
+                if replicas is not None:
+                    summary.robustness = {**replicas.summary(), "replicas_run": summary.replicas_run}
+                    extra["robustness"] = summary.robustness
+                if failure is not None:
+                    extra["failure"] = _failure_text(failure, study.output)
+                try:
                     store.end_run(status, summary.run, extra)
+                except OSError:  # not even the manifest: the lock file says it in place
+                    if failure is not None:
+                        store.record_stop(extra["failure"], summary.run)
                 ended = True
     except OSError as exc:
         failure = exc
@@ -369,11 +432,22 @@ def run_study(
         if client is not None:
             client.close()
     if failure is not None:
-        reason = failure.strerror or str(failure)
+        cause, advice = os_cause(failure)
+        running = f"; the {sum(cut_short)} trial(s) still running were stopped" if sum(cut_short) else ""
         raise StorageError(
-            f"stopped: cannot write the results in {study.output} ({reason}). {summary.run} trial(s) "
-            f"finished in this run and {written} of them are in the table, intact; free space and run the "
-            "same command again: finished trials not yet in the table are recovered from the run's "
-            "journal, the others run again"
+            f"stopped: cannot write {_failed_file(failure, study.output)}: {cause}. {summary.run} trial(s) "
+            f"finished in this run and {written} of them are in the table, intact{running}. To go on: "
+            f"{advice}, then run the same command again: finished trials not yet in the table are "
+            "recovered from the run's journal, the others run again"
         )
     return summary
+
+
+def _failed_file(failure: OSError, folder: Path) -> str:
+    """The file a write failed on (inside the results folder when the error does not say)."""
+    return str(failure.filename) if failure.filename else f"the results in {folder}"
+
+
+def _failure_text(failure: OSError, folder: Path) -> str:
+    """A failure as the manifest records it: which file, and the cause."""
+    return f"cannot write {_failed_file(failure, folder)}: {os_cause(failure)[0]}"

@@ -12,7 +12,8 @@ Layout of ``results/<study>/``::
                             columns with units, and every file the tool wrote here
     study.yaml              copy of the study file as last run
     plots/                  summary plots (PNG and SVG)
-    .lock                   held (flock) while a run writes here
+    .lock                   held (flock) while a run writes here, removed when it ends
+                            (:mod:`somo_sweep.sweep.lock`)
 
 Part files are written atomically (temporary name starting with ``.``, which readers
 skip, then renamed), so an interrupted run, or a full disk, never leaves a half-written
@@ -26,6 +27,7 @@ a results folder is never written into.
 from __future__ import annotations
 
 import contextlib
+import errno
 import json
 import os
 import re
@@ -40,7 +42,7 @@ import pyarrow as pa
 import pyarrow.compute as pc
 import pyarrow.parquet as pq
 
-from somo_sweep.errors import SomoError, StorageError, shown
+from somo_sweep.errors import SomoError, StorageError, os_cause, os_error_for, shown
 from somo_sweep.sweep.folder import (
     INFERRED,
     JOURNAL_GLOB,
@@ -50,18 +52,18 @@ from somo_sweep.sweep.folder import (
     UNREADABLE,
     declared_types,
     journal_rows,
+    max_part_rows,
     read_manifest,
     read_results,
     split_parts,
 )
+from somo_sweep.sweep.lock import LOCK_NAME, FolderLock, acquire
 from somo_sweep.sweep.manifest import (
-    acquire,
     describe_changes,
     fresh_tmp,
     new_manifest,
     now_utc,
     record_files,
-    release,
     versions,
     write_json,
 )
@@ -71,6 +73,10 @@ __all__ = ["ResultStore", "read_manifest", "read_results", "record_files"]
 
 #: Files a run may find in a folder that is not (yet) a results folder.
 _OWN = re.compile(rf"\.lock|\.({re.escape(MANIFEST)}|study\.yaml|study\.json)(\.[^/]*)?\.tmp")
+
+
+#: Errors that blame the name given, not the disk.
+_NAME_ERRORS = (errno.ENAMETOOLONG, errno.ENOTDIR, errno.ELOOP, errno.EISDIR, errno.EEXIST, errno.EINVAL)
 
 
 def _check_target(folder: Path) -> None:
@@ -150,13 +156,27 @@ class ResultStore:
         self.rows_written = 0
         self._journal: IO[str] | None = None
         self._schemas: dict[Path, pa.Schema] = {}  # of the part files, read once on opening
+        self._keep_lock_file = False
+        created = not os.path.lexists(self.folder)
         try:
             _check_target(self.folder)
             self.folder.mkdir(parents=True, exist_ok=True)
         except OSError as exc:  # a name too long, no permission, a file in the way, ...
             where = shown(str(self.folder), 200)
-            raise SomoError(f"cannot create the results folder {where}: {exc.strerror}") from None
-        self._lock: int | None = acquire(self.folder / ".lock")
+            cause, advice = os_cause(exc)
+            # A name no folder can have is bad input (exit 2); a full or read-only disk a failed run (1).
+            kind = SomoError if exc.errno in _NAME_ERRORS else StorageError
+            raise kind(
+                f"cannot create the results folder {where}: {cause}; nothing was written: {advice}, "
+                "then run the same command again"
+            ) from None
+        try:
+            self._lock: FolderLock | None = acquire(self.folder / LOCK_NAME)
+        except BaseException:
+            if created:  # leave no empty folder behind a start that failed
+                with contextlib.suppress(OSError):
+                    self.folder.rmdir()
+            raise
         try:
             self.trials.mkdir(exist_ok=True)
             for tmp in self.trials.glob(".*.tmp"):
@@ -174,8 +194,25 @@ class ResultStore:
             self._heal_schemas()
             self._recover(study_hash)
             self._write_manifest()
-        except BaseException:
+        except BaseException as exc:
+            stop = self._lock.stop_record if self._lock is not None else None
+            if (
+                stop is not None and self._lock is not None
+            ):  # not yet in the manifest: keep it for the next run
+                self._keep_lock_file = self._lock.record_stop(stop)
             self.close()
+            if created:  # a start that failed on a new folder leaves no empty folder behind
+                with contextlib.suppress(OSError):
+                    self.trials.rmdir()
+                    self.folder.rmdir()
+            if isinstance(exc, OSError):  # a full disk while setting the folder in order
+                cause, advice = os_cause(exc)
+                where = f"cannot write {exc.filename}" if exc.filename else "cannot write in it"
+                raise StorageError(
+                    f"cannot open the results folder {self.folder}: {where}: {cause}; what it holds is "
+                    f"intact (finished trials of a killed run stay in its journal): {advice}, then run "
+                    "the same command again"
+                ) from None
             raise
 
     # -- opening ---------------------------------------------------------------------------
@@ -184,14 +221,9 @@ class ResultStore:
         try:  # judged as every reader judges them: the manifest's files first, its column types
             manifest = read_manifest(self.folder)
             listed = {str(f) for f in manifest.get("files", [])}
-            declared, n_trials = declared_types(manifest), manifest.get("n_trials")
+            declared, max_rows = declared_types(manifest), max_part_rows(manifest)
         except SomoError:  # no manifest yet, or a damaged one (rebuilt from the parts)
-            listed, declared, n_trials = set(), {}, None
-        max_rows = (
-            n_trials
-            if isinstance(n_trials, int) and not isinstance(n_trials, bool) and n_trials > 0
-            else None
-        )
+            listed, declared, max_rows = set(), {}, None
         _, bad = split_parts(self.folder, listed, declared, max_rows, self._schemas)
         unreadable = [part for part, reason in bad if reason.startswith(UNREADABLE)]
         if unreadable:  # not damaged: moving it away would rerun trials that are safely stored
@@ -303,10 +335,27 @@ class ResultStore:
             self.types[name] = merge_types(self.types.get(name, pa.null()), arrow_type(values))
 
     def _mark_aborted(self) -> None:
+        assert self._lock is not None
+        stop = self._lock.stop_record
+        left = self._lock.previous if self._lock.previous.startswith("pid ") else ""
         for run in self.manifest["runs"]:
-            if run.get("status") == "running":  # we hold the lock: its process is gone
+            if run.get("status") != "running":
+                continue
+            # We hold the lock: its process is gone. It stopped itself if it left a stop record.
+            if stop is not None and stop.get("stopped") == run.get("start_utc"):
+                info = {k: stop[k] for k in ("trials_finished", "trials_written") if k in stop}
+                run.update(status="failed", end_utc=stop.get("at"), failure=stop.get("cause"), **info)
+                self.notes.append(
+                    f"the run started {run.get('start_utc')} stopped itself at {stop.get('at')} "
+                    f"({stop.get('cause')}): marked failed"
+                )
+            else:
                 run.update(status="aborted", aborted_found_utc=now_utc())
-                self.notes.append(f"the run started {run.get('start_utc')} was killed: marked aborted")
+                holder = f" ({shown(left, 200)})" if left else ""
+                self.notes.append(
+                    f"the run started {run.get('start_utc')}{holder} was killed (or its disk could not "
+                    "be written even to record its end): marked aborted"
+                )
 
     def _heal_schemas(self) -> None:
         """Give every part the current schema (a rewrite cut short by a full disk leaves mixed ones)."""
@@ -324,16 +373,46 @@ class ResultStore:
             return
         done = self.done_ids()
         rows: dict[str, dict[str, Any]] = {}
+        by_run: dict[str, int] = {}
         for journal in journals:
+            run_id = journal.name.removeprefix(".journal-").removesuffix(".jsonl")
             for row in journal_rows(journal):
-                if row.get("study_hash") == study_hash and row["job_id"] not in done:
-                    rows.setdefault(row["job_id"], row)
+                if (
+                    row.get("study_hash") == study_hash
+                    and row["job_id"] not in done
+                    and row["job_id"] not in rows
+                ):
+                    rows[row["job_id"]] = row
+                    by_run[run_id] = by_run.get(run_id, 0) + 1
         if rows:
             self.write(list(rows.values()))
             self.rows_written = 0  # written now, but finished by the killed run
-            self.notes.append(f"recovered {len(rows)} finished trial(s) of a killed run from its journal")
+            whose = self._credit(by_run)
+            source = "their journals" if len(by_run) > 1 else "its journal"
+            self.notes.append(f"recovered {len(rows)} finished trial(s) of {whose} from {source}")
         for journal in journals:
             journal.unlink()
+
+    def _credit(self, by_run: dict[str, int]) -> str:
+        """Count the rows recovered from each run's journal as that run's (``show`` lists them);
+        returns whose they were, in words (``a killed run``, ``a run that stopped itself``).
+
+        A run is found by its id; a journal of a run recorded without one (an older version)
+        goes to the one run left without an end, if there is exactly one."""
+        runs = self.manifest["runs"]
+        ended = [r for r in runs if r.get("status") in ("aborted", "failed") and "run_id" not in r]
+        statuses: set[str | None] = set()
+        for run_id, n in by_run.items():
+            run = next((r for r in runs if r.get("run_id") == run_id), None)
+            if run is None and len(ended) == 1:
+                run = ended[0]
+            if run is not None:
+                run["trials_recovered"] = run.get("trials_recovered", 0) + n
+                run["trials_written"] = run.get("trials_written", 0) + n
+            statuses.add(run.get("status") if run is not None else None)
+        status = statuses.pop() if len(statuses) == 1 else None
+        unknown = "an earlier run" if len(by_run) == 1 else "earlier runs"
+        return {"aborted": "a killed run", "failed": "a run that stopped itself"}.get(status or "", unknown)
 
     # -- reading -----------------------------------------------------------------------------
 
@@ -399,10 +478,17 @@ class ResultStore:
     def copy_study(self, source: Path) -> None:
         """Keep a copy of the study file (``study.yaml`` / ``study.json``)."""
         target = self.folder / f"study{source.suffix}"
-        tmp = fresh_tmp(target)
+        text = source.read_bytes()
         try:
-            tmp.write_bytes(source.read_bytes())
+            tmp = fresh_tmp(target)
+        except OSError as exc:
+            raise os_error_for(exc, target) from None
+        try:
+            tmp.write_bytes(text)
             os.replace(tmp, target)
+        except OSError as exc:
+            tmp.unlink(missing_ok=True)
+            raise os_error_for(exc, target) from None
         except BaseException:
             tmp.unlink(missing_ok=True)
             raise
@@ -412,7 +498,14 @@ class ResultStore:
         """Record the start of a run (backend, workers, trials to run, versions) in the manifest."""
         now = versions()
         self.manifest["runs"].append(
-            {"start_utc": now_utc(), "end_utc": None, "status": "running", **info, "versions": now}
+            {
+                "start_utc": now_utc(),
+                "end_utc": None,
+                "status": "running",
+                "run_id": self.run_id,
+                **info,
+                "versions": now,
+            }
         )
         self.manifest["versions"] = now
         self._write_manifest()
@@ -424,22 +517,40 @@ class ResultStore:
             status: How the run ended.
             n_done: Trials that finished in this run (``trials_written`` counts only those
                 whose rows are in part files).
-            extra: More to record with the run (e.g. the adaptive rounds).
+            extra: More to record with the run (e.g. the adaptive rounds, a failure's cause).
         """
         run = self.manifest["runs"][-1]
         run.update(end_utc=now_utc(), status=status, trials_finished=n_done, trials_written=self.rows_written)
         run.update(extra or {})
         self._write_manifest()
+        self._keep_lock_file = False
         if status != "failed":  # every finished row is in a part file: the journal is not needed
             self._close_journal(delete=True)
 
+    def record_stop(self, cause: str, n_done: int) -> None:
+        """Say in the lock file, in place, that the current run stopped itself (it could not write,
+        not even the manifest): the next run then reports it as stopped, not killed."""
+        if self._lock is None or not self.manifest["runs"]:
+            return
+        record = {
+            "stopped": self.manifest["runs"][-1].get("start_utc"),
+            "at": now_utc(),
+            "cause": cause,
+            "trials_finished": n_done,
+            "trials_written": self.rows_written,
+        }
+        self._keep_lock_file = self._lock.record_stop(record)
+
     def journal(self, row: dict[str, Any]) -> None:
         """Append one finished row to this run's journal (flushed: a killed run keeps it)."""
-        if self._journal is None:
-            path = self.trials / f".journal-{self.run_id}.jsonl"
-            self._journal = path.open("a", encoding="utf-8")
-        self._journal.write(json.dumps(row, default=str) + "\n")
-        self._journal.flush()
+        path = self.trials / f".journal-{self.run_id}.jsonl"
+        try:
+            if self._journal is None:
+                self._journal = path.open("a", encoding="utf-8")
+            self._journal.write(json.dumps(row, default=str) + "\n")
+            self._journal.flush()
+        except OSError as exc:
+            raise os_error_for(exc, path) from None
 
     def write(self, rows: list[dict[str, Any]], journalled: bool = False) -> None:
         """Append rows as one new part file (atomically); widen the schema if needed.
@@ -534,14 +645,21 @@ class ResultStore:
         return pa.schema([pa.field(n, types[n], metadata={"unit": unit_of(n)}) for n in order])
 
     def _atomic(self, table: pa.Table, path: Path, schema: pa.Schema) -> None:
+        """Write ``table`` as ``path`` through a temporary file; an error names ``path``."""
         for name in schema.names:
             if name not in table.column_names:
                 table = table.append_column(name, pa.nulls(len(table), schema.field(name).type))
         table = table.select(schema.names).cast(schema)
-        tmp = fresh_tmp(path)
+        try:
+            tmp = fresh_tmp(path)
+        except OSError as exc:
+            raise os_error_for(exc, path) from None
         try:
             pq.write_table(table, tmp)
             os.replace(tmp, path)
+        except OSError as exc:
+            tmp.unlink(missing_ok=True)
+            raise os_error_for(exc, path) from None
         except BaseException:
             tmp.unlink(missing_ok=True)
             raise
@@ -551,7 +669,10 @@ class ResultStore:
         self.manifest["columns"] = {f.name: {"type": str(f.type), "unit": unit_of(f.name)} for f in schema}
         self.manifest["python"] = sys.version.split()[0]
         self.manifest["files"] = sorted(set(self.manifest["files"]))
-        write_json(self.folder / MANIFEST, self.manifest)
+        try:
+            write_json(self.folder / MANIFEST, self.manifest)
+        except OSError as exc:
+            raise os_error_for(exc, self.folder / MANIFEST) from None
 
     def _close_journal(self, delete: bool) -> None:
         if self._journal is not None:
@@ -563,10 +684,11 @@ class ResultStore:
                 path.unlink(missing_ok=True)
 
     def close(self) -> None:
-        """Release the lock (safe to call twice); the journal is kept unless the run ended."""
+        """Release the lock and remove its file (safe to call twice); the journal is kept unless
+        the run ended, and the lock file if it holds a stop record (:meth:`record_stop`)."""
         self._close_journal(delete=False)
         if self._lock is not None:
-            release(self._lock)
+            self._lock.release(remove=not self._keep_lock_file)
             self._lock = None
 
 

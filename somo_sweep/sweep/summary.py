@@ -11,6 +11,7 @@ from rich.table import Table
 
 from somo_sweep.errors import printable, shown
 from somo_sweep.sweep.folder import MANIFEST
+from somo_sweep.sweep.robustness import ROBUST, fold, label_names
 from somo_sweep.sweep.runner import RunSummary
 
 __all__ = ["breakdown", "inferred_mask", "label_columns", "print_results", "print_run_summary"]
@@ -21,8 +22,8 @@ SHOWN_RUNS = 10
 
 
 def label_columns(df: pd.DataFrame) -> list[str]:
-    """The ``label_*`` columns of a trials table."""
-    return [c for c in df.columns if c.startswith("label_")]
+    """The ``label_*`` columns of a trials table (not the robustness columns of :func:`fold`)."""
+    return label_names(df)
 
 
 def inferred_mask(df: pd.DataFrame) -> pd.Series:
@@ -54,6 +55,49 @@ def breakdown(df: pd.DataFrame, column: str) -> pd.DataFrame:
     return pd.concat(parts, axis=1).fillna(0).astype(int)
 
 
+#: Cells that are not robust listed by ``show``, the first in grid order.
+SHOWN_UNCERTAIN = 15
+
+
+def _print_robustness(console: Console, cells: pd.DataFrame, manifest: dict[str, Any]) -> None:
+    """Per label: cells replicated, robust, mean agreement; then the first uncertain cells."""
+    checked = cells[cells["replicas"] > 0]
+    if checked.empty:
+        return
+    table = Table(title="robustness (cells with replicas)", title_justify="left")
+    for name in ("label", "cells", "robust", "mean agreement", "majority differs from own trial"):
+        table.add_column(name, justify="left" if name == "label" else "right")
+    for label in label_columns(cells):
+        agree = checked[f"{label}_agreement"]
+        moved = (checked[f"{label}_majority"].astype(str) != checked[label].astype(str)).sum()
+        table.add_row(
+            _text(label.removeprefix("label_")),
+            str(len(checked)),
+            str(int((agree >= 1.0).sum())),
+            f"{agree.mean():.3f}",
+            str(int(moved)),
+        )
+    console.print(table)
+    uncertain = checked[checked[ROBUST].eq(False).fillna(False).astype(bool)]
+    if uncertain.empty:
+        console.print(f"every one of the {len(checked)} replicated cell(s) is robust")
+        return
+    axes = [c for c in manifest.get("axes", {}).values() if isinstance(c, str) and c in cells.columns]
+    lines = []
+    for _, row in uncertain.head(SHOWN_UNCERTAIN).iterrows():
+        where = ", ".join(f"{c} {_text(row[c], 40)}" for c in axes)
+        shares = ", ".join(
+            f"{label.removeprefix('label_')} {_text(row[f'{label}_majority'], 40)} "
+            f"({row[f'{label}_agreement']:.0%})"
+            for label in label_columns(cells)
+        )
+        lines.append(f"  trial {row['trial']}: {where}: {shares}")
+    more = f" (the first {SHOWN_UNCERTAIN})" if len(uncertain) > SHOWN_UNCERTAIN else ""
+    console.print(f"{len(uncertain)} cell(s) not robust{more}: majority label (share of runs agreeing)")
+    for line in lines:
+        console.print(line)
+
+
 def _text(value: object, limit: int = 200) -> str:
     """A stored value (a label, a message, a name from the manifest) as rich prints it verbatim:
     markup escaped (``[/tmp/x]`` in an error message broke ``show``), control characters shown."""
@@ -78,7 +122,9 @@ def print_run_summary(console: Console, summary: RunSummary) -> None:
         stored = f"{summary.skipped} already stored ({summary.stored_errors} as error)"
     console.print(f"{summary.run} trial(s) run ({status}); {stored}; {summary.total} in the study")
     if summary.sampling == "adaptive":
-        rounds = ", ".join(f"round {r.number}: {r.cells} cells, {r.run} run" for r in summary.rounds)
+        rounds = ", ".join(
+            f"round {r.number}: {r.cells} cells, {r.run} run" for r in summary.rounds if r.kind != "replicas"
+        )
         console.print(f"adaptive: {rounds or 'no round left to run'}")
         if summary.interrupted is None:
             as_error = f", {summary.inferred_errors} of them as error" if summary.inferred_errors else ""
@@ -90,15 +136,74 @@ def print_run_summary(console: Console, summary: RunSummary) -> None:
             console.print(f"adaptive: note: {_text(note, 2000)}")
     if summary.by_label:
         console.print("labels: " + ", ".join(f"{_text(k)} {v}" for k, v in sorted(summary.by_label.items())))
+    if summary.robustness is not None and summary.interrupted is None:
+        r = summary.robustness
+        how = (
+            f"{r['boundary_cells']} on a label boundary, {r['audited_cells']} audited"
+            if r["where"] == "boundary"
+            else "every simulated cell"
+        )
+        console.print(
+            f"robustness: {r['cells_replicated']} cell(s) replicated x {r['replicas']} ({how}); "
+            f"{summary.replicas_run} replica(s) run now; somo-sweep show {_text(summary.folder, 2000)} "
+            "lists the cells whose label is not robust"
+        )
     console.print(
         f"wall time {summary.wall_time_s:.1f} s, {summary.trials_per_s:.2f} trials/s; "
         f"results in {_text(summary.folder, 2000)}"
     )
 
 
-def print_results(console: Console, df: pd.DataFrame, manifest: dict[str, Any]) -> None:
-    """Header (study, hash, completeness, runs), counts by status and label, per-axis tables."""
+def _run_line(run: dict[str, Any], holder: str | None, pending: int) -> str:
+    """One run as ``show`` lists it: when it ran, how it ended and the trials it stored.
+
+    A run the manifest still calls ``running`` is running only while a process holds the
+    folder's lock (``holder``); otherwise it was killed, and its finished trials (``pending``)
+    wait in its journal for the next run.
+    """
+    start, status, n = _text(run.get("start_utc")), run.get("status"), run.get("trials_written", 0)
+    backend = f"backend {_text(run.get('backend'))}"
+    if status == "running" and holder is not None:
+        return f"run {start} → still running ({_text(holder)}): {pending} trial(s) finished so far, {backend}"
+    if status == "running":
+        return (
+            f"run {start} → killed (no end recorded): {pending} finished trial(s) in its journal, "
+            f"stored by the next run of the study; {backend}"
+        )
+    if status == "aborted":
+        recovered = run.get("trials_recovered", 0)
+        return (
+            f"run {start} → killed (found {_text(run.get('aborted_found_utc'))}): aborted, {_text(n)} "
+            f"trial(s) stored ({_text(recovered)} recovered from its journal), {backend}"
+        )
+    why = f" ({_text(run.get('failure'), 500)})" if status == "failed" and run.get("failure") else ""
+    return f"run {start} → {_text(run.get('end_utc'))}: {_text(status)}{why}, {_text(n)} trial(s), {backend}"
+
+
+def print_results(
+    console: Console,
+    df: pd.DataFrame,
+    manifest: dict[str, Any],
+    holder: str | None = None,
+    pending: dict[str, int] | None = None,
+) -> None:
+    """Header (study, hash, completeness, runs), counts by status and label, per-axis tables.
+
+    Args:
+        console: Where to print.
+        df: The folder's trials (:func:`~somo_sweep.sweep.folder.read_results`).
+        manifest: Its manifest.
+        holder: Who holds the folder's lock now (a run in progress), or None.
+        pending: Finished trials waiting in the journals of killed runs, by run id
+            (:func:`~somo_sweep.sweep.folder.pending_journal_rows`).
+    """
+    pending = pending or {}
     total = manifest.get("n_trials") or 0
+    replica_runs = 0
+    if not df.empty:
+        n_rows = len(df)
+        df = fold(df)
+        replica_runs = n_rows - len(df)
     inferred = inferred_mask(df)
     stored = f"{len(df)} of {total} trials stored"
     if inferred.any():
@@ -106,6 +211,12 @@ def print_results(console: Console, df: pd.DataFrame, manifest: dict[str, Any]) 
             f"{(~inferred).sum()} simulated and {inferred.sum()} inferred (adaptive sampling) "
             f"of {total} trials"
         )
+    if replica_runs:
+        stored += f", and {replica_runs} robustness replica run(s)"
+    if sum(pending.values()) and holder is None:
+        stored += f" (and {sum(pending.values())} finished in a killed run's journal, stored by the next run)"
+    elif sum(pending.values()):
+        stored += f" (and {sum(pending.values())} finished in the running run's journal)"
     console.print(
         f"[bold]{_text(manifest.get('study_name'))}[/bold]: {stored}, "
         f"study hash {_text(manifest['study_hash'])}, task {_text(manifest.get('study', {}).get('task'))}"
@@ -113,11 +224,12 @@ def print_results(console: Console, df: pd.DataFrame, manifest: dict[str, Any]) 
     runs = manifest.get("runs", [])
     if len(runs) > SHOWN_RUNS:  # a folder resumed thousands of times: its latest runs
         console.print(f"  … {len(runs) - SHOWN_RUNS} earlier run(s) (all in {MANIFEST})")
+    unclaimed = sum(n for run_id, n in pending.items() if all(r.get("run_id") != run_id for r in runs))
     for run in runs[-SHOWN_RUNS:]:
-        console.print(
-            f"  run {_text(run.get('start_utc'))} → {_text(run.get('end_utc'))}: {_text(run.get('status'))}, "
-            f"{_text(run.get('trials_written', 0))} trial(s), backend {_text(run.get('backend'))}"
-        )
+        waiting = pending.get(str(run.get("run_id")), 0)
+        if run.get("status") == "running" and "run_id" not in run:  # an older version's run: no id
+            waiting += unclaimed
+        console.print(f"  {_run_line(run, holder, waiting)}")
     if df.empty:
         return
     counts = _by_sampling(df["status"].rename("status"), inferred)
@@ -128,6 +240,7 @@ def print_results(console: Console, df: pd.DataFrame, manifest: dict[str, Any]) 
     for key, column in manifest.get("axes", {}).items():
         if isinstance(column, str) and column in df.columns:  # a hand-edited manifest may hold anything
             console.print(_table(f"by {key}", breakdown(df, column), column))
+    _print_robustness(console, df, manifest)
     simulated = df[~inferred]
     bad = simulated[simulated["status"] != "ok"]
     if len(bad):

@@ -67,6 +67,11 @@ class TaskSpec:
         check_params: What the task needs of a model and its parameters together (a torque table
             with one column per input of the model), checked when a study is loaded:
             ``check_params(model, params)`` returns one sentence per unmet need.
+        perturb: A small physical perturbation of a trial's parameters, for robustness replicas
+            (:mod:`somo_sweep.sweep.robustness`): ``perturb(params, rng)`` returns new
+            parameters drawn with the NumPy generator ``rng`` (e.g. the object moved by a fraction
+            of a millimetre). None: the task has none, and its studies cannot ask for replicas.
+        perturbation: One line saying what ``perturb`` changes (for ``--help`` and the docs).
     """
 
     name: str
@@ -77,6 +82,8 @@ class TaskSpec:
     metrics: Mapping[str, str] = field(default_factory=dict)
     check_model: Callable[[Model], list[str]] | None = None
     check_params: Callable[[Model, Any], list[str]] | None = None
+    perturb: Callable[[Any, Any], Any] | None = None
+    perturbation: str = ""
 
     @property
     def run(self) -> TaskFn:

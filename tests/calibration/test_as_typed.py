@@ -61,7 +61,7 @@ def test_a_csv_without_finger_line_or_model_says_how_to_give_one(tmp_path: Path)
     [
         (
             "# finger: {length_mm: 100, segments: 20}",
-            "line 1, finger header: mass_g (mass of the bending part, g) is required",
+            "line 1, finger header: mass_g (mass of the bending part, g; 0: weightless) is required",
         ),
         (
             "# finger: {length_mm: 100, segments: 0, mass_g: 20}",
@@ -71,6 +71,10 @@ def test_a_csv_without_finger_line_or_model_says_how_to_give_one(tmp_path: Path)
         (
             "# finger: {length_mm: .nan, segments: 20, mass_g: 20}",
             "length_mm must be a finite number > 0, got nan",
+        ),
+        (
+            "# finger: {length_mm: 100, segments: 20, mass_g: -1}",
+            "mass_g must be a finite number >= 0, got -1",  # 0 is a weightless finger
         ),
         (
             "# finger: {lenght_mm: 100, segments: 20, mass_g: 20}",
@@ -131,7 +135,24 @@ def test_many_bad_rows_are_listed_up_to_twenty_and_counted(tmp_path: Path) -> No
     with pytest.raises(MeasurementError) as info:
         read_measurements(path)
     # two per row: not a number, and then empty where the test needs it
-    assert len(info.value.problems) == 21 and info.value.problems[-1] == "… and 1980 more problem(s)"
+    assert len(info.value.problems) == 2000
+    text = str(info.value)
+    assert text.startswith(f"{path}: 2000 problem(s)\n") and text.endswith("\n  … and 1980 more problem(s)")
+    assert text.count("\n  - ") == 20
+
+
+def test_the_problem_count_counts_every_problem_not_the_lines_listed(tmp_path: Path) -> None:
+    """An all-inf file said "21 problem(s)", listed 20, then "… and 88 more problem(s)"."""
+    path = tmp_path / "inf.csv"
+    path.write_text(
+        "test,pressure_kpa,tip_load_n,tip_deflection_mm,blocked_force_n,tip_x_mm,tip_z_mm\n"
+        + "tip_load,inf,inf,inf,inf,inf,inf\n" * 18
+    )
+    result = CliRunner().invoke(app, ["calibrate", str(path), "--model", "ihm_finger"])
+    assert result.exit_code == 2
+    listed = [ln for ln in result.output.splitlines() if ln.startswith("  - ")]
+    assert f"error: {path}: 108 problem(s)" in result.output and len(listed) == 20
+    assert result.output.rstrip().endswith("  … and 88 more problem(s)")
 
 
 def test_a_long_file_describes_its_rows_in_one_short_line() -> None:

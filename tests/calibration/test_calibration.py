@@ -288,6 +288,23 @@ def test_side_view_bends_the_side_joints_with_their_own_lever_arms() -> None:
     assert 0.05 / (float(deflection_mm) * 1e-3) == pytest.approx(closed, rel=0.01)  # type: ignore[arg-type]
 
 
+def test_side_view_keeps_every_joints_stiffness_under_a_taper_and_a_gradient() -> None:
+    """The side view drops the first segment; profile, gradient and taper are evaluated where each
+    remaining joint sits on the whole finger (before, the gradient moved by one segment)."""
+    manip = load_model(MODELS / "ihm_finger.yaml").manipulator
+    assert manip is not None
+    act = manip.actuators[0].model_copy(
+        update={"stiffness_gradient_per_m": 3.0, "stiffness_tip_ratio": 0.2, "stiffness_taper_shape": 0.0}
+    )
+    manip = manip.model_copy(update={"actuators": [act]})
+    side = side_view(manip).actuators[0]
+    for i in range(side.segments):
+        kept = side.joint_of_segment(i).stiffness * side.stiffness_factor(i)
+        assert kept == pytest.approx(
+            act.joint_of_segment(i + 1).stiffness * act.stiffness_factor(i + 1), rel=1e-12
+        )
+
+
 def test_fig3_data_reproduce_the_published_values_and_say_so() -> None:
     assert "NOT measured" in FIG3.read_text().splitlines()[0]
     rows = read_measurements(FIG3)
@@ -481,3 +498,96 @@ def test_a_row_without_equilibrium_is_named_by_its_file_line() -> None:
     failure = RowFailure(15, "blocked_force", 100.0, 0.0, "no static equilibrium", line=21)
     assert failure.describe() == "line 21 (blocked_force at 100 kPa): no static equilibrium"
     assert RowFailure(15, "tip_load", 0.0, 0.5, "x").describe() == "row 15 (tip_load at 0 kPa, 0.5 N): x"
+
+
+def _repeated(tmp_path: Path, times: int = 4) -> tuple[Path, int, int]:
+    """The synthetic CSV with its fourth tip_load row written ``times`` more times below it (the
+    last copy as ``+0.0600``-style text: the same numbers); returns the file, the row's line and
+    the line of its last copy."""
+    lines = SYNTHETIC.read_text().splitlines()
+    i = [k for k, ln in enumerate(lines) if ln.startswith("tip_load")][3]
+    fields = lines[i].split(",")
+    respelled = ",".join([fields[0], f"{float(fields[1]):+.1f}", f"{float(fields[2])}0", *fields[3:]])
+    copies = [lines[i]] * (times - 1) + [respelled]
+    path = tmp_path / "repeated.csv"
+    path.write_text("\n".join([*lines[: i + 1], *copies, *lines[i + 1 :]]) + "\n")
+    return path, i + 1, i + 1 + times
+
+
+def test_rows_repeated_exactly_are_named_and_counted_once_by_calibrate(tmp_path: Path) -> None:
+    """One row written five times changed the fit and lowered the reported error, silently."""
+    path, line, last = _repeated(tmp_path)
+    clean = runner.invoke(
+        app, ["calibrate", str(SYNTHETIC), "--method", "paper", "-o", str(tmp_path / "a.yaml")]
+    )
+    res = runner.invoke(app, ["calibrate", str(path), "--method", "paper", "-o", str(tmp_path / "b.yaml")])
+    assert clean.exit_code == 0 and res.exit_code == 0, res.output
+    later = ", ".join(str(n) for n in range(line + 1, last + 1))
+    assert (
+        f"warning: {path}: 4 row(s) repeat an earlier row exactly (lines {later} repeat line {line}): every "
+        "field is equal as read (the same test, axis and direction, numbers equal in value, the same empty "
+        "cells); each is counted once"
+    ) in res.output
+    assert "pass --keep-duplicates if they are separate measurements" in res.output
+
+    def values(name: str) -> dict[str, float]:
+        return load_model(tmp_path / name).provenance["calibration"]["parameters"]  # type: ignore[index]
+
+    assert values("b.yaml") == values("a.yaml")
+    kept = runner.invoke(
+        app,
+        ["calibrate", str(path), "--method", "paper", "-o", str(tmp_path / "c.yaml"), "--keep-duplicates"],
+    )
+    assert kept.exit_code == 0 and "kept as separate measurements (--keep-duplicates)" in kept.output
+    assert values("c.yaml") != values("a.yaml")
+
+
+def test_rows_differing_in_any_field_are_not_repeats(tmp_path: Path) -> None:
+    from somo_sweep.calibration.repeats import find_repeats
+
+    path = tmp_path / "m.csv"
+    path.write_text(
+        "test,pressure_kpa,tip_load_n,tip_deflection_mm,blocked_force_n,tip_x_mm,tip_z_mm,axis\n"
+        "tip_load,0,0.1,1.5,,,,grasp\n"
+        "tip_load,0,0.1,1.5,,,,side\n"  # another axis
+        "tip_load,0,0.1,1.50001,,,,grasp\n"  # another value
+        "tip_load,0.0,1e-1,1.50,,,,grasp\n"  # the first row again, spelled otherwise
+        "tip_load,0,0.1,1.5,,,,\n"  # the axis left empty: not the same row as written
+    )
+    assert find_repeats(read_measurements(path)) == {2: [5]}
+
+
+def test_diagnose_takes_keep_duplicates_and_counts_repeats_once_by_default(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    from somo_sweep.diagnosis import diagnose as diagnose_module
+    from somo_sweep.errors import SomoError
+
+    seen: list[tuple[int, bool]] = []
+
+    def stop(rows: pd.DataFrame, *args: object, keep_duplicates: bool = False, **kwargs: object) -> None:
+        seen.append((len(rows), keep_duplicates))
+        raise SomoError("stopped here")
+
+    monkeypatch.setattr(diagnose_module, "build_diagnosis", stop)
+    path, line, _ = _repeated(tmp_path)
+    model = str(MODELS / "ihm_finger.yaml")
+    for extra in ([], ["--keep-duplicates"]):
+        res = runner.invoke(
+            app, ["diagnose", str(path), "--model", model, "--out", str(tmp_path / "d"), *extra]
+        )
+        assert res.exit_code == 2 and "stopped here" in res.output
+        assert f"repeat line {line})" in res.output
+    n = len(read_measurements(SYNTHETIC))
+    assert seen == [(n, True), (n + 4, True)]
+
+
+def test_a_row_repeated_thousands_of_times_is_named_in_one_short_line() -> None:
+    from somo_sweep.calibration.repeats import describe_repeats
+
+    text = describe_repeats({2: list(range(3, 5003))}, kept=False)
+    lines = ", ".join(str(n) for n in range(3, 23))
+    assert text.startswith(
+        f"5000 row(s) repeat an earlier row exactly (lines {lines}, … repeat line 2; … 4980 more"
+    )
+    assert len(text) < 600

@@ -504,3 +504,98 @@ def test_finger_flags_are_held_to_the_header_rules_and_named(tmp_path: Path) -> 
     ):
         finger_from_header(header, str(BUNDLED), width_mm=500.0)
     assert finger_from_header(header, str(BUNDLED), segments=126).manipulator is not None
+
+
+def test_a_quoted_line_break_keeps_the_later_line_numbers(tmp_path: Path) -> None:
+    """A quoted field holding a line break joined two lines: every later row was named one line early."""
+    lines = BUNDLED.read_text().splitlines()
+    header = next(i for i, ln in enumerate(lines) if ln.startswith("test,"))
+    first = lines[header + 1].split(",")
+    broken = ",".join([*first[:-1], '"gr\nasp"'])  # the axis cell of the first row, over two lines
+    lines[header + 1] = broken
+    lines[header + 5] = lines[header + 5].replace("0.05", "zero", 1)  # the fifth data row
+    path = tmp_path / "break.csv"
+    path.write_text("\n".join(lines) + "\n")
+    text = _error(path)
+    assert f"line {header + 2}, column axis: 'gr\\nasp' is not allowed (did you mean 'grasp'?)" in text
+    assert f"line {header + 7}, column tip_load_n: 'zero' is not a number" in text  # one line later
+    lines[header + 5] = BUNDLED.read_text().splitlines()[header + 5]
+    lines[header + 1] = ",".join([*first[:-1], '"gra""\nsp,"', *first[-1:]])  # a quote, then more fields
+    path.write_text("\n".join(lines) + "\n")
+    assert f"line {header + 2} has 10 fields" in _error(path)
+
+
+def test_a_quote_never_closed_is_named_by_its_line(tmp_path: Path) -> None:
+    lines = BUNDLED.read_text().splitlines()
+    header = next(i for i, ln in enumerate(lines) if ln.startswith("test,"))
+    lines[header + 3] = lines[header + 3].replace(",grasp", ',"grasp')
+    path = tmp_path / "open.csv"
+    path.write_text("\n".join(lines) + "\n")
+    assert f'line {header + 4}: a field opens a quote (") that is never closed' in _error(path)
+
+
+def test_a_stray_quote_inside_a_field_joins_no_lines(tmp_path: Path) -> None:
+    """A quote that does not start a field is a character (5" for inches), not an open quote."""
+    lines = BUNDLED.read_text().splitlines()
+    header = next(i for i, ln in enumerate(lines) if ln.startswith("test,"))
+    lines[header + 1] = lines[header + 1].replace(",grasp", ',gr"asp')
+    lines[header + 3] = lines[header + 3].replace("0.03", "zero", 1)
+    path = tmp_path / "stray.csv"
+    path.write_text("\n".join(lines) + "\n")
+    text = _error(path)
+    assert f"line {header + 2}, column axis: 'gr\"asp' is not allowed" in text
+    assert f"line {header + 4}, column tip_load_n: 'zero' is not a number" in text
+
+
+@pytest.mark.parametrize(
+    ("command", "name"), [("calibrate", "calibration.json"), ("diagnose", "diagnosis.json")]
+)
+def test_a_users_own_json_report_is_never_replaced(tmp_path: Path, command: str, name: str) -> None:
+    """A user's own calibration.json / diagnosis.json in the report folder was replaced: any JSON
+    passed for ours. Ours now carry "written_by": "somo-sweep COMMAND"."""
+    from typer.testing import CliRunner
+
+    from somo_sweep.cli.app import app
+
+    report = tmp_path / "report"
+    report.mkdir()
+    mine = '{"my": "lab notes", "method": "by hand"}\n'
+    (report / name).write_text(mine)
+    where = ["--report", str(report), "-o", str(tmp_path / "m.yaml")] if command == "calibrate" else []
+    args = [command, str(BUNDLED), *(where or ["--out", str(report)]), "--model", "ihm_finger"]
+    res = CliRunner().invoke(app, args)
+    assert res.exit_code == 2, res.output
+    assert (
+        f'{report / name} exists and has no "written_by": "somo-sweep …" key: somo-sweep did not write it, '
+        "so it is not replaced; nothing was written"
+    ) in res.output
+    assert "bench simulations" not in res.output and (report / name).read_text() == mine
+    assert sorted(p.name for p in report.iterdir()) == [name] and not (tmp_path / "m.yaml").exists()
+
+
+def test_calibrate_marks_its_json_report_and_replaces_it_and_an_older_unmarked_one(tmp_path: Path) -> None:
+    import json
+
+    from typer.testing import CliRunner
+
+    from somo_sweep.cli.app import app
+
+    report = tmp_path / "report"
+    args = [
+        "calibrate",
+        str(BUNDLED),
+        "--method",
+        "paper",
+        "-o",
+        str(tmp_path / "m.yaml"),
+        "--report",
+        str(report),
+    ]
+    assert CliRunner().invoke(app, args).exit_code == 0
+    written = json.loads((report / "calibration.json").read_text())
+    assert next(iter(written.items())) == ("written_by", "somo-sweep calibrate")
+    older = {k: v for k, v in written.items() if k != "written_by"}  # as an earlier version wrote it
+    (report / "calibration.json").write_text(json.dumps(older))
+    res = CliRunner().invoke(app, args)
+    assert res.exit_code == 0, res.output
+    assert json.loads((report / "calibration.json").read_text())["written_by"] == "somo-sweep calibrate"

@@ -39,8 +39,10 @@ HIDDEN = {
     "none": 0.0,
     "nonlinear_stiffness": 80.0,  # +29 % joint stiffness at 240 kPa's bend
     "actuation_saturation": 260.0**-2,  # −21 % torque at 240 kPa
-    "stiffness_gradient": -6.0,  # tip joint 57 % softer than the base joint (a tapered tip)
-    "self_weight": 0.4,  # the finger weighs 28 g, the model says 20 g
+    # stiffness 1 − 6 /m·s along the 100-mm finger (tip:base 0.4, linear): tip joint 57 % softer
+    # than the base joint (a tapered tip)
+    "stiffness_gradient": float(np.log(0.4)),
+    "self_weight": 0.008,  # kg: the finger weighs 28 g, the model says 20 g
     "hysteresis": 0.001,  # ±3 % of the top actuation torque
 }
 
@@ -95,19 +97,23 @@ def test_unknown_effect_lists_the_valid_ones() -> None:
         get_effect("self_wieght")
 
 
-def test_every_effect_is_off_at_zero_and_changes_the_bench_when_on() -> None:
+def test_every_effect_is_as_given_at_its_current_values_and_changes_the_bench_when_on() -> None:
     manip = example_finger().manipulator
     assert manip is not None
     rows = pd.DataFrame({"pressure_kpa": [240.0], "tip_load_n": [0.1]})
     ref = run_bench(manip, "free_bending", 240.0, settings=SETTINGS).value
     for name, effect in EFFECTS.items():
-        par = effect.parameter(manip, rows)
-        assert par.apply(manip, 0.0) == manip, name
+        first, *others = effect.parameters(manip, rows)
+        for par in (first, *others):
+            assert par.apply(manip, par.current) == manip, (name, par.name)
+        assert first.current == 0.0, name  # the effect is off in the example finger
         direction = "loading" if effect.needs_direction else None
-        on = run_bench(
-            par.apply(manip, 2 * par.probe), "free_bending", 240.0, settings=SETTINGS, direction=direction
-        )
+        on_manip = first.apply(manip, 2 * first.probe)
+        on = run_bench(on_manip, "free_bending", 240.0, settings=SETTINGS, direction=direction)
         assert np.hypot(*np.subtract(on.value, ref)[:2]) > 0.5, name  # mm
+        for par in others:  # a shape parameter changes the bench once the effect is on
+            shaped = run_bench(par.apply(on_manip, par.current + 2 * par.probe), "free_bending", 240.0)
+            assert np.hypot(*np.subtract(shaped.value, on.value)[:2]) > 0.1, (name, par.name)
 
 
 def test_saturated_actuation_follows_tanh() -> None:
@@ -123,6 +129,65 @@ def test_stiffness_gradient_scales_each_joint_linearly_and_rejects_negative_stif
     assert graded.stiffness_factor(10) == pytest.approx(1 - 4.0 * 0.0525)
     with pytest.raises(ValueError, match="stiffness_gradient_per_m"):
         type(act).model_validate({**act.model_dump(), "stiffness_gradient_per_m": -20.0})
+
+
+hypothesis = pytest.importorskip("hypothesis")
+
+
+@hypothesis.settings(max_examples=200, deadline=None, derandomize=True, database=None)
+@hypothesis.given(
+    log_ratio=hypothesis.strategies.floats(-np.log(1e6), np.log(1e6)),
+    shape=hypothesis.strategies.floats(-10.0, 10.0),
+)
+def test_the_taper_is_positive_monotone_and_ends_at_its_ratio_for_any_parameter(
+    log_ratio: float, shape: float
+) -> None:
+    """Every value the schema allows (ratio 1e-6 to 1e6, shape ±10) gives a positive, monotone
+    profile from 1 at the base to the ratio at the tip: the fit can try nothing that makes a
+    joint's stiffness ≤ 0 (the linear gradient it replaces could)."""
+    from somo_sweep.model.description import taper_factor
+
+    ratio = float(np.exp(log_ratio))
+    x = np.linspace(0.0, 1.0, 41)
+    f = np.array([taper_factor(float(v), ratio, shape) for v in x])
+    assert np.all(f > 0) and np.all(np.isfinite(f))
+    steps = np.diff(f) * np.sign(log_ratio)
+    assert np.all(steps >= -1e-12 * np.max(f))
+    assert f[0] == 1.0 and f[-1] == pytest.approx(ratio, rel=1e-9)
+
+
+def test_the_taper_shapes_are_the_named_profiles() -> None:
+    """λ = 1: linear in stiffness; 1/3: linear in thickness (EI ∝ t³); 0: exponential; −1: linear
+    in compliance; and smooth through λ = 0."""
+    from somo_sweep.model.description import taper_factor
+
+    x, r = 0.3, 5.0
+    assert taper_factor(x, r, 1.0) == pytest.approx(1 + (r - 1) * x, rel=1e-12)
+    assert taper_factor(x, r, 1 / 3) == pytest.approx((1 + (r ** (1 / 3) - 1) * x) ** 3, rel=1e-12)
+    assert taper_factor(x, r, 0.0) == pytest.approx(r**x, rel=1e-12)
+    assert taper_factor(x, r, 1e-9) == pytest.approx(r**x, rel=1e-8)
+    assert 1 / taper_factor(x, r, -1.0) == pytest.approx(1 + (1 / r - 1) * x, rel=1e-12)
+    act = example_finger().manipulator.actuators[0]  # type: ignore[union-attr]
+    tapered = act.model_copy(update={"stiffness_tip_ratio": 0.4})  # linear (λ = 1) by default
+    graded = act.model_copy(update={"stiffness_gradient_per_m": -6.0})  # 1 − 6 /m·s over 100 mm
+    for i in range(act.segments):
+        assert tapered.stiffness_factor(i) == pytest.approx(graded.stiffness_factor(i), rel=1e-12)
+
+
+def test_a_finger_told_0_g_is_weightless_and_self_weight_gives_it_its_weight() -> None:
+    """The header's mass_g may be 0 (the weight left out); the absolute added mass then supplies it."""
+    from somo_sweep.calibration.finger import finger_from_header
+    from somo_sweep.diagnosis.effects import actuator_mass_kg
+
+    weightless = finger_from_header({"length_mm": 100, "segments": 20, "mass_g": 0}).manipulator
+    assert weightless is not None
+    assert actuator_mass_kg(weightless) < 1e-7
+    heavy = add_effect(weightless, "self_weight", 0.020)
+    assert actuator_mass_kg(heavy) == pytest.approx(0.020, rel=1e-6)
+    flat = run_bench(heavy, "blocked_force", 0.0, settings=SETTINGS).value
+    assert flat == pytest.approx(0.020 * 9.81 * (1 - 1 / 20), rel=1e-3)  # W·(1 − 1/N) on the plate
+    # 20 links at the schema's least mass (1e-9 kg): 2e-7 N
+    assert run_bench(weightless, "blocked_force", 0.0, settings=SETTINGS).value == pytest.approx(0, abs=1e-6)
 
 
 def test_stiffening_spring_matches_the_cubic_law_on_a_single_joint() -> None:
@@ -329,8 +394,10 @@ def test_rows_repeated_exactly_are_counted_once() -> None:
     twice = pd.concat([rows, rows.assign(line=rows["line"] + 100)], ignore_index=True)
     once = build_diagnosis(rows, example_finger(), effects=["self_weight"])
     copied = build_diagnosis(twice, example_finger(), effects=["self_weight"])
-    first = ", ".join(str(v) for v in rows["line"].head(5) + 100)
-    assert copied.notes == (f"36 row(s) repeat an earlier row exactly (lines {first} …): counted once",)
+    first = "; ".join(f"line {v + 100} repeats line {v}" for v in rows["line"].head(20))
+    (note,) = copied.notes
+    assert note.startswith(f"36 row(s) repeat an earlier row exactly ({first}; … 16 more row(s))")
+    assert "each is counted once" in note
     assert len(copied.rows) == len(once.rows) == 36 and not once.notes
     assert {k: v.sigma for k, v in copied.noise.items()} == {k: v.sigma for k, v in once.noise.items()}
     assert copied.describe().startswith("36 row(s) repeat an earlier row exactly")

@@ -6,6 +6,7 @@ value and what is allowed; none gets as far as PyBullet.
 
 from __future__ import annotations
 
+import json
 import time
 from pathlib import Path
 
@@ -100,9 +101,57 @@ def test_a_key_given_twice_names_the_key_and_both_lines(tmp_path: Path) -> None:
     ) in _error(path)
 
 
-def test_a_key_given_twice_in_json_is_refused(tmp_path: Path) -> None:
-    path = _write(tmp_path, '{"manipulator": {}, "manipulator": {}}', "m.json")
-    assert "manipulator: key 'manipulator' is given twice in one object; allowed: once" in _error(path)
+def test_a_key_given_twice_in_json_is_refused_with_both_lines(tmp_path: Path) -> None:
+    path = _write(
+        tmp_path, '{"manipulator": {\n  "name": "a",\n  "name": "b"},\n "manipulator": {}}', "m.json"
+    )
+    text = _error(path)
+    assert "line 3: manipulator.name: key 'name' is given twice (lines 2 and 3); allowed: each" in text
+    assert "line 4: manipulator: key 'manipulator' is given twice (lines 1 and 4)" in text
+
+
+def test_json_model_errors_name_their_lines_as_yaml_ones_do(tmp_path: Path) -> None:
+    """A JSON model's problems had key paths but no lines."""
+    data = load_yaml("ihm_finger.yaml")
+    data["manipulator"]["actuators"][0]["lenght_m"] = 1
+    data["manipulator"]["actuators"][0]["link"]["mass_kg"] = -1
+    text = json.dumps(data, indent=2)
+
+    def line_of(fragment: str) -> int:
+        return next(n for n, ln in enumerate(text.splitlines(), start=1) if fragment in ln)
+
+    problems = _error(_write(tmp_path, text, "m.json"))
+    assert f"line {line_of('lenght_m')}: manipulator.actuators[0].lenght_m: unknown key" in problems
+    mass = line_of('"mass_kg": -1')
+    assert f"line {mass}: manipulator.actuators[0].link.mass_kg: Input should be" in problems
+    data["manipulator"]["tip_links"][0]["radius_m"] = float("nan")
+    text = json.dumps(data, indent=2)
+    problems = _error(_write(tmp_path, text, "m.json"))
+    assert f"line {line_of('NaN')}: manipulator.tip_links[0].radius_m: must be a finite number" in problems
+    one_line = _error(_write(tmp_path, json.dumps(data), "flat.json"))  # all on line 1
+    assert "line 1: manipulator.tip_links[0].radius_m" in one_line
+
+
+def test_json_line_numbers_survive_escapes_and_nesting(tmp_path: Path) -> None:
+    from somo_sweep.model.files import load_mapping
+
+    text = '{"a": {"b\\"": [1, {"c": "x,:{}[]\\\\"}, [3,\n 4]]},\n\n  "e": [\n\n  {"f": 1}]}'
+    data, lines = load_mapping(_write(tmp_path, text, "t.json"))
+    assert data["a"]['b"'][1]["c"] == "x,:{}[]\\"
+    assert lines['a.b"[2][1]'] == 2 and lines["e"] == 4 and lines["e[0]"] == 6 and lines["e[0].f"] == 6
+
+
+@pytest.mark.parametrize("suffix", [".yaml", ".json"])
+def test_include_errors_name_the_line_of_their_file_key(tmp_path: Path, suffix: str) -> None:
+    """An include that could not be read named its key path but no line."""
+    gripper = yaml.safe_load((MODELS / "pinch_gripper.yaml").read_text())
+    for mount in gripper["assembly"]["manipulators"]:
+        mount["file"] = "missing.yaml"
+    text = yaml.safe_dump(gripper, sort_keys=False) if suffix == ".yaml" else json.dumps(gripper, indent=2)
+    where = [n for n, ln in enumerate(text.splitlines(), start=1) if "missing.yaml" in ln]
+    problems = _error(_write(tmp_path, text, f"g{suffix}"))
+    for i, line in enumerate(where):
+        assert f"line {line}: assembly.manipulators[{i}].file: cannot include" in problems
 
 
 @pytest.mark.parametrize("value", [".nan", ".inf", "-.inf"])
@@ -345,3 +394,34 @@ def test_a_bad_value_in_an_included_file_is_named_by_that_file_and_its_line(tmp_
     with pytest.raises(DescriptionError) as info:
         load_model(tmp_path / "a.yaml")
     assert f"m/neg.yaml: line {number}: manipulator.actuators[0].length_m" in str(info.value)
+
+
+def test_a_file_with_many_problems_lists_twenty_and_counts_them_all(tmp_path: Path) -> None:
+    data = load_yaml("ihm_finger.yaml")
+    data["manipulator"].update({f"unknown_{i}": 1 for i in range(25)})
+    with pytest.raises(DescriptionError) as info:
+        model_from_dict(data, "m.yaml")
+    text = str(info.value)
+    assert len(info.value.problems) == 25 and text.startswith("m.yaml: 25 problem(s)\n")
+    assert text.count("\n  - ") == 20 and text.endswith("\n  … and 5 more problem(s)")
+
+
+@pytest.mark.parametrize("command", [["check"], ["run", "--dry-run"], ["calibrate"], ["diagnose"]])
+def test_a_symbolic_link_loop_is_named_a_loop_not_a_missing_file(tmp_path: Path, command: list[str]) -> None:
+    """A study that is a link loop was reported as "file not found"."""
+    (tmp_path / "a.yaml").symlink_to(tmp_path / "b.yaml")
+    (tmp_path / "b.yaml").symlink_to(tmp_path / "a.yaml")
+    res = CliRunner().invoke(app, [command[0], str(tmp_path / "a.yaml"), *command[1:]])
+    assert res.exit_code == 2 and "Traceback" not in res.output
+    assert "a symbolic link on the way leads back to itself, a link loop (Too many levels" in res.output
+    assert "remove or repair that link" in res.output and "not found" not in res.output
+
+
+def test_a_study_whose_model_is_a_link_to_nothing_says_so(tmp_path: Path) -> None:
+    (tmp_path / "gone.yaml").symlink_to(tmp_path / "deleted.yaml")
+    study = tmp_path / "s.yaml"
+    study.write_text("task: selftest_sleep\nmodel: gone.yaml\n")
+    res = CliRunner().invoke(app, ["run", str(study), "--dry-run"])
+    assert res.exit_code == 2
+    link, target = tmp_path / "gone.yaml", tmp_path / "deleted.yaml"
+    assert f"model file {link}: a symbolic link to {target}, which does not exist" in res.output

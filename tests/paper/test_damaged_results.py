@@ -85,7 +85,7 @@ def test_rows_of_another_study_name_their_file(tmp_path: Path) -> None:
         ({"axes": ["a"]}, "its 'axes' is list, not a mapping"),
         ({"runs": "x"}, "its 'runs' is str, not a list"),
         ({"runs": ["x"]}, "its 'runs' holds an entry that is not a mapping"),
-        ({"n_trials": "24"}, "its 'n_trials' is str, not a whole number"),
+        ({"n_trials": "24"}, "its 'n_trials' is \"24\", not a whole number of trials"),
     ],
 )
 def test_a_manifest_edited_into_the_wrong_shape_is_called_damaged(

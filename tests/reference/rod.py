@@ -94,6 +94,7 @@ __all__ = [
     "solve_free",
     "solve_row",
     "standard_finger",
+    "with_noise",
 ]
 
 COLUMNS = (
@@ -978,6 +979,20 @@ def bench_rows(
         )
         for col, v in got.items():
             values[i, MEASURED.index(col)] = v
+    for j, col in enumerate(MEASURED):
+        out[col] = values[:, j]
+    return with_noise(out, noise_rel, seed)
+
+
+def with_noise(rows: pd.DataFrame, noise_rel: float, seed: int | None = 0) -> pd.DataFrame:
+    """A copy of noiseless bench rows with every measured value times (1 + noise_rel·N(0, 1)).
+
+    The noise of :func:`bench_rows`: one standard-normal draw per row and measured column
+    (shape (rows, 5), in the order of :data:`MEASURED`) from ``numpy.random.default_rng(seed)``,
+    so noiseless rows solved once can be given any seed's noise.
+    """
+    out = rows.copy()
+    values = out[list(MEASURED)].to_numpy(dtype=float, copy=True)
     rng = np.random.default_rng(seed)
     values *= 1 + noise_rel * rng.standard_normal(values.shape)
     for j, col in enumerate(MEASURED):

@@ -1,8 +1,10 @@
 """Bench statics solved directly (somo_sweep.sim.statics) against dynamic relaxation and closed forms.
 
-Run as a script for the agreement table and the timings over a larger sample::
+Run as a script for the agreement table and the timings over a larger sample, or for the
+failure count of random rows of the always-finds-its-equilibrium family::
 
-    PYTHONPATH=. python tests/test_statics.py [cases]
+    cd tests && PYTHONPATH=. python sim/test_statics.py [cases [seed]]
+    cd tests && PYTHONPATH=. python sim/test_statics.py equilibria ROWS MAX_CURL_DEG SEED
 """
 
 from __future__ import annotations
@@ -391,7 +393,9 @@ def test_a_row_without_equilibrium_is_a_status_not_an_exception() -> None:
     assert not row.ok and row.status.cause
     assert all(math.isnan(v) for v in row.value)  # type: ignore[union-attr]
     assert row.status.iterations <= MAX_ITERATIONS_TOTAL
-    with pytest.raises(SimulationError, match="no static equilibrium"):
+    # Proven: the actuation exceeds what the softening springs hold where the finger is stable.
+    assert row.status.cause.startswith("no stable equilibrium: joint ")
+    with pytest.raises(SimulationError, match=r"no stable equilibrium: joint .* holds at most"):
         run_bench(_softened(), "free_bending", 100.0)
     bad = solve_row(_softened(), "tipload", 0.0)  # even a bad request is a status
     assert not bad.ok and "unknown test" in bad.status.cause
@@ -527,6 +531,138 @@ def test_every_row_returns_a_value_or_a_failed_status_quickly(**kw: Any) -> None
     assert elapsed < 20.0
 
 
+def _tapered_finger(
+    segments: int,
+    tip_stiffness_n_m: float,
+    mass_kg: float,
+    thickness_m: float,
+    ratio: float,
+    shape: float,
+    curl_deg: float,
+) -> Manipulator:
+    """A planar finger whose joint stiffness runs from the base to ``ratio`` times it at the tip.
+
+    The profile is written as the per-segment ``stiffness_profile`` (the taper family's values at
+    the joints), so the same finger loads in a version without the taper fields.
+    ``tip_stiffness_n_m``: the weightless chain's small-deflection tip stiffness; ``curl_deg``: the
+    weightless tip angle at 240 kPa (Σ u/k_j).
+    """
+    from somo_sweep.model.description import taper_factor
+
+    length = 0.100
+    base = planar_finger(length, segments, mass_kg, thickness_m=thickness_m).manipulator
+    assert base is not None
+    act = base.actuators[0]
+    x = np.array([act.joint_position_m(i) for i in range(segments)]) / length
+    profile = np.array([taper_factor(float(v), ratio, shape) for v in x])
+    arms = length * (1 - x)
+    k = tip_stiffness_n_m * float(np.sum(arms**2 / profile))
+    gain = math.radians(curl_deg) / float(np.sum(1 / (k * profile))) / 240.0
+    joint = act.joints[0].model_copy(update={"stiffness_n_m_per_rad": k})
+    act = act.model_copy(update={"joints": [joint], "stiffness_profile": profile.tolist()})
+    return base.model_copy(
+        update={"actuators": [act], "actuation": Actuation(pressure_gain_n_m_per_kpa=gain)}
+    )
+
+
+@hypothesis.settings(max_examples=100, deadline=None, derandomize=True, database=None)
+@hypothesis.given(
+    segments=st.sampled_from([5, 10, 20]),
+    tip_stiffness=st.floats(5.0, 80.0),
+    mass_kg=st.sampled_from([0.0, 0.005, 0.02, 0.06, 0.1]),
+    thickness_m=st.sampled_from([0.001, 0.015]),
+    log_ratio=st.floats(-math.log(10.0), math.log(10.0)),
+    shape=st.floats(-1.0, 1.0),
+    curl_deg=st.floats(10.0, 3600.0),
+    test=st.sampled_from(["tip_load", "blocked_force", "free_bending"]),
+    pressure_share=st.floats(0.0, 1.0),
+    load_share=st.floats(0.0, 1.0),
+)
+# Rows a random search of this family found refused before issue 33: a joint past 4π (the
+# first two), a blocked force whose Newton steps crawled (×0.8 per step) on a contact penalty
+# too weak to make its matrix positive definite (the third).
+@hypothesis.example(
+    segments=5,
+    tip_stiffness=42.8,
+    mass_kg=0.06,
+    thickness_m=0.001,
+    log_ratio=math.log(5.019),
+    shape=-0.34,
+    curl_deg=1717.0,
+    test="blocked_force",
+    pressure_share=229 / 240,
+    load_share=0.0,
+)
+@hypothesis.example(
+    segments=5,
+    tip_stiffness=8.4,
+    mass_kg=0.06,
+    thickness_m=0.001,
+    log_ratio=math.log(4.78),
+    shape=0.83,
+    curl_deg=2704.0,
+    test="free_bending",
+    pressure_share=188 / 240,
+    load_share=0.0,
+)
+@hypothesis.example(
+    segments=5,
+    tip_stiffness=17.5,
+    mass_kg=0.0,
+    thickness_m=0.015,
+    log_ratio=math.log(0.118),
+    shape=-0.89,
+    curl_deg=3524.0,
+    test="tip_load",
+    pressure_share=204 / 240,
+    load_share=0.8,
+)
+def test_a_finger_that_has_an_equilibrium_always_finds_it(**kw: Any) -> None:
+    """Springs that never soften always have an equilibrium (a coercive energy; docs/physics.md):
+    stiffness profiles up to 10:1 either way, weightless to 100 g, tip loads up to K·L, and at
+    the largest pressure (240 kPa) curls up to 10 turns (a calibrated finger curls about one
+    turn at most, a fit's trial points further). Every row must solve. Before issue 33 a soft
+    tip curled past 4π was refused as "a joint turned past 4π: no equilibrium" (3 of 1000
+    random rows of this family failed; the explicit examples are such rows)."""
+    manip = _tapered_finger(
+        kw["segments"],
+        kw["tip_stiffness"],
+        kw["mass_kg"],
+        kw["thickness_m"],
+        math.exp(kw["log_ratio"]),
+        kw["shape"],
+        kw["curl_deg"],
+    )
+    load = kw["load_share"] * kw["tip_stiffness"] * 0.100
+    row = solve_row(manip, kw["test"], 240.0 * kw["pressure_share"], load)
+    assert row.ok, row.status.cause
+    assert np.all(np.isfinite(np.atleast_1d(np.asarray(row.value, float))))
+
+
+def test_a_softening_joint_is_solved_below_its_peak_and_proven_without_equilibrium_above() -> None:
+    """One weightless joint, k·θ·(1 + a·θ²) = u: the torque peaks at ⅔·k·θ* (θ* = 1/√(−3a)). Below
+    the peak the solve finds the stable root; above it the failure says why, with the numbers."""
+    manip = planar_finger(
+        0.1, 1, 0.001, stiffness_n_m_per_rad=0.5, pressure_gain_n_m_per_kpa=1e-4
+    ).manipulator
+    assert manip is not None
+    a = -20.0
+    joint = manip.actuators[0].joints[0].model_copy(update={"stiffening_per_rad2": a})
+    manip = manip.model_copy(
+        update={"actuators": [manip.actuators[0].model_copy(update={"joints": [joint]})]}
+    )
+    peak = 2 / 3 * 0.5 / math.sqrt(-3 * a)  # N·m
+    below = solve_row(manip, "free_bending", 0.95 * peak / 1e-4, 0.0, WEIGHTLESS)
+    assert below.ok
+    roots = np.roots([0.5 * a, 0.0, 0.5, -0.95 * peak])
+    theta = min(r.real for r in roots if abs(r.imag) < 1e-12 and r.real > 0)
+    assert below.value[2] == pytest.approx(math.degrees(theta), rel=1e-9)  # type: ignore[index]
+    above = solve_row(manip, "free_bending", 1.05 * peak / 1e-4, 0.0, WEIGHTLESS)
+    assert not above.ok
+    assert above.status.cause.startswith("no stable equilibrium: joint 0's softening spring")
+    assert f"holds at most {peak:.3g} N·m" in above.status.cause
+
+
 # --------------------------------------------------------------------------- as a script
 def _timings(segments: int, repeat: int = 3) -> dict[str, float]:
     """Median ms per row (solve, cached body; and dynamic) for a calibration-like row set."""
@@ -553,9 +689,40 @@ def _timings(segments: int, repeat: int = 3) -> dict[str, float]:
     return {"solve_ms": 1e3 * min(best), "dynamic_ms": 1e3 * float(np.median(dyn))}
 
 
+def _equilibria(n: int, max_curl_deg: float, seed: int) -> None:
+    """Random rows of the family of ``test_a_finger_that_has_an_equilibrium_always_finds_it``
+    (curls log-uniform from 10° to ``max_curl_deg``): prints every failure and the count."""
+    rng = np.random.default_rng(seed)
+    failed, iterations = 0, []
+    for _ in range(n):
+        k = float(rng.uniform(5, 80))
+        manip = _tapered_finger(
+            int(rng.choice([5, 10, 20])),
+            k,
+            float(rng.choice([0.0, 0.005, 0.02, 0.06, 0.1])),
+            float(rng.choice([0.001, 0.015])),
+            float(np.exp(rng.uniform(-np.log(10), np.log(10)))),
+            float(rng.uniform(-1, 1)),
+            float(np.exp(rng.uniform(np.log(10), np.log(max_curl_deg)))),
+        )
+        test = str(rng.choice(["tip_load", "blocked_force", "free_bending"]))
+        row = solve_row(manip, test, 240 * float(rng.uniform()), float(rng.uniform()) * k * 0.1)
+        iterations.append(row.status.iterations)
+        if not row.ok:
+            failed += 1
+            print(f"failed: {test}: {row.status.cause}")
+    print(
+        f"{failed} of {n} rows failed; Newton iterations median {np.median(iterations):g}, "
+        f"max {max(iterations)}"
+    )
+
+
 if __name__ == "__main__":
     import sys
 
+    if sys.argv[1:2] == ["equilibria"]:  # equilibria ROWS MAX_CURL_DEG SEED
+        _equilibria(int(sys.argv[2]), float(sys.argv[3]), int(sys.argv[4]))
+        sys.exit()
     n = int(sys.argv[1]) if len(sys.argv) > 1 else 40
     rng = np.random.default_rng(int(sys.argv[2]) if len(sys.argv) > 2 else 7)
     fingers = [sample_finger(rng) for _ in range(n)]

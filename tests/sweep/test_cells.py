@@ -182,3 +182,13 @@ def test_adaptive_sampling_runs_every_row_and_refines_only_the_sweep_axes(tmp_pa
     assert "task.x: 9 values, refined, coarse: every 4th value and the last" in text
     summary = run_study(study, n_jobs=1)
     assert summary.run == 6 and summary.inferred == 12  # x = 1, 5, 9 in each row; the rest agree
+
+
+def test_a_list_of_cells_gets_robustness_replicas_too(tmp_path: Path) -> None:
+    # A cells: table is one dimension of the study (its rows in order), not a grid to refine.
+    rows = "".join(f"  - {{task.x: {x}}}\n" for x in (-2, 0.5, 3))
+    body = HEAD + "params: {jitter: 0.1}\ncells:\n" + rows + "robustness: {replicas: 2, where: all}\n"
+    study = load_study(make_study(tmp_path, body + "simulation: {time_step_s: 1.0e-3}\n"), tmp_path / "out")
+    summary = run_study(study, n_jobs=1)
+    assert (summary.run, summary.replicas_run) == (3, 6)
+    assert sorted(read_results(tmp_path / "out")["replica"]) == [0, 0, 0, 1, 1, 1, 2, 2, 2]

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import os
 import sys
 from pathlib import Path
 
@@ -228,7 +229,7 @@ def test_a_file_somo_sweep_did_not_write_is_never_replaced(
     argv = [str(precious) if a == "FILE" else str(study) if a == "STUDY" else a for a in argv]
     res = CliRunner().invoke(app, argv)
     assert res.exit_code == 2, res.output
-    what = "is not JSON" if kind == "json" else "has no 'somo-sweep' header"
+    what = 'has no "written_by": "somo-sweep …" key' if kind == "json" else "has no 'somo-sweep' header"
     assert f"{precious} exists and {what}: somo-sweep did not write it, so it is not replaced" in res.output
     assert precious.read_text() == "my own notes\n"
 
@@ -257,3 +258,59 @@ def test_diagnose_out_folder_keeps_the_users_own_report_and_replaces_its_own(tmp
     res = CliRunner().invoke(app, ["diagnose", str(BENCH), "--out", str(out), "--effects", "self_weight"])
     assert res.exit_code == 0, res.output
     assert (out / "report.md").read_text().startswith("<!-- written by somo-sweep diagnose -->")
+
+
+def test_the_resource_trackers_leak_list_is_filtered_for_the_processes_a_run_starts(
+    monkeypatch: pytest.MonkeyPatch,
+) -> None:
+    """Loky's resource tracker is a process of its own that outlives a killed run; it printed its
+    list of "leaked" semaphores (which it then removes) under the user's prompt."""
+    import subprocess
+
+    from somo_sweep.cli.app import _quiet_resource_tracker
+
+    monkeypatch.setenv("PYTHONWARNINGS", "error::DeprecationWarning")
+    _quiet_resource_tracker()
+    _quiet_resource_tracker()
+    assert os.environ["PYTHONWARNINGS"] == "error::DeprecationWarning,ignore:resource_tracker:UserWarning"
+    tracker = (
+        "import warnings; warnings.warn('resource_tracker: There appear to be 8 leaked semlock objects')"
+    )
+    ours = "import warnings; warnings.warn('something else')"
+    for code, shown in ((tracker, False), (ours, True)):
+        err = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True).stderr
+        assert ("UserWarning" in err) == shown, err
+
+
+@pytest.mark.parametrize(
+    ("argv", "name"),
+    [
+        (["calibrate", str(BENCH), "--method", "paper", "-o", "OUT"], "model.yaml"),
+        (
+            ["measure", str(FINGER_MODEL), "--test", "tip_load", "--values", "0.1", "--csv", "OUT"],
+            "measurements.csv",
+        ),
+        (["recheck", "STUDY", "-n", "1", "--report", "OUT"], "recheck.json"),
+    ],
+    ids=["calibrate", "measure", "recheck"],
+)
+@pytest.mark.parametrize("how", ["slash", "existing", "file"])
+def test_an_output_file_option_given_a_folder_writes_into_it(
+    tmp_path: Path, argv: list[str], name: str, how: str
+) -> None:
+    """``-o out/`` wrote a file named ``out``. A folder (a trailing slash, or one that exists)
+    gets the file under its documented name; a plain new name is still the file itself."""
+    study = selftest_study(tmp_path)
+    if argv[0] == "recheck":
+        run_study(load_study(study, tmp_path / "results"), n_jobs=1)
+        argv = [*argv, "--out", str(tmp_path / "results")]
+    out = tmp_path / "out"
+    if how == "existing":
+        out.mkdir()
+    given = f"{out}/" if how == "slash" else str(out)
+    res = CliRunner().invoke(app, [given if a == "OUT" else str(study) if a == "STUDY" else a for a in argv])
+    assert res.exit_code == 0, res.output
+    if how == "file":
+        assert out.is_file()
+    else:
+        assert out.is_dir() and sorted(os.listdir(out)) == [name]

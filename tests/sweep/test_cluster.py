@@ -132,6 +132,22 @@ def test_a_worker_with_other_trial_code_stops_the_run_with_what_to_do(
     assert read_manifest(tmp_path / "out")["runs"][-1]["status"] == "failed"
 
 
+def test_robustness_replicas_run_on_the_cluster_as_on_local_workers(tmp_path: Path, cluster: Cluster) -> None:
+    # Sign flips between x = -0.01 and 0.01: those two cells are the boundary, replicated 4 times each.
+    body = (
+        "name: sg\ntask: selftest_sleep\nmodel: models/ihm_finger.yaml\nparams: {sleep_s: 0.0, jitter: 1.0}\n"
+        "sweep:\n  task.x: [-3, -2, -0.01, 0.01, 2, 3]\nrobustness: {replicas: 4, audit_fraction: 0}\n"
+        "simulation: {time_step_s: 1.0e-3}\n"
+    )
+    path = make_study(tmp_path, body)
+    on_dask = run_study(load_study(path, tmp_path / "dask"), backend="dask", scheduler=cluster.address)
+    on_joblib = run_study(load_study(path, tmp_path / "joblib"), n_jobs=2)
+    assert (on_dask.run, on_dask.replicas_run) == (on_joblib.run, on_joblib.replicas_run) == (6, 8)
+    dask_rows, joblib_rows = read_results(tmp_path / "dask"), read_results(tmp_path / "joblib")
+    pd.testing.assert_frame_equal(results_only(dask_rows), results_only(joblib_rows), check_exact=True)
+    assert sorted(dask_rows["replica"]) == [0] * 6 + [1, 1, 2, 2, 3, 3, 4, 4]
+
+
 def test_a_worker_killed_mid_study_costs_no_finished_trial(tmp_path: Path, cluster: Cluster) -> None:
     fifo = tmp_path / "finished"
     os.mkfifo(fifo)

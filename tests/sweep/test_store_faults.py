@@ -5,6 +5,8 @@ from __future__ import annotations
 import errno
 import json
 import os
+import re
+import shutil
 from pathlib import Path
 
 import pandas as pd
@@ -239,14 +241,14 @@ def test_out_pointing_at_a_file_is_a_clear_error(tmp_path: Path) -> None:
 class _DiskFull:
     """``pq.write_table`` that succeeds ``allowed`` times, then fails as a full disk does."""
 
-    def __init__(self, allowed: int):
-        self.allowed = allowed
+    def __init__(self, allowed: int, code: int = errno.ENOSPC):
+        self.allowed, self.code = allowed, code
         self.real = pq.write_table
 
     def __call__(self, table: pa.Table, where: Path, **kwargs: object) -> None:
         if self.allowed <= 0:
             Path(where).write_bytes(b"PAR1 half a file")  # a partial write, as the disk filled up
-            raise OSError(errno.ENOSPC, os.strerror(errno.ENOSPC))
+            raise OSError(self.code, os.strerror(self.code))
         self.allowed -= 1
         self.real(table, where, **kwargs)
 
@@ -259,8 +261,11 @@ def test_a_full_disk_stops_the_run_keeping_every_written_row(
     monkeypatch.setattr(store_module.pq, "write_table", _DiskFull(allowed=2))
     with pytest.raises(StorageError) as info:
         run_study(load_study(path, out), n_jobs=1, chunk_rows=2)
-    assert "cannot write the results in" in str(info.value) and "No space left on device" in str(info.value)
-    assert "and 4 of them are in the table, intact" in str(info.value)
+    text = str(info.value)
+    assert text.startswith(f"stopped: cannot write {out / 'trials' / 'part-'}")  # the part, not a tmp
+    assert ".parquet: the disk is full (No space left on device)." in text
+    assert "and 4 of them are in the table, intact" in text
+    assert "To go on: free space on that disk, then run the same command again" in text
     monkeypatch.undo()
     kept = read_results(out)
     run = read_manifest(out)["runs"][-1]
@@ -279,19 +284,19 @@ def test_a_full_disk_exits_1_with_a_message_not_a_traceback(
     monkeypatch.setattr(store_module.pq, "write_table", _DiskFull(allowed=1))
     res = _run(path, tmp_path / "out", "--chunk-rows", "2")
     assert res.exit_code == 1 and "Traceback" not in res.output
-    assert "error: stopped: cannot write the results in" in res.output
+    assert "error: stopped: cannot write " in res.output and "the disk is full" in res.output
 
 
-def test_finished_trials_of_a_killed_run_are_recovered_from_its_journal(tmp_path: Path) -> None:
-    path = selftest_study(tmp_path)
-    out = tmp_path / "out"
+def _killed_after(path: Path, out: Path, finished: int) -> int:
+    """Run the study in a child process killed after ``finished`` trials (no cleanup of any
+    kind, as SIGKILL); returns the child's pid."""
     pid = os.fork()
-    if pid == 0:  # a run killed after 5 finished trials: no cleanup of any kind
+    if pid == 0:
         try:
 
             def die(outcome: object, seen: list[int] = [0]) -> None:  # noqa: B006
                 seen[0] += 1
-                if seen[0] == 5:
+                if seen[0] == finished:
                     os._exit(9)
 
             run_study(load_study(path, out), n_jobs=1, chunk_rows=100, on_outcome=die)
@@ -299,14 +304,257 @@ def test_finished_trials_of_a_killed_run_are_recovered_from_its_journal(tmp_path
             os._exit(1)
     _, status = os.waitpid(pid, 0)
     assert os.waitstatus_to_exitcode(status) == 9
+    return pid
+
+
+def test_finished_trials_of_a_killed_run_are_recovered_from_its_journal(tmp_path: Path) -> None:
+    path = selftest_study(tmp_path)
+    out = tmp_path / "out"
+    pid = _killed_after(path, out, 5)
+    assert f"pid {pid} on " in (out / ".lock").read_text()  # the killed run's lock file is left
     assert (
         not _parts(out)
         and len((out / "trials").glob(".journal-*.jsonl").__next__().read_text().splitlines()) == 5
     )
-    summary = run_study(load_study(path, out), n_jobs=1)
+    summary = run_study(load_study(path, out), n_jobs=1)  # the stale lock does not stop it
     assert (summary.skipped, summary.run) == (5, 3)
     assert "recovered 5 finished trial(s) of a killed run from its journal" in summary.notes
+    killed = "was killed (or its disk could not be written even to record its end): marked aborted"
+    assert any(f"(pid {pid} on " in note and killed in note for note in summary.notes)
     assert read_manifest(out)["runs"][0]["status"] == "aborted"
+    assert not (out / ".lock").exists()
+
+
+def test_show_tells_a_killed_run_and_the_trials_its_journal_holds(tmp_path: Path) -> None:
+    """``show`` said "→ None: aborted, 0 trial(s)" of a killed run whose 5 trials were recovered."""
+    path = selftest_study(tmp_path)
+    out = tmp_path / "out"
+    _killed_after(path, out, 5)
+    before = CliRunner().invoke(app, ["show", str(out)], env={"COLUMNS": "300"})
+    assert before.exit_code == 0, before.output
+    assert "0 of 8 trials stored (and 5 finished in a killed run's journal, stored by the next run)" in (
+        before.output
+    )
+    assert "→ killed (no end recorded): 5 finished trial(s) in its journal" in before.output
+    assert "running" not in before.output
+    run_study(load_study(path, out), n_jobs=1)
+    after = CliRunner().invoke(app, ["show", str(out)], env={"COLUMNS": "300"})
+    assert "8 of 8 trials stored, study hash" in after.output
+    assert "→ killed (found " in after.output
+    assert "aborted, 5 trial(s) stored (5 recovered from its journal)" in after.output
+    assert "None" not in after.output
+
+
+def test_show_tells_a_run_in_progress_from_a_killed_one(tmp_path: Path) -> None:
+    path = selftest_study(tmp_path)
+    study = load_study(path, tmp_path / "out")
+    table = build_jobs(study)
+    holder = ResultStore(study.output, table.study_hash, table.resolved, table.axes, {})
+    try:
+        holder.start_run({"backend": "loky"})
+        holder.journal({"job_id": table.jobs[0].job_id, "study_hash": table.study_hash})
+        res = CliRunner().invoke(app, ["show", str(study.output)], env={"COLUMNS": "300"})
+        assert f"→ still running (pid {os.getpid()} on " in res.output
+        assert "(and 1 finished in the running run's journal)" in res.output
+    finally:
+        holder.close()
+    assert not (study.output / ".lock").exists()
+
+
+def test_the_lock_file_is_removed_after_a_clean_run_and_the_lock_still_excludes(tmp_path: Path) -> None:
+    """A clean run left its .lock behind, which looked like a stale lock."""
+    path, out = _finished(tmp_path)
+    assert not (out / ".lock").exists() and "'.lock'" not in (out / "manifest.json").read_text()
+    res = CliRunner().invoke(app, ["plot", str(out)])  # plot takes the lock too
+    assert res.exit_code == 0 and not (out / ".lock").exists()
+    study = load_study(path, out)
+    table = build_jobs(study)
+    holder = ResultStore(study.output, table.study_hash, table.resolved, table.axes, {})
+    try:
+        with pytest.raises(SomoError, match="is in use by another somo-sweep run"):
+            ResultStore(study.output, table.study_hash, table.resolved, table.axes, {})
+    finally:
+        holder.close()
+
+
+def test_a_run_that_opened_the_lock_file_as_it_was_removed_locks_the_new_one(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """Removing the lock file when a run ends must not let two runs hold the folder: one that
+    opened the old file, then locked it after the end, would hold a lock no one else sees."""
+    from somo_sweep.sweep import lock as lock_module
+
+    path = tmp_path / ".lock"
+    first = lock_module.acquire(path)
+    stale = os.open(path, os.O_RDWR)  # a second run opens the file ...
+    first.release()  # ... the first run ends and removes it ...
+    third = lock_module.acquire(path)  # ... and a third run creates and holds a new one
+    real = lock_module._open
+    given = iter([(stale, False)])
+    monkeypatch.setattr(lock_module, "_open", lambda p: next(given, None) or real(p))
+    try:
+        with pytest.raises(SomoError, match="is in use by another somo-sweep run"):
+            lock_module.acquire(path)  # the second run locks its old file, sees it gone, tries the new
+    finally:
+        third.release()
+    assert not path.exists()
+
+
+def _enospc(*args: object, **kwargs: object) -> None:
+    raise OSError(errno.ENOSPC, os.strerror(errno.ENOSPC))
+
+
+@pytest.mark.parametrize(
+    ("code", "cause", "advice"),
+    [
+        (errno.ENOSPC, "the disk is full (No space left on device)", "free space on that disk"),
+        (
+            errno.EROFS,
+            "the file system is read-only (Read-only file system)",
+            "remount it read-write, or give a folder on a writable disk",
+        ),
+        (errno.EACCES, "permission denied (Permission denied)", "give yourself write access there"),
+    ],
+    ids=["full", "read-only", "no-permission"],
+)
+def test_a_start_that_cannot_write_names_the_lock_the_cause_and_fitting_advice(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch, code: int, cause: str, advice: str
+) -> None:
+    """A full disk at the start said "error: No space left on device" (no path) and left a 0-byte
+    .lock; a read-only one was told to free space."""
+    from somo_sweep.sweep import lock as lock_module
+
+    path = selftest_study(tmp_path)
+    out = tmp_path / "out"
+
+    def refuse(fd: int, data: bytes, offset: int) -> int:
+        raise OSError(code, os.strerror(code))
+
+    monkeypatch.setattr(lock_module.os, "pwrite", refuse)
+    res = _run(path, out)
+    assert res.exit_code == 1, res.output
+    assert (
+        f"error: cannot take the lock {out / '.lock'}: {cause}; nothing was written: {advice}" in res.output
+    )
+    assert "then run the same command again" in res.output and "Traceback" not in res.output
+    assert not out.exists()  # no empty lock file, nor the folder the run created for it
+    (out / "trials").mkdir(parents=True)  # an existing results folder stays, without a lock file
+    assert _run(path, out).exit_code == 1 and sorted(os.listdir(out)) == ["trials"]
+
+
+def test_a_results_folder_on_a_read_only_disk_is_told_so(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    path = selftest_study(tmp_path)
+    out = tmp_path / "out"
+    real = Path.mkdir
+
+    def read_only(self: Path, *args: object, **kwargs: object) -> None:
+        if self == out:
+            raise OSError(errno.EROFS, os.strerror(errno.EROFS), str(self))
+        real(self, *args, **kwargs)  # type: ignore[arg-type]
+
+    monkeypatch.setattr(Path, "mkdir", read_only)
+    res = _run(path, out)
+    assert res.exit_code == 1
+    assert (
+        f"cannot create the results folder {out}: the file system is read-only (Read-only file system); "
+        "nothing was written: remount it read-write, or give a folder on a writable disk"
+    ) in res.output
+    assert "free space" not in res.output
+
+
+@pytest.mark.parametrize(
+    ("code", "cause"),
+    [
+        (errno.ENOSPC, "the disk is full (No space left on device)"),
+        (errno.EROFS, "the file system is read-only (Read-only file system)"),
+    ],
+    ids=["full", "read-only"],
+)
+def test_a_run_that_stopped_on_a_full_disk_is_not_reported_killed(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch, code: int, cause: str
+) -> None:
+    """After a disk-full (or read-only) stop whose end could not be written to the manifest
+    either, the next run said the earlier one "was killed: marked aborted"."""
+    path = selftest_study(tmp_path)
+    out = tmp_path / "out"
+    full, real_json, filled = _DiskFull(allowed=1, code=code), store_module.write_json, []
+
+    def parts(table: pa.Table, where: Path, **kwargs: object) -> None:
+        try:
+            full(table, where, **kwargs)
+        except OSError:
+            filled.append(True)
+            raise
+
+    def manifest(where: Path, data: dict[str, object]) -> None:
+        if filled:  # once full, the disk is full for the manifest too
+            raise OSError(code, os.strerror(code))
+        real_json(where, data)
+
+    monkeypatch.setattr(store_module.pq, "write_table", parts)
+    monkeypatch.setattr(store_module, "write_json", manifest)
+    with pytest.raises(StorageError) as info:
+        run_study(load_study(path, out), n_jobs=1, chunk_rows=2)
+    assert cause in str(info.value)
+    assert ("free space" in str(info.value)) == (code == errno.ENOSPC)
+    monkeypatch.undo()
+    assert read_manifest(out)["runs"][-1]["status"] == "running"  # the manifest could not say more
+    assert '"stopped"' in (out / ".lock").read_text()  # the lock file says it instead
+    monkeypatch.setattr(store_module.pq, "write_table", _DiskFull(allowed=0))
+    with pytest.raises(StorageError) as info:  # still full when the next run recovers the journal
+        run_study(load_study(path, out), n_jobs=1)
+    assert str(info.value).startswith(f"cannot open the results folder {out}: cannot write {out / 'trials'}")
+    assert "the disk is full (No space left on device); what it holds is intact" in str(info.value)
+    monkeypatch.undo()
+    assert '"stopped"' in (out / ".lock").read_text()  # kept for the run that gets through
+    assert CliRunner().invoke(app, ["plot", str(out)]).exit_code == 0  # plot takes the lock too ...
+    assert '"stopped"' in (out / ".lock").read_text()  # ... and leaves the record
+    summary = run_study(load_study(path, out), n_jobs=1)
+    note = next(n for n in summary.notes if "stopped itself" in n)
+    assert "(cannot write " in note and f": {cause}): marked failed" in note
+    assert not any("killed" in n for n in summary.notes), summary.notes
+    assert "recovered 2 finished trial(s) of a run that stopped itself from its journal" in summary.notes
+    first = read_manifest(out)["runs"][0]
+    assert first["status"] == "failed" and cause in first["failure"]
+    assert (first["trials_finished"], first["trials_written"], first["trials_recovered"]) == (4, 2 + 2, 2)
+    assert len(read_results(out)) == 8 and not (out / ".lock").exists()
+
+
+def test_a_run_stopped_by_a_full_disk_records_the_cause_and_the_next_run_does_not_say_killed(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    path = selftest_study(tmp_path)
+    out = tmp_path / "out"
+    monkeypatch.setattr(store_module.pq, "write_table", _DiskFull(allowed=1))
+    with pytest.raises(StorageError):
+        run_study(load_study(path, out), n_jobs=1, chunk_rows=2)
+    monkeypatch.undo()
+    run = read_manifest(out)["runs"][-1]
+    assert run["status"] == "failed" and "the disk is full (No space left on device)" in run["failure"]
+    assert not (out / ".lock").exists()  # the manifest says it all: no stop record needed
+    summary = run_study(load_study(path, out), n_jobs=1)
+    assert not any("killed" in n for n in summary.notes), summary.notes
+    show = CliRunner().invoke(app, ["show", str(out)], env={"COLUMNS": "300"})
+    assert ": failed (cannot write " in show.output and "the disk is full" in show.output
+
+
+def test_trials_cut_short_by_a_stop_are_counted_in_our_words_not_joblibs(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """After a write failure joblib warned "UserWarning: 4 tasks which were still being processed
+    by the workers have been cancelled"."""
+    import warnings
+
+    path = selftest_study(tmp_path, extra="set: {task.sleep_s: 0.3}", n=12)
+    monkeypatch.setattr(store_module.pq, "write_table", _DiskFull(allowed=0))
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        with pytest.raises(StorageError) as info:
+            run_study(load_study(path, tmp_path / "out"), n_jobs=2, chunk_rows=1)
+    assert not [w for w in caught if "tasks" in str(w.message)], [str(w.message) for w in caught]
+    assert re.search(r"; the \d+ trial\(s\) still running were stopped\. To go on:", str(info.value))
 
 
 def test_a_run_left_running_by_a_killed_process_is_marked_aborted(tmp_path: Path) -> None:
@@ -319,7 +567,8 @@ def test_a_run_left_running_by_a_killed_process_is_marked_aborted(tmp_path: Path
     summary = run_study(study, n_jobs=1)
     runs = read_manifest(study.output)["runs"]
     assert [r["status"] for r in runs] == ["aborted", "completed"]
-    assert any("was killed: marked aborted" in note for note in summary.notes)
+    killed = "was killed (or its disk could not be written even to record its end): marked aborted"
+    assert any(killed in note for note in summary.notes)
 
 
 def test_a_column_empty_in_the_first_part_takes_numbers_on_resume(tmp_path: Path) -> None:
@@ -415,7 +664,14 @@ def test_a_link_left_in_the_folder_never_carries_a_write_outside_it(tmp_path: Pa
 
 @pytest.mark.parametrize(
     ("key", "value"),
-    [("files", [1]), ("files", [None]), ("columns", {"a": 1}), ("columns", {"a": {"type": "?"}})],
+    [
+        ("files", [1]),
+        ("files", [None]),
+        ("columns", {"a": 1}),
+        ("columns", {"a": {"type": "?"}}),
+        ("n_trials", True),
+        ("n_trials", -5),
+    ],
 )
 def test_a_manifest_with_wrong_inner_types_is_rebuilt_not_a_traceback(
     tmp_path: Path, key: str, value: object
@@ -427,6 +683,24 @@ def test_a_manifest_with_wrong_inner_types_is_rebuilt_not_a_traceback(
     res = _run(path, out)
     assert res.exit_code == 0 and "rebuilt from the part files" in res.output, res.output  # type: ignore[attr-defined]
     assert len(read_results(out)) == 8
+
+
+@pytest.mark.parametrize(
+    ("value", "said"), [(True, "true"), (-5, "-5"), (0, "0"), (2.5, "2.5"), ("8", '"8"')]
+)
+def test_a_trial_count_no_study_has_is_refused_not_printed(tmp_path: Path, value: object, said: str) -> None:
+    """``n_trials: true`` in a manifest showed "0 of True trials stored"; -5, "of -5 trials"."""
+    _, out = _finished(tmp_path)
+    manifest = json.loads((out / "manifest.json").read_text())
+    manifest["n_trials"] = value
+    (out / "manifest.json").write_text(json.dumps(manifest))
+    for command in ("show", "plot"):
+        res = CliRunner().invoke(app, [command, str(out)])
+        assert res.exit_code == 2 and "Traceback" not in res.output, res.output
+        assert (
+            f"manifest.json is damaged (its 'n_trials' is {said}, not a whole number of trials of at least "
+            f"1); run the study again with --out {out} to rebuild it from the trials"
+        ) in res.output
 
 
 def test_a_part_of_another_study_copied_in_is_quarantined_by_the_next_run(tmp_path: Path) -> None:
@@ -443,6 +717,24 @@ def test_a_part_of_another_study_copied_in_is_quarantined_by_the_next_run(tmp_pa
     assert (out / "trials" / "quarantine" / "_part-from-elsewhere.parquet").is_file()
     show = CliRunner().invoke(app, ["show", str(out)])
     assert show.exit_code == 0 and len(read_results(out)) == 8, show.output
+
+
+def test_a_part_of_another_study_sharing_job_ids_is_one_foreign_study_error(tmp_path: Path) -> None:
+    """A study sharing cells with this one has the same job ids: its part copied in was also
+    reported as "repeats 4 row(s) … (a copy?)" beside the foreign-study error."""
+    path, out = _finished(tmp_path)
+    other = make_study(tmp_path / "b", (tmp_path / "study.yaml").read_text().replace("stop: 8", "stop: 4"))
+    run_study(load_study(other, tmp_path / "b" / "out"), n_jobs=1)
+    (copy,) = _parts(tmp_path / "b" / "out")
+    assert set(pd.read_parquet(copy)["job_id"]) <= set(read_results(out)["job_id"])  # the same cells
+    shutil.copy(copy, out / "trials" / "part-from-b.parquet")
+    res = CliRunner().invoke(app, ["show", str(out)])
+    assert res.exit_code == 2 and "4 row(s) belong to another study" in res.output, res.output
+    assert "in part-from-b.parquet; move that file away" in res.output
+    assert "repeats" not in res.output and "a copy?" not in res.output
+    ran = _run(path, out)
+    assert ran.exit_code == 0 and "part file part-from-b.parquet holds rows of another study" in ran.output
+    assert "repeats" not in ran.output and len(read_results(out)) == 8
 
 
 def test_a_scheduler_without_the_dask_backend_is_refused(tmp_path: Path) -> None:
@@ -535,3 +827,31 @@ def test_a_fifo_among_the_parts_is_skipped_not_waited_on(tmp_path: Path) -> None
     skipped: list[str] = []
     assert len(read_results(out, lambda part, why: skipped.append(why))) == 8
     assert skipped == ["not a regular file"]
+
+
+def test_a_stop_record_with_a_long_cause_still_reads_back(tmp_path: Path) -> None:
+    """A long file name in the cause must not cut the record's JSON (the next run would say killed)."""
+    from somo_sweep.sweep.lock import LOCK_BYTES, acquire
+
+    path = tmp_path / ".lock"
+    lock = acquire(path)
+    assert lock.record_stop({"stopped": "2026-01-01T00:00:00+00:00", "cause": "é" * 2000})
+    lock.release(remove=False)
+    assert path.stat().st_size == LOCK_BYTES
+    again = acquire(path)
+    try:
+        record = again.stop_record
+        assert record is not None and record["stopped"] == "2026-01-01T00:00:00+00:00"
+        assert record["cause"].startswith("éé") and record["cause"].endswith("…")
+    finally:
+        again.release()
+    assert not path.exists()
+
+
+def test_a_fifo_where_the_lock_goes_is_named_and_never_waited_on(tmp_path: Path) -> None:
+    path, out = _finished(tmp_path)
+    os.mkfifo(out / ".lock")
+    res = CliRunner().invoke(app, ["show", str(out)])
+    assert res.exit_code == 0 and "8 of 8 trials stored" in res.output, res.output
+    res = _run(path, out)
+    assert res.exit_code == 2 and f"{out / '.lock'} is not a regular file (a FIFO" in res.output, res.output

@@ -21,6 +21,7 @@ lift the trial ends if its outcome is already settled as no grasp under both rul
 from __future__ import annotations
 
 from collections.abc import Callable, Sequence
+from dataclasses import replace
 
 import numpy as np
 
@@ -37,9 +38,15 @@ from somo_sweep.tasks.pinch_grasp.classify import (
     contact_position,
     distal_force_fractions,
     is_held,
+    paper_mean_link,
 )
 from somo_sweep.tasks.pinch_grasp.contacts import HoldProbe
-from somo_sweep.tasks.pinch_grasp.params import Numerics, PinchGraspParams
+from somo_sweep.tasks.pinch_grasp.params import (
+    Numerics,
+    PinchGraspParams,
+    final_count_columns,
+    original_hull_size_m,
+)
 from somo_sweep.tasks.pinch_grasp.settled import Snapshot, settled_reason
 from somo_sweep.tasks.registry import TaskResult
 
@@ -99,8 +106,9 @@ def split_finger(
     def tuned(act: Actuator, n: int, actuated: bool) -> Actuator:
         link = surface(act.link.with_length_z(seg_m))
         joints = list(act.joints)
-        if numerics is not None:
+        if numerics is not None and numerics.added_inertia_kg_m2 is not None:
             link = link.model_copy(update={"added_inertia_kg_m2": numerics.added_inertia_kg_m2})
+        if numerics is not None:
             upd: dict[str, float] = {}
             if numerics.damping_n_m_s_per_rad is not None:
                 upd["damping_n_m_s_per_rad"] = numerics.damping_n_m_s_per_rad
@@ -162,18 +170,21 @@ def gripper(model: Model, params: PinchGraspParams) -> Model:
 
 
 def object_body(params: PinchGraspParams) -> RigidBody:
-    """The box to grasp, resting just above the ground at x = y = 0."""
+    """The box to grasp, resting just above the ground at x = y = 0 (plus ``object_offset_m``)."""
+    size = (params.object_width_m, OBJECT_DEPTH_M, OBJECT_HEIGHT_M)
+    if params.object_shape == "original_hull":
+        size = original_hull_size_m(params.object_width_m) or size
     return RigidBody(
         name="object",
         link=Link(
             shape="box",
-            size_m=(params.object_width_m, OBJECT_DEPTH_M, OBJECT_HEIGHT_M),
+            size_m=size,
             mass_kg=OBJECT_MASS_KG,
-            friction={"lateral": OBJECT_FRICTION},
+            friction={"lateral": OBJECT_FRICTION * params.object_friction_scale},
             restitution=params.restitution or 0.0,
             color_rgba=OBJECT_COLOR_RGBA,
         ),
-        pose=Pose(position_m=(0.0, 0.0, OBJECT_HEIGHT_M / 2 + SPAWN_GAP_M)),
+        pose=Pose(position_m=(*params.object_offset_m, size[2] / 2 + SPAWN_GAP_M)),
     )
 
 
@@ -200,6 +211,8 @@ def run_pinch_grasp(
     del seed
     hand_model = gripper(model, params)
     p = params
+    if p.clamp_speed_cap:
+        settings = replace(settings, clamp_speed_cap=True)
     with World(settings) as world:
         ground = world.add_ground(friction=GROUND_FRICTION)
         box = object_body(p)
@@ -210,7 +223,8 @@ def run_pinch_grasp(
         hand = world.add_model(hand_model, Pose(position_m=tuple(far)))
         probe = HoldProbe(world, hand, obj.id, ground)
         mount_to_palm_x = float(far[0] - probe.finger_mounts_m()[:, 0].mean())
-        x_end = obj_start[0] + p.base_distance_m + mount_to_palm_x
+        # The hand aims at the object's nominal spot (x = 0): a replica's offset moves the object only.
+        x_end = p.base_distance_m + mount_to_palm_x
         start = np.array([x_end + p.approach_m, 0.0, p.hand_height_m])
         world.drive_model(hand, start, (0.0, 0.0, 0.0))
         world.place_model(hand, start, (0.0, 0.0, 0.0))
@@ -218,13 +232,13 @@ def run_pinch_grasp(
         t2 = t1 + p.ramp_s
         t3 = t2 + p.lift_s
         t4 = t3 + p.hold_s
+        lift = [(0.0, 0.0), *p.lift_profile, (1.0, 1.0)]
         path = SetpointTable(
-            [0.0, t1, t2, t3],
+            [0.0, t1, *(t2 + f * p.lift_s for f, _ in lift)],
             [
                 start,
                 [x_end, 0, p.hand_height_m],
-                [x_end, 0, p.hand_height_m],
-                [x_end, 0, p.hand_height_m + p.lift_m],
+                *([x_end, 0, p.hand_height_m + h * p.lift_m] for _, h in lift),
             ],
         )
         n_in = len(hand.input_names)
@@ -285,6 +299,9 @@ def run_pinch_grasp(
         metrics["ended_early_s"] = ended_early_s
         metrics["ended_early_reason"] = reason
         metrics.update(probe.metrics())
+        metrics["final_mean_link_paper"] = paper_mean_link(
+            [int(metrics[n]) for n in final_count_columns()[:-1]]
+        )
     evidence = GraspEvidence.from_metrics(metrics, p.distal_segment_ratio, p.lift_m)
     shares = distal_force_fractions(evidence)
     metrics["hold_force_fraction_distal"] = shares["distal"]

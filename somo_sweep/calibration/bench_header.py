@@ -1,0 +1,113 @@
+"""The bench a measurement CSV was taken on, read from its ``# bench:`` header line.
+
+A bench CSV may state where its blocked-force stop was, in one comment line above the header::
+
+    # bench: {stop_z_mm: -9}
+
+``stop_z_mm``: height of the stop's top face relative to the straight finger's centre line, mm
+(z up: negative is below the finger). Without it the stop is at the straight finger's
+underside, half the link thickness below the centre line (the protocol of
+``somo-sweep measure`` and of the bundled tables). A stop above that underside (the finger
+would start inside it) or more than the finger's length below the centre line (it could never
+reach it) is refused once the finger is known, naming the line; so is a second ``# bench:``
+line, an unknown key or a value that is no number.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, replace
+from pathlib import Path
+from typing import Any
+
+from somo_sweep.calibration.finger import read_header_mapping
+from somo_sweep.errors import MeasurementError, SimulationError
+from somo_sweep.model.description import MAX_LENGTH_M, Manipulator
+from somo_sweep.sim.bench import BenchSettings, check_stop, finger_underside_m
+
+__all__ = ["BENCH_KEYS", "BenchHeader", "read_bench_header"]
+
+#: Header keys with their meaning.
+BENCH_KEYS = {"stop_z_mm": "blocked-force stop's top relative to the finger's centre line, mm (z up)"}
+_PREFIX = "# bench:"
+
+
+@dataclass(frozen=True)
+class BenchHeader:
+    """The bench geometry of a CSV (all None: the default protocol).
+
+    Attributes:
+        stop_z_mm: Stop height relative to the straight finger's centre line, mm; None: its underside.
+        line: Line of the ``# bench:`` header in the file (None when there is none).
+        source: The file, for messages.
+    """
+
+    stop_z_mm: float | None = None
+    line: int | None = None
+    source: str = "<rows>"
+
+    def settings(self, base: BenchSettings, manip: Manipulator) -> BenchSettings:
+        """``base`` with this stop, checked against the finger to be simulated.
+
+        Raises:
+            MeasurementError: A stop the finger would start inside or could never reach (naming the line).
+        """
+        if self.stop_z_mm is None:
+            return base
+        stop_m = self.stop_z_mm * 1e-3
+        try:
+            check_stop(manip, stop_m)
+        except SimulationError as exc:
+            raise MeasurementError(self.source, [f"line {self.line}, bench header: {exc}"]) from None
+        return replace(base, stop_z_m=stop_m)
+
+    def describe(self, manip: Manipulator) -> str:
+        """Which blocked-force geometry is used, and where it comes from (for the terminal)."""
+        under_mm = finger_underside_m(manip) * 1e3
+        if self.stop_z_mm is None:
+            return (
+                f"bench: blocked-force stop at the finger's underside, {-under_mm:.4g} mm from its centre "
+                "line (the default; a CSV line '# bench: {stop_z_mm: ...}' moves it)"
+            )
+        gap = -self.stop_z_mm - under_mm
+        return (
+            f"bench: blocked-force stop at {self.stop_z_mm:.4g} mm from the finger's centre line "
+            f"({gap:.4g} mm below its underside), from line {self.line} of {self.source}"
+        )
+
+    def as_dict(self) -> dict[str, Any]:
+        """For JSON reports."""
+        return {"stop_z_mm": self.stop_z_mm, "line": self.line}
+
+
+def read_bench_header(path: str | Path) -> BenchHeader:
+    """The ``# bench:`` line of a CSV, validated (the default bench when there is none).
+
+    Raises:
+        MeasurementError: Given twice, not a mapping, an unknown key or a value that is no
+            finite number of at most ±100 m (the message names the line and the key).
+    """
+    found = read_header_mapping(path, _PREFIX, "bench header", "{stop_z_mm: -9}")
+    source = str(path)
+    if found is None:
+        return BenchHeader(source=source)
+    number, data = found
+    where = f"line {number}, bench header"
+    problems = [
+        f"{where}: unknown key '{k}'; allowed: {', '.join(BENCH_KEYS)}" for k in data if k not in BENCH_KEYS
+    ]
+    value = data.get("stop_z_mm")
+    limit_mm = MAX_LENGTH_M * 1e3
+    if "stop_z_mm" in data and not (
+        isinstance(value, int | float)
+        and not isinstance(value, bool)
+        and math.isfinite(value)
+        and abs(value) <= limit_mm
+    ):
+        problems.append(
+            f"{where}: stop_z_mm ({BENCH_KEYS['stop_z_mm']}) must be a finite number from "
+            f"{-limit_mm:g} to {limit_mm:g}, got {value!r}"
+        )
+    if problems:
+        raise MeasurementError(path, problems)
+    return BenchHeader(float(value) if value is not None else None, number, source)
