@@ -340,14 +340,17 @@ def speed(
         bool,
         typer.Option(
             "--scaling/--no-scaling",
-            help="Time the 24-trial demo sweep at 1 and 2 workers, and at 2 workers joblib against a "
-            "2-worker Dask LocalCluster in turn (joblib, Dask, Dask, joblib), on the demo study and on the "
-            "192-trial quick study.",
+            help="Time the 24-trial demo sweep (0.5 ms) at 1 and 2 workers, and at 2 workers joblib against "
+            "a 2-worker Dask LocalCluster in turn (joblib, Dask, Dask, joblib), on the demo study and on the "
+            "192 cells of the quick study at the ablation's 4-ms numerics.",
         ),
     ] = True,
     quick_study: Annotated[
         bool,
-        typer.Option("--quick-study/--no-quick-study", help="Include the quick study (192 trials, minutes)."),
+        typer.Option(
+            "--quick-study/--no-quick-study",
+            help="Time the quick study's 192 cells at 4 ms too (pinch_grasp_quick_ablation_ours.yaml).",
+        ),
     ] = True,
 ) -> None:
     """The benchmark (make bench): grasp steps, one trial vs the original's numerics, bench statics,
@@ -366,13 +369,23 @@ def speed(
     for line in lines:
         typer.echo(line)
     if scaling and not (convergence or statics):
-        from somo_sweep.paper.scaling import QUICK_STUDY, dask_lines, dask_runs, scaling_lines, scaling_runs
+        from somo_sweep.paper.scaling import (
+            DEMO_STUDY,
+            QUICK_STUDY,
+            dask_lines,
+            dask_runs,
+            numerics_note,
+            quick_note,
+            scaling_lines,
+            scaling_runs,
+        )
 
         with tempfile.TemporaryDirectory(prefix="somo-sweep-scaling-") as tmp:
-            for line in scaling_lines(scaling_runs(Path(tmp) / "demo")):
+            for line in scaling_lines(scaling_runs(Path(tmp) / "demo"), note=numerics_note(DEMO_STUDY)):
                 typer.echo(line)
             if quick_study:
-                for line in dask_lines(dask_runs(Path(tmp) / "quick", QUICK_STUDY), "pinch_grasp_quick"):
+                runs = dask_runs(Path(tmp) / "quick", QUICK_STUDY)
+                for line in dask_lines(runs, QUICK_STUDY.stem, quick_note()):
                     typer.echo(line)
 
 

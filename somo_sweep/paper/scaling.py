@@ -34,18 +34,26 @@ __all__ = [
     "DASK_OVERHEAD_TARGET",
     "DEMO_STUDY",
     "EFFICIENCY_TARGET",
+    "QUICK_CELLS_OF",
     "QUICK_STUDY",
     "ScalingRun",
     "dask_lines",
     "dask_runs",
+    "numerics_note",
+    "quick_note",
     "same_labels_line",
     "scaling_lines",
     "scaling_runs",
 ]
 
-#: The studies timed by default: the bundled 24-trial pinch-grasp demo and the 192-trial quick study.
+#: The studies timed by default: the bundled 24-trial pinch-grasp demo (0.5 ms, about 140 s of CPU a
+#: run), and the 192 cells of the quick study at the 4-ms numerics of the Fig. 6 ablation (the quick
+#: study itself runs 0.5 ms with 4 replicas on boundary cells: about 40x the CPU, too long to time
+#: four times over; Dask's overhead is per trial, not per step).
 DEMO_STUDY = bundled_path("pinch_grasp_demo.yaml")
-QUICK_STUDY = bundled_path("pinch_grasp_quick.yaml")
+QUICK_STUDY = bundled_path("pinch_grasp_quick_ablation_ours.yaml")
+#: The quick study whose cells :data:`QUICK_STUDY` runs.
+QUICK_CELLS_OF = bundled_path("pinch_grasp_quick.yaml")
 #: Targets: parallel efficiency at two workers (issue #16), Dask's wall time over joblib's (#34).
 EFFICIENCY_TARGET = 0.9
 DASK_OVERHEAD_TARGET = 1.10
@@ -64,6 +72,29 @@ class ScalingRun:
     trials: int
     labels: pd.DataFrame
     trial_wall_s: float = float("nan")
+
+
+def numerics_note(study_path: Path) -> str:
+    """What a pinch-grasp study file runs, in words: its step, inertia shaping and replicas."""
+    import yaml
+
+    data = yaml.safe_load(study_path.read_text(encoding="utf-8")) or {}
+    step_s = (data.get("simulation") or {}).get("time_step_s")
+    shaping = ((data.get("params") or {}).get("numerics") or {}).get("added_inertia_kg_m2")
+    replicas = (data.get("robustness") or {}).get("replicas")
+    parts = [f"{float(step_s) * 1e3:g} ms" if step_s else "automatic step"]
+    parts.append(f"inertia shaped by {float(shaping):g} kg·m²" if shaping else "no inertia shaping")
+    if replicas:
+        parts.append(f"{replicas} replicas on boundary cells")
+    return ", ".join(parts)
+
+
+def quick_note() -> str:
+    """The heading's note of the quick comparison: whose cells, at which numerics."""
+    return (
+        f"the cells of {QUICK_CELLS_OF.stem} at {numerics_note(QUICK_STUDY)} "
+        f"(the study itself: {numerics_note(QUICK_CELLS_OF)})"
+    )
 
 
 def _labels(folder: Path) -> tuple[pd.DataFrame, float]:
@@ -154,12 +185,21 @@ def scaling_runs(folder: Path, study_path: Path = DEMO_STUDY) -> list[ScalingRun
     ]
 
 
-def dask_lines(runs: list[ScalingRun], study_name: str) -> list[str]:
-    """Printable lines of :func:`dask_runs`: each run, the ratio of their sums, trials' mean wall."""
+def dask_lines(runs: list[ScalingRun], study_name: str, note: str = "") -> list[str]:
+    """Printable lines of :func:`dask_runs`: each run, the ratio of their sums, trials' mean wall.
+
+    Args:
+        runs: The runs.
+        study_name: The study's name, for the heading.
+        note: What the study runs (its numerics), for the heading.
+    """
     joblib = [r for r in runs if r.name == JOBLIB]
     dask = [r for r in runs if r.name == DASK]
     order = ", ".join(ORDER)
-    lines = [f"Dask vs joblib, study {study_name} ({joblib[0].trials} trials, run in the order {order}):"]
+    what = f"{note}; " if note else ""
+    lines = [
+        f"Dask vs joblib, study {study_name} ({what}{joblib[0].trials} trials, run in the order {order}):"
+    ]
     lines += [f"  {r.name:30s} {r.wall_s:7.1f} s, mean trial {r.trial_wall_s:.3f} s" for r in runs]
     if not dask:
         lines.append('  Dask runs skipped: Dask is not installed (pip install "somo-sweep[dask]")')
@@ -178,20 +218,21 @@ def same_labels_line(runs: list[ScalingRun]) -> str:
     return f"  labels and statuses identical in the {len(runs)} runs: {'yes' if same else 'NO'}"
 
 
-def scaling_lines(runs: list[ScalingRun], study_name: str = "pinch_grasp_demo") -> list[str]:
+def scaling_lines(runs: list[ScalingRun], study_name: str = "pinch_grasp_demo", note: str = "") -> list[str]:
     """Printable lines of :func:`scaling_runs`: efficiency, then :func:`dask_lines`.
 
-    Without Dask (not installed) its lines say how to install it.
+    Without Dask (not installed) its lines say how to install it; ``note`` says what the study runs.
     """
     one, rest = runs[0], runs[1:]
     two = [r for r in rest if r.name == JOBLIB]
     t2 = sum(r.wall_s for r in two) / len(two)
     efficiency = one.wall_s / (2 * t2)
     eff_ok = "ok" if efficiency >= EFFICIENCY_TARGET else "not met"
-    lines = [f"sweep scaling, study {study_name} ({one.trials} trials, wall time of the whole run):"]
+    what = f"{note}; " if note else ""
+    lines = [f"sweep scaling, study {study_name} ({what}{one.trials} trials, wall time of the whole run):"]
     lines.append(f"  {one.name:30s} {one.wall_s:7.1f} s")
     lines.append(
         f"  parallel efficiency T1 / (2 T2) = {efficiency:.2f}, T2 the mean of the joblib runs below "
         f"(target >= {EFFICIENCY_TARGET:g} on an idle machine: {eff_ok})"
     )
-    return [*lines, *dask_lines(rest, study_name)[:-1], same_labels_line(runs)]
+    return [*lines, *dask_lines(rest, study_name, note)[:-1], same_labels_line(runs)]

@@ -167,3 +167,31 @@ def test_the_readme_gives_exactly_these_settings_to_a_cluster() -> None:
     readme = (Path(__file__).resolve().parents[2] / "README.md").read_text()
     given = dict(re.findall(r"(DASK_[A-Z_]+)=(\S+)", readme))
     assert given == dask_environment()
+
+
+def test_the_quick_comparison_runs_the_quick_studys_cells_at_the_ablations_numerics() -> None:
+    """``make bench`` times Dask against joblib four times over the quick study's cells: at 0.5 ms with
+    replicas (the study itself) that is ~40x the CPU, so the benchmark runs the same cells at 4 ms."""
+    import yaml
+
+    from somo_sweep.paper.scaling import QUICK_CELLS_OF, QUICK_STUDY, numerics_note, quick_note
+
+    timed, cells_of = (yaml.safe_load(p.read_text(encoding="utf-8")) for p in (QUICK_STUDY, QUICK_CELLS_OF))
+    for key in ("task", "model", "sweep", "seed"):
+        assert timed[key] == cells_of[key], key
+    assert timed["simulation"]["time_step_s"] == 4.0e-3 and "robustness" not in timed
+    assert numerics_note(QUICK_STUDY) == "4 ms, inertia shaped by 3e-05 kg·m²"
+    assert quick_note().startswith("the cells of pinch_grasp_quick at 4 ms, inertia shaped by 3e-05 kg·m² (")
+
+
+def test_every_heading_says_what_its_study_runs(tmp_path: Path) -> None:
+    from somo_sweep.paper.scaling import DEMO_STUDY, ScalingRun, dask_lines, numerics_note
+
+    study = tmp_path / "s.yaml"
+    study.write_text("robustness: {replicas: 4}\nsimulation: {time_step_s: 5.0e-4}\n")
+    assert numerics_note(study) == "0.5 ms, no inertia shaping, 4 replicas on boundary cells"
+    assert numerics_note(DEMO_STUDY) == "0.5 ms, no inertia shaping"
+    import pandas as pd
+
+    runs = [ScalingRun(JOBLIB, 1.0, 3, pd.DataFrame()), ScalingRun(DASK, 1.0, 3, pd.DataFrame())]
+    assert dask_lines(runs, "demo", "0.5 ms")[0].startswith("Dask vs joblib, study demo (0.5 ms; 3 trials, ")
