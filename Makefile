@@ -5,7 +5,7 @@ BIN    := $(VENV)/bin
 STAMP  := $(VENV)/.installed-stamp
 
 .DEFAULT_GOAL := help
-.PHONY: help install demo test test-slow lint format bench bench-robust fig6 fig6-quick fig6-ablation fig6-ablation-quick fig3 fig5 fig5-quick palm palm-quick fig7 fig7-quick fig8 fig8-quick diagnose-demo sweep-demo figures clean
+.PHONY: help install demo test test-slow lint format bench bench-scale bench-robust fig6 fig6-quick fig6-ablation fig6-ablation-quick fig3 fig5 fig5-quick palm palm-quick fig7 fig7-quick fig8 fig8-quick diagnose-demo sweep-demo figures clean
 
 help: ## List the targets
 	@grep -E '^[a-zA-Z0-9_-]+:.*?## ' $(MAKEFILE_LIST) | awk 'BEGIN {FS = ":.*?## "}; {printf "  make %-12s %s\n", $$1, $$2}'
@@ -37,8 +37,11 @@ format: $(STAMP) ## Format the code with ruff
 	$(BIN)/ruff format somo_sweep tests
 	$(BIN)/ruff check --fix somo_sweep tests
 
-bench: $(STAMP) ## Speed benchmark: ms per step of the two-finger grasp, Bullet vs Python
+bench: $(STAMP) ## Speed benchmark: grasp steps (Bullet vs Python), one trial, statics, sweep scaling, Dask vs joblib
 	$(BIN)/somo-sweep paper speed
+
+bench-scale: $(STAMP) ## Sweep memory at 2 000 and 20 000 trials, and a resume's start (30-60 min on 2 cores)
+	$(BIN)/somo-sweep paper scale
 
 bench-robust: $(STAMP) ## What robust labels cost: one trial and the quick study, plain before vs robust now (~1 h on 2 cores) -> results/reference/robust_cost.json
 	$(BIN)/somo-sweep paper robust-cost --out results/reference

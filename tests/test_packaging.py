@@ -46,6 +46,12 @@ def test_dask_is_an_extra_and_a_dev_dependency_not_a_core_one() -> None:
     assert "dask" in _names(extras["dev"])
 
 
+def test_the_cluster_extra_adds_dask_jobqueue_to_dask_and_the_core_has_neither() -> None:
+    extras = PYPROJECT["optional-dependencies"]
+    assert _names(extras["cluster"]) == {"dask", "dask-jobqueue"}
+    assert not {"dask", "dask-jobqueue", "distributed"} & _names(PYPROJECT["dependencies"])
+
+
 def test_supported_platforms_are_classified() -> None:
     classifiers = PYPROJECT["classifiers"]
     assert "Operating System :: POSIX :: Linux" in classifiers and "Operating System :: MacOS" in classifiers

@@ -340,8 +340,16 @@ def speed(
         bool,
         typer.Option(
             "--scaling/--no-scaling",
-            help="Time a 24-trial sweep at 1 and 2 workers and on a 2-worker Dask LocalCluster "
-            "(Dask's defaults, then the somo-sweep worker settings).",
+            help="Time the 24-trial demo sweep (0.5 ms) at 1 and 2 workers, and at 2 workers joblib against "
+            "a 2-worker Dask LocalCluster in turn (joblib, Dask, Dask, joblib), on the demo study and on the "
+            "192 cells of the quick study at the ablation's 4-ms numerics.",
+        ),
+    ] = True,
+    quick_study: Annotated[
+        bool,
+        typer.Option(
+            "--quick-study/--no-quick-study",
+            help="Time the quick study's 192 cells at 4 ms too (pinch_grasp_quick_ablation_ours.yaml).",
         ),
     ] = True,
 ) -> None:
@@ -361,11 +369,68 @@ def speed(
     for line in lines:
         typer.echo(line)
     if scaling and not (convergence or statics):
-        from somo_sweep.paper.scaling import scaling_lines, scaling_runs
+        from somo_sweep.paper.scaling import (
+            DEMO_STUDY,
+            QUICK_STUDY,
+            dask_lines,
+            dask_runs,
+            numerics_note,
+            quick_note,
+            scaling_lines,
+            scaling_runs,
+        )
 
         with tempfile.TemporaryDirectory(prefix="somo-sweep-scaling-") as tmp:
-            for line in scaling_lines(scaling_runs(Path(tmp))):
+            for line in scaling_lines(scaling_runs(Path(tmp) / "demo"), note=numerics_note(DEMO_STUDY)):
                 typer.echo(line)
+            if quick_study:
+                runs = dask_runs(Path(tmp) / "quick", QUICK_STUDY)
+                for line in dask_lines(runs, QUICK_STUDY.stem, quick_note()):
+                    typer.echo(line)
+
+
+@app.command()
+def scale(
+    trials: Annotated[
+        str, typer.Option(help="Study sizes, comma-separated multiples of 2000 (the largest is resumed).")
+    ] = "2000,20000",
+    jobs: Annotated[int, typer.Option(help="Worker processes.")] = 2,
+    out: Annotated[
+        Path | None,
+        typer.Option("--out", help="Folder for the studies and results (default: a temporary one)."),
+    ] = None,
+) -> None:
+    """Sweep memory and resume time at scale: peak memory of `somo-sweep run` at each size, then the
+    largest stopped at half its trials and resumed (time to its first new trial)."""
+    import tempfile
+
+    from somo_sweep.paper.scale import measure_run, scale_lines, scale_study
+
+    n_jobs = _jobs(jobs)
+    try:
+        sizes = sorted({int(t) for t in trials.split(",")})
+        studies = {n: scale_study(n) for n in sizes}
+    except ValueError:
+        fail(SomoError(f"--trials must be whole numbers separated by commas, got '{trials}'"))
+    except SomoError as exc:
+        fail(exc)
+    if out is not None and (out.is_file() or (out.is_dir() and any(out.iterdir()))):
+        fail(SomoError(f"--out {out} must be a new or empty folder (each run must start from nothing)"))
+    with tempfile.TemporaryDirectory(prefix="somo-sweep-scale-") as tmp:
+        folder = out or Path(tmp)
+        folder.mkdir(parents=True, exist_ok=True)
+        runs = []
+        for n, text in studies.items():
+            study = folder / f"scale_{n}.yaml"
+            write_atomic(study, text)
+            runs.append(measure_run(study, folder / f"run_{n}", n, n_jobs))
+            typer.echo(f"{n} trials: {runs[-1].wall_s:.1f} s, peak {runs[-1].peak_rss_mb:.1f} MiB")
+        largest = sizes[-1]
+        study = folder / f"scale_{largest}.yaml"
+        stopped = measure_run(study, folder / "resume", largest, n_jobs, stop_at=largest // 2)
+        resumed = measure_run(study, folder / "resume", largest, n_jobs)
+        for line in scale_lines(runs, stopped, resumed, n_jobs):
+            typer.echo(line)
 
 
 @app.command()

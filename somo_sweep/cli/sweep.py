@@ -29,7 +29,7 @@ from somo_sweep.cli.output import (
     write_atomic,
     write_outputs,
 )
-from somo_sweep.errors import SomoError, StorageError
+from somo_sweep.errors import SomoError, StorageError, os_cause, shown
 
 if TYPE_CHECKING:  # the heavy modules are imported when a command runs
     from collections.abc import Callable
@@ -112,6 +112,7 @@ def run(
     """
     import joblib
 
+    from somo_sweep.sweep.execution import start_workers, stop_workers
     from somo_sweep.sweep.jobs import build_jobs
     from somo_sweep.sweep.runner import run_study
     from somo_sweep.sweep.study import load_study, with_replicas
@@ -143,15 +144,15 @@ def run(
         if dry_run:
             _print_dry_run(st)
             return
-    except SomoError as exc:
-        fail(exc)
-    n_jobs = jobs or joblib.cpu_count() or 1
-    try:
+        n_jobs = jobs or joblib.cpu_count() or 1
+        if backend == "loky":  # the workers start and import while the jobs are built
+            start_workers(min(n_jobs, st.n_trials), st.task.name)
         if st.simulation is None:
             with _term_as_interrupt() as caught:
                 try:
                     st = auto_step(st, n_jobs, backend, scheduler, timeout)
                 except KeyboardInterrupt:
+                    stop_workers()
                     _err.print(
                         "interrupted while choosing the time step: no trial of the study ran yet; run the "
                         "same command again to start over"
@@ -159,7 +160,14 @@ def run(
                     raise typer.Exit(128 + (caught[0] if caught else 2)) from None
         table = build_jobs(st)
     except SomoError as exc:
+        stop_workers()
         fail(exc)
+    except KeyboardInterrupt:
+        stop_workers()
+        typer.echo(
+            "interrupted while building the job table, before any trial: nothing was written", err=True
+        )
+        raise typer.Exit(130) from None
     live: list[Progress] = []  # the progress bar, once the results folder is open
 
     def started(summary: RunSummary) -> None:
@@ -216,8 +224,17 @@ def run(
     except SomoError as exc:
         stop()
         fail(exc, code=1 if isinstance(exc, StorageError) else 2)
+    except KeyboardInterrupt:  # while the results folder was opened, before the run's own handler
+        stop()
+        typer.echo(
+            "interrupted while opening the results folder, before any trial: finished trial(s) kept; run the "
+            "same command again to resume",
+            err=True,
+        )
+        raise typer.Exit(130) from None
     finally:
         stop()
+        stop_workers()  # started, but the run ended before its first trial (nothing to do, an error)
     from somo_sweep.sweep.summary import print_run_summary
 
     print_run_summary(_out, summary)
@@ -279,7 +296,15 @@ def auto_step(
 
     say = stream or (lambda text: typer.echo(text, err=True))
     choice = None
-    if (st.output / "manifest.json").is_file():
+    try:
+        stored = (st.output / "manifest.json").is_file()
+    except OSError as exc:  # a name no folder can have: said now, before any sample trial runs
+        cause, advice = os_cause(exc)
+        raise SomoError(
+            f"cannot create the results folder {shown(str(st.output), 200)}: {cause}; nothing was written: "
+            f"{advice}, then run the same command again"
+        ) from None
+    if stored:
         try:
             choice = stored_choice(read_manifest(st.output), st)
         except SomoError:  # a damaged manifest: the run rebuilds it; the step is chosen again

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import math
 from collections import Counter
+from collections.abc import Sequence
 from pathlib import Path
 from typing import Any
 
@@ -160,7 +161,7 @@ def rows_without_final_counts(table: pd.DataFrame) -> int:
     return int((rows & table[column].isna()).sum())
 
 
-def find_trial(jobs: list[Any], trial: str) -> Any:
+def find_trial(jobs: Sequence[Any], trial: str) -> Any:
     """The job of a trial given by (a prefix of) its job id or by its 0-based grid index.
 
     Raises:

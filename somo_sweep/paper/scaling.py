@@ -1,134 +1,238 @@
-"""How a sweep scales over workers: ``--jobs 1`` vs ``--jobs 2`` vs a Dask ``LocalCluster``.
+"""How a sweep scales over workers: ``--jobs 1`` vs ``--jobs 2``, and Dask against joblib, in turn.
 
-The same study runs four times through the sweep engine (:func:`somo_sweep.sweep.runner.run_study`),
-each into its own results folder under the folder the caller names: one local worker, two local
-workers (joblib's loky backend), and two Dask workers of one thread each on this machine, once
-with Dask's default settings and once with the settings the README gives for a somo-sweep
-cluster (:data:`~somo_sweep.sweep.execution.DASK_WORKER_CONFIG`). The wall times give the
-parallel efficiency ``T1 / (2 T2)`` and the Dask overhead ``T_dask / T2``; all tables must
-hold the same labels (a job is a pure function of its parameters and seed).
-Part of ``make bench`` (``somo-sweep paper speed``); meaningful only on an otherwise idle machine.
+The same study runs through the sweep engine (:func:`somo_sweep.sweep.runner.run_study`), each
+run into its own results folder under the folder the caller names. The demo study runs once
+with one local worker and in turn at two workers, joblib's loky backend against a two-worker
+Dask ``LocalCluster`` (one thread per worker, the settings of a somo-sweep cluster,
+:data:`~somo_sweep.sweep.dask_backend.DASK_WORKER_CONFIG`), in the order joblib, Dask, Dask,
+joblib, so that a load drifting in time weighs on both alike. Before each timed run both
+backends get fresh worker processes, started and warmed by the study's first two trials (task
+modules imported, PyBullet client ready), so the timer sees the trials and their dispatch, not
+process start-up: a Dask cluster is started once and then serves many runs, and so are loky's
+workers within one run. The wall times give the parallel efficiency ``T1 / (2 T2)`` and
+Dask's time over joblib's (the sum of its two runs over the sum of joblib's); the mean trial
+wall time of each backend says whether a difference lies in the trials or between them; all
+tables must hold the same labels (a job is a pure function of its parameters and seed).
+Part of ``make bench`` (``somo-sweep paper speed``).
 """
 
 from __future__ import annotations
 
+from collections.abc import Iterator
+from contextlib import contextmanager
 from dataclasses import dataclass
 from pathlib import Path
 from time import perf_counter
+from typing import Any
 
 import pandas as pd
 
 from somo_sweep.model.tables import bundled_path
-from somo_sweep.sweep.execution import DASK_WORKER_CONFIG
+from somo_sweep.sweep.dask_backend import DASK_WORKER_CONFIG
 
 __all__ = [
     "DASK_OVERHEAD_TARGET",
     "DEMO_STUDY",
     "EFFICIENCY_TARGET",
+    "QUICK_CELLS_OF",
+    "QUICK_STUDY",
     "ScalingRun",
+    "dask_lines",
+    "dask_runs",
+    "numerics_note",
+    "quick_note",
+    "same_labels_line",
     "scaling_lines",
     "scaling_runs",
 ]
 
-#: The study timed by default: the bundled 24-trial pinch-grasp demo.
+#: The studies timed by default: the bundled 24-trial pinch-grasp demo (0.5 ms, about 140 s of CPU a
+#: run), and the 192 cells of the quick study at the 4-ms numerics of the Fig. 6 ablation (the quick
+#: study itself runs 0.5 ms with 4 replicas on boundary cells: about 40x the CPU, too long to time
+#: four times over; Dask's overhead is per trial, not per step).
 DEMO_STUDY = bundled_path("pinch_grasp_demo.yaml")
-#: Issue #16's targets: parallel efficiency at two workers, and Dask's wall time over joblib's.
+QUICK_STUDY = bundled_path("pinch_grasp_quick_ablation_ours.yaml")
+#: The quick study whose cells :data:`QUICK_STUDY` runs.
+QUICK_CELLS_OF = bundled_path("pinch_grasp_quick.yaml")
+#: Targets: parallel efficiency at two workers (issue #16), Dask's wall time over joblib's (#34).
 EFFICIENCY_TARGET = 0.9
 DASK_OVERHEAD_TARGET = 1.10
-#: Names of the two Dask runs: Dask's default settings, and the worker settings the README
-#: gives for a somo-sweep cluster (:data:`~somo_sweep.sweep.execution.DASK_WORKER_CONFIG`).
-DASK_DEFAULT = "Dask LocalCluster, 2 workers, Dask defaults"
-DASK_QUIET = "Dask LocalCluster, 2 workers, somo-sweep settings"
+#: The order of the timed two-worker runs.
+ORDER = ("joblib", "dask", "dask", "joblib")
+JOBLIB = "joblib, 2 workers"
+DASK = "Dask LocalCluster, 2 workers"
 
 
 @dataclass(frozen=True)
 class ScalingRun:
-    """One timed run of the study: how it ran, wall time (s), trials and their labels."""
+    """One timed run of a study: how it ran, wall time (s), trials, their labels and wall times."""
 
     name: str
     wall_s: float
     trials: int
     labels: pd.DataFrame
+    trial_wall_s: float = float("nan")
 
 
-def _labels(folder: Path) -> pd.DataFrame:
+def numerics_note(study_path: Path) -> str:
+    """What a pinch-grasp study file runs, in words: its step, inertia shaping and replicas."""
+    import yaml
+
+    data = yaml.safe_load(study_path.read_text(encoding="utf-8")) or {}
+    step_s = (data.get("simulation") or {}).get("time_step_s")
+    shaping = ((data.get("params") or {}).get("numerics") or {}).get("added_inertia_kg_m2")
+    replicas = (data.get("robustness") or {}).get("replicas")
+    parts = [f"{float(step_s) * 1e3:g} ms" if step_s else "automatic step"]
+    parts.append(f"inertia shaped by {float(shaping):g} kg·m²" if shaping else "no inertia shaping")
+    if replicas:
+        parts.append(f"{replicas} replicas on boundary cells")
+    return ", ".join(parts)
+
+
+def quick_note() -> str:
+    """The heading's note of the quick comparison: whose cells, at which numerics."""
+    return (
+        f"the cells of {QUICK_CELLS_OF.stem} at {numerics_note(QUICK_STUDY)} "
+        f"(the study itself: {numerics_note(QUICK_CELLS_OF)})"
+    )
+
+
+def _labels(folder: Path) -> tuple[pd.DataFrame, float]:
     from somo_sweep.sweep.store import read_results
 
     table = read_results(folder)
     cols = ["job_id", "status", *sorted(c for c in table.columns if str(c).startswith("label_"))]
-    return table[cols].sort_values("job_id").reset_index(drop=True)
+    return table[cols].sort_values("job_id").reset_index(drop=True), float(table["wall_time_s"].mean())
+
+
+@contextmanager
+def _backend(kind: str, n_workers: int) -> Iterator[dict[str, Any]]:
+    """Fresh workers of one backend: ``run_study`` keyword arguments that use them."""
+    if kind == "joblib":
+        from joblib.externals.loky import get_reusable_executor
+
+        get_reusable_executor().shutdown(wait=True)  # the next run starts its own processes
+        yield {"n_jobs": n_workers}
+        return
+    import dask
+    from dask.distributed import LocalCluster
+
+    with (
+        dask.config.set(DASK_WORKER_CONFIG),
+        LocalCluster(
+            n_workers=n_workers,
+            threads_per_worker=1,
+            processes=True,
+            host="127.0.0.1",
+            dashboard_address=None,
+        ) as cluster,
+    ):
+        yield {"backend": "dask", "scheduler": cluster.scheduler_address}
+
+
+def _timed(name: str, study_path: Path, out: Path, kind: str, n_workers: int) -> ScalingRun:
+    from somo_sweep.sweep.execution import run_jobs
+    from somo_sweep.sweep.jobs import first_jobs
+    from somo_sweep.sweep.runner import run_study
+    from somo_sweep.sweep.study import load_study
+
+    study = load_study(study_path, out)
+    with _backend(kind, n_workers) as how:
+        warm = first_jobs(study, n_workers)
+        if kind == "joblib":
+            list(run_jobs(warm, "loky", n_workers))
+        else:
+            list(run_jobs(warm, "dask", scheduler=how["scheduler"]))
+        start = perf_counter()
+        summary = run_study(study, **how)
+        wall_s = perf_counter() - start
+    labels, trial_wall_s = _labels(out)
+    return ScalingRun(name, wall_s, summary.run, labels, trial_wall_s)
+
+
+def _dask_installed() -> bool:
+    try:
+        import dask.distributed  # noqa: F401
+    except ImportError:
+        return False
+    return True
+
+
+def dask_runs(folder: Path, study_path: Path) -> list[ScalingRun]:
+    """``study_path`` at two workers, joblib then Dask then Dask then joblib (joblib only without Dask).
+
+    Args:
+        folder: An empty folder; each run writes its results folder inside it.
+        study_path: The study to time.
+    """
+    order = ORDER if _dask_installed() else ("joblib",)
+    return [
+        _timed(JOBLIB if kind == "joblib" else DASK, study_path, folder / f"{kind}{i}", kind, 2)
+        for i, kind in enumerate(order)
+    ]
 
 
 def scaling_runs(folder: Path, study_path: Path = DEMO_STUDY) -> list[ScalingRun]:
-    """Run ``study_path`` with one worker, two workers and a two-worker Dask cluster (twice).
+    """``study_path`` with one worker, then :func:`dask_runs` (efficiency and Dask's overhead).
 
     Args:
         folder: An empty folder; each run writes its results folder inside it.
         study_path: The study to time (default: the bundled pinch-grasp demo).
     """
-    from somo_sweep.sweep.runner import run_study
-    from somo_sweep.sweep.study import load_study
-
-    runs = []
-    for name, n_jobs in (("joblib, 1 worker", 1), ("joblib, 2 workers", 2)):
-        out = folder / f"jobs{n_jobs}"
-        study = load_study(study_path, out)
-        start = perf_counter()
-        summary = run_study(study, n_jobs=n_jobs)
-        runs.append(ScalingRun(name, perf_counter() - start, summary.run, _labels(out)))
-    try:
-        import dask
-        from dask.distributed import LocalCluster
-    except ImportError:  # Dask is an optional extra: time what is installed
-        return runs
-
-    for name, sub, config in (
-        (DASK_DEFAULT, "dask_defaults", {}),
-        (DASK_QUIET, "dask", DASK_WORKER_CONFIG),
-    ):
-        out = folder / sub
-        with (
-            dask.config.set(config),
-            LocalCluster(
-                n_workers=2, threads_per_worker=1, processes=True, host="127.0.0.1", dashboard_address=None
-            ) as cluster,
-        ):
-            study = load_study(study_path, out)
-            start = perf_counter()
-            summary = run_study(study, backend="dask", scheduler=cluster.scheduler_address)
-            wall_s = perf_counter() - start
-            runs.append(ScalingRun(name, wall_s, summary.run, _labels(out)))
-    return runs
+    return [
+        _timed("joblib, 1 worker", study_path, folder / "jobs1", "joblib", 1),
+        *dask_runs(folder, study_path),
+    ]
 
 
-def scaling_lines(runs: list[ScalingRun], study_name: str = "pinch_grasp_demo") -> list[str]:
-    """Printable lines: wall time of each run, efficiency, Dask overhead, label identity.
+def dask_lines(runs: list[ScalingRun], study_name: str, note: str = "") -> list[str]:
+    """Printable lines of :func:`dask_runs`: each run, the ratio of their sums, trials' mean wall.
 
-    Without the Dask run (Dask not installed) its lines say how to install it.
+    Args:
+        runs: The runs.
+        study_name: The study's name, for the heading.
+        note: What the study runs (its numerics), for the heading.
     """
-    one, two = runs[:2]
-    efficiency = one.wall_s / (2 * two.wall_s)
-    dask = next((r for r in runs if r.name == DASK_QUIET), None)
-    dask_default = next((r for r in runs if r.name == DASK_DEFAULT), None)
-    same = all(r.labels.equals(one.labels) for r in runs)
-    lines = [f"sweep scaling, study {study_name} ({one.trials} trials, wall time of the whole run):"]
-    lines += [f"  {r.name:30s} {r.wall_s:7.1f} s ({r.trials} trials)" for r in runs]
+    joblib = [r for r in runs if r.name == JOBLIB]
+    dask = [r for r in runs if r.name == DASK]
+    order = ", ".join(ORDER)
+    what = f"{note}; " if note else ""
+    lines = [
+        f"Dask vs joblib, study {study_name} ({what}{joblib[0].trials} trials, run in the order {order}):"
+    ]
+    lines += [f"  {r.name:30s} {r.wall_s:7.1f} s, mean trial {r.trial_wall_s:.3f} s" for r in runs]
+    if not dask:
+        lines.append('  Dask runs skipped: Dask is not installed (pip install "somo-sweep[dask]")')
+        return [*lines, same_labels_line(runs)]
+    ratio = sum(r.wall_s for r in dask) / sum(r.wall_s for r in joblib)
+    trials = sum(r.trial_wall_s for r in dask) / sum(r.trial_wall_s for r in joblib)
+    ok = "ok" if ratio <= DASK_OVERHEAD_TARGET else "not met"
+    lines.append(f"  Dask / joblib wall time = {ratio:.2f} (target <= {DASK_OVERHEAD_TARGET:g}: {ok})")
+    lines.append(f"  Dask / joblib mean trial wall time = {trials:.2f}")
+    return [*lines, same_labels_line(runs)]
+
+
+def same_labels_line(runs: list[ScalingRun]) -> str:
+    """Whether every run stored the same statuses and labels."""
+    same = all(r.labels.equals(runs[0].labels) for r in runs)
+    return f"  labels and statuses identical in the {len(runs)} runs: {'yes' if same else 'NO'}"
+
+
+def scaling_lines(runs: list[ScalingRun], study_name: str = "pinch_grasp_demo", note: str = "") -> list[str]:
+    """Printable lines of :func:`scaling_runs`: efficiency, then :func:`dask_lines`.
+
+    Without Dask (not installed) its lines say how to install it; ``note`` says what the study runs.
+    """
+    one, rest = runs[0], runs[1:]
+    two = [r for r in rest if r.name == JOBLIB]
+    t2 = sum(r.wall_s for r in two) / len(two)
+    efficiency = one.wall_s / (2 * t2)
     eff_ok = "ok" if efficiency >= EFFICIENCY_TARGET else "not met"
+    what = f"{note}; " if note else ""
+    lines = [f"sweep scaling, study {study_name} ({what}{one.trials} trials, wall time of the whole run):"]
+    lines.append(f"  {one.name:30s} {one.wall_s:7.1f} s")
     lines.append(
-        f"  parallel efficiency T1 / (2 T2) = {efficiency:.2f} "
+        f"  parallel efficiency T1 / (2 T2) = {efficiency:.2f}, T2 the mean of the joblib runs below "
         f"(target >= {EFFICIENCY_TARGET:g} on an idle machine: {eff_ok})"
     )
-    if dask is None:
-        lines.append('  Dask run skipped: Dask is not installed (pip install "somo-sweep[dask]")')
-    else:
-        overhead = dask.wall_s / two.wall_s
-        dask_ok = "ok" if overhead <= DASK_OVERHEAD_TARGET else "not met"
-        if dask_default is not None:
-            ratio = dask_default.wall_s / two.wall_s
-            lines.append(f"  Dask / joblib at 2 workers, Dask defaults = {ratio:.2f}")
-        lines.append(
-            f"  Dask / joblib at 2 workers, somo-sweep settings = {overhead:.2f} "
-            f"(target <= {DASK_OVERHEAD_TARGET:g}: {dask_ok})"
-        )
-    lines.append(f"  labels and statuses identical in the {len(runs)} runs: {'yes' if same else 'NO'}")
-    return lines
+    return [*lines, *dask_lines(rest, study_name, note)[:-1], same_labels_line(runs)]

@@ -121,11 +121,17 @@ def axis_length(spec: Any) -> int | None:
     return math.floor(count + 1e-9) + 1 if count < 1e18 else 10**18
 
 
-def expand_axis(spec: Any, where: str) -> tuple[list[Any], list[Problem]]:
-    """Values of one axis spec; problems are reported against key path ``where``."""
+def expand_axis(spec: Any, where: str, distinct: bool = True) -> tuple[list[Any], list[Problem]]:
+    """Values of one axis spec; problems are reported against key path ``where``.
+
+    With ``distinct`` (an axis of its own) a value given twice is refused: it would be the same
+    trial twice. A linked axis may repeat values; its group's combinations must be distinct.
+    """
     if isinstance(spec, list):
         if not spec:
             return [], [Problem(where, "an axis needs at least one value, got []")]
+        if not distinct:
+            return spec, []
         first: dict[Any, int] = {}
         for i, value in enumerate(spec):
             number = isinstance(value, int | float) and not isinstance(value, bool)
@@ -156,7 +162,7 @@ def expand_axis(spec: Any, where: str) -> tuple[list[Any], list[Problem]]:
         got = "{" + ", ".join(sorted(keys)) + "}"
         return [], [Problem(where, f"{hint}an axis mapping has keys {shape}; got {got}")]
     if keys == {"values"}:
-        return expand_axis(spec["values"], f"{where}.values")
+        return expand_axis(spec["values"], f"{where}.values", distinct)
     problems = []
     for k in sorted(keys):
         v = spec[k]

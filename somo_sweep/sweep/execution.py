@@ -1,4 +1,4 @@
-"""Run jobs in parallel (joblib: loky locally, Dask on a cluster) and stream outcomes back.
+"""Run jobs in parallel (joblib's loky locally, Dask on a cluster) and stream outcomes back.
 
 Every trial runs in its own process forked from the worker (POSIX), so a trial that
 dies (segfault, ``os._exit``, killed, out of memory) costs only that trial, which is
@@ -13,6 +13,7 @@ from __future__ import annotations
 
 import contextlib
 import ctypes
+import importlib
 import os
 import pickle
 import re
@@ -23,14 +24,15 @@ import sys
 import threading
 import time
 import warnings
-from collections.abc import Callable, Generator, Iterable, Iterator
+from collections.abc import Callable, Generator, Iterable, Iterator, Sized
 from dataclasses import dataclass, field, replace
 from typing import Any, Literal
 
 from joblib import Parallel, delayed, parallel_config
 
-from somo_sweep.errors import SHOWN_CHARS, SomoError, UnstableSimulation, shown
-from somo_sweep.sweep.jobs import Job
+from somo_sweep.errors import SomoError, UnstableSimulation
+from somo_sweep.sweep.dask_backend import DASK_WORKER_CONFIG, dask_client, dask_environment, run_on_dask
+from somo_sweep.sweep.jobs import Job, trial_modules
 from somo_sweep.tasks.registry import TaskResult, get_task
 
 __all__ = [
@@ -44,24 +46,15 @@ __all__ = [
     "outcome_of",
     "run_isolated",
     "run_job",
+    "run_jobs",
+    "start_workers",
+    "stop_workers",
 ]
 
 Backend = Literal["loky", "dask"]
 #: How often a worker restart is tried when a whole worker process (not a trial) dies.
 MAX_POOL_RESTARTS = 3
 _PR_SET_PDEATHSIG = 1
-#: Dask settings for the scheduler and the workers of a somo-sweep cluster. A trial runs in a
-#: child process forked from its worker, so the worker's own threads only wait on a pipe; Dask's
-#: event-loop tick (every 20 ms), its stack profiler (every 10 ms, of a thread that only waits)
-#: and its system monitor (every 0.5 s) then take CPU from the trials. On a 2-worker
-#: ``LocalCluster`` left idle they cost 0.13 cores by default and 0.04 with these settings
-#: (measured on the 2-core reference machine). :func:`dask_environment` spells them as the
-#: environment variables that ``dask scheduler`` and ``dask worker`` read.
-DASK_WORKER_CONFIG: dict[str, Any] = {
-    "distributed.admin.tick.interval": "1s",
-    "distributed.worker.profile.enabled": False,
-    "distributed.admin.system-monitor.interval": "2s",
-}
 
 
 @dataclass(frozen=True)
@@ -144,6 +137,32 @@ def _start_local_worker(owner_pid: int) -> None:
     _watch_owner(owner_pid)
 
 
+_warmed: set[str] = set()
+
+
+def _warm_up(task: str) -> None:
+    """Once per worker process and task, before the first fork: import every module a trial may
+    import, and connect the spare PyBullet client its children inherit.
+
+    A module a trial imports itself (inside a function) is otherwise imported again in every
+    forked child and lost with it: the bench task's statics (SciPy) cost about 0.13 s of CPU per
+    trial that way, ten times the trial itself. An import error is the trial's, reported by the child.
+    """
+    if task in _warmed:
+        return
+    _warmed.add(task)
+    with contextlib.suppress(Exception):
+        spec = get_task(task)
+        _ = spec.run
+        for name in trial_modules(spec.run_path.partition(":")[0]):
+            with contextlib.suppress(Exception):
+                importlib.import_module(name)
+        if "pybullet" in sys.modules:  # a simulating task: its child inherits a connected client
+            from somo_sweep.sim.world import keep_spare_client
+
+            keep_spare_client()
+
+
 def _call(job: Job, time_step_s: float) -> TaskResult:
     spec = get_task(job.task)
     try:
@@ -183,12 +202,7 @@ def run_isolated(job: Job, timeout_s: float | None = None, owner_pid: int | None
     """
     if owner_pid is not None:
         _watch_owner(owner_pid)
-    with contextlib.suppress(Exception):  # an import error is the trial's, reported by the child
-        _ = get_task(job.task).run  # import the task's modules once per worker, before forking
-        if "pybullet" in sys.modules:  # a simulating task: its child inherits a connected client
-            from somo_sweep.sim.world import keep_spare_client
-
-            keep_spare_client()
+    _warm_up(job.task)
     start = time.perf_counter()
     host = socket.gethostname()
     read_fd, write_fd = os.pipe()
@@ -284,13 +298,8 @@ def _deaf_to_ctrl_c(active: bool) -> Iterator[None]:
         signal.pthread_sigmask(signal.SIG_SETMASK, mask)
 
 
-def _parallel(backend: Backend, n_jobs: int) -> Parallel:
-    return Parallel(
-        n_jobs=n_jobs if backend == "loky" else -1,
-        return_as="generator_unordered",
-        batch_size=1,
-        pre_dispatch="2*n_jobs",
-    )
+def _parallel(n_jobs: int) -> Parallel:
+    return Parallel(n_jobs=n_jobs, return_as="generator_unordered", batch_size=1, pre_dispatch="2*n_jobs")
 
 
 #: joblib's warning when its output generator is closed early, and the counts it names.
@@ -318,6 +327,134 @@ def _close(outcomes: Iterator[Outcome], on_stop: Callable[[int], None] | None) -
         on_stop(cut)
 
 
+def run_jobs(
+    jobs: Iterable[Job],
+    backend: Backend = "loky",
+    n_jobs: int = 1,
+    scheduler: str | None = None,
+    timeout_s: float | None = None,
+    client: Any = None,
+    on_stop: Callable[[int], None] | None = None,
+) -> Generator[tuple[Job, Outcome], None, None]:
+    """Run jobs and yield each with its outcome as it finishes (in completion order).
+
+    ``jobs`` is read as the workers take them, and only the jobs in flight are held (a few per
+    worker), so a study of any size runs in the same memory.
+
+    Closing the iterator early (the caller stopped) cancels the trials still running; joblib's
+    warning about them is not shown: ``on_stop`` gets how many there were (trials running, or
+    returned but not yet handed out), so that the caller can say it in its own words.
+
+    Args:
+        jobs: The jobs to run.
+        backend: ``loky`` (processes on this machine) or ``dask`` (a cluster,
+            :func:`~somo_sweep.sweep.dask_backend.run_on_dask`).
+        n_jobs: Worker processes for ``loky`` (1 runs in this process; trials are still forked).
+        scheduler: Dask scheduler address, e.g. ``tcp://10.0.0.5:8786`` (``dask`` only).
+        timeout_s: Per-trial wall-time limit, s.
+        client: A connected Dask client (``dask`` only; default: connect to ``scheduler``).
+        on_stop: Called with the number of trials cut short when the iterator is closed early.
+
+    Raises:
+        SomoError: The Dask scheduler cannot be reached or is lost, or workers keep dying.
+    """
+    if backend == "dask":
+        own = client is None
+        client = dask_client(scheduler) if own else client
+        try:
+            yield from run_on_dask(jobs, client, timeout_s, on_stop)
+        finally:
+            if own:
+                client.close()
+        return
+    yield from _run_local(jobs, n_jobs, timeout_s, on_stop)
+
+
+#: Warm-up calls of the workers :func:`start_workers` started, drained before the first trial.
+_starting: list[Iterator[Any]] = []
+
+
+def start_workers(n_jobs: int, task: str) -> None:
+    """Start the local workers now, each importing what a trial of ``task`` imports, and return.
+
+    ``somo-sweep run`` calls this before it builds the job table and opens the results folder,
+    so that the workers start and import while it does: on two cores, the seconds a resumed
+    20 000-trial study took to its first trial were half worker start-up. The run then uses
+    these workers (joblib keeps its pool for the same settings). Nothing starts for one worker.
+    """
+    if n_jobs <= 1:
+        return
+    owner = os.getpid()
+    with (
+        parallel_config(backend="loky", initializer=_start_local_worker, initargs=(owner,)),
+        _deaf_to_ctrl_c(True),
+    ):
+        _starting.append(_parallel(n_jobs)(delayed(_warm_up)(task) for _ in range(n_jobs)))
+
+
+def stop_workers() -> None:
+    """End the workers :func:`start_workers` started if no run took them (it stopped before any trial)."""
+    while _starting:
+        started = _starting.pop()
+        with warnings.catch_warnings(), contextlib.suppress(Exception):
+            warnings.simplefilter("ignore")  # joblib's note that the warm-up results went unused
+            started.close()  # type: ignore[attr-defined]
+
+
+def _run_local(
+    jobs: Iterable[Job], n_jobs: int, timeout_s: float | None, on_stop: Callable[[int], None] | None
+) -> Iterator[tuple[Job, Outcome]]:
+    """The loky backend: worker processes on this machine, restarted if one of them dies."""
+    while _starting:  # workers started ahead: let their warm-up finish (a failure shows below)
+        with contextlib.suppress(Exception):
+            for _ in _starting.pop():
+                pass
+    source = iter(jobs)
+    in_flight: dict[str, Job] = {}  # handed to the workers, outcome not back yet
+    again: list[Job] = []  # in flight when a worker process died: run first after the restart
+    restarts = 0
+    owner = os.getpid()
+    size = len(jobs) if isinstance(jobs, Sized) else n_jobs
+
+    def feed() -> Iterator[Any]:
+        while True:
+            job = again.pop() if again else next(source, None)
+            if job is None:
+                return
+            in_flight[job.job_id] = job
+            yield delayed(run_isolated)(job, timeout_s, owner)
+
+    while True:
+        try:
+            # Local workers watch for the sweep's death from their start, not from their first
+            # trial: a run killed while they were still importing left them for loky's 300 s.
+            with parallel_config(backend="loky", initializer=_start_local_worker, initargs=(owner,)):
+                workers = max(1, min(n_jobs, size))  # no idle process
+                # Worker processes start here. With one worker none starts: this process runs
+                # the trials and keeps hearing Ctrl-C at once.
+                with _deaf_to_ctrl_c(workers > 1):
+                    outcomes = _parallel(workers)(feed())
+                try:
+                    for out in outcomes:
+                        yield in_flight.pop(out.job_id), out
+                finally:
+                    _close(outcomes, on_stop)
+            if not in_flight:
+                return
+            again.extend(in_flight.values())  # dispatched by a pool that died as it was replaced
+            in_flight.clear()
+        except (KeyboardInterrupt, GeneratorExit):
+            raise
+        except Exception as exc:  # a worker process itself died (not a trial): restart the pool
+            restarts += 1
+            if restarts > MAX_POOL_RESTARTS:
+                raise SomoError(
+                    f"workers died {restarts} times, giving up: {type(exc).__name__}: {exc}"
+                ) from exc
+            again.extend(reversed(list(in_flight.values())))
+            in_flight.clear()
+
+
 def execute(
     jobs: Iterable[Job],
     backend: Backend = "loky",
@@ -327,110 +464,7 @@ def execute(
     client: Any = None,
     on_stop: Callable[[int], None] | None = None,
 ) -> Generator[Outcome, None, None]:
-    """Run jobs and yield their outcomes as they finish (in completion order).
-
-    Closing the iterator early (the caller stopped) cancels the trials still running; joblib's
-    warning about them is not shown: ``on_stop`` gets how many there were (trials running, or
-    returned but not yet handed out), so that the caller can say it in its own words.
-
-    Args:
-        jobs: The jobs to run.
-        backend: ``loky`` (processes on this machine) or ``dask`` (an existing cluster).
-        n_jobs: Worker processes for ``loky`` (1 runs in this process; trials are still forked).
-        scheduler: Dask scheduler address, e.g. ``tcp://10.0.0.5:8786`` (``dask`` only).
-        timeout_s: Per-trial wall-time limit, s.
-        client: A connected Dask client (``dask`` only; default: connect to ``scheduler``).
-        on_stop: Called with the number of trials cut short when the iterator is closed early.
-
-    Raises:
-        SomoError: The Dask scheduler cannot be reached, or workers keep dying.
-    """
-    pending = {j.job_id: j for j in jobs}
-    own_client = backend == "dask" and client is None
-    if own_client:
-        client = dask_client(scheduler)
-    restarts = 0
-    owner = os.getpid()
-    try:
-        while pending:
-            todo = list(pending.values())
-            try:
-                # Local workers watch for the sweep's death from their start, not from their first
-                # trial: a run killed while they were still importing left them for loky's 300 s.
-                watch = (
-                    {"initializer": _start_local_worker, "initargs": (owner,)} if backend == "loky" else {}
-                )
-                with parallel_config(backend=backend, **watch):
-                    workers = min(n_jobs, len(todo)) if backend == "loky" else n_jobs  # no idle process
-                    # Worker processes start here. With one worker none starts: this process runs
-                    # the trials and keeps hearing Ctrl-C at once.
-                    with _deaf_to_ctrl_c(backend == "loky" and workers > 1):
-                        outcomes = _parallel(backend, workers)(
-                            delayed(run_isolated)(j, timeout_s, owner) for j in todo
-                        )
-                    try:
-                        for out in outcomes:
-                            pending.pop(out.job_id, None)
-                            yield out
-                    finally:
-                        _close(outcomes, on_stop)
-            except (KeyboardInterrupt, GeneratorExit):
-                raise
-            except Exception as exc:  # a worker process itself died (not a trial): restart the pool
-                restarts += 1
-                if restarts > MAX_POOL_RESTARTS:
-                    raise SomoError(
-                        f"workers died {restarts} times, giving up: {type(exc).__name__}: {exc}"
-                    ) from exc
-    finally:
-        if own_client and client is not None:
-            client.close()
-
-
-def dask_environment(config: dict[str, Any] | None = None) -> dict[str, str]:
-    """Dask configuration as environment variables (``DASK_DISTRIBUTED__ADMIN__TICK__INTERVAL`` ...).
-
-    Args:
-        config: Dotted Dask keys and values (default: :data:`DASK_WORKER_CONFIG`).
-    """
-    items = (DASK_WORKER_CONFIG if config is None else config).items()
-    return {
-        "DASK_" + "__".join(part.replace("-", "_").upper() for part in key.split(".")): str(value)
-        for key, value in items
-    }
-
-
-def dask_client(scheduler: str | None, timeout_s: float = 15.0) -> Any:
-    """A ``dask.distributed.Client`` connected to ``scheduler`` (joblib's Dask backend uses it).
-
-    Args:
-        scheduler: Address, e.g. ``tcp://HOST:8786``.
-        timeout_s: How long to try to connect, s.
-
-    Raises:
-        SomoError: No address, or the scheduler cannot be reached in time.
-    """
-    if not scheduler:
-        raise SomoError("--backend dask needs --scheduler ADDRESS (e.g. tcp://HOST:8786)")
-    try:
-        from dask.distributed import Client
-    except ImportError:
-        raise SomoError(
-            '--backend dask needs Dask, which is not installed: pip install "somo-sweep[dask]"'
-        ) from None
-
-    where = shown(scheduler, 4 * SHOWN_CHARS)
-    try:
-        return Client(scheduler, timeout=f"{timeout_s}s")
-    except (OSError, TimeoutError) as exc:
-        raise SomoError(f"cannot connect to the Dask scheduler at {where}: {shown(str(exc), 200)}") from None
-    except ValueError as exc:  # an address Dask cannot parse (unknown scheme, no port, ...)
-        raise SomoError(
-            f"--scheduler {where} is not a Dask address ({shown(str(exc), 200)}); allowed: "
-            "SCHEME://HOST:PORT, e.g. tcp://HOST:8786"
-        ) from None
-    except Exception as exc:  # a server that is not a Dask scheduler answers garbage
-        raise SomoError(
-            f"the server at {where} did not answer as a Dask scheduler ({type(exc).__name__}); "
-            "check the address and port"
-        ) from None
+    """Run jobs and yield their outcomes as they finish (:func:`run_jobs` without the jobs)."""
+    with contextlib.closing(run_jobs(jobs, backend, n_jobs, scheduler, timeout_s, client, on_stop)) as pairs:
+        for _, out in pairs:
+            yield out

@@ -13,7 +13,7 @@ import json
 import os
 import warnings
 from collections import Counter
-from collections.abc import Callable, Collection, Mapping
+from collections.abc import Callable, Collection, Iterator, Mapping
 from pathlib import Path
 from typing import Any
 
@@ -118,6 +118,7 @@ def split_parts(
     listed: Collection[str] = (),
     declared: Mapping[str, str] | None = None,
     max_rows: int | None = None,
+    schemas: dict[Path, pa.Schema] | None = None,
 ) -> tuple[list[Path], list[tuple[Path, str]]]:
     """(readable part files, [(damaged part file, why)]) of a results folder.
 
@@ -128,11 +129,11 @@ def split_parts(
     alias), else the type most parts give it. So one edited part is set aside, never the
     parts that agree with each other, whatever their names. Parts the manifest lists
     (``listed``: its ``trials/NAME`` files) come first, so on a tie a stray file never
-    displaces one a run wrote.
+    displaces one a run wrote. ``schemas``, if given, receives the schema of each readable part.
     """
     good: list[Path] = []
     bad: list[tuple[Path, str]] = []
-    schemas: dict[Path, pa.Schema] = {}
+    found: dict[Path, pa.Schema] = {}
     for part in sorted(part_files(folder), key=lambda p: f"trials/{p.name}" not in listed):
         reason = None if part.is_file() else "not a regular file"
         if reason is None and not os.access(part, os.R_OK):  # not damaged: never set aside for it
@@ -144,14 +145,16 @@ def split_parts(
                 if max_rows is not None and rows > max_rows:
                     reason = f"{rows} rows, more than the study's {max_rows} trials"
                 else:
-                    schemas[part] = pq.read_schema(part)
+                    found[part] = pq.read_schema(part)
             except (pa.ArrowException, OSError) as exc:
                 reason = str(exc).split("\n")[0]
         if reason is not None:
             bad.append((part, reason))
-    reference = _reference_types(list(schemas.values()), declared or {})
+    if schemas is not None:
+        schemas.update(found)
+    reference = _reference_types(list(found.values()), declared or {})
     merged: pa.Schema | None = None
-    for part, schema in schemas.items():
+    for part, schema in found.items():
         reason = None
         for field in schema:
             want = reference.get(field.name)
@@ -469,9 +472,8 @@ def _inferred_cells(
     return inferred.filter(keep)
 
 
-def journal_rows(path: Path) -> list[dict[str, Any]]:
-    """The rows of a journal file; a line cut short by a killed process is left out."""
-    rows = []
+def journal_rows(path: Path) -> Iterator[dict[str, Any]]:
+    """The rows of a journal file, one at a time; a line cut short by a killed process is left out."""
     with path.open("rb") as fh:
         for line in fh:
             try:
@@ -479,8 +481,7 @@ def journal_rows(path: Path) -> list[dict[str, Any]]:
             except ValueError:
                 continue
             if isinstance(row, dict) and isinstance(row.get("job_id"), str):
-                rows.append(row)
-    return rows
+                yield row
 
 
 def pending_journal_rows(folder: str | Path, study_hash: str, stored: Collection[str]) -> dict[str, int]:

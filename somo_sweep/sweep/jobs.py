@@ -20,26 +20,30 @@ import hashlib
 import itertools
 import json
 import os
-from collections.abc import Iterator
-from dataclasses import asdict, dataclass, replace
-from functools import cache
+from collections.abc import Iterable, Iterator, Sequence
+from dataclasses import asdict, dataclass, field, replace
+from functools import cache, cached_property
 from importlib.metadata import PackageNotFoundError, version
 from pathlib import Path
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING, Any, overload
 
-import pandas as pd
+import numpy as np
 from pydantic import BaseModel
 
 from somo_sweep.errors import DescriptionError, Problem
 from somo_sweep.model.load import Model
 from somo_sweep.sim.settings import WorldSettings
-from somo_sweep.sweep.study import Study
+from somo_sweep.sweep.study import MODEL_CACHE, PARAMS_CACHE, RecentCache, Study
 
 if TYPE_CHECKING:
+    import pandas as pd
+
     from somo_sweep.sim.numerics import ChosenNumerics
 
 __all__ = [
     "Job",
+    "JobList",
+    "JobMaker",
     "JobTable",
     "auto_numerics",
     "build_jobs",
@@ -187,28 +191,218 @@ class Job:
 
 
 @dataclass(frozen=True)
+class _ModelInfo:
+    """What the jobs of one distinct model share (kept for every model met: a few hundred bytes)."""
+
+    model_file: str
+    model_hash: str
+    settings: WorldSettings
+    settings_json: str
+    numerics: ChosenNumerics | None
+
+
+def _json(value: Any) -> str:
+    return json.dumps(value, sort_keys=True, separators=(",", ":"), default=str)
+
+
+class JobMaker:
+    """Builds the job of any trial of a study from its number alone (grid order).
+
+    Nothing is kept per trial: models and parameter sets come from caches of the most recently
+    used, and each distinct model's hash, settings and numerics (a few hundred bytes) are kept,
+    so a table of a million trials costs its ids, not its jobs. A job's id is the hash of the
+    same JSON text as always (:func:`_hash` of its identity), written from parts made once per
+    model and per parameter set.
+    """
+
+    def __init__(self, study: Study):
+        self.study = study
+        self.fixed = None if study.simulation is None else study.simulation.world_settings()
+        self.code = code_version(study.task.run_path.partition(":")[0])
+        self.engine = pybullet_version()
+        overrides = sorted({*study.fixed, *(a.key for a in study.axes)} - {"model"})
+        self.model_columns = [(k, param_column(k)) for k in overrides if k.startswith("model.")]
+        values = {a.key: a.values for a in study.axes}
+        self._groups = [(g, list(zip(*(values[k] for k in g), strict=True))) for g in study.groups]
+        self._head = f'{{"code":{_json(self.code)},"model":'
+        self._tail = f',"task":{_json(study.task.name)}}}'
+        #: Model key → what its jobs share, for every distinct model met.
+        self.models: dict[str, _ModelInfo] = {}
+        self._built: dict[str, Model] = RecentCache(MODEL_CACHE)  # with their numerics applied
+        self._params: dict[str, tuple[BaseModel, str, dict[str, Any]]] = RecentCache(PARAMS_CACHE)
+
+    def point(self, number: int) -> dict[str, Any]:
+        """The grid point of number ``number`` (:meth:`Study.points` order)."""
+        point: dict[str, Any] = {}
+        picks = []
+        for _, rows in reversed(self._groups):
+            number, i = divmod(number, len(rows))
+            picks.append(i)
+        for (keys, rows), i in zip(self._groups, reversed(picks), strict=True):
+            point.update(zip(keys, rows[i], strict=True))
+        return point
+
+    def _model(self, point: dict[str, Any]) -> tuple[Model, _ModelInfo]:
+        key = self.study.model_key(point)
+        if key in self._built:
+            return self._built[key], self.models[key]
+        model_path, given = self.study.resolve_model(point)
+        info = self.models.get(key)
+        if info is None:
+            shaped, model_hash, settings, numerics = _prepare(given, self.fixed, self.study.auto_step_s)
+            model_file = os.path.relpath(model_path, self.study.source.parent)
+            info = _ModelInfo(model_file, model_hash, settings, _json(asdict(settings)), numerics)
+            self.models[key] = info
+        else:
+            shaped = given if info.numerics is None else info.numerics.apply(given)
+        self._built[key] = shaped
+        return shaped, info
+
+    def _task(self, point: dict[str, Any]) -> tuple[BaseModel, str, dict[str, Any]]:
+        key = self.study.params_key(point)
+        if key not in self._params:
+            params = self.study.resolve_params(point)
+            dumped = params.model_dump(mode="json")
+            columns: dict[str, Any] = {}
+            _flatten("task", dumped, columns)
+            self._params[key] = (params, _json(dumped), columns)
+        return self._params[key]
+
+    def job(self, trial: int) -> Job:
+        """The job of trial number ``trial`` (0-based, grid order: repeats innermost)."""
+        study = self.study
+        point_number, repeat = divmod(trial, study.repeats)
+        point = self.point(point_number)
+        model, info = self._model(point)
+        params, params_json, task_columns = self._task(point)
+        values = {**study.fixed, **point}
+        columns = dict(task_columns)
+        for key, column in self.model_columns:
+            _flatten(column, values[key], columns)
+        columns["model_file"] = info.model_file
+        columns["model_hash"] = info.model_hash
+        seed = _seed(study.seed, point, repeat)
+        # _hash(identity), identity = {task, params, model, settings, seed, code, pybullet}: keys sorted.
+        text = (
+            f'{self._head}{_json(info.model_hash)},"params":{params_json},"pybullet":{_json(self.engine)},'
+            f'"seed":{seed},"settings":{info.settings_json}{self._tail}'
+        )
+        job_id = hashlib.sha256(text.encode()).hexdigest()[:16]
+        return Job(
+            job_id,
+            trial,
+            repeat,
+            seed,
+            study.task.name,
+            model,
+            params,
+            settings=info.settings,
+            columns=columns,
+            numerics=info.numerics,
+        )
+
+
+class JobList(Sequence[Job]):
+    """Some trials of a study, as jobs built when asked for (iterating builds one at a time).
+
+    Args:
+        maker: Builds each job.
+        trials: Trial numbers, in order.
+    """
+
+    def __init__(self, maker: JobMaker, trials: Sequence[int] | np.ndarray):
+        self.maker = maker
+        self.trials = trials
+
+    def __len__(self) -> int:
+        return len(self.trials)
+
+    @overload
+    def __getitem__(self, index: int) -> Job: ...
+
+    @overload
+    def __getitem__(self, index: slice) -> JobList: ...
+
+    def __getitem__(self, index: int | slice) -> Job | JobList:
+        if isinstance(index, slice):
+            return JobList(self.maker, self.trials[index])
+        return self.maker.job(int(self.trials[index]))
+
+    def __iter__(self) -> Iterator[Job]:
+        for trial in self.trials:
+            yield self.maker.job(int(trial))
+
+
+@dataclass(frozen=True)
 class JobTable:
-    """All jobs of a study and what identifies the study as a whole.
+    """All trials of a study and what identifies the study as a whole.
+
+    The jobs themselves are built when asked for (:attr:`jobs`); the table keeps their ids
+    (16 bytes a trial), so that its memory stays flat in the number of trials.
 
     Attributes:
-        jobs: In grid order.
+        ids: Every job id, in grid order (NumPy ``S16``).
         study_hash: Hash of every job id in order (changes with anything that changes a trial).
         axes: Axis key path → column name.
         resolved: The study as resolved (for manifests and "what changed" messages).
+        column_examples: Parameter column → one example value of each Python type it holds.
+        maker: Builds the jobs.
     """
 
-    jobs: list[Job]
+    ids: np.ndarray
     study_hash: str
     axes: dict[str, str]
     resolved: dict[str, Any]
+    column_examples: dict[str, list[Any]]
+    maker: JobMaker = field(repr=False, compare=False)
+
+    @property
+    def jobs(self) -> JobList:
+        """Every job, in grid order (built one at a time)."""
+        return JobList(self.maker, range(len(self.ids)))
+
+    def select(self, trials: Sequence[int] | np.ndarray) -> JobList:
+        """The jobs of the given trial numbers, in the order given."""
+        return JobList(self.maker, trials)
+
+    @cached_property
+    def _ranked(self) -> tuple[np.ndarray, np.ndarray]:
+        order = np.argsort(self.ids, kind="stable")
+        return order, self.ids[order]
+
+    def among(self, job_ids: np.ndarray) -> np.ndarray:
+        """Whether each trial's id is one of ``job_ids`` (``S16``), trial by trial (a bool array).
+
+        A sorted search: about 40 bytes a trial of temporaries, at any size.
+        """
+        if not len(job_ids):
+            return np.zeros(len(self.ids), dtype=bool)
+        ranked = np.sort(job_ids)
+        pos = np.searchsorted(ranked, self.ids).clip(max=len(ranked) - 1)
+        return ranked[pos] == self.ids
+
+    def trial_of(self, job_ids: Sequence[str]) -> np.ndarray:
+        """The trial number of each job id (-1 for an id not in the table)."""
+        out = np.full(len(job_ids), -1, dtype=np.int64)
+        valid = [i for i, j in enumerate(job_ids) if isinstance(j, str) and len(j) == 16 and j.isascii()]
+        if not valid or not len(self.ids):
+            return out
+        order, ranked = self._ranked
+        keys = np.array([job_ids[i].encode() for i in valid], dtype="S16")
+        pos = np.searchsorted(ranked, keys).clip(max=len(ranked) - 1)
+        hit = ranked[pos] == keys
+        out[np.asarray(valid)[hit]] = order[pos[hit]]
+        return out
 
     def frame(self) -> pd.DataFrame:
         """The job table as a DataFrame (id, trial, repeat, seed and parameter columns)."""
-        return jobs_frame(self.jobs)
+        return jobs_frame(list(self.jobs))
 
 
-def jobs_frame(jobs: list[Job]) -> pd.DataFrame:
+def jobs_frame(jobs: Sequence[Job]) -> pd.DataFrame:
     """Jobs as a DataFrame (id, trial, repeat, seed and parameter columns)."""
+    import pandas as pd  # not at import: a worker imports this module and never needs pandas
+
     return pd.DataFrame(
         [
             {"job_id": j.job_id, "trial": j.trial, "repeat": j.repeat, "seed": j.seed, **j.columns}
@@ -223,51 +417,27 @@ def _seed(base: int, point: dict[str, Any], repeat: int) -> int:
     return int(_hash([base, key, repeat], 8), 16)
 
 
+def _identical(study: Study, first: int, second: int) -> DescriptionError:
+    point = study.point_at(second // study.repeats)
+    return DescriptionError(
+        study.source, [Problem("sweep", f"trials {first} and {second} are identical: {point}")]
+    )
+
+
 def iter_jobs(study: Study) -> Iterator[Job]:
     """The jobs of a study one by one, in grid order.
 
     Raises:
         DescriptionError: Two trials are identical (e.g. a value repeated in an axis).
     """
-    fixed_settings = None if study.simulation is None else study.simulation.world_settings()
-    code = code_version(study.task.run_path.partition(":")[0])
-    engine = pybullet_version()
-    overrides = sorted({*study.fixed, *(a.key for a in study.axes)} - {"model"})
+    maker = JobMaker(study)
     seen: dict[str, int] = {}
-    trial = 0
-    # The study hands out one object per distinct model: each is shaped and hashed once.
-    prepared: dict[int, tuple[Model, str, WorldSettings, ChosenNumerics | None]] = {}
-    for point in study.points():
-        model_path, given, params = study.resolve(point)
-        if id(given) not in prepared:
-            prepared[id(given)] = _prepare(given, fixed_settings, study.auto_step_s)
-        model, model_hash, settings, numerics = prepared[id(given)]
-        values = {**study.fixed, **point}
-        columns: dict[str, Any] = {}
-        _flatten("task", params.model_dump(mode="json"), columns)
-        for key in overrides:
-            if key.startswith("model."):
-                _flatten(param_column(key), values[key], columns)
-        columns["model_file"] = os.path.relpath(model_path, study.source.parent)
-        columns["model_hash"] = model_hash
-        for repeat in range(study.repeats):
-            seed = _seed(study.seed, point, repeat)
-            job_id = _job_id(study.task.name, params, model_hash, settings, seed, code, engine)
-            if job_id in seen:
-                raise DescriptionError(
-                    study.source,
-                    [
-                        Problem(
-                            "sweep",
-                            f"trials {seen[job_id]} and {trial} are identical: {point}",
-                        )
-                    ],
-                )
-            seen[job_id] = trial
-            yield Job(
-                job_id, trial, repeat, seed, study.task.name, model, params, settings, columns, numerics
-            )
-            trial += 1
+    for trial in range(study.n_trials):
+        job = maker.job(trial)
+        if job.job_id in seen:
+            raise _identical(study, seen[job.job_id], trial)
+        seen[job.job_id] = trial
+        yield job
 
 
 def _job_id(
@@ -308,8 +478,6 @@ def replica_jobs(job: Job, n: int, perturb: Any) -> list[Job]:
         n: Number of replicas.
         perturb: The task's ``perturb(params, rng)``.
     """
-    import numpy as np
-
     code = code_version(_run_module(job.task))
     engine = pybullet_version()
     out = []
@@ -349,7 +517,7 @@ def _prepare(
     return shaped, shaped.content_hash(), WorldSettings(time_step_s=chosen.time_step_s), chosen
 
 
-def auto_numerics(jobs: list[Job]) -> dict[str, dict[str, Any]]:
+def auto_numerics(jobs: Iterable[Job]) -> dict[str, dict[str, Any]]:
     """The distinct automatic numerics of ``jobs``, by the hash of the (shaped) model they ran."""
     return {str(j.columns["model_hash"]): j.numerics.as_dict() for j in jobs if j.numerics is not None}
 
@@ -359,14 +527,37 @@ def first_jobs(study: Study, n: int) -> list[Job]:
     return list(itertools.islice(iter_jobs(study), n))
 
 
+def _kind(value: Any) -> type:
+    return type(value) if isinstance(value, bool | int | float) else str
+
+
 def build_jobs(study: Study) -> JobTable:
-    """Expand a study into its jobs.
+    """Expand a study into its job table: every trial's id, built one trial at a time.
 
     Raises:
         DescriptionError: Two trials are identical (e.g. a value repeated in an axis).
     """
-    jobs = list(iter_jobs(study))
-    code = code_version(study.task.run_path.partition(":")[0])
+    maker = JobMaker(study)
+    n = study.n_trials
+    ids = np.empty(n, dtype="S16")
+    # The hash of the JSON list of ids, written as it goes: the same as _hash(list of ids).
+    digest = hashlib.sha256(b"[")
+    examples: dict[str, dict[type, Any]] = {}
+    for trial in range(n):
+        job = maker.job(trial)
+        ids[trial] = job.job_id.encode()
+        digest.update(b'%s"%s"' % (b"," if trial else b"", job.job_id.encode()))
+        for name, value in job.columns.items():
+            if value is not None:
+                examples.setdefault(name, {}).setdefault(_kind(value), value)
+    digest.update(b"]")
+    if n > 1:
+        order = np.argsort(ids, kind="stable")
+        twice = order[1:][ids[order][1:] == ids[order][:-1]]
+        if len(twice):
+            second = int(twice.min())
+            raise _identical(study, int(np.flatnonzero(ids == ids[second])[0]), second)
+    code = maker.code
     axes = {a.key: ("model_file" if a.key == "model" else param_column(a.key)) for a in study.axes}
     resolved = {
         "name": study.name,
@@ -374,17 +565,23 @@ def build_jobs(study: Study) -> JobTable:
         "model": str(os.path.relpath(study.model_path, study.source.parent)),
         "params": study.params,
         "set": study.fixed,
-        "sweep": {a.key: list(a.values) for a in study.axes},
+        "sweep": {a.key: list(a.values) for a in study.sweep_axes},
+        **({"cells": study.cells.summary(study.source.parent)} if study.cells is not None else {}),
         "groups": study.groups,
         "repeats": study.repeats,
         "seed": study.seed,
         "simulation": (
-            {"auto": auto_numerics(jobs), **({"convergence": study.convergence} if study.convergence else {})}
+            {
+                "auto": {m.model_hash: m.numerics.as_dict() for m in maker.models.values() if m.numerics},
+                **({"convergence": study.convergence} if study.convergence else {}),
+            }
             if study.simulation is None
             else study.simulation.model_dump(mode="json")
         ),
         "code_version": code,
         "pybullet": pybullet_version(),
-        "n_trials": len(jobs),
+        "n_trials": n,
     }
-    return JobTable(jobs, _hash([j.job_id for j in jobs]), axes, resolved)
+    study_hash = digest.hexdigest()[:16]
+    columns = {k: list(v.values()) for k, v in examples.items()}
+    return JobTable(ids, study_hash, axes, resolved, columns, maker)

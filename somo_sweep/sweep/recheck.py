@@ -10,7 +10,7 @@ and lists every cell that differs. ``somo-sweep recheck STUDY.yaml`` is its comm
 from __future__ import annotations
 
 import math
-from collections.abc import Callable
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -112,13 +112,13 @@ def recheck(
         raise SomoError(f"{folder} holds no finished trials yet")
     if n_trials < 1:
         raise SomoError(f"the number of trials to recheck must be >= 1, got {n_trials}")
-    by_id: dict[str, Job] = {j.job_id: j for j in table.jobs}
     rng = np.random.default_rng(seed)
     picks = rng.choice(len(stored), size=min(n_trials, len(stored)), replace=False)
+    trials = table.trial_of([str(stored.iloc[int(i)]["job_id"]) for i in picks])
     report = RecheckReport()
-    for index in picks:
+    for index, trial in zip(picks, trials, strict=True):
         row = stored.iloc[int(index)]
-        job = by_id.get(str(row["job_id"])) or _replica_job(study, table.jobs, row)
+        job = table.jobs[int(trial)] if trial >= 0 else _replica_job(study, table.jobs, row)
         out = outcome_of(job, run_job(job))
         fresh = outcome_row(job, out, table.study_hash)
         report.trials.append(job.trial)
@@ -126,7 +126,7 @@ def recheck(
     return report
 
 
-def _replica_job(study: Study, jobs: list[Job], row: pd.Series) -> Job:
+def _replica_job(study: Study, jobs: Sequence[Job], row: pd.Series) -> Job:
     """The robustness replica a stored row holds (replica r of its trial; ids must match).
 
     Raises:

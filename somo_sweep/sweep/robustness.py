@@ -33,7 +33,7 @@ import pandas as pd
 
 from somo_sweep.sweep.adaptive import UNKNOWN
 from somo_sweep.sweep.jobs import Job, JobTable, replica_jobs
-from somo_sweep.sweep.sampling import Batch, Known, grid_of
+from somo_sweep.sweep.sampling import Batch, Known
 from somo_sweep.sweep.study import Study
 
 __all__ = ["ROBUST", "ReplicaPlan", "boundary_mask", "fold", "label_names"]
@@ -78,11 +78,14 @@ class ReplicaPlan:
         spec = study.robustness
         self.study = study
         self.jobs = table.jobs
+        self.ids = [i.decode() for i in table.ids]  # trial number -> job id (jobs built when needed)
         self.k = spec.replicas
         self.where = spec.where
         self.audit_fraction = spec.audit_fraction
         self.labels = [n.removeprefix("label_") for n in (spec.labels or study.adaptive.labels)]
-        shape = grid_of(study).shape
+        # One dimension per axis group (a cells: table is one, its rows in order).
+        values = {a.key: a.values for a in study.axes}
+        shape = tuple(len(values[g[0]]) for g in study.groups)
         self.dims = len(shape)
         self.shape = (*shape, study.repeats)
         self._replicas: dict[int, list[Job]] = {}
@@ -110,17 +113,17 @@ class ReplicaPlan:
         self, known: Known, inferred: dict[int, tuple[str, dict[str, str]]], majority: bool
     ) -> np.ndarray:
         keys = np.full(int(np.prod(self.shape)), UNKNOWN, dtype=np.int64)
-        for job in self.jobs:
-            out = known.get(job.job_id) or inferred.get(job.trial)
+        for trial, job_id in enumerate(self.ids):
+            out = known.get(job_id) or inferred.get(trial)
             if out is None:
                 continue
             code = self._code(*out)
-            if majority and job.trial in self.replicated:
+            if majority and trial in self.replicated:
                 runs = [code] + [
-                    self._code(*known[r.job_id]) for r in self.replicas(job.trial) if r.job_id in known
+                    self._code(*known[r.job_id]) for r in self.replicas(trial) if r.job_id in known
                 ]
                 code = _majority(runs)
-            keys[job.trial] = code
+            keys[trial] = code
         return keys.reshape(self.shape)
 
     def rounds(
@@ -137,8 +140,8 @@ class ReplicaPlan:
             return
         inferred = inferred or {}
         simulated = np.zeros(self.shape, dtype=bool).reshape(-1)
-        for job in self.jobs:
-            simulated[job.trial] = job.job_id in known
+        for trial, job_id in enumerate(self.ids):
+            simulated[trial] = job_id in known
         simulated = simulated.reshape(self.shape)
         if self.where == "all":
             chosen = set(np.flatnonzero(simulated).tolist())

@@ -28,7 +28,8 @@ import joblib
 import numpy as np
 
 from somo_sweep.errors import SomoError, StorageError, os_cause
-from somo_sweep.sweep.execution import Backend, Outcome, dask_client, execute
+from somo_sweep.sweep.dask_backend import threads as _threads
+from somo_sweep.sweep.execution import Backend, Outcome, dask_client, execute, run_jobs
 from somo_sweep.sweep.jobs import Job, JobTable, build_jobs
 from somo_sweep.sweep.robustness import ReplicaPlan
 from somo_sweep.sweep.sampling import AdaptivePlan, Batch, Known
@@ -216,7 +217,7 @@ def _with_replicas(
 
 def _declared_types(study: Study, table: JobTable) -> dict[str, str]:
     """Column types of the task's declared metrics, under the column names rows use."""
-    taken = FIXED | set(table.jobs[0].columns if table.jobs else ())
+    taken = FIXED | set(table.jobs[0].columns if len(table.jobs) else ())
     return {(f"metric_{n}" if n in taken else n): t for n, t in study.task.metrics.items()}
 
 
@@ -281,10 +282,7 @@ def run_study(
     table = table or build_jobs(study)
     adaptive = study.sampling == "adaptive" if adaptive is None else adaptive
     n_jobs = n_jobs or joblib.cpu_count() or 1
-    param_types: dict[str, list[Any]] = {}
-    for job in table.jobs:
-        for k, v in job.columns.items():
-            param_types.setdefault(k, []).append(v)
+    plan = AdaptivePlan(study, table) if adaptive else None  # refused (nothing to refine) before any write
     client = dask_client(scheduler) if backend == "dask" else None  # fail before writing anything
     try:
         store = ResultStore(
@@ -292,7 +290,7 @@ def run_study(
             table.study_hash,
             table.resolved,
             table.axes,
-            param_types,
+            table.column_examples,
             overwrite,
             _declared_types(study, table),
         )
@@ -303,9 +301,8 @@ def run_study(
     start = time.perf_counter()
     started = ended = False
     buffer: list[dict[str, Any]] = []
-    summary = RunSummary(study.output, len(table.jobs), 0, notes=list(store.notes))
+    summary = RunSummary(study.output, len(table.ids), 0, notes=list(store.notes))
     summary.sampling = "adaptive" if adaptive else "grid"
-    plan = AdaptivePlan(study, table) if adaptive else None
     replicas = ReplicaPlan(study, table) if study.robustness.replicas > 0 else None
     failure: OSError | None = None
     cut_short: list[int] = []  # trials running (or returned, not yet received) when the run stopped
@@ -313,11 +310,13 @@ def run_study(
         store.copy_study(study.source)
         if retry_errors:
             store.drop_errors()
-        done = store.done_statuses()
-        todo = [j for j in table.jobs if j.job_id not in done]
-        summary.skipped = len(table.jobs) - len(todo)
-        summary.stored_errors = sum(1 for j in table.jobs if done.get(j.job_id) == "error")
+        stored, errors = store.stored_ids()
+        todo = table.select(np.flatnonzero(~table.among(stored)))
+        summary.skipped = len(table.ids) - len(todo)
+        summary.stored_errors = int(table.among(errors).sum())
         known: Known = store.stored_labels() if plan or replicas else {}
+        if client is not None and not _threads(client):
+            summary.notes.append("the Dask scheduler has no worker yet: the trials wait for workers to join")
         store.check_inferred()  # refuse a folder in its place now, not after the trials
         # A grid run simulates every cell not stored; an adaptive run only those its rounds pick,
         # which are not known yet: it records how many it could pick, and its rounds at the end.
@@ -337,7 +336,7 @@ def run_study(
         own = plan.rounds(known) if plan else iter([Batch(None, len(todo), todo)])
         batches = _with_replicas(own, replicas, plan, known, table.study_hash)
         last_flush = time.perf_counter()
-        outcomes: Generator[Outcome, None, None] | None = None
+        outcomes: Generator[tuple[Job, Outcome], None, None] | None = None
         with _SignalGuard() as guard:
             status = "completed"
             try:
@@ -347,13 +346,12 @@ def run_study(
                         summary.rounds.append(RoundSummary(batch.number, batch.cells, kind=batch.kind))
                     if on_round:
                         on_round(batch)
-                    by_id = {j.job_id: j for j in batch.jobs}
-                    outcomes = execute(
+                    outcomes = run_jobs(
                         batch.jobs, backend, n_jobs, scheduler, timeout_s, client, on_stop=cut_short.append
                     )
-                    for out in outcomes:
+                    for job, out in outcomes:
                         with guard.protect():
-                            row = outcome_row(by_id[out.job_id], out, table.study_hash)
+                            row = outcome_row(job, out, table.study_hash)
                             if summary.rounds:
                                 summary.rounds[-1].run += 1
                             if is_replica:
@@ -362,7 +360,8 @@ def run_study(
                                 summary.run += 1
                                 summary.by_status[out.status] += 1
                                 summary.by_label.update(f"{k}={v}" for k, v in out.labels.items())
-                            known[out.job_id] = (out.status, dict(out.labels))
+                            if plan or replicas:  # what the rounds to come are chosen from
+                                known[out.job_id] = (out.status, dict(out.labels))
                             store.journal(row)
                             buffer.append(row)
                             if on_outcome:
@@ -371,7 +370,7 @@ def run_study(
                                 len(buffer) >= chunk_rows
                                 or time.perf_counter() - last_flush >= flush_interval_s
                             ):
-                                store.write(buffer)
+                                store.write(buffer, journalled=True)
                                 buffer = []
                                 last_flush = time.perf_counter()
             except KeyboardInterrupt as exc:
@@ -384,7 +383,7 @@ def run_study(
             with guard.protect(stop_after=False):
                 if failure is None:
                     try:
-                        store.write(buffer)
+                        store.write(buffer, journalled=True)
                         buffer = []
                         if status == "completed":  # an earlier run's inferred cells stay until then
                             store.clear_inferred()

@@ -13,7 +13,7 @@ from __future__ import annotations
 
 import json
 import math
-from collections.abc import Iterator
+from collections.abc import Iterator, Sequence
 from dataclasses import dataclass
 from typing import Any
 
@@ -46,7 +46,7 @@ class Batch:
 
     number: int | None
     cells: int
-    jobs: list[Job]
+    jobs: Sequence[Job]
     kind: str = "trials"
 
 
@@ -59,10 +59,29 @@ def _refinable(values: tuple[Any, ...]) -> bool:
 
 
 def grid_of(study: Study) -> AdaptiveGrid:
-    """The study's grid: one dimension per axis group, refined where numeric and monotonic."""
+    """The study's grid: one dimension per axis group, refined where numeric and monotonic.
+
+    A ``cells:`` table is a dimension run row by row, never refined: its rows are points chosen
+    one by one, not samples of an axis.
+
+    Raises:
+        DescriptionError: The study's only dimension is its ``cells:`` table (nothing to refine).
+    """
     axes = {a.key: a.values for a in study.axes}
     shape = [len(axes[g[0]]) for g in study.groups]
-    refined = [all(_refinable(axes[k]) for k in g) for g in study.groups]
+    refined = [all(_refinable(axes[k]) for k in g) and not study.is_cells(g) for g in study.groups]
+    if study.cells is not None and not any(refined):
+        raise DescriptionError(
+            study.source,
+            [
+                Problem(
+                    "sampling",
+                    "adaptive sampling refines numeric sweep: axes, and this study has none besides its "
+                    f"cells: table, whose {len(study.cells.rows)} rows each run; allowed: sampling: grid "
+                    "(or --exhaustive), or a numeric sweep: axis to refine",
+                )
+            ],
+        )
     return AdaptiveGrid.build(shape, refined, study.adaptive.coarse_step)
 
 
@@ -80,13 +99,13 @@ class AdaptivePlan:
 
     def __init__(self, study: Study, table: JobTable):
         self.study = study
+        self.table = table
         self.jobs = table.jobs
         self.grid = grid_of(study)
         self.labels = [_label_name(n) for n in study.adaptive.labels]
         self.keys = np.full(self.grid.shape, UNKNOWN, dtype=np.int64)
         self._codes: dict[str, int] = {}
         self._checked = False
-        self._index: dict[str, int] | None = None
         #: What the user should know about the refinement (printed with the run's summary).
         self.notes: list[str] = []
 
@@ -94,11 +113,19 @@ class AdaptivePlan:
         """What the plan does, in one paragraph (for ``--dry-run``)."""
         return describe(self.study, self.grid)
 
-    def cell_jobs(self, cell: Cell) -> list[Job]:
-        """The trials (one per repeat) of a grid cell."""
+    def cell_trials(self, cell: Cell) -> range:
+        """The trial numbers (one per repeat) of a grid cell."""
         point = int(np.ravel_multi_index(cell, self.grid.shape)) if cell else 0
         reps = self.study.repeats
-        return self.jobs[point * reps : (point + 1) * reps]
+        return range(point * reps, (point + 1) * reps)
+
+    def cell_jobs(self, cell: Cell) -> Sequence[Job]:
+        """The trials (one per repeat) of a grid cell."""
+        trials = self.cell_trials(cell)
+        return self.jobs[trials.start : trials.stop]
+
+    def _ids(self, cell: Cell) -> list[str]:
+        return [self.table.ids[t].decode() for t in self.cell_trials(cell)]
 
     def key(self, status: str, labels: dict[str, str]) -> str:
         """The key of one trial: its status, and if ``ok`` the labels refinement follows."""
@@ -108,7 +135,7 @@ class AdaptivePlan:
         return json.dumps([[n, labels.get(n)] for n in names])
 
     def _cell_key(self, cell: Cell, known: Known) -> int | None:
-        outcomes = [known.get(j.job_id) for j in self.cell_jobs(cell)]
+        outcomes = [known.get(job_id) for job_id in self._ids(cell)]
         if any(o is None for o in outcomes):
             return None
         text = json.dumps([self.key(*o) for o in outcomes if o is not None])
@@ -151,9 +178,8 @@ class AdaptivePlan:
         a box that would be filled across such a cell of another key is then not settled.
         Returns whether any key was added.
         """
-        if self._index is None:
-            self._index = {j.job_id: i for i, j in enumerate(self.jobs)}
-        points = {self._index[job_id] // self.study.repeats for job_id in known if job_id in self._index}
+        trials = self.table.trial_of(list(known))
+        points = {int(t) // self.study.repeats for t in trials if t >= 0}
         added = False
         for point in sorted(points):
             cell = tuple(int(i) for i in np.unravel_index(point, self.grid.shape)) if self.grid.shape else ()
@@ -184,9 +210,9 @@ class AdaptivePlan:
                     return
                 merged = True
                 continue
-            todo = [j for c in cells for j in self.cell_jobs(c) if j.job_id not in known]
+            todo = [t for c in cells for t in self.cell_trials(c) if self.table.ids[t].decode() not in known]
             if todo:
-                yield Batch(number, len(cells), todo)
+                yield Batch(number, len(cells), self.table.select(todo))
             self._check_labels(known)
             for cell in cells:
                 code = self._cell_key(cell, known)
@@ -215,7 +241,7 @@ class AdaptivePlan:
                 tuple(int(i) for i in origin + idx) for idx in np.argwhere(self.keys[closure] != UNKNOWN)
             ]
             for repeat in range(self.study.repeats):
-                outcomes = [known[self.cell_jobs(c)[repeat].job_id] for c in sources]
+                outcomes = [known[self._ids(c)[repeat]] for c in sources]
                 status = outcomes[0][0]
                 names = sorted({n for _, labels in outcomes for n in labels})
                 agreed = {}
@@ -223,10 +249,9 @@ class AdaptivePlan:
                     values = {labels.get(name) for _, labels in outcomes}
                     agreed[f"label_{name}"] = values.pop() if len(values) == 1 else None
                 for cell in cells:
-                    job = self.cell_jobs(cell)[repeat]
-                    if job.job_id in known:
+                    if self._ids(cell)[repeat] in known:
                         continue
-                    rows.append(_row(job, status, agreed, study_hash))
+                    rows.append(_row(self.cell_jobs(cell)[repeat], status, agreed, study_hash))
         return sorted(rows, key=lambda r: int(r["trial"]))
 
 
@@ -257,9 +282,11 @@ def describe(study: Study, grid: AdaptiveGrid | None = None) -> str:
     grid = grid or grid_of(study)
     dims = []
     for g, n, refined, stride in zip(study.groups, grid.shape, grid.refined, grid.strides, strict=True):
-        name = " + ".join(g)
+        if study.is_cells(g):
+            dims.append(f"  cells ({', '.join(g)}): {n} rows, every row (not refined)")
+            continue
         how = f"refined, coarse: {_nth(stride)} and the last" if refined else "every value (not refined)"
-        dims.append(f"  {name}: {n} values, {how}")
+        dims.append(f"  {' + '.join(g)}: {n} values, {how}")
     labels = ", ".join(f"label_{_label_name(n)}" for n in study.adaptive.labels) or "every label_* column"
     reps = study.repeats
     return "\n".join(

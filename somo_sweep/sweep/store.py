@@ -37,6 +37,7 @@ from datetime import UTC, datetime
 from pathlib import Path
 from typing import IO, Any
 
+import numpy as np
 import pyarrow as pa
 import pyarrow.compute as pc
 import pyarrow.parquet as pq
@@ -154,6 +155,7 @@ class ResultStore:
         self.notes: list[str] = []
         self.rows_written = 0
         self._journal: IO[str] | None = None
+        self._schemas: dict[Path, pa.Schema] = {}  # of the part files, read once on opening
         self._keep_lock_file = False
         created = not os.path.lexists(self.folder)
         try:
@@ -222,7 +224,7 @@ class ResultStore:
             declared, max_rows = declared_types(manifest), max_part_rows(manifest)
         except SomoError:  # no manifest yet, or a damaged one (rebuilt from the parts)
             listed, declared, max_rows = set(), {}, None
-        _, bad = split_parts(self.folder, listed, declared, max_rows)
+        _, bad = split_parts(self.folder, listed, declared, max_rows, self._schemas)
         unreadable = [part for part, reason in bad if reason.startswith(UNREADABLE)]
         if unreadable:  # not damaged: moving it away would rerun trials that are safely stored
             raise SomoError(
@@ -257,8 +259,7 @@ class ResultStore:
     def _stored_hashes(self) -> set[str]:
         hashes: set[str] = set()
         for part in self._parts():
-            column = pq.read_table(part, columns=["study_hash"]).column("study_hash")
-            hashes.update(str(h) for h in pc.unique(column).to_pylist())
+            hashes.update(_study_hashes(part))
         for journal in self.trials.glob(JOURNAL_GLOB):
             hashes.update(str(r.get("study_hash")) for r in journal_rows(journal))
         return hashes
@@ -360,7 +361,8 @@ class ResultStore:
         """Give every part the current schema (a rewrite cut short by a full disk leaves mixed ones)."""
         parts = self._parts()
         schema = self._schema()
-        if any(pq.read_schema(p).remove_metadata() != schema.remove_metadata() for p in parts):
+        read = [self._schemas.get(p) or pq.read_schema(p) for p in parts]
+        if any(s.remove_metadata() != schema.remove_metadata() for s in read):
             for part in parts:
                 self._atomic(pq.read_table(part), part, schema)
 
@@ -422,7 +424,7 @@ class ResultStore:
         parts = self._parts()
         if not parts:
             return {}
-        table = pq.read_table(parts, columns=["job_id", "status"])
+        table = _read_columns(parts, ["job_id", "status"])
         return dict(zip(table.column("job_id").to_pylist(), table.column("status").to_pylist(), strict=True))
 
     def stored_labels(self) -> dict[str, tuple[str, dict[str, str]]]:
@@ -440,6 +442,19 @@ class ResultStore:
     def done_ids(self) -> set[str]:
         """Ids of the trials already stored."""
         return set(self.done_statuses())
+
+    def stored_ids(self) -> tuple[np.ndarray, np.ndarray]:
+        """(ids of the trials stored, ids of those stored as ``error``), as NumPy ``S16`` arrays.
+
+        16 bytes a trial, never a Python object per row: resume costs the same memory at any size.
+        """
+        parts = self._parts()
+        if not parts:
+            return np.empty(0, dtype="S16"), np.empty(0, dtype="S16")
+        table = _read_columns(parts, ["job_id", "status"])
+        ids = table.column("job_id").cast(pa.binary()).to_numpy(zero_copy_only=False).astype("S16")
+        errors = pc.equal(table.column("status"), "error").to_numpy(zero_copy_only=False)
+        return ids, ids[errors.astype(bool)]
 
     # -- writing -----------------------------------------------------------------------------
 
@@ -537,8 +552,14 @@ class ResultStore:
         except OSError as exc:
             raise os_error_for(exc, path) from None
 
-    def write(self, rows: list[dict[str, Any]]) -> None:
+    def write(self, rows: list[dict[str, Any]], journalled: bool = False) -> None:
         """Append rows as one new part file (atomically); widen the schema if needed.
+
+        Args:
+            rows: The rows.
+            journalled: ``rows`` are exactly the rows of this run's journal since it was last
+                emptied: once they are in the part file the journal is deleted (the next row
+                starts a new one), so a journal never holds more than one part's rows.
 
         Raises:
             OSError: The part file could not be written (e.g. the disk is full); nothing
@@ -565,6 +586,8 @@ class ResultStore:
         hosts = sorted({*self.manifest["hosts"], *(str(r.get("host", "")) for r in rows)} - {""})
         self.manifest["hosts"] = hosts
         self._write_manifest()
+        if journalled:
+            self._close_journal(delete=True)
 
     def check_inferred(self) -> None:
         """Raise if something other than our file (or a link) sits where the inferred cells go.
@@ -667,6 +690,34 @@ class ResultStore:
         if self._lock is not None:
             self._lock.release(remove=not self._keep_lock_file)
             self._lock = None
+
+
+def _read_columns(parts: list[Path], columns: list[str]) -> pa.Table:
+    """Some columns of part files, read one file at a time on this thread.
+
+    ``pq.read_table`` of a list of files goes through Arrow's dataset layer and its thread
+    pools: on resume of a 200-part folder that left 34 MB more resident in the sweep's process,
+    this 7 MB.
+    """
+    return pa.concat_tables(
+        [pq.ParquetFile(part).read(columns=columns, use_threads=False) for part in parts],
+        promote_options="permissive",
+    )
+
+
+def _study_hashes(part: Path) -> set[str]:
+    """The study hashes in a part file: from its row groups' statistics when every one has them,
+    null-free and one value (a part a run wrote), else from the column itself."""
+    meta = pq.read_metadata(part)
+    index = meta.schema.to_arrow_schema().get_field_index("study_hash")
+    found: set[str] = set()
+    for i in range(meta.num_row_groups):
+        stats = meta.row_group(i).column(index).statistics if index >= 0 else None
+        if stats is None or not stats.has_min_max or stats.null_count != 0 or stats.min != stats.max:
+            column = _read_columns([part], ["study_hash"]).column("study_hash")
+            return {str(h) for h in pc.unique(column).to_pylist()}
+        found.add(str(stats.min))
+    return found
 
 
 def _column(values: list[Any], kind: pa.DataType) -> pa.Array:

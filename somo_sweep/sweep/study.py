@@ -13,8 +13,10 @@ A study file (YAML or JSON) looks like this; paths are relative to the study fil
       task.pressure_kpa: {start: 0, stop: 200, step: 25}        # inclusive, round-off safe
       model.manipulator.actuators[0].joints[0].stiffness_n_m_per_rad: [0.15, 0.2186, 0.30]
       task.tip_load_n: {start: 0.0, stop: 0.2, num: 9}          # linspace
-    link:                                # axes zipped together instead of crossed (same lengths)
-      - [task.pressure_kpa, task.tip_load_n]
+    link:                                # axes zipped together instead of crossed (same lengths;
+      - [task.pressure_kpa, task.tip_load_n]   # a value may repeat, a combination may not)
+    cells: tables/cells.csv              # or an inline list of rows: explicit parameter rows
+                                         # (somo_sweep.sweep.cells), crossed with any sweep axes
     repeats: 1                           # trials per grid point, each with its own seed
     seed: 0                              # base seed; trial seeds derive from it and the point
     simulation: {time_step_s: 5.0e-4, scale: 20, solver_iterations: 50, gravity_m_s2: [0, 0, -9.81]}
@@ -28,7 +30,8 @@ In YAML flow style (``{...}``) quote keys holding ``[i]``; block style needs no 
 Key paths start with ``model.`` (any field of the model file, list items as ``[i]``)
 or ``task.`` (a task parameter, nested with dots). The axis ``model`` (no path) sweeps
 over model files. An axis is a list, ``{values: [...]}``, ``{start, stop, step}``
-(inclusive) or ``{start, stop, num}`` (evenly spaced, inclusive).
+(inclusive) or ``{start, stop, num}`` (evenly spaced, inclusive). ``cells:`` gives rows of
+values instead (:mod:`somo_sweep.sweep.cells`): the rows are one dimension, their keys zipped.
 
 Every trial's model and task parameters are validated when the study is loaded,
 so a bad value fails before anything runs, naming the file, line and key path. The
@@ -45,6 +48,7 @@ import itertools
 import json
 import math
 import os
+from collections import OrderedDict
 from collections.abc import Callable, Iterator
 from dataclasses import dataclass, field, replace
 from functools import cache
@@ -61,14 +65,18 @@ from somo_sweep.model.tables import bundled_if_missing, resolve_table
 from somo_sweep.model.validation import validate
 from somo_sweep.sim.settings import WorldSettings
 from somo_sweep.sweep.axes import Axis, axis_length, expand_axis, link_groups, parse_key_path, set_path
+from somo_sweep.sweep.cells import Cells, cells_key, parse_cells
 from somo_sweep.sweep.schema import MAX_REPLICAS
 from somo_sweep.tasks.registry import TaskSpec, get_task
 
 __all__ = [
     "MAX_REPLICAS",
     "MAX_TRIALS",
+    "MODEL_CACHE",
+    "PARAMS_CACHE",
     "RESULTS_ROOT",
     "Adaptive",
+    "RecentCache",
     "Robustness",
     "Simulation",
     "Study",
@@ -85,6 +93,29 @@ MAX_TRIALS = 1_000_000
 RESULTS_ROOT = Path("results")
 #: Up to this many grid points, the models and parameters checked at load are kept for the jobs.
 CHECK_CACHE_POINTS = 10_000
+#: Most models, and parameter sets, a study keeps built (the most recently used): a study's memory
+#: stays flat in its number of trials, whatever its number of distinct models.
+MODEL_CACHE = 128
+PARAMS_CACHE = 1024
+
+
+class RecentCache(OrderedDict[str, Any]):
+    """A dict that keeps only its ``size`` most recently used entries."""
+
+    def __init__(self, size: int) -> None:
+        super().__init__()
+        self.size = size
+
+    def __getitem__(self, key: str) -> Any:
+        value = super().__getitem__(key)
+        self.move_to_end(key)
+        return value
+
+    def __setitem__(self, key: str, value: Any) -> None:
+        super().__setitem__(key, value)
+        self.move_to_end(key)
+        while len(self) > self.size:
+            self.popitem(last=False)
 
 
 class Simulation(Spec):
@@ -177,6 +208,7 @@ class StudyFile(Spec):
     set: dict[str, Any] = Field(default_factory=dict)
     sweep: dict[str, Any] = Field(default_factory=dict)
     link: list[list[str]] = Field(default_factory=list)
+    cells: Any = None
     repeats: int = Field(1, ge=1)
     seed: int = Field(0, ge=0)
     simulation: Simulation | None = None
@@ -211,6 +243,8 @@ class Study:
         allow_outside: Model includes may name files outside the model's folder.
         sampling: ``grid`` (every trial) or ``adaptive`` (see :mod:`somo_sweep.sweep.adaptive`).
         adaptive: Settings of adaptive sampling.
+        cells: The study's ``cells:`` table, or None. Its keys are axes too (``axes``), zipped
+            as the first group of ``groups``.
         robustness: Robustness replicas (:class:`Robustness`).
         auto_step_s: Without ``simulation``: the step chosen by label convergence
             (:mod:`somo_sweep.sweep.convergence`), each model shaped for it; None: the modal
@@ -233,12 +267,13 @@ class Study:
     allow_outside: bool = False
     sampling: str = "grid"
     adaptive: Adaptive = field(default_factory=Adaptive)
+    cells: Cells | None = None
     robustness: Robustness = field(default_factory=Robustness)
     auto_step_s: float | None = None
     convergence: dict[str, Any] | None = None
-    _models: dict[str, Model] = field(default_factory=dict, repr=False)
+    _models: dict[str, Model] = field(default_factory=lambda: RecentCache(MODEL_CACHE), repr=False)
     _bases: dict[str, dict[str, Any]] = field(default_factory=dict, repr=False)
-    _params: dict[str, BaseModel] = field(default_factory=dict, repr=False)
+    _params: dict[str, BaseModel] = field(default_factory=lambda: RecentCache(PARAMS_CACHE), repr=False)
 
     @property
     def n_points(self) -> int:
@@ -253,6 +288,16 @@ class Study:
     def _axis(self, key: str) -> Axis:
         return next(a for a in self.axes if a.key == key)
 
+    def is_cells(self, group: list[str]) -> bool:
+        """Whether an axis group is the ``cells:`` table (run row by row, never refined)."""
+        return self.cells is not None and tuple(group) == self.cells.keys
+
+    @property
+    def sweep_axes(self) -> list[Axis]:
+        """The axes of ``sweep:`` (the study's axes without the ``cells:`` keys)."""
+        keys = set(self.cells.keys) if self.cells is not None else set()
+        return [a for a in self.axes if a.key not in keys]
+
     def points(self) -> Iterator[dict[str, Any]]:
         """Every grid point as {axis key: value}, last axis varying fastest."""
         per_group = [
@@ -264,6 +309,18 @@ class Study:
             for part in combo:
                 point.update(part)
             yield point
+
+    def point_at(self, index: int) -> dict[str, Any]:
+        """The grid point at ``index`` of :meth:`points` (built alone, the others not expanded)."""
+        values = {a.key: a.values for a in self.axes}
+        picks: list[int] = []
+        for g in reversed(self.groups):
+            index, i = divmod(index, len(values[g[0]]))
+            picks.append(i)
+        point: dict[str, Any] = {}
+        for g, i in zip(self.groups, reversed(picks), strict=True):
+            point.update((k, values[k][i]) for k in g)
+        return point
 
     def _model_base(self, path: Path) -> dict[str, Any]:
         key = str(path)
@@ -281,6 +338,12 @@ class Study:
         path, model = self.resolve_model(point)
         return path, model, self.resolve_params(point)
 
+    def model_key(self, point: dict[str, Any]) -> str:
+        """What identifies the model of one grid point: its file and its overrides, as text."""
+        values = {**self.fixed, **point}
+        over = {k: v for k, v in values.items() if k.startswith("model.")}
+        return _canonical([str(values.get("model", self.model_path)), over])
+
     def resolve_model(self, point: dict[str, Any], cache: bool = True) -> tuple[Path, Model]:
         """The model file and the model (with its overrides applied) of one grid point.
 
@@ -289,7 +352,7 @@ class Study:
         values = {**self.fixed, **point}
         model_path = Path(values.get("model", self.model_path))
         over = {k: v for k, v in values.items() if k.startswith("model.")}
-        key = _canonical([str(model_path), over])
+        key = self.model_key(point)
         if key in self._models:
             return model_path, self._models[key]
         data = copy.deepcopy(self._model_base(model_path))
@@ -310,6 +373,11 @@ class Study:
             self._models[key] = model
         return model_path, model
 
+    def params_key(self, point: dict[str, Any]) -> str:
+        """What identifies the task parameters of one grid point: their overrides, as text."""
+        values = {**self.fixed, **point}
+        return _canonical({k: v for k, v in values.items() if k.startswith("task.")})
+
     def resolve_params(self, point: dict[str, Any], cache: bool = True) -> BaseModel:
         """The task parameters (an instance of the task's ``params_model``) of one grid point.
 
@@ -317,7 +385,7 @@ class Study:
         """
         values = {**self.fixed, **point}
         over = {k: v for k, v in values.items() if k.startswith("task.")}
-        key = _canonical(over)
+        key = self.params_key(point)
         if key in self._params:
             return self._params[key]
         data = copy.deepcopy(self.params)
@@ -363,11 +431,16 @@ def load_model_dict(path: Path, allow_outside: bool = False) -> dict[str, Any]:
     return load_model(path, allow_outside, bundled=False).model_dump(mode="json", exclude_unset=True)
 
 
-def _count_trials(raw: StudyFile) -> tuple[int, int]:
-    """(grid points, trials) of a study file, from its axis specs alone (nothing expanded)."""
+def _count_trials(raw: StudyFile, rows: int = 1) -> tuple[int, int]:
+    """(grid points, trials) of a study file, from its axis specs alone (nothing expanded).
+
+    Args:
+        raw: The study file.
+        rows: Rows of its ``cells:`` table (1 without one).
+    """
     sizes = {k: n for k, spec in raw.sweep.items() if (n := axis_length(spec)) is not None}
     groups = link_groups(raw.link, list(sizes), sizes, {}, [])
-    points = math.prod(sizes[g[0]] for g in groups if g)
+    points = math.prod(sizes[g[0]] for g in groups if g) * rows
     return points, points * raw.repeats
 
 
@@ -435,22 +508,26 @@ def load_study(
     def line(key: str) -> int | None:
         return lines.get(key)
 
-    n_points, n_trials = _count_trials(raw)
+    folder = path.parent
+    try:
+        task = get_task(raw.task)
+    except SomoError as exc:
+        raise DescriptionError(src, [Problem("task", str(exc), line("task"))]) from None
+    cells: Cells | None = None
+    problems: list[Problem] = []
+    if raw.cells is not None:
+        cells, problems = parse_cells(raw.cells, folder, lines, sorted(task.params_model.model_fields))
+    if raw.robustness.replicas and task.perturb is None:
+        problems.append(Problem("robustness.replicas", _no_perturbation(task), line("robustness.replicas")))
+    n_points, n_trials = _count_trials(raw, len(cells.rows) if cells else 1)
     if n_trials > max_trials:
         msg = (
             f"the study has {n_trials} trials ({n_points} grid points x {raw.repeats} repeat(s)); "
             f"allowed: at most {max_trials}; pass --max-trials {n_trials} to run it anyway"
         )
-        raise DescriptionError(src, [Problem("sweep" if raw.sweep else "repeats", msg, line("sweep"))])
+        key = "sweep" if raw.sweep else "cells" if cells else "repeats"
+        raise DescriptionError(src, [*problems, Problem(key, msg, line(key))])
 
-    problems: list[Problem] = []
-    try:
-        task = get_task(raw.task)
-    except SomoError as exc:
-        raise DescriptionError(src, [Problem("task", str(exc), line("task"))]) from None
-    if raw.robustness.replicas and task.perturb is None:
-        problems.append(Problem("robustness.replicas", _no_perturbation(task), line("robustness.replicas")))
-    folder = path.parent
     model_path = folder / raw.model
     if not is_file(model_path):
         problems.append(Problem("model", _no_model(model_path), line("model")))
@@ -468,9 +545,10 @@ def load_study(
             continue
         fixed[key] = value
     axes: list[Axis] = []
+    linked = {k for group in raw.link for k in group}
     for key, spec in raw.sweep.items():
         where = f"sweep.{key}"
-        values, found = expand_axis(spec, where)
+        values, found = expand_axis(spec, where, distinct=key not in linked)
         before = len(problems)
         for p in found:
             problems.append(Problem(p.path, p.message, line(p.path) or line(where)))
@@ -491,6 +569,15 @@ def load_study(
     groups = link_groups(
         raw.link, [a.key for a in axes], {a.key: len(a.values) for a in axes}, lines, problems
     )
+    linked_ok = len(problems) == n_before
+    if linked_ok:
+        _check_combinations(raw.link, axes, bad, lines, problems)
+    if cells is not None:
+        before = len(problems)
+        axes = _cell_axes(cells, raw, folder, lines, problems) + axes
+        groups = [list(cells.keys), *groups]
+        if len(problems) > before:
+            bad.update(cells.keys)
     study = Study(
         name,
         path,
@@ -507,16 +594,20 @@ def load_study(
         allow_outside,
         raw.sampling,
         raw.adaptive,
+        cells,
         raw.robustness,
     )
     bases_ok = _check_bases(study, lines, problems)
     if problems and bases_ok:
         # Check the trials of the good axes too, so that every problem is reported at once.
         good = [a for a in axes if a.key not in bad]
-        linked_ok = len(problems) == n_before
         study.axes = good
+        # The cells table stays one group: its columns crossed would be rows x rows x ... points.
         study.groups = (
-            [[k for k in g if k not in bad] for g in groups] if linked_ok else [[a.key] for a in good]
+            [[k for k in g if k not in bad] for g in groups]
+            if linked_ok
+            else [list(g) for g in groups if study.is_cells(g) and not bad.intersection(g)]
+            + [[a.key] for a in good if cells is None or a.key not in cells.keys]
         )
         study.groups = [g for g in study.groups if g]
         _check_points(study, lines, problems)
@@ -527,6 +618,57 @@ def load_study(
     if problems:
         raise DescriptionError(src, problems)
     return study
+
+
+def _check_combinations(
+    link: list[list[str]], axes: list[Axis], bad: set[str], lines: dict[str, int], problems: list[Problem]
+) -> None:
+    """Refuse a combination of linked values given twice (the same trial twice), naming both entries.
+
+    A linked axis may repeat a value (0.16 with two widths, say): its group's combinations count.
+    """
+    values = {a.key: a.values for a in axes}
+    for i, group in enumerate(link):
+        keys = [k for k in group if k in values]
+        if len(keys) < 2 or bad.intersection(keys):
+            continue
+        first: dict[tuple[Any, ...], int] = {}
+        for n, combo in enumerate(zip(*(values[k] for k in keys), strict=True)):
+            ident = tuple(cells_key(v) for v in combo)
+            if ident not in first:
+                first[ident] = n
+                continue
+            given = ", ".join(f"{k}={shown(repr(v), 40)}" for k, v in zip(keys, combo, strict=True))
+            where = f"link[{i}]"
+            msg = (
+                f"entries {first[ident]} and {n} of its axes give the same values ({given}): the same "
+                "trial twice; allowed: distinct combinations (a value may repeat in one axis)"
+            )
+            problems.append(Problem(where, msg, lines.get(where)))
+            break
+
+
+def _cell_axes(
+    cells: Cells, raw: StudyFile, folder: Path, lines: dict[str, int], problems: list[Problem]
+) -> list[Axis]:
+    """One axis per key of the ``cells:`` table (a ``model`` column names files beside the study)."""
+    at = lines.get("cells")
+    for key in cells.keys:
+        for other, what in ((raw.sweep, "a sweep axis"), (raw.set, "set in set:")):
+            if key in other:
+                msg = f"key '{key}' is also {what}; allowed: a key is swept, set or given in cells, once"
+                problems.append(Problem("cells", msg, at))
+    axes = []
+    for key in cells.keys:
+        values = cells.column(key)
+        if key == "model":
+            values = tuple(str(folder / str(v)) for v in values)
+            for where, v in zip(cells.where, values, strict=True):
+                if not is_file(Path(v)):
+                    problems.append(Problem("cells", f"{where}: model file not found: {v}", at))
+                    break
+        axes.append(Axis(key, values))
+    return axes
 
 
 def _no_perturbation(task: TaskSpec) -> str:
@@ -588,8 +730,8 @@ def derive_study(study: Study, overrides: dict[str, Any], name: str, output: str
         name=name,
         fixed={**study.fixed, **overrides},
         output=Path(output),
-        _models={},
-        _params={},
+        _models=RecentCache(MODEL_CACHE),
+        _params=RecentCache(PARAMS_CACHE),
     )
     derived._bases = study._bases  # model files are shared; overrides are applied per trial
     _check_points(derived, {}, problems)
@@ -651,7 +793,7 @@ def _check_points(study: Study, lines: dict[str, int], problems: list[Problem]) 
                     msg = p.message if same else f"{p.path}: {p.message}"
                     if (where, msg) not in seen:
                         seen.add((where, msg))
-                        problems.append(Problem(where, msg, _line(lines, where)))
+                        problems.append(_in_cells(study, where, point, msg, lines))
             if len(problems) >= 20:
                 return
     if study.task.check_params is not None and not problems:
@@ -692,6 +834,8 @@ def _check_model_fits(
     """Report what the study's task needs and the model (file plus overrides) does not have."""
     model_path, model = resolved
     where = "sweep.model" if "model" in point else "model"
+    if study.cells is not None and "model" in study.cells.keys:
+        where = "cells"
     overrides = [k for k in {**study.fixed, **point} if k.startswith("model.")]
     with_overrides = (
         f" with {', '.join(overrides[:3])}{', …' if len(overrides) > 3 else ''}" if overrides else ""
@@ -701,6 +845,19 @@ def _check_model_fits(
         if (where, msg) not in seen:
             seen.add((where, msg))
             problems.append(Problem(where, msg, _line(lines, where)))
+
+
+def _in_cells(study: Study, where: str, point: dict[str, Any], msg: str, lines: dict[str, int]) -> Problem:
+    """A problem blamed on ``where``; one in a ``cells:`` key names the first row giving the value."""
+    key = where.removeprefix("sweep.")
+    cells = study.cells
+    if cells is None or not where.startswith("sweep.") or key not in cells.keys:
+        return Problem(where, msg, _line(lines, where))
+    row = cells.row_of(point) or 0
+    if cells.file is None:  # inline: the row's key in the study file
+        at = f"{cells.where[row]}.{key}"
+        return Problem(at, msg, lines.get(at, lines.get("cells")))
+    return Problem("cells", f"{cells.where[row]}, column '{key}': {msg}", lines.get("cells"))
 
 
 def _as_given(path: Path, source: Path) -> str:

@@ -1,11 +1,10 @@
-"""The benchmark's plumbing (``make bench``): four runs of one study (one and two joblib workers,
-a Dask LocalCluster with Dask's defaults and with the somo-sweep worker settings) with the same
+"""The benchmark's plumbing (``make bench``): one study run with one joblib worker, then in turn at
+two workers with joblib and on a Dask LocalCluster (joblib, Dask, Dask, joblib) with the same
 labels, the worker settings as environment variables, and the numerics setups ``paper numerics``
 accepts.
 
-The timings themselves are the benchmark's business (an idle machine, ``somo-sweep paper
-speed``); here a study of sleeping selftest trials checks that the four runs happen, land
-in their own folders and are compared.
+The timings themselves are the benchmark's business (``somo-sweep paper speed``); here a study
+of sleeping selftest trials checks that the runs happen, land in their own folders and are compared.
 """
 
 from __future__ import annotations
@@ -17,16 +16,16 @@ import pytest
 from typer.testing import CliRunner
 
 from somo_sweep.cli import app
-from somo_sweep.paper.scaling import DASK_DEFAULT, DASK_QUIET, scaling_lines, scaling_runs
+from somo_sweep.paper.scaling import DASK, JOBLIB, scaling_lines, scaling_runs
 from somo_sweep.sweep.execution import DASK_WORKER_CONFIG, dask_environment
 
 STUDY = """\
 name: scaling_check
 task: selftest_sleep
 model: models/ihm_finger.yaml
-params: {sleep_s: 0.2}
+params: {sleep_s: 0.1}
 sweep:
-  task.x: {start: 1, stop: 6, step: 1}
+  task.x: {start: 1, stop: 4, step: 1}
 simulation: {time_step_s: 1.0e-3}
 """
 
@@ -42,20 +41,50 @@ def test_every_way_of_running_one_study_gives_the_same_labels(tmp_path: Path) ->
     out = tmp_path / "runs"
     out.mkdir()
     runs = scaling_runs(out, study)
-    assert [r.name for r in runs] == ["joblib, 1 worker", "joblib, 2 workers", DASK_DEFAULT, DASK_QUIET]
-    assert [r.trials for r in runs] == [6, 6, 6, 6]
-    assert sorted(p.name for p in out.iterdir()) == ["dask", "dask_defaults", "jobs1", "jobs2"]
-    # Six 0.2-s sleeps: one worker needs at least 1.2 s, two workers at least 0.6 s.
-    assert runs[0].wall_s >= 1.2 and runs[1].wall_s >= 0.6
+    assert [r.name for r in runs] == ["joblib, 1 worker", JOBLIB, DASK, DASK, JOBLIB]
+    assert [r.trials for r in runs] == [4] * 5
+    assert sorted(p.name for p in out.iterdir()) == ["dask1", "dask2", "joblib0", "joblib3", "jobs1"]
+    # Four 0.1-s sleeps: one worker needs at least 0.4 s, two workers at least 0.2 s.
+    assert runs[0].wall_s >= 0.4 and all(r.wall_s >= 0.2 for r in runs[1:])
+    assert all(0.1 <= r.trial_wall_s < 1.0 for r in runs)
     lines = scaling_lines(runs, "scaling_check")
-    assert "labels and statuses identical in the 4 runs: yes" in lines[-1]
+    assert "labels and statuses identical in the 5 runs: yes" in lines[-1]
     assert any("parallel efficiency" in line for line in lines)
-    assert any("Dask defaults = " in line for line in lines)
-    assert any("somo-sweep settings = " in line and "target <= 1.1" in line for line in lines)
+    assert any("Dask / joblib wall time = " in line and "target <= 1.1" in line for line in lines)
+    assert any("Dask / joblib mean trial wall time = " in line for line in lines)
     runs[2].labels.loc[0, "status"] = "error"
     assert scaling_lines(runs)[-1].endswith("NO")
-    without_dask = scaling_lines(runs[:2])
-    assert "Dask run skipped" in without_dask[-2] and without_dask[-1].endswith("2 runs: yes")
+    without_dask = scaling_lines([runs[0], runs[1], runs[4]])
+    assert "Dask runs skipped" in without_dask[-2] and without_dask[-1].endswith("3 runs: yes")
+
+
+@pytest.mark.slow  # two `somo-sweep run` processes: the benchmark's own plumbing
+def test_the_scale_benchmark_measures_a_run_stops_it_halfway_and_times_the_resume(tmp_path: Path) -> None:
+    from somo_sweep.paper.scale import ScaleRun, measure_run, scale_lines
+
+    models = tmp_path / "models"
+    models.mkdir()
+    from somo_sweep.model.tables import bundled_path
+
+    (models / "ihm_finger.yaml").write_text(bundled_path("models", "ihm_finger.yaml").read_text())
+    study = tmp_path / "study.yaml"
+    study.write_text(STUDY.replace("stop: 4", "stop: 12"))
+    out = tmp_path / "out"
+    stopped = measure_run(study, out, 12, jobs=2, stop_at=4)
+    assert stopped.returncode == 130 and 4 <= stopped.stored < 12
+    resumed = measure_run(study, out, 12, jobs=2)
+    assert resumed.returncode == 0 and resumed.stored == 12 and resumed.first_row_s is not None
+    assert resumed.peak_rss_mb > 20
+    small = ScaleRun(2000, 100.0, 150.0, 2.0, 1.0, 2000, 0)
+    lines = scale_lines([small, ScaleRun(20000, 1000.0, 160.0, 2.0, 1.0, 20000, 0)], stopped, resumed, 2)
+    assert "peak memory at 20000 / at 2000 trials = 1.07 (target <= 1.5: ok)" in lines[-2]
+    assert f"{stopped.stored} stored, then resumed" in lines[-1]
+
+
+@pytest.mark.parametrize("trials", ["2000,3000", "0", "abc", "-2000"])
+def test_scale_sizes_that_are_no_multiple_of_the_grid_are_refused(trials: str) -> None:
+    result = CliRunner().invoke(app, ["paper", "scale", "--trials", trials])
+    assert result.exit_code == 2 and "--trials" in result.output
 
 
 @pytest.mark.parametrize(
@@ -138,3 +167,31 @@ def test_the_readme_gives_exactly_these_settings_to_a_cluster() -> None:
     readme = (Path(__file__).resolve().parents[2] / "README.md").read_text()
     given = dict(re.findall(r"(DASK_[A-Z_]+)=(\S+)", readme))
     assert given == dask_environment()
+
+
+def test_the_quick_comparison_runs_the_quick_studys_cells_at_the_ablations_numerics() -> None:
+    """``make bench`` times Dask against joblib four times over the quick study's cells: at 0.5 ms with
+    replicas (the study itself) that is ~40x the CPU, so the benchmark runs the same cells at 4 ms."""
+    import yaml
+
+    from somo_sweep.paper.scaling import QUICK_CELLS_OF, QUICK_STUDY, numerics_note, quick_note
+
+    timed, cells_of = (yaml.safe_load(p.read_text(encoding="utf-8")) for p in (QUICK_STUDY, QUICK_CELLS_OF))
+    for key in ("task", "model", "sweep", "seed"):
+        assert timed[key] == cells_of[key], key
+    assert timed["simulation"]["time_step_s"] == 4.0e-3 and "robustness" not in timed
+    assert numerics_note(QUICK_STUDY) == "4 ms, inertia shaped by 3e-05 kg·m²"
+    assert quick_note().startswith("the cells of pinch_grasp_quick at 4 ms, inertia shaped by 3e-05 kg·m² (")
+
+
+def test_every_heading_says_what_its_study_runs(tmp_path: Path) -> None:
+    from somo_sweep.paper.scaling import DEMO_STUDY, ScalingRun, dask_lines, numerics_note
+
+    study = tmp_path / "s.yaml"
+    study.write_text("robustness: {replicas: 4}\nsimulation: {time_step_s: 5.0e-4}\n")
+    assert numerics_note(study) == "0.5 ms, no inertia shaping, 4 replicas on boundary cells"
+    assert numerics_note(DEMO_STUDY) == "0.5 ms, no inertia shaping"
+    import pandas as pd
+
+    runs = [ScalingRun(JOBLIB, 1.0, 3, pd.DataFrame()), ScalingRun(DASK, 1.0, 3, pd.DataFrame())]
+    assert dask_lines(runs, "demo", "0.5 ms")[0].startswith("Dask vs joblib, study demo (0.5 ms; 3 trials, ")

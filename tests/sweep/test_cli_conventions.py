@@ -178,9 +178,9 @@ def test_a_study_smaller_than_jobs_starts_no_idle_worker(
     asked: list[int] = []
     real = execution._parallel
 
-    def spy(backend: str, n_jobs: int) -> object:
+    def spy(n_jobs: int) -> object:
         asked.append(n_jobs)
-        return real(backend, n_jobs)  # type: ignore[arg-type]
+        return real(n_jobs)
 
     monkeypatch.setattr(execution, "_parallel", spy)
     summary = run_study(load_study(selftest_study(tmp_path, n=3), tmp_path / "out"), n_jobs=8)

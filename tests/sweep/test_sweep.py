@@ -8,6 +8,8 @@ from __future__ import annotations
 
 import shutil
 import signal
+import subprocess
+import sys
 import textwrap
 import warnings
 from pathlib import Path
@@ -97,6 +99,24 @@ def test_job_ids_are_stable_and_follow_the_model_content(tmp_path: Path) -> None
     path.write_text(path.read_text() + "set:\n  model.manipulator.actuators[0].length_m: 0.11\n")
     c = build_jobs(load_study(path))
     assert not {j.job_id for j in a.jobs} & {j.job_id for j in c.jobs}
+
+
+def test_a_worker_imports_what_a_trial_imports_before_forking_it() -> None:
+    """A module a trial imports itself (the bench statics, SciPy) must be imported in the worker,
+    once, not in every forked trial, where the import is redone and lost with the child."""
+    code = (
+        "import sys\n"
+        "from somo_sweep.model.tables import bundled_path\n"
+        "from somo_sweep.sweep.execution import run_isolated\n"
+        "from somo_sweep.sweep.jobs import first_jobs\n"
+        "from somo_sweep.sweep.study import load_study\n"
+        "job = first_jobs(load_study(bundled_path('finger_pressure_sweep.yaml')), 1)[0]\n"
+        "before = 'somo_sweep.sim.statics' in sys.modules\n"
+        "out = run_isolated(job)\n"
+        "print(out.status, before, 'somo_sweep.sim.statics' in sys.modules, 'scipy.linalg' in sys.modules)\n"
+    )
+    done = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)
+    assert done.stdout.split() == ["ok", "False", "True", "True"]
 
 
 def test_code_version_covers_the_code_a_trial_runs_and_nothing_else() -> None:
