@@ -173,6 +173,18 @@ def _exit_text(status: int) -> str:
     return f"exit code {os.waitstatus_to_exitcode(status)}"
 
 
+def _prepare_engine(engine: str) -> None:
+    """Import an engine before forking (once per worker); PyBullet's children also inherit a
+    connected client (:func:`~somo_sweep.sim.pybullet.world.keep_spare_client`)."""
+    if engine == "mujoco":
+        import somo_sweep.sim.mujoco.world  # noqa: F401  (its import, not the trial's, pays)
+
+        return
+    from somo_sweep.sim.pybullet.world import keep_spare_client
+
+    keep_spare_client()
+
+
 def run_isolated(job: Job, timeout_s: float | None = None, owner_pid: int | None = None) -> Outcome:
     """Run one job in a forked child process and return its outcome (never raises for the trial).
 
@@ -185,10 +197,8 @@ def run_isolated(job: Job, timeout_s: float | None = None, owner_pid: int | None
         _watch_owner(owner_pid)
     with contextlib.suppress(Exception):  # an import error is the trial's, reported by the child
         _ = get_task(job.task).run  # import the task's modules once per worker, before forking
-        if "pybullet" in sys.modules:  # a simulating task: its child inherits a connected client
-            from somo_sweep.sim.world import keep_spare_client
-
-            keep_spare_client()
+        if "somo_sweep.sim.world" in sys.modules:  # a simulating task: import its engine once
+            _prepare_engine(job.settings.engine)
     start = time.perf_counter()
     host = socket.gethostname()
     read_fd, write_fd = os.pipe()

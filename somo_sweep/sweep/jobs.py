@@ -32,7 +32,7 @@ from pydantic import BaseModel
 
 from somo_sweep.errors import DescriptionError, Problem
 from somo_sweep.model.load import Model
-from somo_sweep.sim.settings import WorldSettings
+from somo_sweep.sim.settings import MUJOCO_ONLY, WorldSettings, engine_version
 from somo_sweep.sweep.study import Study
 
 if TYPE_CHECKING:
@@ -101,8 +101,19 @@ def _imports(path: Path) -> set[str]:
     return found
 
 
-def trial_modules(task_module: str) -> list[str]:
-    """The task's module and every somo_sweep module it imports, transitively (sorted)."""
+def _engine_modules(engine: str) -> list[str]:
+    """Every module of an engine's package (``somo_sweep.sim.<engine>``)."""
+    folder = Path(__file__).resolve().parents[1] / "sim" / engine
+    return [f"somo_sweep.sim.{engine}.{p.stem}" for p in sorted(folder.glob("*.py")) if p.stem != "__init__"]
+
+
+def trial_modules(task_module: str, engine: str = "pybullet") -> list[str]:
+    """The task's module and every somo_sweep module it imports, transitively (sorted).
+
+    A task that opens a world (imports :mod:`somo_sweep.sim.world`) runs the modules of the
+    engine its settings name, which the world imports by name: they are added, those of the
+    other engine are not (editing one engine keeps the other's job ids).
+    """
     todo, seen = [task_module], set()
     while todo:
         name = todo.pop()
@@ -112,11 +123,13 @@ def trial_modules(task_module: str) -> list[str]:
         seen.add(name)
         if name not in _NOT_FOLLOWED:
             todo.extend(sorted(_imports(path) - seen))
+        if name == "somo_sweep.sim.world":
+            todo.extend(_engine_modules(engine))
     return sorted(seen)
 
 
 @cache
-def code_version(task_module: str) -> str:
+def code_version(task_module: str, engine: str = "pybullet") -> str:
     """Package version plus a hash of the sources of :func:`trial_modules`.
 
     Only code a trial can run is hashed: editing the CLI, the plots, the sweep engine or
@@ -124,7 +137,7 @@ def code_version(task_module: str) -> str:
     the core modules it uses (world, springs, ...) changes them.
     """
     digest = hashlib.sha256()
-    for name in trial_modules(task_module):
+    for name in trial_modules(task_module, engine):
         path = _module_file(name)
         assert path is not None
         digest.update(name.encode() + path.read_bytes())
@@ -226,8 +239,7 @@ def iter_jobs(study: Study) -> Iterator[Job]:
         DescriptionError: Two trials are identical (e.g. a value repeated in an axis).
     """
     fixed_settings = None if study.simulation is None else study.simulation.world_settings()
-    code = code_version(study.task.run_path.partition(":")[0])
-    engine = pybullet_version()
+    task_module = study.task.run_path.partition(":")[0]
     overrides = sorted({*study.fixed, *(a.key for a in study.axes)} - {"model"})
     seen: dict[str, int] = {}
     trial = 0
@@ -248,15 +260,7 @@ def iter_jobs(study: Study) -> Iterator[Job]:
         columns["model_hash"] = model_hash
         for repeat in range(study.repeats):
             seed = _seed(study.seed, point, repeat)
-            identity = {
-                "task": study.task.name,
-                "params": params.model_dump(mode="json"),
-                "model": model_hash,
-                "settings": asdict(settings),
-                "seed": seed,
-                "code": code,
-                "pybullet": engine,
-            }
+            identity = _identity(study.task.name, params, model_hash, settings, seed, task_module)
             job_id = _hash(identity)
             if job_id in seen:
                 raise DescriptionError(
@@ -273,6 +277,34 @@ def iter_jobs(study: Study) -> Iterator[Job]:
                 job_id, trial, repeat, seed, study.task.name, model, params, settings, columns, numerics
             )
             trial += 1
+
+
+def _identity(
+    task: str, params: BaseModel, model_hash: str, settings: WorldSettings, seed: int, task_module: str
+) -> dict[str, Any]:
+    """What a job id hashes: the trial's inputs, the code it runs and its engine's version.
+
+    PyBullet's settings and identity keep the form they had before there were two engines
+    (no engine keys), so a PyBullet job's id depends on nothing MuJoCo adds.
+    """
+    engine = settings.engine
+    fields = asdict(settings)
+    if engine == "pybullet":
+        for name in ("engine", *MUJOCO_ONLY):
+            fields.pop(name)
+    identity = {
+        "task": task,
+        "params": params.model_dump(mode="json"),
+        "model": model_hash,
+        "settings": fields,
+        "seed": seed,
+        "code": code_version(task_module, engine),
+        "pybullet": pybullet_version(),
+    }
+    if engine != "pybullet":
+        del identity["pybullet"]
+        identity[engine] = engine_version(engine)
+    return identity
 
 
 def _prepare(
@@ -305,7 +337,8 @@ def build_jobs(study: Study) -> JobTable:
         DescriptionError: Two trials are identical (e.g. a value repeated in an axis).
     """
     jobs = list(iter_jobs(study))
-    code = code_version(study.task.run_path.partition(":")[0])
+    engine = "pybullet" if study.simulation is None else study.simulation.engine
+    code = code_version(study.task.run_path.partition(":")[0], engine)
     axes = {a.key: ("model_file" if a.key == "model" else param_column(a.key)) for a in study.axes}
     resolved = {
         "name": study.name,
@@ -326,4 +359,6 @@ def build_jobs(study: Study) -> JobTable:
         "pybullet": pybullet_version(),
         "n_trials": len(jobs),
     }
+    if engine != "pybullet":
+        resolved[engine] = engine_version(engine)
     return JobTable(jobs, _hash([j.job_id for j in jobs]), axes, resolved)

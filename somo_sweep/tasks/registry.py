@@ -67,6 +67,10 @@ class TaskSpec:
         check_params: What the task needs of a model and its parameters together (a torque table
             with one column per input of the model), checked when a study is loaded:
             ``check_params(model, params)`` returns one sentence per unmet need.
+        prepare: The model a trial simulates, from the study's model and the trial's parameters
+            (``prepare(model, params)``: the pinch task re-splits the fingers, the snake drops its
+            anisotropic friction when asked); None: the study's model as it is. Loading a study
+            checks that its engine can express it.
     """
 
     name: str
@@ -77,6 +81,7 @@ class TaskSpec:
     metrics: Mapping[str, str] = field(default_factory=dict)
     check_model: Callable[[Model], list[str]] | None = None
     check_params: Callable[[Model, Any], list[str]] | None = None
+    prepare: Callable[[Model, Any], Model] | None = None
 
     @property
     def run(self) -> TaskFn:

@@ -230,6 +230,14 @@ METRICS: dict[str, str] = {
     "ended_early_reason": "string",
 }
 
+
+def simulated_gripper(model: Model, params: PinchGraspParams) -> Model:
+    """The gripper a trial simulates: its fingers re-split by DSR, numerics and factors applied."""
+    from somo_sweep.tasks.pinch_grasp.task import gripper
+
+    return gripper(model, params)
+
+
 register(
     TaskSpec(
         name="pinch_grasp",
@@ -239,5 +247,6 @@ register(
         tags=("grasp", "paper", "fig6"),
         metrics=METRICS,
         check_model=check_gripper,
+        prepare=simulated_gripper,
     )
 )

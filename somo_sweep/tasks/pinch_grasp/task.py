@@ -28,8 +28,8 @@ from somo_sweep.errors import SomoError, UnstableSimulation
 from somo_sweep.model.description import Actuator, Joint, Link, Manipulator, Pose, RigidBody
 from somo_sweep.model.load import Model
 from somo_sweep.model.setpoints import SetpointTable
+from somo_sweep.sim.rotations import rpy_from_quat
 from somo_sweep.sim.settings import WorldSettings
-from somo_sweep.sim.urdf import plan_rigid_body
 from somo_sweep.sim.world import World
 from somo_sweep.tasks.pinch_grasp.classify import (
     GraspEvidence,
@@ -204,7 +204,7 @@ def run_pinch_grasp(
         ground = world.add_ground(friction=GROUND_FRICTION)
         box = object_body(p)
         obj_start = np.array(box.pose.position_m)
-        obj = world.load_plan(plan_rigid_body(box, world.scale))
+        obj = world.add_rigid_body(box)
         # Load the hand far away, measure where its finger mounts sit relative to the palm.
         far = np.array([1.0, 0.0, p.hand_height_m])
         hand = world.add_model(hand_model, Pose(position_m=tuple(far)))
@@ -275,7 +275,7 @@ def run_pinch_grasp(
             return TaskResult(status="unstable", message=str(exc))
         pos, quat = world.base_pose(obj.id)
         metrics.update({f"object_{a}_m": float(v) for a, v in zip("xyz", pos, strict=True)})
-        rpy = world_rpy(quat)
+        rpy = rpy_from_quat(quat)
         metrics.update({"object_roll_rad": rpy[0], "object_pitch_rad": rpy[1], "object_yaw_rad": rpy[2]})
         metrics["lift_height_m"] = float(pos[2] - obj_start[2])
         nan = float("nan")
@@ -312,11 +312,3 @@ def _snapshot(world: World, probe: HoldProbe, object_id: int) -> Snapshot:
         object_z_m=float(world.base_pose(object_id)[0][2]),
         finger_speed_rad_s=finger_speed,
     )
-
-
-def world_rpy(quat: np.ndarray) -> tuple[float, float, float]:
-    """Roll, pitch, yaw (rad) of a quaternion (x, y, z, w)."""
-    import pybullet as pb
-
-    r = pb.getEulerFromQuaternion([float(c) for c in quat])
-    return float(r[0]), float(r[1]), float(r[2])
