@@ -215,9 +215,25 @@ class MujocoWorld(World):
             raise SimulationError(
                 f"ground: {field} cannot be expressed on engine mujoco; allowed: none, or engine pybullet"
             )
-        return self._add_static_geom(
-            mujoco.mjtGeom.mjGEOM_PLANE, [0.0, 0.0, 1.0], [0.0, 0.0, 0.0], Surface(friction)
-        )
+        plane = mujoco.mjtGeom.mjGEOM_PLANE  # infinite for contacts; 2 m by 2 m when drawn
+        ground = self._add_static_geom(plane, [1.0, 1.0, 0.05], [0.0, 0.0, 0.0], Surface(friction))
+        self._decorate(self._geoms[-1].spec)
+        return ground
+
+    def _decorate(self, ground: Any) -> None:
+        """A checkered ground (as PyBullet draws it) and a light from above, for snapshots only."""
+        name = f"checker{len(self._geoms)}"
+        texture = self.spec.add_texture(name=name, width=64, height=64)
+        texture.type = mujoco.mjtTexture.mjTEXTURE_2D
+        texture.builtin = mujoco.mjtBuiltin.mjBUILTIN_CHECKER
+        texture.rgb1 = [0.63, 0.71, 0.93]
+        texture.rgb2 = [0.94, 0.94, 0.94]
+        material = self.spec.add_material(name=name, texrepeat=[20.0, 20.0])
+        material.textures = ["", name] + [""] * 8  # slot 1: the RGB map
+        ground.material = name
+        ground.rgba = [1.0, 1.0, 1.0, 1.0]
+        light = self.spec.worldbody.add_light(pos=[0.0, 0.0, 2.0], dir=[0.0, 0.0, -1.0])
+        light.diffuse = [0.6, 0.6, 0.6]
 
     def add_static_box(self, centre_m: npt.ArrayLike, half_extents_m: npt.ArrayLike) -> int:
         """Add a static frictionless box (a bench's stop) centred at ``centre_m``; returns its id."""
