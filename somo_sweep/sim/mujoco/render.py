@@ -8,6 +8,7 @@ OpenGL library (EGL or OSMesa, ``MUJOCO_GL``) the error says so.
 
 from __future__ import annotations
 
+import os
 from typing import TYPE_CHECKING
 
 import mujoco
@@ -20,6 +21,19 @@ if TYPE_CHECKING:
     from somo_sweep.sim.render import Camera
 
 __all__ = ["mujoco_image"]
+
+
+def _headless_context() -> None:
+    """Use EGL when MUJOCO_GL asks for it but MuJoCo was imported before it was set (it then took
+    GLFW, which needs a display): MuJoCo's renderer reads the context class when it is made."""
+    from mujoco.rendering.classic import gl_context
+
+    wanted = os.environ.get("MUJOCO_GL", "").lower()
+    if wanted == "egl" and getattr(gl_context, "_MUJOCO_GL", "egl") != "egl":
+        from mujoco.egl import GLContext
+
+        gl_context.GLContext = GLContext
+        gl_context._MUJOCO_GL = "egl"
 
 
 def mujoco_image(world: MujocoWorld, camera: Camera) -> np.ndarray:
@@ -35,6 +49,7 @@ def mujoco_image(world: MujocoWorld, camera: Camera) -> np.ndarray:
     view.distance = camera.distance_m
     view.azimuth = camera.yaw_deg + 90.0
     view.elevation = camera.pitch_deg
+    _headless_context()
     try:
         renderer = mujoco.Renderer(model, camera.height_px, camera.width_px)
     except Exception as exc:  # no OpenGL library, or no display for the chosen one

@@ -9,15 +9,21 @@ ground of μ = 1) and not for others (two μ = 2 surfaces: 4 in Bullet, 2 in MuJ
 :func:`contact_plan` keeps MuJoCo's own (fast) collision detection for every pair of surface
 classes whose maximum already is Bullet's combination, and turns off the others with the geoms'
 ``contype``/``conaffinity`` bits (one bit per class); their geom pairs get explicit
-``<pair>`` elements carrying Bullet's combined values. A pair's contact dimension follows
-from its combined values (1 frictionless, 3 sliding, 4 with torsion, 6 with rolling).
+``<pair>`` elements carrying Bullet's combined values. MuJoCo's ``priority`` widens what its
+own detection can give: the pair takes the higher-priority geom's values, so each class is
+given the friction (its own, or one of its pairs' combined values) and priority that leave the
+fewest geom pairs to explicit pairs (the pinch gripper: 8 of 1,081). A pair's contact dimension
+follows from its combined values (1 frictionless, 3 sliding, 4 with torsion, 6 with rolling).
 """
 
 from __future__ import annotations
 
+import itertools
 import math
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass
+
+import numpy as np
 
 from somo_sweep.errors import SimulationError
 
@@ -71,11 +77,67 @@ def _same(x: tuple[float, ...], y: tuple[float, ...]) -> bool:
     return all(math.isclose(a, b, rel_tol=1e-12, abs_tol=1e-15) for a, b in zip(x, y, strict=True))
 
 
-def _native(a: Surface, b: Surface) -> bool:
-    """Whether MuJoCo's own rule (the larger value of each, the larger condim) is Bullet's."""
-    want = combined(a, b)
-    got = tuple(max(x, y) for x, y in zip(a.own(), b.own(), strict=True))
-    return _same(want, got) and max(condim(a.own()), condim(b.own())) == condim(want)
+#: A class's MuJoCo geom settings: its friction (slide, spin, roll) and its priority.
+Setting = tuple[tuple[float, float, float], int]
+
+
+def _mixed(a: Setting, b: Setting) -> tuple[tuple[float, ...], int]:
+    """MuJoCo's friction and contact dimension of a pair: the higher priority's, else the larger."""
+    (fa, pa), (fb, pb) = a, b
+    if pa != pb:
+        return (fa, condim(fa)) if pa > pb else (fb, condim(fb))
+    return tuple(max(x, y) for x, y in zip(fa, fb, strict=True)), max(condim(fa), condim(fb))
+
+
+def _honours(a: Setting, b: Setting, want: tuple[float, float, float]) -> bool:
+    friction, dim = _mixed(a, b)
+    return _same(friction, want) and dim == condim(want)
+
+
+def _cost(settings: list[Setting], want: list[list[tuple[float, float, float]]], weight: np.ndarray) -> float:
+    n = len(settings)
+    return float(
+        sum(
+            weight[i, j]
+            for i in range(n)
+            for j in range(i, n)
+            if not _honours(settings[i], settings[j], want[i][j])
+        )
+    )
+
+
+def _choose(classes: list[Surface], weight: np.ndarray) -> list[Setting]:
+    """Per class, the geom friction and priority that leave the fewest geom pairs to explicit pairs.
+
+    Each class may take its own friction or one of its pairs' combined values, at any priority:
+    all choices when there are at most three classes, else coordinate descent from their own
+    values at one priority (rarely more than a few sweeps).
+    """
+    n = len(classes)
+    want = [[combined(a, b) for b in classes] for a in classes]
+    options = [sorted({c.own(), *want[i]}) for i, c in enumerate(classes)]
+    settings: list[Setting] = [(c.own(), 0) for c in classes]
+    best = _cost(settings, want, weight)
+    if n <= 3:
+        for values in itertools.product(*options):
+            for ranks in itertools.product(range(n), repeat=n):
+                trial = list(zip(values, ranks, strict=True))
+                cost = _cost(trial, want, weight)
+                if cost < best:
+                    settings, best = trial, cost
+        return settings
+    for _ in range(10):
+        improved = False
+        for i in range(n):
+            for value in options[i]:
+                for rank in range(n):
+                    trial = [*settings[:i], (value, rank), *settings[i + 1 :]]
+                    cost = _cost(trial, want, weight)
+                    if cost < best:
+                        settings, best, improved = trial, cost, True
+        if not improved:
+            break
+    return settings
 
 
 @dataclass(frozen=True)
@@ -83,19 +145,23 @@ class ContactPlan:
     """How the geoms collide.
 
     Attributes:
-        contype, conaffinity: Per geom, MuJoCo's collision bits (0: only explicit pairs).
-        geom_condim: Per geom, its contact dimension for MuJoCo's own detection.
-        pairs: Explicit pairs (geom a, geom b, (slide, spin, roll), condim).
+        contype, conaffinity: Per geom, MuJoCo's collision bits (one bit per surface class).
+        geom_friction, geom_priority, geom_condim: Per geom, MuJoCo's friction (slide, spin,
+            roll), priority and contact dimension for its own collision detection.
+        pairs: Explicit pairs (geom a, geom b, (slide, spin, roll), condim) with Bullet's values,
+            for the class pairs MuJoCo's mixing cannot give them.
     """
 
     contype: list[int]
     conaffinity: list[int]
+    geom_friction: list[tuple[float, float, float]]
+    geom_priority: list[int]
     geom_condim: list[int]
     pairs: list[tuple[int, int, tuple[float, float, float], int]]
 
 
 def contact_plan(surfaces: Sequence[Surface], may_touch: Callable[[int, int], bool]) -> ContactPlan:
-    """Collision bits and explicit pairs that give every geom pair Bullet's combined friction.
+    """Collision settings and explicit pairs that give every geom pair Bullet's combined friction.
 
     Args:
         surfaces: Each geom's surface.
@@ -109,15 +175,28 @@ def contact_plan(surfaces: Sequence[Surface], may_touch: Callable[[int, int], bo
             f"{MAX_CLASSES} (one collision bit each); allowed: fewer distinct friction values"
         )
     index = {c: i for i, c in enumerate(classes)}
-    native = [[_native(a, b) for b in classes] for a in classes]
+    of = [index[s] for s in surfaces]
+    touching = [(a, b) for a in range(len(surfaces)) for b in range(a + 1, len(surfaces)) if may_touch(a, b)]
+    weight = np.zeros((len(classes), len(classes)))
+    for a, b in touching:
+        i, j = sorted((of[a], of[b]))
+        weight[i, j] += 1
+    settings = _choose(classes, weight)
+    native = [
+        [_honours(settings[i], settings[j], combined(classes[i], classes[j])) for j in range(len(classes))]
+        for i in range(len(classes))
+    ]
     affinity = [sum(1 << j for j in range(len(classes)) if native[i][j]) for i in range(len(classes))]
-    contype = [1 << index[s] for s in surfaces]
-    conaffinity = [affinity[index[s]] for s in surfaces]
     pairs = []
-    for a in range(len(surfaces)):
-        for b in range(a + 1, len(surfaces)):
-            if native[index[surfaces[a]]][index[surfaces[b]]] or not may_touch(a, b):
-                continue
+    for a, b in touching:
+        if not native[of[a]][of[b]]:
             friction = combined(surfaces[a], surfaces[b])
             pairs.append((a, b, friction, condim(friction)))
-    return ContactPlan(contype, conaffinity, [condim(s.own()) for s in surfaces], pairs)
+    return ContactPlan(
+        contype=[1 << i for i in of],
+        conaffinity=[affinity[i] for i in of],
+        geom_friction=[settings[i][0] for i in of],
+        geom_priority=[settings[i][1] for i in of],
+        geom_condim=[condim(settings[i][0]) for i in of],
+        pairs=pairs,
+    )

@@ -62,6 +62,8 @@ def _span(indices: list[int]) -> Any:
 
 #: Largest linear speed of a free body in a sane run, m/s (a blow-up detector: MuJoCo caps nothing).
 MAX_BODY_SPEED_M_S = 100.0
+#: Steps between checks of the spring joints' speeds (a blow-up persists: NaN or ever faster).
+SPEED_CHECK_EVERY = 10
 _EMPTY = {
     "link_a": np.zeros(0, int),
     "link_b": np.zeros(0, int),
@@ -102,8 +104,9 @@ class MujocoWorld(World):
         self._kinematics_stale = True
         self._external = False
         self._targets: dict[int, np.ndarray] = {}  # driven body id → target (x, y, z, yaw, pitch, roll)
+        self._roots: list[tuple[np.ndarray, np.ndarray, np.ndarray]] = []  # target, qpos and qvel views
         self._turns: dict[tuple[float, ...], tuple[np.ndarray, np.ndarray]] = {}
-        self._step_contacts: dict[str, np.ndarray] | None = None
+        self._step_contacts: tuple[Any, ...] | None = None  # the last step's, once read
         self._contact_memo: dict[tuple[int, int | None], dict[str, np.ndarray]] = {}
         self._free: set[int] = set()  # ids of bodies on a free joint (known once compiled)
         self._initial: dict[int, np.ndarray] = {}  # driven body id → pose to set at the next compile
@@ -259,10 +262,15 @@ class MujocoWorld(World):
             raise SimulationError(f"MuJoCo could not build the scene: {exc}") from None
         self._dirty = False
         self._step_contacts, self._contact_memo = None, {}
+        self._qpos, self._qvel = self.data.qpos, self.data.qvel
         self._addresses()
         for body_id, pose in self._initial.items():
             self.data.qpos[self._root_qpos[body_id]] = pose
         self._initial.clear()
+        self._roots = [
+            (target, self._qpos[self._root_qpos[i]], self._qvel[self._root_dof[i]])
+            for i, target in self._targets.items()
+        ]
         for body in self.bodies:
             self.push_efforts(body.drive)  # type: ignore[arg-type]
         mujoco.mj_kinematics(self.model, self.data)
@@ -286,10 +294,10 @@ class MujocoWorld(World):
 
         plan = contact_plan([g.surface for g in geoms], may_touch)
         tc = self.settings.contact_time_constant_s
-        for g, contype, affinity, dim in zip(
-            geoms, plan.contype, plan.conaffinity, plan.geom_condim, strict=True
-        ):
-            g.spec.contype, g.spec.conaffinity, g.spec.condim = contype, affinity, dim
+        for k, g in enumerate(geoms):
+            g.spec.contype, g.spec.conaffinity = plan.contype[k], plan.conaffinity[k]
+            g.spec.friction, g.spec.priority = list(plan.geom_friction[k]), plan.geom_priority[k]
+            g.spec.condim = plan.geom_condim[k]
         for a, b, friction, dim in plan.pairs:
             pair = self.spec.add_pair(geomname1=geoms[a].name, geomname2=geoms[b].name)
             pair.condim = dim
@@ -312,6 +320,7 @@ class MujocoWorld(World):
         self._link_bodies: dict[int, np.ndarray] = {}
         self._root_qpos: dict[int, Any] = {}  # slices, or index arrays where not contiguous
         self._root_dof: dict[int, Any] = {}
+        self._com_offset: dict[int, np.ndarray | None] = {}  # free body → its centre of mass, body frame
         self._free = set()
         spring_dofs: list[int] = []
         for body in self.bodies:
@@ -326,6 +335,8 @@ class MujocoWorld(World):
             if planned.root_joints:
                 roots = [m.joint(n) for n in planned.root_joints]
                 if body.plan.mode == "free":
+                    ipos = np.array(m.body_ipos[self._link_bodies[body.id][0]], dtype=float)
+                    self._com_offset[body.id] = ipos if np.any(ipos) else None
                     adr, dof = int(roots[0].qposadr[0]), int(roots[0].dofadr[0])
                     self._root_qpos[body.id] = slice(adr, adr + 7)
                     self._root_dof[body.id] = slice(dof, dof + 6)
@@ -371,7 +382,8 @@ class MujocoWorld(World):
         target = self._targets[body.id]
         target[:3] = turn[0]
         target[:3] += position_m
-        target[3:] = turn[1]
+        # The angles continue from the last target's (no jump of 2π for the root to follow).
+        target[3:] += (turn[1] - target[3:] + math.pi) % (2 * math.pi) - math.pi
 
     def place_model(
         self,
@@ -400,13 +412,10 @@ class MujocoWorld(World):
 
     def _drive_roots(self) -> None:
         """Set each driven root's speed so it reaches its target at the end of the step."""
-        qpos, qvel, rate = self.data.qpos, self.data.qvel, 1.0 / self.settings.time_step_s
-        for body_id, target in self._targets.items():
-            delta = target - qpos[self._root_qpos[body_id]]
-            if abs(delta[3]) > math.pi or abs(delta[4]) > math.pi or abs(delta[5]) > math.pi:
-                delta[3:] = (delta[3:] + math.pi) % (2 * math.pi) - math.pi
-            delta *= rate
-            qvel[self._root_dof[body_id]] = delta
+        rate = 1.0 / self.settings.time_step_s
+        for target, pose, speed in self._roots:  # views into the data: no copies
+            np.subtract(target, pose, out=speed)
+            speed *= rate
 
     # ----------------------------------------------------------------- stepping
     def step(self, n: int = 1) -> None:
@@ -415,45 +424,47 @@ class MujocoWorld(World):
         Raises:
             UnstableSimulation: Joint speeds at :data:`MAX_JOINT_SPEED_RAD_S`, NaN, or a body thrown.
         """
-        self._ready()
+        if self._dirty:
+            self._ready()
         m, d = self.model, self.data
         cap = 0.99 * MAX_JOINT_SPEED_RAD_S
         dt = self.settings.time_step_s
-        dofs = self._spring_dofs
-        has_springs = bool(self._n_springs)
+        every = self.settings.check_every
+        dofs = self._spring_dofs if self._n_springs else None
         bad_acc = d.warning[int(mujoco.mjtWarning.mjWARN_BADQACC)]
-        step = mujoco.mj_step
+        qvel = self._qvel  # views kept from the compile: reading d.qvel builds a new one each time
+        step, hooks, clock = mujoco.mj_step, self.pre_step, perf_counter
         for _ in range(n):
-            for hook in self.pre_step:
+            for hook in hooks:
                 hook(self)
-            if self._dirty:
+            if self._dirty:  # a hook added a body
                 self._ready()
-                m, d, dofs = self.model, self.data, self._spring_dofs
-                has_springs = bool(self._n_springs)
+                m, d, qvel = self.model, self.data, self._qvel
+                dofs = self._spring_dofs if self._n_springs else None
                 bad_acc = d.warning[int(mujoco.mjtWarning.mjWARN_BADQACC)]
             if self._targets:
                 self._drive_roots()
-            t0 = perf_counter()
+            t0 = clock()
             step(m, d)
-            self._engine_time_s += perf_counter() - t0
+            self._engine_time_s += clock() - t0
             if self._external:
                 d.xfrc_applied[:] = 0.0
                 self._external = False
-            self.step_count += 1
-            self.time_s = self.step_count * dt
+            self.step_count = count = self.step_count + 1
+            self.time_s = count * dt
             self._kinematics_stale = True
             self._step_contacts = None
             if self._contact_memo:
                 self._contact_memo = {}
-            if has_springs:
-                q_max = np.abs(d.qvel[dofs]).max()
-                if not (q_max < cap):  # also catches NaN
-                    reason = "nan" if not np.isfinite(q_max) else "speed_cap"
+            if dofs is not None and count % SPEED_CHECK_EVERY == 0:
+                speeds = qvel[dofs]
+                if not (speeds.max() < cap and speeds.min() > -cap):  # also catches NaN
+                    reason = "speed_cap" if np.isfinite(speeds).all() else "nan"
                     raise UnstableSimulation(reason, self.time_s, "in a spring joint")
             if bad_acc.number:
                 said = f": {_WARNINGS[-1]}" if _WARNINGS else ""
                 raise UnstableSimulation("nan", self.time_s, f"MuJoCo's accelerations are not finite{said}")
-            if self.step_count % self.settings.check_every == 0:
+            if count % every == 0:
                 self.check_thrown()
 
     def check_thrown(self) -> None:
@@ -531,9 +542,11 @@ class MujocoWorld(World):
     def base_pose(self, body_id: int) -> tuple[np.ndarray, np.ndarray]:
         """Base position (its centre of mass, m) and quaternion (x, y, z, w) of a body."""
         if body_id in self._free and not self._dirty:  # from the free joint, without kinematics
-            qpos = self.data.qpos[self._root_qpos[body_id]]
+            qpos = self._qpos[self._root_qpos[body_id]]
             quat = (qpos[4], qpos[5], qpos[6], qpos[3])
-            com = self.model.body_ipos[self._root_body(body_id)]
+            com = self._com_offset[body_id]
+            if com is None:  # the centre of mass at the body's origin (a plain rigid body)
+                return qpos[:3].copy(), np.array(quat)
             return qpos[:3] + matrix_from_quat(quat) @ com, np.array(quat)
         self._kinematics()
         bid = self._root_body(body_id)
@@ -541,14 +554,18 @@ class MujocoWorld(World):
 
     def base_velocity(self, body_id: int) -> tuple[np.ndarray, np.ndarray]:
         """Base linear velocity (m/s, of its centre of mass) and angular velocity (rad/s), world frame."""
+        if body_id in self._free and not self._dirty:  # a free joint: origin's speed (world), spin (local)
+            qpos = self._qpos[self._root_qpos[body_id]]
+            qvel = self._qvel[self._root_dof[body_id]]
+            spin = matrix_from_quat((qpos[4], qpos[5], qpos[6], qpos[3])) @ qvel[3:]
+            com = self._com_offset[body_id]
+            if com is None:
+                return qvel[:3].copy(), spin
+            arm = matrix_from_quat((qpos[4], qpos[5], qpos[6], qpos[3])) @ com
+            return qvel[:3] + np.cross(spin, arm), spin
         self._kinematics()
         m, d = self.model, self.data
         bid = self._root_body(body_id)
-        if body_id in self._free:  # a free joint: the origin's linear speed (world), spin (local)
-            qvel = d.qvel[self._root_dof[body_id]]
-            rot = d.xmat[bid].reshape(3, 3)
-            spin = rot @ qvel[3:]
-            return qvel[:3] + np.cross(spin, d.xipos[bid] - d.xpos[bid]), spin
         mujoco.mj_comPos(m, d)
         mujoco.mj_comVel(m, d)
         res = np.zeros(6)
@@ -582,47 +599,38 @@ class MujocoWorld(World):
         table = self._contact_table()
         if table is None:
             return dict(_EMPTY)
-        o1, o2 = table["owner1"], table["owner2"]
+        owners, con = table
+        o1, o2 = owners[:, 0], owners[:, 1]
         if body_b is None:
             first, second = o1 == body_a, o2 == body_a
         else:
             first, second = (o1 == body_a) & (o2 == body_b), (o2 == body_a) & (o1 == body_b)
-        either = first | second
-        if not either.any():
+        rows = np.flatnonzero(first | second)
+        if not len(rows):
             return dict(_EMPTY)
-        a_is_1 = first[either]
+        a_is_1 = first[rows]
+        geom = con.geom[rows]
+        ga, gb = np.where(a_is_1, geom[:, 0], geom[:, 1]), np.where(a_is_1, geom[:, 1], geom[:, 0])
         sign = np.where(a_is_1, -1.0, 1.0)[:, None]
-        normal = table["normal"][either]  # from geom1 to geom2
+        normal = con.frame[rows, :3] * sign  # MuJoCo's normal points from geom1 to geom2
+        adr = con.efc_address[rows]
         return {
-            "link_a": np.where(a_is_1, table["link1"][either], table["link2"][either]),
-            "link_b": np.where(a_is_1, table["link2"][either], table["link1"][either]),
-            "position_on_a_m": table["pos"][either] + sign * normal * table["half_dist"][either],
-            "normal_b_to_a": sign * normal,
-            "normal_force_n": table["force"][either],
+            "link_a": self._geom_link[ga],
+            "link_b": self._geom_link[gb],
+            "position_on_a_m": con.pos[rows] + normal * (0.5 * con.dist[rows])[:, None],
+            "normal_b_to_a": normal,
+            "normal_force_n": np.where(adr >= 0, self.data.efc_force[np.maximum(adr, 0)], 0.0),
         }
 
-    def _contact_table(self) -> dict[str, np.ndarray] | None:
-        """The last step's contacts with their owners and normal forces (built once per step)."""
+    def _contact_table(self) -> tuple[np.ndarray, Any] | None:
+        """The last step's contacts: each one's two owners (built once per step) and the list."""
         if self._step_contacts is not None:
             return self._step_contacts or None
-        d = self.data
-        n = d.ncon
-        if not n:
-            self._step_contacts = {}
+        con = self.data.contact
+        if not len(con.dist):
+            self._step_contacts = ()
             return None
-        con = d.contact
-        g1, g2 = con.geom1, con.geom2
-        adr = con.efc_address
-        self._step_contacts = {
-            "owner1": self._geom_owner[g1],
-            "owner2": self._geom_owner[g2],
-            "link1": self._geom_link[g1],
-            "link2": self._geom_link[g2],
-            "normal": con.frame[:, :3],
-            "pos": con.pos,
-            "half_dist": 0.5 * con.dist[:, None],
-            "force": np.where(adr >= 0, d.efc_force[np.maximum(adr, 0)], 0.0),
-        }
+        self._step_contacts = (self._geom_owner[con.geom], con)
         return self._step_contacts
 
     def render(self, camera: Camera) -> np.ndarray:
