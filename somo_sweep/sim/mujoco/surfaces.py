@@ -18,7 +18,6 @@ follows from its combined values (1 frictionless, 3 sliding, 4 with torsion, 6 w
 
 from __future__ import annotations
 
-import itertools
 import math
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass
@@ -94,47 +93,40 @@ def _honours(a: Setting, b: Setting, want: tuple[float, float, float]) -> bool:
     return _same(friction, want) and dim == condim(want)
 
 
-def _cost(settings: list[Setting], want: list[list[tuple[float, float, float]]], weight: np.ndarray) -> float:
-    n = len(settings)
-    return float(
-        sum(
-            weight[i, j]
-            for i in range(n)
-            for j in range(i, n)
-            if not _honours(settings[i], settings[j], want[i][j])
-        )
-    )
-
-
 def _choose(classes: list[Surface], weight: np.ndarray) -> list[Setting]:
     """Per class, the geom friction and priority that leave the fewest geom pairs to explicit pairs.
 
-    Each class may take its own friction or one of its pairs' combined values, at any priority:
-    all choices when there are at most three classes, else coordinate descent from their own
-    values at one priority (rarely more than a few sweeps).
+    Each class may take its own friction or one of its pairs' combined values, at any priority;
+    coordinate descent from every class at its own friction and priority 0, each class in turn
+    taking its best choice with the others held, until no choice improves (a few sweeps: the
+    gripper's three classes go from 528 explicit pairs to 8 in two).
     """
     n = len(classes)
     want = [[combined(a, b) for b in classes] for a in classes]
     options = [sorted({c.own(), *want[i]}) for i, c in enumerate(classes)]
     settings: list[Setting] = [(c.own(), 0) for c in classes]
-    best = _cost(settings, want, weight)
-    if n <= 3:
-        for values in itertools.product(*options):
-            for ranks in itertools.product(range(n), repeat=n):
-                trial = list(zip(values, ranks, strict=True))
-                cost = _cost(trial, want, weight)
-                if cost < best:
-                    settings, best = trial, cost
-        return settings
+    pairs = [(i, j) for i in range(n) for j in range(i, n) if weight[i, j]]
+
+    def cost(i: int, setting: Setting) -> float:
+        """The explicit geom pairs of class i's pairs, with class i set so."""
+        total = 0.0
+        for a, b in pairs:
+            if i in (a, b):
+                sa = setting if a == i else settings[a]
+                sb = setting if b == i else settings[b]
+                if not _honours(sa, sb, want[a][b]):
+                    total += weight[a, b]
+        return total
+
     for _ in range(10):
         improved = False
         for i in range(n):
+            best = cost(i, settings[i])
             for value in options[i]:
                 for rank in range(n):
-                    trial = [*settings[:i], (value, rank), *settings[i + 1 :]]
-                    cost = _cost(trial, want, weight)
-                    if cost < best:
-                        settings, best, improved = trial, cost, True
+                    trial = cost(i, (value, rank))
+                    if trial < best:
+                        settings[i], best, improved = (value, rank), trial, True
         if not improved:
             break
     return settings

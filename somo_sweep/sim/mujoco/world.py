@@ -599,38 +599,46 @@ class MujocoWorld(World):
         table = self._contact_table()
         if table is None:
             return dict(_EMPTY)
-        owners, con = table
-        o1, o2 = owners[:, 0], owners[:, 1]
+        groups, arrays = table
         if body_b is None:
-            first, second = o1 == body_a, o2 == body_a
+            first = [r for (o1, _), rows in groups.items() if o1 == body_a for r in rows]
+            second = [r for (o1, o2), rows in groups.items() if o2 == body_a and o1 != body_a for r in rows]
         else:
-            first, second = (o1 == body_a) & (o2 == body_b), (o2 == body_a) & (o1 == body_b)
-        rows = np.flatnonzero(first | second)
-        if not len(rows):
+            first, second = groups.get((body_a, body_b), []), groups.get((body_b, body_a), [])
+            if body_a == body_b:
+                second = []
+        if not first and not second:
             return dict(_EMPTY)
-        a_is_1 = first[rows]
-        geom = con.geom[rows]
-        ga, gb = np.where(a_is_1, geom[:, 0], geom[:, 1]), np.where(a_is_1, geom[:, 1], geom[:, 0])
-        sign = np.where(a_is_1, -1.0, 1.0)[:, None]
-        normal = con.frame[rows, :3] * sign  # MuJoCo's normal points from geom1 to geom2
-        adr = con.efc_address[rows]
+        rows = np.array(first + second, dtype=int)
+        geom, frame, pos, dist, force = (a[rows] for a in arrays)
+        if second:  # where body_a is MuJoCo's geom2, the pair turns round
+            flip = np.arange(len(rows)) >= len(first)
+            geom = np.where(flip[:, None], geom[:, ::-1], geom)
+            frame = np.where(flip[:, None], -frame, frame)
+        normal = -frame  # MuJoCo's normal points from geom1 (body_a's) to geom2
         return {
-            "link_a": self._geom_link[ga],
-            "link_b": self._geom_link[gb],
-            "position_on_a_m": con.pos[rows] + normal * (0.5 * con.dist[rows])[:, None],
+            "link_a": self._geom_link[geom[:, 0]],
+            "link_b": self._geom_link[geom[:, 1]],
+            "position_on_a_m": pos + normal * (0.5 * dist)[:, None],
             "normal_b_to_a": normal,
-            "normal_force_n": np.where(adr >= 0, self.data.efc_force[np.maximum(adr, 0)], 0.0),
+            "normal_force_n": force,
         }
 
-    def _contact_table(self) -> tuple[np.ndarray, Any] | None:
-        """The last step's contacts: each one's two owners (built once per step) and the list."""
+    def _contact_table(self) -> tuple[dict[tuple[int, int], list[int]], tuple[np.ndarray, ...]] | None:
+        """The last step's contacts grouped by owner pair, and their arrays (built once per step)."""
         if self._step_contacts is not None:
             return self._step_contacts or None
         con = self.data.contact
         if not len(con.dist):
             self._step_contacts = ()
             return None
-        self._step_contacts = (self._geom_owner[con.geom], con)
+        geom = con.geom
+        groups: dict[tuple[int, int], list[int]] = {}
+        for row, pair in enumerate(self._geom_owner[geom].tolist()):
+            groups.setdefault((pair[0], pair[1]), []).append(row)
+        adr = con.efc_address
+        force = np.where(adr >= 0, self.data.efc_force[np.maximum(adr, 0)], 0.0)
+        self._step_contacts = (groups, (geom, con.frame[:, :3], con.pos, con.dist, force))
         return self._step_contacts
 
     def render(self, camera: Camera) -> np.ndarray:
