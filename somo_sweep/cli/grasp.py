@@ -38,6 +38,13 @@ def classify(
         fail(exc)
     for label, n in counts.items():
         typer.echo(f"{printable(shown(str(label), 200)):>10s}  {n}")  # a status is stored text
+    legacy = table.attrs.get("rows_without_final_counts", 0)
+    if legacy:
+        typer.echo(
+            f"note: {legacy} trials were stored before the final step's per-part contact counts "
+            "(final_contact_count_link01 ...): they are relabelled from their stored mean link where it "
+            "decides the label, 'unknown' where it does not; re-run them (somo-sweep run) for exact labels"
+        )
     typer.echo(f"labels written to {path}")
 
 

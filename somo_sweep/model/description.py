@@ -195,6 +195,9 @@ class Link(Spec):
     ``added_inertia_kg_m2`` is added to each principal moment (inertia shaping: it
     lowers a chain's highest natural frequency so larger time steps stay stable,
     and leaves every static equilibrium unchanged).
+    ``offset_m`` shifts the link's shape and centre of mass off the chain's centre line, in
+    the link's own frame (e.g. a fingertip flush with the finger's inner face, as in the
+    original SoMo pinch finger); the chain's length and joints do not move.
     """
 
     shape: Literal["box", "cylinder", "sphere", "capsule", "stadium"]
@@ -207,6 +210,14 @@ class Link(Spec):
     friction: Friction = Friction()
     restitution: float = Field(0.0, ge=0, le=1)
     color_rgba: tuple[float, float, float, float] = (0.55, 0.6, 0.7, 1.0)
+    offset_m: Vec3 = (0.0, 0.0, 0.0)
+
+    @field_validator("offset_m")
+    @classmethod
+    def _offset_bounded(cls, v: Vec3) -> Vec3:
+        if any(not (math.isfinite(c) and abs(c) <= MAX_LENGTH_M) for c in v):
+            raise ValueError(f"offset_m entries must be finite and at most {MAX_LENGTH_M:g} m in size")
+        return v
 
     @field_validator("inertia_kg_m2")
     @classmethod

@@ -120,7 +120,27 @@ def relabel(
     out = table[keep].copy()
     out[f"grasp_{rule}"] = labels
     out["inferred"] = inferred_rows(table)
+    if rule == "paper":
+        out.attrs["rows_without_final_counts"] = rows_without_final_counts(table)
     return dict(sorted(Counter(str(v) for v in labels).items())), out
+
+
+def rows_without_final_counts(table: pd.DataFrame) -> int:
+    """Simulated ``ok`` trials stored without the final step's per-part contact counts.
+
+    Such rows (made before the counts were stored) are relabelled by the paper rule from their
+    stored mean link only where it decides the label, else ``unknown``
+    (:mod:`somo_sweep.tasks.pinch_grasp.classify`).
+    """
+    cols = [str(c) for c in table.columns]
+    column = find_column(cols, "final_contact_count_link01")
+    status = find_column(cols, "status")
+    rows = ~inferred_rows(table)
+    if status is not None:
+        rows &= table[status] == "ok"
+    if column is None:
+        return int(rows.sum())
+    return int((rows & table[column].isna()).sum())
 
 
 def find_trial(jobs: list[Any], trial: str) -> Any:

@@ -31,6 +31,11 @@ class LinkInfo:
         chain_index: 0-based position along the manipulator chain (segments and tips).
         along_m: Distance of the link's centre from the chain start along the
             unbent chain, in m (segments and tips).
+        number: 1-based number of the rigid piece of the chain the link belongs to, counted
+            from the base (segments and tips; the fingertip is one past the last segment).
+            It is ``chain_index + 1`` unless the chain has the rigid half links of a midpoint
+            layout: a half link at an actuator's start is fixed to the piece before it and
+            shares its number (0 before the first joint), as when SoMo merges fixed links.
     """
 
     name: str
@@ -40,6 +45,7 @@ class LinkInfo:
     actuator: int = -1
     chain_index: int = -1
     along_m: float = 0.0
+    number: int = 0
 
 
 @dataclass(frozen=True)

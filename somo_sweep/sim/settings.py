@@ -79,6 +79,12 @@ class WorldSettings:
             (rad/s)²). None keeps Bullet's 1e-7, at which a pinch trial runs all its
             iterations; larger values cut steps whose constraints settle early (docs/pinch_grasp.md,
             "Solver early exit"). Must be finite and > 0. PyBullet only.
+        clamp_speed_cap: Let a run go on when a joint or a body reaches Bullet's speed cap
+            (Bullet clamps the speed and steps on, as the original SoMo code let it; MuJoCo, which
+            caps nothing, then just goes on). False (default) stops the run as unstable there: past
+            the cap the motion is wrong. For reproducing the original's runs only (a finger snapping
+            shut once the object it held has fallen out reaches the cap at 0.5 ms without inertia
+            shaping). NaN and thrown bodies stop the run either way.
         engine: ``pybullet`` (default) or ``mujoco``.
         integrator: MuJoCo's integrator: ``discrete`` (default; joint springs implicit) or
             ``implicitfast`` (springs explicit, damping implicit). MuJoCo only.
@@ -97,6 +103,7 @@ class WorldSettings:
     body_per_manipulator: bool = False
     friction_rows_every: int = 1
     solver_residual_threshold: float | None = None
+    clamp_speed_cap: bool = False
     engine: str = "pybullet"
     integrator: str = "discrete"
     contact_time_constant_s: float = 0.008

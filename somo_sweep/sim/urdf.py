@@ -126,7 +126,7 @@ class _Builder:
             )
             self.links.append(info)
             return
-        c = centre_m * s
+        c = (np.asarray(centre_m, float) + np.asarray(link.offset_m, float)) * s
         inertia = link.principal_inertia_kg_m2() * s * s
         rgba = _v(link.color_rgba)
         xml = [
@@ -215,7 +215,7 @@ class _Builder:
                 self.link(LinkInfo(anchor, None, "base", name), np.zeros(3))
                 self.fixed(f"{name}__mount", parent, anchor, mount_xyz_m, mount_rpy)
                 prev, attach_point = anchor, np.zeros(3)
-        chain_index, along, input_base = 0, 0.0, len(self.inputs)
+        chain_index, along, input_base, halves = 0, 0.0, len(self.inputs), 0
         self.inputs.extend(f"{name}/{input_name}" for input_name in manip.input_names)
         prev_offset = np.zeros(3)
         for a_i, act in enumerate(manip.actuators):
@@ -227,7 +227,17 @@ class _Builder:
             if midpoint:
                 # A rigid half link at the actuator's start; the joints then sit at segment midpoints.
                 link_name = f"{name}__a{a_i}_h"
-                info = LinkInfo(link_name, half, "segment", name, a_i, chain_index, along + l_seg / 4)
+                info = LinkInfo(
+                    link_name,
+                    half,
+                    "segment",
+                    name,
+                    a_i,
+                    chain_index,
+                    along + l_seg / 4,
+                    chain_index - halves,
+                )
+                halves += 1
                 if prev is None:
                     self.link(info, np.zeros(3))
                     attach_point, first = np.array([0.0, 0.0, l_seg / 4]), link_name
@@ -248,14 +258,26 @@ class _Builder:
                 if is_root:  # free chain with no base: first segment is the root, frame at its centre
                     centre = np.zeros(3)
                     self.link(
-                        LinkInfo(link_name, link, "segment", name, a_i, chain_index, along + l_this / 2),
+                        LinkInfo(
+                            link_name,
+                            link,
+                            "segment",
+                            name,
+                            a_i,
+                            chain_index,
+                            along + l_this / 2,
+                            chain_index + 1,
+                        ),
                         centre,
                     )
                     prev_offset = np.array([0.0, 0.0, -l_this / 2])
                     first = link_name
                 else:
+                    number = chain_index + 1 - halves
                     self.link(
-                        LinkInfo(link_name, link, "segment", name, a_i, chain_index, along + l_this / 2),
+                        LinkInfo(
+                            link_name, link, "segment", name, a_i, chain_index, along + l_this / 2, number
+                        ),
                         -off + np.array([0.0, 0.0, l_this / 2]),
                     )
                     ax_i = seg % len(act.joints)
@@ -290,7 +312,7 @@ class _Builder:
             tip_name = f"{name}__tip{t_i}"
             h = tip.half_extent_m(2)
             self.link(
-                LinkInfo(tip_name, tip, "tip", name, -1, chain_index, along + h),
+                LinkInfo(tip_name, tip, "tip", name, -1, chain_index, along + h, chain_index + 1 - halves),
                 np.array([0, 0, h]),
             )
             assert prev is not None

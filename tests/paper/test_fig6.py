@@ -12,7 +12,7 @@ from typer.testing import CliRunner
 
 from somo_sweep.cli.app import app
 from somo_sweep.paper.fig6 import build, grasp_table, smallest_all_width_pinch_dsr
-from somo_sweep.tasks.pinch_grasp.params import link_columns
+from somo_sweep.tasks.pinch_grasp.params import final_count_columns, link_columns
 
 
 def tidy(labels: dict[tuple[float, float], list[str]]) -> pd.DataFrame:
@@ -99,7 +99,9 @@ def test_fig6_axis_is_the_papers_centering_with_the_bases_distance_on_top() -> N
     assert "d = 200 mm − c" in out.figures["fig6"]._suptitle.get_text()
 
 
-def results_folder(tmp_path: Path, centering_column: str = "task_centering_position_m") -> Path:
+def results_folder(
+    tmp_path: Path, centering_column: str = "task_centering_position_m", final_counts: bool = False
+) -> Path:
     """A results folder in the sweep engine's layout with two pinch_grasp rows and one blow-up."""
     rows = []
     for i, (per_link, final, status) in enumerate(
@@ -122,9 +124,13 @@ def results_folder(tmp_path: Path, centering_column: str = "task_centering_posit
             "hold_contact_fraction_both_fingers": 1.0,
             "hold_ground_contact_fraction": 0.0,
             "final_mean_contact_link": final,
+            "hold_contact_count_palm": 0,
         }
         for k, name in enumerate(link_columns("hold_normal_force_n"), start=1):
             row[name] = per_link.get(k, 0.0)
+        if final_counts:
+            for k, name in enumerate(final_count_columns()):
+                row[name] = 0 if status != "ok" else int(k == 16)  # one contact on link 16: mean 16
         rows.append(row)
     folder = tmp_path / "results" / "pinch"
     (folder / "trials").mkdir(parents=True)
@@ -145,6 +151,18 @@ def test_classify_command_relabels_from_stored_metrics(tmp_path: Path) -> None:
         "pinch",
         "unstable",
     ]
+    # Stored before the final step's per-part counts: relabelled where the stored mean decides.
+    assert "note: 2 trials were stored before the final step's per-part contact counts" in result.output
+
+
+def test_classify_paper_rule_uses_the_final_per_part_counts(tmp_path: Path) -> None:
+    folder = results_folder(tmp_path, final_counts=True)
+    result = CliRunner().invoke(app, ["classify", str(folder), "--rule", "paper"])
+    assert result.exit_code == 0, result.output
+    # Mean link 16 at DSR 0.2: 16 / 20 is not above 0.8, whatever the stored (older) mean says.
+    labels = pd.read_csv(folder / "grasp_labels_paper.csv")["grasp_paper"].tolist()
+    assert labels == ["power", "power", "unstable"]
+    assert "note:" not in result.output
 
 
 def test_fig6_command_prints_the_headline_and_writes_files(tmp_path: Path) -> None:

@@ -24,15 +24,15 @@ from somo_sweep.tasks.ihm_gait.task import simulate_gait
 from somo_sweep.tasks.pinch_grasp.params import check_gripper
 
 FITS = {
-    "bench": {"ihm_finger", "pinch_finger", "snake", "whole_arm"},
-    "snake": {"ihm_finger", "pinch_finger", "snake", "whole_arm"},
+    "bench": {"ihm_finger", "pinch_finger", "pinch_finger_original", "snake", "whole_arm"},
+    "snake": {"ihm_finger", "pinch_finger", "pinch_finger_original", "snake", "whole_arm"},
     "whole_arm": {"whole_arm"},
     "ihm_gait": {"ihm_hand"},
-    "pinch_grasp": {"pinch_gripper"},
+    "pinch_grasp": {"pinch_gripper", "pinch_gripper_original"},
 }
 #: Models a task could run but not with its default parameters: the bundled torque table's
 #: columns are the whole arm's ten inputs.
-MISFIT_PARAMS = {"whole_arm": {"ihm_finger", "pinch_finger", "snake"}}
+MISFIT_PARAMS = {"whole_arm": {"ihm_finger", "pinch_finger", "pinch_finger_original", "snake"}}
 MODEL_NAMES = sorted(p.stem for p in MODELS.glob("*.yaml"))
 
 

@@ -430,6 +430,7 @@ class MujocoWorld(World):
         cap = 0.99 * MAX_JOINT_SPEED_RAD_S
         dt = self.settings.time_step_s
         every = self.settings.check_every
+        capped = not self.settings.clamp_speed_cap
         dofs = self._spring_dofs if self._n_springs else None
         bad_acc = d.warning[int(mujoco.mjtWarning.mjWARN_BADQACC)]
         qvel = self._qvel  # views kept from the compile: reading d.qvel builds a new one each time
@@ -460,7 +461,8 @@ class MujocoWorld(World):
                 speeds = qvel[dofs]
                 if not (speeds.max() < cap and speeds.min() > -cap):  # also catches NaN
                     reason = "speed_cap" if np.isfinite(speeds).all() else "nan"
-                    raise UnstableSimulation(reason, self.time_s, "in a spring joint")
+                    if reason == "nan" or capped:
+                        raise UnstableSimulation(reason, self.time_s, "in a spring joint")
             if bad_acc.number:
                 said = f": {_WARNINGS[-1]}" if _WARNINGS else ""
                 raise UnstableSimulation("nan", self.time_s, f"MuJoCo's accelerations are not finite{said}")
@@ -480,7 +482,7 @@ class MujocoWorld(World):
                 raise UnstableSimulation("nan", self.time_s, f"{name} position")
             if dist > THROWN_DISTANCE_M:
                 raise UnstableSimulation("thrown", self.time_s, f"{name} at {dist:.1f} m")
-            if (
+            if not self.settings.clamp_speed_cap and (
                 np.abs(qvel[:3]).max() >= MAX_BODY_SPEED_M_S
                 or np.abs(qvel[3:]).max() >= MAX_JOINT_SPEED_RAD_S
             ):

@@ -314,7 +314,8 @@ class PyBulletWorld(World):
                     q_max = np.abs(drive.qd).max()
                     if not (q_max < cap):  # also catches NaN
                         reason = "nan" if not np.isfinite(drive.qd).all() else "speed_cap"
-                        raise UnstableSimulation(reason, self.time_s, f"in body '{body.plan.name}'")
+                        if reason == "nan" or not self.settings.clamp_speed_cap:
+                            raise UnstableSimulation(reason, self.time_s, f"in body '{body.plan.name}'")
             t0 = perf_counter()
             p.stepSimulation(physicsClientId=self.client)
             self.bullet_time_s += perf_counter() - t0
@@ -337,7 +338,10 @@ class PyBulletWorld(World):
             # Bullet caps base speeds at 100 scaled units (100/Y m/s): past it the motion is wrong,
             # whether the body blew up or only fell far.
             lin, ang = p.getBaseVelocity(body_id, physicsClientId=self.client)
-            if max(np.abs(lin).max(), np.abs(ang).max()) >= 0.99 * MAX_JOINT_SPEED_RAD_S:
+            speed = max(np.abs(lin).max(), np.abs(ang).max())
+            if not np.isfinite(speed):
+                raise UnstableSimulation("nan", self.time_s, f"{name} velocity")
+            if speed >= 0.99 * MAX_JOINT_SPEED_RAD_S and not self.settings.clamp_speed_cap:
                 cap = MAX_JOINT_SPEED_RAD_S / self.scale
                 raise UnstableSimulation(
                     "speed_cap",

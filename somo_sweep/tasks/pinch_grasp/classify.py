@@ -3,11 +3,21 @@
 Two rules, both pure functions of a trial's stored metrics (so a finished sweep
 can be relabelled without rerunning it):
 
-``paper`` (the original study, facts sheet)
-    Grasped if, at the end, the object's centre is above 40 mm, below 200 mm and
-    within 50 mm of its start in x and y. Then the finger–object contacts of the
-    *final step* are averaged by link number (1 … 20, the fingertip counts as 21):
-    pinch if mean / 20 > 1 − DSR, power otherwise. (No contact → no grasp.)
+``paper`` (the original study's rule, exactly as its code applies it)
+    Grasped if, at the end, the object's centre has z > 40 mm (its ``height_check``),
+    and −50 mm ≤ x, y ≤ 50 mm and 40 mm ≤ z ≤ 200 mm (its ``bounding_box``); the
+    bounds are absolute world coordinates, and the object starts at x = y = 0 in both
+    codes, so they are also relative to the start. Then the finger–object contact points
+    of the *final step* are averaged by link number (its ``mean_link``): links 1 … 20,
+    the fingertip counts as 20 (the original merges the fingertip into the last link),
+    a finger's base box as 0 (it is link −1 of the original's finger body); the palm,
+    which the original does not have, is left out. Pinch if mean / 20 > 1 − DSR, with
+    DSR the grid's decimal value as the original's notebook compares it, power otherwise.
+    A grasped trial with no finger contact at the final step is power: the notebook
+    compares NaN, which is never above the threshold. So at DSR 0 nothing is a pinch.
+    Rows stored before the per-part final counts (``final_contact_count_link01`` …)
+    are relabelled from ``final_mean_contact_link`` (fingertip 21, base boxes left
+    out) where every split of it gives the same label, else ``unknown``.
 
 ``contacts`` (default)
     Uses where the contact *force* sits over the whole hold phase, not one step.
@@ -27,14 +37,19 @@ can be relabelled without rerunning it):
 from __future__ import annotations
 
 import math
-from collections.abc import Mapping
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 from typing import Any, Literal
 
 import numpy as np
 
 from somo_sweep.errors import SomoError, did_you_mean
-from somo_sweep.tasks.pinch_grasp.params import N_FINGER_LINKS, distal_link_count, link_columns
+from somo_sweep.tasks.pinch_grasp.params import (
+    N_FINGER_LINKS,
+    distal_link_count,
+    final_count_columns,
+    link_columns,
+)
 
 __all__ = [
     "LABELS",
@@ -45,10 +60,11 @@ __all__ = [
     "distal_force_fractions",
     "find_column",
     "is_held",
+    "paper_mean_link",
     "reclassify",
 ]
 
-Label = Literal["pinch", "power", "no_grasp"]
+Label = Literal["pinch", "power", "no_grasp", "unknown"]
 LABELS: tuple[str, ...] = ("pinch", "power", "no_grasp")
 RULES: tuple[str, ...] = ("contacts", "paper")
 
@@ -79,7 +95,13 @@ class GraspEvidence:
         hold_normal_force_palm_n: Same for the palm and finger base boxes, N.
         hold_contact_fraction_both_fingers: Share of hold samples with both fingers touching.
         hold_ground_contact_fraction: Share of hold samples with the object touching the ground.
-        final_mean_contact_link: Mean link number of the final step's contacts (NaN: none).
+        final_mean_contact_link: Mean link number of the final step's contacts (fingertip 21,
+            base boxes and palm left out; NaN: none).
+        hold_ground_contact_fraction: Share of hold samples with the object on the ground.
+        final_contact_counts: The final step's contact points per part (base boxes, links
+            1 … 20, fingertip; both fingers added), or None for a row stored before them.
+        hold_contact_count_palm: Palm and base-box contact points over the hold samples (the
+            final step is one of them; -1 unknown); used only when ``final_contact_counts`` is None.
     """
 
     distal_segment_ratio: float
@@ -91,6 +113,8 @@ class GraspEvidence:
     hold_contact_fraction_both_fingers: float
     final_mean_contact_link: float
     hold_ground_contact_fraction: float = 0.0
+    final_contact_counts: tuple[int, ...] | None = None
+    hold_contact_count_palm: int = -1
 
     @classmethod
     def from_metrics(
@@ -98,6 +122,11 @@ class GraspEvidence:
     ) -> GraspEvidence:
         """Evidence from a trial's metrics (a task result or one row of a results table)."""
         forces = tuple(float(metrics[c]) for c in link_columns("hold_normal_force_n"))
+        count_names = final_count_columns()[:-1]  # the palm is no part of the rule
+        counts = None
+        if all(n in metrics and _finite(metrics[n]) for n in count_names):
+            counts = tuple(int(metrics[n]) for n in count_names)
+        palm = metrics.get("hold_contact_count_palm")
         return cls(
             distal_segment_ratio=float(distal_segment_ratio),
             object_position_m=(
@@ -112,6 +141,8 @@ class GraspEvidence:
             hold_contact_fraction_both_fingers=float(metrics["hold_contact_fraction_both_fingers"]),
             final_mean_contact_link=float(metrics["final_mean_contact_link"]),
             hold_ground_contact_fraction=float(metrics["hold_ground_contact_fraction"]),
+            final_contact_counts=counts,
+            hold_contact_count_palm=int(palm) if palm is not None and _finite(palm) else -1,
         )
 
     @property
@@ -146,12 +177,61 @@ def contact_position(forces_n: tuple[float, ...] | np.ndarray) -> float:
     return float((f * centres).sum() / f.sum() / (n_seg * SEGMENT_M + TIP_M))
 
 
+def _finite(value: Any) -> bool:
+    try:
+        return math.isfinite(float(value))
+    except (TypeError, ValueError):
+        return False
+
+
+def paper_mean_link(counts: Sequence[int] | np.ndarray) -> float:
+    """The original's ``mean_link`` from the final step's contact counts (base, links 1 … 20, tip).
+
+    As the original computes it: the mean of the contacts' 0-based link indices in its finger
+    body (base box −1, links 0 … 19, the fingertip merged into 19), plus 1. NaN without contacts.
+    """
+    n = np.asarray(counts, float)
+    if len(n) != N_FINGER_LINKS + 1:
+        raise ValueError(f"expected {N_FINGER_LINKS + 1} counts (base, links 1-20, tip), got {len(n)}")
+    index = np.append(np.arange(-1, N_FINGER_LINKS - 1), N_FINGER_LINKS - 2)
+    total = n.sum()
+    return float((n * index).sum() / total + 1) if total > 0 else float("nan")
+
+
+def _paper_threshold(dsr: float) -> float:
+    # The notebook compares with the grid's decimal DSR (0.55, not 0.5499999999999999); at an
+    # exact tie (all contacts on link 9 at DSR 0.55) the float result decides, as it did there.
+    return 1.0 - round(dsr, 6)
+
+
 def _paper(ev: GraspEvidence) -> Label:
     x, y, z = ev.object_position_m
-    grasped = PAPER_MIN_Z_M < z < PAPER_MAX_Z_M and abs(x) < PAPER_MAX_XY_M and abs(y) < PAPER_MAX_XY_M
-    if not grasped or not math.isfinite(ev.final_mean_contact_link):
+    grasped = (
+        z > PAPER_MIN_Z_M
+        and PAPER_MIN_Z_M <= z <= PAPER_MAX_Z_M
+        and -PAPER_MAX_XY_M <= x <= PAPER_MAX_XY_M
+        and -PAPER_MAX_XY_M <= y <= PAPER_MAX_XY_M
+    )
+    if not grasped:
         return "no_grasp"
-    return "pinch" if ev.final_mean_contact_link / 20 > 1 - ev.distal_segment_ratio else "power"
+    threshold = _paper_threshold(ev.distal_segment_ratio)
+    if ev.final_contact_counts is not None:
+        mean = paper_mean_link(ev.final_contact_counts)
+        return "pinch" if mean / 20 > threshold else "power"  # NaN (no contact): power
+    # A row stored before the per-part counts: its mean numbers the fingertip 21 and leaves the
+    # base boxes out. With a tip share f of the contacts the paper's mean is m − f, and
+    # max(0, m − 20) ≤ f ≤ (m − 1) / 20; base-box contacts (possible only if the palm or a base
+    # box was touched during the hold) can pull it down to 0.
+    m = ev.final_mean_contact_link
+    if not math.isfinite(m):
+        return "power"  # no finger contact: with or without base-box contacts, power
+    high = min(m, 20.0)
+    low = m - (m - 1) / 20 if ev.hold_contact_count_palm == 0 else 0.0
+    if low / 20 > threshold:
+        return "pinch"
+    if high / 20 <= threshold:
+        return "power"
+    return "unknown"
 
 
 def is_held(ev: GraspEvidence) -> bool:
@@ -214,7 +294,9 @@ def reclassify(table: Any, rule: str = "contacts", **options: float) -> Any:
 
     Columns are found by metric or parameter name, bare or behind a prefix
     (``metrics.lift_height_m``, ``task.distal_segment_ratio``...). Rows whose status is
-    not ``ok`` keep no label (``None``).
+    not ``ok`` keep no label (``None``). Under the paper rule, rows without the final step's
+    per-part counts (stored before them) get ``unknown`` where their stored mean does not
+    decide the label (see the module docstring).
 
     Returns:
         A pandas Series of labels aligned with ``table``.
@@ -245,6 +327,8 @@ def reclassify(table: Any, rule: str = "contacts", **options: float) -> Any:
             f"results table lacks the columns needed to classify grasps: {', '.join(missing)} "
             "(was it made by the pinch_grasp task?)"
         )
+    optional = {n: find_column(cols, n) for n in (*final_count_columns()[:-1], "hold_contact_count_palm")}
+    found.update({n: c for n, c in optional.items() if c is not None})
     lift_col = find_column(cols, "lift_m")
     status_col = find_column(cols, "status")
     labels: list[str | None] = []

@@ -4,6 +4,11 @@ Links are numbered along each finger as in SoMo: 1 at the base … 20 at the las
 segment, 21 for the fingertip; palm and finger base boxes are ``palm``. Counts
 and forces of both fingers are added per link number, so a stored row holds
 everything :mod:`somo_sweep.tasks.pinch_grasp.classify` needs to relabel a trial.
+
+The final step's contacts are also stored per part for the paper rule
+(``final_contact_count_base``, ``_link01`` … ``_link20``, ``_tip``, ``_palm``): the finger
+base boxes apart from the palm, because the original counts a base box as part of its
+finger (its link −1, link number 0) and has no palm.
 """
 
 from __future__ import annotations
@@ -11,7 +16,7 @@ from __future__ import annotations
 import numpy as np
 
 from somo_sweep.sim.world import Body, ModelHandle, World
-from somo_sweep.tasks.pinch_grasp.params import N_FINGER_LINKS, link_columns
+from somo_sweep.tasks.pinch_grasp.params import N_FINGER_LINKS, final_count_columns, link_columns
 
 __all__ = ["HoldProbe"]
 
@@ -35,15 +40,27 @@ class HoldProbe:
         self.fingers = [name for body in hand.bodies for name in body.plan.tip]
         # (PyBullet body id, link index) → (finger number, link number 1..21) or palm (-1, 0).
         self._where: dict[tuple[int, int], tuple[int, int]] = {}
+        # (PyBullet body id, link index) → slot of final_count_columns():
+        # base 0, links 1..20, tip 21, palm 22.
+        self._slot: dict[tuple[int, int], int] = {}
         self._link_body: dict[str, Body] = {}
         for body in hand.bodies:
             for info in body.plan.links:
                 idx = body.link_index[info.name]
                 self._link_body[info.name] = body
-                if info.role in ("segment", "tip") and info.manipulator in self.fingers:
-                    self._where[body.id, idx] = (self.fingers.index(info.manipulator), info.chain_index + 1)
+                if info.role in ("segment", "tip") and info.manipulator in self.fingers and info.number > 0:
+                    self._where[body.id, idx] = (self.fingers.index(info.manipulator), info.number)
+                    self._slot[body.id, idx] = info.number
+                elif info.role == "segment" and info.manipulator in self.fingers:
+                    # A midpoint layout's rigid half link before the first joint: part of the base,
+                    # as in the original (merged into its base box, link number 0).
+                    self._where[body.id, idx] = (-1, 0)
+                    self._slot[body.id, idx] = 0
                 else:
                     self._where[body.id, idx] = (-1, 0)
+                    self._slot[body.id, idx] = (
+                        0 if info.role == "base" and info.manipulator in self.fingers else 22
+                    )
         self.counts = np.zeros(N_FINGER_LINKS)
         self.force_sums_n = np.zeros(N_FINGER_LINKS)
         self.palm_count = 0
@@ -52,6 +69,7 @@ class HoldProbe:
         self.samples = 0
         self.both_touching = 0
         self.last_links: list[int] = []
+        self.last_counts = np.zeros(N_FINGER_LINKS + 2, int)
 
     def finger_mounts_m(self) -> np.ndarray:
         """World positions (m, one row per finger) of the finger mounts.
@@ -83,9 +101,11 @@ class HoldProbe:
         """Record the current contacts (one sample)."""
         touched = np.zeros(len(self.fingers), bool)
         links: list[int] = []
+        slots = np.zeros(N_FINGER_LINKS + 2, int)
         for body in self.hand.bodies:
             c = self.world.contacts(self.object_id, body.id)
             for link_b, force in zip(c["link_b"].tolist(), c["normal_force_n"].tolist(), strict=True):
+                slots[self._slot.get((body.id, int(link_b)), 22)] += 1
                 finger, number = self._where.get((body.id, int(link_b)), (-1, 0))
                 if finger < 0:
                     self.palm_count += 1
@@ -100,6 +120,7 @@ class HoldProbe:
         self.both_touching += int(touched.all())
         self.on_ground += int(self.on_ground_now())
         self.last_links = links
+        self.last_counts = slots
 
     def metrics(self) -> dict[str, float | int]:
         """Per-link and summary metrics over the samples taken (means per sample)."""
@@ -119,4 +140,6 @@ class HoldProbe:
         last = np.asarray(self.last_links, float)
         out["final_contact_count"] = len(last)
         out["final_mean_contact_link"] = float(last.mean()) if len(last) else float("nan")
+        for name, v in zip(final_count_columns(), self.last_counts, strict=True):
+            out[name] = int(v)
         return out

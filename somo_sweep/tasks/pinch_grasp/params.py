@@ -14,9 +14,10 @@ so the old name is refused with an explanation instead of being silently reinter
 from __future__ import annotations
 
 import math
-from typing import Any
+from itertools import pairwise
+from typing import Any, Literal
 
-from pydantic import BaseModel, ConfigDict, Field, model_validator
+from pydantic import BaseModel, ConfigDict, Field, field_validator, model_validator
 
 from somo_sweep.model.description import MAX_LENGTH_M, MIN_LENGTH_M
 from somo_sweep.model.load import Model
@@ -25,11 +26,14 @@ from somo_sweep.tasks.registry import TaskSpec, register
 __all__ = [
     "BASE_DISTANCE_AT_ZERO_CENTERING_M",
     "N_FINGER_LINKS",
+    "ORIGINAL_HULL_SIZE_M",
     "Numerics",
     "PinchGraspParams",
     "check_gripper",
     "distal_link_count",
+    "final_count_columns",
     "link_columns",
+    "original_hull_size_m",
 ]
 
 #: Link numbers stored per trial: 20 segments and the fingertip.
@@ -96,6 +100,35 @@ def link_columns(prefix: str) -> list[str]:
     return [f"{prefix}_link{k:02d}" for k in range(1, N_FINGER_LINKS)] + [f"{prefix}_tip"]
 
 
+#: The original study's object collision shapes (its cube_60mm set: a V-HACD convex hull of each
+#: box mesh, 8-10 vertices), as boxes of the hulls' extents (x along the approach, y across the
+#: fingers, z up), m, by nominal width. Each is 0.3-1.1 mm larger than the nominal box, and its
+#: centre lies within 0.2 mm of the mass centre; the 40-mm hull's 0.5-mm bevel on one edge is left out.
+ORIGINAL_HULL_SIZE_M: dict[float, tuple[float, float, float]] = {
+    0.010: (0.010449, 0.060336, 0.060331),
+    0.020: (0.020559, 0.060420, 0.060420),
+    0.040: (0.040354, 0.060531, 0.060525),
+    0.060: (0.060606, 0.060606, 0.060606),
+    0.080: (0.080667, 0.060667, 0.060667),
+    0.100: (0.100714, 0.060708, 0.060714),
+    0.120: (0.120764, 0.061146, 0.061146),
+}
+
+
+def original_hull_size_m(width_m: float) -> tuple[float, float, float] | None:
+    """The original's hull extents for a nominal object width (m), or None if it had no such object."""
+    for nominal, size in ORIGINAL_HULL_SIZE_M.items():
+        if abs(width_m - nominal) < 1e-9:
+            return size
+    return None
+
+
+def final_count_columns() -> list[str]:
+    """Metric names of the final step's contact counts per part: the finger base boxes (both
+    fingers added; the original's link number 0), links 1 … 20, the fingertip, then the palm."""
+    return ["final_contact_count_base", *link_columns("final_contact_count"), "final_contact_count_palm"]
+
+
 class Numerics(BaseModel):
     """Numerical regularisation applied on top of the model file (not physics).
 
@@ -142,6 +175,17 @@ class PinchGraspParams(BaseModel):
         restitution: Restitution of the object, the finger links and the fingertips (Bullet
             multiplies a pair's values; the ground and the base boxes keep theirs). ``None``
             keeps the model file's on the fingers (0 in the bundled finger) and 0 on the object.
+        lift_profile: Breakpoints of the lift inside its phase, as (fraction of ``lift_s``,
+            fraction of ``lift_m``) pairs, joined linearly from (0, 0) to (1, 1). Empty: one
+            straight ramp (ours). The original's: ((0.2, 1/15), (0.8, 14/15)), 5 mm in the first
+            and the last 0.2 s and 65 mm between (its hand_side_position trajectory).
+        object_shape: ``box`` (the nominal box, ours) or ``original_hull``: a box of the extents
+            of the original's convex-hull collision shape for that width
+            (:data:`ORIGINAL_HULL_SIZE_M`, 0.3-1.1 mm larger), same mass.
+        clamp_speed_cap: Let the trial go on at Bullet's speed cap, as the original code did
+            (:attr:`~somo_sweep.sim.settings.WorldSettings.clamp_speed_cap`); False stops it
+            as unstable. At 0.5 ms without inertia shaping a finger snapping shut after the
+            object fell out reaches the cap.
 
     The last three are the Fig. 6 ablation's physical factors (docs/pinch_grasp.md,
     :mod:`somo_sweep.paper.fig6_ablation`); their defaults are our physical model.
@@ -166,6 +210,34 @@ class PinchGraspParams(BaseModel):
     spring_scale: float = Field(1.0, gt=0)
     finger_spinning_friction_m: float | None = Field(None, ge=0)
     restitution: float | None = Field(None, ge=0, le=1)
+    lift_profile: tuple[tuple[float, float], ...] = ()
+    object_shape: Literal["box", "original_hull"] = "box"
+    clamp_speed_cap: bool = False
+
+    @field_validator("lift_profile")
+    @classmethod
+    def _lift_profile_rises(cls, v: tuple[tuple[float, float], ...]) -> tuple[tuple[float, float], ...]:
+        times = [0.0, *(t for t, _ in v), 1.0]
+        if any(b <= a for a, b in pairwise(times)):
+            raise ValueError(
+                "lift_profile times (fractions of lift_s) must rise strictly inside (0, 1), "
+                f"got {list(times[1:-1])}"
+            )
+        if any(not (0.0 <= h <= 1.0) for _, h in v):
+            raise ValueError(
+                f"lift_profile heights are fractions of lift_m in [0, 1], got {[h for _, h in v]}"
+            )
+        return v
+
+    @model_validator(mode="after")
+    def _hull_exists(self) -> PinchGraspParams:
+        if self.object_shape == "original_hull" and original_hull_size_m(self.object_width_m) is None:
+            widths = ", ".join(f"{w:g}" for w in ORIGINAL_HULL_SIZE_M)
+            raise ValueError(
+                f"object_shape 'original_hull' exists for the original's object widths only; got "
+                f"object_width_m {self.object_width_m:g}; allowed: {widths}"
+            )
+        return self
 
     @model_validator(mode="before")
     @classmethod
@@ -219,6 +291,8 @@ METRICS: dict[str, str] = {
     "hold_normal_force_n_right": "double",
     "final_contact_count": "int64",
     "final_mean_contact_link": "double",
+    **{name: "int64" for name in final_count_columns()},
+    "final_mean_link_paper": "double",
     "hold_force_fraction_distal": "double",
     "hold_force_fraction_tip": "double",
     "hold_force_fraction_proximal": "double",

@@ -21,6 +21,7 @@ lift the trial ends if its outcome is already settled as no grasp under both rul
 from __future__ import annotations
 
 from collections.abc import Callable, Sequence
+from dataclasses import replace
 
 import numpy as np
 
@@ -37,9 +38,15 @@ from somo_sweep.tasks.pinch_grasp.classify import (
     contact_position,
     distal_force_fractions,
     is_held,
+    paper_mean_link,
 )
 from somo_sweep.tasks.pinch_grasp.contacts import HoldProbe
-from somo_sweep.tasks.pinch_grasp.params import Numerics, PinchGraspParams
+from somo_sweep.tasks.pinch_grasp.params import (
+    Numerics,
+    PinchGraspParams,
+    final_count_columns,
+    original_hull_size_m,
+)
 from somo_sweep.tasks.pinch_grasp.settled import Snapshot, settled_reason
 from somo_sweep.tasks.registry import TaskResult
 
@@ -163,17 +170,20 @@ def gripper(model: Model, params: PinchGraspParams) -> Model:
 
 def object_body(params: PinchGraspParams) -> RigidBody:
     """The box to grasp, resting just above the ground at x = y = 0."""
+    size = (params.object_width_m, OBJECT_DEPTH_M, OBJECT_HEIGHT_M)
+    if params.object_shape == "original_hull":
+        size = original_hull_size_m(params.object_width_m) or size
     return RigidBody(
         name="object",
         link=Link(
             shape="box",
-            size_m=(params.object_width_m, OBJECT_DEPTH_M, OBJECT_HEIGHT_M),
+            size_m=size,
             mass_kg=OBJECT_MASS_KG,
             friction={"lateral": OBJECT_FRICTION},
             restitution=params.restitution or 0.0,
             color_rgba=OBJECT_COLOR_RGBA,
         ),
-        pose=Pose(position_m=(0.0, 0.0, OBJECT_HEIGHT_M / 2 + SPAWN_GAP_M)),
+        pose=Pose(position_m=(0.0, 0.0, size[2] / 2 + SPAWN_GAP_M)),
     )
 
 
@@ -200,6 +210,8 @@ def run_pinch_grasp(
     del seed
     hand_model = gripper(model, params)
     p = params
+    if p.clamp_speed_cap:
+        settings = replace(settings, clamp_speed_cap=True)
     with World(settings) as world:
         ground = world.add_ground(friction=GROUND_FRICTION)
         box = object_body(p)
@@ -218,13 +230,13 @@ def run_pinch_grasp(
         t2 = t1 + p.ramp_s
         t3 = t2 + p.lift_s
         t4 = t3 + p.hold_s
+        lift = [(0.0, 0.0), *p.lift_profile, (1.0, 1.0)]
         path = SetpointTable(
-            [0.0, t1, t2, t3],
+            [0.0, t1, *(t2 + f * p.lift_s for f, _ in lift)],
             [
                 start,
                 [x_end, 0, p.hand_height_m],
-                [x_end, 0, p.hand_height_m],
-                [x_end, 0, p.hand_height_m + p.lift_m],
+                *([x_end, 0, p.hand_height_m + h * p.lift_m] for _, h in lift),
             ],
         )
         n_in = len(hand.input_names)
@@ -283,6 +295,9 @@ def run_pinch_grasp(
         metrics["ended_early_s"] = ended_early_s
         metrics["ended_early_reason"] = reason
         metrics.update(probe.metrics())
+        metrics["final_mean_link_paper"] = paper_mean_link(
+            [int(metrics[n]) for n in final_count_columns()[:-1]]
+        )
     evidence = GraspEvidence.from_metrics(metrics, p.distal_segment_ratio, p.lift_m)
     shares = distal_force_fractions(evidence)
     metrics["hold_force_fraction_distal"] = shares["distal"]
