@@ -185,3 +185,22 @@ def test_the_other_engines_options_are_refused() -> None:
         WorldSettings(engine="mujoco", friction_rows_every=2)
     with pytest.raises(ValueError, match="impratio is not read by engine pybullet"):
         WorldSettings(impratio=5.0)
+
+
+def test_the_bench_task_runs_on_the_engine_its_settings_name(monkeypatch: pytest.MonkeyPatch) -> None:
+    from somo_sweep.sim.mujoco import world as mujoco_world
+    from somo_sweep.tasks.registry import get_task
+
+    opened = []
+    original = mujoco_world.MujocoWorld.__init__
+
+    def spy(self: mujoco_world.MujocoWorld, settings: WorldSettings | None = None) -> None:
+        opened.append(settings)
+        original(self, settings)
+
+    monkeypatch.setattr(mujoco_world.MujocoWorld, "__init__", spy)
+    spec = get_task("bench")
+    params = spec.params_model(test="free_bending", pressure_kpa=50.0, statics="dynamic")
+    finger = load_model(bundled_path("models", "pinch_finger.yaml"))
+    result = spec.run(finger, params, _mj(1e-3), 0)
+    assert result.status == "ok" and len(opened) == 1

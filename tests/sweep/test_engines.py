@@ -1,0 +1,144 @@
+"""A study's engine: ``simulation: {engine: mujoco}``, what each engine refuses, and compare-engines."""
+
+from __future__ import annotations
+
+import json
+import shutil
+from pathlib import Path
+
+import pandas as pd
+import pytest
+from conftest import MODELS
+from typer.testing import CliRunner
+
+from somo_sweep.cli.app import app
+from somo_sweep.errors import DescriptionError
+from somo_sweep.sweep.engines import compare, on_engine
+from somo_sweep.sweep.jobs import build_jobs
+from somo_sweep.sweep.study import load_study
+
+
+def _study(folder: Path, simulation: str, task: str = "pinch_grasp", extra: str = "") -> Path:
+    if not (folder / "models").exists():
+        shutil.copytree(MODELS, folder / "models")
+    model = {"pinch_grasp": "pinch_gripper.yaml", "snake": "snake.yaml", "bench": "pinch_finger.yaml"}[task]
+    path = folder / "study.yaml"
+    path.write_text(
+        f"name: s\ntask: {task}\nmodel: models/{model}\n{extra}simulation: {simulation}\n", encoding="utf-8"
+    )
+    return path
+
+
+def test_a_mujoco_study_runs_its_jobs_on_mujoco_at_its_default_step(tmp_path: Path) -> None:
+    study = load_study(_study(tmp_path, "{engine: mujoco}", extra="sweep:\n  task.object_width_m: [0.01]\n"))
+    (job,) = build_jobs(study).jobs
+    assert job.settings.engine == "mujoco" and job.settings.time_step_s == 4e-3
+
+
+def test_engines_give_their_jobs_different_ids_and_pybullet_ids_ignore_mujoco_settings(
+    tmp_path: Path,
+) -> None:
+    sweep = "sweep:\n  task.object_width_m: [0.01]\n"
+    ids = {}
+    for name, sim in (
+        ("pybullet", "{time_step_s: 4.0e-3}"),
+        ("pybullet_again", "{time_step_s: 4.0e-3, engine: pybullet, impratio: 10}"),
+        ("mujoco", "{time_step_s: 4.0e-3, engine: mujoco}"),
+    ):
+        ids[name] = build_jobs(load_study(_study(tmp_path, sim, extra=sweep))).jobs[0].job_id
+    assert ids["pybullet"] == ids["pybullet_again"] != ids["mujoco"]
+
+
+@pytest.mark.parametrize(
+    ("simulation", "message"),
+    [
+        ("{engine: mujoco, friction_rows_every: 2}", "friction_rows_every: engine mujoco does not read it"),
+        ("{engine: mujoco, scale: 10}", "scale: engine mujoco does not read it (its engine is pybullet)"),
+        ("{impratio: 5}", "impratio: engine pybullet does not read it (its engine is mujoco)"),
+        ("{engine: ode}", "engine"),
+    ],
+)
+def test_an_option_of_the_other_engine_is_refused_by_name(
+    tmp_path: Path, simulation: str, message: str
+) -> None:
+    with pytest.raises(DescriptionError, match="simulation") as err:
+        load_study(_study(tmp_path, simulation))
+    assert message in str(err.value)
+
+
+def test_a_field_mujoco_cannot_express_is_refused_at_load_with_its_key_path(tmp_path: Path) -> None:
+    path = _study(tmp_path, "{engine: mujoco}", task="snake")
+    with pytest.raises(DescriptionError) as err:
+        load_study(path)
+    text = str(err.value)
+    assert "manipulator.actuators[0].link.friction.anisotropic" in text and "engine mujoco" in text
+    # The task's own isotropic variant drops that field: then the study loads.
+    ok = _study(tmp_path, "{engine: mujoco}", task="snake", extra="params: {friction: isotropic}\n")
+    assert load_study(ok).simulation.engine == "mujoco"  # type: ignore[union-attr]
+
+
+def test_on_engine_keeps_the_grid_and_swaps_the_numerics(tmp_path: Path) -> None:
+    sim = (
+        "{time_step_s: 4.0e-3, scale: 20, solver_iterations: 50, body_per_manipulator: true, "
+        "friction_rows_every: 2}"
+    )
+    study = load_study(_study(tmp_path, sim, extra="sweep:\n  task.object_width_m: [0.01, 0.04]\n"))
+    mj = on_engine(study, "mujoco", tmp_path / "mj")
+    assert mj.simulation is not None and mj.simulation.engine == "mujoco" and mj.simulation.step_s == 4e-3
+    assert mj.simulation.solver_iterations == 50 and not mj.simulation.body_per_manipulator
+    same = on_engine(study, "pybullet", tmp_path / "pb")
+    assert same.simulation == study.simulation
+    a, b = build_jobs(same).jobs, build_jobs(mj).jobs
+    assert [j.params for j in a] == [j.params for j in b] and [j.trial for j in a] == [j.trial for j in b]
+
+
+def _table(
+    labels: list[str], status: list[str] | None = None, robust: list[bool] | None = None
+) -> pd.DataFrame:
+    data = {
+        "trial": list(range(len(labels))),
+        "task_object_width_m": [0.01 * (i + 1) for i in range(len(labels))],
+        "status": status or ["ok"] * len(labels),
+        "label_grasp": labels,
+    }
+    if robust is not None:
+        data["robust"] = robust
+    return pd.DataFrame(data)
+
+
+def test_compare_counts_agreement_per_label_and_on_robust_cells() -> None:
+    first = _table(["pinch", "power", "pinch", "no_grasp"], robust=[True, True, False, True])
+    second = _table(
+        ["pinch", "pinch", "power", "no_grasp"],
+        status=["ok", "ok", "ok", "unstable"],
+        robust=[True, True, True, True],
+    )
+    result = compare(first, second, ("pybullet", "mujoco"), ("task_object_width_m",))
+    grasp = result.labels["grasp"]
+    assert grasp["cells"] == 4 and grasp["agree"] == 1  # an unstable trial is no label
+    assert grasp["robust_cells"] == 3 and grasp["robust_agree"] == 1
+    assert list(result.cells["agree_grasp"]) == [True, False, False, False]
+    lines = result.lines()
+    assert any("object_width_m=0.02: pybullet power, mujoco pinch (robust on both)" in line for line in lines)
+
+
+def test_compare_engines_runs_both_and_writes_the_cell_table(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """A two-cell study (short trials) on both engines: per-trial table and summary written."""
+    pytest.importorskip("mujoco")
+    extra = (
+        "params: {approach_s: 0.1, ramp_s: 0.1, lift_s: 0.1, hold_s: 0.1, approach_m: 0.01}\n"
+        "sweep:\n  task.object_width_m: [0.01, 0.04]\n"
+    )
+    path = _study(tmp_path, "{time_step_s: 4.0e-3}", extra=extra)
+    out = tmp_path / "both"
+    res = CliRunner().invoke(app, ["compare-engines", str(path), "--out", str(out), "--jobs", "1"])
+    assert res.exit_code == 0, res.output
+    assert "2 trial(s) on pybullet and mujoco" in res.output and "grasp: " in res.output
+    cells = pd.read_csv(out / "engines.csv")
+    assert list(cells["trial"]) == [0, 1] and {"grasp_pybullet", "grasp_mujoco", "agree_grasp"} <= set(cells)
+    report = json.loads((out / "engines.json").read_text())
+    assert report["written_by"] == "somo-sweep compare-engines"
+    assert report["engines"]["mujoco"]["engine"] == "mujoco" and report["labels"]["grasp"]["cells"] == 2
+    assert (out / "pybullet" / "manifest.json").exists() and (out / "mujoco" / "manifest.json").exists()
