@@ -70,7 +70,11 @@ def compare_engines(
     for name, step in (("--mujoco-step", mujoco_step), ("--pybullet-step", pybullet_step)):
         if step is not None and not (math.isfinite(step) and step > 0):
             fail(SomoError(f"{name} must be a time step in s, > 0, got {step:g}"))
+    from somo_sweep.sim.mujoco.support import missing  # no MuJoCo import
+
     try:
+        if (why := missing()) is not None:  # before PyBullet's half of the run, not after it
+            raise SomoError(why)
         checked_jobs(jobs, allow_default=True)
         base = load_study(study, None, allow_outside=allow_outside)
         folder = out if out is not None else RESULTS_ROOT / f"{base.name}_engines"

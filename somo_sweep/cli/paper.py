@@ -351,9 +351,12 @@ def engines(
 ) -> None:
     """The engine benchmark (make bench-engines): one pinch trial on PyBullet and MuJoCo, side by side."""
     from somo_sweep.paper.engine_speed import build
+    from somo_sweep.sim.mujoco.support import missing  # no MuJoCo import
 
     if not (math.isfinite(mujoco_step) and mujoco_step > 0):
         fail(SomoError(f"--mujoco-step must be a time step in s, > 0, got {mujoco_step:g}"))
+    if (why := missing()) is not None:
+        fail(SomoError(why))
     try:
         artifacts = build(every, mujoco_step, convergence, _jobs(jobs))
     except SomoError as exc:

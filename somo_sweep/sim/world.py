@@ -149,6 +149,10 @@ class World:
             return super().__new__(cls)
         engine = (settings or WorldSettings()).engine
         if engine == "mujoco":
+            from somo_sweep.sim.mujoco.support import missing
+
+            if (why := missing()) is not None:
+                raise SimulationError(why)
             from somo_sweep.sim.mujoco.world import MujocoWorld
 
             return super().__new__(MujocoWorld)

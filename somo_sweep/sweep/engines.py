@@ -6,7 +6,8 @@ iterations, kept; the other engine's own options left out) and its own results f
 :func:`compare` joins the two results tables on the trial (a grid point and repeat) and says, per
 label, in which cells the engines agree; for a task without labels (the bench), how far each
 metric differs, as a share of its range over the study. Cells where both engines agree with
-themselves under robustness replicas (``robust``) are counted apart: a label that flips under
+themselves under robustness replicas (``robust``; when only one engine ran replicas, its
+robust cells) are counted apart: a label that flips under
 a fraction of a millimetre is no test of an engine. A cell whose engines disagree is not robust
 to the engine (``robust_across_engines`` False), which is a perturbation too.
 """
@@ -65,12 +66,14 @@ class EngineComparison:
 
     Attributes:
         engines: The two engines' names, in column order.
-        cells: One row per trial: the swept parameters, each engine's status and labels, and
-            per label ``agree_<label>`` (and ``robust_<label>``, robust on both engines, when the
-            results carry robustness).
+        cells: One row per trial: the swept parameters, each engine's status and labels (or, for
+            a task without labels, each metric on both engines and ``share_<metric>``, their
+            difference as a share of the metric's range), and
+            per label ``agree_<label>`` (and ``robust_<label>``, robust on every engine whose
+            results carry robustness replicas, when one does).
         labels: Per label: cells compared, cells that agree, and the same on robust cells.
         metrics: Per numeric metric (tasks without labels): the largest difference and its
-            share of the metric's range over both runs.
+            share of the metric's range over both runs, and the trial where it is largest.
         axes: Columns of the swept parameters (how a cell is named).
     """
 
@@ -101,14 +104,19 @@ class EngineComparison:
                 )
                 robust = ""
                 if f"robust_{label}" in bad.columns:
-                    robust = " (robust on both)" if row[f"robust_{label}"] else " (not robust)"
+                    robust = " (robust)" if row[f"robust_{label}"] else " (not robust)"
                 out.append(f"  {where}: {a} {row[f'{label}_{a}']}, {b} {row[f'{label}_{b}']}{robust}")
             if len(bad) > disagreements:
                 out.append(f"  … and {len(bad) - disagreements} more")
         for name, m in self.metrics.items():
+            worst = self.cells[self.cells["trial"] == m.get("worst_trial", -1)]
+            where = ""
+            if len(worst) and axes:
+                row = worst.iloc[0]
+                where = " at " + ", ".join(f"{c.removeprefix('task_')}={row[c]}" for c in axes)
             out.append(
                 f"{name}: largest difference {m['max_abs_diff']:.4g} ({m['share_of_range']:.3%} of its range "
-                f"{m['range']:.4g})"
+                f"{m['range']:.4g}){where}"
             )
         return out
 
@@ -156,11 +164,8 @@ def compare(
         cells[f"{label}_{a}"], cells[f"{label}_{b}"] = la, lb
         cells[f"agree_{label}"] = la == lb
         entry: dict[str, Any] = {"cells": len(trials), "agree": int((la == lb).sum())}
-        robust_column = f"robust_{label}" if f"robust_{label}" in first.columns else "robust"
-        if robust_column in left.columns and robust_column in right.columns:
-            robust = left.loc[trials, robust_column].fillna(False).astype(bool) & right.loc[
-                trials, robust_column
-            ].fillna(False).astype(bool)
+        robust = _robust(left.loc[trials], right.loc[trials], label)
+        if robust is not None:
             cells[f"robust_{label}"] = robust
             cells[f"robust_across_engines_{label}"] = robust & (la == lb)
             entry["robust_cells"] = int(robust.sum())
@@ -176,13 +181,36 @@ def compare(
             va, vb = left.loc[trials, column].astype(float), right.loc[trials, column].astype(float)
             both = pd.concat([va, vb])
             span = float(both.max() - both.min())
-            diff = float((va - vb).abs().max())
+            gap = (va - vb).abs()
+            diff = float(gap.max())
+            cells[f"{column}_{a}"], cells[f"{column}_{b}"] = va, vb
+            cells[f"share_{column}"] = gap / span if span else 0.0
             metrics[column] = {
                 "max_abs_diff": diff,
                 "range": span,
                 "share_of_range": diff / span if span else 0.0,
+                "worst_trial": int(gap.idxmax()) if gap.notna().any() else -1,
             }
     return EngineComparison(engines, cells.reset_index(), summary, metrics, tuple(keep))
+
+
+def _robust(left: pd.DataFrame, right: pd.DataFrame, label: str) -> pd.Series | None:
+    """Cells robust on every engine whose results carry robustness replicas (None: neither does).
+
+    An engine run without replicas (MuJoCo's cheap run beside PyBullet's robust one) leaves the
+    other engine's robust cells to be the test.
+    """
+    marks = []
+    for table in (left, right):
+        column = f"robust_{label}" if f"robust_{label}" in table.columns else "robust"
+        if column in table.columns and table[column].notna().any():
+            marks.append(table[column].astype("boolean").fillna(False).astype(bool))
+    if not marks:
+        return None
+    out = marks[0]
+    for mark in marks[1:]:
+        out = out & mark
+    return out
 
 
 def _inferred(df: pd.DataFrame) -> pd.Series:

@@ -27,7 +27,7 @@ from typing import Any
 import joblib
 import numpy as np
 
-from somo_sweep.errors import StorageError, os_cause
+from somo_sweep.errors import SomoError, StorageError, os_cause
 from somo_sweep.sweep.execution import Backend, Outcome, dask_client, execute
 from somo_sweep.sweep.jobs import Job, JobTable, build_jobs
 from somo_sweep.sweep.sampling import AdaptivePlan, Batch, Known
@@ -194,6 +194,19 @@ def _declared_types(study: Study, table: JobTable) -> dict[str, str]:
     return {(f"metric_{n}" if n in taken else n): t for n, t in study.task.metrics.items()}
 
 
+def _engines_installed(table: JobTable) -> None:
+    """Refuse a run on an engine this Python lacks (before any folder is touched).
+
+    Raises:
+        SomoError: A job runs on ``mujoco`` and MuJoCo is not installed (how to install it).
+    """
+    if any(job.settings.engine == "mujoco" for job in table.jobs):
+        from somo_sweep.sim.mujoco.support import missing  # no MuJoCo import: is it there?
+
+        if (why := missing()) is not None:
+            raise SomoError(f"simulation.engine: {why}")
+
+
 def run_study(
     study: Study,
     n_jobs: int | None = None,
@@ -234,7 +247,8 @@ def run_study(
     Raises:
         StorageError: The results could not be written (e.g. disk full); the run stopped, what
             it wrote is intact and the manifest counts only rows in part files.
-        SomoError: Folder locked, different study in the folder, Dask unreachable.
+        SomoError: Folder locked, different study in the folder, Dask unreachable, the engine
+            (MuJoCo) not installed.
         DescriptionError: ``adaptive.labels`` names a label the task does not give.
     """
     table = table or build_jobs(study)
@@ -244,6 +258,7 @@ def run_study(
     for job in table.jobs:
         for k, v in job.columns.items():
             param_types.setdefault(k, []).append(v)
+    _engines_installed(table)  # fail before writing anything
     client = dask_client(scheduler) if backend == "dask" else None  # fail before writing anything
     try:
         store = ResultStore(

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import json
 import shutil
+import sys
 from pathlib import Path
 
 import pandas as pd
@@ -12,7 +13,8 @@ from conftest import MODELS
 from typer.testing import CliRunner
 
 from somo_sweep.cli.app import app
-from somo_sweep.errors import DescriptionError
+from somo_sweep.errors import DescriptionError, SimulationError
+from somo_sweep.sim.world import World, WorldSettings
 from somo_sweep.sweep.engines import compare, on_engine
 from somo_sweep.sweep.jobs import build_jobs
 from somo_sweep.sweep.study import load_study
@@ -93,7 +95,7 @@ def test_on_engine_keeps_the_grid_and_swaps_the_numerics(tmp_path: Path) -> None
 
 
 def _table(
-    labels: list[str], status: list[str] | None = None, robust: list[bool] | None = None
+    labels: list[str], status: list[str] | None = None, robust: list[bool | None] | None = None
 ) -> pd.DataFrame:
     data = {
         "trial": list(range(len(labels))),
@@ -102,7 +104,7 @@ def _table(
         "label_grasp": labels,
     }
     if robust is not None:
-        data["robust"] = robust
+        data["robust"] = pd.array(robust, dtype="boolean")
     return pd.DataFrame(data)
 
 
@@ -119,7 +121,22 @@ def test_compare_counts_agreement_per_label_and_on_robust_cells() -> None:
     assert grasp["robust_cells"] == 3 and grasp["robust_agree"] == 1
     assert list(result.cells["agree_grasp"]) == [True, False, False, False]
     lines = result.lines()
-    assert any("object_width_m=0.02: pybullet power, mujoco pinch (robust on both)" in line for line in lines)
+    assert any("object_width_m=0.02: pybullet power, mujoco pinch (robust)" in line for line in lines)
+
+
+def test_compare_takes_the_robust_cells_of_the_one_engine_that_ran_replicas() -> None:
+    """PyBullet's robust run beside MuJoCo's plain one: PyBullet's robust cells are the test."""
+    first = _table(["pinch", "power", "pinch", "no_grasp"], robust=[True, True, False, None])
+    second = _table(["pinch", "pinch", "power", "no_grasp"])
+    for tables, engines in (
+        ((first, second), ("pybullet", "mujoco")),
+        ((second, first), ("mujoco", "pybullet")),
+    ):
+        result = compare(*tables, engines, ("task_object_width_m",))
+        grasp = result.labels["grasp"]
+        assert grasp["robust_cells"] == 2 and grasp["robust_agree"] == 1
+        assert list(result.cells["robust_grasp"]) == [True, True, False, False]
+        assert list(result.cells["robust_across_engines_grasp"]) == [True, False, False, False]
 
 
 def test_compare_engines_runs_both_and_writes_the_cell_table(
@@ -142,3 +159,50 @@ def test_compare_engines_runs_both_and_writes_the_cell_table(
     assert report["written_by"] == "somo-sweep compare-engines"
     assert report["engines"]["mujoco"]["engine"] == "mujoco" and report["labels"]["grasp"]["cells"] == 2
     assert (out / "pybullet" / "manifest.json").exists() and (out / "mujoco" / "manifest.json").exists()
+
+
+def test_a_mujoco_run_without_mujoco_installed_says_how_to_install_it_and_writes_nothing(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """The default install (no [mujoco] extra): a clear refusal before any folder is made."""
+    monkeypatch.setitem(sys.modules, "mujoco", None)  # what an install without MuJoCo looks like
+    path = _study(tmp_path, "{engine: mujoco}", extra="sweep:\n  task.object_width_m: [0.01]\n")
+    out = tmp_path / "results"
+    res = CliRunner().invoke(app, ["run", str(path), "--out", str(out)])
+    assert res.exit_code == 2, res.output
+    assert "simulation.engine: engine mujoco needs MuJoCo" in res.output
+    assert 'pip install "somo-sweep[mujoco]"' in res.output and "Traceback" not in res.output
+    assert not out.exists()
+    with pytest.raises(SimulationError, match=r"somo-sweep\[mujoco\]"):
+        World(WorldSettings(engine="mujoco"))
+
+
+def test_compare_without_labels_gives_each_metric_per_cell_as_a_share_of_its_range() -> None:
+    """The bench: metrics, not labels; NaN where a protocol does not give the metric."""
+    nan = float("nan")
+    base = {"trial": [0, 1, 2], "task_pressure_kpa": [0.0, 100.0, 200.0], "status": ["ok"] * 3}
+    first = pd.DataFrame({**base, "tip_x_mm": [0.0, 50.0, 100.0], "blocked_force_n": [nan, 1.0, 2.0]})
+    second = pd.DataFrame({**base, "tip_x_mm": [0.0, 50.2, 100.0], "blocked_force_n": [nan, 1.0, 2.5]})
+    result = compare(first, second, ("pybullet", "mujoco"), ("task_pressure_kpa",))
+    assert result.metrics["tip_x_mm"]["share_of_range"] == pytest.approx(0.002)
+    assert result.metrics["blocked_force_n"]["share_of_range"] == pytest.approx(0.5 / 1.5)
+    assert result.metrics["blocked_force_n"]["worst_trial"] == 2
+    assert list(result.cells["tip_x_mm_mujoco"]) == [0.0, 50.2, 100.0]
+    assert result.cells["share_tip_x_mm"].tolist() == pytest.approx([0.0, 0.002, 0.0])
+    assert any(
+        line.startswith("blocked_force_n:") and "pressure_kpa=200.0" in line for line in result.lines()
+    )
+
+
+@pytest.mark.parametrize("command", [["compare-engines", "STUDY"], ["paper", "engines"]])
+def test_the_engine_commands_without_mujoco_installed_say_so_before_running_anything(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch, command: list[str]
+) -> None:
+    monkeypatch.setitem(sys.modules, "mujoco", None)
+    path = _study(tmp_path, "{time_step_s: 4.0e-3}", extra="sweep:\n  task.object_width_m: [0.01]\n")
+    out = tmp_path / "out"
+    args = [str(path) if a == "STUDY" else a for a in command]
+    res = CliRunner().invoke(app, [*args, "--out", str(out)])
+    assert res.exit_code == 2, res.output
+    assert "engine mujoco needs MuJoCo" in res.output and "Traceback" not in res.output
+    assert not out.exists()

@@ -14,14 +14,27 @@ task adds itself.
 
 from __future__ import annotations
 
+import importlib.util
 from collections.abc import Iterator
 
 from somo_sweep.model.description import Link, Manipulator
 from somo_sweep.model.load import Model
 
-__all__ = ["ENGINE", "unsupported"]
+__all__ = ["ENGINE", "INSTALL", "missing", "unsupported"]
 
 ENGINE = "mujoco"
+#: How a user gets the engine.
+INSTALL = 'pip install "somo-sweep[mujoco]"'
+
+
+def missing() -> str | None:
+    """Why the mujoco engine cannot run in this Python (MuJoCo not installed), or None if it can."""
+    if importlib.util.find_spec("mujoco") is not None:
+        return None
+    return (
+        f"engine {ENGINE} needs MuJoCo, which is not installed in this Python; install the optional "
+        f"extra ({INSTALL}), or use engine: pybullet"
+    )
 
 
 def _manipulator_links(manip: Manipulator, prefix: str) -> Iterator[tuple[str, Link]]:
