@@ -204,3 +204,40 @@ def test_the_bench_task_runs_on_the_engine_its_settings_name(monkeypatch: pytest
     finger = load_model(bundled_path("models", "pinch_finger.yaml"))
     result = spec.run(finger, params, _mj(1e-3), 0)
     assert result.status == "ok" and len(opened) == 1
+
+
+@pytest.mark.parametrize(
+    ("test", "pressure_kpa", "metric", "range_"),
+    [
+        ("free_bending", 150.0, "tip_x_mm", 164.9),
+        ("tip_load", 50.0, "tip_deflection_mm", 3.93),
+        ("blocked_force", 100.0, "blocked_force_n", 3.72),
+        pytest.param(
+            "blocked_force",
+            0.0,
+            "blocked_force_n",
+            3.72,
+            marks=pytest.mark.xfail(
+                strict=True,
+                reason="0.504 % of range (0.5207 vs 0.5395 N), cause not found: docs/mujoco.md, Bench",
+            ),
+        ),
+    ],
+)
+def test_bench_rows_of_the_20_link_finger_agree_with_pybullet_within_half_a_percent_of_range(
+    test: str, pressure_kpa: float, metric: str, range_: float
+) -> None:
+    """Issue #32: bench rows on both engines (each relaxed with its own springs, gravity and
+    plate) within 0.5 % of the metric's range over the bench study (studies/
+    pinch_finger_bench_engines.yaml, 0 ... 200 kPa: the ranges here)."""
+    from somo_sweep.tasks.registry import get_task
+
+    spec = get_task("bench")
+    params = spec.params_model(test=test, pressure_kpa=pressure_kpa, statics="dynamic", tip_load_n=0.05)
+    finger = load_model(bundled_path("models", "pinch_finger.yaml"))
+    values = []
+    for settings in (WorldSettings(time_step_s=5e-4), _mj(5e-4)):
+        result = spec.run(finger, params, settings, 0)
+        assert result.status == "ok", result.message
+        values.append(float(result.metrics[metric]))
+    assert abs(values[0] - values[1]) < 0.005 * range_, values
