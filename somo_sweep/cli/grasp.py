@@ -38,6 +38,14 @@ def classify(
         fail(exc)
     for label, n in counts.items():
         typer.echo(f"{printable(shown(str(label), 200)):>10s}  {n}")  # a status is stored text
+    if "robust" in table.columns:
+        checked = table[table["replicas"] > 0]
+        shaky = checked[checked["robust"].eq(False).fillna(False).astype(bool)]
+        typer.echo(
+            f"robustness: {len(checked)} cell(s) with replicas, {len(checked) - len(shaky)} robust under "
+            f"rule {rule}, {len(shaky)} not (counts above are majorities; per cell: grasp_{rule}_majority, "
+            f"grasp_{rule}_agreement, robust)"
+        )
     legacy = table.attrs.get("rows_without_final_counts", 0)
     if legacy:
         typer.echo(

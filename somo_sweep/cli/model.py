@@ -10,7 +10,7 @@ from typing import Annotated
 import pandas as pd
 import typer
 
-from somo_sweep.cli.output import check_replaceable, fail, file_target, write_atomic
+from somo_sweep.cli.output import check_replaceable, checked_jobs, fail, file_target, write_atomic
 from somo_sweep.errors import SomoError
 
 __all__ = ["check", "measure"]
@@ -35,14 +35,24 @@ def _floats(text: str, option: str) -> list[float]:
 
 
 def check(
-    model: Annotated[Path, typer.Argument(help="Model file (YAML or JSON).")],
+    model: Annotated[Path, typer.Argument(help="Model file, or study file (YAML or JSON).")],
     allow_outside: ALLOW_OUTSIDE = False,
+    jobs: Annotated[
+        int, typer.Option("--jobs", "-j", help="Study file: worker processes for the sample runs.")
+    ] = 0,
 ) -> None:
-    """Validate a model file; print its bodies, links, joints, inputs, modes and automatic step."""
+    """Validate a model file; print its bodies, links, joints, inputs, modes and automatic step.
+
+    Given a study file without simulation:, also choose its step the way run does (label
+    convergence on a sample of its cells: trials run) and print each candidate and the verdict.
+    """
     from somo_sweep.model.load import load_model
-    from somo_sweep.sim.numerics import choose_numerics
+    from somo_sweep.sim.numerics import choose_numerics, step_ladder
     from somo_sweep.sim.urdf import plan_assembly
 
+    if _is_study(model):
+        _check_study(model, allow_outside, jobs)
+        return
     try:
         m = load_model(model, allow_outside)
     except SomoError as exc:
@@ -73,9 +83,49 @@ def check(
                         f"widths {half[0]:g}, {half[1]:g} m): the links hinge apart, not on their faces "
                         "(a length in mm where m was meant?)"
                     )
-    typer.echo("automatic numerics (used when a study gives no simulation:):")
-    for line in choose_numerics(m).describe():
+    steps, why = step_ladder(m)
+    typer.echo(
+        "automatic numerics (a study without simulation:): the step is chosen by label convergence on "
+        f"a sample of the study's own cells, trying {', '.join(f'{h * 1e3:g}' for h in steps)} ms "
+        f"(starting guess set by {why}; each with the least inertia shaping that keeps it stable; "
+        "somo-sweep check STUDY.yaml runs the choice). The modes:"
+    )
+    for line in choose_numerics(m).describe()[1:]:
         typer.echo(f"  {line}")
+
+
+def _is_study(path: Path) -> bool:
+    """A study file names a task; a model file names a manipulator or an assembly."""
+    from somo_sweep.model.files import load_mapping
+
+    try:
+        data, _ = load_mapping(path)
+    except SomoError:
+        return False  # the model loader reports it
+    return isinstance(data, dict) and "task" in data and "manipulator" not in data and "assembly" not in data
+
+
+def _check_study(path: Path, allow_outside: bool, jobs: int) -> None:
+    """Load a study and print its automatic step, chosen as run chooses it."""
+    import joblib
+
+    from somo_sweep.cli.sweep import auto_step
+    from somo_sweep.sweep.study import load_study
+
+    try:
+        checked_jobs(jobs, allow_default=True)
+        study = load_study(path, allow_outside=allow_outside)
+    except SomoError as exc:
+        fail(exc)
+    typer.echo(f"{study.name}: task {study.task.name}, {study.n_trials} trials")
+    if study.simulation is not None:
+        typer.echo(f"simulation: time step {study.simulation.step_s * 1e3:g} ms, from the study file")
+        return
+    try:
+        chosen = auto_step(study, jobs or joblib.cpu_count() or 1, "loky", None, None, stream=typer.echo)
+    except SomoError as exc:
+        fail(exc)
+    typer.echo(f"automatic step: {chosen.auto_step_s * 1e3:g} ms" if chosen.auto_step_s else "")
 
 
 def measure(

@@ -22,6 +22,7 @@ from somo_sweep.cli.output import (
     file_target,
     write_artifacts,
     write_atomic,
+    write_outputs,
 )
 from somo_sweep.errors import SomoError
 
@@ -291,6 +292,42 @@ def palm(
     except SomoError as exc:
         fail(SomoError(f"{results}: {exc}"))
     _finish(artifacts, out)
+
+
+@app.command("robust-cost")
+def robust_cost(
+    out: Annotated[
+        Path, typer.Option("--out", help="Folder for the JSON record (the study runs go to a temporary one).")
+    ] = Path("results/reference"),
+    rounds: Annotated[int, typer.Option(help="Alternating rounds of the one-trial timing.")] = 3,
+    jobs: Annotated[int, typer.Option("--jobs", "-j", help="Workers of the two study runs.")] = 2,
+    work: Annotated[
+        Path | None,
+        typer.Option(help="Keep the two results folders here (before/, robust/; default: temporary)."),
+    ] = None,
+) -> None:
+    """What robust labels cost: one trial, and the quick study plain before vs robust (K = 4) now."""
+    import json
+    import tempfile
+
+    from somo_sweep.paper.robust_cost import cost_lines, cost_runs
+
+    if rounds < 1 or jobs < 1:
+        fail(SomoError(f"--rounds and --jobs must be >= 1, got {rounds} and {jobs}"))
+    if work is not None and (work / "before").exists():
+        fail(SomoError(f"--work {work} already holds a run (before/): the benchmark times fresh runs"))
+    with tempfile.TemporaryDirectory(prefix="somo-sweep-robust-cost-") as tmp:
+        try:
+            report = cost_runs(work or Path(tmp), rounds=rounds, n_jobs=jobs)
+        except SomoError as exc:
+            fail(exc)
+    for line in cost_lines(report):
+        typer.echo(line)
+    try:
+        (path,) = write_outputs([(out / "robust_cost.json", json.dumps(report.as_dict(), indent=2) + "\n")])
+    except SomoError as exc:
+        fail(exc)
+    typer.echo(f"wrote {path}")
 
 
 @app.command()

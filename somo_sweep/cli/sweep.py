@@ -3,6 +3,8 @@
 from __future__ import annotations
 
 import math
+from collections.abc import Iterator
+from contextlib import contextmanager
 from pathlib import Path
 from typing import TYPE_CHECKING, Annotated
 
@@ -30,6 +32,9 @@ from somo_sweep.cli.output import (
 from somo_sweep.errors import SomoError, StorageError
 
 if TYPE_CHECKING:  # the heavy modules are imported when a command runs
+    from collections.abc import Callable
+
+    from somo_sweep.sweep.jobs import Job
     from somo_sweep.sweep.runner import RunSummary
     from somo_sweep.sweep.sampling import Batch
     from somo_sweep.sweep.study import Study
@@ -89,6 +94,16 @@ def run(
             "stored as inferred (default: the study's sampling:, else exhaustive).",
         ),
     ] = None,
+    robust: Annotated[
+        int | None,
+        typer.Option(
+            "--robust",
+            metavar="K",
+            help="Run K perturbed replicas of the cells that matter (label boundaries, plus a 10 % audit "
+            "of the rest) and store each cell's majority label, agreement and robust flag "
+            "(default: the study's robustness:, else 0).",
+        ),
+    ] = None,
     chunk_rows: Annotated[int, typer.Option(help="Rows per Parquet part file.", hidden=True)] = 50,
 ) -> None:
     """Run a study: every trial missing from its results folder, in parallel, into Parquet.
@@ -99,7 +114,7 @@ def run(
 
     from somo_sweep.sweep.jobs import build_jobs
     from somo_sweep.sweep.runner import run_study
-    from somo_sweep.sweep.study import load_study
+    from somo_sweep.sweep.study import load_study, with_replicas
 
     if backend not in ("loky", "dask"):
         fail(SomoError(f"--backend must be loky or dask, got '{backend}'"))
@@ -123,13 +138,28 @@ def run(
         st = load_study(study, out, max_trials, allow_outside)
         if adaptive is not None:
             st.sampling = "adaptive" if adaptive else "grid"
+        if robust is not None:
+            st = with_replicas(st, robust)
         if dry_run:
             _print_dry_run(st)
             return
-        table = build_jobs(st)
     except SomoError as exc:
         fail(exc)
     n_jobs = jobs or joblib.cpu_count() or 1
+    try:
+        if st.simulation is None:
+            with _term_as_interrupt() as caught:
+                try:
+                    st = auto_step(st, n_jobs, backend, scheduler, timeout)
+                except KeyboardInterrupt:
+                    _err.print(
+                        "interrupted while choosing the time step: no trial of the study ran yet; run the "
+                        "same command again to start over"
+                    )
+                    raise typer.Exit(128 + (caught[0] if caught else 2)) from None
+        table = build_jobs(st)
+    except SomoError as exc:
+        fail(exc)
     live: list[Progress] = []  # the progress bar, once the results folder is open
 
     def started(summary: RunSummary) -> None:
@@ -151,9 +181,12 @@ def run(
         live.append(progress)
 
     def new_round(batch: Batch) -> None:
-        name = st.name if batch.number is None else f"round {batch.number}: {batch.cells} cells"
-        if batch.number == 0:
-            name += " (coarse)"
+        if batch.kind == "replicas":
+            name = f"replicas {batch.number}: {batch.cells} cells x {st.robustness.replicas}"
+        else:
+            name = st.name if batch.number is None else f"round {batch.number}: {batch.cells} cells"
+            if batch.number == 0:
+                name += " (coarse)"
         live[0].add_task(name, total=len(batch.jobs), rate=0.0)
 
     def advanced(_: object) -> None:
@@ -210,6 +243,67 @@ def run(
         raise typer.Exit(1)
 
 
+@contextmanager
+def _term_as_interrupt() -> Iterator[list[int]]:
+    """SIGTERM raises KeyboardInterrupt in the block, as Ctrl-C does (the signal is recorded)."""
+    import signal
+
+    caught: list[int] = []
+
+    def handler(signum: int, frame: object) -> None:
+        caught.append(signum)
+        raise KeyboardInterrupt
+
+    old = signal.signal(signal.SIGTERM, handler)
+    try:
+        yield caught
+    finally:
+        signal.signal(signal.SIGTERM, old)
+
+
+def auto_step(
+    st: Study,
+    n_jobs: int,
+    backend: str,
+    scheduler: str | None,
+    timeout: float | None,
+    stream: Callable[[str], None] | None = None,
+) -> Study:
+    """The study with its step chosen by label convergence (or the choice stored in its folder);
+    what it does is written to ``stream`` (default: stderr)."""
+    from dataclasses import replace
+
+    from somo_sweep.sweep.convergence import choose_step, outcomes_of, stored_choice
+    from somo_sweep.sweep.execution import execute
+    from somo_sweep.sweep.folder import read_manifest
+
+    say = stream or (lambda text: typer.echo(text, err=True))
+    choice = None
+    if (st.output / "manifest.json").is_file():
+        try:
+            choice = stored_choice(read_manifest(st.output), st)
+        except SomoError:  # a damaged manifest: the run rebuilds it; the step is chosen again
+            choice = None
+    if choice is not None:
+        say(f"automatic step {choice.step_s * 1e3:g} ms (chosen earlier, from {st.output})")
+    else:
+        say(
+            "no simulation: block: choosing the time step from this study's own cells (label convergence "
+            "against half the step)"
+        )
+
+        def run_jobs(batch: list[Job]) -> Iterator[tuple[str, str, dict[str, str]]]:
+            return outcomes_of(execute(batch, backend, n_jobs, scheduler, timeout))  # type: ignore[arg-type]
+
+        def rung(step_s: float, runs: int) -> None:
+            say(f"  trying {step_s * 1e3:g} ms: {runs} sample run(s)")
+
+        choice = choose_step(st, run_jobs, on_rung=rung)
+        for line in choice.describe():
+            say(f"  {line}")
+    return replace(st, auto_step_s=choice.step_s, convergence=choice.as_dict())
+
+
 def _progress() -> Progress:
     return Progress(
         TextColumn("[bold]{task.description}"),
@@ -236,13 +330,21 @@ def _print_dry_run(st: Study) -> None:
         typer.echo(describe(st))
     jobs = first_jobs(st, DRY_ROWS)
     if st.simulation is None:
+        from somo_sweep.sim.numerics import step_ladder
+
+        steps, why = step_ladder(st.resolve_model(next(iter(st.points())))[1])
+        typer.echo(
+            "automatic numerics (no simulation: block): the run chooses the step by label convergence "
+            f"on a sample of these cells, trying {', '.join(f'{h * 1e3:g}' for h in steps)} ms (starting "
+            f"guess set by {why}); the jobs below show the starting (modal) choice:"
+        )
         shown: set[str] = set()
         for job in jobs:
             if job.numerics is not None and job.columns["model_hash"] not in shown:
                 shown.add(job.columns["model_hash"])
-                typer.echo(f"automatic numerics (no simulation: block), model {job.columns['model_file']}:")
+                typer.echo(f"  model {job.columns['model_file']}:")
                 for line in job.numerics.describe():
-                    typer.echo(f"  {line}")
+                    typer.echo(f"    {line}")
     else:
         sim = st.simulation
         given = "from the study file" if sim.time_step_s is not None else f"the {sim.engine} default"

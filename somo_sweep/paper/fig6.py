@@ -1,12 +1,15 @@
 """Paper Fig. 6: grasp type over centering position × object width, one panel per DSR.
 
-Works on a tidy table with one row per trial and the columns
+Works on a tidy table with one row per cell and the columns
 ``distal_segment_ratio``, ``centering_position_m`` (the paper's centering position c),
-``object_width_m``, ``label`` and ``inferred``; :func:`grasp_table` makes it from a results
-table (any column prefix), relabelling with a chosen rule. Cells an adaptive run inferred keep
-their stored label and are drawn hatched. The x axis is c, as in the paper; a secondary axis
-on top gives d = 200 mm − c, the finger bases' distance from the object's centre. Plot helpers
-draw on given axes; only the CLI saves files.
+``object_width_m``, ``label``, ``inferred`` and the robustness columns ``replicas``,
+``agreement`` and ``robust``; :func:`grasp_table` makes it from a results table (any column
+prefix), relabelling every run with a chosen rule and folding a cell's robustness replicas into
+its majority label (:mod:`somo_sweep.sweep.robustness`). Cells an adaptive run inferred keep
+their stored label and are drawn hatched; cells whose replicas disagree are cross-hatched, and
+the headline counts only robust cells (:func:`counted_cells`). The x axis is c, as in the
+paper; a secondary axis on top gives d = 200 mm − c, the finger bases' distance from the
+object's centre. Plot helpers draw on given axes; only the CLI saves files.
 """
 
 from __future__ import annotations
@@ -21,6 +24,7 @@ import pandas as pd
 from somo_sweep.errors import SomoError
 from somo_sweep.paper.artifacts import Artifacts
 from somo_sweep.paper.grasp_trials import grasp_labels, inferred_rows
+from somo_sweep.sweep.robustness import fold
 from somo_sweep.tasks.pinch_grasp.classify import LABELS, find_column
 from somo_sweep.tasks.pinch_grasp.params import BASE_DISTANCE_AT_ZERO_CENTERING_M
 
@@ -28,6 +32,8 @@ __all__ = [
     "COLORS",
     "build",
     "check_max_dsr",
+    "counted_cells",
+    "deciding_cells",
     "draw_dsr_panel",
     "draw_fig6",
     "grasp_table",
@@ -45,6 +51,9 @@ COLORS = {
 }
 #: Colour of any other label (a row a damaged table left without one).
 OTHER_COLOR = "#7f7f7f"
+#: How a cell whose robustness replicas disagree is drawn: cross-hatched, dark edge.
+UNCERTAIN_HATCH = "xxx"
+UNCERTAIN_EDGE = "#d62728"
 #: DSR values are grouped after rounding to this many decimals.
 DSR_DECIMALS = 6
 #: Axis labels: the paper's centering position c, and the bases' distance d = 200 mm − c.
@@ -75,31 +84,116 @@ def grasp_table(results: pd.DataFrame, rule: str = "contacts") -> pd.DataFrame:
     if missing:
         raise SomoError(f"results table lacks {', '.join(missing)}: not a pinch_grasp study?")
     labels = grasp_labels(results, rule)
-    out = pd.DataFrame({n: results[c].astype(float).to_numpy() for n, c in found.items() if c is not None})
+    runs = pd.DataFrame(
+        {
+            "trial": results["trial"].to_numpy() if "trial" in results.columns else np.arange(len(results)),
+            "replica": results["replica"].to_numpy() if "replica" in results.columns else 0,
+            "status": "ok",  # a run that is not ok already carries its status as its label
+            "label": labels.to_numpy(),
+            "inferred": inferred_rows(results).to_numpy(),
+            **{n: results[c].astype(float).to_numpy() for n, c in found.items() if c is not None},
+        }
+    )
+    cells = fold(runs, ["label"])
+    out = cells[[*found, "inferred", "replicas"]].copy()
     out["distal_segment_ratio"] = out["distal_segment_ratio"].round(DSR_DECIMALS)
-    out["label"] = labels.to_numpy()
-    out["inferred"] = inferred_rows(results).to_numpy()
-    return out
+    out["label"] = cells["label_majority"].to_numpy()
+    out["agreement"] = cells["label_agreement"].where(cells["replicas"] > 0).to_numpy(dtype=float)
+    out["robust"] = cells["robust"].to_numpy()
+    return out.reset_index(drop=True)
 
 
-def smallest_all_width_pinch_dsr(table: pd.DataFrame, failed_as_pinch: bool = False) -> float | None:
+def _interior(table: pd.DataFrame) -> pd.Series:
+    """Cells whose label equals every grid neighbour's (along DSR, c and width)."""
+    axes = ("distal_segment_ratio", "centering_position_m", "object_width_m")
+    keys = {a: table[a].round(9) for a in axes}
+    label = {
+        tuple(k): v for k, v in zip(zip(*(keys[a] for a in axes), strict=True), table["label"], strict=True)
+    }
+    order = {a: sorted(set(keys[a])) for a in axes}
+    pos = {a: {v: i for i, v in enumerate(order[a])} for a in axes}
+    out = []
+    for cell, lab in label.items():
+        same = True
+        for d, a in enumerate(axes):
+            i = pos[a][cell[d]]
+            for j in (i - 1, i + 1):
+                if 0 <= j < len(order[a]):
+                    other = label.get((*cell[:d], order[a][j], *cell[d + 1 :]))
+                    same &= other is None or other == lab
+        out.append(same)
+    return pd.Series(out, index=table.index)
+
+
+def counted_cells(table: pd.DataFrame) -> pd.Series:
+    """The cells the headline counts: every cell if no replica ran; else the robust cells (replicas
+    all agree) and the cells without replicas whose label every grid neighbour shares (interior
+    cells, which boundary replication leaves out; its random audit measures how often they hold)."""
+    if "replicas" not in table.columns or not (table["replicas"] > 0).any():
+        return pd.Series(True, index=table.index)
+    robust = table["robust"].astype("boolean").fillna(False).astype(bool)
+    unchecked = table["replicas"] == 0
+    return robust | (unchecked & _interior(table))
+
+
+def smallest_all_width_pinch_dsr(
+    table: pd.DataFrame, failed_as_pinch: bool = False, robust_only: bool = False
+) -> float | None:
     """The smallest DSR at which every object width is pinch-grasped at some centering, or None.
 
     Args:
         table: A :func:`grasp_table`.
         failed_as_pinch: Count the trials without an outcome (``unstable``, ``error``, no label)
             as pinches: the smallest DSR the headline could have if they had run.
+        robust_only: Count only the pinches of :func:`counted_cells`.
     """
     widths = set(table["object_width_m"].round(9))
     known = set(LABELS)
+    counted = counted_cells(table) if robust_only else pd.Series(True, index=table.index)
     for dsr, group in sorted(table.groupby("distal_segment_ratio"), key=lambda kv: kv[0]):
-        hit = group["label"] == "pinch"
+        hit = (group["label"] == "pinch") & counted[group.index]
         if failed_as_pinch:
             hit |= ~group["label"].isin(known)
         pinched = set(group.loc[hit, "object_width_m"].round(9))
         if pinched >= widths:
             return float(dsr)
     return None
+
+
+def deciding_cells(table: pd.DataFrame, best: float | None, limit: int = 3) -> list[str]:
+    """The cells that decide the robust headline, one line each.
+
+    At the headline DSR, each width's counted pinches (the first ``limit`` centerings); at every
+    smaller DSR, the widths with no counted pinch, and their pinches that do not count (not
+    robust), which would have moved the headline.
+    """
+    counted = counted_cells(table)
+    lines: list[str] = []
+    for dsr, group in sorted(table.groupby("distal_segment_ratio"), key=lambda kv: kv[0]):
+        if best is not None and dsr > best + 1e-9:
+            break
+        for width, cells in sorted(group.groupby(group["object_width_m"].round(9)), key=lambda kv: kv[0]):
+            pinch = cells[cells["label"] == "pinch"]
+            good = pinch[counted[pinch.index]]
+            where = f"DSR {dsr:.2f}, width {width * 1e3:g} mm"
+            if best is not None and abs(dsr - best) < 1e-9:
+                lines.append(f"{where}: pinch at c = {_centerings(good, limit)}")
+            elif good.empty:
+                weak = pinch[~counted[pinch.index]]
+                why = f"; not robust: c = {_centerings(weak, limit)}" if len(weak) else ""
+                lines.append(f"{where}: no robust pinch{why}")
+    return lines
+
+
+def _centerings(cells: pd.DataFrame, limit: int) -> str:
+    """c values (mm) of some cells, with each one's agreement where replicas ran."""
+    parts = []
+    for _, row in cells.sort_values("centering_position_m").head(limit).iterrows():
+        share = row.get("agreement", float("nan"))
+        tail = f" ({share:.0%} of runs)" if isinstance(share, float) and math.isfinite(share) else ""
+        parts.append(f"{row['centering_position_m'] * 1e3:g} mm{tail}")
+    more = f" and {len(cells) - limit} more" if len(cells) > limit else ""
+    return ", ".join(parts) + more
 
 
 def label_summary(table: pd.DataFrame) -> pd.DataFrame:
@@ -119,8 +213,9 @@ def draw_dsr_panel(ax: Any, table: pd.DataFrame, dsr: float) -> None:
     dc = float(np.min(np.diff(cents))) if len(cents) > 1 else 0.005
     for _, r in rows.iterrows():
         inferred = bool(r.get("inferred", False))
+        uncertain = r.get("robust", pd.NA) is False or r.get("robust", pd.NA) is np.False_
         x0_mm = r["centering_position_m"] * 1e3 - dc * 5e2
-        ax.add_patch(_rect(x0_mm, widths, r["object_width_m"], dc * 1e3, r["label"], inferred))
+        ax.add_patch(_rect(x0_mm, widths, r["object_width_m"], dc * 1e3, r["label"], inferred, uncertain))
     total_mm = BASE_DISTANCE_AT_ZERO_CENTERING_M * 1e3
     ax.secondary_xaxis("top", functions=(lambda c: total_mm - c, lambda d: total_mm - d))
     if len(cents):
@@ -131,7 +226,13 @@ def draw_dsr_panel(ax: Any, table: pd.DataFrame, dsr: float) -> None:
 
 
 def _rect(
-    x0_mm: float, widths: np.ndarray, width_m: float, dx_mm: float, label: str, inferred: bool = False
+    x0_mm: float,
+    widths: np.ndarray,
+    width_m: float,
+    dx_mm: float,
+    label: str,
+    inferred: bool = False,
+    uncertain: bool = False,
 ) -> Any:
     from matplotlib.patches import Rectangle
 
@@ -142,9 +243,9 @@ def _rect(
         dx_mm,
         1.0,
         facecolor=color,
-        edgecolor="white",
+        edgecolor=UNCERTAIN_EDGE if uncertain else "white",
         linewidth=0.5,
-        hatch="///" if inferred else None,
+        hatch=UNCERTAIN_HATCH if uncertain else "///" if inferred else None,
     )
 
 
@@ -197,7 +298,9 @@ def build(table: pd.DataFrame, stem: str = "fig6", max_dsr: float = 0.5) -> Arti
     for ax in axes[0]:
         if ax.child_axes:
             ax.child_axes[0].set_xlabel(BASE_DISTANCE_LABEL, fontsize="small")
-    best = smallest_all_width_pinch_dsr(table)
+    checked = "replicas" in table.columns and bool((table["replicas"] > 0).any())
+    best = smallest_all_width_pinch_dsr(table, robust_only=checked)
+    best_all = smallest_all_width_pinch_dsr(table)
     labels = set(table["label"])
     present = [lab for lab in COLORS if lab in labels]
     handles = [Patch(facecolor=COLORS[lab], edgecolor="0.5", label=lab) for lab in present]
@@ -208,11 +311,26 @@ def build(table: pd.DataFrame, stem: str = "fig6", max_dsr: float = 0.5) -> Arti
         handles.append(
             Patch(facecolor="white", edgecolor="0.5", hatch="///", label="inferred (not simulated)")
         )
+    uncertain = table["robust"].eq(False).fillna(False).astype(bool) if "robust" in table else None
+    n_uncertain = int(uncertain.sum()) if uncertain is not None else 0
+    if n_uncertain:
+        handles.append(
+            Patch(
+                facecolor="white",
+                edgecolor=UNCERTAIN_EDGE,
+                hatch=UNCERTAIN_HATCH,
+                label="not robust (replicas disagree; majority drawn)",
+            )
+        )
     if handles:
         fig.legend(handles=handles, loc="outside lower center", ncol=len(handles))
     headline = (
         "no DSR pinch-grasps every width" if best is None else f"smallest all-width pinch DSR: {best:.2f}"
     )
+    if checked:
+        headline += " (robust cells)"
+        if best_all != best:
+            headline += f"; {'none' if best_all is None else f'{best_all:.2f}'} counting every cell"
     n_failed = int((~table["label"].isin(LABELS)).sum())
     if n_failed:
         # A failed trial is not a "not pinched": say how far the headline could move.
@@ -236,6 +354,17 @@ def build(table: pd.DataFrame, stem: str = "fig6", max_dsr: float = 0.5) -> Arti
     }
     if n_failed:
         info["trials_without_outcome"] = n_failed
+    deciding: list[str] = []
+    if checked:
+        replicated = table["replicas"] > 0
+        info["robustness"] = {
+            "cells_replicated": int(replicated.sum()),
+            "robust": int(table["robust"].eq(True).fillna(False).astype(bool).sum()),
+            "not_robust": n_uncertain,
+            "smallest_all_width_pinch_dsr_every_cell": best_all,
+        }
+        deciding = deciding_cells(table, best)
+        info["deciding_cells"] = deciding
     return Artifacts(
         figures={stem: fig},
         dpi=150,
@@ -246,5 +375,14 @@ def build(table: pd.DataFrame, stem: str = "fig6", max_dsr: float = 0.5) -> Arti
             if n_inferred
             else f"{info['trials']} trials, labels: {info['labels']}",
             headline,
+            *(
+                [
+                    f"robustness: {info['robustness']['cells_replicated']} cells replicated, "  # type: ignore[index]
+                    f"{n_uncertain} not robust (cross-hatched); the cells that decide the headline:",
+                    *(f"  {line}" for line in deciding),
+                ]
+                if checked
+                else []
+            ),
         ],
     )

@@ -95,9 +95,12 @@ def relabel(
     """Relabel every trial of a results folder.
 
     Returns:
-        Counts per label (``unstable``/``error`` for trials that are not ``ok``) and the table
-        (job id, the three sweep parameters, ``grasp_<rule>``; an old folder's ``centering_m``,
-        the bases' distance before the paper's centering position, is kept under its own name).
+        Counts per label (``unstable``/``error`` for trials that are not ``ok``; a cell with
+        robustness replicas counts with its majority) and the table, one row per cell: job id,
+        the three sweep parameters, ``grasp_<rule>`` (the cell's own trial), and where replicas
+        ran ``grasp_<rule>_majority``, ``grasp_<rule>_agreement``, ``replicas`` and ``robust``
+        (:func:`somo_sweep.sweep.robustness.fold`); an old folder's ``centering_m``, the bases'
+        distance before the paper's centering position, is kept under its own name.
     """
     folder = Path(folder)
     table = read_results(folder)
@@ -114,15 +117,29 @@ def relabel(
             f"{folder} holds trials of task '{shown(str(task))}', not pinch_grasp: there are no grasps to "
             "classify; allowed: a results folder of a pinch_grasp study"
         ) from None
+    from somo_sweep.sweep.robustness import fold
+
     cols = [str(c) for c in table.columns]
     names = ("job_id", "distal_segment_ratio", "object_width_m", "centering_position_m", "centering_m")
     keep = [c for c in (find_column(cols, n) for n in names) if c is not None]
-    out = table[keep].copy()
-    out[f"grasp_{rule}"] = labels
-    out["inferred"] = inferred_rows(table)
+    name = f"grasp_{rule}"
+    runs = table[[*keep, *(c for c in ("trial", "replica") if c in cols)]].copy()
+    runs["status"] = "ok"  # a run that is not ok carries its status as its label already
+    runs[name] = labels
+    runs["inferred"] = inferred_rows(table)
+    cells = fold(runs, [name])
+    out = cells[[*keep, name, "inferred"]].copy()
+    if (cells["replicas"] > 0).any():
+        out[f"{name}_majority"] = cells[f"{name}_majority"]
+        out[f"{name}_agreement"] = cells[f"{name}_agreement"].where(cells["replicas"] > 0)
+        out["replicas"] = cells["replicas"]
+        out["robust"] = cells["robust"]
+        counted = out[f"{name}_majority"]
+    else:
+        counted = out[name]
     if rule == "paper":
         out.attrs["rows_without_final_counts"] = rows_without_final_counts(table)
-    return dict(sorted(Counter(str(v) for v in labels).items())), out
+    return dict(sorted(Counter(str(v) for v in counted).items())), out
 
 
 def rows_without_final_counts(table: pd.DataFrame) -> int:
@@ -182,12 +199,13 @@ def render_trial(
     """
     from somo_sweep.sim.render import Camera, snapshot
     from somo_sweep.sim.world import World
+    from somo_sweep.sweep.convergence import with_stored_step
     from somo_sweep.sweep.jobs import build_jobs
     from somo_sweep.sweep.study import load_study
     from somo_sweep.tasks.pinch_grasp.params import PinchGraspParams
     from somo_sweep.tasks.pinch_grasp.task import run_pinch_grasp
 
-    study = load_study(study_path)
+    study = with_stored_step(load_study(study_path))
     if study.task.name != "pinch_grasp":
         raise SomoError(f"{study_path}: render needs a pinch_grasp study, this one runs '{study.task.name}'")
     if engine is not None:
@@ -224,4 +242,11 @@ def render_trial(
     if isinstance(ended, float) and math.isfinite(ended) and any(t > ended for t in times_s):
         why = result.metrics.get("ended_early_reason", "")
         label += f" (ended early at {ended:.2f} s: {why}; no snapshot after it)"
+    label += f"; step {job.settings.time_step_s * 1e3:g} ms"
+    if study.simulation is None and study.auto_step_s is None:
+        # No step chosen yet: the jobs carry the modal starting guess, which a sweep may reject.
+        label += (
+            " (the automatic step's starting guess: this study has not chosen its step yet; "
+            "`somo-sweep check STUDY.yaml` or a run chooses it, then render uses that)"
+        )
     return out, label

@@ -42,7 +42,9 @@ __all__ = [
     "ChosenNumerics",
     "choose_numerics",
     "elastic",
+    "numerics_for_step",
     "stability_limit_s",
+    "step_ladder",
     "tidy_floor",
 ]
 
@@ -279,3 +281,57 @@ def choose_numerics(
         chains[name] = ChainChoice(before, m.modes(j), j, kept, max(shift, 0.0), best[name][0])
     reason = f"{best[decider][1]} of chain '{decider}'"
     return ChosenNumerics(step, chains, reason)
+
+
+def numerics_for_step(model: Model, step_s: float) -> ChosenNumerics:
+    """The least inertia shaping that makes ``step_s`` stable for every chain of ``model``.
+
+    No lowest-mode budget: how much shaping a step may take is judged by the labels it gives,
+    against half the step (:mod:`somo_sweep.sweep.convergence`), not by the modes. A chain that is
+    stable at ``step_s`` as it is gets none.
+    """
+    chains: dict[str, ChainChoice] = {}
+    for manip, floating in model_chains(model):
+        m = chain_matrices(manip, floating)
+        if not m.joints or not len(elastic(m.frequencies_rad_s(0.0))):
+            continue
+        kept = min(m.axes_per_joint_cycle, len(m.stiffness) - m.rigid_modes)
+        j = _least_inertia_for(m, step_s, _enough_inertia(m, step_s))
+        before = m.modes(0.0)
+        shift = _shift(m, elastic(np.asarray(before.frequencies_rad_s)), kept, j) if kept else 0.0
+        chains[manip.name] = ChainChoice(before, m.modes(j), j, kept, max(shift, 0.0), step_s)
+    return ChosenNumerics(step_s, chains, "label convergence against half the step")
+
+
+def _enough_inertia(mats: ChainMatrices, step_s: float) -> float:
+    """An added inertia that makes ``step_s`` stable (grown tenfold from the lightest joint's own)."""
+    j = max(float(np.min(np.diag(mats.mass))) * 1e-3, 1e-15)
+    while SAFETY * stability_limit_s(mats.frequencies_rad_s(j)[-1]) < step_s and j < MAX_ADDED_INERTIA_KG_M2:
+        j = min(j * 10, MAX_ADDED_INERTIA_KG_M2)
+    return j
+
+
+def step_ladder(model: Model, max_step_s: float = MAX_STEP_S) -> tuple[list[float], str]:
+    """The steps an automatic choice tries, largest first, and what set the first one.
+
+    The first is the model's largest step by its lowest modes (each chain's lowest mode resolved
+    by ω_low·dt ≤ :data:`LOWEST_MODE_RAD`, at most ``max_step_s``): the modal starting guess. Each
+    next one is half the last, down to the step at which every chain is stable with no shaping
+    at all (:data:`SAFETY` · 2/ω_max), which ends the ladder.
+    """
+    guess, floor, why = max_step_s, max_step_s, "the largest validated step"
+    for manip, floating in model_chains(model):
+        m = chain_matrices(manip, floating)
+        w = elastic(m.frequencies_rad_s(0.0)) if m.joints else np.zeros(0)
+        if not len(w):
+            continue
+        lowest = LOWEST_MODE_RAD / float(w[0])
+        if lowest < guess:
+            guess, why = lowest, f"lowest-mode resolution of chain '{manip.name}'"
+        floor = min(floor, SAFETY * stability_limit_s(float(w[-1])))
+    steps = [tidy_floor(guess)]
+    while steps[-1] / 2 > floor * (1 + 1e-9):
+        steps.append(steps[-1] / 2)
+    if tidy_floor(floor) < steps[-1] * (1 - 1e-9):
+        steps.append(tidy_floor(floor))
+    return steps, why

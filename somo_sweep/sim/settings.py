@@ -78,7 +78,7 @@ class WorldSettings:
             the scaled world's units, so linear rows count in (Y·m/s)² and joint rows in
             (rad/s)²). None keeps Bullet's 1e-7, at which a pinch trial runs all its
             iterations; larger values cut steps whose constraints settle early (docs/pinch_grasp.md,
-            "Solver early exit"). Must be finite and > 0. PyBullet only.
+            "Engine settings"). Must be finite and > 0. PyBullet only.
         clamp_speed_cap: Let a run go on when a joint or a body reaches Bullet's speed cap
             (Bullet clamps the speed and steps on, as the original SoMo code let it; MuJoCo, which
             caps nothing, then just goes on). False (default) stops the run as unstable there: past

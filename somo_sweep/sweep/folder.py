@@ -23,7 +23,7 @@ import pyarrow.compute as pc
 import pyarrow.parquet as pq
 
 from somo_sweep.errors import SomoError, shown
-from somo_sweep.sweep.schema import COLUMNS
+from somo_sweep.sweep.schema import COLUMNS, MAX_REPLICAS
 
 __all__ = [
     "INFERRED",
@@ -36,6 +36,7 @@ __all__ = [
     "DamagedPartWarning",
     "declared_types",
     "journal_rows",
+    "max_part_rows",
     "part_files",
     "pending_journal_rows",
     "read_manifest",
@@ -210,10 +211,19 @@ def declared_types(manifest: Mapping[str, Any]) -> dict[str, str]:
     }
 
 
-def _max_rows(manifest: Mapping[str, Any]) -> int | None:
-    """The most rows one part file of the folder's study can hold: its number of trials."""
+def max_part_rows(manifest: Mapping[str, Any]) -> int | None:
+    """The most rows one part file of the folder's study can hold: its trials, and their
+    robustness replicas if a run asked for some (each run records its ``replicas`` at its start)."""
     n = manifest.get("n_trials")
-    return n if isinstance(n, int) and not isinstance(n, bool) and n > 0 else None
+    if not (isinstance(n, int) and not isinstance(n, bool) and n > 0):
+        return None
+    runs = manifest.get("runs")
+    asked = 0
+    for run in runs if isinstance(runs, list) else []:
+        k = run.get("replicas") if isinstance(run, dict) else None
+        if isinstance(k, int) and not isinstance(k, bool) and k > asked:
+            asked = k
+    return n * (1 + min(asked, MAX_REPLICAS))
 
 
 #: The type of each manifest key the commands read (:func:`~somo_sweep.sweep.manifest.new_manifest`).
@@ -311,7 +321,7 @@ def read_results(folder: str | Path, on_damaged: OnDamaged | None = None) -> pd.
     report = on_damaged or _warn
     # The parts the manifest lists as written by a run first: a row repeated in a copy is the copy's.
     good, bad = split_parts(
-        folder, {str(f) for f in manifest.get("files", [])}, declared_types(manifest), _max_rows(manifest)
+        folder, {str(f) for f in manifest.get("files", [])}, declared_types(manifest), max_part_rows(manifest)
     )
     for path, reason in bad:
         report(path, reason)

@@ -21,7 +21,7 @@ import itertools
 import json
 import os
 from collections.abc import Iterator
-from dataclasses import asdict, dataclass
+from dataclasses import asdict, dataclass, replace
 from functools import cache
 from importlib.metadata import PackageNotFoundError, version
 from pathlib import Path
@@ -49,6 +49,7 @@ __all__ = [
     "jobs_frame",
     "param_column",
     "pybullet_version",
+    "replica_jobs",
     "trial_modules",
 ]
 
@@ -181,6 +182,8 @@ class Job:
         columns: The parameter columns of this trial (flattened, unit-suffixed names).
         numerics: The automatic numerics applied to ``model`` and ``settings`` (None when the
             study gives its own ``simulation:``).
+        replica: 0 for the study's own trial; 1, 2, … for its robustness replicas
+            (:func:`replica_jobs`), which share its ``trial`` and grid values.
     """
 
     job_id: str
@@ -193,6 +196,7 @@ class Job:
     settings: WorldSettings
     columns: dict[str, Any]
     numerics: ChosenNumerics | None = None
+    replica: int = 0
 
 
 @dataclass(frozen=True)
@@ -248,7 +252,7 @@ def iter_jobs(study: Study) -> Iterator[Job]:
     for point in study.points():
         model_path, given, params = study.resolve(point)
         if id(given) not in prepared:
-            prepared[id(given)] = _prepare(given, fixed_settings)
+            prepared[id(given)] = _prepare(given, fixed_settings, study.auto_step_s)
         model, model_hash, settings, numerics = prepared[id(given)]
         values = {**study.fixed, **point}
         columns: dict[str, Any] = {}
@@ -280,9 +284,16 @@ def iter_jobs(study: Study) -> Iterator[Job]:
 
 
 def _identity(
-    task: str, params: BaseModel, model_hash: str, settings: WorldSettings, seed: int, task_module: str
+    task: str,
+    params: BaseModel,
+    model_hash: str,
+    settings: WorldSettings,
+    seed: int,
+    task_module: str,
+    replica: int = 0,
 ) -> dict[str, Any]:
-    """What a job id hashes: the trial's inputs, the code it runs and its engine's version.
+    """What a job id hashes: the trial's inputs, the code it runs and its engine's version (and a
+    robustness replica's number).
 
     PyBullet's settings and identity keep the form they had before there were two engines
     (no engine keys), so a PyBullet job's id depends on nothing MuJoCo adds.
@@ -304,18 +315,61 @@ def _identity(
     if engine != "pybullet":
         del identity["pybullet"]
         identity[engine] = engine_version(engine)
+    if replica:
+        identity["replica"] = replica
     return identity
 
 
+def replica_jobs(job: Job, n: int, perturb: Any) -> list[Job]:
+    """The robustness replicas 1 … ``n`` of a trial (:mod:`somo_sweep.sweep.robustness`).
+
+    Replica r runs the task's ``perturb`` of the trial's parameters, drawn from a generator
+    seeded with (trial seed, r), and the odd-numbered ones run at half the trial's time step, so
+    one replica or more always checks the step too. A replica is a pure function of the trial and
+    r: the same replica has the same id and outcome in every run.
+
+    Args:
+        job: The study's trial (replica 0).
+        n: Number of replicas.
+        perturb: The task's ``perturb(params, rng)``.
+    """
+    import numpy as np
+
+    task_module = _run_module(job.task)
+    out = []
+    for r in range(1, n + 1):
+        rng = np.random.default_rng([job.seed, r])
+        params = perturb(job.params, rng)
+        step = job.settings.time_step_s / 2 if r % 2 else job.settings.time_step_s
+        settings = replace(job.settings, time_step_s=step)
+        columns = {k: v for k, v in job.columns.items() if not k.startswith("task_")}
+        flat: dict[str, Any] = {}
+        _flatten("task", params.model_dump(mode="json"), flat)
+        columns = {**flat, **columns}
+        identity = _identity(
+            job.task, params, str(job.columns["model_hash"]), settings, job.seed, task_module, r
+        )
+        job_id = _hash(identity)
+        out.append(replace(job, job_id=job_id, params=params, settings=settings, columns=columns, replica=r))
+    return out
+
+
+def _run_module(task: str) -> str:
+    from somo_sweep.tasks.registry import get_task
+
+    return get_task(task).run_path.partition(":")[0]
+
+
 def _prepare(
-    model: Model, fixed: WorldSettings | None
+    model: Model, fixed: WorldSettings | None, auto_step_s: float | None = None
 ) -> tuple[Model, str, WorldSettings, ChosenNumerics | None]:
-    """The model and settings a trial runs: as given, or with the automatic numerics applied."""
+    """The model and settings a trial runs: as given, or with the automatic numerics applied
+    (the step chosen by convergence with the least shaping it needs, else the modal choice)."""
     if fixed is not None:
         return model, model.content_hash(), fixed, None
-    from somo_sweep.sim.numerics import choose_numerics  # loads PyBullet: only when needed
+    from somo_sweep.sim.numerics import choose_numerics, numerics_for_step  # loads PyBullet
 
-    chosen = choose_numerics(model)
+    chosen = choose_numerics(model) if auto_step_s is None else numerics_for_step(model, auto_step_s)
     shaped = chosen.apply(model)
     return shaped, shaped.content_hash(), WorldSettings(time_step_s=chosen.time_step_s), chosen
 
@@ -351,7 +405,7 @@ def build_jobs(study: Study) -> JobTable:
         "repeats": study.repeats,
         "seed": study.seed,
         "simulation": (
-            {"auto": auto_numerics(jobs)}
+            {"auto": auto_numerics(jobs), **({"convergence": study.convergence} if study.convergence else {})}
             if study.simulation is None
             else study.simulation.model_dump(mode="json")
         ),

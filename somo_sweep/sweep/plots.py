@@ -9,6 +9,7 @@ import pandas as pd
 from matplotlib.axes import Axes
 from matplotlib.figure import Figure
 
+from somo_sweep.sweep.robustness import ROBUST, fold, label_names
 from somo_sweep.sweep.schema import FIXED, unit_of
 
 __all__ = ["metric_columns", "plot_labels", "plot_metric", "plot_status", "summary_figure"]
@@ -25,6 +26,7 @@ def metric_columns(df: pd.DataFrame) -> list[str]:
         for c in df.columns
         if c not in FIXED
         and not c.startswith(("task_", "model_", "label_"))
+        and c != "replicas"
         and pd.api.types.is_numeric_dtype(df[c])
         and not pd.api.types.is_bool_dtype(df[c])
     ]
@@ -59,22 +61,46 @@ def plot_status(ax: Axes, df: pd.DataFrame, x: str | None) -> None:
 
 
 def plot_labels(ax: Axes, df: pd.DataFrame, x: str | None, label: str) -> None:
-    """Stacked bars of ``ok`` trials by the values of column ``label``, per value of ``x``.
+    """Stacked bars of ``ok`` cells by the values of column ``label``, per value of ``x``.
 
     Inferred cells count with the label their simulated neighbours agree on; the title says how many.
+    A table folded by :func:`~somo_sweep.sweep.robustness.fold` counts each cell's majority, and the
+    cells whose replicas disagree are a hatched segment of their bar.
     """
     ok = df[df["status"] == "ok"]
     n_inferred = int(_inferred(ok).sum())
-    values = ok[label].fillna("-")
-    counts = values.value_counts().to_frame().T if x is None else pd.crosstab(ok[x], values)
-    bottom = None
-    names = [str(v) for v in counts.index]
-    for value in counts.columns:
-        ax.bar(names, counts[value], bottom=bottom, label=str(value))
-        bottom = counts[value] if bottom is None else bottom + counts[value]
+    majority = f"{label}_majority"
+    values = (ok[majority].where(ok["replicas"] > 0, ok[label]) if majority in ok else ok[label]).fillna("-")
+    uncertain = (
+        ok[ROBUST].eq(False).fillna(False).astype(bool) if ROBUST in ok else pd.Series(False, index=ok.index)
+    )
+    n_uncertain = int(uncertain.sum())
+    index = pd.Index(["all"]) if x is None else pd.Index(sorted(ok[x].unique()))
+    order = sorted(set(values))
+    names = [str(v) for v in index]
+    bottom = pd.Series(0, index=index)
+    for part, hatch in ((~uncertain, None), (uncertain, "///")):
+        if hatch and not n_uncertain:
+            continue
+        where = pd.Series("all", index=ok.index) if x is None else ok[x]
+        counts = pd.crosstab(where[part], values[part]).reindex(index=index, fill_value=0)
+        for value in counts.columns:
+            ax.bar(
+                names,
+                counts[value].to_numpy(),
+                bottom=bottom.to_numpy(),
+                label=f"{value} (not robust)" if hatch else str(value),
+                color=f"C{order.index(value) % 10}",
+                hatch=hatch,
+                edgecolor="white" if hatch else None,
+            )
+            bottom = bottom + counts[value]
     ax.set_xlabel(_label(x) if x else "")
-    ax.set_ylabel("ok trials")
-    ax.set_title(label.removeprefix("label_") + (f" ({n_inferred} inferred)" if n_inferred else ""))
+    ax.set_ylabel("ok cells")
+    notes = [f"{n_inferred} inferred"] if n_inferred else []
+    if n_uncertain:
+        notes.append(f"{n_uncertain} not robust, hatched")
+    ax.set_title(label.removeprefix("label_") + (f" ({', '.join(notes)})" if notes else ""))
     if len(counts.columns):
         ax.legend(fontsize="small")
     ax.tick_params(axis="x", labelrotation=45)
@@ -105,8 +131,11 @@ def plot_metric(
 def summary_figure(df: pd.DataFrame, manifest: dict[str, Any]) -> Figure:
     """Trials by status, by each label, then each metric against the first numeric axis.
 
-    Metric panels draw one line per value of the second axis (if any).
+    Metric panels draw one line per value of the second axis (if any). Robustness replicas are
+    folded into their cells (:func:`~somo_sweep.sweep.robustness.fold`): metrics are the cells' own
+    trials', labels their majority.
     """
+    df = fold(df)
     short = {c: k.rsplit(".", 1)[-1] for k, c in manifest.get("axes", {}).items()}
     axes = [c for c in short if c in df.columns]
     numeric = [c for c in axes if pd.api.types.is_numeric_dtype(df[c])]
@@ -114,7 +143,7 @@ def summary_figure(df: pd.DataFrame, manifest: dict[str, Any]) -> Figure:
     others = [c for c in axes if c != x]
     hue = others[0] if others else None
     metrics = metric_columns(df)[:MAX_METRICS] if x is not None else []
-    labels = [c for c in df.columns if c.startswith("label_")][:MAX_METRICS]
+    labels = label_names(df)[:MAX_METRICS]
     n = 1 + len(labels) + len(metrics)
     cols = min(n, 3)
     rows = (n + cols - 1) // cols

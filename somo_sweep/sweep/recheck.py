@@ -19,8 +19,9 @@ import numpy as np
 import pandas as pd
 
 from somo_sweep.errors import SomoError
+from somo_sweep.sweep.convergence import with_stored_step
 from somo_sweep.sweep.execution import outcome_of, run_job
-from somo_sweep.sweep.jobs import Job, build_jobs
+from somo_sweep.sweep.jobs import Job, build_jobs, replica_jobs
 from somo_sweep.sweep.runner import outcome_row
 from somo_sweep.sweep.store import read_manifest, read_results
 from somo_sweep.sweep.study import Study
@@ -31,7 +32,7 @@ __all__ = ["Mismatch", "RecheckReport", "recheck", "write_report"]
 RUN_COLUMNS = frozenset({"wall_time_s", "host", "message"})
 #: Columns the engine added to every row in a later version: a row written before them holds no
 #: value there (null), which says nothing about the trial, so they are compared only when stored.
-LATER_ENGINE_COLUMNS = frozenset({"retried_half_step", "time_step_used_s"})
+LATER_ENGINE_COLUMNS = frozenset({"retried_half_step", "time_step_used_s", "replica"})
 
 
 @dataclass(frozen=True)
@@ -97,8 +98,9 @@ def recheck(
         SomoError: No results, or results of another version of the study (re-run it first).
     """
     folder = study.output
-    table = build_jobs(study)
     manifest = read_manifest(folder)
+    study = with_stored_step(study)  # the step the run chose by convergence, as it recorded it
+    table = build_jobs(study)
     if manifest["study_hash"] != table.study_hash:
         raise SomoError(
             f"{folder} holds results of another version of {study.name} (hash {manifest['study_hash']}, "
@@ -116,12 +118,37 @@ def recheck(
     report = RecheckReport()
     for index in picks:
         row = stored.iloc[int(index)]
-        job = by_id[str(row["job_id"])]
+        job = by_id.get(str(row["job_id"])) or _replica_job(study, table.jobs, row)
         out = outcome_of(job, run_job(job))
         fresh = outcome_row(job, out, table.study_hash)
         report.trials.append(job.trial)
         _compare(report, job.trial, row, fresh)
     return report
+
+
+def _replica_job(study: Study, jobs: list[Job], row: pd.Series) -> Job:
+    """The robustness replica a stored row holds (replica r of its trial; ids must match).
+
+    Raises:
+        SomoError: The row is neither a trial of the study nor one of its replicas.
+    """
+    replica = row.get("replica")
+    trial = row.get("trial")
+    perturb = study.task.perturb
+    if (
+        perturb is not None
+        and isinstance(replica, int | np.integer)
+        and replica > 0
+        and isinstance(trial, int | np.integer)
+        and 0 <= trial < len(jobs)
+    ):
+        job = replica_jobs(jobs[int(trial)], int(replica), perturb)[-1]
+        if job.job_id == row["job_id"]:
+            return job
+    raise SomoError(
+        f"{study.output}: stored row {row['job_id']} (trial {trial}) is neither a trial of the study nor "
+        "one of its robustness replicas; run the study again before rechecking"
+    )
 
 
 def _compare(report: RecheckReport, trial: int, row: pd.Series, fresh: dict[str, Any]) -> None:

@@ -30,6 +30,7 @@ import numpy as np
 from somo_sweep.errors import SomoError, StorageError, os_cause
 from somo_sweep.sweep.execution import Backend, Outcome, dask_client, execute
 from somo_sweep.sweep.jobs import Job, JobTable, build_jobs
+from somo_sweep.sweep.robustness import ReplicaPlan
 from somo_sweep.sweep.sampling import AdaptivePlan, Batch, Known
 from somo_sweep.sweep.schema import FIXED
 from somo_sweep.sweep.store import ResultStore
@@ -44,11 +45,12 @@ FLUSH_INTERVAL_S = 10.0
 
 @dataclass
 class RoundSummary:
-    """One adaptive round of a run: its number, its cells and the trials run for it now."""
+    """One round of a run (adaptive or replicas): its number, its cells and the trials run now."""
 
     number: int
     cells: int
     run: int = 0
+    kind: str = "trials"
 
 
 @dataclass
@@ -74,6 +76,8 @@ class RunSummary:
         inferred_errors: Adaptive: how many of those lie between trials that ended in error, and so
             carry status ``error`` though they never ran (not counted in :attr:`errors`).
         sampling_notes: Adaptive: what the refinement could not do as asked (for the user).
+        replicas_run: Robustness replicas run now (not counted in :attr:`run`).
+        robustness: What the replica plan did (:meth:`ReplicaPlan.summary`), or None.
     """
 
     folder: Path
@@ -92,11 +96,13 @@ class RunSummary:
     inferred: int = 0
     inferred_errors: int = 0
     sampling_notes: list[str] = field(default_factory=list)
+    replicas_run: int = 0
+    robustness: dict[str, Any] | None = None
 
     @property
     def trials_per_s(self) -> float:
-        """Trials run per second of wall time."""
-        return self.run / self.wall_time_s if self.wall_time_s > 0 else 0.0
+        """Trials (robustness replicas included) run per second of wall time."""
+        return (self.run + self.replicas_run) / self.wall_time_s if self.wall_time_s > 0 else 0.0
 
     @property
     def errors(self) -> int:
@@ -110,6 +116,7 @@ def outcome_row(job: Job, out: Outcome, study_hash: str) -> dict[str, Any]:
         "job_id": job.job_id,
         "trial": job.trial,
         "repeat": job.repeat,
+        "replica": job.replica,
         "seed": job.seed,
         "status": out.status,
         "message": out.message,
@@ -188,6 +195,25 @@ class _SignalGuard:
             raise _Stop(signum)
 
 
+def _with_replicas(
+    own: Iterator[Batch],
+    replicas: ReplicaPlan | None,
+    plan: AdaptivePlan | None,
+    known: Known,
+    study_hash: str,
+) -> Iterator[Batch]:
+    """The study's own batches, then (once they are all done) the replica rounds."""
+    yield from own
+    if replicas is None:
+        return
+    inferred: dict[int, tuple[str, dict[str, str]]] = {}
+    if plan is not None:
+        for row in plan.inferred_rows(known, study_hash):
+            labels = {k.removeprefix("label_"): v for k, v in row.items() if k.startswith("label_") and v}
+            inferred[int(row["trial"])] = (str(row["status"]), labels)
+    yield from replicas.rounds(known, inferred)
+
+
 def _declared_types(study: Study, table: JobTable) -> dict[str, str]:
     """Column types of the task's declared metrics, under the column names rows use."""
     taken = FIXED | set(table.jobs[0].columns if table.jobs else ())
@@ -251,6 +277,21 @@ def run_study(
             (MuJoCo) not installed.
         DescriptionError: ``adaptive.labels`` names a label the task does not give.
     """
+    if table is None and study.simulation is None and study.auto_step_s is None:
+        from dataclasses import replace
+
+        from somo_sweep.sweep.convergence import choose_step, outcomes_of, stored_choice
+        from somo_sweep.sweep.folder import read_manifest
+
+        choice = None
+        with contextlib.suppress(SomoError, OSError):
+            choice = stored_choice(read_manifest(study.output), study)
+        if choice is None:
+            workers = n_jobs or joblib.cpu_count() or 1
+            choice = choose_step(
+                study, lambda jobs: outcomes_of(execute(jobs, backend, workers, scheduler, timeout_s))
+            )
+        study = replace(study, auto_step_s=choice.step_s, convergence=choice.as_dict())
     table = table or build_jobs(study)
     adaptive = study.sampling == "adaptive" if adaptive is None else adaptive
     n_jobs = n_jobs or joblib.cpu_count() or 1
@@ -280,6 +321,7 @@ def run_study(
     summary = RunSummary(study.output, len(table.jobs), 0, notes=list(store.notes))
     summary.sampling = "adaptive" if adaptive else "grid"
     plan = AdaptivePlan(study, table) if adaptive else None
+    replicas = ReplicaPlan(study, table) if study.robustness.replicas > 0 else None
     failure: OSError | None = None
     cut_short: list[int] = []  # trials running (or returned, not yet received) when the run stopped
     try:
@@ -290,7 +332,7 @@ def run_study(
         todo = [j for j in table.jobs if j.job_id not in done]
         summary.skipped = len(table.jobs) - len(todo)
         summary.stored_errors = sum(1 for j in table.jobs if done.get(j.job_id) == "error")
-        known: Known = store.stored_labels() if plan else {}
+        known: Known = store.stored_labels() if plan or replicas else {}
         store.check_inferred()  # refuse a folder in its place now, not after the trials
         # A grid run simulates every cell not stored; an adaptive run only those its rounds pick,
         # which are not known yet: it records how many it could pick, and its rounds at the end.
@@ -301,20 +343,23 @@ def run_study(
                 "n_jobs": n_jobs if backend == "loky" else None,
                 **planned,
                 "sampling": summary.sampling,
+                **({"replicas": study.robustness.replicas} if replicas else {}),
             }
         )
         started = True
         if on_start:
             on_start(summary)
-        batches = plan.rounds(known) if plan else iter([Batch(None, len(todo), todo)])
+        own = plan.rounds(known) if plan else iter([Batch(None, len(todo), todo)])
+        batches = _with_replicas(own, replicas, plan, known, table.study_hash)
         last_flush = time.perf_counter()
         outcomes: Generator[Outcome, None, None] | None = None
         with _SignalGuard() as guard:
             status = "completed"
             try:
                 for batch in batches:
+                    is_replica = batch.kind == "replicas"
                     if batch.number is not None:
-                        summary.rounds.append(RoundSummary(batch.number, batch.cells))
+                        summary.rounds.append(RoundSummary(batch.number, batch.cells, kind=batch.kind))
                     if on_round:
                         on_round(batch)
                     by_id = {j.job_id: j for j in batch.jobs}
@@ -324,11 +369,14 @@ def run_study(
                     for out in outcomes:
                         with guard.protect():
                             row = outcome_row(by_id[out.job_id], out, table.study_hash)
-                            summary.run += 1
                             if summary.rounds:
                                 summary.rounds[-1].run += 1
-                            summary.by_status[out.status] += 1
-                            summary.by_label.update(f"{k}={v}" for k, v in out.labels.items())
+                            if is_replica:
+                                summary.replicas_run += 1
+                            else:
+                                summary.run += 1
+                                summary.by_status[out.status] += 1
+                                summary.by_label.update(f"{k}={v}" for k, v in out.labels.items())
                             known[out.job_id] = (out.status, dict(out.labels))
                             store.journal(row)
                             buffer.append(row)
@@ -375,6 +423,9 @@ def run_study(
                     if plan
                     else {}
                 )
+                if replicas is not None:
+                    summary.robustness = {**replicas.summary(), "replicas_run": summary.replicas_run}
+                    extra["robustness"] = summary.robustness
                 if failure is not None:
                     extra["failure"] = _failure_text(failure, study.output)
                 try:

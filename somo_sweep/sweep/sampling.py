@@ -37,14 +37,17 @@ class Batch:
     """Trials to run together.
 
     Attributes:
-        number: Refinement round (0 is the coarse sub-grid); None for a plain grid run.
+        number: Refinement round (0 is the coarse sub-grid), or replica round; None for a plain
+            grid run.
         cells: Grid cells in this round (some may be stored already).
         jobs: The round's trials not yet stored.
+        kind: ``trials`` (the study's own) or ``replicas`` (:mod:`somo_sweep.sweep.robustness`).
     """
 
     number: int | None
     cells: int
     jobs: list[Job]
+    kind: str = "trials"
 
 
 def _refinable(values: tuple[Any, ...]) -> bool:

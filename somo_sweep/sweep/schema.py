@@ -13,7 +13,10 @@ from typing import Any
 
 import pyarrow as pa
 
-__all__ = ["COLUMNS", "FIXED", "Column", "arrow_type", "merge_types", "unit_of"]
+__all__ = ["COLUMNS", "FIXED", "MAX_REPLICAS", "Column", "arrow_type", "merge_types", "unit_of"]
+
+#: Most robustness replicas a trial may have (each one is a full trial; ``robustness.replicas``).
+MAX_REPLICAS = 16
 
 
 @dataclass(frozen=True)
@@ -35,6 +38,7 @@ COLUMNS: tuple[Column, ...] = (
     ),
     Column("trial", "int64", "", "position in the study's grid order"),
     Column("repeat", "int64", "", "repeat number at this grid point"),
+    Column("replica", "int64", "", "0: the study's trial; 1 … K: its robustness replicas (same trial)"),
     Column("seed", "int64", "", "random seed given to the task"),
     Column("status", "string", "", "ok, unstable (integration blew up) or error"),
     Column("message", "string", "", "why the status is not ok"),

@@ -51,6 +51,7 @@ from somo_sweep.sweep.folder import (
     UNREADABLE,
     declared_types,
     journal_rows,
+    max_part_rows,
     read_manifest,
     read_results,
     split_parts,
@@ -218,14 +219,9 @@ class ResultStore:
         try:  # judged as every reader judges them: the manifest's files first, its column types
             manifest = read_manifest(self.folder)
             listed = {str(f) for f in manifest.get("files", [])}
-            declared, n_trials = declared_types(manifest), manifest.get("n_trials")
+            declared, max_rows = declared_types(manifest), max_part_rows(manifest)
         except SomoError:  # no manifest yet, or a damaged one (rebuilt from the parts)
-            listed, declared, n_trials = set(), {}, None
-        max_rows = (
-            n_trials
-            if isinstance(n_trials, int) and not isinstance(n_trials, bool) and n_trials > 0
-            else None
-        )
+            listed, declared, max_rows = set(), {}, None
         _, bad = split_parts(self.folder, listed, declared, max_rows)
         unreadable = [part for part, reason in bad if reason.startswith(UNREADABLE)]
         if unreadable:  # not damaged: moving it away would rerun trials that are safely stored

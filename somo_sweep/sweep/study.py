@@ -62,18 +62,22 @@ from somo_sweep.model.tables import bundled_if_missing, resolve_table
 from somo_sweep.model.validation import validate
 from somo_sweep.sim.settings import MUJOCO_DEFAULT_STEP_S, MUJOCO_ONLY, PYBULLET_ONLY, WorldSettings
 from somo_sweep.sweep.axes import Axis, axis_length, expand_axis, link_groups, parse_key_path, set_path
+from somo_sweep.sweep.schema import MAX_REPLICAS
 from somo_sweep.tasks.registry import TaskSpec, get_task
 
 __all__ = [
+    "MAX_REPLICAS",
     "MAX_TRIALS",
     "RESULTS_ROOT",
     "Adaptive",
+    "Robustness",
     "Simulation",
     "Study",
     "StudyFile",
     "derive_study",
     "load_model_dict",
     "load_study",
+    "with_replicas",
 ]
 
 #: Most trials a study may have unless the caller allows more (``--max-trials``).
@@ -91,7 +95,7 @@ class Simulation(Spec):
     body per finger plus the palm, at a lower cost per step
     (:func:`somo_sweep.sim.urdf.plan_assembly`). The hand moves the same, but knife-edge
     contact outcomes can come out the other way, so check a study's results before opting
-    in (docs/pinch_grasp.md, "One body per finger").
+    in (docs/pinch_grasp.md, "Engine settings").
 
     ``friction_rows_every: 2`` solves the joints' Coulomb friction every other step; on the step
     between, a sliding joint keeps its friction torque and a stuck one gets its static demand
@@ -176,6 +180,31 @@ class Adaptive(Spec):
     coarse_step: int | None = Field(None, ge=1)
 
 
+class Robustness(Spec):
+    """Robustness replicas (``robustness:`` or ``somo-sweep run --robust K``).
+
+    Each chosen cell runs ``replicas`` more times, each time perturbed by the task
+    (:attr:`~somo_sweep.tasks.registry.TaskSpec.perturb`: for ``pinch_grasp``, the object moved
+    by up to ±0.5 mm in x and y and its friction scaled within ±5 %), the odd-numbered replicas at
+    half the time step. A cell then has a majority label, the share of its runs that agree with
+    it and a ``robust`` flag (every run agrees; :mod:`somo_sweep.sweep.robustness`).
+
+    Attributes:
+        replicas: Replicas per chosen cell (0: none).
+        where: ``boundary`` (default): the cells whose label differs from a grid neighbour's, then
+            the neighbours of any cell whose majority differs from its own trial, plus a seeded
+            random audit of ``audit_fraction`` of the other simulated cells; ``all``: every
+            simulated cell.
+        audit_fraction: Share of the non-boundary cells audited (at least one cell when > 0).
+        labels: Labels that decide boundaries and robustness (default: every label).
+    """
+
+    replicas: int = Field(0, ge=0, le=MAX_REPLICAS)
+    where: Literal["boundary", "all"] = "boundary"
+    audit_fraction: float = Field(0.1, ge=0.0, le=1.0)
+    labels: list[Annotated[str, Field(pattern=r"^[A-Za-z0-9_]+$")]] = Field(default_factory=list)
+
+
 class StudyFile(Spec):
     """The raw schema of a study file (see the module docstring)."""
 
@@ -192,6 +221,7 @@ class StudyFile(Spec):
     output: str | None = None
     sampling: Literal["grid", "adaptive"] = "grid"
     adaptive: Adaptive = Adaptive()
+    robustness: Robustness = Robustness()
 
 
 def _canonical(obj: Any) -> str:
@@ -219,6 +249,11 @@ class Study:
         allow_outside: Model includes may name files outside the model's folder.
         sampling: ``grid`` (every trial) or ``adaptive`` (see :mod:`somo_sweep.sweep.adaptive`).
         adaptive: Settings of adaptive sampling.
+        robustness: Robustness replicas (:class:`Robustness`).
+        auto_step_s: Without ``simulation``: the step chosen by label convergence
+            (:mod:`somo_sweep.sweep.convergence`), each model shaped for it; None: the modal
+            choice (:func:`~somo_sweep.sim.numerics.choose_numerics`), the starting guess.
+        convergence: The record of that choice (for the manifest), or None.
     """
 
     name: str
@@ -236,6 +271,9 @@ class Study:
     allow_outside: bool = False
     sampling: str = "grid"
     adaptive: Adaptive = field(default_factory=Adaptive)
+    robustness: Robustness = field(default_factory=Robustness)
+    auto_step_s: float | None = None
+    convergence: dict[str, Any] | None = None
     _models: dict[str, Model] = field(default_factory=dict, repr=False)
     _bases: dict[str, dict[str, Any]] = field(default_factory=dict, repr=False)
     _params: dict[str, BaseModel] = field(default_factory=dict, repr=False)
@@ -448,6 +486,8 @@ def load_study(
         task = get_task(raw.task)
     except SomoError as exc:
         raise DescriptionError(src, [Problem("task", str(exc), line("task"))]) from None
+    if raw.robustness.replicas and task.perturb is None:
+        problems.append(Problem("robustness.replicas", _no_perturbation(task), line("robustness.replicas")))
     folder = path.parent
     model_path = folder / raw.model
     if not is_file(model_path):
@@ -505,6 +545,7 @@ def load_study(
         allow_outside,
         raw.sampling,
         raw.adaptive,
+        raw.robustness,
     )
     bases_ok = _check_bases(study, lines, problems)
     if problems and bases_ok:
@@ -524,6 +565,32 @@ def load_study(
     if problems:
         raise DescriptionError(src, problems)
     return study
+
+
+def _no_perturbation(task: TaskSpec) -> str:
+    from somo_sweep.tasks.registry import all_tasks
+
+    able = [name for name, spec in all_tasks().items() if spec.perturb is not None]
+    return (
+        f"task {task.name} defines no perturbation, so its trials cannot be replicated; allowed: 0, "
+        f"or a task that defines one ({', '.join(able) or 'none'})"
+    )
+
+
+def with_replicas(study: Study, replicas: int) -> Study:
+    """``study`` with ``replicas`` robustness replicas per chosen cell (``--robust K``).
+
+    Raises:
+        DescriptionError: Out of range, or the task defines no perturbation.
+    """
+    if not 0 <= replicas <= MAX_REPLICAS:
+        raise DescriptionError(
+            study.source,
+            [Problem("robustness.replicas", f"--robust must be 0 … {MAX_REPLICAS}, got {replicas}")],
+        )
+    if replicas and study.task.perturb is None:
+        raise DescriptionError(study.source, [Problem("robustness.replicas", _no_perturbation(study.task))])
+    return replace(study, robustness=study.robustness.model_copy(update={"replicas": replicas}))
 
 
 def derive_study(study: Study, overrides: dict[str, Any], name: str, output: str | Path) -> Study:

@@ -11,6 +11,7 @@ from rich.table import Table
 
 from somo_sweep.errors import printable, shown
 from somo_sweep.sweep.folder import MANIFEST
+from somo_sweep.sweep.robustness import ROBUST, fold, label_names
 from somo_sweep.sweep.runner import RunSummary
 
 __all__ = ["breakdown", "inferred_mask", "label_columns", "print_results", "print_run_summary"]
@@ -21,8 +22,8 @@ SHOWN_RUNS = 10
 
 
 def label_columns(df: pd.DataFrame) -> list[str]:
-    """The ``label_*`` columns of a trials table."""
-    return [c for c in df.columns if c.startswith("label_")]
+    """The ``label_*`` columns of a trials table (not the robustness columns of :func:`fold`)."""
+    return label_names(df)
 
 
 def inferred_mask(df: pd.DataFrame) -> pd.Series:
@@ -54,6 +55,49 @@ def breakdown(df: pd.DataFrame, column: str) -> pd.DataFrame:
     return pd.concat(parts, axis=1).fillna(0).astype(int)
 
 
+#: Cells that are not robust listed by ``show``, the first in grid order.
+SHOWN_UNCERTAIN = 15
+
+
+def _print_robustness(console: Console, cells: pd.DataFrame, manifest: dict[str, Any]) -> None:
+    """Per label: cells replicated, robust, mean agreement; then the first uncertain cells."""
+    checked = cells[cells["replicas"] > 0]
+    if checked.empty:
+        return
+    table = Table(title="robustness (cells with replicas)", title_justify="left")
+    for name in ("label", "cells", "robust", "mean agreement", "majority differs from own trial"):
+        table.add_column(name, justify="left" if name == "label" else "right")
+    for label in label_columns(cells):
+        agree = checked[f"{label}_agreement"]
+        moved = (checked[f"{label}_majority"].astype(str) != checked[label].astype(str)).sum()
+        table.add_row(
+            _text(label.removeprefix("label_")),
+            str(len(checked)),
+            str(int((agree >= 1.0).sum())),
+            f"{agree.mean():.3f}",
+            str(int(moved)),
+        )
+    console.print(table)
+    uncertain = checked[checked[ROBUST].eq(False).fillna(False).astype(bool)]
+    if uncertain.empty:
+        console.print(f"every one of the {len(checked)} replicated cell(s) is robust")
+        return
+    axes = [c for c in manifest.get("axes", {}).values() if isinstance(c, str) and c in cells.columns]
+    lines = []
+    for _, row in uncertain.head(SHOWN_UNCERTAIN).iterrows():
+        where = ", ".join(f"{c} {_text(row[c], 40)}" for c in axes)
+        shares = ", ".join(
+            f"{label.removeprefix('label_')} {_text(row[f'{label}_majority'], 40)} "
+            f"({row[f'{label}_agreement']:.0%})"
+            for label in label_columns(cells)
+        )
+        lines.append(f"  trial {row['trial']}: {where}: {shares}")
+    more = f" (the first {SHOWN_UNCERTAIN})" if len(uncertain) > SHOWN_UNCERTAIN else ""
+    console.print(f"{len(uncertain)} cell(s) not robust{more}: majority label (share of runs agreeing)")
+    for line in lines:
+        console.print(line)
+
+
 def _text(value: object, limit: int = 200) -> str:
     """A stored value (a label, a message, a name from the manifest) as rich prints it verbatim:
     markup escaped (``[/tmp/x]`` in an error message broke ``show``), control characters shown."""
@@ -78,7 +122,9 @@ def print_run_summary(console: Console, summary: RunSummary) -> None:
         stored = f"{summary.skipped} already stored ({summary.stored_errors} as error)"
     console.print(f"{summary.run} trial(s) run ({status}); {stored}; {summary.total} in the study")
     if summary.sampling == "adaptive":
-        rounds = ", ".join(f"round {r.number}: {r.cells} cells, {r.run} run" for r in summary.rounds)
+        rounds = ", ".join(
+            f"round {r.number}: {r.cells} cells, {r.run} run" for r in summary.rounds if r.kind != "replicas"
+        )
         console.print(f"adaptive: {rounds or 'no round left to run'}")
         if summary.interrupted is None:
             as_error = f", {summary.inferred_errors} of them as error" if summary.inferred_errors else ""
@@ -90,6 +136,18 @@ def print_run_summary(console: Console, summary: RunSummary) -> None:
             console.print(f"adaptive: note: {_text(note, 2000)}")
     if summary.by_label:
         console.print("labels: " + ", ".join(f"{_text(k)} {v}" for k, v in sorted(summary.by_label.items())))
+    if summary.robustness is not None and summary.interrupted is None:
+        r = summary.robustness
+        how = (
+            f"{r['boundary_cells']} on a label boundary, {r['audited_cells']} audited"
+            if r["where"] == "boundary"
+            else "every simulated cell"
+        )
+        console.print(
+            f"robustness: {r['cells_replicated']} cell(s) replicated x {r['replicas']} ({how}); "
+            f"{summary.replicas_run} replica(s) run now; somo-sweep show {_text(summary.folder, 2000)} "
+            "lists the cells whose label is not robust"
+        )
     console.print(
         f"wall time {summary.wall_time_s:.1f} s, {summary.trials_per_s:.2f} trials/s; "
         f"results in {_text(summary.folder, 2000)}"
@@ -141,6 +199,11 @@ def print_results(
     """
     pending = pending or {}
     total = manifest.get("n_trials") or 0
+    replica_runs = 0
+    if not df.empty:
+        n_rows = len(df)
+        df = fold(df)
+        replica_runs = n_rows - len(df)
     inferred = inferred_mask(df)
     stored = f"{len(df)} of {total} trials stored"
     if inferred.any():
@@ -148,6 +211,8 @@ def print_results(
             f"{(~inferred).sum()} simulated and {inferred.sum()} inferred (adaptive sampling) "
             f"of {total} trials"
         )
+    if replica_runs:
+        stored += f", and {replica_runs} robustness replica run(s)"
     if sum(pending.values()) and holder is None:
         stored += f" (and {sum(pending.values())} finished in a killed run's journal, stored by the next run)"
     elif sum(pending.values()):
@@ -175,6 +240,7 @@ def print_results(
     for key, column in manifest.get("axes", {}).items():
         if isinstance(column, str) and column in df.columns:  # a hand-edited manifest may hold anything
             console.print(_table(f"by {key}", breakdown(df, column), column))
+    _print_robustness(console, df, manifest)
     simulated = df[~inferred]
     bad = simulated[simulated["status"] != "ok"]
     if len(bad):

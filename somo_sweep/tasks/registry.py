@@ -71,6 +71,11 @@ class TaskSpec:
             (``prepare(model, params)``: the pinch task re-splits the fingers, the snake drops its
             anisotropic friction when asked); None: the study's model as it is. Loading a study
             checks that its engine can express it.
+        perturb: A small physical perturbation of a trial's parameters, for robustness replicas
+            (:mod:`somo_sweep.sweep.robustness`): ``perturb(params, rng)`` returns new
+            parameters drawn with the NumPy generator ``rng`` (e.g. the object moved by a fraction
+            of a millimetre). None: the task has none, and its studies cannot ask for replicas.
+        perturbation: One line saying what ``perturb`` changes (for ``--help`` and the docs).
     """
 
     name: str
@@ -82,6 +87,8 @@ class TaskSpec:
     check_model: Callable[[Model], list[str]] | None = None
     check_params: Callable[[Model, Any], list[str]] | None = None
     prepare: Callable[[Model, Any], Model] | None = None
+    perturb: Callable[[Any, Any], Any] | None = None
+    perturbation: str = ""
 
     @property
     def run(self) -> TaskFn:

@@ -10,7 +10,8 @@
 
 With ``region_radius_m`` set, every task also labels ``region`` ``inside`` or ``outside`` the
 ball of that radius around the origin in (x, u, v): a known label boundary in up to three
-dimensions, for the adaptive-sampling tests.
+dimensions, for the adaptive-sampling tests. Their robustness replicas (:func:`perturb`) move
+``x`` by up to ``jitter`` (``x_offset``), so cells within ``jitter`` of a boundary can flip.
 
 They let the robustness tests run in real loky and Dask worker processes in milliseconds.
 """
@@ -59,6 +60,11 @@ class SelftestParams(BaseModel):
             the seed) as it returns, so that fault-injection tests can count finished trials.
         notify_fifo: If set, a named pipe that gets one byte as each trial returns, so that a
             test can block until trials finish instead of polling (no reader: nothing sent).
+        jitter: Largest shift of ``x`` a robustness replica draws (:func:`perturb`).
+        x_offset: Shift of ``x`` in the labels (a replica's draw).
+        coarse_above_s: If > 0, the label ``step`` is ``coarse`` at time steps above this, s,
+            else ``fine``: a label that converges only below a known step.
+        label_the_step: Label ``dt`` with the time step itself: a label that never converges.
     """
 
     model_config = ConfigDict(extra="forbid", frozen=True)
@@ -75,6 +81,10 @@ class SelftestParams(BaseModel):
     none_x: list[float] = Field(default_factory=list)
     done_dir: str = ""
     notify_fifo: str = ""
+    jitter: float = Field(0.0, ge=0)
+    x_offset: float = 0.0
+    coarse_above_s: float = Field(0.0, ge=0)
+    label_the_step: bool = False
 
 
 def _notify(fifo: str) -> None:
@@ -88,7 +98,7 @@ def _notify(fifo: str) -> None:
         os.close(fd)
 
 
-def _result(params: SelftestParams, seed: int) -> TaskResult:
+def _result(params: SelftestParams, seed: int, step_s: float = 0.0) -> TaskResult:
     time.sleep(params.sleep_s)
     noise = np.random.default_rng(seed).normal()  # a NumPy scalar, as tasks often return
     if params.done_dir:
@@ -101,20 +111,25 @@ def _result(params: SelftestParams, seed: int) -> TaskResult:
             "noise": noise,
             "time_s": params.sleep_s,
         },
-        labels=_labels(params),
+        labels=_labels(params, step_s),
     )
 
 
-def _labels(params: SelftestParams) -> dict[str, str]:
-    labels = {"sign": "positive" if params.x > 0 else "non_positive"}
+def _labels(params: SelftestParams, step_s: float = 0.0) -> dict[str, str]:
+    x = params.x + params.x_offset
+    labels = {"sign": "positive" if x > 0 else "non_positive"}
+    if params.coarse_above_s > 0:
+        labels["step"] = "coarse" if step_s > params.coarse_above_s else "fine"
+    if params.label_the_step:
+        labels["dt"] = f"{step_s:.6g}"
     if params.region_radius_m > 0:
-        inside = params.x**2 + params.u**2 + params.v**2 < params.region_radius_m**2
+        inside = x**2 + params.u**2 + params.v**2 < params.region_radius_m**2
         labels["region"] = "inside" if inside else "outside"
     return labels
 
 
 def _sleep(model: Model, params: SelftestParams, settings: WorldSettings, seed: int) -> TaskResult:
-    return _result(params, seed)
+    return _result(params, seed, settings.time_step_s)
 
 
 def _crash(model: Model, params: SelftestParams, settings: WorldSettings, seed: int) -> TaskResult:
@@ -133,7 +148,13 @@ def _unstable(model: Model, params: SelftestParams, settings: WorldSettings, see
     too_large = params.unstable_above_step_s == 0 or settings.time_step_s > params.unstable_above_step_s
     if params.x in params.unstable_x and too_large:
         raise UnstableSimulation("speed_cap", 0.123, "(selftest)")
-    return _result(params, seed)
+    return _result(params, seed, settings.time_step_s)
+
+
+def perturb(params: SelftestParams, rng: np.random.Generator) -> SelftestParams:
+    """A robustness replica: ``x_offset`` moved by a uniform draw within ±``jitter``."""
+    shift = float(rng.uniform(-params.jitter, params.jitter))
+    return params.model_copy(update={"x_offset": params.x_offset + shift})
 
 
 for _name, _fn, _text in (
@@ -141,4 +162,15 @@ for _name, _fn, _text in (
     ("selftest_crash", "_crash", "Kills its process for chosen x (engine tests)."),
     ("selftest_unstable", "_unstable", "Reports a blow-up for chosen x (engine tests)."),
 ):
-    register(TaskSpec(_name, f"{__name__}:{_fn}", SelftestParams, _text, ("selftest",), METRICS))
+    register(
+        TaskSpec(
+            _name,
+            f"{__name__}:{_fn}",
+            SelftestParams,
+            _text,
+            ("selftest",),
+            METRICS,
+            perturb=perturb,
+            perturbation="x moved by up to ±jitter",
+        )
+    )

@@ -213,7 +213,8 @@ def test_fig6_quick_pipeline_runs_real_trials_and_draws_the_figure(tmp_path: Pat
         "sweep:\n  task.distal_segment_ratio: [0.1, 0.5]\n  task.object_width_m: [0.080, 0.120]\n"
         "  task.centering_position_m: [0.085, 0.115]\n"
         "link: [[task.distal_segment_ratio, task.object_width_m, task.centering_position_m]]\n"
-        "seed: 0\nsimulation: {time_step_s: 4.0e-3, scale: 20, solver_iterations: 50}\n"
+        "seed: 0\nparams: {numerics: {added_inertia_kg_m2: 3.0e-5}}\n"
+        "simulation: {time_step_s: 4.0e-3, scale: 20, solver_iterations: 50}\n"
     )
     folder = tmp_path / "results" / "pinch_tiny"
     result = CliRunner().invoke(app, ["run", str(study), "--out", str(folder), "--jobs", "2"])

@@ -132,7 +132,7 @@ def test_bundled_ablation_makes_every_configuration_and_shares_coinciding_ones(t
         "original-springs_x2",
         "original-point_contacts",
     ]
-    assert configs["ours"].folder == tmp_path / "pinch_grasp_quick"
+    assert configs["ours"].folder == tmp_path / "pinch_grasp_quick_ablation_ours"
     assert configs["original"].folder == tmp_path / "pinch_grasp_quick_original"
     # With two physical factors, ours + one factor is the original without the other.
     assert configs["original-point_contacts"].same_as == "ours+springs_x2"
@@ -142,7 +142,7 @@ def test_bundled_ablation_makes_every_configuration_and_shares_coinciding_ones(t
 
 
 def test_an_original_study_that_is_not_ours_plus_the_factors_is_refused(tmp_path: Path) -> None:
-    for name in ("pinch_grasp_quick.yaml", "pinch_grasp_quick_original.yaml"):
+    for name in ("pinch_grasp_quick_ablation_ours.yaml", "pinch_grasp_quick_original.yaml"):
         text = (ABLATION_FILE.parent / name).read_text().replace("models/", f"{MODELS}/")
         (tmp_path / name).write_text(text.replace("spring_scale: 2.0", "spring_scale: 3.0"))
     shutil.copy(ABLATION_FILE, tmp_path / "ablation.yaml")

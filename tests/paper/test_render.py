@@ -45,17 +45,29 @@ def test_snapshot_times_outside_the_trial_are_refused_before_it_runs(
 
 
 def test_a_trial_that_ends_early_says_so_and_renders_what_it_reached(tmp_path: Path) -> None:
-    """DSR 0, a 10-mm box at c = 160 mm: no contact by the end of the squeeze (Fig. 6 run: 2.08 s)."""
-    path = _study(tmp_path, "object_width_m: 0.01, centering_position_m: 0.160")
+    """DSR 0, a 10-mm box at c = 175 mm: no contact by the end of the squeeze (the quick study at
+    0.5 ms: 2.08 s)."""
+    path = _study(tmp_path, "object_width_m: 0.01, centering_position_m: 0.175")
+    text = path.read_text() + "simulation: {time_step_s: 5.0e-4, body_per_manipulator: true}\n"
+    path.write_text(text)
     out = tmp_path / "r"
     res = CliRunner().invoke(
         app, ["render", str(path), "--trial", "0", "--at-s", "0.5,3.5", "--out", str(out)]
     )
     assert res.exit_code == 0, res.output
     assert "trial 0: no_grasp (ended early at 2." in res.output
-    assert ": no_contact_after_squeeze; no snapshot after it)" in res.output
-    assert sorted(p.name for p in out.iterdir()) == ["one_dsr0.00_w10mm_c160mm_t0.50s.png"]
-    assert (out / "one_dsr0.00_w10mm_c160mm_t0.50s.png").read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+    assert ": no_contact_after_squeeze; no snapshot after it); step 0.5 ms\n" in res.output
+    assert sorted(p.name for p in out.iterdir()) == ["one_dsr0.00_w10mm_c175mm_t0.50s.png"]
+    assert (out / "one_dsr0.00_w10mm_c175mm_t0.50s.png").read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+
+
+def test_a_study_that_has_not_chosen_its_step_says_it_draws_the_starting_guess(tmp_path: Path) -> None:
+    path = _study(tmp_path, "object_width_m: 0.04, centering_position_m: 0.100")
+    res = CliRunner().invoke(
+        app, ["render", str(path), "--trial", "0", "--at-s", "0.1", "--out", str(tmp_path / "r")]
+    )
+    assert res.exit_code == 0, res.output
+    assert "the automatic step's starting guess: this study has not chosen its step yet" in res.output
 
 
 def test_render_runs_a_trial_on_mujoco_and_draws_it(tmp_path: Path) -> None:

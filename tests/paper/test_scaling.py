@@ -27,6 +27,7 @@ model: models/ihm_finger.yaml
 params: {sleep_s: 0.2}
 sweep:
   task.x: {start: 1, stop: 6, step: 1}
+simulation: {time_step_s: 1.0e-3}
 """
 
 
@@ -94,9 +95,11 @@ def test_numerics_setups_out_of_range_are_refused_before_any_trial(setup: str) -
 
 def test_a_setup_names_its_body_layout() -> None:
     from somo_sweep.paper.numerics import CHOSEN, parse_setup
+    from somo_sweep.paper.robust_cost import BEFORE
 
     split = parse_setup("4e-3,50,3e-5")
-    assert parse_setup("4e-3,50,3e-5,friction-every-2") == CHOSEN
+    assert parse_setup("5e-4,50,0") == CHOSEN
+    assert parse_setup("4e-3,50,3e-5,friction-every-2") == BEFORE
     one = parse_setup("2e-3, 50, 3e-5, 0.01, one-body")
     assert split.settings().body_per_manipulator is True
     assert (one.time_step_s, one.numerics.damping_n_m_s_per_rad) == (2e-3, 0.01)

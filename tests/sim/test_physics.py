@@ -240,11 +240,12 @@ def test_the_solver_residual_threshold_reaches_bullet() -> None:
     """A pinch trial's contacts and joint rows do not converge to Bullet's 1e-7 in 50 iterations,
     so a looser early exit must change the trial (it is not silently dropped), while leaving its
     outcome, and the same threshold must give the same trial twice (deterministic)."""
-    from somo_sweep.paper.numerics import CHOSEN, _trial
+    from somo_sweep.paper.numerics import _trial
+    from somo_sweep.paper.robust_cost import BEFORE  # 4 ms: an eighth of the chosen 0.5 ms's steps
 
     point = {"distal_segment_ratio": 0.2, "object_width_m": 0.040, "centering_position_m": 0.100}
-    early = dataclasses.replace(CHOSEN, solver_residual_threshold=1e-2)
-    base, loose, again = _trial(point, CHOSEN), _trial(point, early), _trial(point, early)
+    early = dataclasses.replace(BEFORE, solver_residual_threshold=1e-2)
+    base, loose, again = _trial(point, BEFORE), _trial(point, early), _trial(point, early)
     assert repr(loose["metrics"]) == repr(again["metrics"])  # bit for bit, NaN (not ended early) too
     assert loose["metrics"]["lift_height_m"] != base["metrics"]["lift_height_m"]
     assert loose["labels"] == base["labels"] == {"grasp": "pinch", "grasp_paper": "pinch"}

@@ -22,7 +22,7 @@ SIMULATION = "simulation: {time_step_s: 1.0e-3}"
 
 
 def test_a_study_without_simulation_runs_the_chosen_step_and_shaping(tmp_path: Path) -> None:
-    table = build_jobs(load_study(selftest_study(tmp_path, n=2), tmp_path / "out"))
+    table = build_jobs(load_study(selftest_study(tmp_path, n=2, auto=True), tmp_path / "out"))
     chosen = choose_numerics(load_model(MODELS / "ihm_finger.yaml"))
     job = table.jobs[0]
     assert job.settings.time_step_s == chosen.time_step_s != 5e-4  # not the old default
@@ -41,7 +41,7 @@ def test_a_study_with_simulation_keeps_its_step_and_model(tmp_path: Path) -> Non
 
 
 def test_job_ids_follow_the_step_actually_used(tmp_path: Path) -> None:
-    auto = build_jobs(load_study(selftest_study(tmp_path, n=1), tmp_path / "a")).jobs[0]
+    auto = build_jobs(load_study(selftest_study(tmp_path, n=1, auto=True), tmp_path / "a")).jobs[0]
     step = auto.settings.time_step_s
     same = make_study(
         tmp_path,
@@ -79,7 +79,7 @@ def test_a_retry_that_blows_up_too_stays_unstable(tmp_path: Path) -> None:
 
 
 def test_the_manifest_records_the_automatic_numerics(tmp_path: Path) -> None:
-    run_study(load_study(selftest_study(tmp_path, n=2), tmp_path / "out"), n_jobs=1)
+    run_study(load_study(selftest_study(tmp_path, n=2, auto=True), tmp_path / "out"), n_jobs=1)
     auto = read_manifest(tmp_path / "out")["study"]["simulation"]["auto"]
     (choice,) = auto.values()
     assert {"time_step_s", "reason", "chains"} <= set(choice)
@@ -89,15 +89,16 @@ def test_the_manifest_records_the_automatic_numerics(tmp_path: Path) -> None:
 
 
 def test_dry_run_prints_the_chosen_step_and_modes(tmp_path: Path) -> None:
-    res = CliRunner().invoke(app, ["run", str(selftest_study(tmp_path, n=2)), "--dry-run"])
+    res = CliRunner().invoke(app, ["run", str(selftest_study(tmp_path, n=2, auto=True)), "--dry-run"])
     assert res.exit_code == 0, res.output
     assert "automatic numerics (no simulation: block)" in res.output
     assert "time step" in res.output and "lowest mode" in res.output and "rad/s" in res.output
 
 
 def test_check_prints_modes_step_and_shaping() -> None:
-    res = CliRunner().invoke(app, ["check", str(MODELS / "pinch_gripper.yaml")])
+    res = CliRunner().invoke(app, ["check", str(MODELS / "pinch_gripper.yaml")], terminal_width=300)
     assert res.exit_code == 0, res.output
-    for text in ("time step 0.5 ms", "left: lowest mode 28.56 rad/s (4.546 Hz)", "highest 4573 rad/s"):
+    assert "label convergence on a sample of the study's own cells, trying 4, 2, 1, 0.5, 0.3 ms" in res.output
+    for text in ("left: lowest mode 28.56 rad/s (4.546 Hz)", "highest 4573 rad/s"):
         assert text in res.output
     assert "added inertia 1.33e-07 kg·m² per link" in res.output and "moved 0.72 %" in res.output

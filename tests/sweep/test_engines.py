@@ -145,7 +145,8 @@ def test_compare_engines_runs_both_and_writes_the_cell_table(
     """A two-cell study (short trials) on both engines: per-trial table and summary written."""
     pytest.importorskip("mujoco")
     extra = (
-        "params: {approach_s: 0.1, ramp_s: 0.1, lift_s: 0.1, hold_s: 0.1, approach_m: 0.01}\n"
+        "params: {approach_s: 0.1, ramp_s: 0.1, lift_s: 0.1, hold_s: 0.1, approach_m: 0.01,\n"
+        "  numerics: {added_inertia_kg_m2: 3.0e-5}}\n"  # PyBullet at 4 ms needs the shaping
         "sweep:\n  task.object_width_m: [0.01, 0.04]\n"
     )
     path = _study(tmp_path, "{time_step_s: 4.0e-3}", extra=extra)

@@ -40,8 +40,16 @@ def make_study(folder: Path, body: str, name: str = "study.yaml") -> Path:
     return path
 
 
-def selftest_study(folder: Path, task: str = "selftest_sleep", extra: str = "", n: int = 8) -> Path:
-    """A study of ``n`` trials x = 1..n of a selftest task; ``extra`` lines go at the end."""
+def selftest_study(
+    folder: Path, task: str = "selftest_sleep", extra: str = "", n: int = 8, auto: bool = False
+) -> Path:
+    """A study of ``n`` trials x = 1..n of a selftest task; ``extra`` lines go at the end.
+
+    It names its step (1 ms) unless ``extra`` has a ``simulation:`` or ``auto`` is set: without one a
+    run first chooses the step from a sample of its cells (sweep/convergence.py).
+    """
+    if not auto and "simulation" not in extra:
+        extra = f"{extra}\nsimulation: {{time_step_s: 1.0e-3}}"
     body = (
         f"name: st\ntask: {task}\nmodel: models/ihm_finger.yaml\nparams: {{sleep_s: 0.0}}\n"
         f"sweep:\n  task.x: {{start: 1, stop: {n}, step: 1}}\n{extra}\n"

@@ -20,7 +20,7 @@ SHORT: dict[str, tuple[str | None, dict[str, Any], float]] = {
     "pinch_grasp": (
         "pinch_gripper.yaml",
         {"approach_s": 0.1, "ramp_s": 0.1, "lift_s": 0.1, "hold_s": 0.1, "approach_m": 0.01},
-        4e-3,
+        5e-4,
     ),
     "snake": ("snake.yaml", {"duration_s": 0.3}, 1e-3),
     "whole_arm": ("whole_arm.yaml", {"duration_s": 0.3}, 1e-3),

@@ -17,6 +17,7 @@ import math
 from itertools import pairwise
 from typing import Any, Literal
 
+import numpy as np
 from pydantic import BaseModel, ConfigDict, Field, field_validator, model_validator
 
 from somo_sweep.model.description import MAX_LENGTH_M, MIN_LENGTH_M
@@ -34,6 +35,7 @@ __all__ = [
     "final_count_columns",
     "link_columns",
     "original_hull_size_m",
+    "perturb",
 ]
 
 #: Link numbers stored per trial: 20 segments and the fingertip.
@@ -42,6 +44,12 @@ N_FINGER_LINKS = 21
 #: distance d from the object's centre (its hand offset h in scaled units gives d = 100 + 50·h
 #: and c = 100 − 50·h, in mm).
 BASE_DISTANCE_AT_ZERO_CENTERING_M = 0.200
+#: Robustness replicas (:func:`perturb`): the object starts up to this far off its spot in x and
+#: in y, m, and its friction coefficient is scaled by up to ± this fraction.
+JITTER_M = 0.5e-3
+FRICTION_SPREAD = 0.05
+#: Largest start offset of the object a study may set, m.
+MAX_OFFSET_M = 0.05
 
 
 def distal_link_count(distal_segment_ratio: float) -> int:
@@ -133,15 +141,18 @@ class Numerics(BaseModel):
     """Numerical regularisation applied on top of the model file (not physics).
 
     Attributes:
-        added_inertia_kg_m2: Inertia shaping added to each finger link's principal
-            moments (lowers the chain's highest mode; statics unchanged).
+        added_inertia_kg_m2: Inertia shaping added to each finger link's principal moments
+            (lowers the chain's highest mode so a larger explicit step is stable). ``None`` (the
+            default) keeps the model's: none in the bundled finger, or what a study without
+            ``simulation:`` chose for its step (:mod:`somo_sweep.sweep.convergence`). Shaping
+            moves labels (docs/pinch_grasp.md, "Numerics"), so the bundled studies use none.
         damping_n_m_s_per_rad: Viscous damping of every finger joint (``None`` keeps the file's).
         motor_limit_n_m: Coulomb motor limit of every finger joint (``None`` keeps the file's).
     """
 
     model_config = ConfigDict(extra="forbid", frozen=True)
 
-    added_inertia_kg_m2: float = Field(3e-5, ge=0)
+    added_inertia_kg_m2: float | None = Field(None, ge=0)
     damping_n_m_s_per_rad: float | None = Field(None, ge=0)
     motor_limit_n_m: float | None = Field(None, ge=0)
 
@@ -175,6 +186,11 @@ class PinchGraspParams(BaseModel):
         restitution: Restitution of the object, the finger links and the fingertips (Bullet
             multiplies a pair's values; the ground and the base boxes keep theirs). ``None``
             keeps the model file's on the fingers (0 in the bundled finger) and 0 on the object.
+        object_offset_m: Where the object starts, (x, y) from the study's nominal spot, m:
+            robustness replicas move it by up to ``JITTER_M`` (:func:`perturb`).
+        object_friction_scale: Multiplies the object's friction coefficient (so every contact
+            pair the object is in: Bullet multiplies a pair's values); replicas draw it within
+            ±``FRICTION_SPREAD``.
         lift_profile: Breakpoints of the lift inside its phase, as (fraction of ``lift_s``,
             fraction of ``lift_m``) pairs, joined linearly from (0, 0) to (1, 1). Empty: one
             straight ramp (ours). The original's: ((0.2, 1/15), (0.8, 14/15)), 5 mm in the first
@@ -213,6 +229,8 @@ class PinchGraspParams(BaseModel):
     lift_profile: tuple[tuple[float, float], ...] = ()
     object_shape: Literal["box", "original_hull"] = "box"
     clamp_speed_cap: bool = False
+    object_offset_m: tuple[float, float] = (0.0, 0.0)
+    object_friction_scale: float = Field(1.0, gt=0, le=10)
 
     @field_validator("lift_profile")
     @classmethod
@@ -238,6 +256,13 @@ class PinchGraspParams(BaseModel):
                 f"object_width_m {self.object_width_m:g}; allowed: {widths}"
             )
         return self
+
+    @field_validator("object_offset_m")
+    @classmethod
+    def _small_offset(cls, value: tuple[float, float]) -> tuple[float, float]:
+        if not all(math.isfinite(v) and abs(v) <= MAX_OFFSET_M for v in value):
+            raise ValueError(f"each offset must be finite and within ±{MAX_OFFSET_M:g} m, got {list(value)}")
+        return value
 
     @model_validator(mode="before")
     @classmethod
@@ -312,6 +337,20 @@ def simulated_gripper(model: Model, params: PinchGraspParams) -> Model:
     return gripper(model, params)
 
 
+def perturb(params: PinchGraspParams, rng: np.random.Generator) -> PinchGraspParams:
+    """A robustness replica of a trial: the object moved by up to ±0.5 mm in x and in y, and its
+    friction coefficient scaled by a factor within ±5 % (uniform draws from ``rng``)."""
+    dx, dy = rng.uniform(-JITTER_M, JITTER_M, size=2)
+    scale = rng.uniform(1.0 - FRICTION_SPREAD, 1.0 + FRICTION_SPREAD)
+    x0, y0 = params.object_offset_m
+    return params.model_copy(
+        update={
+            "object_offset_m": (float(x0 + dx), float(y0 + dy)),
+            "object_friction_scale": float(params.object_friction_scale * scale),
+        }
+    )
+
+
 register(
     TaskSpec(
         name="pinch_grasp",
@@ -322,5 +361,10 @@ register(
         metrics=METRICS,
         check_model=check_gripper,
         prepare=simulated_gripper,
+        perturb=perturb,
+        perturbation=(
+            f"the object starts up to ±{JITTER_M * 1e3:g} mm off its spot in x and y, its friction "
+            f"coefficient within ±{FRICTION_SPREAD:.0%}"
+        ),
     )
 )

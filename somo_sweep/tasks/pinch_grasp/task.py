@@ -106,8 +106,9 @@ def split_finger(
     def tuned(act: Actuator, n: int, actuated: bool) -> Actuator:
         link = surface(act.link.with_length_z(seg_m))
         joints = list(act.joints)
-        if numerics is not None:
+        if numerics is not None and numerics.added_inertia_kg_m2 is not None:
             link = link.model_copy(update={"added_inertia_kg_m2": numerics.added_inertia_kg_m2})
+        if numerics is not None:
             upd: dict[str, float] = {}
             if numerics.damping_n_m_s_per_rad is not None:
                 upd["damping_n_m_s_per_rad"] = numerics.damping_n_m_s_per_rad
@@ -169,7 +170,7 @@ def gripper(model: Model, params: PinchGraspParams) -> Model:
 
 
 def object_body(params: PinchGraspParams) -> RigidBody:
-    """The box to grasp, resting just above the ground at x = y = 0."""
+    """The box to grasp, resting just above the ground at x = y = 0 (plus ``object_offset_m``)."""
     size = (params.object_width_m, OBJECT_DEPTH_M, OBJECT_HEIGHT_M)
     if params.object_shape == "original_hull":
         size = original_hull_size_m(params.object_width_m) or size
@@ -179,11 +180,11 @@ def object_body(params: PinchGraspParams) -> RigidBody:
             shape="box",
             size_m=size,
             mass_kg=OBJECT_MASS_KG,
-            friction={"lateral": OBJECT_FRICTION},
+            friction={"lateral": OBJECT_FRICTION * params.object_friction_scale},
             restitution=params.restitution or 0.0,
             color_rgba=OBJECT_COLOR_RGBA,
         ),
-        pose=Pose(position_m=(0.0, 0.0, size[2] / 2 + SPAWN_GAP_M)),
+        pose=Pose(position_m=(*params.object_offset_m, size[2] / 2 + SPAWN_GAP_M)),
     )
 
 
@@ -222,7 +223,8 @@ def run_pinch_grasp(
         hand = world.add_model(hand_model, Pose(position_m=tuple(far)))
         probe = HoldProbe(world, hand, obj.id, ground)
         mount_to_palm_x = float(far[0] - probe.finger_mounts_m()[:, 0].mean())
-        x_end = obj_start[0] + p.base_distance_m + mount_to_palm_x
+        # The hand aims at the object's nominal spot (x = 0): a replica's offset moves the object only.
+        x_end = p.base_distance_m + mount_to_palm_x
         start = np.array([x_end + p.approach_m, 0.0, p.hand_height_m])
         world.drive_model(hand, start, (0.0, 0.0, 0.0))
         world.place_model(hand, start, (0.0, 0.0, 0.0))

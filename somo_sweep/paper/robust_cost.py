@@ -1,0 +1,157 @@
+"""What trustworthy labels cost: one trial and the quick study, before and after, in one run.
+
+Two measurements, each with both sides run by this process one after the other, so the ratio
+holds under whatever load the machine has:
+
+* **One trial** (the bench point: DSR 0.2, 40-mm box, c = 100 mm): CPU time under the numerics
+  the pinch studies used before labels were checked for robustness (:data:`BEFORE`: 4 ms, the
+  links' inertia shaped 400-fold) and under the chosen ones
+  (:data:`~somo_sweep.paper.numerics.CHOSEN`), alternating, ``rounds`` times each.
+* **The quick study** (192 cells): run plain at :data:`BEFORE`, then at the chosen numerics with
+  robustness replicas (K = 4 on label-boundary cells plus the 10 % audit), each through the sweep
+  engine into its own folder; summed trial time and wall time.
+
+``somo-sweep paper robust-cost`` prints both and writes them as JSON; ``make bench-robust``.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import statistics
+from dataclasses import dataclass
+from pathlib import Path
+from time import perf_counter
+from typing import Any
+
+from somo_sweep.paper.numerics import CHOSEN, QUICK_STUDY, Setup, alternating_trial_seconds
+from somo_sweep.tasks.pinch_grasp.params import Numerics
+
+__all__ = ["BEFORE", "CostReport", "StudyCost", "cost_lines", "cost_runs"]
+
+#: The pinch studies' numerics before robust labels: 4 ms, 3e-5 kg·m² on each finger link (about
+#: 400 times a link's own inertia), the joints' friction solved every other step.
+BEFORE = Setup(4e-3, 50, Numerics(added_inertia_kg_m2=3e-5), friction_rows_every=2)
+
+
+@dataclass(frozen=True)
+class StudyCost:
+    """One run of the quick study: how, trials and replicas run, summed trial time and wall time (s)."""
+
+    name: str
+    trials: int
+    replicas: int
+    trial_time_s: float
+    wall_s: float
+
+
+@dataclass(frozen=True)
+class CostReport:
+    """Both measurements.
+
+    Attributes:
+        trial_cpu_s: (before, chosen) CPU time of one trial, per round.
+        studies: The plain quick study before, then the robust one at the chosen numerics.
+        before: Description of the earlier numerics; ``chosen`` of the chosen ones.
+    """
+
+    trial_cpu_s: list[tuple[float, float]]
+    studies: list[StudyCost]
+    before: str
+    chosen: str
+
+    @property
+    def trial_ratio(self) -> float:
+        """Median over rounds of chosen / before CPU time of one trial."""
+        return statistics.median(b / a for a, b in self.trial_cpu_s)
+
+    def as_dict(self) -> dict[str, Any]:
+        """Plain JSON-able record."""
+        return {
+            "before": self.before,
+            "chosen": self.chosen,
+            "trial_cpu_s": [list(p) for p in self.trial_cpu_s],
+            "trial_ratio": self.trial_ratio,
+            "studies": [dataclasses.asdict(s) for s in self.studies],
+        }
+
+
+def _setup_overrides(setup: Setup) -> tuple[dict[str, Any], dict[str, Any]]:
+    """(study overrides, simulation fields) that make a pinch study run ``setup``."""
+    n = setup.numerics
+    over = {"task.numerics.added_inertia_kg_m2": n.added_inertia_kg_m2}
+    sim = {
+        "time_step_s": setup.time_step_s,
+        "solver_iterations": setup.solver_iterations,
+        "body_per_manipulator": setup.body_per_manipulator,
+        "friction_rows_every": setup.friction_rows_every,
+    }
+    return over, sim
+
+
+def _run(study_path: Path, setup: Setup, folder: Path, replicas: int, n_jobs: int, name: str) -> StudyCost:
+    from somo_sweep.sweep.runner import run_study
+    from somo_sweep.sweep.store import read_results
+    from somo_sweep.sweep.study import Simulation, derive_study, load_study, with_replicas
+
+    base = load_study(study_path, folder)
+    over, sim = _setup_overrides(setup)
+    study = derive_study(base, over, base.name, folder)
+    study = dataclasses.replace(study, simulation=Simulation(**sim))
+    if replicas:
+        study = with_replicas(study, replicas)
+    start = perf_counter()
+    summary = run_study(study, n_jobs=n_jobs)
+    wall = perf_counter() - start
+    table = read_results(folder)
+    return StudyCost(name, summary.run, summary.replicas_run, float(table["wall_time_s"].sum()), wall)
+
+
+def cost_runs(
+    folder: Path,
+    rounds: int = 3,
+    replicas: int = 4,
+    n_jobs: int = 2,
+    study_path: Path = QUICK_STUDY,
+    chosen: Setup = CHOSEN,
+) -> CostReport:
+    """Time one trial both ways, then run the study plain before and robust at ``chosen``.
+
+    Args:
+        folder: Where the two results folders go (``before/``, ``robust/``); fresh folders are
+            timed fresh, existing ones resume (and then time only what was left).
+        rounds: Alternating rounds of the one-trial timing.
+        replicas: K of the robust run.
+        n_jobs: Workers of both study runs.
+        study_path: The study (default: the quick Fig. 6 study).
+        chosen: The numerics after.
+    """
+    pairs = [(a, b) for a, b in alternating_trial_seconds([BEFORE, chosen], rounds)]
+    studies = [
+        _run(study_path, BEFORE, folder / "before", 0, n_jobs, "plain, before"),
+        _run(study_path, chosen, folder / "robust", replicas, n_jobs, f"robust (K = {replicas}), chosen"),
+    ]
+    return CostReport(pairs, studies, BEFORE.describe(), chosen.describe())
+
+
+def cost_lines(report: CostReport) -> list[str]:
+    """The report for people."""
+    before, robust = report.studies
+    lines = [
+        f"before: {report.before}",
+        f"chosen: {report.chosen}",
+        "one trial, CPU s (before, chosen): "
+        + ", ".join(f"{a:.2f} / {b:.2f}" for a, b in report.trial_cpu_s)
+        + f"; chosen / before = {report.trial_ratio:.2f}x (median of the rounds)",
+    ]
+    for s in report.studies:
+        lines.append(
+            f"quick study, {s.name}: {s.trials} trials + {s.replicas} replicas, summed trial time "
+            f"{s.trial_time_s:.0f} s, wall {s.wall_s:.0f} s"
+        )
+    if before.trial_time_s > 0 and before.wall_s > 0:
+        trial_ratio = robust.trial_time_s / before.trial_time_s
+        lines.append(
+            f"robust quick study / plain quick study before: {trial_ratio:.2f}x summed trial time, "
+            f"{robust.wall_s / before.wall_s:.2f}x wall"
+        )
+    return lines
