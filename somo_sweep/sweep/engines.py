@@ -23,6 +23,7 @@ import pandas as pd
 
 from somo_sweep.errors import SomoError
 from somo_sweep.sim.settings import ENGINES, MUJOCO_DEFAULT_STEP_S, WorldSettings
+from somo_sweep.sweep.robustness import fold
 from somo_sweep.sweep.study import Simulation, Study
 from somo_sweep.sweep.summary import label_columns
 
@@ -139,7 +140,9 @@ def compare(
     """Compare two results tables of one grid, trial by trial (simulated trials of both only).
 
     Args:
-        first, second: The two engines' results tables.
+        first, second: The two engines' results tables (robustness replicas are folded into
+            their cells: a cell's own trial is compared, and ``robust`` says whether its
+            replicas agreed).
         engines: Their names.
         axes: Columns of the swept parameters (kept in the cell table, and how a cell is named).
 
@@ -147,6 +150,7 @@ def compare(
         SomoError: The tables share no trial.
     """
     a, b = engines
+    first, second = _cells(first), _cells(second)
     keep = [c for c in axes if c in first.columns]
     left = first[~_inferred(first)].set_index("trial")
     right = second[~_inferred(second)].set_index("trial")
@@ -192,6 +196,14 @@ def compare(
                 "worst_trial": int(gap.idxmax()) if gap.notna().any() else -1,
             }
     return EngineComparison(engines, cells.reset_index(), summary, metrics, tuple(keep))
+
+
+def _cells(table: pd.DataFrame) -> pd.DataFrame:
+    """One row per cell: robustness replicas folded into their cell (its own trial's labels and
+    ``robust``, :func:`~somo_sweep.sweep.robustness.fold`); a table without replicas as it is."""
+    if "replica" not in table.columns or not (pd.to_numeric(table["replica"], errors="coerce") > 0).any():
+        return table
+    return fold(table)
 
 
 def _robust(left: pd.DataFrame, right: pd.DataFrame, label: str) -> pd.Series | None:

@@ -207,3 +207,24 @@ def test_the_engine_commands_without_mujoco_installed_say_so_before_running_anyt
     assert res.exit_code == 2, res.output
     assert "engine mujoco needs MuJoCo" in res.output and "Traceback" not in res.output
     assert not out.exists()
+
+
+def test_compare_folds_robustness_replicas_into_their_cells() -> None:
+    """A robust run stores replicas as rows of their cell's trial: one cell, compared once."""
+    own = _table(["pinch", "power", "pinch"])
+    replicas = pd.DataFrame(
+        {
+            "trial": [0, 0, 1, 1],
+            "replica": [1, 2, 1, 2],
+            "task_object_width_m": [0.01, 0.01, 0.02, 0.02],
+            "status": ["ok"] * 4,
+            "label_grasp": ["pinch", "pinch", "power", "pinch"],
+        }
+    )
+    first = pd.concat([own.assign(replica=0), replicas], ignore_index=True)
+    second = _table(["pinch", "pinch", "power"])
+    result = compare(first, second, ("pybullet", "mujoco"), ("task_object_width_m",))
+    grasp = result.labels["grasp"]
+    assert grasp["cells"] == 3 and grasp["agree"] == 1
+    assert grasp["robust_cells"] == 1 and grasp["robust_agree"] == 1  # cell 0: replicas agree
+    assert list(result.cells["robust_grasp"]) == [True, False, False]  # cell 2: no replicas
