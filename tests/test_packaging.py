@@ -30,7 +30,8 @@ def _imported() -> set[str]:
 
 
 def test_every_imported_distribution_is_declared() -> None:
-    declared = _names(PYPROJECT["dependencies"]) | _names(PYPROJECT["optional-dependencies"]["dask"])
+    extras = PYPROJECT["optional-dependencies"]
+    declared = _names(PYPROJECT["dependencies"]) | _names(extras["dask"]) | _names(extras["mujoco"])
     missing = {DISTRIBUTIONS.get(n, n).lower() for n in _imported()} - declared
     assert missing == set()
 
@@ -44,6 +45,13 @@ def test_dask_is_an_extra_and_a_dev_dependency_not_a_core_one() -> None:
     assert "dask" not in _names(PYPROJECT["dependencies"])
     assert any(r.startswith("dask[distributed]") for r in extras["dask"])
     assert "dask" in _names(extras["dev"])
+
+
+def test_mujoco_is_an_extra_and_a_dev_dependency_not_a_core_one() -> None:
+    """The default install runs without MuJoCo; CI (make test installs .[dev]) runs its tests."""
+    extras = PYPROJECT["optional-dependencies"]
+    assert "mujoco" not in _names(PYPROJECT["dependencies"])
+    assert "mujoco" in _names(extras["mujoco"]) and "mujoco" in _names(extras["dev"])
 
 
 def test_supported_platforms_are_classified() -> None:
