@@ -5,7 +5,7 @@ BIN    := $(VENV)/bin
 STAMP  := $(VENV)/.installed-stamp
 
 .DEFAULT_GOAL := help
-.PHONY: help install demo test test-slow lint format bench bench-scale bench-robust fig6 fig6-quick fig6-ablation fig6-ablation-quick fig3 fig5 fig5-quick palm palm-quick fig7 fig7-quick fig8 fig8-quick diagnose-demo sweep-demo figures clean
+.PHONY: help install demo test test-slow lint format bench bench-scale bench-engines bench-robust fig6 fig6-quick fig6-ablation fig6-ablation-quick fig3 fig5 fig5-quick palm palm-quick fig7 fig7-quick fig8 fig8-quick diagnose-demo sweep-demo figures clean
 
 help: ## List the targets
 	@grep -E '^[a-zA-Z0-9_-]+:.*?## ' $(MAKEFILE_LIST) | awk 'BEGIN {FS = ":.*?## "}; {printf "  make %-12s %s\n", $$1, $$2}'
@@ -42,6 +42,9 @@ bench: $(STAMP) ## Speed benchmark: grasp steps (Bullet vs Python), one trial, s
 
 bench-scale: $(STAMP) ## Sweep memory at 2 000 and 20 000 trials, and a resume's start (30-60 min on 2 cores)
 	$(BIN)/somo-sweep paper scale
+
+bench-engines: $(STAMP) ## The engine benchmark: one pinch trial on PyBullet and on MuJoCo side by side, MuJoCo's 4 ms vs 2 ms
+	$(BIN)/somo-sweep paper engines --convergence --out results/figures
 
 bench-robust: $(STAMP) ## What robust labels cost: one trial and the quick study, plain before vs robust now (~1 h on 2 cores) -> results/reference/robust_cost.json
 	$(BIN)/somo-sweep paper robust-cost --out results/reference

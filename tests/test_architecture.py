@@ -82,3 +82,67 @@ def test_test_modules_have_unique_names() -> None:
     """``tests`` has no packages: two test files with one basename stop pytest's collection."""
     names = [p.name for p in (PACKAGE.parent / "tests").rglob("test_*.py")]
     assert sorted({n for n in names if names.count(n) > 1}) == []
+
+
+#: Each engine's own package, the only place that may import it.
+ENGINE_PACKAGES = {"pybullet": "sim/pybullet", "mujoco": "sim/mujoco"}
+
+
+def _third_party_imports(path: Path) -> set[str]:
+    """Top-level names of every module a file imports (``import x.y`` and ``from x import y`` give x)."""
+    found = set()
+    for node in ast.walk(ast.parse(path.read_text(encoding="utf-8"))):
+        if isinstance(node, ast.ImportFrom) and node.module and node.level == 0:
+            found.add(node.module.split(".")[0])
+        elif isinstance(node, ast.Import):
+            found |= {a.name.split(".")[0] for a in node.names}
+    return found
+
+
+@pytest.mark.parametrize("engine", sorted(ENGINE_PACKAGES))
+def test_each_engine_is_imported_only_in_its_own_package(engine: str) -> None:
+    home = PACKAGE / ENGINE_PACKAGES[engine]
+    offenders = [
+        str(path.relative_to(PACKAGE))
+        for path in PACKAGE.rglob("*.py")
+        if engine in _third_party_imports(path) and home not in path.parents
+    ]
+    assert offenders == []
+
+
+def test_no_task_imports_an_engine_or_an_engine_package() -> None:
+    """Tasks talk only to ``World``: a task written once runs on both engines."""
+    offenders = {}
+    for path in (PACKAGE / "tasks").rglob("*.py"):
+        engines = _third_party_imports(path) & set(ENGINE_PACKAGES)
+        engine_packages = ("somo_sweep.sim.pybullet", "somo_sweep.sim.mujoco")
+        packages = {m for m in _imports(path) if m.startswith(engine_packages)}
+        if engines or packages:
+            offenders[str(path.relative_to(PACKAGE))] = sorted(engines | packages)
+    assert offenders == {}
+
+
+def test_the_checks_above_see_an_engine_import() -> None:
+    """The scanner finds ``import pybullet as p`` and ``from mujoco import x`` (the checks can fail)."""
+    assert {"pybullet", "mujoco"} <= _third_party_imports(PACKAGE / "sim" / "pybullet" / "world.py") | (
+        _third_party_imports(PACKAGE / "sim" / "mujoco" / "world.py")
+    )
+
+
+def test_loading_a_mujoco_study_imports_neither_engine(tmp_path: Path) -> None:
+    study = tmp_path / "study.yaml"
+    study.write_text(
+        "task: pinch_grasp\nmodel: models/pinch_gripper.yaml\nsimulation: {engine: mujoco}\n"
+        "sweep:\n  task.object_width_m: [0.01, 0.04]\n",
+        encoding="utf-8",
+    )
+    (tmp_path / "models").symlink_to(PACKAGE / "data" / "models")
+    code = (
+        "import sys\n"
+        "from somo_sweep.sweep.study import load_study\n"
+        "from somo_sweep.sweep.jobs import build_jobs\n"
+        f"assert build_jobs(load_study({str(study)!r})).jobs\n"
+        "print(sorted(m for m in sys.modules if m.split('.')[0] in ('pybullet', 'mujoco')))\n"
+    )
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)
+    assert out.stdout.strip() == "[]"

@@ -30,7 +30,8 @@ def _imported() -> set[str]:
 
 
 def test_every_imported_distribution_is_declared() -> None:
-    declared = _names(PYPROJECT["dependencies"]) | _names(PYPROJECT["optional-dependencies"]["dask"])
+    extras = PYPROJECT["optional-dependencies"]
+    declared = _names(PYPROJECT["dependencies"]) | _names(extras["dask"]) | _names(extras["mujoco"])
     missing = {DISTRIBUTIONS.get(n, n).lower() for n in _imported()} - declared
     assert missing == set()
 
@@ -50,6 +51,13 @@ def test_the_cluster_extra_adds_dask_jobqueue_to_dask_and_the_core_has_neither()
     extras = PYPROJECT["optional-dependencies"]
     assert _names(extras["cluster"]) == {"dask", "dask-jobqueue"}
     assert not {"dask", "dask-jobqueue", "distributed"} & _names(PYPROJECT["dependencies"])
+
+
+def test_mujoco_is_an_extra_and_a_dev_dependency_not_a_core_one() -> None:
+    """The default install runs without MuJoCo; CI (make test installs .[dev]) runs its tests."""
+    extras = PYPROJECT["optional-dependencies"]
+    assert "mujoco" not in _names(PYPROJECT["dependencies"])
+    assert "mujoco" in _names(extras["mujoco"]) and "mujoco" in _names(extras["dev"])
 
 
 def test_supported_platforms_are_classified() -> None:

@@ -14,7 +14,7 @@ from typing import Annotated
 
 import typer
 
-from somo_sweep.cli import calibrate, diagnose, grasp, model, paper, sweep
+from somo_sweep.cli import calibrate, diagnose, engines, grasp, model, paper, sweep
 from somo_sweep.cli.help import HelpGroup, plain_help
 from somo_sweep.cli.output import state
 from somo_sweep.errors import SHOWN_CHARS, os_cause, printable, shown
@@ -62,6 +62,7 @@ app.command()(sweep.show)
 app.command()(sweep.plot)
 app.command()(sweep.tasks)
 app.command()(sweep.recheck)
+app.command()(engines.compare_engines)
 app.command()(calibrate.calibrate)
 app.command()(diagnose.diagnose)
 app.command()(grasp.classify)

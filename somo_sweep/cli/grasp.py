@@ -61,8 +61,15 @@ def render(
     trial: Annotated[str, typer.Option(help="Trial: its job id, or its 0-based index in the study's grid.")],
     at_s: Annotated[str, typer.Option(help="Comma-separated snapshot times, s.")] = "4.0",
     out: Annotated[Path, typer.Option(help="Folder for the PNG files.")] = Path("results/renders"),
+    engine: Annotated[
+        str | None,
+        typer.Option(
+            help="Run the trial on pybullet or mujoco (with its own numerics); default: the study's."
+        ),
+    ] = None,
 ) -> None:
-    """Render finger-shape snapshots of one trial headless (TinyRenderer) as PNG files."""
+    """Render finger-shape snapshots of one trial headless as PNG files (PyBullet: TinyRenderer;
+    MuJoCo: its renderer on EGL or OSMesa)."""
     from somo_sweep.paper.grasp_trials import render_trial
 
     try:
@@ -72,7 +79,7 @@ def render(
     if out.exists() and not out.is_dir():  # before the trial is simulated
         fail(SomoError(f"--out {out} is a file, not a folder"))
     try:
-        images, label = render_trial(study, trial, times)
+        images, label = render_trial(study, trial, times, engine)
         paths = write_artifacts(images, out)
     except SomoError as exc:
         fail(exc)

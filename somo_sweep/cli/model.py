@@ -119,7 +119,7 @@ def _check_study(path: Path, allow_outside: bool, jobs: int) -> None:
         fail(exc)
     typer.echo(f"{study.name}: task {study.task.name}, {study.n_trials} trials")
     if study.simulation is not None:
-        typer.echo(f"simulation: time step {study.simulation.time_step_s * 1e3:g} ms, from the study file")
+        typer.echo(f"simulation: time step {study.simulation.step_s * 1e3:g} ms, from the study file")
         return
     try:
         chosen = auto_step(study, jobs or joblib.cpu_count() or 1, "loky", None, None, stream=typer.echo)

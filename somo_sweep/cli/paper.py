@@ -8,6 +8,7 @@ from __future__ import annotations
 
 import dataclasses
 import json
+import math
 from pathlib import Path
 from typing import TYPE_CHECKING, Annotated
 
@@ -431,6 +432,38 @@ def scale(
         resumed = measure_run(study, folder / "resume", largest, n_jobs)
         for line in scale_lines(runs, stopped, resumed, n_jobs):
             typer.echo(line)
+
+
+@app.command()
+def engines(
+    every: Annotated[
+        int, typer.Option(help="Time every N-th cell of the quick grid (192 cells).", min=1)
+    ] = 8,
+    mujoco_step: Annotated[float, typer.Option(help="MuJoCo's time step, s.")] = 4e-3,
+    convergence: Annotated[
+        bool,
+        typer.Option(
+            "--convergence", help="Also run the whole quick grid on MuJoCo at the step and half of it."
+        ),
+    ] = False,
+    jobs: Annotated[int, typer.Option("--jobs", "-j", help="Workers for --convergence.")] = 2,
+    out: Annotated[Path, typer.Option(help="Folder for engine_speed.json and the per-trial table.")] = Path(
+        "results/figures"
+    ),
+) -> None:
+    """The engine benchmark (make bench-engines): one pinch trial on PyBullet and MuJoCo, side by side."""
+    from somo_sweep.paper.engine_speed import build
+    from somo_sweep.sim.mujoco.support import missing  # no MuJoCo import
+
+    if not (math.isfinite(mujoco_step) and mujoco_step > 0):
+        fail(SomoError(f"--mujoco-step must be a time step in s, > 0, got {mujoco_step:g}"))
+    if (why := missing()) is not None:
+        fail(SomoError(why))
+    try:
+        artifacts = build(every, mujoco_step, convergence, _jobs(jobs))
+    except SomoError as exc:
+        fail(exc)
+    _finish(artifacts, out)
 
 
 @app.command()

@@ -371,7 +371,9 @@ def _print_dry_run(st: Study) -> None:
                 for line in job.numerics.describe():
                     typer.echo(f"    {line}")
     else:
-        typer.echo(f"simulation: time step {st.simulation.time_step_s * 1e3:g} ms (from the study file)")
+        sim = st.simulation
+        given = "from the study file" if sim.time_step_s is not None else f"the {sim.engine} default"
+        typer.echo(f"simulation: engine {sim.engine}, time step {sim.step_s * 1e3:g} ms ({given})")
     frame = jobs_frame(jobs)
     typer.echo(frame.to_string(index=False))
     if st.n_trials > DRY_ROWS:

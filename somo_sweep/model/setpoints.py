@@ -57,6 +57,17 @@ class SetpointTable:
         i = bisect_right(t, time_s) - 1
         return self.values[i] + self._slopes[i] * (time_s - t[i])
 
+    def still_stretch(self, time_s: float) -> int | None:
+        """The stretch ``time_s`` lies in if the table holds still there (before its first row,
+        after its last, or between two equal rows; numbered −1 … n − 1), else None."""
+        t = self._times
+        if time_s < t[0]:
+            return -1
+        i = bisect_right(t, time_s) - 1
+        if i == len(t) - 1 or not self._slopes[i].any():
+            return i
+        return None
+
     def steady_steps(self, n_steps: int, time_step_s: float) -> list[bool]:
         """For the times ``i · time_step_s`` (i < ``n_steps``): whether the value at step i is
         certainly the value at step i − 1.

@@ -183,8 +183,17 @@ def find_trial(jobs: Sequence[Any], trial: str) -> Any:
 MAX_SNAPSHOTS = 100
 
 
-def render_trial(study_path: str | Path, trial: str, times_s: list[float]) -> tuple[Artifacts, str]:
+def render_trial(
+    study_path: str | Path, trial: str, times_s: list[float], engine: str | None = None
+) -> tuple[Artifacts, str]:
     """Rerun one trial of a pinch_grasp study with a top-view snapshot at each time.
+
+    Args:
+        study_path: The study file.
+        trial: Its job id, or its 0-based index in the study's grid.
+        times_s: Snapshot times, s.
+        engine: Run the trial on this engine (``pybullet`` or ``mujoco``) with its numerics
+            (:func:`~somo_sweep.sweep.engines.on_engine`); None: the study's own.
 
     Returns:
         The images (one PNG each) and the trial's label.
@@ -200,6 +209,10 @@ def render_trial(study_path: str | Path, trial: str, times_s: list[float]) -> tu
     study = with_stored_step(load_study(study_path))
     if study.task.name != "pinch_grasp":
         raise SomoError(f"{study_path}: render needs a pinch_grasp study, this one runs '{study.task.name}'")
+    if engine is not None:
+        from somo_sweep.sweep.engines import on_engine
+
+        study = on_engine(study, engine, study.output)
     job = find_trial(build_jobs(study).jobs, trial)
     params = job.params
     assert isinstance(params, PinchGraspParams)

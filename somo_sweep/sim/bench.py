@@ -15,8 +15,8 @@ positive pressure curls the tip toward −z:
   −z, unwrapped along the chain (a finger curled past 180° reads more than 180°).
 
 By default (``statics="solve"``) each row's equilibrium is solved directly as
-the minimum of the chain's potential energy on the same PyBullet body
-(:mod:`somo_sweep.sim.statics`): no time step, nothing to blow up, a few ms per row.
+the minimum of the chain's potential energy on the same body, with the engine's own
+kinematics (:mod:`somo_sweep.sim.statics`): no time step, nothing to blow up, a few ms per row.
 ``statics="dynamic"`` keeps the original protocol: each row is its own
 simulation, started straight and unloaded, with the load applied at once and
 the equilibrium found by dynamic relaxation (kinetic damping: velocities are
@@ -25,7 +25,8 @@ inertia is added to the links for this; it changes the path, not the
 equilibrium, which is all a static protocol reports. The joints' Coulomb
 motor limit is switched off on the bench: in SoMo it is a numerical damper,
 and PyBullet's velocity motor lets a loaded joint creep rather than stick, so
-with it the reported equilibrium would depend on how long one waits.
+with it the reported equilibrium would depend on how long one waits. Both
+protocols run on either engine (``BenchSettings.engine``).
 """
 
 from __future__ import annotations
@@ -34,12 +35,11 @@ import math
 from dataclasses import dataclass
 
 import numpy as np
-import pybullet as p
 
 from somo_sweep.errors import SimulationError, SomoError, UnstableSimulation
 from somo_sweep.model.description import Manipulator, Pose
 from somo_sweep.model.load import Model
-from somo_sweep.sim.settings import WorldSettings
+from somo_sweep.sim.settings import ENGINES, WorldSettings
 from somo_sweep.sim.urdf import plan_manipulator
 from somo_sweep.sim.world import Body, World
 
@@ -82,6 +82,7 @@ class BenchSettings:
             ``dynamic`` (dynamic relaxation; ``time_step_s``, ``tolerance_m``, ``max_steps``).
         stop_z_m: Height of the blocked-force stop's top face relative to the straight finger's
             centre line, m (z up; negative below it); None: the straight finger's underside.
+        engine: ``pybullet`` or ``mujoco`` (:class:`~somo_sweep.sim.settings.WorldSettings`).
     """
 
     time_step_s: float = 5e-4
@@ -92,6 +93,7 @@ class BenchSettings:
     gravity_m_s2: float = 9.81
     statics: str = "solve"
     stop_z_m: float | None = None
+    engine: str = "pybullet"
 
     def __post_init__(self) -> None:
         if self.stop_z_m is not None and not (
@@ -108,6 +110,8 @@ class BenchSettings:
             )
         if self.statics not in ("solve", "dynamic"):
             raise SomoError(f"statics must be solve or dynamic, got {self.statics!r}")
+        if self.engine not in ENGINES:
+            raise SomoError(f"engine must be one of {', '.join(ENGINES)}, got {self.engine!r}")
 
 
 @dataclass(frozen=True)
@@ -242,15 +246,23 @@ class _Rig:
     def __init__(self, manip: Manipulator, settings: BenchSettings):
         self.settings = settings
         self.manip = manip
+        pybullet = settings.engine == "pybullet"
+        # On MuJoCo the stop is as stiff as the step resolves (its contacts are soft): a blocked force
+        # within 0.15 % of the rigid statics' at 0.5-1 ms (docs/physics.md, "MuJoCo").
+        soft = {} if pybullet else {"contact_time_constant_s": 2 * settings.time_step_s}
         self.world = World(
             WorldSettings(
                 time_step_s=settings.time_step_s,
-                scale=settings.scale,
+                scale=settings.scale if pybullet else WorldSettings.scale,
                 gravity_m_s2=(0.0, 0.0, -settings.gravity_m_s2),
+                engine=settings.engine,
+                **soft,  # type: ignore[arg-type]
             )
         )
         rig = _static_rig(manip, settings.added_inertia_kg_m2)
-        self.body: Body = self.world.load_plan(plan_manipulator(rig, settings.scale), bench_frame(manip))
+        self.body: Body = self.world.load_plan(plan_manipulator(rig, self.world.scale), bench_frame(manip))
+        if not pybullet:  # MuJoCo leaves link inertia shaping out: the relaxation's inertia is armature
+            self.world.set_joint_armature(self.body, settings.added_inertia_kg_m2)
         base = manip.base.link
         self.origin = np.array([base.half_extent_m(2) if base else 0.0, 0.0, 0.0])
         self.load_n = 0.0
@@ -274,15 +286,9 @@ class _Rig:
 
     def tip_angle_deg(self) -> float:
         """Angle of the last link's chain axis (local +z) in the x–z plane, deg, unwrapped from the base."""
-        cid, body = self.world.client, self.body.id
-        orientations = [p.getBasePositionAndOrientation(body, physicsClientId=cid)[1]]
-        n = p.getNumJoints(body, physicsClientId=cid)
-        if n:
-            states = p.getLinkStates(body, list(range(n)), computeForwardKinematics=1, physicsClientId=cid)
-            orientations += [s[5] for s in states]
         angles = []
-        for q in orientations:
-            axis = np.asarray(p.getMatrixFromQuaternion(q)).reshape(3, 3)[:, 2]
+        for rot in self.world.link_rotations(self.body):
+            axis = rot[:, 2]
             angles.append(np.arctan2(-axis[2], axis[0]))
         return float(np.degrees(np.unwrap(angles)[-1]))
 
@@ -290,27 +296,12 @@ class _Rig:
         """A static frictionless plate whose top face is at the straight tip's underside
         (raised by :data:`PLATE_RAISE`)."""
         centre, half = stop_geometry(self.manip, self.origin, float(self.tip_m()[0]), self.settings.stop_z_m)
-        s = self.world.scale
-        cid = self.world.client
-        shape = p.createCollisionShape(p.GEOM_BOX, halfExtents=(half * s).tolist(), physicsClientId=cid)
-        position = centre * s + np.array([0.0, 0.0, PLATE_RAISE])
-        stop = p.createMultiBody(0, shape, basePosition=position.tolist(), physicsClientId=cid)
-        p.changeDynamics(
-            stop,
-            -1,
-            lateralFriction=0.0,
-            spinningFriction=0.0,
-            rollingFriction=0.0,
-            restitution=0.0,
-            physicsClientId=cid,
-        )
-        return stop
+        raised = centre + np.array([0.0, 0.0, PLATE_RAISE / self.world.scale])
+        return self.world.add_static_box(raised, half)
 
     def relax(self) -> int:
         """Run to static equilibrium; returns the steps taken."""
         world, drive, st = self.world, self.body.drive, self.settings
-        idx = drive.indices
-        zeros = [[0.0]] * len(idx)
         ke_prev, last_tip, steps = 0.0, self.tip_m(), 0
         quiet = 0
         while steps < st.max_steps:
@@ -319,9 +310,7 @@ class _Rig:
             drive.read()
             ke = float(drive.qd @ drive.qd)
             if ke < ke_prev or ke < 1e-20:
-                p.resetJointStatesMultiDof(
-                    drive.body, idx, [[q] for q in drive.q], zeros, physicsClientId=world.client
-                )
+                world.stop_joints(self.body)
                 tip = self.tip_m()
                 moved = float(np.linalg.norm(tip - last_tip))
                 last_tip = tip

@@ -1,10 +1,11 @@
 """The bench body's kinematics for the statics solver: one forward-kinematics call, candidate
 plate contacts and the generalized forces and Hessians of vertical forces, all in SI.
 
-Kinematics are PyBullet's own, on the very body the dynamic bench loads (same URDF, link
-frames, masses, centres of mass, tip point and world scale): joint states are set with
-``resetJointStatesMultiDof`` and read back with one ``getLinkStates`` call; no time step is
-ever taken. Used by :mod:`somo_sweep.sim.statics`.
+Kinematics are the engine's own, on the very body the dynamic bench loads (same URDF, link
+frames, masses, centres of mass and tip point): each engine's :class:`BenchBody` sets the joint
+angles and reads every link frame back (PyBullet: :mod:`somo_sweep.sim.pybullet.kinematics`;
+MuJoCo: :mod:`somo_sweep.sim.mujoco.kinematics`); no time step is ever taken. This module holds
+what does not depend on the engine. Used by :mod:`somo_sweep.sim.statics`.
 """
 
 from __future__ import annotations
@@ -12,16 +13,14 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 
 import numpy as np
-import pybullet as p
 
 from somo_sweep.errors import SimulationError
 from somo_sweep.model.description import Link, Manipulator
-from somo_sweep.sim.bench import bench_frame, stop_geometry
+from somo_sweep.sim.bench import stop_geometry
 from somo_sweep.sim.plan import BodyPlan
-from somo_sweep.sim.settings import WorldSettings
-from somo_sweep.sim.world import World
+from somo_sweep.sim.world import Body, World
 
-__all__ = ["BenchBody", "ContactFeatures", "Kin", "Plate", "quat_to_rot"]
+__all__ = ["BenchBody", "ContactFeatures", "Kin", "Plate", "bench_body", "quat_to_rot"]
 
 
 @dataclass
@@ -144,48 +143,48 @@ class Plate:
 
 
 class BenchBody:
-    """One loaded bench body and its fixed kinematic structure (shared by all spring sets)."""
+    """One loaded bench body and its fixed kinematic structure (shared by all spring sets).
 
-    def __init__(self, manip: Manipulator, plan: BodyPlan, scale: float):
-        self.scale = scale
-        # Gravity is the solver's business (any magnitude, per row); the world never steps.
-        self.world = World(WorldSettings(scale=scale, gravity_m_s2=(0.0, 0.0, 0.0)))
-        try:
-            self._setup(manip, plan)
-        except BaseException:
-            self.world.close()
-            raise
+    Each engine's subclass loads the body in a world of its own (gravity off: gravity is the
+    solver's business, any magnitude, per row; the world never steps), sets the structural
+    arrays below and implements :meth:`kinematics`; :meth:`_finish` then adds what the
+    structure implies.
 
-    def _setup(self, manip: Manipulator, plan: BodyPlan) -> None:
-        self.body = self.world.load_plan(plan, bench_frame(manip))
-        cid, bid, s = self.world.client, self.body.id, self.scale
-        self.cid, self.bid = cid, bid
-        n = p.getNumJoints(bid, physicsClientId=cid)
-        self.n_links = n
-        self.links = list(range(n))
-        self.indices = list(self.body.drive.indices)
-        parent = np.full(n, -1)
-        axis_local = np.zeros((n, 3))
-        kind = np.zeros(n, int)
-        lower, upper = np.zeros(n), np.zeros(n)
-        inertial = np.zeros((n, 3))
-        inertial_orn = np.zeros((n, 4))
-        for j in range(n):
-            info = p.getJointInfo(bid, j, physicsClientId=cid)
-            kind[j], parent[j] = info[2], info[16]
-            lower[j], upper[j] = info[8], info[9]
-            axis_local[j] = info[13]
-            dyn = p.getDynamicsInfo(bid, j, physicsClientId=cid)
-            inertial[j], inertial_orn[j] = dyn[3], dyn[4]
-        # Link (URDF, joint) frame = centre-of-mass frame · inertial offset⁻¹.
-        self.inertial_rot_t = np.transpose(quat_to_rot(inertial_orn), (0, 2, 1)) if n else np.zeros((0, 3, 3))
-        self.inertial_pos = inertial
-        self.inertial_rotated = bool(np.any(np.abs(inertial_orn[:, :3]) > 0))
-        movable = {j for j in range(n) if kind[j] != p.JOINT_FIXED}
-        if movable != set(self.indices):
-            raise SimulationError("statics: the body has movable joints that are not spring joints")
-        self.mass = np.array([p.getDynamicsInfo(bid, j, physicsClientId=cid)[0] for j in range(n)])
-        self.heavy = np.flatnonzero(self.mass > 0)
+    Attributes:
+        world: The world holding the body.
+        body: The loaded body.
+        n_links: Links besides the base (link indices 0 … n_links − 1).
+        indices: Link (= joint) index of each spring joint.
+        mass: Mass of each link, kg; ``heavy`` the links with mass.
+        subtree: (joints, links) 1 where the link moves with the joint.
+        joint_below: (joints, joints) 1 where joint j is i or below it.
+        revolute: Per spring joint, revolute (else prismatic); ``all_revolute``.
+        pos_scale: Per spring joint, the engine's position unit per SI unit (rad: 1; m: the scale).
+        limited, limits: Spring joints with limits, and the (lower, upper) limits in SI.
+        base_rot: Rotation of the base frame.
+    """
+
+    world: World
+    body: Body
+    scale: float
+    n_links: int
+    indices: list[int]
+    mass: np.ndarray
+    heavy: np.ndarray
+    subtree: np.ndarray
+    joint_below: np.ndarray
+    revolute: np.ndarray
+    all_revolute: bool
+    zero_axes: np.ndarray
+    axis_local: np.ndarray
+    pos_scale: np.ndarray
+    limited: np.ndarray
+    limits: tuple[np.ndarray, np.ndarray]
+    base_rot: np.ndarray
+
+    def _set_tree(self, parent: np.ndarray) -> None:
+        """``subtree`` and ``joint_below`` from each link's parent link (−1: the base)."""
+        n = len(parent)
         # subtree[j, l]: link l moves with joint j (l is j's child link or below it).
         sub = np.zeros((n, n), bool)
         for link in range(n):
@@ -196,16 +195,10 @@ class BenchBody:
         idx = np.array(self.indices, int)
         self.subtree = sub[idx].astype(float)  # (N joints, L links)
         self.joint_below = sub[np.ix_(idx, idx)].astype(float)  # (N, N): joint j is i or below it
-        self.revolute = kind[idx] == p.JOINT_REVOLUTE
-        self.all_revolute = bool(np.all(self.revolute))
-        self.zero_axes = np.zeros((len(idx), 3))
-        self.axis_local = axis_local[idx]
-        self.pos_scale = np.where(self.revolute, 1.0, s)
-        lim_lo, lim_hi = lower[idx] / self.pos_scale, upper[idx] / self.pos_scale
-        self.limited = np.flatnonzero(lower[idx] < upper[idx])
-        self.limits = (lim_lo, lim_hi)
-        base_orn = p.getBasePositionAndOrientation(bid, physicsClientId=cid)[1]
-        self.base_rot = quat_to_rot(np.array([base_orn]))[0]
+
+    def _finish(self, manip: Manipulator, plan: BodyPlan) -> None:
+        """Tip, candidate contacts and the plate, once the structure is known."""
+        self.heavy = np.flatnonzero(self.mass > 0)
         base = manip.base.link
         self.origin = np.array([base.half_extent_m(2) if base else 0.0, 0.0, 0.0])
         tip_name, tip_local = plan.tip[manip.name]
@@ -221,7 +214,7 @@ class BenchBody:
             if li.link is not None and self.body.link_index[name] >= 0
         ]
         self.features = ContactFeatures.of(shaped)
-        kin = self.kinematics(np.zeros(len(idx)))
+        kin = self.kinematics(np.zeros(len(self.indices)))
         tip0 = self.tip_point(kin) - self.origin
         centre, half = stop_geometry(manip, self.origin, float(tip0[0]))
         self.plate = Plate(
@@ -230,32 +223,17 @@ class BenchBody:
             float(half[1]),
         )
 
+    @property
+    def is_open(self) -> bool:
+        """Whether the body's world is still open (a closed one is loaded again)."""
+        return self.world.is_open
+
     def close(self) -> None:
         self.world.close()
 
     def kinematics(self, q: np.ndarray) -> Kin:
-        """Set the joints to ``q`` (SI) and read every link frame back (one PyBullet call each).
-
-        PyBullet's centre-of-mass frames come back in double precision, its link frames
-        (``getLinkState`` entries 4, 5) rounded to single precision; the link frames are
-        therefore derived from the former and the constant inertial offsets, so that the
-        energy and its derivatives are smooth to machine precision.
-        """
-        cid, s = self.cid, self.scale
-        values = q * self.pos_scale
-        p.resetJointStatesMultiDof(self.bid, self.indices, [[float(v)] for v in values], physicsClientId=cid)
-        states = p.getLinkStates(self.bid, self.links, computeForwardKinematics=1, physicsClientId=cid)
-        com = np.array([st[0] for st in states])
-        rot = quat_to_rot(np.array([st[1] for st in states]))
-        if self.inertial_rotated:
-            rot = rot @ self.inertial_rot_t
-        frame = (com - (rot @ self.inertial_pos[:, :, None])[:, :, 0]) / s
-        com = com / s
-        axes = (rot[self.indices] @ self.axis_local[:, :, None])[:, :, 0]
-        if self.all_revolute:
-            return Kin(com, frame, rot, axes, self.zero_axes, frame[self.indices])
-        rev = self.revolute[:, None]
-        return Kin(com, frame, rot, np.where(rev, axes, 0.0), np.where(rev, 0.0, axes), frame[self.indices])
+        """Set the joints to ``q`` (SI) and read every link frame back (SI, world frame)."""
+        raise NotImplementedError
 
     def reach_m(self) -> np.ndarray:
         """(joints, points) longest distance from each joint's axis to each weight and the tip, m.
@@ -333,3 +311,14 @@ class BenchBody:
         dx = r[:, None, 0] - o[None, :, 0]
         dy = r[:, None, 1] - o[None, :, 1]
         return d * (w[None, :, 0] * dy - w[None, :, 1] * dx + v[None, :, 2])
+
+
+def bench_body(manip: Manipulator, plan: BodyPlan, scale: float, engine: str = "pybullet") -> BenchBody:
+    """The bench body of ``plan`` loaded on ``engine`` (plans are made at the engine's scale)."""
+    if engine == "mujoco":
+        from somo_sweep.sim.mujoco.kinematics import MujocoBenchBody
+
+        return MujocoBenchBody(manip, plan)
+    from somo_sweep.sim.pybullet.kinematics import PyBulletBenchBody
+
+    return PyBulletBenchBody(manip, plan, scale)

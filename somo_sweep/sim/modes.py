@@ -19,13 +19,11 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
-import pybullet as p
 import scipy.linalg
 
 from somo_sweep.model.description import Manipulator
 from somo_sweep.model.load import Model
-from somo_sweep.sim import _silenced
-from somo_sweep.sim.urdf import plan_manipulator, write_urdf
+from somo_sweep.sim.pybullet.mass_matrix import neutral_mass_matrix
 
 __all__ = ["ChainMatrices", "ChainModes", "chain_matrices", "model_chains", "shaped"]
 
@@ -120,33 +118,6 @@ def model_chains(model: Model) -> list[tuple[Manipulator, bool]]:
     ]
 
 
-def _mass_matrix(manip: Manipulator, floating: bool) -> tuple[np.ndarray, list[str], list[float]]:
-    """PyBullet's mass matrix at the neutral pose (SI, scale 1), joint names and stiffnesses."""
-    plan = plan_manipulator(manip, 1.0, mode="free" if floating else "fixed")
-    client = p.connect(p.DIRECT)
-    try:
-        with _silenced():  # a massless anchor root makes Bullet print a warning; it has no DoF
-            body = p.loadURDF(
-                str(write_urdf(plan.urdf)),
-                useFixedBase=not floating,
-                flags=p.URDF_USE_INERTIA_FROM_FILE | p.URDF_MAINTAIN_LINK_ORDER,
-                physicsClientId=client,
-            )
-        n = p.getNumJoints(body, physicsClientId=client)
-        movable = [
-            p.getJointInfo(body, j, physicsClientId=client)[1].decode()
-            for j in range(n)
-            if p.getJointInfo(body, j, physicsClientId=client)[2] != p.JOINT_FIXED
-        ]
-        if movable != [sj.name for sj in plan.joints]:
-            raise RuntimeError(f"{manip.name}: PyBullet's movable joints differ from the spring joints")
-        q = [sj.neutral for sj in plan.joints]
-        mass = np.asarray(p.calculateMassMatrix(body, q, physicsClientId=client), dtype=float)
-    finally:
-        p.disconnect(physicsClientId=client)
-    return mass, movable, [sj.stiffness for sj in plan.joints]
-
-
 def chain_matrices(manip: Manipulator, floating: bool = False) -> ChainMatrices:
     """Linearise one manipulator's chain about its neutral pose (two PyBullet evaluations).
 
@@ -154,8 +125,8 @@ def chain_matrices(manip: Manipulator, floating: bool = False) -> ChainMatrices:
         manip: The manipulator (its own ``added_inertia_kg_m2`` is part of the baseline).
         floating: Analyse with a floating base (six rigid-body modes dropped) instead of clamped.
     """
-    m0, names, k = _mass_matrix(manip, floating)
-    m1, _, _ = _mass_matrix(shaped(manip, _PROBE_KG_M2), floating)
+    m0, names, k = neutral_mass_matrix(manip, floating)
+    m1, _, _ = neutral_mass_matrix(shaped(manip, _PROBE_KG_M2), floating)
     rigid = _BASE_DOFS if floating else 0
     stiffness = np.concatenate([np.zeros(m0.shape[0] - len(k)), np.asarray(k, dtype=float)])
     return ChainMatrices(

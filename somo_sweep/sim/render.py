@@ -1,16 +1,18 @@
-"""Headless snapshots of a world with PyBullet's TinyRenderer (no display, no OpenGL).
+"""Headless snapshots of a world, on either engine (no display).
 
-Cameras are given in SI (target point, distance, yaw/pitch in degrees as PyBullet
-takes them); the world scale is applied here.
+Cameras are given in SI (target point, distance, yaw/pitch in degrees as PyBullet takes them);
+each engine renders them its own way (PyBullet: TinyRenderer, software; MuJoCo: its OpenGL
+renderer on an offscreen EGL or OSMesa context) and both look at the same point from the same
+place.
 """
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
-import pybullet as p
 
 from somo_sweep.sim.world import World
 
@@ -37,36 +39,19 @@ class Camera:
     width_px: int = 480
     height_px: int = 400
 
+    def eye_m(self) -> np.ndarray:
+        """The eye's position, world frame, m (PyBullet's yaw/pitch convention, z up)."""
+        yaw, pitch = math.radians(self.yaw_deg), math.radians(self.pitch_deg)
+        # As PyBullet's computeViewMatrixFromYawPitchRoll (z up): yaw 0, pitch 0 looks along +y.
+        forward = np.array(
+            [-math.sin(yaw) * math.cos(pitch), math.cos(yaw) * math.cos(pitch), math.sin(pitch)]
+        )
+        return np.asarray(self.target_m, dtype=float) - self.distance_m * forward
+
 
 def snapshot(world: World, camera: Camera) -> np.ndarray:
-    """Render the world (TinyRenderer); returns an RGB image, shape (height, width, 3), uint8."""
-    s = world.scale
-    view = p.computeViewMatrixFromYawPitchRoll(
-        [c * s for c in camera.target_m],
-        camera.distance_m * s,
-        camera.yaw_deg,
-        camera.pitch_deg,
-        0.0,
-        2,
-        physicsClientId=world.client,
-    )
-    proj = p.computeProjectionMatrixFOV(
-        camera.fov_deg,
-        camera.width_px / camera.height_px,
-        0.01 * s,
-        5.0 * s,
-        physicsClientId=world.client,
-    )
-    _, _, rgba, _, _ = p.getCameraImage(
-        camera.width_px,
-        camera.height_px,
-        view,
-        proj,
-        renderer=p.ER_TINY_RENDERER,
-        physicsClientId=world.client,
-    )
-    image = np.asarray(rgba, dtype=np.uint8).reshape(camera.height_px, camera.width_px, 4)
-    return image[:, :, :3].copy()
+    """Render the world; returns an RGB image, shape (height, width, 3), uint8."""
+    return world.render(camera)
 
 
 def write_png(image: np.ndarray, path: str | Path) -> Path:

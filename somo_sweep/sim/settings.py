@@ -1,11 +1,50 @@
-"""Simulation settings as plain frozen data (no PyBullet import: studies load them cheaply)."""
+"""Simulation settings as plain frozen data (no engine import: studies load them cheaply).
+
+Two engines run the same descriptions and tasks (:mod:`somo_sweep.sim.world`): ``pybullet``
+(the default, the paper's engine) and ``mujoco`` (optional extra ``somo-sweep[mujoco]``). Most
+settings mean the same on both; a few are one engine's own and are refused on the other when
+set to anything but their default (:meth:`WorldSettings.foreign_options`).
+"""
 
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, fields
+from importlib.metadata import PackageNotFoundError, version
 
-__all__ = ["WorldSettings"]
+__all__ = [
+    "ENGINES",
+    "MUJOCO_DEFAULT_STEP_S",
+    "MUJOCO_INTEGRATORS",
+    "MUJOCO_ONLY",
+    "PYBULLET_ONLY",
+    "WorldSettings",
+    "engine_version",
+]
+
+#: The engines a world can run on.
+ENGINES = ("pybullet", "mujoco")
+#: MuJoCo's integrators we allow: ``discrete`` treats the joint springs implicitly (stable at any
+#: step), ``implicitfast`` only their damping (docs/physics.md, "MuJoCo").
+MUJOCO_INTEGRATORS = ("discrete", "implicitfast")
+#: The step a MuJoCo study gets when it gives none, s (labels converge at it: docs/mujoco.md).
+MUJOCO_DEFAULT_STEP_S = 4e-3
+#: Settings that only one engine reads, by name.
+PYBULLET_ONLY = (
+    "scale",
+    "body_per_manipulator",
+    "friction_rows_every",
+    "solver_residual_threshold",
+)
+MUJOCO_ONLY = ("integrator", "contact_time_constant_s", "impratio")
+
+
+def engine_version(engine: str) -> str:
+    """The installed version of an engine's package (from its metadata, without importing it)."""
+    try:
+        return version(engine)
+    except PackageNotFoundError:
+        return "none"
 
 
 @dataclass(frozen=True)
@@ -14,36 +53,46 @@ class WorldSettings:
 
     Attributes:
         time_step_s: Integration step in s.
-        scale: World scale factor Y for Bullet's numerics.
+        scale: World scale factor Y for Bullet's numerics (PyBullet only: MuJoCo runs in SI).
         gravity_m_s2: Gravity vector in m/s².
-        solver_iterations: Bullet constraint-solver iterations per step.
+        solver_iterations: Constraint-solver iterations per step (Bullet's; MuJoCo's upper bound,
+            its Newton solver usually stops after a few).
         check_every: Steps between checks for thrown bodies.
         body_per_manipulator: Load an assembly whose base link is fixed or driven as one body
             per manipulator plus one for the base link (cheaper steps; see
             :func:`somo_sweep.sim.urdf.plan_assembly`). Off by default: the split moves
             knife-edge contact outcomes (the in-hand gait's cube falls in one of Fig. 5's
             runs), so a study opts in after checking its own results, as the pinch studies do.
+            PyBullet only.
         friction_rows_every: Steps between the solves of the joints' Coulomb friction (SoMo's
             zero-velocity motors, which Bullet solves as one constraint row per joint and which
             are most of its work per step). 1 solves them every step. 2 solves them every other
             step; on the step between, a joint that was sliding keeps its friction torque and a
             stuck one gets its static demand from Newton's law over the solved step
-            (:class:`~somo_sweep.sim.springs.SpringDrive`), within its limit: 0.79-0.83x the
-            CPU of a pinch trial, labels checked against 2 ms (docs/pinch_grasp.md, "Friction
-            every other step"). Other values are refused.
+            (:class:`~somo_sweep.sim.pybullet.springs.SpringDrive`), within its limit: 0.79-0.83x
+            the CPU of a pinch trial, labels checked against 2 ms (docs/pinch_grasp.md, "Friction
+            every other step"). Other values are refused. PyBullet only.
         solver_residual_threshold: Early exit of Bullet's constraint solver: it stops iterating
             once one iteration changes the constraint velocities by less than this (Bullet's
             ``solverResidualThreshold``: the sum of squared velocity corrections of all rows, in
             the scaled world's units, so linear rows count in (Y·m/s)² and joint rows in
             (rad/s)²). None keeps Bullet's 1e-7, at which a pinch trial runs all its
             iterations; larger values cut steps whose constraints settle early (docs/pinch_grasp.md,
-            "Engine settings"). Must be finite and > 0.
+            "Engine settings"). Must be finite and > 0. PyBullet only.
         clamp_speed_cap: Let a run go on when a joint or a body reaches Bullet's speed cap
-            (Bullet clamps the speed and steps on, as the original SoMo code let it). False
-            (default) stops the run as unstable there: past the cap the motion is wrong. For
-            reproducing the original's runs only (a finger snapping shut once the object it
-            held has fallen out reaches the cap at 0.5 ms without inertia shaping). NaN and
-            thrown bodies stop the run either way.
+            (Bullet clamps the speed and steps on, as the original SoMo code let it; MuJoCo, which
+            caps nothing, then just goes on). False (default) stops the run as unstable there: past
+            the cap the motion is wrong. For reproducing the original's runs only (a finger snapping
+            shut once the object it held has fallen out reaches the cap at 0.5 ms without inertia
+            shaping). NaN and thrown bodies stop the run either way.
+        engine: ``pybullet`` (default) or ``mujoco``.
+        integrator: MuJoCo's integrator: ``discrete`` (default; joint springs implicit) or
+            ``implicitfast`` (springs explicit, damping implicit). MuJoCo only.
+        contact_time_constant_s: Time constant of MuJoCo's soft contacts (``solref``, critically
+            damped), s: the same at every step, so a step's labels compare with half of it.
+            MuJoCo only.
+        impratio: MuJoCo's ratio of frictional to normal contact impedance (elliptic cones); 10
+            stops loaded fingertips from creeping where Bullet's contacts stick. MuJoCo only.
     """
 
     time_step_s: float = 5e-4
@@ -55,10 +104,36 @@ class WorldSettings:
     friction_rows_every: int = 1
     solver_residual_threshold: float | None = None
     clamp_speed_cap: bool = False
+    engine: str = "pybullet"
+    integrator: str = "discrete"
+    contact_time_constant_s: float = 0.008
+    impratio: float = 10.0
 
     def __post_init__(self) -> None:
+        if self.engine not in ENGINES:
+            raise ValueError(f"engine must be one of {', '.join(ENGINES)}, got {self.engine!r}")
         if self.friction_rows_every not in (1, 2):
             raise ValueError(f"friction_rows_every must be 1 or 2, got {self.friction_rows_every!r}")
         r = self.solver_residual_threshold
         if r is not None and not (math.isfinite(r) and r > 0):
             raise ValueError(f"solver_residual_threshold must be finite and > 0 (or None), got {r!r}")
+        if self.integrator not in MUJOCO_INTEGRATORS:
+            raise ValueError(
+                f"integrator must be one of {', '.join(MUJOCO_INTEGRATORS)}, got {self.integrator!r}"
+            )
+        for name in ("contact_time_constant_s", "impratio"):
+            value = getattr(self, name)
+            if not (math.isfinite(value) and value > 0):
+                raise ValueError(f"{name} must be finite and > 0, got {value!r}")
+        foreign = self.foreign_options()
+        if foreign:
+            raise ValueError(
+                f"{', '.join(foreign)} {'is' if len(foreign) == 1 else 'are'} not read by engine "
+                f"{self.engine}; allowed: leave {'it' if len(foreign) == 1 else 'them'} at the default"
+            )
+
+    def foreign_options(self) -> list[str]:
+        """Settings of the other engine given a value other than their default (none is allowed)."""
+        other = MUJOCO_ONLY if self.engine == "pybullet" else PYBULLET_ONLY
+        defaults = {f.name: f.default for f in fields(self)}
+        return [name for name in other if getattr(self, name) != defaults[name]]

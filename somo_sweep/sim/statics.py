@@ -14,12 +14,11 @@ adds the frictionless plate as inequality constraints z_point(q) ≥ z_plate on
 the lowest points of every link's collision shape; the blocked force is the sum
 of their multipliers (the plate's vertical reactions).
 
-Kinematics are PyBullet's own, on the very body the dynamic bench loads (same
-URDF, link frames, masses, centres of mass, tip point and world scale): joint
-states are set with ``resetJointStatesMultiDof`` and read back with one
-``getLinkStates`` call; no time step is ever taken. (PyBullet returns the
-centre-of-mass frames in double precision but the link frames rounded to single
-precision, so link frames are derived from the former.) From the joint axes,
+Kinematics are the engine's own, on the very body the dynamic bench loads (same
+URDF, link frames, masses, centres of mass and tip point: PyBullet's
+``resetJointStatesMultiDof`` and one ``getLinkStates`` call, or MuJoCo's
+``mj_kinematics``; :mod:`somo_sweep.sim.chain_kinematics`); no time step is ever
+taken. From the joint axes,
 joint origins and force points of that one call the generalized forces and
 their exact Hessian are computed in closed form (every bench force is vertical
 and constant: weights, tip load, plate reactions), so every iteration is a full
@@ -69,7 +68,7 @@ from somo_sweep.sim.bench import (
     bench_frame,
     check_stop,
 )
-from somo_sweep.sim.chain_kinematics import BenchBody, Kin
+from somo_sweep.sim.chain_kinematics import BenchBody, Kin, bench_body
 from somo_sweep.sim.no_equilibrium import existence_proven, largest_moments_n_m, proof_of_no_equilibrium
 from somo_sweep.sim.plan import BodyPlan
 from somo_sweep.sim.urdf import plan_manipulator
@@ -197,10 +196,11 @@ class StaticChain:
 
     Args:
         manip: The manipulator.
-        scale: World scale factor (the dynamic bench's ``BenchSettings.scale``).
+        scale: World scale factor (the dynamic bench's ``BenchSettings.scale``; PyBullet only).
         added_inertia_kg_m2: The bench's inertia shaping (kept so the body is the dynamic one's).
         stop_z_m: Height of the blocked-force stop's top relative to the straight finger's centre
             line, m (None: its underside; :func:`~somo_sweep.sim.bench.stop_geometry`).
+        engine: The engine whose kinematics the solver reads (``pybullet`` or ``mujoco``).
     """
 
     def __init__(
@@ -209,10 +209,12 @@ class StaticChain:
         scale: float = 20.0,
         added_inertia_kg_m2: float = 1e-5,
         stop_z_m: float | None = None,
+        engine: str = "pybullet",
     ):
         self.manip = manip
+        scale = scale if engine == "pybullet" else 1.0  # MuJoCo runs in SI
         plan = plan_manipulator(_static_rig(manip, added_inertia_kg_m2), scale)
-        self.body = _body(manip, plan, scale)
+        self.body = _body(manip, plan, scale, engine)
         check_stop(manip, stop_z_m)
         self.plate = (
             self.body.plate if stop_z_m is None else dataclass_replace(self.body.plate, top_m=stop_z_m)
@@ -700,18 +702,18 @@ def _failed(test: str, eq: _Equilibrium, where: str = "", iterations: int | None
 
 
 # --------------------------------------------------------------------- caches
-_BODIES: OrderedDict[tuple[str, float, tuple[float, ...]], BenchBody] = OrderedDict()
-_CHAINS: OrderedDict[tuple[str, float, float, float | None], StaticChain] = OrderedDict()
+_BODIES: OrderedDict[tuple[str, float, tuple[float, ...], str], BenchBody] = OrderedDict()
+_CHAINS: OrderedDict[tuple[str, float, float, float | None, str], StaticChain] = OrderedDict()
 
 
-def _body(manip: Manipulator, plan: BodyPlan, scale: float) -> BenchBody:
+def _body(manip: Manipulator, plan: BodyPlan, scale: float, engine: str) -> BenchBody:
     # The URDF fixes links, joints, masses and the tip; the bench frame fixes gravity's direction.
-    key = (plan.urdf, float(scale), tuple(bench_frame(manip).rpy_rad))
+    key = (plan.urdf, float(scale), tuple(bench_frame(manip).rpy_rad), engine)
     body = _BODIES.get(key)
-    if body is not None and body.world.client >= 0:
+    if body is not None and body.is_open:
         _BODIES.move_to_end(key)
         return body
-    body = BenchBody(manip, plan, scale)
+    body = bench_body(manip, plan, scale, engine)
     _BODIES[key] = body
     while len(_BODIES) > BODY_CACHE:
         _, old = _BODIES.popitem(last=False)
@@ -724,14 +726,15 @@ def static_chain(
     scale: float = 20.0,
     added_inertia_kg_m2: float = 1e-5,
     stop_z_m: float | None = None,
+    engine: str = "pybullet",
 ) -> StaticChain:
-    """The (cached) static chain of a manipulator; keyed on its JSON, the bench's scale and stop."""
-    key = (manip.model_dump_json(), float(scale), float(added_inertia_kg_m2), stop_z_m)
+    """The (cached) static chain of a manipulator; keyed on its JSON, the bench's scale, stop and engine."""
+    key = (manip.model_dump_json(), float(scale), float(added_inertia_kg_m2), stop_z_m, engine)
     chain = _CHAINS.get(key)
-    if chain is not None and chain.body.world.client >= 0:
+    if chain is not None and chain.body.is_open:
         _CHAINS.move_to_end(key)
         return chain
-    chain = StaticChain(manip, scale, added_inertia_kg_m2, stop_z_m)
+    chain = StaticChain(manip, scale, added_inertia_kg_m2, stop_z_m, engine)
     _CHAINS[key] = chain
     while len(_CHAINS) > CHAIN_CACHE:
         _CHAINS.popitem(last=False)
@@ -739,7 +742,7 @@ def static_chain(
 
 
 def clear_cache() -> None:
-    """Close every cached body (PyBullet client) and forget every chain."""
+    """Close every cached body (its world) and forget every chain."""
     _CHAINS.clear()
     while _BODIES:
         _, body = _BODIES.popitem()
@@ -779,7 +782,7 @@ def solve_row(
         if not math.isfinite(pressure_kpa):
             raise SimulationError(f"pressure_kpa must be finite, got {pressure_kpa}")
         manip = _manipulator(model)
-        chain = static_chain(manip, st.scale, st.added_inertia_kg_m2, st.stop_z_m)
+        chain = static_chain(manip, st.scale, st.added_inertia_kg_m2, st.stop_z_m, st.engine)
         return chain.solve(test, pressure_kpa, tip_load_n, direction, st.gravity_m_s2)
     except Exception as exc:  # a row's failure is data, not an abort
         return RowSolution(nan, SolveStatus(False, 0, math.nan, f"{type(exc).__name__}: {exc}"))

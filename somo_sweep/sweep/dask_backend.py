@@ -104,12 +104,13 @@ def dask_client(scheduler: str | None, timeout_s: float = 15.0) -> Any:
         ) from None
 
 
-def trial_code(task: str) -> str:
-    """The code version (:func:`~somo_sweep.sweep.jobs.code_version`) of a task's trials here."""
+def trial_code(task: str, engine: str = "pybullet") -> str:
+    """The code version (:func:`~somo_sweep.sweep.jobs.code_version`) of a task's trials on an
+    engine here."""
     from somo_sweep.sweep.jobs import code_version
     from somo_sweep.tasks.registry import get_task
 
-    return code_version(get_task(task).run_path.partition(":")[0])
+    return code_version(get_task(task).run_path.partition(":")[0], engine)
 
 
 def run_remote(job: Job, timeout_s: float | None, code: str) -> Outcome:
@@ -125,7 +126,7 @@ def run_remote(job: Job, timeout_s: float | None, code: str) -> Outcome:
 
     from somo_sweep.sweep.execution import run_isolated
 
-    here = trial_code(job.task)
+    here = trial_code(job.task, job.settings.engine)
     if here != code:
         raise SomoError(
             f"the worker on {socket.gethostname()} has somo-sweep code {here} for task {job.task}, the "
@@ -167,7 +168,7 @@ def run_on_dask(
     from somo_sweep.sweep.execution import Outcome
 
     source = iter(jobs)
-    codes: dict[str, str] = {}
+    codes: dict[tuple[str, str], str] = {}
     in_flight: dict[str, tuple[Job, Any]] = {}
     done = as_completed(loop=client.loop)
     run = uuid.uuid4().hex[:8]
@@ -179,7 +180,8 @@ def run_on_dask(
             if job is None:
                 return
             key = f"somo-trial-{job.job_id}-{run}"
-            code = codes.get(job.task) or codes.setdefault(job.task, trial_code(job.task))
+            which = (job.task, job.settings.engine)
+            code = codes.get(which) or codes.setdefault(which, trial_code(*which))
             future = client.submit(run_remote, job, timeout_s, code, key=key, pure=False)
             in_flight[key] = (job, future)
             done.add(future)

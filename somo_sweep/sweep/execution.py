@@ -137,10 +137,10 @@ def _start_local_worker(owner_pid: int) -> None:
     _watch_owner(owner_pid)
 
 
-_warmed: set[str] = set()
+_warmed: set[tuple[str, str]] = set()
 
 
-def _warm_up(task: str) -> None:
+def _warm_up(task: str, engine: str = "pybullet") -> None:
     """Once per worker process and task, before the first fork: import every module a trial may
     import, and connect the spare PyBullet client its children inherit.
 
@@ -148,19 +148,17 @@ def _warm_up(task: str) -> None:
     forked child and lost with it: the bench task's statics (SciPy) cost about 0.13 s of CPU per
     trial that way, ten times the trial itself. An import error is the trial's, reported by the child.
     """
-    if task in _warmed:
+    if (task, engine) in _warmed:
         return
-    _warmed.add(task)
+    _warmed.add((task, engine))
     with contextlib.suppress(Exception):
         spec = get_task(task)
         _ = spec.run
-        for name in trial_modules(spec.run_path.partition(":")[0]):
+        for name in trial_modules(spec.run_path.partition(":")[0], engine):
             with contextlib.suppress(Exception):
                 importlib.import_module(name)
-        if "pybullet" in sys.modules:  # a simulating task: its child inherits a connected client
-            from somo_sweep.sim.world import keep_spare_client
-
-            keep_spare_client()
+        if "somo_sweep.sim.world" in sys.modules:  # a simulating task: import its engine once
+            _prepare_engine(engine)
 
 
 def _call(job: Job, time_step_s: float) -> TaskResult:
@@ -192,6 +190,18 @@ def _exit_text(status: int) -> str:
     return f"exit code {os.waitstatus_to_exitcode(status)}"
 
 
+def _prepare_engine(engine: str) -> None:
+    """Import an engine before forking (once per worker); PyBullet's children also inherit a
+    connected client (:func:`~somo_sweep.sim.pybullet.world.keep_spare_client`)."""
+    if engine == "mujoco":
+        import somo_sweep.sim.mujoco.world  # noqa: F401  (its import, not the trial's, pays)
+
+        return
+    from somo_sweep.sim.pybullet.world import keep_spare_client
+
+    keep_spare_client()
+
+
 def run_isolated(job: Job, timeout_s: float | None = None, owner_pid: int | None = None) -> Outcome:
     """Run one job in a forked child process and return its outcome (never raises for the trial).
 
@@ -202,7 +212,7 @@ def run_isolated(job: Job, timeout_s: float | None = None, owner_pid: int | None
     """
     if owner_pid is not None:
         _watch_owner(owner_pid)
-    _warm_up(job.task)
+    _warm_up(job.task, job.settings.engine)
     start = time.perf_counter()
     host = socket.gethostname()
     read_fd, write_fd = os.pipe()

@@ -32,7 +32,7 @@ from pydantic import BaseModel
 
 from somo_sweep.errors import DescriptionError, Problem
 from somo_sweep.model.load import Model
-from somo_sweep.sim.settings import WorldSettings
+from somo_sweep.sim.settings import MUJOCO_ONLY, WorldSettings, engine_version
 from somo_sweep.sweep.study import MODEL_CACHE, PARAMS_CACHE, RecentCache, Study
 
 if TYPE_CHECKING:
@@ -106,8 +106,19 @@ def _imports(path: Path) -> set[str]:
     return found
 
 
-def trial_modules(task_module: str) -> list[str]:
-    """The task's module and every somo_sweep module it imports, transitively (sorted)."""
+def _engine_modules(engine: str) -> list[str]:
+    """Every module of an engine's package (``somo_sweep.sim.<engine>``)."""
+    folder = Path(__file__).resolve().parents[1] / "sim" / engine
+    return [f"somo_sweep.sim.{engine}.{p.stem}" for p in sorted(folder.glob("*.py")) if p.stem != "__init__"]
+
+
+def trial_modules(task_module: str, engine: str = "pybullet") -> list[str]:
+    """The task's module and every somo_sweep module it imports, transitively (sorted).
+
+    A task that opens a world (imports :mod:`somo_sweep.sim.world`) runs the modules of the
+    engine its settings name, which the world imports by name: they are added, those of the
+    other engine are not (editing one engine keeps the other's job ids).
+    """
     todo, seen = [task_module], set()
     while todo:
         name = todo.pop()
@@ -117,11 +128,13 @@ def trial_modules(task_module: str) -> list[str]:
         seen.add(name)
         if name not in _NOT_FOLLOWED:
             todo.extend(sorted(_imports(path) - seen))
+        if name == "somo_sweep.sim.world":
+            todo.extend(_engine_modules(engine))
     return sorted(seen)
 
 
 @cache
-def code_version(task_module: str) -> str:
+def code_version(task_module: str, engine: str = "pybullet") -> str:
     """Package version plus a hash of the sources of :func:`trial_modules`.
 
     Only code a trial can run is hashed: editing the CLI, the plots, the sweep engine or
@@ -129,7 +142,7 @@ def code_version(task_module: str) -> str:
     the core modules it uses (world, springs, ...) changes them.
     """
     digest = hashlib.sha256()
-    for name in trial_modules(task_module):
+    for name in trial_modules(task_module, engine):
         path = _module_file(name)
         assert path is not None
         digest.update(name.encode() + path.read_bytes())
@@ -218,7 +231,10 @@ class JobMaker:
     def __init__(self, study: Study):
         self.study = study
         self.fixed = None if study.simulation is None else study.simulation.world_settings()
-        self.code = code_version(study.task.run_path.partition(":")[0])
+        self.task_module = study.task.run_path.partition(":")[0]
+        #: The engine every job of the study runs on (PyBullet without ``simulation:``).
+        self.engine_name = "pybullet" if study.simulation is None else study.simulation.engine
+        self.code = code_version(self.task_module, self.engine_name)
         self.engine = pybullet_version()
         overrides = sorted({*study.fixed, *(a.key for a in study.axes)} - {"model"})
         self.model_columns = [(k, param_column(k)) for k in overrides if k.startswith("model.")]
@@ -251,7 +267,7 @@ class JobMaker:
         if info is None:
             shaped, model_hash, settings, numerics = _prepare(given, self.fixed, self.study.auto_step_s)
             model_file = os.path.relpath(model_path, self.study.source.parent)
-            info = _ModelInfo(model_file, model_hash, settings, _json(asdict(settings)), numerics)
+            info = _ModelInfo(model_file, model_hash, settings, _json(_settings_fields(settings)), numerics)
             self.models[key] = info
         else:
             shaped = given if info.numerics is None else info.numerics.apply(given)
@@ -282,12 +298,19 @@ class JobMaker:
         columns["model_file"] = info.model_file
         columns["model_hash"] = info.model_hash
         seed = _seed(study.seed, point, repeat)
-        # _hash(identity), identity = {task, params, model, settings, seed, code, pybullet}: keys sorted.
-        text = (
-            f'{self._head}{_json(info.model_hash)},"params":{params_json},"pybullet":{_json(self.engine)},'
-            f'"seed":{seed},"settings":{info.settings_json}{self._tail}'
-        )
-        job_id = hashlib.sha256(text.encode()).hexdigest()[:16]
+        if self.engine_name == "pybullet":
+            # _hash(_identity(...)) = {task, params, model, settings, seed, code, pybullet}, keys
+            # sorted, written from the parts made once per model and parameter set.
+            text = (
+                f'{self._head}{_json(info.model_hash)},"params":{params_json},"pybullet":{_json(self.engine)},'
+                f'"seed":{seed},"settings":{info.settings_json}{self._tail}'
+            )
+            job_id = hashlib.sha256(text.encode()).hexdigest()[:16]
+        else:
+            identity = _identity(
+                study.task.name, params, info.model_hash, info.settings, seed, self.task_module
+            )
+            job_id = _hash(identity)
         return Job(
             job_id,
             trial,
@@ -440,29 +463,47 @@ def iter_jobs(study: Study) -> Iterator[Job]:
         yield job
 
 
-def _job_id(
+def _identity(
     task: str,
     params: BaseModel,
     model_hash: str,
     settings: WorldSettings,
     seed: int,
-    code: str,
-    engine: str,
+    task_module: str,
     replica: int = 0,
-) -> str:
-    """The id of a trial: a hash of everything it runs (a replica's number too)."""
-    identity: dict[str, Any] = {
+) -> dict[str, Any]:
+    """What a job id hashes: the trial's inputs, the code it runs and its engine's version (and a
+    robustness replica's number).
+
+    PyBullet's settings and identity keep the form they had before there were two engines
+    (no engine keys), so a PyBullet job's id depends on nothing MuJoCo adds.
+    """
+    engine = settings.engine
+    identity = {
         "task": task,
         "params": params.model_dump(mode="json"),
         "model": model_hash,
-        "settings": asdict(settings),
+        "settings": _settings_fields(settings),
         "seed": seed,
-        "code": code,
-        "pybullet": engine,
+        "code": code_version(task_module, engine),
+        "pybullet": pybullet_version(),
     }
+    if engine != "pybullet":
+        del identity["pybullet"]
+        identity[engine] = engine_version(engine)
     if replica:
         identity["replica"] = replica
-    return _hash(identity)
+    return identity
+
+
+def _settings_fields(settings: WorldSettings) -> dict[str, Any]:
+    """The settings as a job id hashes them: PyBullet's without the engine's name and MuJoCo's
+    own fields, so a PyBullet job's id depends on nothing MuJoCo adds."""
+    fields = asdict(settings)
+    if settings.engine == "pybullet":
+        for name in ("engine", *MUJOCO_ONLY):
+            fields.pop(name)
+    return fields
 
 
 def replica_jobs(job: Job, n: int, perturb: Any) -> list[Job]:
@@ -478,8 +519,7 @@ def replica_jobs(job: Job, n: int, perturb: Any) -> list[Job]:
         n: Number of replicas.
         perturb: The task's ``perturb(params, rng)``.
     """
-    code = code_version(_run_module(job.task))
-    engine = pybullet_version()
+    task_module = _run_module(job.task)
     out = []
     for r in range(1, n + 1):
         rng = np.random.default_rng([job.seed, r])
@@ -490,9 +530,10 @@ def replica_jobs(job: Job, n: int, perturb: Any) -> list[Job]:
         flat: dict[str, Any] = {}
         _flatten("task", params.model_dump(mode="json"), flat)
         columns = {**flat, **columns}
-        job_id = _job_id(
-            job.task, params, str(job.columns["model_hash"]), settings, job.seed, code, engine, r
+        identity = _identity(
+            job.task, params, str(job.columns["model_hash"]), settings, job.seed, task_module, r
         )
+        job_id = _hash(identity)
         out.append(replace(job, job_id=job_id, params=params, settings=settings, columns=columns, replica=r))
     return out
 
@@ -582,6 +623,8 @@ def build_jobs(study: Study) -> JobTable:
         "pybullet": pybullet_version(),
         "n_trials": n,
     }
+    if maker.engine_name != "pybullet":
+        resolved[maker.engine_name] = engine_version(maker.engine_name)
     study_hash = digest.hexdigest()[:16]
     columns = {k: list(v.values()) for k, v in examples.items()}
     return JobTable(ids, study_hash, axes, resolved, columns, maker)

@@ -221,6 +221,19 @@ def _declared_types(study: Study, table: JobTable) -> dict[str, str]:
     return {(f"metric_{n}" if n in taken else n): t for n, t in study.task.metrics.items()}
 
 
+def _engines_installed(study: Study) -> None:
+    """Refuse a run on an engine this Python lacks (before any folder is touched).
+
+    Raises:
+        SomoError: A job runs on ``mujoco`` and MuJoCo is not installed (how to install it).
+    """
+    if study.simulation is not None and study.simulation.engine == "mujoco":
+        from somo_sweep.sim.mujoco.support import missing  # no MuJoCo import: is it there?
+
+        if (why := missing()) is not None:
+            raise SomoError(f"simulation.engine: {why}")
+
+
 def run_study(
     study: Study,
     n_jobs: int | None = None,
@@ -261,7 +274,8 @@ def run_study(
     Raises:
         StorageError: The results could not be written (e.g. disk full); the run stopped, what
             it wrote is intact and the manifest counts only rows in part files.
-        SomoError: Folder locked, different study in the folder, Dask unreachable.
+        SomoError: Folder locked, different study in the folder, Dask unreachable, the engine
+            (MuJoCo) not installed.
         DescriptionError: ``adaptive.labels`` names a label the task does not give.
     """
     if table is None and study.simulation is None and study.auto_step_s is None:
@@ -283,6 +297,7 @@ def run_study(
     adaptive = study.sampling == "adaptive" if adaptive is None else adaptive
     n_jobs = n_jobs or joblib.cpu_count() or 1
     plan = AdaptivePlan(study, table) if adaptive else None  # refused (nothing to refine) before any write
+    _engines_installed(study)  # fail before writing anything
     client = dask_client(scheduler) if backend == "dask" else None  # fail before writing anything
     try:
         store = ResultStore(

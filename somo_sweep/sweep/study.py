@@ -21,7 +21,8 @@ A study file (YAML or JSON) looks like this; paths are relative to the study fil
     seed: 0                              # base seed; trial seeds derive from it and the point
     simulation: {time_step_s: 5.0e-4, scale: 20, solver_iterations: 50, gravity_m_s2: [0, 0, -9.81]}
                                          # without it: the step and inertia shaping are chosen from
-                                         # each model's modes (somo_sweep.sim.numerics)
+                                         # each model's modes (somo_sweep.sim.numerics);
+                                         # {engine: mujoco}: MuJoCo instead of PyBullet (its step: 4 ms)
     output: results/finger_pressure_sweep   # a folder inside results/ of the current directory
     sampling: grid                       # or adaptive: a coarse sub-grid, refined where labels change
     adaptive: {labels: [grasp], coarse_step: 4}   # optional: labels to follow (default: all), stride
@@ -55,7 +56,7 @@ from functools import cache
 from pathlib import Path
 from typing import Annotated, Any, Literal
 
-from pydantic import BaseModel, Field
+from pydantic import BaseModel, Field, model_validator
 
 from somo_sweep.errors import DescriptionError, Problem, SomoError, shown
 from somo_sweep.model.description import Spec
@@ -63,7 +64,7 @@ from somo_sweep.model.files import is_file, load_mapping, missing_or_special
 from somo_sweep.model.load import Model, model_from_dict
 from somo_sweep.model.tables import bundled_if_missing, resolve_table
 from somo_sweep.model.validation import validate
-from somo_sweep.sim.settings import WorldSettings
+from somo_sweep.sim.settings import MUJOCO_DEFAULT_STEP_S, MUJOCO_ONLY, PYBULLET_ONLY, WorldSettings
 from somo_sweep.sweep.axes import Axis, axis_length, expand_axis, link_groups, parse_key_path, set_path
 from somo_sweep.sweep.cells import Cells, cells_key, parse_cells
 from somo_sweep.sweep.schema import MAX_REPLICAS
@@ -136,26 +137,63 @@ class Simulation(Spec):
     velocity corrections sum below it
     (:attr:`~somo_sweep.sim.settings.WorldSettings.solver_residual_threshold`); left out,
     Bullet's 1e-7 applies.
+
+    ``engine: mujoco`` runs every trial on MuJoCo (optional extra ``somo-sweep[mujoco]``; docs/mujoco.md):
+    springs implicit, no inertia shaping, SI throughout. ``time_step_s`` left out is then 4 ms
+    (:data:`~somo_sweep.sim.settings.MUJOCO_DEFAULT_STEP_S`), and ``integrator``,
+    ``contact_time_constant_s`` and ``impratio`` tune it. Each engine refuses the other's own
+    options set to anything but their defaults (``scale``, ``body_per_manipulator``,
+    ``friction_rows_every`` and ``solver_residual_threshold`` are PyBullet's).
     """
 
-    time_step_s: float = Field(5e-4, gt=0)
+    time_step_s: float | None = Field(None, gt=0)
     scale: float = Field(20.0, gt=0)
     solver_iterations: int = Field(50, ge=1)
     gravity_m_s2: tuple[float, float, float] = (0.0, 0.0, -9.81)
     body_per_manipulator: bool = False
     friction_rows_every: int = Field(1, ge=1, le=2)
     solver_residual_threshold: float | None = Field(None, gt=0)
+    engine: Literal["pybullet", "mujoco"] = "pybullet"
+    integrator: Literal["discrete", "implicitfast"] = "discrete"
+    contact_time_constant_s: float = Field(WorldSettings.contact_time_constant_s, gt=0, le=1.0)
+    impratio: float = Field(WorldSettings.impratio, gt=0, le=1e4)
+
+    @model_validator(mode="after")
+    def _options_of_the_engine(self) -> Simulation:
+        """An option of the other engine, set to anything but its default, is refused by name."""
+        others = PYBULLET_ONLY if self.engine == "mujoco" else MUJOCO_ONLY
+        foreign = [f for f in self.model_fields_set if f in others]
+        unread = [f for f in foreign if getattr(self, f) != type(self).model_fields[f].default]
+        if unread:
+            other = "pybullet" if self.engine == "mujoco" else "mujoco"
+            raise ValueError(
+                f"{', '.join(sorted(unread))}: engine {self.engine} does not read "
+                f"{'it' if len(unread) == 1 else 'them'} ({'its' if len(unread) == 1 else 'their'} engine is "
+                f"{other}); allowed: leave {'it' if len(unread) == 1 else 'them'} out, or engine: {other}"
+            )
+        return self
+
+    @property
+    def step_s(self) -> float:
+        """The step: as given, else the engine's default (PyBullet 0.5 ms, MuJoCo 4 ms)."""
+        if self.time_step_s is not None:
+            return self.time_step_s
+        return MUJOCO_DEFAULT_STEP_S if self.engine == "mujoco" else WorldSettings.time_step_s
 
     def world_settings(self) -> WorldSettings:
         """The :class:`~somo_sweep.sim.world.WorldSettings` these settings describe."""
         return WorldSettings(
-            time_step_s=self.time_step_s,
+            time_step_s=self.step_s,
             scale=self.scale,
             gravity_m_s2=self.gravity_m_s2,
             solver_iterations=self.solver_iterations,
             body_per_manipulator=self.body_per_manipulator,
             friction_rows_every=self.friction_rows_every,
             solver_residual_threshold=self.solver_residual_threshold,
+            engine=self.engine,
+            integrator=self.integrator,
+            contact_time_constant_s=self.contact_time_constant_s,
+            impratio=self.impratio,
         )
 
 
@@ -798,6 +836,20 @@ def _check_points(study: Study, lines: dict[str, int], problems: list[Problem]) 
                 return
     if study.task.check_params is not None and not problems:
         _check_pairs(study, study.task.check_params, lines, problems)
+    if study.simulation is not None and study.simulation.engine == "mujoco" and not problems:
+        _check_pairs(study, _mujoco_needs(study.task), lines, problems, where="model")
+
+
+def _mujoco_needs(task: TaskSpec) -> Callable[[Model, Any], list[str]]:
+    """The fields of a trial's model (as the task prepares it) that MuJoCo cannot express."""
+    from somo_sweep.sim.mujoco.support import unsupported  # no MuJoCo import: a check of the fields
+
+    def needs(model: Model, params: Any) -> list[str]:
+        simulated = task.prepare(model, params) if task.prepare is not None else model
+        as_run = f" (as task {task.name} simulates it)" if task.prepare is not None else ""
+        return [f"{path}{as_run}: {why}" for path, why in unsupported(simulated)]
+
+    return needs
 
 
 #: Most models (and parameter sets) a task's ``check_params`` sees when a study is loaded: each
@@ -806,9 +858,13 @@ CHECK_PAIRS = 32
 
 
 def _check_pairs(
-    study: Study, check: Callable[[Model, Any], list[str]], lines: dict[str, int], problems: list[Problem]
+    study: Study,
+    check: Callable[[Model, Any], list[str]],
+    lines: dict[str, int],
+    problems: list[Problem],
+    where: str = "params",
 ) -> None:
-    """Report what the task needs of a model and its parameters together (e.g. a torque table)."""
+    """Report what the task (or the engine) needs of a model and its parameters together."""
     models = list(itertools.islice(_distinct(study, True), CHECK_PAIRS))
     param_sets = list(itertools.islice(_distinct(study, False), CHECK_PAIRS))
     pairs = [(m, param_sets[0]) for m in models] + [(models[0], q) for q in param_sets[1:]]
@@ -819,7 +875,7 @@ def _check_pairs(
         for need in check(model, params):
             if need not in seen:
                 seen.add(need)
-                problems.append(Problem("params", need, _line(lines, "params")))
+                problems.append(Problem(where, need, _line(lines, where)))
 
 
 def _check_model_fits(

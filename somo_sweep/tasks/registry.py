@@ -67,6 +67,10 @@ class TaskSpec:
         check_params: What the task needs of a model and its parameters together (a torque table
             with one column per input of the model), checked when a study is loaded:
             ``check_params(model, params)`` returns one sentence per unmet need.
+        prepare: The model a trial simulates, from the study's model and the trial's parameters
+            (``prepare(model, params)``: the pinch task re-splits the fingers, the snake drops its
+            anisotropic friction when asked); None: the study's model as it is. Loading a study
+            checks that its engine can express it.
         perturb: A small physical perturbation of a trial's parameters, for robustness replicas
             (:mod:`somo_sweep.sweep.robustness`): ``perturb(params, rng)`` returns new
             parameters drawn with the NumPy generator ``rng`` (e.g. the object moved by a fraction
@@ -82,6 +86,7 @@ class TaskSpec:
     metrics: Mapping[str, str] = field(default_factory=dict)
     check_model: Callable[[Model], list[str]] | None = None
     check_params: Callable[[Model, Any], list[str]] | None = None
+    prepare: Callable[[Model, Any], Model] | None = None
     perturb: Callable[[Any, Any], Any] | None = None
     perturbation: str = ""
 

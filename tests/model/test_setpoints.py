@@ -56,3 +56,16 @@ def test_steady_steps_are_exactly_the_steps_whose_value_repeats(
     # ...and claimed wherever both times lie in one still stretch.
     still = [i for i in range(1, n) if np.array_equal(seen[i], seen[i - 1])]
     assert sum(steady) >= len(still) - 2 * len(times)
+
+
+def test_still_stretch_names_where_a_table_holds_still_and_nothing_else() -> None:
+    table = SetpointTable([0.0, 1.0, 2.0, 3.0], [[0.0], [0.0], [1.0], [1.0]])
+    assert table.still_stretch(-0.5) == -1  # before the first row
+    assert table.still_stretch(0.5) == 0  # between two equal rows
+    assert table.still_stretch(1.0) is None and table.still_stretch(1.5) is None  # ramping
+    assert table.still_stretch(2.5) == 2
+    assert table.still_stretch(3.0) == 3 and table.still_stretch(9.0) == 3  # after the last
+    for t in (-0.5, 0.5, 2.5, 9.0):  # a still stretch's value is the value anywhere in it
+        stretch = table.still_stretch(t)
+        assert stretch is not None
+        np.testing.assert_array_equal(table(t), table.values[max(stretch, 0)])

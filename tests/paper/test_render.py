@@ -68,3 +68,29 @@ def test_a_study_that_has_not_chosen_its_step_says_it_draws_the_starting_guess(t
     )
     assert res.exit_code == 0, res.output
     assert "the automatic step's starting guess: this study has not chosen its step yet" in res.output
+
+
+def test_render_runs_a_trial_on_mujoco_and_draws_it(tmp_path: Path) -> None:
+    """``--engine mujoco`` reruns the study's trial on MuJoCo (its own numerics) and draws it there."""
+    pytest.importorskip("mujoco")
+    path = _study(tmp_path, "object_width_m: 0.04, centering_position_m: 0.100")
+    out = tmp_path / "r"
+    res = CliRunner().invoke(
+        app, ["render", str(path), "--trial", "0", "--at-s", "3.5", "--out", str(out), "--engine", "mujoco"]
+    )
+    if "MuJoCo cannot render here" in res.output:
+        pytest.skip("no OpenGL library for MuJoCo's offscreen renderer")
+    assert res.exit_code == 0, res.output
+    assert res.output.startswith("trial 0: ")
+    image = out / "one_mujoco_dsr0.00_w40mm_c100mm_t3.50s.png"
+    assert sorted(p.name for p in out.iterdir()) == [image.name]
+    assert image.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+
+
+def test_an_engine_render_does_not_know_is_refused(tmp_path: Path) -> None:
+    path = _study(tmp_path, "object_width_m: 0.04")
+    res = CliRunner().invoke(
+        app, ["render", str(path), "--trial", "0", "--engine", "ode", "--out", str(tmp_path / "r")]
+    )
+    assert res.exit_code == 2 and "engine must be one of pybullet, mujoco, got 'ode'" in res.output
+    assert not (tmp_path / "r").exists()

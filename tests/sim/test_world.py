@@ -16,7 +16,7 @@ from somo_sweep.errors import SimulationError
 from somo_sweep.model.description import Pose
 from somo_sweep.model.load import load_model, model_from_dict
 from somo_sweep.model.setpoints import SetpointTable
-from somo_sweep.sim import world as world_module
+from somo_sweep.sim.pybullet import world as world_module
 from somo_sweep.sim.settings import WorldSettings
 from somo_sweep.sim.urdf import cache_dir, plan_assembly, write_urdf
 from somo_sweep.sim.world import World

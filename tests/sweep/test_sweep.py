@@ -125,7 +125,7 @@ def test_code_version_covers_the_code_a_trial_runs_and_nothing_else() -> None:
         "somo_sweep.tasks.bench.task",
         "somo_sweep.sim.bench",
         "somo_sweep.sim.world",
-        "somo_sweep.sim.springs",
+        "somo_sweep.sim.pybullet.springs",
     } <= set(bench)
     assert not {
         "somo_sweep.cli.app",

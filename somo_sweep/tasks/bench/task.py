@@ -21,7 +21,7 @@ def run_bench_task(model: Model, params: BenchParams, settings: WorldSettings, s
     """Run one bench protocol; metrics in mm / N / deg, ``relax_steps`` the time steps (dynamic)
     or Newton iterations (solve) it took.
 
-    The bench is static and deterministic: ``seed`` is not used. The time step,
+    The bench is static and deterministic: ``seed`` is not used. The engine, time step,
     scale and gravity magnitude come from ``settings``.
     """
     bench = BenchSettings(
@@ -29,6 +29,7 @@ def run_bench_task(model: Model, params: BenchParams, settings: WorldSettings, s
         scale=settings.scale,
         gravity_m_s2=abs(settings.gravity_m_s2[2]),
         statics=params.statics,
+        engine=settings.engine,
     )
     try:
         res = run_bench(model, params.test, params.pressure_kpa, params.tip_load_n, bench)

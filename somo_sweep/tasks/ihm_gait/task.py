@@ -26,15 +26,14 @@ from pathlib import Path
 
 import numpy as np
 import pandas as pd
-import pybullet as p
 
 from somo_sweep.errors import SimulationError, SomoError, UnstableSimulation
 from somo_sweep.model.description import Link, Pose, RigidBody
 from somo_sweep.model.load import Model
 from somo_sweep.model.setpoints import SetpointTable
 from somo_sweep.model.tables import read_table_text
+from somo_sweep.sim.rotations import rpy_from_quat
 from somo_sweep.sim.settings import WorldSettings
-from somo_sweep.sim.urdf import plan_rigid_body
 from somo_sweep.sim.world import Body, World
 from somo_sweep.tasks.ihm_gait.params import GaitParams, check_hand
 from somo_sweep.tasks.registry import TaskResult
@@ -146,7 +145,7 @@ def simulate_gait(model: Model, params: GaitParams, settings: WorldSettings, see
                 rpy_rad=(0.0, 0.0, float(np.radians(yaw_deg))),
             ),
         )
-        obj = world.load_plan(plan_rigid_body(cube, world.scale))
+        obj = world.add_rigid_body(cube)
         w_g, w_s = params.w_grasp_n_m_per_psi, params.w_side_n_m_per_psi
         world.pre_step.append(lambda w: hand.set_inputs(_torques(table(w.time_s), w_g, w_s)))
         every = max(1, round(params.record_every_s / settings.time_step_s))
@@ -161,7 +160,7 @@ def simulate_gait(model: Model, params: GaitParams, settings: WorldSettings, see
             if pos[0][2] - xyz[2] > FALLEN_BELOW_SEAT_M:
                 break
     pos_arr = np.asarray(pos) - pos[0]
-    eul = np.asarray([p.getEulerFromQuaternion(q) for q in quats])
+    eul = np.asarray([rpy_from_quat(q) for q in quats])
     rot_z = np.degrees(np.unwrap(eul[:, 2]))
     return GaitRun(np.asarray(times), pos_arr, rot_z - rot_z[0], np.degrees(eul[:, :2]))
 

@@ -29,8 +29,8 @@ from somo_sweep.errors import SomoError, UnstableSimulation
 from somo_sweep.model.description import Actuator, Joint, Link, Manipulator, Pose, RigidBody
 from somo_sweep.model.load import Model
 from somo_sweep.model.setpoints import SetpointTable
+from somo_sweep.sim.rotations import rpy_from_quat
 from somo_sweep.sim.settings import WorldSettings
-from somo_sweep.sim.urdf import plan_rigid_body
 from somo_sweep.sim.world import World
 from somo_sweep.tasks.pinch_grasp.classify import (
     GraspEvidence,
@@ -217,7 +217,7 @@ def run_pinch_grasp(
         ground = world.add_ground(friction=GROUND_FRICTION)
         box = object_body(p)
         obj_start = np.array(box.pose.position_m)
-        obj = world.load_plan(plan_rigid_body(box, world.scale))
+        obj = world.add_rigid_body(box)
         # Load the hand far away, measure where its finger mounts sit relative to the palm.
         far = np.array([1.0, 0.0, p.hand_height_m])
         hand = world.add_model(hand_model, Pose(position_m=tuple(far)))
@@ -243,6 +243,10 @@ def run_pinch_grasp(
         )
         n_in = len(hand.input_names)
         torque = SetpointTable([0.0, t1, t2], [[0.0] * n_in, [0.0] * n_in, [p.torque_n_m] * n_in])
+        # The world sends the setpoints at every step, and only when they change.
+        world.follow(
+            hand, inputs=torque, base=SetpointTable(path.times_s, np.pad(path.values, ((0, 0), (0, 3))))
+        )
         dt = settings.time_step_s
         n_steps = round(t4 / dt)
         sample_every = max(1, round(p.sample_period_s / dt))
@@ -251,10 +255,20 @@ def run_pinch_grasp(
         metrics: dict[str, float | int | bool | str] = {"n_distal_links": p.n_distal}
         ended_early_s, reason, touched = float("nan"), "", False
         observe_steps = {min(round(t / dt), n_steps - 1) for t in observe_at_s}
-        last_u, last_pose = np.full(n_in, np.nan), np.full(3, np.nan)
-        u_steady, pose_steady = torque.steady_steps(n_steps, dt), path.steady_steps(n_steps, dt)
+        checks = set(range(i_lift, i_hold + 1, sample_every)) if p.early_stop else set()
+        # Hold-phase samples follow the steps counted back from the last, so the last comes last.
+        samples = {i + 1 for i in range(i_hold, n_steps) if (n_steps - 1 - i) % sample_every == 0}
+        # The loop stops only where something is read or checked; the steps between run in one call.
+        stops = sorted({0, i_lift, i_hold, n_steps} | observe_steps | checks | samples)
         try:
-            for i in range(n_steps):
+            done = 0
+            for i in stops:
+                world.step(i - done)
+                done = i
+                if i in samples:
+                    probe.sample()  # after step i − 1
+                if i == n_steps:
+                    break
                 t = i * dt
                 if observe is not None and i in observe_steps:
                     observe(world, t)
@@ -264,32 +278,16 @@ def run_pinch_grasp(
                     metrics["base_distance_m"] = float(probe.finger_mounts_m()[:, 0].mean() - obj_start[0])
                     metrics["squeeze_end_hand_contact"] = touched = probe.touching_now()
                 # From the end of the squeeze to the end of the lift, every sample period.
-                if p.early_stop and i_lift <= i <= i_hold and (i - i_lift) % sample_every == 0:
+                if i in checks:
                     reason = settled_reason(_snapshot(world, probe, obj.id), touched)
                     if reason:
                         ended_early_s = t
                         break
-                # Setpoints are resent only when they change: the torque is constant during the
-                # approach and the hold, the hand's target during the squeeze and the hold (and
-                # there they are not even looked up).
-                if not u_steady[i]:
-                    u = torque(t)
-                    if not np.array_equal(u, last_u):
-                        hand.set_inputs(u)
-                        last_u = u
-                if not pose_steady[i]:
-                    pose = path(t)
-                    if not np.array_equal(pose, last_pose):
-                        world.drive_model(hand, pose, (0.0, 0.0, 0.0))
-                        last_pose = pose
-                world.step()
-                if i >= i_hold and (n_steps - 1 - i) % sample_every == 0:
-                    probe.sample()
         except UnstableSimulation as exc:
             return TaskResult(status="unstable", message=str(exc))
         pos, quat = world.base_pose(obj.id)
         metrics.update({f"object_{a}_m": float(v) for a, v in zip("xyz", pos, strict=True)})
-        rpy = world_rpy(quat)
+        rpy = rpy_from_quat(quat)
         metrics.update({"object_roll_rad": rpy[0], "object_pitch_rad": rpy[1], "object_yaw_rad": rpy[2]})
         metrics["lift_height_m"] = float(pos[2] - obj_start[2])
         nan = float("nan")
@@ -329,11 +327,3 @@ def _snapshot(world: World, probe: HoldProbe, object_id: int) -> Snapshot:
         object_z_m=float(world.base_pose(object_id)[0][2]),
         finger_speed_rad_s=finger_speed,
     )
-
-
-def world_rpy(quat: np.ndarray) -> tuple[float, float, float]:
-    """Roll, pitch, yaw (rad) of a quaternion (x, y, z, w)."""
-    import pybullet as pb
-
-    r = pb.getEulerFromQuaternion([float(c) for c in quat])
-    return float(r[0]), float(r[1]), float(r[2])

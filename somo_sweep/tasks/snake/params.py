@@ -46,6 +46,13 @@ def check_manipulator(model: Model) -> list[str]:
     ]
 
 
+def simulated_snake(model: Model, params: SnakeParams) -> Model:
+    """The snake a trial simulates: its segments' anisotropic friction dropped when ``isotropic``."""
+    from somo_sweep.tasks.snake.task import isotropic
+
+    return isotropic(model) if params.friction == "isotropic" and model.manipulator is not None else model
+
+
 register(
     TaskSpec(
         name="snake",
@@ -55,5 +62,6 @@ register(
         tags=("paper", "fig8", "locomotion"),
         metrics=METRICS,
         check_model=check_manipulator,
+        prepare=simulated_snake,
     )
 )

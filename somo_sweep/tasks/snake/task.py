@@ -21,7 +21,7 @@ from somo_sweep.sim.world import World
 from somo_sweep.tasks.registry import TaskResult
 from somo_sweep.tasks.snake.params import SnakeParams
 
-__all__ = ["SnakeParams", "SnakeRun", "simulate_snake"]
+__all__ = ["SnakeParams", "SnakeRun", "isotropic", "simulate_snake"]
 
 
 @dataclass(frozen=True)
@@ -57,7 +57,8 @@ class SnakeRun:
         return float((self.com_xy_m[-1] - self.com_xy_m[0]) @ side)
 
 
-def _isotropic(model: Model) -> Model:
+def isotropic(model: Model) -> Model:
+    """The snake with isotropic friction on every segment (its ``anisotropic`` scaling dropped)."""
     assert model.manipulator is not None
     acts = []
     for act in model.manipulator.actuators:
@@ -81,7 +82,7 @@ def simulate_snake(model: Model, params: SnakeParams, settings: WorldSettings) -
     if model.manipulator is None:
         raise ValueError("the snake task needs a manipulator model")
     if params.friction == "isotropic":
-        model = _isotropic(model)
+        model = isotropic(model)
     manip = model.manipulator
     assert manip is not None
     height_m = manip.actuators[0].segment_link().half_extent_m(0)

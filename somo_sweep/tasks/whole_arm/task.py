@@ -21,7 +21,6 @@ from pathlib import Path
 
 import numpy as np
 import pandas as pd
-import pybullet as p
 
 from somo_sweep.errors import SomoError, UnstableSimulation
 from somo_sweep.model.description import Link, Pose, RigidBody
@@ -30,7 +29,6 @@ from somo_sweep.model.setpoints import SetpointTable
 from somo_sweep.model.tables import read_table_text
 from somo_sweep.sim.render import Camera, snapshot
 from somo_sweep.sim.settings import WorldSettings
-from somo_sweep.sim.urdf import plan_rigid_body
 from somo_sweep.sim.world import World
 from somo_sweep.tasks.registry import TaskResult
 from somo_sweep.tasks.whole_arm.params import WholeArmParams, torque_columns
@@ -130,9 +128,7 @@ def load_torque_table(path: str | Path, input_names: list[str]) -> SetpointTable
 
 def _fixture(world: World, name: str, size_m: tuple[float, float, float], pose: Pose, rgba: tuple) -> int:
     link = Link(shape="box", size_m=size_m, mass_kg=FIXTURE_MASS_KG, color_rgba=rgba)
-    return world.load_plan(
-        plan_rigid_body(RigidBody(name=name, link=link, pose=pose, fixed=True), world.scale)
-    ).id
+    return world.add_rigid_body(RigidBody(name=name, link=link, pose=pose, fixed=True)).id
 
 
 def _add_stand(world: World, ball_m: np.ndarray, radius_m: float) -> None:
@@ -215,9 +211,7 @@ def simulate_whole_arm(
             friction={"lateral": params.ball_friction},
             color_rgba=BALL_RGBA,
         )
-        ball = world.load_plan(
-            plan_rigid_body(RigidBody(name="ball", link=ball_link, pose=Pose(position_m=ball0)), world.scale)
-        )
+        ball = world.add_rigid_body(RigidBody(name="ball", link=ball_link, pose=Pose(position_m=ball0)))
         world.follow(arm, scaled)
         dt = settings.time_step_s
         every = max(1, round(params.record_every_s / dt))
@@ -229,9 +223,7 @@ def simulate_whole_arm(
             if step % every == 0:
                 times.append(world.time_s)
                 path.append(world.base_pose(ball.id)[0])
-                contact.append(
-                    any(p.getContactPoints(ball.id, i, physicsClientId=world.client) for i in ring)
-                )
+                contact.append(any(len(world.contacts(ball.id, i)["link_a"]) for i in ring))
             if frame_steps and frame_steps[0] == step:
                 frames.append(snapshot(world, camera))  # type: ignore[arg-type]
                 frame_steps.pop(0)

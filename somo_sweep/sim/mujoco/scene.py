@@ -1,0 +1,249 @@
+"""Body plans as MuJoCo bodies, joints and geoms (an ``MjSpec``), in SI.
+
+A plan's URDF tree (:mod:`somo_sweep.sim.mujoco.urdf_tree`) becomes nested MuJoCo bodies: a
+fixed joint nests the child without a joint (MuJoCo welds it), a spring joint becomes a hinge
+or slide with the spring inside MuJoCo (``stiffness`` k and k·a for the cubic term,
+``springref`` q0, ``damping`` c) and the Coulomb motor as ``frictionloss``, so that the
+``discrete`` integrator treats springs, damping and friction implicitly. Link inertias leave
+out ``added_inertia_kg_m2``: inertia shaping is PyBullet's numerics for its explicit springs,
+and MuJoCo's implicit springs need none.
+
+The root is welded to the world (``fixed``), free (a free joint) or ``driven``: three slides and
+three hinges (yaw, pitch, roll, so a pose is the joints' values) with a very large armature
+and gravity compensation, whose speeds the world sets every step so that the root reaches its
+target at the end of the step (:class:`~somo_sweep.sim.mujoco.world.MujocoWorld`).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from typing import Any
+
+import mujoco
+import numpy as np
+
+from somo_sweep.errors import SimulationError
+from somo_sweep.sim.mujoco.surfaces import Surface
+from somo_sweep.sim.mujoco.urdf_tree import Shape, TreeLink, read_tree, unit
+from somo_sweep.sim.plan import BodyPlan, LinkInfo
+from somo_sweep.sim.rotations import quat_from_rpy, wxyz
+
+__all__ = ["DRIVEN_ARMATURE", "GeomInfo", "PlannedBody", "add_plan", "unsupported_link"]
+
+#: The joints' Coulomb friction (``frictionloss``) as a stiffer MuJoCo friction row than its default
+#: (0.02 s, impedance 0.9-0.95), with which a joint held below its limit creeps (1e-3 rad/s under 4 %
+#: of the limit on a test rotor); with these, 8 times slower. Stiffer still (1 ms) creeps 50 times
+#: slower but moves the quick pinch grid's labels between 4 and 2 ms steps (93 % agree, against
+#: 99 % with these): docs/mujoco.md, "Joint friction".
+FRICTION_SOLREF = (8e-3, 1.0)
+FRICTION_SOLIMP = (0.99, 0.999, 0.001, 0.5, 2.0)
+#: Armature of a driven root's joints, per kg of the whole body (kg, kg·m² per kg): the root
+#: then barely feels what its links do within one step (its speed is set every step).
+DRIVEN_ARMATURE = 1e4
+#: The driven root's joints: three slides along the world axes, then yaw, pitch, roll.
+DRIVEN_AXES = (
+    ("x", mujoco.mjtJoint.mjJNT_SLIDE, (1.0, 0.0, 0.0)),
+    ("y", mujoco.mjtJoint.mjJNT_SLIDE, (0.0, 1.0, 0.0)),
+    ("z", mujoco.mjtJoint.mjJNT_SLIDE, (0.0, 0.0, 1.0)),
+    ("yaw", mujoco.mjtJoint.mjJNT_HINGE, (0.0, 0.0, 1.0)),
+    ("pitch", mujoco.mjtJoint.mjJNT_HINGE, (0.0, 1.0, 0.0)),
+    ("roll", mujoco.mjtJoint.mjJNT_HINGE, (1.0, 0.0, 0.0)),
+)
+_GEOM = {
+    "box": mujoco.mjtGeom.mjGEOM_BOX,
+    "sphere": mujoco.mjtGeom.mjGEOM_SPHERE,
+    "cylinder": mujoco.mjtGeom.mjGEOM_CYLINDER,
+    "capsule": mujoco.mjtGeom.mjGEOM_CAPSULE,
+}
+
+
+@dataclass
+class GeomInfo:
+    """A geom and what the world needs to know of it.
+
+    Attributes:
+        name: MuJoCo geom name.
+        owner: Id of the world body it belongs to.
+        link: Its link index in that body (−1: the root).
+        surface: Its friction.
+        static: Welded to the world (never moves).
+        spec: The MuJoCo spec element.
+    """
+
+    name: str
+    owner: int
+    link: int
+    surface: Surface
+    static: bool
+    spec: Any = None
+
+
+@dataclass
+class PlannedBody:
+    """A plan added to the spec: names of its MuJoCo bodies and joints, and the links' ancestors.
+
+    Attributes:
+        body_names: MuJoCo body name of each link, in link-index order (root first).
+        spring_joints: MuJoCo joint name of each spring joint, in the plan's order.
+        root_joints: The root's joints (one free joint, six driven ones, or none).
+        ancestors: Per link index, the link indices it hangs from.
+        total_mass_kg: The body's mass.
+    """
+
+    body_names: list[str]
+    spring_joints: list[str]
+    root_joints: list[str]
+    ancestors: dict[int, set[int]] = field(default_factory=dict)
+    total_mass_kg: float = 0.0
+
+
+def unsupported_link(info: LinkInfo) -> list[str]:
+    """What of a link the mujoco engine cannot express (one sentence each, naming the field)."""
+    link = info.link
+    if link is None:
+        return []
+    out = []
+    if link.friction.anisotropic is not None:
+        out.append(
+            f"link '{info.name}': friction.anisotropic {list(link.friction.anisotropic)} cannot be expressed "
+            "on engine mujoco (its contact friction directions follow the contact normal, not the link's "
+            "axes); allowed: null, or engine pybullet"
+        )
+    if link.restitution > 0:
+        out.append(
+            f"link '{info.name}': restitution {link.restitution:g} cannot be expressed on engine mujoco (its "
+            "soft contacts are critically damped, without a restitution coefficient); allowed: 0, or engine "
+            "pybullet"
+        )
+    return out
+
+
+def _inertia(info: LinkInfo, tree: TreeLink) -> np.ndarray:
+    """Principal moments without inertia shaping, kg·m²."""
+    if info.link is None:
+        return np.asarray(tree.inertia_kg_m2, dtype=float)
+    return info.link.principal_inertia_kg_m2() - info.link.added_inertia_kg_m2
+
+
+def add_plan(
+    spec: mujoco.MjSpec,
+    plan: BodyPlan,
+    body_id: int,
+    position_m: np.ndarray,
+    quat_xyzw: tuple[float, ...],
+    contact_time_constant_s: float,
+) -> tuple[PlannedBody, list[GeomInfo]]:
+    """Add one plan under the world body; returns its names and its geoms (not yet filtered).
+
+    Args:
+        spec: The scene's spec.
+        plan: The body plan (made at scale 1: SI).
+        body_id: The world's id of the body (names are prefixed with it).
+        position_m, quat_xyzw: Where the root goes (a driven root's joints are set there later).
+        contact_time_constant_s: The contacts' time constant (``solref``), s.
+    """
+    if plan.scale != 1.0:
+        raise SimulationError(f"the mujoco engine takes plans made at scale 1 (SI), got {plan.scale}")
+    problems = [p for info in plan.links for p in unsupported_link(info)]
+    if problems:
+        raise SimulationError("; ".join(problems))
+    tree_links, tree_joints = read_tree(plan)
+    infos = {info.name: info for info in plan.links}
+    prefix = f"b{body_id}/"
+    root_name = plan.links[0].name
+    mode = plan.mode
+    if mode == "driven":
+        root = spec.worldbody.add_body(name=prefix + root_name)
+        root.gravcomp = 1.0
+    else:
+        root = spec.worldbody.add_body(
+            name=prefix + root_name, pos=list(position_m), quat=list(wxyz(quat_xyzw))
+        )
+    total = sum(t.mass_kg for t in tree_links.values())
+    root_joints: list[str] = []
+    if mode == "free":
+        root.add_freejoint(name=prefix + "free")
+        root_joints.append(prefix + "free")
+    elif mode == "driven":
+        for name, kind, axis in DRIVEN_AXES:
+            joint = root.add_joint(name=prefix + name, type=kind, axis=list(axis))
+            joint.armature = DRIVEN_ARMATURE * max(total, 1e-3)
+            root_joints.append(prefix + name)
+    bodies = {root_name: root}
+    index = {info.name: i - 1 for i, info in enumerate(plan.links)}
+    parent_of: dict[str, str] = {}
+    moves_with_root = {root_name: mode != "fixed"}
+    spring_by_name = {sj.name: sj for sj in plan.joints}
+    for tj in tree_joints:
+        parent_of[tj.child] = tj.parent
+        body = bodies[tj.parent].add_body(
+            name=prefix + tj.child, pos=list(tj.xyz_m), quat=list(wxyz(quat_from_rpy(tj.rpy_rad)))
+        )
+        bodies[tj.child] = body
+        moves_with_root[tj.child] = moves_with_root[tj.parent] or tj.kind != "fixed"
+        if tj.kind == "fixed":
+            continue
+        sj = spring_by_name[tj.name]
+        joint = body.add_joint(
+            name=prefix + tj.name,
+            type=mujoco.mjtJoint.mjJNT_HINGE if tj.kind == "revolute" else mujoco.mjtJoint.mjJNT_SLIDE,
+            axis=list(unit(tj.axis)),
+        )
+        joint.stiffness = [sj.stiffness, 0.0, sj.stiffness * sj.stiffening]
+        joint.springref = sj.neutral
+        joint.damping = [sj.damping, 0.0, 0.0]
+        joint.frictionloss = sj.motor_limit
+        joint.solref_friction = list(FRICTION_SOLREF)
+        joint.solimp_friction = list(FRICTION_SOLIMP)
+        if tj.limits is not None:
+            joint.limited = mujoco.mjtLimited.mjLIMITED_TRUE
+            joint.range = list(tj.limits)
+        else:
+            joint.limited = mujoco.mjtLimited.mjLIMITED_FALSE
+    geoms: list[GeomInfo] = []
+    for name, tree in tree_links.items():
+        body, info = bodies[name], infos[name]
+        if tree.mass_kg > 0:
+            body.explicitinertial = True
+            body.mass = tree.mass_kg
+            body.ipos = list(tree.com_m)
+            body.iquat = [1.0, 0.0, 0.0, 0.0]
+            body.inertia = list(_inertia(info, tree))
+        link = info.link
+        surface = Surface(
+            link.friction.lateral if link else 1.0,
+            link.friction.spinning if link else 0.0,
+            link.friction.rolling if link else 0.0,
+        )
+        rgba = list(link.color_rgba) if link else [0.55, 0.6, 0.7, 1.0]
+        for k, shape in enumerate(tree.shapes):
+            geom_name = f"{prefix}{name}#{k}"
+            geom = _add_geom(body, geom_name, shape, rgba, surface, contact_time_constant_s)
+            geoms.append(GeomInfo(geom_name, body_id, index[name], surface, not moves_with_root[name], geom))
+    ancestors: dict[int, set[int]] = {}
+    for name in tree_links:
+        chain, up = set(), parent_of.get(name)
+        while up is not None:
+            chain.add(index[up])
+            up = parent_of.get(up)
+        ancestors[index[name]] = chain
+    planned = PlannedBody(
+        body_names=[prefix + info.name for info in plan.links],
+        spring_joints=[prefix + sj.name for sj in plan.joints],
+        root_joints=root_joints,
+        ancestors=ancestors,
+        total_mass_kg=total,
+    )
+    return planned, geoms
+
+
+def _add_geom(
+    body: Any, name: str, shape: Shape, rgba: list[float], surface: Surface, time_constant_s: float
+) -> Any:
+    size = list(shape.size_m) + [0.0] * (3 - len(shape.size_m))
+    geom = body.add_geom(name=name, type=_GEOM[shape.kind], size=size, pos=list(shape.offset_m))
+    geom.rgba = rgba
+    geom.friction = list(surface.own())
+    geom.solref = [time_constant_s, 1.0]
+    geom.margin = 0.0
+    return geom

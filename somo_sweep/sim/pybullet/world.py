@@ -1,0 +1,442 @@
+"""The PyBullet engine's world: a headless PyBullet client in SI units (:class:`World`'s interface).
+
+The world is scaled internally by ``scale`` (paper Sec. III-B.4): lengths,
+positions, linear velocities, forces and gravity ×Y; torques and rotational
+stiffness ×Y²; masses unchanged. Every public method takes and returns SI.
+"""
+
+from __future__ import annotations
+
+import os
+import threading
+from collections.abc import Callable, Sequence
+from time import perf_counter
+from typing import TYPE_CHECKING, cast
+
+import numpy as np
+import numpy.typing as npt
+import pybullet as p
+
+from somo_sweep.errors import SimulationError, UnstableSimulation
+from somo_sweep.model.description import Link, Pose
+from somo_sweep.model.load import Model
+from somo_sweep.sim.plan import BodyPlan
+from somo_sweep.sim.pybullet.springs import SpringDrive
+from somo_sweep.sim.settings import WorldSettings
+from somo_sweep.sim.urdf import plan_assembly, write_urdf
+from somo_sweep.sim.world import MAX_JOINT_SPEED_RAD_S, THROWN_DISTANCE_M, Body, ModelHandle, World
+
+if TYPE_CHECKING:
+    from somo_sweep.sim.render import Camera
+
+__all__ = ["PyBulletWorld", "keep_spare_client"]
+
+#: (client id, process id) of a PyBullet client connected ahead of time for the children this
+#: process forks (:func:`keep_spare_client`); the lock keeps two threads from connecting at once.
+_spare_client: tuple[int, int] | None = None
+_spare_lock = threading.Lock()
+
+
+def keep_spare_client() -> None:
+    """Connect one PyBullet client now, for the first :class:`World` of each child forked from here.
+
+    A client connected in a newly forked child costs about 30 ms of CPU (9,500 page faults: its
+    buffers are allocated and zeroed there); one inherited from the parent, about 9 ms (2,300).
+    The sweep engine forks every trial, so its workers call this before forking. This process
+    never uses the client itself, and a child gets it exactly as just connected, with nothing
+    loaded: a trial is the same on it as on a new one.
+    """
+    global _spare_client
+    with _spare_lock:
+        if _spare_client is None:
+            _spare_client = (p.connect(p.DIRECT), os.getpid())
+
+
+def _connect() -> int:
+    """A new DIRECT client: the parent's spare in a forked child (once), else a fresh one."""
+    global _spare_client
+    spare = _spare_client  # no lock: a forked child has one thread, and the parent never takes it
+    if spare is not None and spare[1] != os.getpid():
+        _spare_client = None
+        return spare[0]
+    return int(p.connect(p.DIRECT))
+
+
+class PyBulletWorld(World):
+    """One PyBullet client in DIRECT mode; always :meth:`close` it (or use ``with``).
+
+    Made by ``World(settings)`` for ``settings.engine == "pybullet"``.
+
+    Args:
+        settings: Time step, scale, gravity and solver settings.
+    """
+
+    def __init__(self, settings: WorldSettings | None = None):
+        self.settings = settings or WorldSettings()
+        s = self.settings
+        if s.time_step_s <= 0 or s.scale <= 0:
+            raise SimulationError("time_step_s and scale must be > 0")
+        self.scale = float(s.scale)
+        self.client = _connect()
+        p.resetSimulation(physicsClientId=self.client)
+        p.setPhysicsEngineParameter(
+            fixedTimeStep=s.time_step_s,
+            numSolverIterations=s.solver_iterations,
+            enableConeFriction=1,
+            deterministicOverlappingPairs=1,
+            physicsClientId=self.client,
+        )
+        if s.solver_residual_threshold is not None:
+            p.setPhysicsEngineParameter(
+                solverResidualThreshold=s.solver_residual_threshold, physicsClientId=self.client
+            )
+        p.setGravity(*(g * self.scale for g in s.gravity_m_s2), physicsClientId=self.client)
+        self.time_s = 0.0
+        self.step_count = 0
+        self.bodies: list[Body] = []
+        self.pre_step: list[Callable[[World], None]] = []
+        self.bullet_time_s = 0.0  # wall time spent inside stepSimulation
+        self._free: list[int] = []
+
+    @property
+    def engine_time_s(self) -> float:
+        """Wall time spent inside ``stepSimulation`` so far, s."""
+        return self.bullet_time_s
+
+    @property
+    def is_open(self) -> bool:
+        """Whether the client is still connected."""
+        return self.client >= 0
+
+    # ----------------------------------------------------------------- loading
+    def close(self) -> None:
+        """Disconnect the client (safe to call twice)."""
+        if self.client >= 0:
+            p.disconnect(physicsClientId=self.client)
+            self.client = -1
+
+    def _apply_dynamics(self, body: int, index: int, link: Link) -> None:
+        f = link.friction
+        # Bullet's default link damping (0.04, with a speed-squared term) is switched off: it is
+        # not scale-invariant and would add an unmodelled drag; damping is the joints' business.
+        kwargs: dict[str, object] = dict(
+            lateralFriction=f.lateral,
+            spinningFriction=f.spinning * self.scale,
+            rollingFriction=f.rolling * self.scale,
+            restitution=link.restitution,
+            linearDamping=0.0,
+            angularDamping=0.0,
+        )
+        if f.anisotropic is not None:
+            kwargs["anisotropicFriction"] = list(f.anisotropic)
+        p.changeDynamics(body, index, physicsClientId=self.client, **kwargs)
+
+    def load_plan(self, plan: BodyPlan, pose: Pose | None = None) -> Body:
+        """Load one planned body at ``pose`` (default: the plan's pose)."""
+        if abs(plan.scale - self.scale) > 1e-12:
+            raise SimulationError(f"plan made for scale {plan.scale}, world has {self.scale}")
+        pose = pose or plan.pose
+        pos = [c * self.scale for c in pose.position_m]
+        orn = p.getQuaternionFromEuler(pose.rpy_rad)
+        # Branches of one body (two fingers on a palm) collide; a chain never with its ancestors.
+        flags = (
+            p.URDF_USE_INERTIA_FROM_FILE
+            | p.URDF_MAINTAIN_LINK_ORDER
+            | p.URDF_USE_SELF_COLLISION
+            | p.URDF_USE_SELF_COLLISION_EXCLUDE_ALL_PARENTS
+        )
+        body_id = p.loadURDF(
+            str(write_urdf(plan.urdf)),
+            pos,
+            orn,
+            useFixedBase=plan.mode == "fixed",
+            flags=flags,
+            physicsClientId=self.client,
+        )
+        link_index = {plan.links[0].name: -1}
+        joint_index: dict[str, int] = {}
+        for j in range(p.getNumJoints(body_id, physicsClientId=self.client)):
+            info = p.getJointInfo(body_id, j, physicsClientId=self.client)
+            joint_index[info[1].decode()] = j
+            link_index[info[12].decode()] = j
+        for info_l in plan.links:
+            if info_l.link is not None:
+                self._apply_dynamics(body_id, link_index[info_l.name], info_l.link)
+        drive = SpringDrive(
+            self.client,
+            body_id,
+            [joint_index[sj.name] for sj in plan.joints],
+            plan.joints,
+            len(plan.inputs),
+            self.scale,
+            friction_every=self.settings.friction_rows_every,
+            time_step_s=self.settings.time_step_s,
+        )
+        # Every non-spring joint motor is switched off; spring joints get their Coulomb motor.
+        drive.enable_motors()
+        body = Body(plan, body_id, link_index, drive)
+        if plan.mode == "driven":
+            # The body's base frame is held at the world frame (pos, orn); drive_base moves that
+            # world frame. The orientations go by keyword: the fifth positional one is the
+            # parent's, which would yank a tilted base upright.
+            body.constraint = p.createConstraint(
+                body_id,
+                -1,
+                -1,
+                -1,
+                p.JOINT_FIXED,
+                jointAxis=[0, 0, 0],
+                parentFramePosition=[0, 0, 0],
+                childFramePosition=pos,
+                parentFrameOrientation=[0, 0, 0, 1],
+                childFrameOrientation=orn,
+                physicsClientId=self.client,
+            )
+        if plan.mode != "fixed":
+            self._free.append(body_id)
+        self.bodies.append(body)
+        return body
+
+    def add_model(self, model: Model, pose: Pose | None = None) -> ModelHandle:
+        """Load a model (manipulator or assembly) at ``pose``; returns its handle."""
+        assembly = model.as_assembly()
+        root = pose or Pose()
+        bodies: list[Body] = []
+        root_tf = ([c for c in root.position_m], p.getQuaternionFromEuler(root.rpy_rad))
+        for plan in plan_assembly(assembly, self.scale, split=self.settings.body_per_manipulator):
+            local = (plan.pose.position_m, p.getQuaternionFromEuler(plan.pose.rpy_rad))
+            pos, orn = p.multiplyTransforms(root_tf[0], root_tf[1], local[0], local[1])
+            world_pose = Pose(position_m=tuple(pos), rpy_rad=tuple(p.getEulerFromQuaternion(orn)))
+            body = self.load_plan(plan, world_pose)
+            body.offset = (tuple(plan.pose.position_m), tuple(local[1]))
+            bodies.append(body)
+        # Parts of a split assembly never touch its base body (as links never touch ancestors).
+        by_name = {b.plan.name: b for b in bodies}
+        for body in bodies:
+            if body.plan.part_of is not None:
+                base = by_name[body.plan.part_of]
+                for link in body.link_index.values():
+                    p.setCollisionFilterPair(base.id, body.id, -1, link, 0, physicsClientId=self.client)
+        names = [n for b in bodies for n in b.plan.inputs]
+        return ModelHandle(assembly.name, bodies, names)
+
+    def add_ground(
+        self,
+        friction: float = 1.0,
+        restitution: float = 0.0,
+        anisotropic: tuple[float, float, float] | None = None,
+    ) -> int:
+        """Add a static ground plane at z = 0; returns its body id."""
+        shape = p.createCollisionShape(p.GEOM_PLANE, physicsClientId=self.client)
+        body = p.createMultiBody(0, shape, physicsClientId=self.client)
+        kwargs: dict[str, object] = dict(lateralFriction=friction, restitution=restitution)
+        if anisotropic is not None:
+            kwargs["anisotropicFriction"] = list(anisotropic)
+        p.changeDynamics(body, -1, physicsClientId=self.client, **kwargs)
+        return body
+
+    # ----------------------------------------------------------------- stepping
+    def add_static_box(self, centre_m: npt.ArrayLike, half_extents_m: npt.ArrayLike) -> int:
+        """Add a static frictionless box (a bench's stop) centred at ``centre_m``; returns its id."""
+        s, cid = self.scale, self.client
+        half = np.asarray(half_extents_m, dtype=float)
+        shape = p.createCollisionShape(p.GEOM_BOX, halfExtents=(half * s).tolist(), physicsClientId=cid)
+        position = np.asarray(centre_m, dtype=float) * s
+        box = p.createMultiBody(0, shape, basePosition=position.tolist(), physicsClientId=cid)
+        p.changeDynamics(
+            box,
+            -1,
+            lateralFriction=0.0,
+            spinningFriction=0.0,
+            rollingFriction=0.0,
+            restitution=0.0,
+            physicsClientId=cid,
+        )
+        return int(box)
+
+    def drive_base(
+        self,
+        body: Body,
+        position_m: Sequence[float] | np.ndarray,
+        rpy_rad: Sequence[float] | np.ndarray,
+        max_force_n: float = 200.0,
+    ) -> None:
+        """Move a driven body's base target to a world pose (SI); the mount offset is kept."""
+        if body.constraint is None:
+            raise SimulationError(f"body '{body.plan.name}' is not driven (base mode {body.plan.mode})")
+        orn = p.getQuaternionFromEuler([float(a) for a in rpy_rad])
+        pos, orn = p.multiplyTransforms(
+            [float(c) for c in position_m],
+            orn,
+            body.offset[0],
+            body.offset[1],
+        )
+        p.changeConstraint(
+            body.constraint,
+            [c * self.scale for c in pos],
+            jointChildFrameOrientation=orn,
+            maxForce=max_force_n * self.scale,
+            physicsClientId=self.client,
+        )
+
+    def place_model(
+        self,
+        handle: ModelHandle,
+        position_m: Sequence[float] | np.ndarray,
+        rpy_rad: Sequence[float] | np.ndarray,
+    ) -> None:
+        """Teleport every body of a model to the model pose (mount offsets kept), at rest."""
+        orn = p.getQuaternionFromEuler([float(a) for a in rpy_rad])
+        for body in handle.bodies:
+            pos, quat = p.multiplyTransforms(
+                [float(c) for c in position_m], orn, body.offset[0], body.offset[1]
+            )
+            p.resetBasePositionAndOrientation(
+                body.id, [c * self.scale for c in pos], quat, physicsClientId=self.client
+            )
+            p.resetBaseVelocity(body.id, [0, 0, 0], [0, 0, 0], physicsClientId=self.client)
+
+    def step(self, n: int = 1) -> None:
+        """Advance ``n`` steps: pre-step hooks (setpoints, loads), springs once, Bullet.
+
+        Raises:
+            UnstableSimulation: Joint speeds at Bullet's cap, NaN, or a body thrown.
+        """
+        cap = 0.99 * MAX_JOINT_SPEED_RAD_S
+        dt = self.settings.time_step_s
+        for _ in range(n):
+            for hook in self.pre_step:
+                hook(self)
+            for body in self.bodies:
+                drive = cast(SpringDrive, body.drive)
+                drive.apply()
+                if drive.indices:
+                    q_max = np.abs(drive.qd).max()
+                    if not (q_max < cap):  # also catches NaN
+                        reason = "nan" if not np.isfinite(drive.qd).all() else "speed_cap"
+                        if reason == "nan" or not self.settings.clamp_speed_cap:
+                            raise UnstableSimulation(reason, self.time_s, f"in body '{body.plan.name}'")
+            t0 = perf_counter()
+            p.stepSimulation(physicsClientId=self.client)
+            self.bullet_time_s += perf_counter() - t0
+            self.step_count += 1
+            self.time_s = self.step_count * dt
+            if self.step_count % self.settings.check_every == 0:
+                self.check_thrown()
+
+    def check_thrown(self) -> None:
+        """Raise if a free body left the scene, moves at Bullet's speed cap, or is not finite."""
+        names = {b.id: b.plan.name for b in self.bodies}
+        for body_id in self._free:
+            name = f"body '{names.get(body_id, body_id)}'"
+            pos = np.asarray(p.getBasePositionAndOrientation(body_id, physicsClientId=self.client)[0])
+            dist = float(np.linalg.norm(pos)) / self.scale
+            if not np.isfinite(dist):
+                raise UnstableSimulation("nan", self.time_s, f"{name} position")
+            if dist > THROWN_DISTANCE_M:
+                raise UnstableSimulation("thrown", self.time_s, f"{name} at {dist:.1f} m")
+            # Bullet caps base speeds at 100 scaled units (100/Y m/s): past it the motion is wrong,
+            # whether the body blew up or only fell far.
+            lin, ang = p.getBaseVelocity(body_id, physicsClientId=self.client)
+            speed = max(np.abs(lin).max(), np.abs(ang).max())
+            if not np.isfinite(speed):
+                raise UnstableSimulation("nan", self.time_s, f"{name} velocity")
+            if speed >= 0.99 * MAX_JOINT_SPEED_RAD_S and not self.settings.clamp_speed_cap:
+                cap = MAX_JOINT_SPEED_RAD_S / self.scale
+                raise UnstableSimulation(
+                    "speed_cap",
+                    self.time_s,
+                    f"{name} at Bullet's speed cap, {cap:g} m/s or {MAX_JOINT_SPEED_RAD_S:g} rad/s at world "
+                    f"scale {self.scale:g} (a smaller scale raises the linear cap)",
+                )
+
+    # ----------------------------------------------------------------- reading
+    def link_frame(self, body: Body, link: str) -> tuple[np.ndarray, np.ndarray]:
+        """World position (m) and 3×3 rotation of a link's URDF frame."""
+        idx = body.link_index[link]
+        if idx == -1:
+            pos, orn = p.getBasePositionAndOrientation(body.id, physicsClientId=self.client)
+        else:
+            state = p.getLinkState(body.id, idx, computeForwardKinematics=1, physicsClientId=self.client)
+            pos, orn = state[4], state[5]
+        rot = np.asarray(p.getMatrixFromQuaternion(orn)).reshape(3, 3)
+        return np.asarray(pos) / self.scale, rot
+
+    def link_rotations(self, body: Body) -> np.ndarray:
+        """Rotations (n, 3, 3) of the base (its centre-of-mass frame) and every link's URDF frame."""
+        cid = self.client
+        orientations = [p.getBasePositionAndOrientation(body.id, physicsClientId=cid)[1]]
+        n = p.getNumJoints(body.id, physicsClientId=cid)
+        if n:
+            states = p.getLinkStates(body.id, list(range(n)), computeForwardKinematics=1, physicsClientId=cid)
+            orientations += [s[5] for s in states]
+        return np.asarray([np.asarray(p.getMatrixFromQuaternion(q)).reshape(3, 3) for q in orientations])
+
+    def stop_joints(self, body: Body) -> None:
+        """Set every spring joint speed of a body to zero at its last read position."""
+        drive = body.drive
+        zeros = [[0.0]] * len(drive.indices)
+        p.resetJointStatesMultiDof(
+            body.id, drive.indices, [[q] for q in drive.q], zeros, physicsClientId=self.client
+        )
+
+    def render(self, camera: Camera) -> np.ndarray:
+        """An RGB image of the scene (TinyRenderer: software, no display)."""
+        from somo_sweep.sim.pybullet.render import tiny_renderer_image
+
+        return tiny_renderer_image(self, camera)
+
+    def apply_force(self, body: Body, link: str, force_n: npt.ArrayLike, point_m: npt.ArrayLike) -> None:
+        """Apply a world-frame force (N) at a world point (m) for the coming step only."""
+        p.applyExternalForce(
+            body.id,
+            body.link_index[link],
+            (np.asarray(force_n, dtype=float) * self.scale).tolist(),
+            (np.asarray(point_m, dtype=float) * self.scale).tolist(),
+            p.WORLD_FRAME,
+            physicsClientId=self.client,
+        )
+
+    def base_pose(self, body_id: int) -> tuple[np.ndarray, np.ndarray]:
+        """Base position (m) and quaternion (x, y, z, w) of a body."""
+        pos, orn = p.getBasePositionAndOrientation(body_id, physicsClientId=self.client)
+        return np.asarray(pos) / self.scale, np.asarray(orn)
+
+    def base_velocity(self, body_id: int) -> tuple[np.ndarray, np.ndarray]:
+        """Base linear velocity (m/s) and angular velocity (rad/s) of a body, world frame."""
+        lin, ang = p.getBaseVelocity(body_id, physicsClientId=self.client)
+        return np.asarray(lin) / self.scale, np.asarray(ang)
+
+    def closest_distance_m(self, body_a: int, body_b: int, within_m: float = 0.0) -> float:
+        """Smallest gap between two bodies' collision shapes, m (negative: they overlap by that much).
+
+        Only gaps up to ``within_m`` are searched; ``inf`` if the bodies are farther apart.
+        """
+        pts = p.getClosestPoints(body_a, body_b, within_m * self.scale, physicsClientId=self.client)
+        return min((pt[8] / self.scale for pt in pts), default=float("inf"))
+
+    def contacts(self, body_a: int, body_b: int | None = None) -> dict[str, np.ndarray]:
+        """Contact points of ``body_a`` (with ``body_b`` if given), in SI.
+
+        Returns:
+            Arrays ``link_a``, ``link_b``, ``position_on_a_m`` (n×3), ``normal_b_to_a``
+            (n×3), ``normal_force_n`` (n).
+        """
+        kwargs = {"bodyA": body_a} if body_b is None else {"bodyA": body_a, "bodyB": body_b}
+        pts = p.getContactPoints(physicsClientId=self.client, **kwargs)
+        if not pts:
+            return {
+                "link_a": np.zeros(0, int),
+                "link_b": np.zeros(0, int),
+                "position_on_a_m": np.zeros((0, 3)),
+                "normal_b_to_a": np.zeros((0, 3)),
+                "normal_force_n": np.zeros(0),
+            }
+        cols = list(zip(*pts, strict=True))
+        return {
+            "link_a": np.asarray(cols[3]),
+            "link_b": np.asarray(cols[4]),
+            "position_on_a_m": np.asarray(cols[5]) / self.scale,
+            "normal_b_to_a": np.asarray(cols[7]),
+            "normal_force_n": np.asarray(cols[9]) / self.scale,
+        }

@@ -1,0 +1,231 @@
+"""One study on both engines, compared cell by cell (``somo-sweep compare-engines``).
+
+:func:`on_engine` gives the study as another engine runs it: the same grid, model, task and
+parameters, with that engine's numerics (its own step; the shared settings, gravity and solver
+iterations, kept; the other engine's own options left out) and its own results folder.
+:func:`compare` joins the two results tables on the trial (a grid point and repeat) and says, per
+label, in which cells the engines agree; for a task without labels (the bench), how far each
+metric differs, as a share of its range over the study. Cells where both engines agree with
+themselves under robustness replicas (``robust``; when only one engine ran replicas, its
+robust cells) are counted apart: a label that flips under
+a fraction of a millimetre is no test of an engine. A cell whose engines disagree is not robust
+to the engine (``robust_across_engines`` False), which is a perturbation too.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, replace
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import pandas as pd
+
+from somo_sweep.errors import SomoError
+from somo_sweep.sim.settings import ENGINES, MUJOCO_DEFAULT_STEP_S, WorldSettings
+from somo_sweep.sweep.robustness import fold
+from somo_sweep.sweep.study import Simulation, Study
+from somo_sweep.sweep.summary import label_columns
+
+__all__ = ["EngineComparison", "compare", "on_engine"]
+
+#: Columns that are bookkeeping, not results, in a metrics comparison.
+_NOT_METRICS = {"trial", "repeat", "seed", "wall_time_s", "time_step_used_s", "retried_half_step"}
+
+
+def on_engine(study: Study, engine: str, output: Path, time_step_s: float | None = None) -> Study:
+    """``study`` as ``engine`` runs it, into ``output``.
+
+    Args:
+        study: A loaded study.
+        engine: ``pybullet`` or ``mujoco``.
+        output: Its results folder.
+        time_step_s: The step; None: the study's own when it already runs on ``engine``, else the
+            engine's default (PyBullet 0.5 ms, MuJoCo 4 ms).
+    """
+    if engine not in ENGINES:
+        raise SomoError(f"engine must be one of {', '.join(ENGINES)}, got '{engine}'")
+    sim = study.simulation
+    if sim is not None and sim.engine == engine:
+        simulation: Simulation | None = (
+            sim if time_step_s is None else sim.model_copy(update={"time_step_s": time_step_s})
+        )
+    elif sim is None and engine == "pybullet" and time_step_s is None:
+        simulation = None  # the study's automatic numerics
+    else:
+        shared: dict[str, Any] = {}
+        if sim is not None:
+            shared = {"gravity_m_s2": sim.gravity_m_s2, "solver_iterations": sim.solver_iterations}
+        default = MUJOCO_DEFAULT_STEP_S if engine == "mujoco" else WorldSettings.time_step_s
+        simulation = Simulation(engine=engine, time_step_s=time_step_s or default, **shared)
+    return replace(study, simulation=simulation, output=Path(output), name=f"{study.name}_{engine}")
+
+
+@dataclass(frozen=True)
+class EngineComparison:
+    """Two engines' results on one grid.
+
+    Attributes:
+        engines: The two engines' names, in column order.
+        cells: One row per trial: the swept parameters, each engine's status and labels (or, for
+            a task without labels, each metric on both engines and ``share_<metric>``, their
+            difference as a share of the metric's range), and
+            per label ``agree_<label>`` (and ``robust_<label>``, robust on every engine whose
+            results carry robustness replicas, when one does).
+        labels: Per label: cells compared, cells that agree, and the same on robust cells.
+        metrics: Per numeric metric (tasks without labels): the largest difference and its
+            share of the metric's range over both runs, and the trial where it is largest.
+        axes: Columns of the swept parameters (how a cell is named).
+    """
+
+    engines: tuple[str, str]
+    cells: pd.DataFrame
+    labels: dict[str, dict[str, Any]]
+    metrics: dict[str, dict[str, float]]
+    axes: tuple[str, ...] = ()
+
+    def lines(self, disagreements: int = 40) -> list[str]:
+        """A summary in words, with up to ``disagreements`` disagreeing cells listed per label."""
+        a, b = self.engines
+        out = [f"{len(self.cells)} trial(s) on {a} and {b}"]
+        axes = list(self.axes)
+        for label, s in self.labels.items():
+            share = s["agree"] / s["cells"] if s["cells"] else float("nan")
+            line = f"{label}: {s['agree']} of {s['cells']} cells agree ({share:.1%})"
+            if s.get("robust_cells") is not None:
+                r = s["robust_cells"]
+                rshare = s["robust_agree"] / r if r else float("nan")
+                line += f"; robust cells {s['robust_agree']} of {r} ({rshare:.1%})"
+            out.append(line)
+            bad = self.cells[~self.cells[f"agree_{label}"]]
+            for _, row in bad.head(disagreements).iterrows():
+                where = ", ".join(
+                    f"{c.removeprefix('task_')}={row[c]:g}" if _is_number(row[c]) else f"{c}={row[c]}"
+                    for c in axes
+                )
+                robust = ""
+                if f"robust_{label}" in bad.columns:
+                    robust = " (robust)" if row[f"robust_{label}"] else " (not robust)"
+                out.append(f"  {where}: {a} {row[f'{label}_{a}']}, {b} {row[f'{label}_{b}']}{robust}")
+            if len(bad) > disagreements:
+                out.append(f"  … and {len(bad) - disagreements} more")
+        for name, m in self.metrics.items():
+            worst = self.cells[self.cells["trial"] == m.get("worst_trial", -1)]
+            where = ""
+            if len(worst) and axes:
+                row = worst.iloc[0]
+                where = " at " + ", ".join(f"{c.removeprefix('task_')}={row[c]}" for c in axes)
+            out.append(
+                f"{name}: largest difference {m['max_abs_diff']:.4g} ({m['share_of_range']:.3%} of its range "
+                f"{m['range']:.4g}){where}"
+            )
+        return out
+
+
+def _is_number(value: Any) -> bool:
+    return isinstance(value, int | float | np.integer | np.floating) and not isinstance(value, bool)
+
+
+def _label_of(row: pd.Series, column: str) -> str:
+    """A cell's label, or its status when it has none (an unstable trial is no label)."""
+    value = row.get(column)
+    if row.get("status") != "ok":
+        return str(row.get("status"))
+    return str(value) if value is not None and not (isinstance(value, float) and np.isnan(value)) else "none"
+
+
+def compare(
+    first: pd.DataFrame, second: pd.DataFrame, engines: tuple[str, str], axes: tuple[str, ...] = ()
+) -> EngineComparison:
+    """Compare two results tables of one grid, trial by trial (simulated trials of both only).
+
+    Args:
+        first, second: The two engines' results tables (robustness replicas are folded into
+            their cells: a cell's own trial is compared, and ``robust`` says whether its
+            replicas agreed).
+        engines: Their names.
+        axes: Columns of the swept parameters (kept in the cell table, and how a cell is named).
+
+    Raises:
+        SomoError: The tables share no trial.
+    """
+    a, b = engines
+    first, second = _cells(first), _cells(second)
+    keep = [c for c in axes if c in first.columns]
+    left = first[~_inferred(first)].set_index("trial")
+    right = second[~_inferred(second)].set_index("trial")
+    trials = left.index.intersection(right.index).sort_values()
+    if not len(trials):
+        raise SomoError("the two engines' results share no simulated trial")
+    cells = left.loc[trials, keep].copy()
+    cells[f"status_{a}"] = left.loc[trials, "status"]
+    cells[f"status_{b}"] = right.loc[trials, "status"]
+    summary: dict[str, dict[str, Any]] = {}
+    for column in label_columns(first):
+        label = column.removeprefix("label_")
+        la = left.loc[trials].apply(_label_of, axis=1, column=column)
+        lb = right.loc[trials].apply(_label_of, axis=1, column=column)
+        cells[f"{label}_{a}"], cells[f"{label}_{b}"] = la, lb
+        cells[f"agree_{label}"] = la == lb
+        entry: dict[str, Any] = {"cells": len(trials), "agree": int((la == lb).sum())}
+        robust = _robust(left.loc[trials], right.loc[trials], label)
+        if robust is not None:
+            cells[f"robust_{label}"] = robust
+            cells[f"robust_across_engines_{label}"] = robust & (la == lb)
+            entry["robust_cells"] = int(robust.sum())
+            entry["robust_agree"] = int((robust & (la == lb)).sum())
+        summary[label] = entry
+    metrics: dict[str, dict[str, float]] = {}
+    if not summary:
+        for column in first.columns:
+            if column in _NOT_METRICS or column.startswith(("task_", "model_", "label_")):
+                continue
+            if column not in second.columns or not pd.api.types.is_float_dtype(first[column]):
+                continue
+            va, vb = left.loc[trials, column].astype(float), right.loc[trials, column].astype(float)
+            both = pd.concat([va, vb])
+            span = float(both.max() - both.min())
+            gap = (va - vb).abs()
+            diff = float(gap.max())
+            cells[f"{column}_{a}"], cells[f"{column}_{b}"] = va, vb
+            cells[f"share_{column}"] = gap / span if span else 0.0
+            metrics[column] = {
+                "max_abs_diff": diff,
+                "range": span,
+                "share_of_range": diff / span if span else 0.0,
+                "worst_trial": int(gap.idxmax()) if gap.notna().any() else -1,
+            }
+    return EngineComparison(engines, cells.reset_index(), summary, metrics, tuple(keep))
+
+
+def _cells(table: pd.DataFrame) -> pd.DataFrame:
+    """One row per cell: robustness replicas folded into their cell (its own trial's labels and
+    ``robust``, :func:`~somo_sweep.sweep.robustness.fold`); a table without replicas as it is."""
+    if "replica" not in table.columns or not (pd.to_numeric(table["replica"], errors="coerce") > 0).any():
+        return table
+    return fold(table)
+
+
+def _robust(left: pd.DataFrame, right: pd.DataFrame, label: str) -> pd.Series | None:
+    """Cells robust on every engine whose results carry robustness replicas (None: neither does).
+
+    An engine run without replicas (MuJoCo's cheap run beside PyBullet's robust one) leaves the
+    other engine's robust cells to be the test.
+    """
+    marks = []
+    for table in (left, right):
+        column = f"robust_{label}" if f"robust_{label}" in table.columns else "robust"
+        if column in table.columns and table[column].notna().any():
+            marks.append(table[column].astype("boolean").fillna(False).astype(bool))
+    if not marks:
+        return None
+    out = marks[0]
+    for mark in marks[1:]:
+        out = out & mark
+    return out
+
+
+def _inferred(df: pd.DataFrame) -> pd.Series:
+    if "inferred" not in df.columns:
+        return pd.Series(False, index=df.index)
+    return df["inferred"].fillna(False).astype(bool)

@@ -1,0 +1,230 @@
+"""A study's engine: ``simulation: {engine: mujoco}``, what each engine refuses, and compare-engines."""
+
+from __future__ import annotations
+
+import json
+import shutil
+import sys
+from pathlib import Path
+
+import pandas as pd
+import pytest
+from conftest import MODELS
+from typer.testing import CliRunner
+
+from somo_sweep.cli.app import app
+from somo_sweep.errors import DescriptionError, SimulationError
+from somo_sweep.sim.world import World, WorldSettings
+from somo_sweep.sweep.engines import compare, on_engine
+from somo_sweep.sweep.jobs import build_jobs
+from somo_sweep.sweep.study import load_study
+
+
+def _study(folder: Path, simulation: str, task: str = "pinch_grasp", extra: str = "") -> Path:
+    if not (folder / "models").exists():
+        shutil.copytree(MODELS, folder / "models")
+    model = {"pinch_grasp": "pinch_gripper.yaml", "snake": "snake.yaml", "bench": "pinch_finger.yaml"}[task]
+    path = folder / "study.yaml"
+    path.write_text(
+        f"name: s\ntask: {task}\nmodel: models/{model}\n{extra}simulation: {simulation}\n", encoding="utf-8"
+    )
+    return path
+
+
+def test_a_mujoco_study_runs_its_jobs_on_mujoco_at_its_default_step(tmp_path: Path) -> None:
+    study = load_study(_study(tmp_path, "{engine: mujoco}", extra="sweep:\n  task.object_width_m: [0.01]\n"))
+    (job,) = build_jobs(study).jobs
+    assert job.settings.engine == "mujoco" and job.settings.time_step_s == 4e-3
+
+
+def test_engines_give_their_jobs_different_ids_and_pybullet_ids_ignore_mujoco_settings(
+    tmp_path: Path,
+) -> None:
+    sweep = "sweep:\n  task.object_width_m: [0.01]\n"
+    ids = {}
+    for name, sim in (
+        ("pybullet", "{time_step_s: 4.0e-3}"),
+        ("pybullet_again", "{time_step_s: 4.0e-3, engine: pybullet, impratio: 10}"),
+        ("mujoco", "{time_step_s: 4.0e-3, engine: mujoco}"),
+    ):
+        ids[name] = build_jobs(load_study(_study(tmp_path, sim, extra=sweep))).jobs[0].job_id
+    assert ids["pybullet"] == ids["pybullet_again"] != ids["mujoco"]
+
+
+@pytest.mark.parametrize(
+    ("simulation", "message"),
+    [
+        ("{engine: mujoco, friction_rows_every: 2}", "friction_rows_every: engine mujoco does not read it"),
+        ("{engine: mujoco, scale: 10}", "scale: engine mujoco does not read it (its engine is pybullet)"),
+        ("{impratio: 5}", "impratio: engine pybullet does not read it (its engine is mujoco)"),
+        ("{engine: ode}", "engine"),
+    ],
+)
+def test_an_option_of_the_other_engine_is_refused_by_name(
+    tmp_path: Path, simulation: str, message: str
+) -> None:
+    with pytest.raises(DescriptionError, match="simulation") as err:
+        load_study(_study(tmp_path, simulation))
+    assert message in str(err.value)
+
+
+def test_a_field_mujoco_cannot_express_is_refused_at_load_with_its_key_path(tmp_path: Path) -> None:
+    path = _study(tmp_path, "{engine: mujoco}", task="snake")
+    with pytest.raises(DescriptionError) as err:
+        load_study(path)
+    text = str(err.value)
+    assert "manipulator.actuators[0].link.friction.anisotropic" in text and "engine mujoco" in text
+    # The task's own isotropic variant drops that field: then the study loads.
+    ok = _study(tmp_path, "{engine: mujoco}", task="snake", extra="params: {friction: isotropic}\n")
+    assert load_study(ok).simulation.engine == "mujoco"  # type: ignore[union-attr]
+
+
+def test_on_engine_keeps_the_grid_and_swaps_the_numerics(tmp_path: Path) -> None:
+    sim = (
+        "{time_step_s: 4.0e-3, scale: 20, solver_iterations: 50, body_per_manipulator: true, "
+        "friction_rows_every: 2}"
+    )
+    study = load_study(_study(tmp_path, sim, extra="sweep:\n  task.object_width_m: [0.01, 0.04]\n"))
+    mj = on_engine(study, "mujoco", tmp_path / "mj")
+    assert mj.simulation is not None and mj.simulation.engine == "mujoco" and mj.simulation.step_s == 4e-3
+    assert mj.simulation.solver_iterations == 50 and not mj.simulation.body_per_manipulator
+    same = on_engine(study, "pybullet", tmp_path / "pb")
+    assert same.simulation == study.simulation
+    a, b = build_jobs(same).jobs, build_jobs(mj).jobs
+    assert [j.params for j in a] == [j.params for j in b] and [j.trial for j in a] == [j.trial for j in b]
+
+
+def _table(
+    labels: list[str], status: list[str] | None = None, robust: list[bool | None] | None = None
+) -> pd.DataFrame:
+    data = {
+        "trial": list(range(len(labels))),
+        "task_object_width_m": [0.01 * (i + 1) for i in range(len(labels))],
+        "status": status or ["ok"] * len(labels),
+        "label_grasp": labels,
+    }
+    if robust is not None:
+        data["robust"] = pd.array(robust, dtype="boolean")
+    return pd.DataFrame(data)
+
+
+def test_compare_counts_agreement_per_label_and_on_robust_cells() -> None:
+    first = _table(["pinch", "power", "pinch", "no_grasp"], robust=[True, True, False, True])
+    second = _table(
+        ["pinch", "pinch", "power", "no_grasp"],
+        status=["ok", "ok", "ok", "unstable"],
+        robust=[True, True, True, True],
+    )
+    result = compare(first, second, ("pybullet", "mujoco"), ("task_object_width_m",))
+    grasp = result.labels["grasp"]
+    assert grasp["cells"] == 4 and grasp["agree"] == 1  # an unstable trial is no label
+    assert grasp["robust_cells"] == 3 and grasp["robust_agree"] == 1
+    assert list(result.cells["agree_grasp"]) == [True, False, False, False]
+    lines = result.lines()
+    assert any("object_width_m=0.02: pybullet power, mujoco pinch (robust)" in line for line in lines)
+
+
+def test_compare_takes_the_robust_cells_of_the_one_engine_that_ran_replicas() -> None:
+    """PyBullet's robust run beside MuJoCo's plain one: PyBullet's robust cells are the test."""
+    first = _table(["pinch", "power", "pinch", "no_grasp"], robust=[True, True, False, None])
+    second = _table(["pinch", "pinch", "power", "no_grasp"])
+    for tables, engines in (
+        ((first, second), ("pybullet", "mujoco")),
+        ((second, first), ("mujoco", "pybullet")),
+    ):
+        result = compare(*tables, engines, ("task_object_width_m",))
+        grasp = result.labels["grasp"]
+        assert grasp["robust_cells"] == 2 and grasp["robust_agree"] == 1
+        assert list(result.cells["robust_grasp"]) == [True, True, False, False]
+        assert list(result.cells["robust_across_engines_grasp"]) == [True, False, False, False]
+
+
+def test_compare_engines_runs_both_and_writes_the_cell_table(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """A two-cell study (short trials) on both engines: per-trial table and summary written."""
+    pytest.importorskip("mujoco")
+    extra = (
+        "params: {approach_s: 0.1, ramp_s: 0.1, lift_s: 0.1, hold_s: 0.1, approach_m: 0.01,\n"
+        "  numerics: {added_inertia_kg_m2: 3.0e-5}}\n"  # PyBullet at 4 ms needs the shaping
+        "sweep:\n  task.object_width_m: [0.01, 0.04]\n"
+    )
+    path = _study(tmp_path, "{time_step_s: 4.0e-3}", extra=extra)
+    out = tmp_path / "both"
+    res = CliRunner().invoke(app, ["compare-engines", str(path), "--out", str(out), "--jobs", "1"])
+    assert res.exit_code == 0, res.output
+    assert "2 trial(s) on pybullet and mujoco" in res.output and "grasp: " in res.output
+    cells = pd.read_csv(out / "engines.csv")
+    assert list(cells["trial"]) == [0, 1] and {"grasp_pybullet", "grasp_mujoco", "agree_grasp"} <= set(cells)
+    report = json.loads((out / "engines.json").read_text())
+    assert report["written_by"] == "somo-sweep compare-engines"
+    assert report["engines"]["mujoco"]["engine"] == "mujoco" and report["labels"]["grasp"]["cells"] == 2
+    assert (out / "pybullet" / "manifest.json").exists() and (out / "mujoco" / "manifest.json").exists()
+
+
+def test_a_mujoco_run_without_mujoco_installed_says_how_to_install_it_and_writes_nothing(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """The default install (no [mujoco] extra): a clear refusal before any folder is made."""
+    monkeypatch.setitem(sys.modules, "mujoco", None)  # what an install without MuJoCo looks like
+    path = _study(tmp_path, "{engine: mujoco}", extra="sweep:\n  task.object_width_m: [0.01]\n")
+    out = tmp_path / "results"
+    res = CliRunner().invoke(app, ["run", str(path), "--out", str(out)])
+    assert res.exit_code == 2, res.output
+    assert "simulation.engine: engine mujoco needs MuJoCo" in res.output
+    assert 'pip install "somo-sweep[mujoco]"' in res.output and "Traceback" not in res.output
+    assert not out.exists()
+    with pytest.raises(SimulationError, match=r"somo-sweep\[mujoco\]"):
+        World(WorldSettings(engine="mujoco"))
+
+
+def test_compare_without_labels_gives_each_metric_per_cell_as_a_share_of_its_range() -> None:
+    """The bench: metrics, not labels; NaN where a protocol does not give the metric."""
+    nan = float("nan")
+    base = {"trial": [0, 1, 2], "task_pressure_kpa": [0.0, 100.0, 200.0], "status": ["ok"] * 3}
+    first = pd.DataFrame({**base, "tip_x_mm": [0.0, 50.0, 100.0], "blocked_force_n": [nan, 1.0, 2.0]})
+    second = pd.DataFrame({**base, "tip_x_mm": [0.0, 50.2, 100.0], "blocked_force_n": [nan, 1.0, 2.5]})
+    result = compare(first, second, ("pybullet", "mujoco"), ("task_pressure_kpa",))
+    assert result.metrics["tip_x_mm"]["share_of_range"] == pytest.approx(0.002)
+    assert result.metrics["blocked_force_n"]["share_of_range"] == pytest.approx(0.5 / 1.5)
+    assert result.metrics["blocked_force_n"]["worst_trial"] == 2
+    assert list(result.cells["tip_x_mm_mujoco"]) == [0.0, 50.2, 100.0]
+    assert result.cells["share_tip_x_mm"].tolist() == pytest.approx([0.0, 0.002, 0.0])
+    assert any(
+        line.startswith("blocked_force_n:") and "pressure_kpa=200.0" in line for line in result.lines()
+    )
+
+
+@pytest.mark.parametrize("command", [["compare-engines", "STUDY"], ["paper", "engines"]])
+def test_the_engine_commands_without_mujoco_installed_say_so_before_running_anything(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch, command: list[str]
+) -> None:
+    monkeypatch.setitem(sys.modules, "mujoco", None)
+    path = _study(tmp_path, "{time_step_s: 4.0e-3}", extra="sweep:\n  task.object_width_m: [0.01]\n")
+    out = tmp_path / "out"
+    args = [str(path) if a == "STUDY" else a for a in command]
+    res = CliRunner().invoke(app, [*args, "--out", str(out)])
+    assert res.exit_code == 2, res.output
+    assert "engine mujoco needs MuJoCo" in res.output and "Traceback" not in res.output
+    assert not out.exists()
+
+
+def test_compare_folds_robustness_replicas_into_their_cells() -> None:
+    """A robust run stores replicas as rows of their cell's trial: one cell, compared once."""
+    own = _table(["pinch", "power", "pinch"])
+    replicas = pd.DataFrame(
+        {
+            "trial": [0, 0, 1, 1],
+            "replica": [1, 2, 1, 2],
+            "task_object_width_m": [0.01, 0.01, 0.02, 0.02],
+            "status": ["ok"] * 4,
+            "label_grasp": ["pinch", "pinch", "power", "pinch"],
+        }
+    )
+    first = pd.concat([own.assign(replica=0), replicas], ignore_index=True)
+    second = _table(["pinch", "pinch", "power"])
+    result = compare(first, second, ("pybullet", "mujoco"), ("task_object_width_m",))
+    grasp = result.labels["grasp"]
+    assert grasp["cells"] == 3 and grasp["agree"] == 1
+    assert grasp["robust_cells"] == 1 and grasp["robust_agree"] == 1  # cell 0: replicas agree
+    assert list(result.cells["robust_grasp"]) == [True, False, False]  # cell 2: no replicas
