@@ -123,7 +123,7 @@ def test_a_worker_with_other_trial_code_stops_the_run_with_what_to_do(
     tmp_path: Path, cluster: Cluster, monkeypatch: pytest.MonkeyPatch
 ) -> None:
     # The sweep believes its trial code is another than the workers' (as with an older install there).
-    monkeypatch.setattr(dask_backend, "trial_code", lambda task: "0.0.0+stale")
+    monkeypatch.setattr(dask_backend, "trial_code", lambda task, engine="pybullet": "0.0.0+stale")
     path = selftest_study(tmp_path, n=4)
     with pytest.raises(
         SomoError, match=r"somo-sweep code \S+ for task selftest_sleep, the sweep 0.0.0\+stale"
