@@ -17,16 +17,20 @@ holds under whatever load the machine has:
 from __future__ import annotations
 
 import dataclasses
+import os
 import statistics
 from dataclasses import dataclass
 from pathlib import Path
 from time import perf_counter
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 from somo_sweep.paper.numerics import CHOSEN, QUICK_STUDY, Setup, alternating_trial_seconds
 from somo_sweep.tasks.pinch_grasp.params import Numerics
 
-__all__ = ["BEFORE", "CostReport", "StudyCost", "cost_lines", "cost_runs"]
+if TYPE_CHECKING:
+    from somo_sweep.sweep.study import Study
+
+__all__ = ["BEFORE", "CostReport", "StudyCost", "cost_lines", "cost_runs", "study_for"]
 
 #: The pinch studies' numerics before robust labels: 4 ms, 3e-5 kg·m² on each finger link (about
 #: 400 times a link's own inertia), the joints' friction solved every other step.
@@ -35,13 +39,15 @@ BEFORE = Setup(4e-3, 50, Numerics(added_inertia_kg_m2=3e-5), friction_rows_every
 
 @dataclass(frozen=True)
 class StudyCost:
-    """One run of the quick study: how, trials and replicas run, summed trial time and wall time (s)."""
+    """One run of the quick study: how, trials and replicas run, summed trial time and wall time
+    (s), and the machine's 1-minute load average at its start and end (wall times grow with it)."""
 
     name: str
     trials: int
     replicas: int
     trial_time_s: float
     wall_s: float
+    load: tuple[float, float] = (float("nan"), float("nan"))
 
 
 @dataclass(frozen=True)
@@ -88,22 +94,36 @@ def _setup_overrides(setup: Setup) -> tuple[dict[str, Any], dict[str, Any]]:
     return over, sim
 
 
-def _run(study_path: Path, setup: Setup, folder: Path, replicas: int, n_jobs: int, name: str) -> StudyCost:
-    from somo_sweep.sweep.runner import run_study
-    from somo_sweep.sweep.store import read_results
+def study_for(study_path: Path, setup: Setup, folder: Path, replicas: int) -> Study:
+    """The study at ``study_path`` made to run ``setup`` with exactly ``replicas`` robustness
+    replicas (0: none, whatever the file asks for)."""
     from somo_sweep.sweep.study import Simulation, derive_study, load_study, with_replicas
 
     base = load_study(study_path, folder)
     over, sim = _setup_overrides(setup)
     study = derive_study(base, over, base.name, folder)
     study = dataclasses.replace(study, simulation=Simulation(**sim))
-    if replicas:
-        study = with_replicas(study, replicas)
+    return with_replicas(study, replicas)
+
+
+def _run(study_path: Path, setup: Setup, folder: Path, replicas: int, n_jobs: int, name: str) -> StudyCost:
+    from somo_sweep.sweep.runner import run_study
+    from somo_sweep.sweep.store import read_results
+
+    study = study_for(study_path, setup, folder, replicas)
+    load = _load()
     start = perf_counter()
     summary = run_study(study, n_jobs=n_jobs)
     wall = perf_counter() - start
     table = read_results(folder)
-    return StudyCost(name, summary.run, summary.replicas_run, float(table["wall_time_s"].sum()), wall)
+    return StudyCost(
+        name, summary.run, summary.replicas_run, float(table["wall_time_s"].sum()), wall, (load, _load())
+    )
+
+
+def _load() -> float:
+    """The 1-minute load average (NaN where the system has none)."""
+    return os.getloadavg()[0] if hasattr(os, "getloadavg") else float("nan")
 
 
 def cost_runs(
@@ -146,7 +166,8 @@ def cost_lines(report: CostReport) -> list[str]:
     for s in report.studies:
         lines.append(
             f"quick study, {s.name}: {s.trials} trials + {s.replicas} replicas, summed trial time "
-            f"{s.trial_time_s:.0f} s, wall {s.wall_s:.0f} s"
+            f"{s.trial_time_s:.0f} s, wall {s.wall_s:.0f} s (load average {s.load[0]:.1f} at the start, "
+            f"{s.load[1]:.1f} at the end)"
         )
     if before.trial_time_s > 0 and before.wall_s > 0:
         trial_ratio = robust.trial_time_s / before.trial_time_s

@@ -15,6 +15,7 @@ from somo_sweep.paper.robust_cost import (
     _setup_overrides,
     cost_lines,
     cost_runs,
+    study_for,
 )
 from somo_sweep.sweep.jobs import first_jobs
 from somo_sweep.sweep.study import Simulation, derive_study, load_study
@@ -28,6 +29,12 @@ def test_a_study_made_to_run_a_setup_runs_exactly_it(tmp_path: Path, setup: obje
     (job,) = first_jobs(study, 1)
     assert job.settings == setup.settings()  # type: ignore[attr-defined]
     assert job.params.numerics.added_inertia_kg_m2 == setup.numerics.added_inertia_kg_m2  # type: ignore[attr-defined]
+
+
+def test_the_plain_study_runs_no_replicas_whatever_its_file_asks(tmp_path: Path) -> None:
+    assert load_study(QUICK_STUDY, tmp_path).robustness.replicas == 4  # the bundled file asks for 4
+    assert study_for(QUICK_STUDY, BEFORE, tmp_path / "before", 0).robustness.replicas == 0
+    assert study_for(QUICK_STUDY, CHOSEN, tmp_path / "robust", 4).robustness.replicas == 4
 
 
 def test_the_report_gives_both_ratios() -> None:
