@@ -153,7 +153,8 @@ def test_a_signal_while_the_step_is_chosen_stops_cleanly(tmp_path: Path, signum:
     import sys
     import time
 
-    body = "task: selftest_sleep\nmodel: models/ihm_finger.yaml\nparams: {sleep_s: 0.5}\n"
+    # 6 sample runs of 3 s: the signal lands while the step is chosen even on a loaded machine.
+    body = "task: selftest_sleep\nmodel: models/ihm_finger.yaml\nparams: {sleep_s: 3.0}\n"
     body += "sweep: {task.x: [1, 2]}\n"
     path = make_study(tmp_path, body)
     proc = subprocess.Popen(

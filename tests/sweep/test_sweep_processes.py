@@ -198,7 +198,8 @@ def _alive(pid: int) -> bool:
 def test_ctrl_c_to_the_whole_terminal_group_while_workers_start_gives_one_message(tmp_path: Path) -> None:
     """A terminal's Ctrl-C reaches every process of its group, the workers too, and they may
     still be importing: only the sweep may answer, with its one message and no traceback."""
-    path = selftest_study(tmp_path, extra="set: {task.sleep_s: 0.2}", n=20)
+    # 10 s of trials: the Ctrl-C lands before the run ends even when this machine is loaded.
+    path = selftest_study(tmp_path, extra="set: {task.sleep_s: 1.0}", n=20)
     out = tmp_path / "out"
     proc = subprocess.Popen(
         [str(CLI), "run", str(path), "--jobs", "2", "--no-plots", "--out", str(out)],
