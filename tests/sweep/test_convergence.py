@@ -13,6 +13,7 @@ from pathlib import Path
 
 import pytest
 from test_sweep import make_study
+from test_sweep_processes import _descendants
 from typer.testing import CliRunner
 
 from somo_sweep.cli.app import app
@@ -161,18 +162,32 @@ def test_a_signal_while_the_step_is_chosen_stops_cleanly(tmp_path: Path, signum:
         [sys.executable, "-m", "somo_sweep", "run", str(path), "--out", str(tmp_path / "out"), "-j", "1"],
         stderr=subprocess.PIPE,
         text=True,
+        preexec_fn=_signals_as_in_a_shell,
     )
     assert proc.stderr is not None
     seen = ""
     while "trying" not in seen and proc.poll() is None:
         seen += proc.stderr.readline()
-    time.sleep(0.3)
+    # A sample trial is running (its forked child exists): the signal lands mid-choice.
+    deadline = time.monotonic() + 60
+    while not _descendants(proc.pid) and time.monotonic() < deadline and proc.poll() is None:
+        time.sleep(0.05)
+    time.sleep(0.5)
     assert proc.poll() is None, seen + proc.communicate()[1]
     os.kill(proc.pid, signum)
     rest = proc.communicate(timeout=60)[1]
     assert proc.returncode == 128 + signum, seen + rest
     assert "interrupted while choosing the time step" in rest and "Traceback" not in rest
     assert not (tmp_path / "out" / "trials").exists()
+
+
+def _signals_as_in_a_shell() -> None:
+    """The child starts with SIGINT at its default and unblocked, as a shell starts a command,
+    whatever state earlier tests left in this test process (both are inherited across exec)."""
+    import signal
+
+    signal.signal(signal.SIGINT, signal.SIG_DFL)
+    signal.pthread_sigmask(signal.SIG_UNBLOCK, {signal.SIGINT, signal.SIGTERM})
 
 
 def test_check_of_a_study_prints_the_choice_and_why_and_writes_nothing(tmp_path: Path) -> None:
