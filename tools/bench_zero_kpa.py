@@ -1,0 +1,104 @@
+"""Why the 0-kPa blocked-force row differs between engines: a step ladder, with and without
+the plate under the clamp.
+
+At 0 kPa the bench's blocked-force protocol lays the unpressurised finger on a frictionless plate
+that starts at the clamp. A contact force at the first segment's rear edge, right under the clamp
+pivot, has no moment about any joint: a rigid model cannot say whether the clamp or the plate
+carries it, and each engine's contact regularisation decides. This script prints
+``run_bench(..., "blocked_force", p)`` on PyBullet and MuJoCo at 1, 0.5, 0.25 and 0.125 ms, and
+the solved statics, at 0 and 25 kPa: once with the bench's plate, once with the plate starting
+one segment past the clamp (an experiment: the bench itself keeps its plate). A gap that stays
+as the step shrinks is not a step error.
+
+Run from the repository: ``.venv/bin/python tools/bench_zero_kpa.py`` (2-3 min; MuJoCo needs the
+``[mujoco]`` extra). Results: docs/mujoco.md, "Bench".
+"""
+
+from __future__ import annotations
+
+import argparse
+from collections.abc import Iterator
+from contextlib import contextmanager
+
+import numpy as np
+
+import somo_sweep.sim.bench as bench
+import somo_sweep.sim.chain_kinematics as chain_kinematics
+from somo_sweep.model.description import Manipulator
+from somo_sweep.model.load import load_model
+from somo_sweep.model.tables import bundled_path
+from somo_sweep.sim.bench import BenchSettings, run_bench
+
+GRAVITY_M_S2 = 9.81
+
+
+def _segment_m(manip: Manipulator) -> float:
+    """Length of the first actuator's segments, m."""
+    first = manip.actuators[0]
+    if first.n_segments is None:
+        raise SystemExit("this script needs actuators with n_segments")
+    return first.length_m / first.n_segments
+
+
+@contextmanager
+def plate_past_first_segment() -> Iterator[None]:
+    """The bench's plate, starting one segment of the first actuator past the clamp."""
+    original = bench.stop_geometry
+
+    def shifted(
+        manip: Manipulator, origin_m: np.ndarray, tip_x_m: float, stop_z_m: float | None = None
+    ) -> tuple[np.ndarray, np.ndarray]:
+        centre, half = original(manip, origin_m, tip_x_m, stop_z_m)
+        start_m = float(origin_m[0]) + _segment_m(manip)
+        end_m = float(centre[0] + half[0])
+        centre, half = centre.copy(), half.copy()
+        centre[0], half[0] = (start_m + end_m) / 2, (end_m - start_m) / 2
+        return centre, half
+
+    bench.stop_geometry = chain_kinematics.stop_geometry = shifted
+    try:
+        yield
+    finally:
+        bench.stop_geometry = chain_kinematics.stop_geometry = original
+
+
+def _ladder(model_path: str) -> None:
+    model = load_model(model_path)
+    for pressure_kpa in (0.0, 25.0):
+        solved = run_bench(model, "blocked_force", pressure_kpa, 0.0, BenchSettings(), statics="solve").value
+        print(f"  {pressure_kpa:g} kPa, solved statics: {solved:.5f} N")
+        for engine in ("pybullet", "mujoco"):
+            values = []
+            for step_s in (1e-3, 5e-4, 2.5e-4, 1.25e-4):
+                settings = BenchSettings(time_step_s=step_s, scale=20.0, engine=engine)
+                values.append(
+                    run_bench(model, "blocked_force", pressure_kpa, 0.0, settings, statics="dynamic").value
+                )
+            print(
+                f"    {engine:8s} at 1 / 0.5 / 0.25 / 0.125 ms: "
+                + " / ".join(f"{v:.5f}" for v in values)
+                + " N"
+            )
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.split("\n")[0])
+    parser.add_argument("--model", default=str(bundled_path("models", "pinch_finger.yaml")))
+    args = parser.parse_args()
+    manip = load_model(args.model).manipulator
+    if manip is None:
+        raise SystemExit(f"{args.model} has no manipulator")
+    _segment_m(manip)
+    masses_kg = [a.link.mass_kg * (a.n_segments or 0) for a in manip.actuators]
+    weight_n = (sum(masses_kg) + sum(t.mass_kg for t in manip.tip_links)) * GRAVITY_M_S2
+    segment_n = manip.actuators[0].link.mass_kg * GRAVITY_M_S2
+    print(f"finger weight {weight_n:.4f} N; one proximal segment {segment_n:.4f} N")
+    print("plate from the clamp (the bench):")
+    _ladder(args.model)
+    print("plate from one segment past the clamp (experiment):")
+    with plate_past_first_segment():
+        _ladder(args.model)
+
+
+if __name__ == "__main__":
+    main()
