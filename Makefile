@@ -46,7 +46,7 @@ bench-scale: $(STAMP) ## Sweep memory at 2 000 and 20 000 trials, and a resume's
 bench-engines: $(STAMP) ## The engine benchmark: one pinch trial on PyBullet and on MuJoCo side by side, MuJoCo's 4 ms vs 2 ms
 	$(BIN)/somo-sweep paper engines --convergence --out results/figures
 
-bench-robust: $(STAMP) ## What robust labels cost: one trial and the quick study, plain before vs robust now (~1 h on 2 cores) -> results/reference/robust_cost.json
+bench-robust: $(STAMP) ## What robust labels cost: one trial and the quick study, plain before vs robust now (~40 min on 2 idle cores) -> results/reference/robust_cost.json
 	$(BIN)/somo-sweep paper robust-cost --out results/reference
 
 fig6: $(STAMP) ## Paper Fig. 6: pinch-grasp study, 2310 trials (resumable), figure + smallest all-width pinch DSR
