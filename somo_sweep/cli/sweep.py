@@ -271,6 +271,9 @@ def _term_as_interrupt() -> Iterator[list[int]]:
         caught.append(signum)
         raise KeyboardInterrupt
 
+    if signal.getsignal(signal.SIGTERM) is signal.SIG_IGN:  # started ignoring it: keep that
+        yield caught
+        return
     old = signal.signal(signal.SIGTERM, handler)
     try:
         yield caught

@@ -176,7 +176,14 @@ class _SignalGuard:
 
     def __enter__(self) -> _SignalGuard:
         if threading.current_thread() is threading.main_thread():
-            self.old = {s: signal.signal(s, self._handler) for s in self.SIGNALS}
+            # A signal the process was started ignoring stays ignored, as Unix tools do: a
+            # shell starts `somo-sweep run ... &` in a script with SIGINT ignored, so that a
+            # Ctrl-C meant for the script does not reach it.
+            self.old = {
+                s: signal.signal(s, self._handler)
+                for s in self.SIGNALS
+                if signal.getsignal(s) is not signal.SIG_IGN
+            }
         return self
 
     def __exit__(self, *exc: object) -> None:

@@ -111,6 +111,42 @@ def test_interrupt_keeps_every_finished_trial_and_resume_completes(tmp_path: Pat
     pd.testing.assert_frame_equal(results_only(read_results(out)), results_only(read_results(reference)))
 
 
+def _ignore_sigint() -> None:
+    signal.signal(signal.SIGINT, signal.SIG_IGN)
+
+
+def test_a_run_started_with_sigint_ignored_keeps_ignoring_it_and_stops_on_sigterm(tmp_path: Path) -> None:
+    """A shell starts ``somo-sweep run ... &`` in a script with SIGINT ignored, so that a Ctrl-C
+    meant for the script does not reach it: the sweep keeps that, as Unix tools do."""
+    n = 30
+    fifo = tmp_path / "finished"
+    os.mkfifo(fifo)
+    path = selftest_study(tmp_path, extra=f"set: {{task.sleep_s: 0.2, task.notify_fifo: '{fifo}'}}", n=n)
+    out = tmp_path / "out"
+    with FinishedTrials(fifo) as finished:
+        proc = subprocess.Popen(
+            [str(CLI), "run", str(path), "--jobs", "2", "--chunk-rows", "2", "--no-plots", "--out", str(out)],
+            stdout=subprocess.PIPE,
+            stderr=subprocess.PIPE,
+            text=True,
+            preexec_fn=_ignore_sigint,
+        )
+        try:
+            finished.wait(2)
+            assert proc.poll() is None, "the sweep finished before the signals"
+            proc.send_signal(signal.SIGINT)
+            finished.wait(10)  # more trials return after it than were in flight (2 workers)
+            assert proc.poll() is None, proc.communicate()[1]
+            proc.send_signal(signal.SIGTERM)
+            _, stderr = proc.communicate(timeout=60)
+        finally:
+            if proc.poll() is None:
+                proc.kill()
+    assert proc.returncode == 128 + signal.SIGTERM, stderr
+    assert "finished trial(s) kept" in stderr and "Traceback" not in stderr
+    assert 0 < len(read_results(out)) < n
+
+
 def test_a_killed_run_leaves_no_process_and_a_readable_table(tmp_path: Path) -> None:
     """Also no library noise: loky's resource tracker, which outlives the run, printed "There
     appear to be 8 leaked semlock objects" (and removed them, as it should)."""
