@@ -42,3 +42,14 @@ def ihm_finger_dict(
     if added_inertia is not None:
         act["link"]["added_inertia_kg_m2"] = added_inertia
     return data
+
+
+def signals_as_in_a_shell() -> None:
+    """``preexec_fn`` for a child that a test sends SIGINT: it starts with SIGINT at its default
+    and unblocked, as a shell starts a command. Both are inherited across exec, and a test
+    process launched in the background (``pytest &`` in a script) has SIGINT ignored, which
+    ``somo-sweep run`` then keeps."""
+    import signal
+
+    signal.signal(signal.SIGINT, signal.SIG_DFL)
+    signal.pthread_sigmask(signal.SIG_UNBLOCK, {signal.SIGINT, signal.SIGTERM})

@@ -149,7 +149,11 @@ def measure_run(
     journals = folder / "trials"
     before = set(journals.glob(JOURNAL_GLOB)) if journals.is_dir() else set()
     start = time.perf_counter()
-    proc = subprocess.Popen(cmd, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+    # The run starts with SIGINT at its default, as a shell starts a command: launched in the
+    # background (`make bench-scale &`), this process has it ignored, and the run would keep that.
+    proc = subprocess.Popen(
+        cmd, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL, preexec_fn=_sigint_as_in_a_shell
+    )
     peak, first, first_cpu, sent = 0, None, None, False
     while proc.poll() is None:
         peak = max(peak, _peak_kib(proc.pid) or 0)
@@ -190,3 +194,9 @@ def scale_lines(runs: list[ScaleRun], interrupted: ScaleRun, resumed: ScaleRun, 
         f"{resumed.stored} stored"
     )
     return lines
+
+
+def _sigint_as_in_a_shell() -> None:
+    """In the child before exec: SIGINT at its default and unblocked."""
+    signal.signal(signal.SIGINT, signal.SIG_DFL)
+    signal.pthread_sigmask(signal.SIG_UNBLOCK, {signal.SIGINT})

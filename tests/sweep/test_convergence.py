@@ -12,6 +12,7 @@ import json
 from pathlib import Path
 
 import pytest
+from conftest import signals_as_in_a_shell
 from test_sweep import make_study
 from test_sweep_processes import _descendants
 from typer.testing import CliRunner
@@ -162,7 +163,7 @@ def test_a_signal_while_the_step_is_chosen_stops_cleanly(tmp_path: Path, signum:
         [sys.executable, "-m", "somo_sweep", "run", str(path), "--out", str(tmp_path / "out"), "-j", "1"],
         stderr=subprocess.PIPE,
         text=True,
-        preexec_fn=_signals_as_in_a_shell,
+        preexec_fn=signals_as_in_a_shell,
     )
     assert proc.stderr is not None
     seen = ""
@@ -179,15 +180,6 @@ def test_a_signal_while_the_step_is_chosen_stops_cleanly(tmp_path: Path, signum:
     assert proc.returncode == 128 + signum, seen + rest
     assert "interrupted while choosing the time step" in rest and "Traceback" not in rest
     assert not (tmp_path / "out" / "trials").exists()
-
-
-def _signals_as_in_a_shell() -> None:
-    """The child starts with SIGINT at its default and unblocked, as a shell starts a command,
-    whatever state earlier tests left in this test process (both are inherited across exec)."""
-    import signal
-
-    signal.signal(signal.SIGINT, signal.SIG_DFL)
-    signal.pthread_sigmask(signal.SIG_UNBLOCK, {signal.SIGINT, signal.SIGTERM})
 
 
 def test_check_of_a_study_prints_the_choice_and_why_and_writes_nothing(tmp_path: Path) -> None:

@@ -17,6 +17,7 @@ from pathlib import Path
 
 import pandas as pd
 import pytest
+from conftest import signals_as_in_a_shell
 from test_sweep import make_study, results_only, selftest_study
 
 from somo_sweep.sweep.runner import run_study
@@ -88,6 +89,7 @@ def test_interrupt_keeps_every_finished_trial_and_resume_completes(tmp_path: Pat
             stdout=subprocess.PIPE,
             stderr=subprocess.PIPE,
             text=True,
+            preexec_fn=signals_as_in_a_shell,
         )
         finished.wait(4)  # four trials have returned; the engine has received at least one
     try:
@@ -243,6 +245,7 @@ def test_ctrl_c_to_the_whole_terminal_group_while_workers_start_gives_one_messag
         stderr=subprocess.PIPE,
         text=True,
         start_new_session=True,  # its own group, as a shell gives a command
+        preexec_fn=signals_as_in_a_shell,
     )
     try:
         deadline = time.monotonic() + 60
