@@ -5,7 +5,7 @@ BIN    := $(VENV)/bin
 STAMP  := $(VENV)/.installed-stamp
 
 .DEFAULT_GOAL := help
-.PHONY: help install demo test test-slow lint format bench bench-scale bench-engines bench-robust fig6 fig6-quick fig6-ablation fig6-ablation-quick fig3 fig5 fig5-quick palm palm-quick fig7 fig7-quick fig8 fig8-quick diagnose-demo sweep-demo figures clean
+.PHONY: help install demo test test-slow lint format bench bench-scale bench-engines bench-robust fig6 fig6-quick fig6-original fig6-ablation fig6-ablation-quick fig3 fig5 fig5-quick palm palm-quick fig7 fig7-quick fig8 fig8-quick diagnose-demo sweep-demo figures clean
 
 help: ## List the targets
 	@grep -E '^[a-zA-Z0-9_-]+:.*?## ' $(MAKEFILE_LIST) | awk 'BEGIN {FS = ":.*?## "}; {printf "  make %-12s %s\n", $$1, $$2}'
@@ -58,6 +58,10 @@ fig6-quick: $(STAMP) ## Fig. 6 on a 192-trial subset (a few minutes on 2 cores),
 	$(BIN)/somo-sweep run studies/pinch_grasp_quick.yaml
 	$(BIN)/somo-sweep paper fig6 results/pinch_grasp_quick --out results/figures/quick
 	$(BIN)/somo-sweep paper fig6 results/pinch_grasp_quick --out results/figures/quick --rule paper
+
+fig6-original: $(STAMP) ## Fig. 6 the original's way at its 0.5 ms: 2310 cells (adaptive, resumable, ~70 min on 2 cores), paper rule, into results/figures/original
+	$(BIN)/somo-sweep run studies/pinch_grasp_dsr_original_0p5ms.yaml --adaptive
+	$(BIN)/somo-sweep paper fig6 results/pinch_grasp_dsr_original_0p5ms --out results/figures/original --rule paper --max-dsr 0.7
 
 fig6-ablation: $(STAMP) ## Fig. 6 ablation, ours vs the original's choices one factor at a time: 4 simulated configurations x 2310 cells (adaptive, resumable) -> results/reference/fig6_ablation.{csv,md,png}, fig6_compare.png
 	$(BIN)/somo-sweep paper fig6-ablation --paper-style --out results/reference
