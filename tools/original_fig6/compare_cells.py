@@ -16,7 +16,6 @@ from __future__ import annotations
 import argparse
 import csv
 import math
-import sys
 from concurrent.futures import ProcessPoolExecutor
 from pathlib import Path
 from typing import Any
@@ -41,9 +40,33 @@ def _setup(study_path: str, setup: str | None) -> tuple[dict[str, Any], Any, str
     return params, settings, str(study.model_path)
 
 
-def run_cell(args: tuple[dict[str, str], str, str | None]) -> dict[str, Any]:
+def anchor_finger_links() -> None:
+    """Set Bullet's friction anchor on every non-base link of every jointed body, as the original
+    does on its finger links (``changeDynamics(..., frictionAnchor=True)``). An experiment of this
+    script only: the study file cannot express it."""
+    import pybullet as p
+
+    from somo_sweep.sim.pybullet.world import PyBulletWorld
+
+    load = PyBulletWorld.load_plan
+    if getattr(load, "anchors", False):
+        return
+
+    def load_plan(self: Any, plan: Any, pose: Any = None) -> Any:
+        body = load(self, plan, pose)
+        for index in range(p.getNumJoints(body.id, physicsClientId=self.client)):
+            p.changeDynamics(body.id, index, frictionAnchor=1, physicsClientId=self.client)
+        return body
+
+    load_plan.anchors = True  # type: ignore[attr-defined]
+    PyBulletWorld.load_plan = load_plan  # type: ignore[method-assign]
+
+
+def run_cell(args: tuple[dict[str, str], str, str | None, bool]) -> dict[str, Any]:
     """Our trial for one cell of the original's table."""
-    row, study_path, setup = args
+    row, study_path, setup, anchor = args
+    if anchor:
+        anchor_finger_links()
     from somo_sweep.model.load import load_model
     from somo_sweep.tasks.pinch_grasp.params import PinchGraspParams
     from somo_sweep.tasks.pinch_grasp.task import run_pinch_grasp
@@ -78,11 +101,16 @@ def main() -> None:
     ap.add_argument(
         "--setup", help="numerics 'DT_S,ADDED_INERTIA_KG_M2[,FRICTION_EVERY]' instead of the study's"
     )
+    ap.add_argument(
+        "--friction-anchor",
+        action="store_true",
+        help="an experiment: Bullet's friction anchor on our finger links, as the original sets it",
+    )
     ap.add_argument("--jobs", type=int, default=1)
     args = ap.parse_args()
     with open(args.original) as f:
         rows = list(csv.DictReader(f))
-    work = [(r, args.study, args.setup) for r in rows]
+    work = [(r, args.study, args.setup, args.friction_anchor) for r in rows]
     if args.jobs > 1:
         with ProcessPoolExecutor(args.jobs) as pool:
             results = list(pool.map(run_cell, work))
@@ -106,4 +134,4 @@ def main() -> None:
 
 
 if __name__ == "__main__":
-    sys.exit(main())
+    main()

@@ -72,6 +72,7 @@ FIELDS = [
     "orig_final_contacts",
     "orig_final_step",
     "wall_s",
+    "time_step_s",
 ]
 
 
@@ -224,8 +225,13 @@ class Tracer:
     dt = 0.0005
 
 
-def cell_config(region: Path, dsr: float, width_mm: int, c_mm: float, work: Path) -> tuple[Path, float]:
-    """The original's sweep file with one cell's values filled in, headless, saved in ``work``."""
+def cell_config(
+    region: Path, dsr: float, width_mm: int, c_mm: float, work: Path, time_step_s: float | None = None
+) -> tuple[Path, float]:
+    """The original's sweep file with one cell's values filled in, headless, saved in ``work``.
+
+    ``time_step_s`` replaces the sweep file's ``simulation.time_step`` (0.5 ms); ``run_single``
+    takes its step count from it (4 s of simulated time either way)."""
     import yaml
 
     with open(region / "sweeps" / "grid_dsr.yaml") as f:
@@ -240,6 +246,8 @@ def cell_config(region: Path, dsr: float, width_mm: int, c_mm: float, work: Path
     cfg["object"]["file"] = str(region / f"objects/object_set/cube_60mm/CubeLifeSize_v2_60_{width_mm}.urdf")
     cfg["simulation"]["gui"] = False
     cfg["simulation"]["video"] = False
+    if time_step_s is not None:
+        cfg["simulation"]["time_step"] = time_step_s
     cfg["save"] = {"group_name": "cells", "run_name": f"dsr{dsr:.2f}_w{width_mm}_c{c_mm:g}"}
     path = work / "cell.yaml"
     with open(path, "w") as f:
@@ -315,6 +323,11 @@ def main() -> None:
         "--inspect", type=Path, help="write full dumps of every body (JSON) at --inspect-steps here"
     )
     ap.add_argument("--inspect-steps", default="0,1999,3999,5999,7999", help="step counts of --inspect")
+    ap.add_argument(
+        "--time-step",
+        type=float,
+        help="the original's time step in s (default: its sweep file's 0.0005); the trial stays 4 s long",
+    )
     ap.add_argument("--list", action="store_true", help="print the cells and stop")
     args = ap.parse_args()
     cells = choose_cells(args)
@@ -373,8 +386,10 @@ def run_cells(
         if (args.trace or args.inspect)
         else None
     )
+    if tracer:
+        tracer.dt = args.time_step or 0.0005
     for dsr, width, c in todo:
-        cfg, h = cell_config(region, dsr, width, c, work)
+        cfg, h = cell_config(region, dsr, width, c, work, args.time_step)
         iter_utils.add_tmp("_tmp")
         if tracer:
             tracer.n, tracer.rows, tracer.dumps = 0, [], []
@@ -384,6 +399,7 @@ def run_cells(
         iter_utils.delete_tmp("_tmp")
         run_folder = work / "data" / "cells" / f"dsr{dsr:.2f}_w{width}_c{c:g}"
         row = {"dsr": dsr, "width_mm": width, "c_mm": c, "hand_x_units": h, "wall_s": round(wall, 2)}
+        row["time_step_s"] = args.time_step or 0.0005
         row["restitution"] = "original" if restitution is None else restitution
         row.update(label_cell(region, run_folder, dsr, 20.0))
         for f in run_folder.iterdir():

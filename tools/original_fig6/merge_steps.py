@@ -1,0 +1,107 @@
+"""One table of the cell-by-cell check at several time steps (``results/reference/original_cells_steps.csv``).
+
+The original code's 0.5 ms is beyond its finger chain's explicit-spring stability limit
+(docs/pinch_grasp.md, "The original's step is not converged"). This script puts the same cells,
+run at smaller steps by both codes, beside each other and prints the agreements that section
+quotes. Inputs, written by the other scripts here:
+
+* ``--orig STEP=CSV`` (repeatable): ``run_original_cells.py --time-step STEP`` (several CSVs of one
+  step may be given, comma-separated);
+* ``--ours NAME=CSV`` (repeatable): ``compare_cells.py`` runs of ours (``--setup STEP,0``); NAME is
+  the column suffix, e.g. ``0p25ms``.
+
+The 0.5-ms columns come from ``--reference`` (``results/reference/original_cells.csv``): the
+original's label there becomes ``orig_label_0p5ms``, ours ``ours_label_0p5ms``, and its
+``orig_robust`` (the original's label unchanged by a 0.1-mm shift) is kept.
+"""
+
+from __future__ import annotations
+
+import argparse
+import csv
+from pathlib import Path
+
+Key = tuple[float, int, float]
+
+
+def _key(row: dict[str, str]) -> Key:
+    return round(float(row["dsr"]), 2), int(row["width_mm"]), round(float(row["c_mm"]), 1)
+
+
+def _read(paths: str) -> dict[Key, dict[str, str]]:
+    rows: dict[Key, dict[str, str]] = {}
+    for path in paths.split(","):
+        with open(path) as f:
+            for row in csv.DictReader(f):
+                rows[_key(row)] = row
+    return rows
+
+
+def _suffix(step: str) -> str:
+    """'0.00025' -> '0p25ms'."""
+    return f"{float(step) * 1e3:g}ms".replace(".", "p")
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
+    ap.add_argument("--reference", type=Path, required=True, help="results/reference/original_cells.csv")
+    ap.add_argument("--orig", action="append", default=[], help="STEP=CSV[,CSV] of run_original_cells.py")
+    ap.add_argument("--ours", action="append", default=[], help="NAME=CSV of compare_cells.py")
+    ap.add_argument("--out", type=Path, required=True)
+    args = ap.parse_args()
+
+    ref = _read(str(args.reference))
+    table: dict[Key, dict[str, object]] = {}
+    for k, r in ref.items():
+        table[k] = {
+            "dsr": k[0],
+            "width_mm": k[1],
+            "c_mm": k[2],
+            "orig_robust": r["orig_robust"],
+            "orig_label_0p5ms": r["orig_label"],
+            "ours_label_0p5ms": r["ours_label"],
+        }
+    columns = list(next(iter(table.values())))
+    for spec in args.orig:
+        step, paths = spec.split("=", 1)
+        name = _suffix(step)
+        rows = _read(paths)
+        for k, row in table.items():
+            o = rows.get(k, {})
+            row[f"orig_label_{name}"] = o.get("orig_label", "")
+            row[f"orig_mean_link_{name}"] = o.get("orig_mean_link", "")
+            row[f"orig_z_m_{name}"] = o.get("orig_z_m", "")
+        columns += [f"orig_label_{name}", f"orig_mean_link_{name}", f"orig_z_m_{name}"]
+    for spec in args.ours:
+        name, path = spec.split("=", 1)
+        rows = _read(path)
+        for k, row in table.items():
+            o = rows.get(k, {})
+            row[f"ours_label_{name}"] = o.get("ours_label", "")
+            row[f"ours_z_m_{name}"] = o.get("ours_z_m", "")
+        columns += [f"ours_label_{name}", f"ours_z_m_{name}"]
+    with open(args.out, "w", newline="") as f:
+        w = csv.DictWriter(f, columns)
+        w.writeheader()
+        w.writerows(table[k] for k in sorted(table))
+
+    labels = [c for c in columns if "_label_" in c]
+    robust = [k for k, r in table.items() if r["orig_robust"] == "True"]
+    print(f"{len(table)} cells ({len(robust)} where the original's 0.5-ms label survives a 0.1-mm shift)")
+    for i, a in enumerate(labels):
+        for b in labels[i + 1 :]:
+            both = [k for k in table if table[k][a] and table[k][b]]
+            if not both:
+                continue
+            same = sum(table[k][a] == table[k][b] for k in both)
+            print(f"  {a} = {b}: {same}/{len(both)} ({100 * same / len(both):.1f} %)")
+    for c in labels:
+        counts: dict[str, int] = {}
+        for cell in table.values():
+            value = str(cell[c]) or "-"
+            counts[value] = counts.get(value, 0) + 1
+        print(f"  {c}: " + ", ".join(f"{v} {n}" for v, n in sorted(counts.items())))
+
+
+if __name__ == "__main__":
+    main()
