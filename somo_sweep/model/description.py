@@ -163,12 +163,17 @@ class Friction(Spec):
     """PyBullet friction values of a link (the pair coefficient is their product).
 
     ``anisotropic`` scales the lateral friction along the link's x, y, z axes.
+    ``anchor`` is Bullet's friction anchor: a contact of this link keeps the point where it
+    first touched, and friction pulls back toward that point, so a loaded contact that should
+    stick does not creep a little every step (the original SoMo pinch finger sets it on every
+    finger link). PyBullet only.
     """
 
     lateral: float = Field(1.0, ge=0, le=MAX_FRICTION)
     spinning: float = Field(0.0, ge=0, le=MAX_FRICTION)
     rolling: float = Field(0.0, ge=0, le=MAX_FRICTION)
     anisotropic: Vec3 | None = None
+    anchor: bool = False
 
     @field_validator("anisotropic")
     @classmethod

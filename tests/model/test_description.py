@@ -325,6 +325,14 @@ def test_physical_bounds_of_every_number_are_enforced(description: dict, where: 
     assert where in str(err.value) and message in str(err.value)
 
 
+def test_a_friction_anchor_is_off_unless_asked_for_and_must_be_a_boolean() -> None:
+    assert model_from_dict(_finger()).manipulator.actuators[0].link.friction.anchor is False
+    anchored = model_from_dict(_finger(link={"friction": {"anchor": True}}))
+    assert anchored.manipulator.actuators[0].link.friction.anchor is True
+    with pytest.raises(DescriptionError, match=r"friction\.anchor"):
+        model_from_dict(_finger(link={"friction": {"anchor": "sometimes"}}))
+
+
 def test_a_real_inertia_and_anisotropic_friction_are_kept() -> None:
     model = model_from_dict(
         _finger(link={"inertia_kg_m2": [2e-7, 2e-7, 1e-7], "friction": {"anisotropic": [1, 0.1, 1]}})

@@ -178,6 +178,9 @@ def test_a_field_mujoco_cannot_express_is_refused_naming_it_and_the_engine() -> 
         world.add_model(snake)
     with World(_mj()) as world, pytest.raises(SimulationError, match=r"restitution.*engine mujoco"):
         world.add_ground(restitution=0.5)
+    original = load_model(bundled_path("models", "pinch_finger_original.yaml"))
+    with World(_mj()) as world, pytest.raises(SimulationError, match=r"friction\.anchor true.*engine mujoco"):
+        world.add_model(original)
 
 
 def test_the_other_engines_options_are_refused() -> None:

@@ -95,6 +95,21 @@ def test_a_field_mujoco_cannot_express_is_refused_at_load_with_its_key_path(tmp_
     assert load_study(ok).simulation.engine == "mujoco"  # type: ignore[union-attr]
 
 
+def test_the_original_fingers_friction_anchors_are_refused_on_mujoco_by_key_path(tmp_path: Path) -> None:
+    shutil.copytree(MODELS, tmp_path / "models")
+    path = tmp_path / "study.yaml"
+    path.write_text(
+        "name: s\ntask: pinch_grasp\nmodel: models/pinch_gripper_original.yaml\n"
+        "simulation: {engine: mujoco}\n",
+        encoding="utf-8",
+    )
+    with pytest.raises(DescriptionError) as err:
+        load_study(path)
+    text = str(err.value)
+    assert "manipulator.actuators[0].link.friction.anchor" in text and "tip_links[0].friction.anchor" in text
+    assert "engine mujoco" in text and "allowed: false, or engine pybullet" in text
+
+
 def test_on_engine_keeps_the_grid_and_swaps_the_numerics(tmp_path: Path) -> None:
     sim = (
         "{time_step_s: 4.0e-3, scale: 20, solver_iterations: 50, body_per_manipulator: true, "

@@ -8,10 +8,15 @@ back face of the base box). None of them comes from our own code.
 
 from __future__ import annotations
 
+import shutil
+from dataclasses import replace
+from pathlib import Path
+
 import numpy as np
+import pandas as pd
 import pybullet as p
 import pytest
-from conftest import MODELS
+from conftest import MODELS, ROOT
 
 from somo_sweep.errors import UnstableSimulation
 from somo_sweep.model.description import Pose, RigidBody
@@ -19,8 +24,12 @@ from somo_sweep.model.load import load_model
 from somo_sweep.sim.settings import WorldSettings
 from somo_sweep.sim.urdf import plan_rigid_body
 from somo_sweep.sim.world import World
+from somo_sweep.sweep.study import load_study
 from somo_sweep.tasks.pinch_grasp.params import ORIGINAL_HULL_SIZE_M, Numerics, PinchGraspParams
 from somo_sweep.tasks.pinch_grasp.task import gripper, object_body, run_pinch_grasp
+
+STUDIES = MODELS.parent
+REFERENCE = ROOT / "results" / "reference"
 
 ORIGINAL_GRIPPER = MODELS / "pinch_gripper_original.yaml"
 
@@ -156,3 +165,42 @@ def test_clamp_speed_cap_lets_a_body_run_on_at_bullets_cap() -> None:
             else:
                 with pytest.raises(UnstableSimulation, match="speed_cap"):
                     world.step(3)
+
+
+def _original_cell(model_dir: str, dsr: float, width_m: float, c_m: float, dt_s: float) -> str:
+    """Our trial of one cell in the original configuration at ``dt_s`` without shaping: its paper label."""
+    study = load_study(STUDIES / "pinch_grasp_dsr_original.yaml")
+    params = {k.removeprefix("task."): v for k, v in {**study.params, **study.fixed}.items()}
+    params.update(
+        numerics={"added_inertia_kg_m2": 0.0},
+        distal_segment_ratio=dsr,
+        object_width_m=width_m,
+        centering_position_m=c_m,
+    )
+    assert study.simulation is not None
+    settings = replace(study.simulation.world_settings(), time_step_s=dt_s, friction_rows_every=1)
+    model = load_model(f"{model_dir}/pinch_gripper_original.yaml")
+    return run_pinch_grasp(model, PinchGraspParams(**params), settings).labels["grasp_paper"]
+
+
+def test_the_original_fingers_friction_anchors_hold_a_thin_box_as_the_original_code_does(
+    tmp_path: Path,
+) -> None:
+    """The 10-mm box at DSR 0, c = 70 mm, at 0.25 ms (where both chains are stable).
+
+    The original code, run at 0.25 and at 0.125 ms, lifts it between the fingertips (``power``:
+    ``results/reference/original_cells_steps.csv``, from its own trial, not ours). With the
+    finger's friction anchors, as the original sets them, ours does too; without them the box
+    creeps out and falls over.
+    """
+    steps = pd.read_csv(REFERENCE / "original_cells_steps.csv")
+    cell = steps[(steps.dsr == 0.0) & (steps.width_mm == 10) & (steps.c_mm == 70.0)].iloc[0]
+    assert cell.orig_label_0p25ms == cell.orig_label_0p125ms == "power"
+    plain = tmp_path / "models"
+    shutil.copytree(MODELS, plain)
+    finger = plain / "pinch_finger_original.yaml"
+    text = finger.read_text(encoding="utf-8")
+    assert text.count("anchor: true") == 3
+    finger.write_text(text.replace("anchor: true", "anchor: false"), encoding="utf-8")
+    assert _original_cell(str(MODELS), 0.0, 0.010, 0.070, 2.5e-4) == cell.orig_label_0p25ms
+    assert _original_cell(str(plain), 0.0, 0.010, 0.070, 2.5e-4) == "no_grasp"

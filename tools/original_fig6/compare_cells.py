@@ -40,33 +40,29 @@ def _setup(study_path: str, setup: str | None) -> tuple[dict[str, Any], Any, str
     return params, settings, str(study.model_path)
 
 
-def anchor_finger_links() -> None:
-    """Set Bullet's friction anchor on every non-base link of every jointed body, as the original
-    does on its finger links (``changeDynamics(..., frictionAnchor=True)``). An experiment of this
-    script only: the study file cannot express it."""
-    import pybullet as p
-
+def drop_friction_anchors() -> None:
+    """Load every link without Bullet's friction anchor, whatever its description says. An
+    experiment of this script: the original finger (``pinch_finger_original.yaml``) sets the anchor
+    on its links, as the original code does, and this shows what it changes."""
     from somo_sweep.sim.pybullet.world import PyBulletWorld
 
-    load = PyBulletWorld.load_plan
-    if getattr(load, "anchors", False):
+    apply = PyBulletWorld._apply_dynamics
+    if getattr(apply, "without_anchors", False):
         return
 
-    def load_plan(self: Any, plan: Any, pose: Any = None) -> Any:
-        body = load(self, plan, pose)
-        for index in range(p.getNumJoints(body.id, physicsClientId=self.client)):
-            p.changeDynamics(body.id, index, frictionAnchor=1, physicsClientId=self.client)
-        return body
+    def apply_without_anchor(self: Any, body: int, index: int, link: Any) -> None:
+        friction = link.friction.model_copy(update={"anchor": False})
+        apply(self, body, index, link.model_copy(update={"friction": friction}))
 
-    load_plan.anchors = True  # type: ignore[attr-defined]
-    PyBulletWorld.load_plan = load_plan  # type: ignore[method-assign]
+    apply_without_anchor.without_anchors = True  # type: ignore[attr-defined]
+    PyBulletWorld._apply_dynamics = apply_without_anchor  # type: ignore[method-assign]
 
 
 def run_cell(args: tuple[dict[str, str], str, str | None, bool]) -> dict[str, Any]:
     """Our trial for one cell of the original's table."""
-    row, study_path, setup, anchor = args
-    if anchor:
-        anchor_finger_links()
+    row, study_path, setup, without_anchors = args
+    if without_anchors:
+        drop_friction_anchors()
     from somo_sweep.model.load import load_model
     from somo_sweep.tasks.pinch_grasp.params import PinchGraspParams
     from somo_sweep.tasks.pinch_grasp.task import run_pinch_grasp
@@ -93,6 +89,11 @@ def run_cell(args: tuple[dict[str, str], str, str | None, bool]) -> dict[str, An
     return out
 
 
+def _number(value: object) -> float:
+    """A CSV cell as a number; empty (no contact, no mean link) is NaN."""
+    return math.nan if value in ("", None) else float(str(value))
+
+
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("original", type=Path, help="CSV of run_original_cells.py")
@@ -102,15 +103,15 @@ def main() -> None:
         "--setup", help="numerics 'DT_S,ADDED_INERTIA_KG_M2[,FRICTION_EVERY]' instead of the study's"
     )
     ap.add_argument(
-        "--friction-anchor",
+        "--without-friction-anchor",
         action="store_true",
-        help="an experiment: Bullet's friction anchor on our finger links, as the original sets it",
+        help="an experiment: no link gets Bullet's friction anchor (the original finger sets it)",
     )
     ap.add_argument("--jobs", type=int, default=1)
     args = ap.parse_args()
     with open(args.original) as f:
         rows = list(csv.DictReader(f))
-    work = [(r, args.study, args.setup, args.friction_anchor) for r in rows]
+    work = [(r, args.study, args.setup, args.without_friction_anchor) for r in rows]
     if args.jobs > 1:
         with ProcessPoolExecutor(args.jobs) as pool:
             results = list(pool.map(run_cell, work))
@@ -128,8 +129,8 @@ def main() -> None:
         if not r["agree"]:
             cell = f"DSR {float(r['dsr']):.2f} w {r['width_mm']} c {float(r['c_mm']):g}"
             z_orig = float(r["orig_z_m"]) * 1e3
-            orig = f"{r['orig_label']} (mean {float(r['orig_mean_link']):.2f}, z {z_orig:.1f} mm)"
-            ours = f"{r['ours_label'] or r['ours_status']} (mean {float(r['ours_mean_link']):.2f}, "
+            orig = f"{r['orig_label']} (mean {_number(r['orig_mean_link']):.2f}, z {z_orig:.1f} mm)"
+            ours = f"{r['ours_label'] or r['ours_status']} (mean {_number(r['ours_mean_link']):.2f}, "
             print(f"  {cell}: original {orig} / ours {ours}z {float(r['ours_z_m']) * 1e3:.1f} mm)")
 
 

@@ -13,6 +13,10 @@ quotes. Inputs, written by the other scripts here:
 The 0.5-ms columns come from ``--reference`` (``results/reference/original_cells.csv``): the
 original's label there becomes ``orig_label_0p5ms``, ours ``ours_label_0p5ms``, and its
 ``orig_robust`` (the original's label unchanged by a 0.1-mm shift) is kept.
+
+``--converged A,B`` (two steps of ``--orig``) adds ``orig_converged``: the original's label is the
+same at both steps, i.e. its own step error does not decide the cell. Every agreement is then
+printed on those cells too.
 """
 
 from __future__ import annotations
@@ -47,6 +51,7 @@ def main() -> None:
     ap.add_argument("--reference", type=Path, required=True, help="results/reference/original_cells.csv")
     ap.add_argument("--orig", action="append", default=[], help="STEP=CSV[,CSV] of run_original_cells.py")
     ap.add_argument("--ours", action="append", default=[], help="NAME=CSV of compare_cells.py")
+    ap.add_argument("--converged", help="A,B: two --orig steps; mark cells where the original agrees")
     ap.add_argument("--out", type=Path, required=True)
     args = ap.parse_args()
 
@@ -80,6 +85,11 @@ def main() -> None:
             row[f"ours_label_{name}"] = o.get("ours_label", "")
             row[f"ours_z_m_{name}"] = o.get("ours_z_m", "")
         columns += [f"ours_label_{name}", f"ours_z_m_{name}"]
+    if args.converged:
+        a, b = (f"orig_label_{_suffix(step)}" for step in args.converged.split(","))
+        for row in table.values():
+            row["orig_converged"] = bool(row[a]) and row[a] == row[b]
+        columns.append("orig_converged")
     with open(args.out, "w", newline="") as f:
         w = csv.DictWriter(f, columns)
         w.writeheader()
@@ -88,13 +98,19 @@ def main() -> None:
     labels = [c for c in columns if "_label_" in c]
     robust = [k for k, r in table.items() if r["orig_robust"] == "True"]
     print(f"{len(table)} cells ({len(robust)} where the original's 0.5-ms label survives a 0.1-mm shift)")
-    for i, a in enumerate(labels):
-        for b in labels[i + 1 :]:
-            both = [k for k in table if table[k][a] and table[k][b]]
-            if not both:
-                continue
-            same = sum(table[k][a] == table[k][b] for k in both)
-            print(f"  {a} = {b}: {same}/{len(both)} ({100 * same / len(both):.1f} %)")
+    subsets = [("", list(table))]
+    if args.converged:
+        converged = [k for k, r in table.items() if r["orig_converged"]]
+        print(f"{len(converged)} cells where the original's label is the same at {args.converged} s")
+        subsets.append((" (original converged)", converged))
+    for where, cells in subsets:
+        for i, a in enumerate(labels):
+            for b in labels[i + 1 :]:
+                both = [k for k in cells if table[k][a] and table[k][b]]
+                if not both:
+                    continue
+                same = sum(table[k][a] == table[k][b] for k in both)
+                print(f"  {a} = {b}{where}: {same}/{len(both)} ({100 * same / len(both):.1f} %)")
     for c in labels:
         counts: dict[str, int] = {}
         for cell in table.values():

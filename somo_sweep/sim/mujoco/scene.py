@@ -23,6 +23,7 @@ import mujoco
 import numpy as np
 
 from somo_sweep.errors import SimulationError
+from somo_sweep.sim.mujoco.support import ANCHOR_WHY
 from somo_sweep.sim.mujoco.surfaces import Surface
 from somo_sweep.sim.mujoco.urdf_tree import Shape, TreeLink, read_tree, unit
 from somo_sweep.sim.plan import BodyPlan, LinkInfo
@@ -109,6 +110,8 @@ def unsupported_link(info: LinkInfo) -> list[str]:
             "on engine mujoco (its contact friction directions follow the contact normal, not the link's "
             "axes); allowed: null, or engine pybullet"
         )
+    if link.friction.anchor:
+        out.append(f"link '{info.name}': friction.anchor true {ANCHOR_WHY}")
     if link.restitution > 0:
         out.append(
             f"link '{info.name}': restitution {link.restitution:g} cannot be expressed on engine mujoco (its "

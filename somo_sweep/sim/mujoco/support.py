@@ -8,6 +8,9 @@ task adds itself.
 * ``friction.anisotropic``: MuJoCo's contact friction directions follow the contact normal (two
   tangents it picks), not the link's own axes, so friction scaled along a link's axes (a snake's
   scales) has no equivalent.
+* ``friction.anchor``: MuJoCo solves friction afresh each step from the contact's velocity; it
+  keeps no point a contact first touched to pull back to, so Bullet's friction anchor has no
+  equivalent.
 * ``restitution`` > 0: MuJoCo's contacts are soft, critically damped springs without a
   restitution coefficient.
 """
@@ -20,11 +23,16 @@ from collections.abc import Iterator
 from somo_sweep.model.description import Link, Manipulator
 from somo_sweep.model.load import Model
 
-__all__ = ["ENGINE", "INSTALL", "missing", "unsupported"]
+__all__ = ["ANCHOR_WHY", "ENGINE", "INSTALL", "missing", "unsupported"]
 
 ENGINE = "mujoco"
 #: How a user gets the engine.
 INSTALL = 'pip install "somo-sweep[mujoco]"'
+#: Why ``friction.anchor: true`` is refused (after the value, in every message that names it).
+ANCHOR_WHY = (
+    f"cannot be expressed on engine {ENGINE} (it solves friction afresh each step from the contact "
+    "velocity, with no anchor point to pull back to); allowed: false, or engine pybullet"
+)
 
 
 def missing() -> str | None:
@@ -72,6 +80,8 @@ def unsupported(model: Model) -> list[tuple[str, str]]:
                     "engine pybullet",
                 )
             )
+        if link.friction.anchor:
+            out.append((f"{path}.friction.anchor", f"true {ANCHOR_WHY}"))
         if link.restitution > 0:
             out.append(
                 (

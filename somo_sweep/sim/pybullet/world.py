@@ -129,6 +129,8 @@ class PyBulletWorld(World):
         )
         if f.anisotropic is not None:
             kwargs["anisotropicFriction"] = list(f.anisotropic)
+        if f.anchor:
+            kwargs["frictionAnchor"] = 1
         p.changeDynamics(body, index, physicsClientId=self.client, **kwargs)
 
     def load_plan(self, plan: BodyPlan, pose: Pose | None = None) -> Body:
