@@ -15,8 +15,10 @@ original's label there becomes ``orig_label_0p5ms``, ours ``ours_label_0p5ms``, 
 ``orig_robust`` (the original's label unchanged by a 0.1-mm shift) is kept.
 
 ``--converged A,B`` (two steps of ``--orig``) adds ``orig_converged``: the original's label is the
-same at both steps, i.e. its own step error does not decide the cell. Every agreement is then
-printed on those cells too.
+same at both steps, i.e. its own step error does not decide the cell. ``--orig-shifted STEP=CSV``
+(``run_original_cells.py --time-step STEP`` on the cells with c moved by ±0.1 mm) adds
+``orig_robust_<step>``: the original's label at that step is the same at c − 0.1, c and c + 0.1 mm.
+Every agreement is then printed on those cells too, and on the cells that are both.
 """
 
 from __future__ import annotations
@@ -52,6 +54,9 @@ def main() -> None:
     ap.add_argument("--orig", action="append", default=[], help="STEP=CSV[,CSV] of run_original_cells.py")
     ap.add_argument("--ours", action="append", default=[], help="NAME=CSV of compare_cells.py")
     ap.add_argument("--converged", help="A,B: two --orig steps; mark cells where the original agrees")
+    ap.add_argument(
+        "--orig-shifted", action="append", default=[], help="STEP=CSV[,CSV]: the original at c ± 0.1 mm"
+    )
     ap.add_argument("--out", type=Path, required=True)
     args = ap.parse_args()
 
@@ -85,24 +90,43 @@ def main() -> None:
             row[f"ours_label_{name}"] = o.get("ours_label", "")
             row[f"ours_z_m_{name}"] = o.get("ours_z_m", "")
         columns += [f"ours_label_{name}", f"ours_z_m_{name}"]
+    flags: list[str] = []
     if args.converged:
         a, b = (f"orig_label_{_suffix(step)}" for step in args.converged.split(","))
         for row in table.values():
             row["orig_converged"] = bool(row[a]) and row[a] == row[b]
-        columns.append("orig_converged")
+        flags.append("orig_converged")
+    for spec in args.orig_shifted:
+        step, paths = spec.split("=", 1)
+        name = _suffix(step)
+        shifted = _read(paths)
+        for (dsr, width, c_mm), row in table.items():
+            near = [
+                shifted.get((dsr, width, round(c_mm + dc, 1)), {}).get("orig_label", "") for dc in (-0.1, 0.1)
+            ]
+            row[f"orig_label_c_minus_{name}"], row[f"orig_label_c_plus_{name}"] = near
+            here = row.get(f"orig_label_{name}", "")
+            row[f"orig_robust_{name}"] = bool(here) and all(label == here for label in near)
+        columns += [f"orig_label_c_minus_{name}", f"orig_label_c_plus_{name}"]
+        flags.append(f"orig_robust_{name}")
+    columns += flags
     with open(args.out, "w", newline="") as f:
         w = csv.DictWriter(f, columns)
         w.writeheader()
         w.writerows(table[k] for k in sorted(table))
 
-    labels = [c for c in columns if "_label_" in c]
+    labels = [c for c in columns if "_label_" in c and "_c_minus_" not in c and "_c_plus_" not in c]
     robust = [k for k, r in table.items() if r["orig_robust"] == "True"]
     print(f"{len(table)} cells ({len(robust)} where the original's 0.5-ms label survives a 0.1-mm shift)")
     subsets = [("", list(table))]
-    if args.converged:
-        converged = [k for k, r in table.items() if r["orig_converged"]]
-        print(f"{len(converged)} cells where the original's label is the same at {args.converged} s")
-        subsets.append((" (original converged)", converged))
+    for flag in flags:
+        cells = [k for k, r in table.items() if r[flag]]
+        print(f"{len(cells)} cells with {flag}")
+        subsets.append((f" ({flag})", cells))
+    if len(flags) > 1:
+        cells = [k for k, r in table.items() if all(r[flag] for flag in flags)]
+        print(f"{len(cells)} cells with {' and '.join(flags)}")
+        subsets.append((f" ({' and '.join(flags)})", cells))
     for where, cells in subsets:
         for i, a in enumerate(labels):
             for b in labels[i + 1 :]:
