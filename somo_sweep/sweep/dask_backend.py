@@ -7,8 +7,10 @@ always has its next trial at hand (it starts the moment the last one ends) while
 holds only a few jobs, whatever the study's size; the count follows the cluster as workers
 join or leave. A worker that dies mid-trial loses that trial only: the scheduler runs it again
 on another worker (a trial whose workers die :data:`ALLOWED_FAILURES` times is stored as
-``error``). Dask is an optional extra (``pip install "somo-sweep[dask]"``): it is imported here
-only when a run asks for it.
+``error``). A worker that dies after a trial finished, before its result was read, takes the
+result with it: the sweep submits that trial again (up to :data:`ALLOWED_FAILURES` times).
+Dask is an optional extra (``pip install "somo-sweep[dask]"``): it is imported here only when a
+run asks for it.
 """
 
 from __future__ import annotations
@@ -173,26 +175,47 @@ def run_on_dask(
     done = as_completed(loop=client.loop)
     run = uuid.uuid4().hex[:8]
 
+    lost: dict[str, int] = {}  # job id -> results lost with their worker so far
+
+    def submit(job: Job) -> None:
+        again = lost.get(job.job_id, 0)
+        key = f"somo-trial-{job.job_id}-{run}" + (f"-again{again}" if again else "")
+        which = (job.task, job.settings.engine)
+        code = codes.get(which) or codes.setdefault(which, trial_code(*which))
+        future = client.submit(run_remote, job, timeout_s, code, key=key, pure=False)
+        in_flight[key] = (job, future)
+        done.add(future)
+
     def top_up() -> None:
         target = max(IN_FLIGHT_PER_THREAD, IN_FLIGHT_PER_THREAD * threads(client))
         while len(in_flight) < target:
             job = next(source, None)
             if job is None:
                 return
-            key = f"somo-trial-{job.job_id}-{run}"
-            which = (job.task, job.settings.engine)
-            code = codes.get(which) or codes.setdefault(which, trial_code(*which))
-            future = client.submit(run_remote, job, timeout_s, code, key=key, pure=False)
-            in_flight[key] = (job, future)
-            done.add(future)
+            submit(job)
 
     top_up()
     try:
         for future in done:
             job, _ = in_flight.pop(future.key)
             status = future.status
+            if status == "lost" and lost.get(job.job_id, 0) < ALLOWED_FAILURES:
+                # The trial finished, but its worker died before its result reached us: the
+                # result died with it. Not the scheduler: run the trial again (it is a pure
+                # function of its job, so the rerun stores what the first run would have).
+                lost[job.job_id] = lost.get(job.job_id, 0) + 1
+                future.release()
+                submit(job)
+                continue
             if status == "finished":
                 out = future.result()
+            elif status == "lost":
+                out = Outcome(
+                    job.job_id,
+                    "error",
+                    f"the Dask workers holding this trial's result died {ALLOWED_FAILURES + 1} times "
+                    "before it was read; run with --retry-errors to try again",
+                )
             elif status == "error" and isinstance(future.exception(), KilledWorker):
                 out = Outcome(
                     job.job_id,
@@ -208,10 +231,16 @@ def run_on_dask(
                     '(pip install "somo-sweep[dask]" of the same version, or the same checkout). Finished '
                     "trials are kept: run the same command again to resume"
                 )
-            else:  # cancelled or lost: the scheduler is gone
+            elif client.status != "running":  # cancelled: the connection to the scheduler is gone
                 raise SomoError(
                     f"lost the Dask scheduler (trial {job.trial} was {status}); finished trials are kept: "
                     "start the scheduler and workers again and run the same command to resume"
+                )
+            else:  # cancelled by another client of the scheduler, or its restart
+                raise SomoError(
+                    f"the Dask scheduler cancelled trial {job.trial} (another client cancelled it, or "
+                    "the cluster was restarted); finished trials are kept: run the same command again "
+                    "to resume"
                 )
             future.release()
             top_up()
