@@ -36,7 +36,7 @@ PYBULLET_ONLY = (
     "friction_rows_every",
     "solver_residual_threshold",
 )
-MUJOCO_ONLY = ("integrator", "contact_time_constant_s", "impratio")
+MUJOCO_ONLY = ("integrator", "contact_time_constant_s", "impratio", "noslip_iterations")
 
 
 def engine_version(engine: str) -> str:
@@ -93,6 +93,9 @@ class WorldSettings:
             MuJoCo only.
         impratio: MuJoCo's ratio of frictional to normal contact impedance (elliptic cones); 10
             stops loaded fingertips from creeping where Bullet's contacts stick. MuJoCo only.
+        noslip_iterations: Iterations of MuJoCo's no-slip solver, run after the main solver on
+            the contacts' friction alone, which removes the slow slip its soft friction lets a
+            loaded contact have (0: off). MuJoCo only.
     """
 
     time_step_s: float = 5e-4
@@ -108,6 +111,7 @@ class WorldSettings:
     integrator: str = "discrete"
     contact_time_constant_s: float = 0.008
     impratio: float = 10.0
+    noslip_iterations: int = 0
 
     def __post_init__(self) -> None:
         if self.engine not in ENGINES:
@@ -125,6 +129,8 @@ class WorldSettings:
             value = getattr(self, name)
             if not (math.isfinite(value) and value > 0):
                 raise ValueError(f"{name} must be finite and > 0, got {value!r}")
+        if not (isinstance(self.noslip_iterations, int) and self.noslip_iterations >= 0):
+            raise ValueError(f"noslip_iterations must be a whole number >= 0, got {self.noslip_iterations!r}")
         foreign = self.foreign_options()
         if foreign:
             raise ValueError(

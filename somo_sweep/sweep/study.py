@@ -141,9 +141,10 @@ class Simulation(Spec):
     ``engine: mujoco`` runs every trial on MuJoCo (optional extra ``somo-sweep[mujoco]``; docs/mujoco.md):
     springs implicit, no inertia shaping, SI throughout. ``time_step_s`` left out is then 4 ms
     (:data:`~somo_sweep.sim.settings.MUJOCO_DEFAULT_STEP_S`), and ``integrator``,
-    ``contact_time_constant_s`` and ``impratio`` tune it. Each engine refuses the other's own
-    options set to anything but their defaults (``scale``, ``body_per_manipulator``,
-    ``friction_rows_every`` and ``solver_residual_threshold`` are PyBullet's).
+    ``contact_time_constant_s``, ``impratio`` and ``noslip_iterations`` tune it. Each engine
+    refuses the other's own options set to anything but their defaults (``scale``,
+    ``body_per_manipulator``, ``friction_rows_every`` and ``solver_residual_threshold`` are
+    PyBullet's).
     """
 
     time_step_s: float | None = Field(None, gt=0)
@@ -157,6 +158,7 @@ class Simulation(Spec):
     integrator: Literal["discrete", "implicitfast"] = "discrete"
     contact_time_constant_s: float = Field(WorldSettings.contact_time_constant_s, gt=0, le=1.0)
     impratio: float = Field(WorldSettings.impratio, gt=0, le=1e4)
+    noslip_iterations: int = Field(WorldSettings.noslip_iterations, ge=0, le=1000)
 
     @model_validator(mode="after")
     def _options_of_the_engine(self) -> Simulation:
@@ -194,6 +196,7 @@ class Simulation(Spec):
             integrator=self.integrator,
             contact_time_constant_s=self.contact_time_constant_s,
             impratio=self.impratio,
+            noslip_iterations=self.noslip_iterations,
         )
 
 

@@ -155,6 +155,36 @@ def test_a_box_resting_on_the_ground_presses_with_its_weight() -> None:
     assert z == pytest.approx(0.03, abs=5e-4)  # soft contact: a fraction of a millimetre deep
 
 
+def _creep_m(noslip_iterations: int, share_of_limit: float) -> float:
+    """How far a box (mu = 1 on the ground) moves in 1 s under a steady push along the ground,
+    ``share_of_limit`` of mu * m * g, at its bottom face (no tipping moment)."""
+    box = RigidBody(
+        name="box",
+        link=Link(shape="box", size_m=(0.04, 0.06, 0.06), mass_kg=0.02, friction={"lateral": 1.0}),
+        pose=Pose(position_m=(0.0, 0.0, 0.0305)),
+    )
+    with World(_mj(4e-3, noslip_iterations=noslip_iterations)) as world:
+        world.add_ground(friction=1.0)
+        body = world.add_rigid_body(box)
+        world.step(100)
+        x0 = world.base_pose(body.id)[0].copy()
+        for _ in range(250):
+            centre = world.base_pose(body.id)[0]
+            push = [share_of_limit * 0.02 * 9.81, 0.0, 0.0]
+            world.apply_force(body, "box", push, [centre[0], centre[1], 0.001])
+            world.step(1)
+        return float(world.base_pose(body.id)[0][0] - x0[0])
+
+
+def test_the_no_slip_solver_stops_the_creep_of_soft_friction_below_the_coulomb_limit() -> None:
+    # Coulomb: a push below mu * N moves nothing; above it the box slides, a = (F - mu N) / m.
+    soft, hard = _creep_m(0, 0.9), _creep_m(10, 0.9)
+    assert 2e-5 < soft < 5e-4  # MuJoCo's soft friction: a slow creep (0.08 mm in 1 s)
+    assert hard < 0.1 * soft and abs(hard) < 1e-5
+    sliding = _creep_m(10, 1.03)  # 3 % above the limit: 0.15 m in 1 s by Coulomb
+    assert 0.1 < sliding < 0.4
+
+
 def test_a_driven_base_reaches_each_target_at_the_end_of_the_step() -> None:
     gripper = load_model(bundled_path("models", "pinch_gripper.yaml"))
     with World(_mj(4e-3)) as world:
@@ -188,6 +218,10 @@ def test_the_other_engines_options_are_refused() -> None:
         WorldSettings(engine="mujoco", friction_rows_every=2)
     with pytest.raises(ValueError, match="impratio is not read by engine pybullet"):
         WorldSettings(impratio=5.0)
+    with pytest.raises(ValueError, match="noslip_iterations is not read by engine pybullet"):
+        WorldSettings(noslip_iterations=5)
+    with pytest.raises(ValueError, match="noslip_iterations must be a whole number >= 0"):
+        WorldSettings(engine="mujoco", noslip_iterations=-1)
 
 
 def test_the_bench_task_runs_on_the_engine_its_settings_name(monkeypatch: pytest.MonkeyPatch) -> None:

@@ -73,6 +73,8 @@ def test_a_jobs_id_is_the_hash_of_its_identity_on_either_engine(tmp_path: Path, 
         ("{engine: mujoco, friction_rows_every: 2}", "friction_rows_every: engine mujoco does not read it"),
         ("{engine: mujoco, scale: 10}", "scale: engine mujoco does not read it (its engine is pybullet)"),
         ("{impratio: 5}", "impratio: engine pybullet does not read it (its engine is mujoco)"),
+        ("{noslip_iterations: 10}", "noslip_iterations: engine pybullet does not read it"),
+        ("{engine: mujoco, noslip_iterations: -1}", "noslip_iterations"),
         ("{engine: ode}", "engine"),
     ],
 )

@@ -126,6 +126,7 @@ class MujocoWorld(World):
         )
         opt.cone = mujoco.mjtCone.mjCONE_ELLIPTIC
         opt.impratio = s.impratio
+        opt.noslip_iterations = s.noslip_iterations
         opt.solver = mujoco.mjtSolver.mjSOL_NEWTON
         opt.iterations = s.solver_iterations
         opt.disableflags |= mujoco.mjtDisableBit.mjDSBL_AUTORESET
