@@ -1,16 +1,17 @@
-"""Why the 0-kPa blocked-force row differs between engines: a step ladder, with and without
-the plate under the clamp.
+"""Why the 0-kPa blocked-force row differs between engines: a step ladder, with the bench's plate and
+with the plate starting further from the clamp.
 
 At 0 kPa the bench's blocked-force protocol lays the unpressurised finger on a frictionless plate
-that starts at the clamp. A contact force at the first segment's rear edge, right under the clamp
-pivot, has no moment about any joint: a rigid model cannot say whether the clamp or the plate
-carries it, and each engine's contact regularisation decides. This script prints
-``run_bench(..., "blocked_force", p)`` on PyBullet and MuJoCo at 1, 0.5, 0.25 and 0.125 ms, and
-the solved statics, at 0 and 25 kPa: once with the bench's plate, once with the plate starting
-one segment past the clamp (an experiment: the bench itself keeps its plate). A gap that stays
-as the step shrinks is not a step error.
+that starts at the clamp. The first segment's rear corner then sits right under the clamp pivot:
+a force there has no moment about any joint, so a rigid model cannot say whether the clamp or the
+plate carries it, and each engine's contact regularisation decides. This script prints
+``run_bench(..., "blocked_force", p)`` on PyBullet and MuJoCo at 1, 0.5, 0.25 and 0.125 ms, and the
+solved statics, at 0 and 25 kPa: once with the bench's plate, then with the plate starting
+``--plate-starts`` segments past the clamp (an experiment: the bench itself keeps its plate). A gap
+that stays as the step shrinks is not a step error.
 
-Run from the repository: ``.venv/bin/python tools/bench_zero_kpa.py`` (2-3 min; MuJoCo needs the
+Run from the repository: ``.venv/bin/python tools/bench_zero_kpa.py`` (2-3 min; ``--plate-starts
+0.25,0.5,1 --steps 5e-4`` for the plate at several starts, one step; MuJoCo needs the
 ``[mujoco]`` extra). Results: docs/mujoco.md, "Bench".
 """
 
@@ -24,6 +25,7 @@ import numpy as np
 
 import somo_sweep.sim.bench as bench
 import somo_sweep.sim.chain_kinematics as chain_kinematics
+import somo_sweep.sim.statics as statics
 from somo_sweep.model.description import Manipulator
 from somo_sweep.model.load import load_model
 from somo_sweep.model.tables import bundled_path
@@ -41,41 +43,44 @@ def _segment_m(manip: Manipulator) -> float:
 
 
 @contextmanager
-def plate_past_first_segment() -> Iterator[None]:
-    """The bench's plate, starting one segment of the first actuator past the clamp."""
+def plate_past_first_segment(segments: float = 1.0) -> Iterator[None]:
+    """The bench's plate, starting ``segments`` segments of the first actuator past the clamp."""
     original = bench.stop_geometry
 
     def shifted(
         manip: Manipulator, origin_m: np.ndarray, tip_x_m: float, stop_z_m: float | None = None
     ) -> tuple[np.ndarray, np.ndarray]:
         centre, half = original(manip, origin_m, tip_x_m, stop_z_m)
-        start_m = float(origin_m[0]) + _segment_m(manip)
+        start_m = float(origin_m[0]) + segments * _segment_m(manip)
         end_m = float(centre[0] + half[0])
         centre, half = centre.copy(), half.copy()
         centre[0], half[0] = (start_m + end_m) / 2, (end_m - start_m) / 2
         return centre, half
 
+    # The solved statics caches each finger's chain with its plate: start and end without it.
+    statics.clear_cache()
     bench.stop_geometry = chain_kinematics.stop_geometry = shifted
     try:
         yield
     finally:
         bench.stop_geometry = chain_kinematics.stop_geometry = original
+        statics.clear_cache()
 
 
-def _ladder(model_path: str) -> None:
+def _ladder(model_path: str, steps_s: tuple[float, ...] = (1e-3, 5e-4, 2.5e-4, 1.25e-4)) -> None:
     model = load_model(model_path)
     for pressure_kpa in (0.0, 25.0):
         solved = run_bench(model, "blocked_force", pressure_kpa, 0.0, BenchSettings(), statics="solve").value
         print(f"  {pressure_kpa:g} kPa, solved statics: {solved:.5f} N")
         for engine in ("pybullet", "mujoco"):
             values = []
-            for step_s in (1e-3, 5e-4, 2.5e-4, 1.25e-4):
+            for step_s in steps_s:
                 settings = BenchSettings(time_step_s=step_s, scale=20.0, engine=engine)
                 values.append(
                     run_bench(model, "blocked_force", pressure_kpa, 0.0, settings, statics="dynamic").value
                 )
             print(
-                f"    {engine:8s} at 1 / 0.5 / 0.25 / 0.125 ms: "
+                f"    {engine:8s} at {' / '.join(f'{s * 1e3:g}' for s in steps_s)} ms: "
                 + " / ".join(f"{v:.5f}" for v in values)
                 + " N"
             )
@@ -84,7 +89,18 @@ def _ladder(model_path: str) -> None:
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     parser.add_argument("--model", default=str(bundled_path("models", "pinch_finger.yaml")))
+    parser.add_argument(
+        "--plate-starts",
+        default="1",
+        help="comma-separated plate starts past the clamp for the experiment, in segments (default 1)",
+    )
+    parser.add_argument(
+        "--steps",
+        default="1e-3,5e-4,2.5e-4,1.25e-4",
+        help="comma-separated time steps, s (default: the ladder)",
+    )
     args = parser.parse_args()
+    steps_s = tuple(float(v) for v in args.steps.split(","))
     manip = load_model(args.model).manipulator
     if manip is None:
         raise SystemExit(f"{args.model} has no manipulator")
@@ -94,10 +110,11 @@ def main() -> None:
     segment_n = manip.actuators[0].link.mass_kg * GRAVITY_M_S2
     print(f"finger weight {weight_n:.4f} N; one proximal segment {segment_n:.4f} N")
     print("plate from the clamp (the bench):")
-    _ladder(args.model)
-    print("plate from one segment past the clamp (experiment):")
-    with plate_past_first_segment():
-        _ladder(args.model)
+    _ladder(args.model, steps_s)
+    for start in (float(v) for v in args.plate_starts.split(",")):
+        print(f"plate from {start:g} segment(s) past the clamp (experiment):")
+        with plate_past_first_segment(start):
+            _ladder(args.model, steps_s)
 
 
 if __name__ == "__main__":

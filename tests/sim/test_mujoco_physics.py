@@ -257,8 +257,9 @@ def test_the_bench_task_runs_on_the_engine_its_settings_name(monkeypatch: pytest
             marks=pytest.mark.xfail(
                 strict=True,
                 reason=(
-                    "0.504 % of range (0.5207 vs 0.5395 N); about 40 % of it is a clamp-to-plate "
-                    "load path the rigid model leaves open (docs/mujoco.md, Bench)"
+                    "0.504 % of range (0.5207 vs 0.5395 N): the finger lies flat on the plate and "
+                    "the engines split its weight between clamp and plate differently, partly where "
+                    "a rigid model leaves it open (docs/mujoco.md, Bench)"
                 ),
             ),
         ),
