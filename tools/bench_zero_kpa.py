@@ -1,10 +1,11 @@
 """Why the 0-kPa blocked-force row differs between engines: a step ladder, with the bench's plate and
 with the plate starting further from the clamp.
 
-At 0 kPa the bench's blocked-force protocol lays the unpressurised finger on a frictionless plate
-that starts at the clamp. The first segment's rear corner then sits right under the clamp pivot:
-a force there has no moment about any joint, so a rigid model cannot say whether the clamp or the
-plate carries it, and each engine's contact regularisation decides. This script prints
+At 0 kPa the bench's blocked-force protocol lays the unpressurised finger on a frictionless plate.
+The pinch finger's side joints pair its links into rigid bodies that rest on three corner lines
+each, so rigid statics leaves the split of the weight between clamp and plate open over an interval
+(printed with the solved value; :mod:`somo_sweep.sim.plate_force_range`), and each engine's
+contact regularisation picks a point in or near it. This script prints
 ``run_bench(..., "blocked_force", p)`` on PyBullet and MuJoCo at 1, 0.5, 0.25 and 0.125 ms, and the
 solved statics, at 0 and 25 kPa: once with the bench's plate, then with the plate starting
 ``--plate-starts`` segments past the clamp (an experiment: the bench itself keeps its plate). A gap
@@ -30,6 +31,7 @@ from somo_sweep.model.description import Manipulator
 from somo_sweep.model.load import load_model
 from somo_sweep.model.tables import bundled_path
 from somo_sweep.sim.bench import BenchSettings, run_bench
+from somo_sweep.sim.plate_force_range import plate_force_range
 
 GRAVITY_M_S2 = 9.81
 
@@ -71,7 +73,11 @@ def _ladder(model_path: str, steps_s: tuple[float, ...] = (1e-3, 5e-4, 2.5e-4, 1
     model = load_model(model_path)
     for pressure_kpa in (0.0, 25.0):
         solved = run_bench(model, "blocked_force", pressure_kpa, 0.0, BenchSettings(), statics="solve").value
-        print(f"  {pressure_kpa:g} kPa, solved statics: {solved:.5f} N")
+        held = plate_force_range(model, pressure_kpa)
+        print(
+            f"  {pressure_kpa:g} kPa, solved statics: {solved:.5f} N; rigid statics admits "
+            f"{held.low_n:.5f} .. {held.high_n:.5f} N ({held.corners} corners on the plate)"
+        )
         for engine in ("pybullet", "mujoco"):
             values = []
             for step_s in steps_s:

@@ -268,6 +268,37 @@ class StaticChain:
         )
         return r, links, r[:, 2] - drop - plate.top_m, on
 
+    def holding_terms(
+        self, q: np.ndarray, u: np.ndarray, tip_n: float = 0.0, gravity: float = 9.81, gap_tol_m: float = 1e-9
+    ) -> tuple[np.ndarray, np.ndarray, int]:
+        """What the plate and the joint limits must balance at ``q``: the generalised force of the
+        springs, actuation ``u``, gravity and tip load (N·m), and the rows of every constraint
+        that can push there (corners over the plate within ``gap_tol_m`` of it, whose height
+        moves with a joint, then joint limits reached), and how many of those rows are corners.
+
+        Any non-negative ``lam`` with ``rows.T @ lam == -net`` holds the chain at ``q``; the sum of
+        its first ``corners`` entries is the plate's vertical force (N).
+        """
+        b = self.body
+        q = np.asarray(q, float)
+        kin = b.kinematics(q)
+        dq = q - self.q0
+        links, r, fz, _ = self._energy_terms(kin, gravity, tip_n)
+        net = np.asarray(u, float) - (self.k * dq + self.k3 * dq**3) + b.forces(kin, links, r, fz)
+        cpts, clinks, gap, on = self._contacts(kin)
+        jac = b.heights_jacobian(kin, clinks, cpts)
+        norm = np.linalg.norm(jac, axis=1)
+        moves = norm > 1e-9 * max(float(np.max(norm, initial=0.0)), 1e-300)
+        rows = [jac[on & moves & (np.abs(gap) <= gap_tol_m)]]
+        corners = len(rows[0])
+        lim = self.body.limited
+        if len(lim):
+            lo, hi = self.body.limits
+            eye = np.eye(len(q))
+            at_lo, at_hi = np.abs(q[lim] - lo[lim]) <= 1e-12, np.abs(hi[lim] - q[lim]) <= 1e-12
+            rows += [eye[lim][at_lo], -eye[lim][at_hi]]
+        return net, np.concatenate(rows), corners
+
     # ----------------------------------------------------------------- solver
     def equilibrium(
         self,

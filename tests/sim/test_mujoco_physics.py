@@ -249,20 +249,6 @@ def test_the_bench_task_runs_on_the_engine_its_settings_name(monkeypatch: pytest
         ("free_bending", 150.0, "tip_x_mm", 164.9),
         ("tip_load", 50.0, "tip_deflection_mm", 3.93),
         ("blocked_force", 100.0, "blocked_force_n", 3.72),
-        pytest.param(
-            "blocked_force",
-            0.0,
-            "blocked_force_n",
-            3.72,
-            marks=pytest.mark.xfail(
-                strict=True,
-                reason=(
-                    "0.504 % of range (0.5207 vs 0.5395 N): the finger lies flat on the plate and "
-                    "the engines split its weight between clamp and plate differently, partly where "
-                    "a rigid model leaves it open (docs/mujoco.md, Bench)"
-                ),
-            ),
-        ),
     ],
 )
 def test_bench_rows_of_the_20_link_finger_agree_with_pybullet_within_half_a_percent_of_range(
@@ -270,7 +256,8 @@ def test_bench_rows_of_the_20_link_finger_agree_with_pybullet_within_half_a_perc
 ) -> None:
     """Issue #32: bench rows on both engines (each relaxed with its own springs, gravity and
     plate) within 0.5 % of the metric's range over the bench study (studies/
-    pinch_finger_bench_engines.yaml, 0 ... 200 kPa: the ranges here)."""
+    pinch_finger_bench_engines.yaml, 0 ... 200 kPa: the ranges here). A blocked-force row is
+    held to it only where the rigid model decides its value (below)."""
     from somo_sweep.tasks.registry import get_task
 
     spec = get_task("bench")
@@ -281,4 +268,30 @@ def test_bench_rows_of_the_20_link_finger_agree_with_pybullet_within_half_a_perc
         result = spec.run(finger, params, settings, 0)
         assert result.status == "ok", result.message
         values.append(float(result.metrics[metric]))
+    if test == "blocked_force":  # a row the rigid model decides (the finger on its tip)
+        from somo_sweep.sim.plate_force_range import plate_force_range
+
+        assert plate_force_range(finger, pressure_kpa).width_n < 1e-9
     assert abs(values[0] - values[1]) < 0.005 * range_, values
+
+
+def test_the_flat_fingers_blocked_force_lies_where_the_rigid_model_leaves_it_on_both_engines() -> None:
+    """At 0 kPa the pinch finger lies flat: its side joints pair the links into rigid bodies on three
+    corner lines, and rigid statics admits any plate force in an interval 1.3 % of the bench study's
+    range wide (tests/sim/test_plate_force_range.py). Each engine's contacts pick a point: MuJoCo's
+    soft constraints one inside it; Bullet one just below its least, the finger resting its contact
+    slop (0.5 µm) into the plate so the stiff joints hang a little more on the clamp (0.8 % below
+    at 0.5 ms, 1.2 % at 0.125 ms; docs/mujoco.md, "Bench"). The two differ by 0.504 % of range,
+    which is a difference of contact regularisation, not of the model."""
+    from somo_sweep.sim.plate_force_range import plate_force_range
+
+    finger = load_model(bundled_path("models", "pinch_finger.yaml"))
+    open_ = plate_force_range(finger, 0.0)
+    assert open_.width_n > 0.005 * 3.72
+    values = []
+    for engine in ("pybullet", "mujoco"):
+        settings = BenchSettings(time_step_s=5e-4, engine=engine)
+        values.append(run_bench(finger, "blocked_force", 0.0, 0.0, settings, statics="dynamic").value)
+    pybullet, mujoco = values
+    assert open_.low_n <= mujoco <= open_.high_n, (open_, mujoco)
+    assert 0.98 * open_.low_n < pybullet <= open_.high_n, (open_, pybullet)
