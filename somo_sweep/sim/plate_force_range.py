@@ -81,9 +81,18 @@ def plate_force_range(
         return PlateForceRange(eq.force_n, 0.0, 0.0, 0)
     objective = np.zeros(len(rows))
     objective[:corners] = 1.0
+    # Without HiGHS's presolve: it called feasible flat fingers infeasible (a 10-link planar finger at
+    # 2 kPa, whose balance NNLS meets to 1e-13), the programmes are small.
     bounds = []
     for sign in (1.0, -1.0):
-        res = linprog(sign * objective, A_eq=rows.T, b_eq=-net, bounds=(0, None), method="highs")
+        res = linprog(
+            sign * objective,
+            A_eq=rows.T,
+            b_eq=-net,
+            bounds=(0, None),
+            method="highs",
+            options={"presolve": False},
+        )
         if res.status == 3 and sign < 0:  # unbounded: a corner pushing against the clamp
             bounds.append(math.inf)
         elif res.status != 0:

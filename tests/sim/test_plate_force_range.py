@@ -13,6 +13,7 @@ import math
 import pytest
 
 from somo_sweep.errors import SimulationError
+from somo_sweep.model.builders import planar_finger
 from somo_sweep.model.load import Model, load_model, model_from_dict
 from somo_sweep.model.tables import bundled_path
 from somo_sweep.sim.bench import run_bench
@@ -106,6 +107,21 @@ def test_a_joint_resting_on_its_limit_opens_the_split_on_the_side_the_limit_can_
     found = plate_force_range(model_from_dict({"manipulator": data["manipulator"]}), 0.0)
     assert found.low_n == pytest.approx(low_w * w, rel=1e-9)
     assert found.high_n == pytest.approx(high_w * w, rel=1e-9)
+
+
+@pytest.mark.parametrize("segments", [10, 20])
+@pytest.mark.parametrize("pressure_kpa", [0.0, 2.0])
+def test_a_finger_hinged_toward_the_plate_at_every_joint_has_one_plate_force(
+    segments: int, pressure_kpa: float
+) -> None:
+    """Joints at the segments' midpoints, all bending toward the plate: one corner line per joint,
+    so the flat finger's plate force is unique, W·(1 − 1/N) (the clamp holds its half link and
+    half the first link; tests/sim/test_statics.py). At 2 kPa HiGHS's presolve once called
+    the 10-link programme infeasible."""
+    finger = planar_finger(0.100, segments, 0.020, stiffness_n_m_per_rad=0.0665 * segments)
+    found = plate_force_range(finger, pressure_kpa)
+    assert found.low_n == pytest.approx(0.020 * G_M_S2 * (1 - 1 / segments), rel=1e-6)
+    assert found.width_n < 1e-9
 
 
 def test_a_non_finite_pressure_is_refused() -> None:
