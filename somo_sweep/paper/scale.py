@@ -5,9 +5,9 @@ pressures x 10 tip loads x 8 grasp-joint stiffnesses x N / 2 000 link masses, at
 step (a trial is about 25 ms of CPU). Each size runs as ``somo-sweep run --jobs J`` in a process
 of its own, whose peak resident memory (``VmHWM``, Linux) is read while it runs; the largest is
 then run again, stopped with SIGINT once half its trials are stored, and resumed: the resumed
-run's time from its start to its first finished trial (its first row in the run's journal)
-bounds from above when its first new trial started. The sweep's memory is flat when the
-largest study's peak is within :data:`FLAT_RATIO` of the smallest's.
+run's time from its start to its first finished trial (its first row in the folder, in its
+journal or a part file) bounds from above when its first new trial started. The sweep's memory
+is flat when the largest study's peak is within :data:`FLAT_RATIO` of the smallest's.
 """
 
 from __future__ import annotations
@@ -84,7 +84,8 @@ class ScaleRun:
         wall_s: Wall time of the run, s.
         peak_rss_mb: Peak resident memory of the sweep's process (not its workers), MiB; NaN
             where ``/proc`` is missing.
-        first_row_s: From the start of the process to the first row in its journal, s.
+        first_row_s: From the start of the process to the first row it stored (journal or part
+            file), s; None if it stored none.
         first_row_cpu_s: CPU time the sweep's process had used by then, s (its workers not
             counted; NaN where ``/proc`` is missing): on a loaded machine the wall time to the
             first row stretches, this does not.
@@ -101,16 +102,24 @@ class ScaleRun:
     returncode: int
 
 
-def _stored_rows(folder: Path) -> int:
+def _stored_files(folder: Path) -> list[Path]:
     trials = folder / "trials"
+    return [*trials.glob(PART_GLOB), *trials.glob(JOURNAL_GLOB)] if trials.is_dir() else []
+
+
+def _rows_in(files: list[Path]) -> int:
     rows = 0
-    for part in trials.glob(PART_GLOB):
-        with contextlib.suppress(OSError):  # replaced while being read: counted at the next poll
-            rows += pq.read_metadata(part).num_rows
-    for journal in trials.glob(JOURNAL_GLOB):
-        with contextlib.suppress(OSError):
-            rows += journal.read_bytes().count(b"\n")
+    for path in files:
+        with contextlib.suppress(OSError):  # replaced or deleted while being read: the next poll
+            if path.name.endswith(".parquet"):
+                rows += pq.read_metadata(path).num_rows
+            else:
+                rows += path.read_bytes().count(b"\n")
     return rows
+
+
+def _stored_rows(folder: Path) -> int:
+    return _rows_in(_stored_files(folder))
 
 
 def _cpu_s(pid: int) -> float | None:
@@ -146,8 +155,11 @@ def measure_run(
     """
     cmd = [sys.executable, "-m", "somo_sweep", "run", str(study), "--jobs", str(jobs), "--no-plots"]
     cmd += ["--out", str(folder), "--allow-errors"]
-    journals = folder / "trials"
-    before = set(journals.glob(JOURNAL_GLOB)) if journals.is_dir() else set()
+    # A row of this run shows as a file that was not there before: a journal line or, once the
+    # journal is written out (a short run may do both between two polls), a part file. Rows of a
+    # killed run's journals are written into a new part first: only rows beyond those count.
+    before = set(_stored_files(folder))
+    recoverable = _rows_in([p for p in before if not p.name.endswith(".parquet")])
     start = time.perf_counter()
     # The run starts with SIGINT at its default, as a shell starts a command: launched in the
     # background (`make bench-scale &`), this process has it ignored, and the run would keep that.
@@ -157,7 +169,7 @@ def measure_run(
     peak, first, first_cpu, sent = 0, None, None, False
     while proc.poll() is None:
         peak = max(peak, _peak_kib(proc.pid) or 0)
-        if first is None and journals.is_dir() and set(journals.glob(JOURNAL_GLOB)) - before:
+        if first is None and _rows_in([p for p in _stored_files(folder) if p not in before]) > recoverable:
             first, first_cpu = time.perf_counter() - start, _cpu_s(proc.pid)
         if stop_at is not None and not sent and _stored_rows(folder) >= stop_at:
             proc.send_signal(signal.SIGINT)
