@@ -19,7 +19,7 @@ from somo_sweep.model.tables import bundled_path
 from somo_sweep.paper.numerics import trial_timing_lines
 from somo_sweep.sim.settings import WorldSettings
 from somo_sweep.sim.urdf import plan_rigid_body
-from somo_sweep.sim.world import World
+from somo_sweep.sim.worlds import open_world
 
 __all__ = ["convergence_lines", "gripper_step_timing", "speed_lines", "time_step_convergence"]
 
@@ -31,7 +31,7 @@ def gripper_step_timing(
 ) -> dict[str, float]:
     """Run the grasp scene once; returns ms per step (total, Bullet, Python) and the lift in m."""
     model = load_model(model_path or MODELS / "pinch_gripper.yaml")
-    with World(WorldSettings(time_step_s=time_step_s)) as world:
+    with open_world(WorldSettings(time_step_s=time_step_s)) as world:
         world.add_ground(friction=1.0)
         box = RigidBody(
             name="object",
@@ -50,7 +50,7 @@ def gripper_step_timing(
         world.step(steps)
         total = perf_counter() - start
         z_obj = float(world.base_pose(obj.id)[0][2])
-    bullet = world.bullet_time_s
+    bullet = world.engine_time_s
     return {
         "steps": steps,
         "ms_per_step": 1e3 * total / steps,
@@ -81,7 +81,7 @@ def time_step_convergence(
     model = model_from_dict(data)
     tips: dict[float, np.ndarray | None] = {}
     for dt in steps_s:
-        with World(WorldSettings(time_step_s=dt, gravity_m_s2=(0.0, 0.0, 0.0))) as world:
+        with open_world(WorldSettings(time_step_s=dt, gravity_m_s2=(0.0, 0.0, 0.0))) as world:
             handle = world.add_model(model)
             handle.set_inputs([0.05, 0.0])
             try:

@@ -42,6 +42,7 @@ from somo_sweep.model.load import Model
 from somo_sweep.sim.settings import ENGINES, WorldSettings
 from somo_sweep.sim.urdf import plan_manipulator
 from somo_sweep.sim.world import Body, World
+from somo_sweep.sim.worlds import open_world
 
 __all__ = [
     "STATICS",
@@ -250,7 +251,7 @@ class _Rig:
         # On MuJoCo the stop is as stiff as the step resolves (its contacts are soft): a blocked force
         # within 0.15 % of the rigid statics' at 0.5-1 ms (docs/physics.md, "MuJoCo").
         soft = {} if pybullet else {"contact_time_constant_s": 2 * settings.time_step_s}
-        self.world = World(
+        self.world = open_world(
             WorldSettings(
                 time_step_s=settings.time_step_s,
                 scale=settings.scale if pybullet else WorldSettings.scale,

@@ -37,7 +37,7 @@ def quat_from_rpy(rpy_rad: Sequence[float] | np.ndarray) -> tuple[float, float, 
     )
 
 
-def rpy_from_quat(quat: Sequence[float]) -> tuple[float, float, float]:
+def rpy_from_quat(quat: Sequence[float] | np.ndarray) -> tuple[float, float, float]:
     """Roll, pitch, yaw (rad) of a quaternion (x, y, z, w), as Bullet's ``getEulerZYX``."""
     x, y, z, w = (float(c) for c in quat)
     sqw, sqx, sqy, sqz = w * w, x * x, y * y, z * z

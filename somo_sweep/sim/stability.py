@@ -12,7 +12,7 @@ from __future__ import annotations
 from somo_sweep.errors import UnstableSimulation
 from somo_sweep.model.load import Model
 from somo_sweep.sim.settings import WorldSettings
-from somo_sweep.sim.world import World
+from somo_sweep.sim.worlds import open_world
 
 __all__ = ["blow_up_step_s", "is_stable"]
 
@@ -20,7 +20,7 @@ __all__ = ["blow_up_step_s", "is_stable"]
 def is_stable(model: Model, time_step_s: float, duration_s: float = 0.5, input_n_m: float = 0.01) -> bool:
     """Whether a step effort of ``input_n_m`` (N·m or N on every spring joint) runs ``duration_s``
     at ``time_step_s`` (s) without blowing up."""
-    with World(WorldSettings(time_step_s=time_step_s)) as world:
+    with open_world(WorldSettings(time_step_s=time_step_s)) as world:
         handle = world.add_model(model)
         for body in handle.bodies:
             body.drive.set_joint_inputs([input_n_m] * len(body.drive.joints))

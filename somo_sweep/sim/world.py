@@ -1,18 +1,19 @@
 """The one world interface tasks talk to, whatever engine runs it.
 
-``World(settings)`` opens a world on ``settings.engine``: PyBullet
+:class:`World` is the interface; each engine implements it: PyBullet
 (:class:`somo_sweep.sim.pybullet.world.PyBulletWorld`, the default) or MuJoCo
-(:class:`somo_sweep.sim.mujoco.world.MujocoWorld`, optional extra). Every method takes and
-returns SI; a body is addressed by the :class:`Body` (or its ``id``) the world returned, a link
-by its plan name, so a task written once runs on both engines. Tasks never import an engine:
-``tests/test_architecture.py`` checks it.
+(:class:`somo_sweep.sim.mujoco.world.MujocoWorld`, optional extra).
+:func:`somo_sweep.sim.worlds.open_world` opens the one ``settings.engine`` names. Every method
+takes and returns SI; a body is addressed by the :class:`Body` (or its ``id``) the world
+returned, a link by its plan name, so a task written once runs on both engines. Tasks never
+import an engine: ``tests/test_architecture.py`` checks it. This module imports no engine.
 """
 
 from __future__ import annotations
 
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
-from typing import TYPE_CHECKING, Any, Protocol
+from typing import Any, Protocol
 
 import numpy as np
 import numpy.typing as npt
@@ -21,12 +22,10 @@ from somo_sweep.errors import SimulationError
 from somo_sweep.model.description import Pose, RigidBody
 from somo_sweep.model.load import Model
 from somo_sweep.model.setpoints import SetpointTable
+from somo_sweep.sim.camera import Camera
 from somo_sweep.sim.plan import BodyPlan, SpringJoint
 from somo_sweep.sim.settings import WorldSettings
 from somo_sweep.sim.urdf import plan_rigid_body
-
-if TYPE_CHECKING:
-    from somo_sweep.sim.render import Camera
 
 __all__ = ["Body", "Drive", "ModelHandle", "World", "WorldSettings"]
 
@@ -121,11 +120,9 @@ class ModelHandle:
 class World:
     """A headless world in SI units; always :meth:`close` it (or use ``with``).
 
-    ``World(settings)`` returns the world of ``settings.engine``. The methods below are the
-    whole interface a task may use; each engine implements them.
-
-    Args:
-        settings: Time step, gravity, solver and engine settings.
+    Open one with :func:`somo_sweep.sim.worlds.open_world` (``with open_world(settings) as
+    world:``), which returns the world of ``settings.engine``. The methods below are the whole
+    interface a task may use; each engine implements them.
 
     Attributes:
         settings: The settings.
@@ -144,21 +141,13 @@ class World:
     bodies: list[Body]
     pre_step: list[Callable[[World], None]]
 
-    def __new__(cls, settings: WorldSettings | None = None) -> Any:
-        if cls is not World:
-            return super().__new__(cls)
-        engine = (settings or WorldSettings()).engine
-        if engine == "mujoco":
-            from somo_sweep.sim.mujoco.support import missing
-
-            if (why := missing()) is not None:
-                raise SimulationError(why)
-            from somo_sweep.sim.mujoco.world import MujocoWorld
-
-            return super().__new__(MujocoWorld)
-        from somo_sweep.sim.pybullet.world import PyBulletWorld
-
-        return super().__new__(PyBulletWorld)
+    def __new__(cls, *args: Any, **kwargs: Any) -> Any:
+        if cls is World:
+            raise TypeError(
+                "World is the interface every engine implements; open a world with "
+                "somo_sweep.sim.worlds.open_world(settings)"
+            )
+        return super().__new__(cls)
 
     def __enter__(self) -> World:
         return self

@@ -233,12 +233,12 @@ def test_rigid_arm_carries_soft_fingers_at_its_tip() -> None:
     import numpy as np
 
     from somo_sweep.sim.settings import WorldSettings
-    from somo_sweep.sim.world import World
+    from somo_sweep.sim.worlds import open_world
 
     model = load_model(MODELS / "arm_with_fingers.yaml")
     plan = plan_assembly(model.as_assembly(), 20.0)[0]
     assert plan.inputs[:2] == ["arm/shoulder/pitch", "arm/elbow/pitch"] and len(plan.joints) == 2 + 2 * 10
-    with World(WorldSettings(gravity_m_s2=(0, 0, 0))) as world:
+    with open_world(WorldSettings(gravity_m_s2=(0, 0, 0))) as world:
         handle = world.add_model(model)
         body = handle.bodies[0]
         arm_tip = world.tip_position(body, "arm")

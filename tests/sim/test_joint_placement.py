@@ -18,7 +18,7 @@ from somo_sweep.model.builders import planar_finger
 from somo_sweep.sim.bench import bench_frame
 from somo_sweep.sim.settings import WorldSettings
 from somo_sweep.sim.urdf import plan_manipulator
-from somo_sweep.sim.world import World
+from somo_sweep.sim.worlds import open_world
 
 LENGTH_M, PHI_RAD = 0.100, np.radians(100.0)
 
@@ -29,7 +29,7 @@ def tip_error_mm(placement: str, n: int) -> float:
     assert manip is not None
     acts = [a.model_copy(update={"joint_placement": placement}) for a in manip.actuators]
     manip = manip.model_copy(update={"actuators": acts})
-    world = World(WorldSettings(gravity_m_s2=(0.0, 0.0, 0.0)))
+    world = open_world(WorldSettings(gravity_m_s2=(0.0, 0.0, 0.0)))
     try:
         body = world.load_plan(plan_manipulator(manip, world.scale), bench_frame(manip))
         for j in body.drive.indices:

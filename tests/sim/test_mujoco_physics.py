@@ -19,7 +19,7 @@ from somo_sweep.model.tables import bundled_path
 from somo_sweep.sim.bench import BenchSettings, run_bench
 from somo_sweep.sim.rotations import matrix_from_quat, quat_from_rpy
 from somo_sweep.sim.settings import WorldSettings
-from somo_sweep.sim.world import World
+from somo_sweep.sim.worlds import open_world
 
 pytest.importorskip("mujoco")
 
@@ -49,7 +49,7 @@ def _rotor(stiffness: float, motor_limit: float, inertia: float) -> dict[str, ob
 def test_an_input_accelerates_a_free_rotor_by_u_over_i() -> None:
     """Newton's law: a free joint (k = 0) under input u gains u·dt/I of speed per step."""
     inertia, dt, u, steps = 2e-4, 1e-3, 0.01, 50
-    with World(_mj(dt, gravity_m_s2=(0, 0, 0))) as world:
+    with open_world(_mj(dt, gravity_m_s2=(0, 0, 0))) as world:
         handle = world.add_model(model_from_dict(_rotor(0.0, 0.0, inertia)))
         handle.set_inputs([u])
         world.step(steps)
@@ -64,7 +64,7 @@ def test_coulomb_joint_friction_decays_an_oscillation_by_two_f_over_k_per_swing(
     ∓ (1 − 0.4), ± (1 − 0.6) rad (the classical Coulomb-damped oscillator) and rest within F/k
     of u/k. At 0.25 ms, where the implicit spring's own damping is small."""
     k, f, inertia, u, dt = 0.05, 0.005, 2e-4, 0.05, 2.5e-4
-    with World(_mj(dt, gravity_m_s2=(0, 0, 0))) as world:
+    with open_world(_mj(dt, gravity_m_s2=(0, 0, 0))) as world:
         handle = world.add_model(model_from_dict(_rotor(k, f, inertia)))
         handle.set_inputs([u])
         drive = handle.bodies[0].drive
@@ -83,7 +83,7 @@ def test_coulomb_joint_friction_decays_an_oscillation_by_two_f_over_k_per_swing(
 def test_a_load_below_the_friction_limit_holds_the_joint_and_one_above_slides() -> None:
     f, inertia, dt, steps = 0.005, 2e-4, 1e-3, 200
     for u, expected in ((0.004, 0.0), (0.008, 0.5 * (0.008 - f) / inertia * (dt * steps) ** 2)):
-        with World(_mj(dt, gravity_m_s2=(0, 0, 0))) as world:
+        with open_world(_mj(dt, gravity_m_s2=(0, 0, 0))) as world:
             handle = world.add_model(model_from_dict(_rotor(0.0, f, inertia)))
             handle.set_inputs([u])
             world.step(steps)
@@ -95,7 +95,7 @@ def test_a_load_below_the_friction_limit_holds_the_joint_and_one_above_slides() 
 
 def test_uniform_input_settles_every_grasp_joint_at_u_over_k() -> None:
     model = model_from_dict(ihm_finger_dict(motor_limit=0.0, damping=0.01))
-    with World(_mj(1e-3, gravity_m_s2=(0, 0, 0))) as world:
+    with open_world(_mj(1e-3, gravity_m_s2=(0, 0, 0))) as world:
         handle = world.add_model(model)
         handle.set_inputs([0.05, 0.0])
         world.step(2000)
@@ -122,7 +122,7 @@ def test_springs_are_implicit_the_stiff_finger_is_stable_without_inertia_shaping
     """The pinch finger's highest mode (4,573 rad/s) needs steps below 0.44 ms with explicit springs;
     MuJoCo's discrete integrator holds it at 4 and 8 ms, no shaping, a 0.15 N·m grasp torque."""
     finger = load_model(bundled_path("models", "pinch_finger.yaml"))
-    with World(_mj(time_step_s)) as world:
+    with open_world(_mj(time_step_s)) as world:
         handle = world.add_model(finger)
         handle.set_inputs([0.15])
         world.step(round(1.0 / time_step_s))
@@ -133,7 +133,7 @@ def test_springs_are_implicit_the_stiff_finger_is_stable_without_inertia_shaping
 def test_the_same_chain_blows_up_on_pybullet_at_that_step() -> None:
     """The reference for the test above: PyBullet's explicit springs cannot do it."""
     finger = load_model(bundled_path("models", "pinch_finger.yaml"))
-    with World(WorldSettings(time_step_s=4e-3)) as world, pytest.raises(UnstableSimulation):
+    with open_world(WorldSettings(time_step_s=4e-3)) as world, pytest.raises(UnstableSimulation):
         handle = world.add_model(finger)
         handle.set_inputs([0.15])
         world.step(250)
@@ -145,7 +145,7 @@ def test_a_box_resting_on_the_ground_presses_with_its_weight() -> None:
         link=Link(shape="box", size_m=(0.04, 0.06, 0.06), mass_kg=0.02, friction={"lateral": 2.0}),
         pose=Pose(position_m=(0.0, 0.0, 0.0305)),
     )
-    with World(_mj(4e-3)) as world:
+    with open_world(_mj(4e-3)) as world:
         ground = world.add_ground(friction=1.0)
         body = world.add_rigid_body(box)
         world.step(250)
@@ -163,7 +163,7 @@ def _creep_m(noslip_iterations: int, share_of_limit: float) -> float:
         link=Link(shape="box", size_m=(0.04, 0.06, 0.06), mass_kg=0.02, friction={"lateral": 1.0}),
         pose=Pose(position_m=(0.0, 0.0, 0.0305)),
     )
-    with World(_mj(4e-3, noslip_iterations=noslip_iterations)) as world:
+    with open_world(_mj(4e-3, noslip_iterations=noslip_iterations)) as world:
         world.add_ground(friction=1.0)
         body = world.add_rigid_body(box)
         world.step(100)
@@ -187,7 +187,7 @@ def test_the_no_slip_solver_stops_the_creep_of_soft_friction_below_the_coulomb_l
 
 def test_a_driven_base_reaches_each_target_at_the_end_of_the_step() -> None:
     gripper = load_model(bundled_path("models", "pinch_gripper.yaml"))
-    with World(_mj(4e-3)) as world:
+    with open_world(_mj(4e-3)) as world:
         hand = world.add_model(gripper, Pose(position_m=(0.2, 0.0, 0.1)))
         base = hand.bodies[0]
         for i in range(1, 50):
@@ -204,12 +204,18 @@ def test_a_driven_base_reaches_each_target_at_the_end_of_the_step() -> None:
 
 def test_a_field_mujoco_cannot_express_is_refused_naming_it_and_the_engine() -> None:
     snake = load_model(bundled_path("models", "snake.yaml"))
-    with World(_mj()) as world, pytest.raises(SimulationError, match=r"friction\.anisotropic.*engine mujoco"):
+    with (
+        open_world(_mj()) as world,
+        pytest.raises(SimulationError, match=r"friction\.anisotropic.*engine mujoco"),
+    ):
         world.add_model(snake)
-    with World(_mj()) as world, pytest.raises(SimulationError, match=r"restitution.*engine mujoco"):
+    with open_world(_mj()) as world, pytest.raises(SimulationError, match=r"restitution.*engine mujoco"):
         world.add_ground(restitution=0.5)
     original = load_model(bundled_path("models", "pinch_finger_original.yaml"))
-    with World(_mj()) as world, pytest.raises(SimulationError, match=r"friction\.anchor true.*engine mujoco"):
+    with (
+        open_world(_mj()) as world,
+        pytest.raises(SimulationError, match=r"friction\.anchor true.*engine mujoco"),
+    ):
         world.add_model(original)
 
 

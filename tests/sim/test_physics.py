@@ -16,7 +16,7 @@ from somo_sweep.model.load import model_from_dict
 from somo_sweep.sim.bench import BenchSettings, run_bench
 from somo_sweep.sim.settings import WorldSettings
 from somo_sweep.sim.urdf import plan_rigid_body
-from somo_sweep.sim.world import World
+from somo_sweep.sim.worlds import open_world
 
 K_GRASP = 0.2186  # N·m/rad, IHM finger grasp axis
 SEGMENT_M = 0.010
@@ -42,7 +42,9 @@ def _settle_uniform_input(
 ) -> tuple[np.ndarray, np.ndarray]:
     """Run the damped IHM finger (no gravity) under a uniform grasp input; joint angles and tip."""
     model = model_from_dict(ihm_finger_dict(motor_limit=0.0, damping=0.01, added_inertia=1e-5))
-    with World(WorldSettings(time_step_s=time_step_s, scale=scale, gravity_m_s2=(0.0, 0.0, 0.0))) as world:
+    with open_world(
+        WorldSettings(time_step_s=time_step_s, scale=scale, gravity_m_s2=(0.0, 0.0, 0.0))
+    ) as world:
         handle = world.add_model(model)
         handle.set_inputs([u_n_m, 0.0])
         world.step(round(duration_s / time_step_s))
@@ -110,7 +112,7 @@ def test_each_torque_is_applied_exactly_once_per_step() -> None:
         }
     }
     dt, u, steps = 1e-3, 0.01, 50
-    with World(WorldSettings(time_step_s=dt, scale=20.0, gravity_m_s2=(0, 0, 0))) as world:
+    with open_world(WorldSettings(time_step_s=dt, scale=20.0, gravity_m_s2=(0, 0, 0))) as world:
         handle = world.add_model(model_from_dict(data))
         handle.set_inputs([u])
         world.step(steps)
@@ -124,7 +126,7 @@ def test_each_torque_is_applied_exactly_once_per_step() -> None:
 def test_blow_up_is_detected_not_reported() -> None:
     """A stiff, undamped chain at a large step hits Bullet's speed cap: flagged as unstable."""
     model = model_from_dict(ihm_finger_dict(motor_limit=0.0))
-    with World(WorldSettings(time_step_s=4e-3)) as world, pytest.raises(UnstableSimulation) as err:
+    with open_world(WorldSettings(time_step_s=4e-3)) as world, pytest.raises(UnstableSimulation) as err:
         handle = world.add_model(model)
         handle.set_inputs([0.1, 0.0])
         world.step(2000)
@@ -134,7 +136,7 @@ def test_blow_up_is_detected_not_reported() -> None:
 @pytest.mark.parametrize(("speed_m_s", "reason"), [(4.0, "thrown"), (50.0, "speed_cap")])
 def test_thrown_or_capped_body_is_detected(speed_m_s: float, reason: str) -> None:
     box = RigidBody(name="b", link=Link(shape="box", size_m=(0.01, 0.01, 0.01), mass_kg=0.01))
-    with World(WorldSettings(time_step_s=1e-3, gravity_m_s2=(0, 0, 0))) as world:
+    with open_world(WorldSettings(time_step_s=1e-3, gravity_m_s2=(0, 0, 0))) as world:
         body = world.load_plan(plan_rigid_body(box, world.scale), Pose())
         p.resetBaseVelocity(body.id, [speed_m_s * world.scale, 0, 0], physicsClientId=world.client)
         with pytest.raises(UnstableSimulation) as err:
@@ -190,7 +192,7 @@ def test_coulomb_joint_friction_decays_an_oscillation_by_two_f_over_k_per_swing(
         friction_rows_every=every,
         solver_residual_threshold=residual,
     )
-    with World(settings) as world:
+    with open_world(settings) as world:
         handle = world.add_model(model_from_dict(_rotor(k, f, inertia)))
         handle.set_inputs([u])
         drive = handle.bodies[0].drive
@@ -213,7 +215,7 @@ def test_a_load_below_the_friction_limit_never_moves_the_joint(every: int) -> No
     f, inertia, dt, steps = 0.005, 2e-4, 1e-3, 200
     for u, expected in ((0.004, 0.0), (0.008, 0.5 * (0.008 - f) / inertia * (dt * steps) ** 2)):
         settings = WorldSettings(time_step_s=dt, gravity_m_s2=(0, 0, 0), friction_rows_every=every)
-        with World(settings) as world:
+        with open_world(settings) as world:
             handle = world.add_model(model_from_dict(_rotor(0.0, f, inertia)))
             handle.set_inputs([u])
             world.step(steps)

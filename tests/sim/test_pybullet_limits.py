@@ -12,7 +12,7 @@ from conftest import MODELS, load_yaml
 
 from somo_sweep.model.load import MAX_BODY_LINKS, body_links, load_model, model_from_dict
 from somo_sweep.sim.urdf import plan_assembly
-from somo_sweep.sim.world import World
+from somo_sweep.sim.worlds import open_world
 
 CLI = Path(sys.executable).parent / "somo-sweep"
 BANNER = "pybullet build time"
@@ -48,7 +48,7 @@ def test_a_body_at_the_link_limit_loads_and_reports_its_state() -> None:
     act["n_segments"], act["length_m"] = MAX_BODY_LINKS - 2, 0.01 * (MAX_BODY_LINKS - 2)
     model = model_from_dict(data)
     assert body_links(model.as_assembly()) == {"ihm_finger": MAX_BODY_LINKS}
-    with World() as world:
+    with open_world() as world:
         handle = world.add_model(model)
         world.step(2)
         tip = world.tip_position(handle.bodies[0])

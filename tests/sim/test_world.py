@@ -19,7 +19,7 @@ from somo_sweep.model.setpoints import SetpointTable
 from somo_sweep.sim.pybullet import world as world_module
 from somo_sweep.sim.settings import WorldSettings
 from somo_sweep.sim.urdf import cache_dir, plan_assembly, write_urdf
-from somo_sweep.sim.world import World
+from somo_sweep.sim.worlds import open_world
 
 
 def _snake(n: int = 8) -> dict:
@@ -46,7 +46,7 @@ def test_free_chain_without_base_link_rests_on_the_ground() -> None:
     plan = plan_assembly(model.as_assembly(), 20.0)[0]
     # The midpoint layout's first half link is the floating root; every segment has its joint.
     assert len(plan.links) == 9 and len(plan.joints) == 8
-    with World(WorldSettings(time_step_s=5e-4)) as world:
+    with open_world(WorldSettings(time_step_s=5e-4)) as world:
         world.add_ground()
         handle = world.add_model(model, Pose(position_m=(0, 0, 0.05), rpy_rad=(0, np.pi / 2, 0)))
         world.step(2000)
@@ -65,7 +65,7 @@ def test_assembly_without_base_link_spreads_inputs_over_bodies() -> None:
             ],
         }
     }
-    with World(WorldSettings(time_step_s=5e-4, gravity_m_s2=(0, 0, 0))) as world:
+    with open_world(WorldSettings(time_step_s=5e-4, gravity_m_s2=(0, 0, 0))) as world:
         handle = world.add_model(model_from_dict(data))
         assert len(handle.bodies) == 2
         assert handle.input_names == ["a/finger/grasp", "a/finger/side", "b/finger/grasp", "b/finger/side"]
@@ -78,7 +78,7 @@ def test_assembly_without_base_link_spreads_inputs_over_bodies() -> None:
 
 def test_follow_drives_inputs_and_base_from_tables() -> None:
     model = load_model(MODELS / "pinch_gripper.yaml")
-    with World(WorldSettings(time_step_s=5e-4, gravity_m_s2=(0, 0, 0))) as world:
+    with open_world(WorldSettings(time_step_s=5e-4, gravity_m_s2=(0, 0, 0))) as world:
         hand = world.add_model(model, Pose(position_m=(0.1, 0, 0.05)))
         base = SetpointTable([0.0, 0.5], [[0.1, 0, 0.05, 0, 0, 0], [0.1, 0, 0.10, 0, 0, 0]])
         world.follow(hand, inputs=SetpointTable.constant([0.0, 0.0]), base=base)
@@ -95,7 +95,7 @@ def test_tilted_driven_bodies_keep_their_pose_and_follow_a_turn() -> None:
     """
     data = load_model(MODELS / "pinch_gripper.yaml").as_assembly().model_dump(mode="json", exclude_none=True)
     del data["base"]["link"]
-    with World(WorldSettings(time_step_s=5e-4, gravity_m_s2=(0, 0, 0))) as world:
+    with open_world(WorldSettings(time_step_s=5e-4, gravity_m_s2=(0, 0, 0))) as world:
         hand = world.add_model(model_from_dict({"assembly": data}), Pose(position_m=(0.2, 0, 0.2)))
         assert len(hand.bodies) == 2
         loaded = [world.base_pose(b.id) for b in hand.bodies]
@@ -119,7 +119,7 @@ def test_tilted_driven_bodies_keep_their_pose_and_follow_a_turn() -> None:
 
 def test_follow_rejects_tables_of_the_wrong_width() -> None:
     model = load_model(MODELS / "pinch_gripper.yaml")
-    with World() as world:
+    with open_world() as world:
         hand = world.add_model(model)
         with pytest.raises(SimulationError, match="2 inputs"):
             world.follow(hand, inputs=SetpointTable.constant([0.0]))
@@ -140,12 +140,12 @@ def test_urdf_cache_is_keyed_by_content_outside_the_project(tmp_path: Path) -> N
 def test_world_rejects_plans_of_another_scale() -> None:
     model = model_from_dict(load_yaml("ihm_finger.yaml"))
     plan = plan_assembly(model.as_assembly(), 10.0)[0]
-    with World(WorldSettings(scale=20.0)) as world, pytest.raises(SimulationError, match="scale"):
+    with open_world(WorldSettings(scale=20.0)) as world, pytest.raises(SimulationError, match="scale"):
         world.load_plan(plan)
 
 
 def _tips(model_path: Path, split: bool, inputs: list[float]) -> tuple[list[str], np.ndarray, int]:
-    with World(WorldSettings(time_step_s=1e-3, body_per_manipulator=split)) as world:
+    with open_world(WorldSettings(time_step_s=1e-3, body_per_manipulator=split)) as world:
         hand = world.add_model(load_model(model_path))
         n = len(hand.input_names)
         world.follow(hand, inputs=SetpointTable([0.0, 0.5], [[0.0] * n, inputs[:n]]))
@@ -191,7 +191,7 @@ def test_split_plans_keep_inputs_and_only_split_what_qualifies() -> None:
 def test_split_fingers_never_touch_their_palm() -> None:
     """The finger base boxes overlap the palm box; as parts they must not collide with it."""
     settings = WorldSettings(time_step_s=5e-4, gravity_m_s2=(0, 0, 0), body_per_manipulator=True)
-    with World(settings) as world:
+    with open_world(settings) as world:
         hand = world.add_model(load_model(MODELS / "pinch_gripper.yaml"), Pose(position_m=(0.1, 0, 0.1)))
         palm, *fingers = hand.bodies
         assert len(fingers) == 2 and all(f.plan.part_of == palm.plan.name for f in fingers)
@@ -204,11 +204,11 @@ def test_split_fingers_never_touch_their_palm() -> None:
 
 def test_by_default_no_assembly_is_split() -> None:
     """Splitting moves knife-edge contact outcomes, so a study has to ask for it."""
-    with World(WorldSettings(gravity_m_s2=(0, 0, 0))) as world:
+    with open_world(WorldSettings(gravity_m_s2=(0, 0, 0))) as world:
         fixed = world.add_model(load_model(MODELS / "ihm_hand.yaml"))
         driven = world.add_model(load_model(MODELS / "pinch_gripper.yaml"), Pose(position_m=(1, 0, 0)))
         assert [len(fixed.bodies), len(driven.bodies)] == [2, 1]  # the IHM hand's palm is a rigid body
-    with World(WorldSettings(body_per_manipulator=True)) as world:
+    with open_world(WorldSettings(body_per_manipulator=True)) as world:
         assert len(world.add_model(load_model(MODELS / "ihm_hand.yaml")).bodies) == 6
 
 
@@ -234,7 +234,7 @@ def _in_child(fn: Callable[[], object]) -> object:
 
 def _sag_and_client() -> tuple[int, list[float], list[float]]:
     """The client a new World gets, and a finger's joint angles after 0.2 s under gravity."""
-    with World(WorldSettings(time_step_s=1e-3)) as world:
+    with open_world(WorldSettings(time_step_s=1e-3)) as world:
         handle = world.add_model(load_model(MODELS / "ihm_finger.yaml"))
         world.step(200)
         body = handle.bodies[0]
@@ -251,7 +251,7 @@ def test_a_forked_child_gets_the_spare_client_and_the_same_physics(monkeypatch: 
     child_client, q_spare, qd_spare = _in_child(_sag_and_client)  # type: ignore[misc]
     assert child_client == spare[0]  # the child took the inherited client ...
     assert (q_spare, qd_spare) == (q_fresh, qd_fresh)  # ... and it simulates bit for bit alike
-    with World() as here:  # this process never takes its own spare
+    with open_world() as here:  # this process never takes its own spare
         assert here.client != spare[0]
     world_module.keep_spare_client()  # connecting again keeps the one spare
     assert world_module._spare_client == spare
@@ -306,7 +306,7 @@ def test_a_tilted_mount_without_base_link_adds_no_mass() -> None:
     masses, tips = [], []
     for roll in (0.0, 1e-3):
         model = model_from_dict(_tilted_thumb_on_an_arm(roll))
-        with World(WorldSettings(time_step_s=2e-4)) as world:
+        with open_world(WorldSettings(time_step_s=2e-4)) as world:
             hand = world.add_model(model)
             body = hand.bodies[0]
             masses.append(
@@ -328,7 +328,7 @@ def test_a_body_at_bullets_speed_cap_is_named_with_the_cap_in_si() -> None:
     from somo_sweep.model.description import Link, RigidBody
     from somo_sweep.sim.urdf import plan_rigid_body
 
-    with World(WorldSettings(time_step_s=1e-3, scale=100.0, check_every=10)) as world:
+    with open_world(WorldSettings(time_step_s=1e-3, scale=100.0, check_every=10)) as world:
         ball = RigidBody(
             name="ball",
             link=Link(shape="sphere", radius_m=0.01, mass_kg=0.01),

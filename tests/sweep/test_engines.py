@@ -14,7 +14,8 @@ from typer.testing import CliRunner
 
 from somo_sweep.cli.app import app
 from somo_sweep.errors import DescriptionError, SimulationError
-from somo_sweep.sim.world import World, WorldSettings
+from somo_sweep.sim.world import WorldSettings
+from somo_sweep.sim.worlds import open_world
 from somo_sweep.sweep.engines import compare, on_engine
 from somo_sweep.sweep.jobs import build_jobs
 from somo_sweep.sweep.study import load_study
@@ -208,7 +209,7 @@ def test_a_mujoco_run_without_mujoco_installed_says_how_to_install_it_and_writes
     assert 'pip install "somo-sweep[mujoco]"' in res.output and "Traceback" not in res.output
     assert not out.exists()
     with pytest.raises(SimulationError, match=r"somo-sweep\[mujoco\]"):
-        World(WorldSettings(engine="mujoco"))
+        open_world(WorldSettings(engine="mujoco"))
 
 
 def test_compare_without_labels_gives_each_metric_per_cell_as_a_share_of_its_range() -> None:

@@ -17,7 +17,7 @@ from somo_sweep.cli.app import app
 from somo_sweep.errors import DescriptionError, SomoError
 from somo_sweep.model.load import load_model
 from somo_sweep.sim.settings import WorldSettings
-from somo_sweep.sim.world import World
+from somo_sweep.sim.worlds import open_world
 from somo_sweep.sweep.study import load_study
 from somo_sweep.tasks.ihm_gait.params import GaitParams
 from somo_sweep.tasks.ihm_gait.task import simulate_gait
@@ -124,5 +124,5 @@ def test_model_input_names_are_the_worlds(name: str) -> None:
     model = load_model(MODELS / f"{name}.yaml")
     mounts = [(m.name, m.manipulator) for m in model.as_assembly().manipulators]
     expected = [f"{mount}/{n}" for mount, manip in mounts for n in manip.input_names]
-    with World(WorldSettings()) as world:
+    with open_world(WorldSettings()) as world:
         assert world.add_model(model).input_names == expected

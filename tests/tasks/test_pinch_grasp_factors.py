@@ -18,7 +18,7 @@ from somo_sweep.model.load import load_model
 from somo_sweep.model.tables import bundled_path
 from somo_sweep.sim.settings import WorldSettings
 from somo_sweep.sim.urdf import plan_rigid_body
-from somo_sweep.sim.world import World
+from somo_sweep.sim.worlds import open_world
 from somo_sweep.sweep.jobs import build_jobs
 from somo_sweep.sweep.study import derive_study, load_study
 from somo_sweep.tasks.pinch_grasp.params import PinchGraspParams
@@ -43,7 +43,7 @@ class Built:
 
 def build(**factors: float | None) -> Built:
     params = PinchGraspParams(distal_segment_ratio=0.2, **factors)  # type: ignore[arg-type]
-    with World(WorldSettings(time_step_s=4e-3, scale=SCALE)) as world:
+    with open_world(WorldSettings(time_step_s=4e-3, scale=SCALE)) as world:
         hand = world.add_model(gripper(load_model(MODELS / "pinch_gripper.yaml"), params))
         box = world.load_plan(plan_rigid_body(object_body(params), world.scale))
         # The palm and each finger are bodies of their own (WorldSettings.body_per_manipulator).

@@ -24,6 +24,7 @@ from somo_sweep.model.load import load_model
 from somo_sweep.sim.settings import WorldSettings
 from somo_sweep.sim.urdf import plan_rigid_body
 from somo_sweep.sim.world import World
+from somo_sweep.sim.worlds import open_world
 from somo_sweep.sweep.study import load_study
 from somo_sweep.tasks.pinch_grasp.params import ORIGINAL_HULL_SIZE_M, Numerics, PinchGraspParams
 from somo_sweep.tasks.pinch_grasp.task import gripper, object_body, run_pinch_grasp
@@ -77,7 +78,7 @@ def _finger_boxes(world: World, body_id: int) -> list[tuple[float, float, float,
 def test_the_original_finger_has_the_original_codes_collision_boxes() -> None:
     params = PinchGraspParams(distal_segment_ratio=0.2)
     model = gripper(load_model(ORIGINAL_GRIPPER), params)
-    with World(WorldSettings(body_per_manipulator=True)) as world:
+    with open_world(WorldSettings(body_per_manipulator=True)) as world:
         hand = world.add_model(model)
         right = hand.body_of_manipulator("right")
         boxes = sorted(_finger_boxes(world, right.id), key=lambda b: b[1])
@@ -98,7 +99,7 @@ def test_the_bundled_finger_is_different_where_the_original_differs() -> None:
     # The fingertip of our own finger is centred (2.25 mm off the original's) and its links start
     # at the base box (joints at 10, 15 ... mm instead of 12.5, 17.5 ...).
     model = gripper(load_model(MODELS / "pinch_gripper.yaml"), PinchGraspParams(distal_segment_ratio=0.2))
-    with World(WorldSettings(body_per_manipulator=True)) as world:
+    with open_world(WorldSettings(body_per_manipulator=True)) as world:
         hand = world.add_model(model)
         boxes = sorted(_finger_boxes(world, hand.body_of_manipulator("right").id), key=lambda b: b[1])
     assert boxes[-1][1:3] == pytest.approx((117.5, 0.0), abs=1e-6)
@@ -156,7 +157,7 @@ def test_original_hull_objects_have_the_hulls_extents_and_rest_on_the_ground() -
 def test_clamp_speed_cap_lets_a_body_run_on_at_bullets_cap() -> None:
     ball = RigidBody(name="ball", link={"shape": "sphere", "radius_m": 0.01, "mass_kg": 0.01}, pose=Pose())
     for clamp in (False, True):
-        with World(WorldSettings(clamp_speed_cap=clamp, check_every=1)) as world:
+        with open_world(WorldSettings(clamp_speed_cap=clamp, check_every=1)) as world:
             body = world.load_plan(plan_rigid_body(ball, world.scale))
             p.resetBaseVelocity(body.id, [0, 0, 0], [0, 0, 500.0], physicsClientId=world.client)
             if clamp:

@@ -10,28 +10,35 @@ step.
 from __future__ import annotations
 
 from collections.abc import Sequence
-from typing import TYPE_CHECKING
+from typing import Any, Protocol
 
 import numpy as np
 
 from somo_sweep.sim.plan import SpringJoint
 
-if TYPE_CHECKING:
-    from somo_sweep.sim.mujoco.world import MujocoWorld
+__all__ = ["EffortSink", "MujocoDrive"]
 
-__all__ = ["MujocoDrive"]
+
+class EffortSink(Protocol):
+    """What a drive writes its efforts to and reads its joints from (the MuJoCo world)."""
+
+    #: The scene's ``MjData`` (None before the first compile).
+    data: Any
+
+    def push_efforts(self, drive: MujocoDrive) -> None:
+        """Write the drive's efforts to the scene."""
 
 
 class MujocoDrive:
     """Control inputs of one body's spring joints (SI throughout: MuJoCo runs unscaled).
 
     Args:
-        world: The world holding the body (its data is read at every call).
+        world: The world holding the body (its data is read at every call; :class:`EffortSink`).
         joints: The spring joints, in the plan's order.
         n_inputs: Number of control inputs of the body.
     """
 
-    def __init__(self, world: MujocoWorld, joints: Sequence[SpringJoint], n_inputs: int):
+    def __init__(self, world: EffortSink, joints: Sequence[SpringJoint], n_inputs: int):
         self.world = world
         self.joints = list(joints)
         self.n_inputs = n_inputs

@@ -1,6 +1,6 @@
 """MuJoCo's image of a world: its OpenGL renderer on an offscreen context (EGL by default).
 
-The camera is a :class:`~somo_sweep.sim.render.Camera` (PyBullet's yaw and pitch convention), so
+The camera is a :class:`~somo_sweep.sim.camera.Camera` (PyBullet's yaw and pitch convention), so
 both engines draw a trial from the same eye: MuJoCo's free camera looks at the same target from
 the same distance, its azimuth 90° ahead of PyBullet's yaw, its elevation the pitch. Without an
 OpenGL library (EGL or OSMesa, ``MUJOCO_GL``) the error says so.
@@ -9,16 +9,13 @@ OpenGL library (EGL or OSMesa, ``MUJOCO_GL``) the error says so.
 from __future__ import annotations
 
 import os
-from typing import TYPE_CHECKING
+from typing import Any
 
 import mujoco
 import numpy as np
 
 from somo_sweep.errors import SimulationError
-
-if TYPE_CHECKING:
-    from somo_sweep.sim.mujoco.world import MujocoWorld
-    from somo_sweep.sim.render import Camera
+from somo_sweep.sim.camera import Camera
 
 __all__ = ["mujoco_image"]
 
@@ -36,9 +33,13 @@ def _headless_context() -> None:
         gl_context._MUJOCO_GL = "egl"
 
 
-def mujoco_image(world: MujocoWorld, camera: Camera) -> np.ndarray:
-    """Render the world; returns an RGB image, shape (height, width, 3), uint8."""
-    model, data = world.model, world.data
+def mujoco_image(model: Any, data: Any, camera: Camera) -> np.ndarray:
+    """Render a compiled scene (its kinematics up to date); returns an RGB image, (height, width, 3), uint8.
+
+    Args:
+        model, data: The scene's ``MjModel`` and ``MjData``.
+        camera: Where to look from.
+    """
     model.vis.global_.fovy = camera.fov_deg
     extent = max(float(model.stat.extent), 1e-3)
     model.vis.map.znear = 0.01 / extent  # MuJoCo's clipping planes are in units of the extent

@@ -17,7 +17,7 @@ from __future__ import annotations
 import math
 from collections.abc import Callable, Sequence
 from time import perf_counter
-from typing import TYPE_CHECKING, Any
+from typing import Any
 
 import mujoco
 import numpy as np
@@ -26,7 +26,9 @@ import numpy.typing as npt
 from somo_sweep.errors import SimulationError, UnstableSimulation
 from somo_sweep.model.description import Pose
 from somo_sweep.model.load import Model
+from somo_sweep.sim.camera import Camera
 from somo_sweep.sim.mujoco.drive import MujocoDrive
+from somo_sweep.sim.mujoco.render import mujoco_image
 from somo_sweep.sim.mujoco.scene import GeomInfo, PlannedBody, add_plan
 from somo_sweep.sim.mujoco.surfaces import Surface, contact_plan
 from somo_sweep.sim.plan import BodyPlan
@@ -34,9 +36,6 @@ from somo_sweep.sim.rotations import matrix_from_quat, multiply_transforms, quat
 from somo_sweep.sim.settings import WorldSettings
 from somo_sweep.sim.urdf import plan_assembly
 from somo_sweep.sim.world import MAX_JOINT_SPEED_RAD_S, THROWN_DISTANCE_M, Body, ModelHandle, World
-
-if TYPE_CHECKING:
-    from somo_sweep.sim.render import Camera
 
 __all__ = ["MujocoWorld"]
 
@@ -76,7 +75,7 @@ _EMPTY = {
 class MujocoWorld(World):
     """One MuJoCo model and its data; always :meth:`close` it (or use ``with``).
 
-    Made by ``World(settings)`` for ``settings.engine == "mujoco"``.
+    Opened by :func:`~somo_sweep.sim.worlds.open_world` for ``settings.engine == "mujoco"``.
 
     Args:
         settings: Time step, gravity, solver and contact settings (Bullet's scale is not read).
@@ -646,7 +645,5 @@ class MujocoWorld(World):
 
     def render(self, camera: Camera) -> np.ndarray:
         """An RGB image of the scene (MuJoCo's renderer on an offscreen OpenGL context)."""
-        from somo_sweep.sim.mujoco.render import mujoco_image
-
         self._kinematics()
-        return mujoco_image(self, camera)
+        return mujoco_image(self.model, self.data, camera)

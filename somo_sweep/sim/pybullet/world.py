@@ -11,7 +11,7 @@ import os
 import threading
 from collections.abc import Callable, Sequence
 from time import perf_counter
-from typing import TYPE_CHECKING, cast
+from typing import cast
 
 import numpy as np
 import numpy.typing as npt
@@ -20,14 +20,13 @@ import pybullet as p
 from somo_sweep.errors import SimulationError, UnstableSimulation
 from somo_sweep.model.description import Link, Pose
 from somo_sweep.model.load import Model
+from somo_sweep.sim.camera import Camera
 from somo_sweep.sim.plan import BodyPlan
+from somo_sweep.sim.pybullet.render import tiny_renderer_image
 from somo_sweep.sim.pybullet.springs import SpringDrive
 from somo_sweep.sim.settings import WorldSettings
 from somo_sweep.sim.urdf import plan_assembly, write_urdf
 from somo_sweep.sim.world import MAX_JOINT_SPEED_RAD_S, THROWN_DISTANCE_M, Body, ModelHandle, World
-
-if TYPE_CHECKING:
-    from somo_sweep.sim.render import Camera
 
 __all__ = ["PyBulletWorld", "keep_spare_client"]
 
@@ -38,7 +37,7 @@ _spare_lock = threading.Lock()
 
 
 def keep_spare_client() -> None:
-    """Connect one PyBullet client now, for the first :class:`World` of each child forked from here.
+    """Connect one PyBullet client now, for the first world of each child forked from here.
 
     A client connected in a newly forked child costs about 30 ms of CPU (9,500 page faults: its
     buffers are allocated and zeroed there); one inherited from the parent, about 9 ms (2,300).
@@ -65,7 +64,7 @@ def _connect() -> int:
 class PyBulletWorld(World):
     """One PyBullet client in DIRECT mode; always :meth:`close` it (or use ``with``).
 
-    Made by ``World(settings)`` for ``settings.engine == "pybullet"``.
+    Opened by :func:`~somo_sweep.sim.worlds.open_world` for ``settings.engine == "pybullet"``.
 
     Args:
         settings: Time step, scale, gravity and solver settings.
@@ -384,9 +383,7 @@ class PyBulletWorld(World):
 
     def render(self, camera: Camera) -> np.ndarray:
         """An RGB image of the scene (TinyRenderer: software, no display)."""
-        from somo_sweep.sim.pybullet.render import tiny_renderer_image
-
-        return tiny_renderer_image(self, camera)
+        return tiny_renderer_image(self.client, self.scale, camera)
 
     def apply_force(self, body: Body, link: str, force_n: npt.ArrayLike, point_m: npt.ArrayLike) -> None:
         """Apply a world-frame force (N) at a world point (m) for the coming step only."""

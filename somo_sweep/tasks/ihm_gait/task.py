@@ -35,6 +35,7 @@ from somo_sweep.model.tables import read_table_text
 from somo_sweep.sim.rotations import rpy_from_quat
 from somo_sweep.sim.settings import WorldSettings
 from somo_sweep.sim.world import Body, World
+from somo_sweep.sim.worlds import open_world
 from somo_sweep.tasks.ihm_gait.params import GaitParams, check_hand
 from somo_sweep.tasks.registry import TaskResult
 
@@ -128,7 +129,7 @@ def simulate_gait(model: Model, params: GaitParams, settings: WorldSettings, see
     rng = np.random.default_rng(seed)
     dx, dy = rng.normal(0.0, params.cube_offset_std_m, 2) if params.cube_offset_std_m else (0.0, 0.0)
     yaw_deg = rng.normal(0.0, params.cube_yaw_std_deg) if params.cube_yaw_std_deg else 0.0
-    with World(settings) as world:
+    with open_world(settings) as world:
         hand = world.add_model(model)
         _check_palm_clear(world, hand.bodies, palm)
         half = params.cube_size_m / 2

@@ -32,6 +32,7 @@ from somo_sweep.model.setpoints import SetpointTable
 from somo_sweep.sim.rotations import rpy_from_quat
 from somo_sweep.sim.settings import WorldSettings
 from somo_sweep.sim.world import World
+from somo_sweep.sim.worlds import open_world
 from somo_sweep.tasks.pinch_grasp.classify import (
     GraspEvidence,
     classify,
@@ -213,7 +214,7 @@ def run_pinch_grasp(
     p = params
     if p.clamp_speed_cap:
         settings = replace(settings, clamp_speed_cap=True)
-    with World(settings) as world:
+    with open_world(settings) as world:
         ground = world.add_ground(friction=GROUND_FRICTION)
         box = object_body(p)
         obj_start = np.array(box.pose.position_m)

@@ -18,6 +18,7 @@ from somo_sweep.model.description import Pose
 from somo_sweep.model.load import Model
 from somo_sweep.sim.settings import WorldSettings
 from somo_sweep.sim.world import World
+from somo_sweep.sim.worlds import open_world
 from somo_sweep.tasks.registry import TaskResult
 from somo_sweep.tasks.snake.params import SnakeParams
 
@@ -87,7 +88,7 @@ def simulate_snake(model: Model, params: SnakeParams, settings: WorldSettings) -
     assert manip is not None
     height_m = manip.actuators[0].segment_link().half_extent_m(0)
     width_m = 2 * manip.actuators[0].segment_link().half_extent_m(1)
-    with World(settings) as world:
+    with open_world(settings) as world:
         world.add_ground(friction=params.ground_friction)
         # Local z (body) along world +x, local x vertical: pitch the chain by +90°.
         pose = Pose(position_m=(0.0, 0.0, height_m + 1e-4), rpy_rad=(0.0, np.pi / 2, 0.0))

@@ -30,6 +30,7 @@ from somo_sweep.model.tables import read_table_text
 from somo_sweep.sim.render import Camera, snapshot
 from somo_sweep.sim.settings import WorldSettings
 from somo_sweep.sim.world import World
+from somo_sweep.sim.worlds import open_world
 from somo_sweep.tasks.registry import TaskResult
 from somo_sweep.tasks.whole_arm.params import WholeArmParams, torque_columns
 
@@ -194,7 +195,7 @@ def simulate_whole_arm(
     ball0 = np.asarray(params.ball_position_m, dtype=float)
     hoop = np.asarray(params.hoop_centre_m, dtype=float)
     frames: list[np.ndarray] = []
-    with World(settings) as world:
+    with open_world(settings) as world:
         world.add_ground()
         mount = Pose(position_m=(0.0, 0.0, params.mount_height_m), rpy_rad=(math.pi, 0.0, 0.0))
         arm = world.add_model(model, mount)
