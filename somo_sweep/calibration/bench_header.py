@@ -23,7 +23,7 @@ from typing import Any
 from somo_sweep.calibration.finger import read_header_mapping
 from somo_sweep.errors import MeasurementError, SimulationError
 from somo_sweep.model.description import MAX_LENGTH_M, Manipulator
-from somo_sweep.sim.bench import BenchSettings, check_stop, finger_underside_m
+from somo_sweep.sim.bench_rig import BenchSettings, check_stop, finger_underside_m
 
 __all__ = ["BENCH_KEYS", "BenchHeader", "read_bench_header"]
 

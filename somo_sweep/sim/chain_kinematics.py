@@ -5,7 +5,8 @@ Kinematics are the engine's own, on the very body the dynamic bench loads (same 
 frames, masses, centres of mass and tip point): each engine's :class:`BenchBody` sets the joint
 angles and reads every link frame back (PyBullet: :mod:`somo_sweep.sim.pybullet.kinematics`;
 MuJoCo: :mod:`somo_sweep.sim.mujoco.kinematics`); no time step is ever taken. This module holds
-what does not depend on the engine. Used by :mod:`somo_sweep.sim.statics`.
+what does not depend on the engine; :func:`somo_sweep.sim.bench_bodies.open_bench_body` opens the
+body on the engine a bench names. Used by :mod:`somo_sweep.sim.statics`.
 """
 
 from __future__ import annotations
@@ -16,11 +17,11 @@ import numpy as np
 
 from somo_sweep.errors import SimulationError
 from somo_sweep.model.description import Link, Manipulator
-from somo_sweep.sim.bench import stop_geometry
+from somo_sweep.sim.bench_rig import stop_geometry
 from somo_sweep.sim.plan import BodyPlan
 from somo_sweep.sim.world import Body, World
 
-__all__ = ["BenchBody", "ContactFeatures", "Kin", "Plate", "bench_body", "quat_to_rot"]
+__all__ = ["BenchBody", "ContactFeatures", "Kin", "Plate"]
 
 
 @dataclass
@@ -33,22 +34,6 @@ class Kin:
     omega: np.ndarray  # (N, 3) revolute joint axes (0 for prismatic)
     vel: np.ndarray  # (N, 3) prismatic joint axes (0 for revolute)
     origin: np.ndarray  # (N, 3) joint origins
-
-
-def quat_to_rot(quat: np.ndarray) -> np.ndarray:
-    """Rotation matrices (n, 3, 3) of quaternions (n, 4) in PyBullet's (x, y, z, w) order."""
-    x, y, z, w = quat.T
-    out = np.empty((len(quat), 3, 3))
-    out[:, 0, 0] = 1 - 2 * (y * y + z * z)
-    out[:, 0, 1] = 2 * (x * y - z * w)
-    out[:, 0, 2] = 2 * (x * z + y * w)
-    out[:, 1, 0] = 2 * (x * y + z * w)
-    out[:, 1, 1] = 1 - 2 * (x * x + z * z)
-    out[:, 1, 2] = 2 * (y * z - x * w)
-    out[:, 2, 0] = 2 * (x * z - y * w)
-    out[:, 2, 1] = 2 * (y * z + x * w)
-    out[:, 2, 2] = 1 - 2 * (x * x + y * y)
-    return out
 
 
 @dataclass
@@ -311,14 +296,3 @@ class BenchBody:
         dx = r[:, None, 0] - o[None, :, 0]
         dy = r[:, None, 1] - o[None, :, 1]
         return d * (w[None, :, 0] * dy - w[None, :, 1] * dx + v[None, :, 2])
-
-
-def bench_body(manip: Manipulator, plan: BodyPlan, scale: float, engine: str = "pybullet") -> BenchBody:
-    """The bench body of ``plan`` loaded on ``engine`` (plans are made at the engine's scale)."""
-    if engine == "mujoco":
-        from somo_sweep.sim.mujoco.kinematics import MujocoBenchBody
-
-        return MujocoBenchBody(manip, plan)
-    from somo_sweep.sim.pybullet.kinematics import PyBulletBenchBody
-
-    return PyBulletBenchBody(manip, plan, scale)

@@ -21,7 +21,7 @@ from scipy.optimize import linprog
 from somo_sweep.errors import SimulationError
 from somo_sweep.model.description import Manipulator
 from somo_sweep.model.load import Model
-from somo_sweep.sim.bench import BenchSettings, _manipulator
+from somo_sweep.sim.bench_rig import BenchSettings, bench_manipulator
 from somo_sweep.sim.statics import static_chain
 
 __all__ = ["PlateForceRange", "plate_force_range"]
@@ -70,7 +70,7 @@ def plate_force_range(
     st = settings or BenchSettings()
     if not math.isfinite(pressure_kpa):
         raise SimulationError(f"pressure_kpa must be finite, got {pressure_kpa}")
-    chain = static_chain(_manipulator(model), st.scale, st.added_inertia_kg_m2, st.stop_z_m, st.engine)
+    chain = static_chain(bench_manipulator(model), st.scale, st.added_inertia_kg_m2, st.stop_z_m, st.engine)
     approach = {"loading": 1.0, "unloading": -1.0}.get(direction or "", 0.0)
     u = chain.joint_torques(pressure_kpa) - approach * chain.hysteresis
     eq = chain.equilibrium(u, 0.0, st.gravity_m_s2, plate=True)

@@ -15,7 +15,7 @@ import pybullet as p
 import pytest
 
 from somo_sweep.model.builders import planar_finger
-from somo_sweep.sim.bench import bench_frame
+from somo_sweep.sim.bench_rig import bench_frame
 from somo_sweep.sim.settings import WorldSettings
 from somo_sweep.sim.urdf import plan_manipulator
 from somo_sweep.sim.worlds import open_world

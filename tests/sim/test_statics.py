@@ -26,7 +26,7 @@ from somo_sweep.errors import SimulationError
 from somo_sweep.model.builders import planar_finger
 from somo_sweep.model.description import Actuation, Manipulator
 from somo_sweep.model.load import model_from_dict
-from somo_sweep.sim import bench
+from somo_sweep.sim import relaxation
 from somo_sweep.sim.bench import BenchSettings, run_bench
 from somo_sweep.sim.statics import MAX_ITERATIONS_TOTAL, RowSolution, solve_row, static_chain
 
@@ -331,17 +331,15 @@ def test_generalized_gravity_is_pybullets_jacobians_not_its_inverse_dynamics() -
     offset there, not [0, 0, 0]). calculateInverseDynamics is no substitute on the bench: it
     applies the world's gravity vector in the base frame without rotating it, which the bench's
     rotated clamp makes wrong."""
-    from somo_sweep.sim.bench import _Rig
-
     manip = model_from_dict(ihm_finger_dict()).manipulator
     assert manip is not None
     chain = static_chain(manip)
     body = chain.body
     q = np.random.default_rng(3).normal(0.0, 0.4, len(chain.k))
     kin = body.kinematics(q)
-    links, r, fz, _ = chain._energy_terms(kin, 9.81, 0.0)
+    links, r, fz, _ = chain.energy.force_points(kin, 9.81, 0.0)
     ours = body.forces(kin, links, r, fz)
-    rig = _Rig(manip, BenchSettings())  # a world with gravity set, as the dynamic bench
+    rig = relaxation.RelaxationRig(manip, BenchSettings())  # a world with gravity set, as the dynamic bench
     try:
         cid, bid, s = rig.world.client, rig.body.id, rig.world.scale
         idx = rig.body.drive.indices
@@ -450,7 +448,7 @@ def test_a_finger_lying_flat_puts_all_but_one_link_of_its_weight_on_the_plate(
     assert run_bench(manip, "blocked_force", 2.0).value == pytest.approx(solved, rel=1e-6)
     sagging = run_bench(manip, "blocked_force", 0.0, statics="dynamic").value
     assert 0.8 * solved < sagging < 0.99 * solved
-    monkeypatch.setattr(bench, "PLATE_RAISE", bench.BULLET_CONTACT_SLOP)
+    monkeypatch.setattr(relaxation, "PLATE_RAISE", relaxation.BULLET_CONTACT_SLOP)
     assert run_bench(manip, "blocked_force", 0.0, statics="dynamic").value == pytest.approx(solved, rel=1e-3)
 
 

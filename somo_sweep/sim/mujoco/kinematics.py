@@ -3,7 +3,8 @@
 The body is the one the dynamic bench loads on MuJoCo (same URDF read into the same MuJoCo
 bodies, :mod:`somo_sweep.sim.mujoco.scene`); joint angles go into ``qpos`` and every link frame
 comes back from one ``mj_kinematics`` call, in double precision; no time step is ever taken.
-Used by :mod:`somo_sweep.sim.statics` through :func:`somo_sweep.sim.chain_kinematics.bench_body`.
+Used by :mod:`somo_sweep.sim.statics` through
+:func:`somo_sweep.sim.bench_bodies.open_bench_body`.
 """
 
 from __future__ import annotations
@@ -13,7 +14,7 @@ import numpy as np
 
 from somo_sweep.errors import SimulationError
 from somo_sweep.model.description import Manipulator
-from somo_sweep.sim.bench import bench_frame
+from somo_sweep.sim.bench_rig import bench_frame
 from somo_sweep.sim.chain_kinematics import BenchBody, Kin
 from somo_sweep.sim.mujoco.world import MujocoWorld
 from somo_sweep.sim.plan import BodyPlan

@@ -4,7 +4,7 @@ Kinematics are PyBullet's own, on the very body the dynamic bench loads (same UR
 frames, masses, centres of mass, tip point and world scale): joint states are set with
 ``resetJointStatesMultiDof`` and read back with one ``getLinkStates`` call; no time step is
 ever taken. Used by :mod:`somo_sweep.sim.statics` through
-:func:`somo_sweep.sim.chain_kinematics.bench_body`.
+:func:`somo_sweep.sim.bench_bodies.open_bench_body`.
 """
 
 from __future__ import annotations
@@ -14,10 +14,11 @@ import pybullet as p
 
 from somo_sweep.errors import SimulationError
 from somo_sweep.model.description import Manipulator
-from somo_sweep.sim.bench import bench_frame
-from somo_sweep.sim.chain_kinematics import BenchBody, Kin, quat_to_rot
+from somo_sweep.sim.bench_rig import bench_frame
+from somo_sweep.sim.chain_kinematics import BenchBody, Kin
 from somo_sweep.sim.plan import BodyPlan
 from somo_sweep.sim.pybullet.world import PyBulletWorld
+from somo_sweep.sim.rotations import matrices_from_quats
 from somo_sweep.sim.settings import WorldSettings
 
 __all__ = ["PyBulletBenchBody"]
@@ -60,7 +61,9 @@ class PyBulletBenchBody(BenchBody):
             dyn = p.getDynamicsInfo(bid, j, physicsClientId=cid)
             inertial[j], inertial_orn[j] = dyn[3], dyn[4]
         # Link (URDF, joint) frame = centre-of-mass frame · inertial offset⁻¹.
-        self.inertial_rot_t = np.transpose(quat_to_rot(inertial_orn), (0, 2, 1)) if n else np.zeros((0, 3, 3))
+        self.inertial_rot_t = (
+            np.transpose(matrices_from_quats(inertial_orn), (0, 2, 1)) if n else np.zeros((0, 3, 3))
+        )
         self.inertial_pos = inertial
         self.inertial_rotated = bool(np.any(np.abs(inertial_orn[:, :3]) > 0))
         movable = {j for j in range(n) if kind[j] != p.JOINT_FIXED}
@@ -78,7 +81,7 @@ class PyBulletBenchBody(BenchBody):
         self.limited = np.flatnonzero(lower[idx] < upper[idx])
         self.limits = (lim_lo, lim_hi)
         base_orn = p.getBasePositionAndOrientation(bid, physicsClientId=cid)[1]
-        self.base_rot = quat_to_rot(np.array([base_orn]))[0]
+        self.base_rot = matrices_from_quats(np.array([base_orn]))[0]
         self._finish(manip, plan)
 
     def kinematics(self, q: np.ndarray) -> Kin:
@@ -94,7 +97,7 @@ class PyBulletBenchBody(BenchBody):
         p.resetJointStatesMultiDof(self.bid, self.indices, [[float(v)] for v in values], physicsClientId=cid)
         states = p.getLinkStates(self.bid, self.links, computeForwardKinematics=1, physicsClientId=cid)
         com = np.array([st[0] for st in states])
-        rot = quat_to_rot(np.array([st[1] for st in states]))
+        rot = matrices_from_quats(np.array([st[1] for st in states]))
         if self.inertial_rotated:
             rot = rot @ self.inertial_rot_t
         frame = (com - (rot @ self.inertial_pos[:, :, None])[:, :, 0]) / s
