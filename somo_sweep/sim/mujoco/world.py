@@ -27,10 +27,13 @@ from somo_sweep.errors import SimulationError, UnstableSimulation
 from somo_sweep.model.description import Pose
 from somo_sweep.model.load import Model
 from somo_sweep.sim.camera import Camera
+from somo_sweep.sim.mujoco.compiled import filter_contacts, read_addresses
+from somo_sweep.sim.mujoco.contacts import contact_table, select_contacts
 from somo_sweep.sim.mujoco.drive import MujocoDrive
+from somo_sweep.sim.mujoco.driven import DrivenRoots
 from somo_sweep.sim.mujoco.render import mujoco_image
-from somo_sweep.sim.mujoco.scene import GeomInfo, PlannedBody, add_plan
-from somo_sweep.sim.mujoco.surfaces import Surface, contact_plan
+from somo_sweep.sim.mujoco.scene import GeomInfo, PlannedBody, add_plan, decorate_ground, set_options
+from somo_sweep.sim.mujoco.surfaces import Surface
 from somo_sweep.sim.plan import BodyPlan
 from somo_sweep.sim.rotations import matrix_from_quat, multiply_transforms, quat_from_rpy, rpy_from_quat, xyzw
 from somo_sweep.sim.settings import WorldSettings
@@ -52,24 +55,10 @@ def _keep_warning(text: str) -> None:
 mujoco.set_mju_user_warning(_keep_warning)
 
 
-def _span(indices: list[int]) -> Any:
-    """A slice over consecutive indices (a view, cheap to read), else the index array."""
-    if indices and indices == list(range(indices[0], indices[0] + len(indices))):
-        return slice(indices[0], indices[0] + len(indices))
-    return np.array(indices, dtype=int)
-
-
 #: Largest linear speed of a free body in a sane run, m/s (a blow-up detector: MuJoCo caps nothing).
 MAX_BODY_SPEED_M_S = 100.0
 #: Steps between checks of the spring joints' speeds (a blow-up persists: NaN or ever faster).
 SPEED_CHECK_EVERY = 10
-_EMPTY = {
-    "link_a": np.zeros(0, int),
-    "link_b": np.zeros(0, int),
-    "position_on_a_m": np.zeros((0, 3)),
-    "normal_b_to_a": np.zeros((0, 3)),
-    "normal_force_n": np.zeros(0),
-}
 
 
 class MujocoWorld(World):
@@ -92,7 +81,7 @@ class MujocoWorld(World):
         self.bodies: list[Body] = []
         self.pre_step: list[Callable[[World], None]] = []
         self.spec: Any = mujoco.MjSpec()
-        self._options(self.spec)
+        set_options(self.spec, self.settings)
         self.model: Any = None
         self.data: Any = None
         self._geoms: list[GeomInfo] = []
@@ -102,39 +91,14 @@ class MujocoWorld(World):
         self._dirty = True
         self._kinematics_stale = True
         self._external = False
-        self._targets: dict[int, np.ndarray] = {}  # driven body id → target (x, y, z, yaw, pitch, roll)
-        self._roots: list[tuple[np.ndarray, np.ndarray, np.ndarray]] = []  # target, qpos and qvel views
-        self._turns: dict[tuple[float, ...], tuple[np.ndarray, np.ndarray]] = {}
+        self._driven = DrivenRoots()
         self._step_contacts: tuple[Any, ...] | None = None  # the last step's, once read
         self._contact_memo: dict[tuple[int, int | None], dict[str, np.ndarray]] = {}
         self._free: set[int] = set()  # ids of bodies on a free joint (known once compiled)
-        self._initial: dict[int, np.ndarray] = {}  # driven body id → pose to set at the next compile
         self._engine_time_s = 0.0
         self._pairs: list[Any] = []
         self._excludes: list[Any] = []
         self._open = True
-
-    def _options(self, spec: Any) -> None:
-        s, opt = self.settings, spec.option
-        opt.timestep = s.time_step_s
-        opt.gravity = list(s.gravity_m_s2)
-        opt.integrator = (
-            mujoco.mjtIntegrator.mjINT_DISCRETE
-            if s.integrator == "discrete"
-            else mujoco.mjtIntegrator.mjINT_IMPLICITFAST
-        )
-        opt.cone = mujoco.mjtCone.mjCONE_ELLIPTIC
-        opt.impratio = s.impratio
-        opt.noslip_iterations = s.noslip_iterations
-        opt.solver = mujoco.mjtSolver.mjSOL_NEWTON
-        opt.iterations = s.solver_iterations
-        opt.disableflags |= mujoco.mjtDisableBit.mjDSBL_AUTORESET
-        # Measured on the pinch gripper (52 dofs): sparse Jacobians and one island are 10-35 % cheaper.
-        opt.jacobian = mujoco.mjtJacobian.mjJAC_SPARSE
-        opt.disableflags |= mujoco.mjtDisableBit.mjDSBL_ISLAND
-        spec.compiler.inertiafromgeom = mujoco.mjtInertiaFromGeom.mjINERTIAFROMGEOM_FALSE
-        spec.visual.global_.offwidth = 1920
-        spec.visual.global_.offheight = 1080
 
     # ----------------------------------------------------------------- life
     @property
@@ -173,9 +137,7 @@ class MujocoWorld(World):
         link_index = {info.name: i - 1 for i, info in enumerate(plan.links)}
         body = Body(plan, body_id, link_index, drive, constraint=body_id if plan.mode == "driven" else None)
         if plan.mode == "driven":
-            target = np.concatenate([position_m, rpy_from_quat(quat)[::-1]])
-            self._targets[body_id] = target
-            self._initial[body_id] = target.copy()
+            self._driven.add(body_id, position_m, quat)
         self.bodies.append(body)
         self._dirty = True
         return body
@@ -220,23 +182,8 @@ class MujocoWorld(World):
             )
         plane = mujoco.mjtGeom.mjGEOM_PLANE  # infinite for contacts; 2 m by 2 m when drawn
         ground = self._add_static_geom(plane, [1.0, 1.0, 0.05], [0.0, 0.0, 0.0], Surface(friction))
-        self._decorate(self._geoms[-1].spec)
+        decorate_ground(self.spec, self._geoms[-1].spec, f"checker{len(self._geoms)}")
         return ground
-
-    def _decorate(self, ground: Any) -> None:
-        """A checkered ground (as PyBullet draws it) and a light from above, for snapshots only."""
-        name = f"checker{len(self._geoms)}"
-        texture = self.spec.add_texture(name=name, width=64, height=64)
-        texture.type = mujoco.mjtTexture.mjTEXTURE_2D
-        texture.builtin = mujoco.mjtBuiltin.mjBUILTIN_CHECKER
-        texture.rgb1 = [0.63, 0.71, 0.93]
-        texture.rgb2 = [0.94, 0.94, 0.94]
-        material = self.spec.add_material(name=name, texrepeat=[20.0, 20.0])
-        material.textures = ["", name] + [""] * 8  # slot 1: the RGB map
-        ground.material = name
-        ground.rgba = [1.0, 1.0, 1.0, 1.0]
-        light = self.spec.worldbody.add_light(pos=[0.0, 0.0, 2.0], dir=[0.0, 0.0, -1.0])
-        light.diffuse = [0.6, 0.6, 0.6]
 
     def add_static_box(self, centre_m: npt.ArrayLike, half_extents_m: npt.ArrayLike) -> int:
         """Add a static frictionless box (a bench's stop) centred at ``centre_m``; returns its id."""
@@ -264,13 +211,7 @@ class MujocoWorld(World):
         self._step_contacts, self._contact_memo = None, {}
         self._qpos, self._qvel = self.data.qpos, self.data.qvel
         self._addresses()
-        for body_id, pose in self._initial.items():
-            self.data.qpos[self._root_qpos[body_id]] = pose
-        self._initial.clear()
-        self._roots = [
-            (target, self._qpos[self._root_qpos[i]], self._qvel[self._root_dof[i]])
-            for i, target in self._targets.items()
-        ]
+        self._driven.bind(self._qpos, self._qvel, self._root_qpos, self._root_dof)
         for body in self.bodies:
             self.push_efforts(body.drive)  # type: ignore[arg-type]
         mujoco.mj_kinematics(self.model, self.data)
@@ -278,80 +219,16 @@ class MujocoWorld(World):
 
     def _filter_contacts(self) -> None:
         """Collision bits, explicit pairs with Bullet's friction, and excluded ancestor pairs."""
-        for element in self._pairs + self._excludes:
-            self.spec.delete(element)
-        self._pairs, self._excludes = [], []
-        geoms = self._geoms
-
-        def may_touch(a: int, b: int) -> bool:
-            ga, gb = geoms[a], geoms[b]
-            if ga.static and gb.static:
-                return False
-            if ga.owner != gb.owner:
-                return True
-            up = self._planned[ga.owner].ancestors
-            return ga.link != gb.link and ga.link not in up[gb.link] and gb.link not in up[ga.link]
-
-        plan = contact_plan([g.surface for g in geoms], may_touch)
         tc = self.settings.contact_time_constant_s
-        for k, g in enumerate(geoms):
-            g.spec.contype, g.spec.conaffinity = plan.contype[k], plan.conaffinity[k]
-            g.spec.friction, g.spec.priority = list(plan.geom_friction[k]), plan.geom_priority[k]
-            g.spec.condim = plan.geom_condim[k]
-        for a, b, friction, dim in plan.pairs:
-            pair = self.spec.add_pair(geomname1=geoms[a].name, geomname2=geoms[b].name)
-            pair.condim = dim
-            pair.friction = [friction[0], friction[0], friction[1], friction[2], friction[2]]
-            pair.solref = [tc, 1.0]
-            pair.margin = 0.0
-            self._pairs.append(pair)
-        for body_id, planned in self._planned.items():
-            with_geoms = {g.link for g in geoms if g.owner == body_id}
-            for link, ups in planned.ancestors.items():
-                for up in ups:
-                    if link in with_geoms and up in with_geoms:
-                        names = planned.body_names
-                        self._excludes.append(
-                            self.spec.add_exclude(bodyname1=names[up + 1], bodyname2=names[link + 1])
-                        )
+        old = self._pairs + self._excludes
+        self._pairs, self._excludes = filter_contacts(self.spec, self._geoms, self._planned, tc, old)
 
     def _addresses(self) -> None:
-        m = self.model
-        self._link_bodies: dict[int, np.ndarray] = {}
-        self._root_qpos: dict[int, Any] = {}  # slices, or index arrays where not contiguous
-        self._root_dof: dict[int, Any] = {}
-        self._com_offset: dict[int, np.ndarray | None] = {}  # free body → its centre of mass, body frame
-        self._free = set()
-        spring_dofs: list[int] = []
-        for body in self.bodies:
-            planned = self._planned[body.id]
-            self._link_bodies[body.id] = np.array([m.body(n).id for n in planned.body_names])
-            drive = body.drive
-            assert isinstance(drive, MujocoDrive)
-            joints = [m.joint(n) for n in planned.spring_joints]
-            drive.indices = [int(j.dofadr[0]) for j in joints]
-            drive.qpos_adr = [int(j.qposadr[0]) for j in joints]
-            spring_dofs.extend(drive.indices)
-            if planned.root_joints:
-                roots = [m.joint(n) for n in planned.root_joints]
-                if body.plan.mode == "free":
-                    ipos = np.array(m.body_ipos[self._link_bodies[body.id][0]], dtype=float)
-                    self._com_offset[body.id] = ipos if np.any(ipos) else None
-                    adr, dof = int(roots[0].qposadr[0]), int(roots[0].dofadr[0])
-                    self._root_qpos[body.id] = slice(adr, adr + 7)
-                    self._root_dof[body.id] = slice(dof, dof + 6)
-                    self._free.add(body.id)
-                else:
-                    self._root_qpos[body.id] = _span([int(j.qposadr[0]) for j in roots])
-                    self._root_dof[body.id] = _span([int(j.dofadr[0]) for j in roots])
-        self._spring_dofs = _span(spring_dofs)
-        self._n_springs = len(spring_dofs)
-        owner = np.full(m.ngeom, -1)
-        link = np.full(m.ngeom, -2)
-        for g in self._geoms:
-            gid = m.geom(g.name).id
-            owner[gid], link[gid] = g.owner, g.link
-        self._geom_owner, self._geom_link = owner, link
+        a = read_addresses(self.model, self.bodies, self._planned, self._geoms)
+        self._link_bodies, self._root_qpos, self._root_dof = a.link_bodies, a.root_qpos, a.root_dof
+        self._com_offset, self._free = a.com_offset, a.free
+        self._spring_dofs, self._n_springs = a.spring_dofs, a.n_springs
+        self._geom_owner, self._geom_link = a.geom_owner, a.geom_link
 
     def push_efforts(self, drive: MujocoDrive) -> None:
         """Write a drive's efforts to ``qfrc_applied`` (kept until they change)."""
@@ -369,21 +246,7 @@ class MujocoWorld(World):
         """Set a driven body's base target to a world pose (SI), mount offset kept (no force limit)."""
         if body.constraint is None:
             raise SimulationError(f"body '{body.plan.name}' is not driven (base mode {body.plan.mode})")
-        key = (body.id, *(float(a) for a in rpy_rad))
-        turn = self._turns.get(key)
-        if turn is None:  # the orientation part, once per distinct rpy (paths rarely turn)
-            quat = quat_from_rpy(key[1:])
-            _, composed = multiply_transforms((0.0, 0.0, 0.0), quat, body.offset[0], body.offset[1])
-            turn = (
-                matrix_from_quat(quat) @ np.asarray(body.offset[0], float),
-                np.array(rpy_from_quat(composed)[::-1]),
-            )
-            self._turns[key] = turn
-        target = self._targets[body.id]
-        target[:3] = turn[0]
-        target[:3] += position_m
-        # The angles continue from the last target's (no jump of 2π for the root to follow).
-        target[3:] += (turn[1] - target[3:] + math.pi) % (2 * math.pi) - math.pi
+        self._driven.set_target(body, position_m, rpy_rad)
 
     def place_model(
         self,
@@ -410,13 +273,6 @@ class MujocoWorld(World):
                 self.model.body_quat[root] = [quat[3], quat[0], quat[1], quat[2]]
         self._kinematics_stale = True
 
-    def _drive_roots(self) -> None:
-        """Set each driven root's speed so it reaches its target at the end of the step."""
-        rate = 1.0 / self.settings.time_step_s
-        for target, pose, speed in self._roots:  # views into the data: no copies
-            np.subtract(target, pose, out=speed)
-            speed *= rate
-
     # ----------------------------------------------------------------- stepping
     def step(self, n: int = 1) -> None:
         """Advance ``n`` steps: pre-step hooks, driven roots, MuJoCo (springs inside).
@@ -434,7 +290,7 @@ class MujocoWorld(World):
         dofs = self._spring_dofs if self._n_springs else None
         bad_acc = d.warning[int(mujoco.mjtWarning.mjWARN_BADQACC)]
         qvel = self._qvel  # views kept from the compile: reading d.qvel builds a new one each time
-        step, hooks, clock = mujoco.mj_step, self.pre_step, perf_counter
+        step, hooks, clock, driven = mujoco.mj_step, self.pre_step, perf_counter, self._driven
         for _ in range(n):
             for hook in hooks:
                 hook(self)
@@ -443,8 +299,8 @@ class MujocoWorld(World):
                 m, d, qvel = self.model, self.data, self._qvel
                 dofs = self._spring_dofs if self._n_springs else None
                 bad_acc = d.warning[int(mujoco.mjtWarning.mjWARN_BADQACC)]
-            if self._targets:
-                self._drive_roots()
+            if driven.targets:
+                driven.drive(dt)
             t0 = clock()
             step(m, d)
             self._engine_time_s += clock() - t0
@@ -598,50 +454,9 @@ class MujocoWorld(World):
         return found
 
     def _find_contacts(self, body_a: int, body_b: int | None) -> dict[str, np.ndarray]:
-        table = self._contact_table()
-        if table is None:
-            return dict(_EMPTY)
-        groups, arrays = table
-        if body_b is None:
-            first = [r for (o1, _), rows in groups.items() if o1 == body_a for r in rows]
-            second = [r for (o1, o2), rows in groups.items() if o2 == body_a and o1 != body_a for r in rows]
-        else:
-            first, second = groups.get((body_a, body_b), []), groups.get((body_b, body_a), [])
-            if body_a == body_b:
-                second = []
-        if not first and not second:
-            return dict(_EMPTY)
-        rows = np.array(first + second, dtype=int)
-        geom, frame, pos, dist, force = (a[rows] for a in arrays)
-        if second:  # where body_a is MuJoCo's geom2, the pair turns round
-            flip = np.arange(len(rows)) >= len(first)
-            geom = np.where(flip[:, None], geom[:, ::-1], geom)
-            frame = np.where(flip[:, None], -frame, frame)
-        normal = -frame  # MuJoCo's normal points from geom1 (body_a's) to geom2
-        return {
-            "link_a": self._geom_link[geom[:, 0]],
-            "link_b": self._geom_link[geom[:, 1]],
-            "position_on_a_m": pos + normal * (0.5 * dist)[:, None],
-            "normal_b_to_a": normal,
-            "normal_force_n": force,
-        }
-
-    def _contact_table(self) -> tuple[dict[tuple[int, int], list[int]], tuple[np.ndarray, ...]] | None:
-        """The last step's contacts grouped by owner pair, and their arrays (built once per step)."""
-        if self._step_contacts is not None:
-            return self._step_contacts or None
-        con = self.data.contact
-        if not len(con.dist):
-            self._step_contacts = ()
-            return None
-        geom = con.geom
-        groups: dict[tuple[int, int], list[int]] = {}
-        for row, pair in enumerate(self._geom_owner[geom].tolist()):
-            groups.setdefault((pair[0], pair[1]), []).append(row)
-        adr = con.efc_address
-        force = np.where(adr >= 0, self.data.efc_force[np.maximum(adr, 0)], 0.0)
-        self._step_contacts = (groups, (geom, con.frame[:, :3], con.pos, con.dist, force))
-        return self._step_contacts
+        if self._step_contacts is None:  # the step's table, built once
+            self._step_contacts = contact_table(self.data, self._geom_owner) or ()
+        return select_contacts(self._step_contacts or None, self._geom_link, body_a, body_b)
 
     def render(self, camera: Camera) -> np.ndarray:
         """An RGB image of the scene (MuJoCo's renderer on an offscreen OpenGL context)."""

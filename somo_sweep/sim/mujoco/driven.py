@@ -1,0 +1,77 @@
+"""Driven roots on MuJoCo: each reaches the target base pose it was given at the end of the step.
+
+A driven root has six joints (three slides, then yaw, pitch, roll:
+:data:`~somo_sweep.sim.mujoco.scene.DRIVEN_AXES`), so a pose is their values. Before each step
+their speeds are set to (target − pose)/dt; their very large armature keeps the fingers'
+reactions from moving the root within the step.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Sequence
+from typing import Any
+
+import numpy as np
+
+from somo_sweep.sim.rotations import matrix_from_quat, multiply_transforms, quat_from_rpy, rpy_from_quat
+from somo_sweep.sim.world import Body
+
+__all__ = ["DrivenRoots"]
+
+
+class DrivenRoots:
+    """The targets of a world's driven roots and the root speeds that reach them in one step.
+
+    Attributes:
+        targets: Per driven body id, its root's target (x, y, z in m, yaw, pitch, roll in rad).
+    """
+
+    def __init__(self) -> None:
+        self.targets: dict[int, np.ndarray] = {}
+        self._views: list[tuple[np.ndarray, np.ndarray, np.ndarray]] = []  # target, qpos and qvel views
+        self._turns: dict[tuple[float, ...], tuple[np.ndarray, np.ndarray]] = {}
+        self._initial: dict[int, np.ndarray] = {}  # driven body id → pose to set at the next compile
+
+    def add(self, body_id: int, position_m: np.ndarray, quat: tuple[float, ...]) -> None:
+        """A new driven root, held where it was loaded (position in m, quaternion x, y, z, w)."""
+        target = np.concatenate([position_m, rpy_from_quat(quat)[::-1]])
+        self.targets[body_id] = target
+        self._initial[body_id] = target.copy()
+
+    def set_target(
+        self, body: Body, position_m: Sequence[float] | np.ndarray, rpy_rad: Sequence[float] | np.ndarray
+    ) -> None:
+        """Move a driven body's root target to a world pose (m, rad), its mount offset kept."""
+        key = (body.id, *(float(a) for a in rpy_rad))
+        turn = self._turns.get(key)
+        if turn is None:  # the orientation part, once per distinct rpy (paths rarely turn)
+            quat = quat_from_rpy(key[1:])
+            _, composed = multiply_transforms((0.0, 0.0, 0.0), quat, body.offset[0], body.offset[1])
+            turn = (
+                matrix_from_quat(quat) @ np.asarray(body.offset[0], float),
+                np.array(rpy_from_quat(composed)[::-1]),
+            )
+            self._turns[key] = turn
+        target = self.targets[body.id]
+        target[:3] = turn[0]
+        target[:3] += position_m
+        # The angles continue from the last target's (no jump of 2π for the root to follow).
+        target[3:] += (turn[1] - target[3:] + math.pi) % (2 * math.pi) - math.pi
+
+    def bind(
+        self, qpos: np.ndarray, qvel: np.ndarray, root_qpos: dict[int, Any], root_dof: dict[int, Any]
+    ) -> None:
+        """After a compile: put the roots loaded since the last one at their poses, and keep views
+        of every root's joint positions and speeds in the new data."""
+        for body_id, pose in self._initial.items():
+            qpos[root_qpos[body_id]] = pose
+        self._initial.clear()
+        self._views = [(target, qpos[root_qpos[i]], qvel[root_dof[i]]) for i, target in self.targets.items()]
+
+    def drive(self, time_step_s: float) -> None:
+        """Set each driven root's speed so it reaches its target at the end of the step."""
+        rate = 1.0 / time_step_s
+        for target, pose, speed in self._views:  # views into the data: no copies
+            np.subtract(target, pose, out=speed)
+            speed *= rate
