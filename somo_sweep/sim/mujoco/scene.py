@@ -25,8 +25,8 @@ import numpy as np
 from somo_sweep.errors import SimulationError
 from somo_sweep.sim.mujoco.support import ANCHOR_WHY
 from somo_sweep.sim.mujoco.surfaces import Surface
-from somo_sweep.sim.mujoco.urdf_tree import Shape, TreeLink, read_tree, unit
-from somo_sweep.sim.plan import BodyPlan, LinkInfo
+from somo_sweep.sim.mujoco.urdf_tree import Shape, TreeJoint, TreeLink, read_tree, unit
+from somo_sweep.sim.plan import BodyPlan, LinkInfo, SpringJoint
 from somo_sweep.sim.rotations import quat_from_rpy, wxyz
 from somo_sweep.sim.settings import WorldSettings
 
@@ -160,84 +160,18 @@ def add_plan(
     if problems:
         raise SimulationError("; ".join(problems))
     tree_links, tree_joints = read_tree(plan)
-    infos = {info.name: info for info in plan.links}
     prefix = f"b{body_id}/"
-    root_name = plan.links[0].name
-    mode = plan.mode
-    if mode == "driven":
-        root = spec.worldbody.add_body(name=prefix + root_name)
-        root.gravcomp = 1.0
-    else:
-        root = spec.worldbody.add_body(
-            name=prefix + root_name, pos=list(position_m), quat=list(wxyz(quat_xyzw))
-        )
     total = sum(t.mass_kg for t in tree_links.values())
-    root_joints: list[str] = []
-    if mode == "free":
-        root.add_freejoint(name=prefix + "free")
-        root_joints.append(prefix + "free")
-    elif mode == "driven":
-        for name, kind, axis in DRIVEN_AXES:
-            joint = root.add_joint(name=prefix + name, type=kind, axis=list(axis))
-            joint.armature = DRIVEN_ARMATURE * max(total, 1e-3)
-            root_joints.append(prefix + name)
-    bodies = {root_name: root}
+    root, root_joints = _add_root(spec, plan, prefix, position_m, quat_xyzw, total)
+    tree = _add_tree(plan, tree_joints, root, prefix)
+    geoms = _add_links(plan, tree_links, tree, body_id, prefix, contact_time_constant_s)
     index = {info.name: i - 1 for i, info in enumerate(plan.links)}
-    parent_of: dict[str, str] = {}
-    moves_with_root = {root_name: mode != "fixed"}
-    spring_by_name = {sj.name: sj for sj in plan.joints}
-    for tj in tree_joints:
-        parent_of[tj.child] = tj.parent
-        body = bodies[tj.parent].add_body(
-            name=prefix + tj.child, pos=list(tj.xyz_m), quat=list(wxyz(quat_from_rpy(tj.rpy_rad)))
-        )
-        bodies[tj.child] = body
-        moves_with_root[tj.child] = moves_with_root[tj.parent] or tj.kind != "fixed"
-        if tj.kind == "fixed":
-            continue
-        sj = spring_by_name[tj.name]
-        joint = body.add_joint(
-            name=prefix + tj.name,
-            type=mujoco.mjtJoint.mjJNT_HINGE if tj.kind == "revolute" else mujoco.mjtJoint.mjJNT_SLIDE,
-            axis=list(unit(tj.axis)),
-        )
-        joint.stiffness = [sj.stiffness, 0.0, sj.stiffness * sj.stiffening]
-        joint.springref = sj.neutral
-        joint.damping = [sj.damping, 0.0, 0.0]
-        joint.frictionloss = sj.motor_limit
-        joint.solref_friction = list(FRICTION_SOLREF)
-        joint.solimp_friction = list(FRICTION_SOLIMP)
-        if tj.limits is not None:
-            joint.limited = mujoco.mjtLimited.mjLIMITED_TRUE
-            joint.range = list(tj.limits)
-        else:
-            joint.limited = mujoco.mjtLimited.mjLIMITED_FALSE
-    geoms: list[GeomInfo] = []
-    for name, tree in tree_links.items():
-        body, info = bodies[name], infos[name]
-        if tree.mass_kg > 0:
-            body.explicitinertial = True
-            body.mass = tree.mass_kg
-            body.ipos = list(tree.com_m)
-            body.iquat = [1.0, 0.0, 0.0, 0.0]
-            body.inertia = list(_inertia(info, tree))
-        link = info.link
-        surface = Surface(
-            link.friction.lateral if link else 1.0,
-            link.friction.spinning if link else 0.0,
-            link.friction.rolling if link else 0.0,
-        )
-        rgba = list(link.color_rgba) if link else [0.55, 0.6, 0.7, 1.0]
-        for k, shape in enumerate(tree.shapes):
-            geom_name = f"{prefix}{name}#{k}"
-            geom = _add_geom(body, geom_name, shape, rgba, surface, contact_time_constant_s)
-            geoms.append(GeomInfo(geom_name, body_id, index[name], surface, not moves_with_root[name], geom))
     ancestors: dict[int, set[int]] = {}
     for name in tree_links:
-        chain, up = set(), parent_of.get(name)
+        chain, up = set(), tree.parent_of.get(name)
         while up is not None:
             chain.add(index[up])
-            up = parent_of.get(up)
+            up = tree.parent_of.get(up)
         ancestors[index[name]] = chain
     planned = PlannedBody(
         body_names=[prefix + info.name for info in plan.links],
@@ -247,6 +181,117 @@ def add_plan(
         total_mass_kg=total,
     )
     return planned, geoms
+
+
+def _add_root(
+    spec: mujoco.MjSpec,
+    plan: BodyPlan,
+    prefix: str,
+    position_m: np.ndarray,
+    quat_xyzw: tuple[float, ...],
+    total_mass_kg: float,
+) -> tuple[Any, list[str]]:
+    """The root body, welded, free or driven (six joints), and the names of its joints."""
+    root_name = plan.links[0].name
+    mode = plan.mode
+    if mode == "driven":
+        root = spec.worldbody.add_body(name=prefix + root_name)
+        root.gravcomp = 1.0
+    else:
+        root = spec.worldbody.add_body(
+            name=prefix + root_name, pos=list(position_m), quat=list(wxyz(quat_xyzw))
+        )
+    root_joints: list[str] = []
+    if mode == "free":
+        root.add_freejoint(name=prefix + "free")
+        root_joints.append(prefix + "free")
+    elif mode == "driven":
+        for name, kind, axis in DRIVEN_AXES:
+            joint = root.add_joint(name=prefix + name, type=kind, axis=list(axis))
+            joint.armature = DRIVEN_ARMATURE * max(total_mass_kg, 1e-3)
+            root_joints.append(prefix + name)
+    return root, root_joints
+
+
+@dataclass
+class _Tree:
+    """The plan's MuJoCo bodies by link name, each link's parent, and whether it moves with the root."""
+
+    bodies: dict[str, Any]
+    parent_of: dict[str, str]
+    moves_with_root: dict[str, bool]
+
+
+def _add_tree(plan: BodyPlan, tree_joints: list[TreeJoint], root: Any, prefix: str) -> _Tree:
+    """Nest every link's body under its parent's, with a hinge or slide for each spring joint."""
+    root_name = plan.links[0].name
+    tree = _Tree({root_name: root}, {}, {root_name: plan.mode != "fixed"})
+    spring_by_name = {sj.name: sj for sj in plan.joints}
+    for tj in tree_joints:
+        tree.parent_of[tj.child] = tj.parent
+        body = tree.bodies[tj.parent].add_body(
+            name=prefix + tj.child, pos=list(tj.xyz_m), quat=list(wxyz(quat_from_rpy(tj.rpy_rad)))
+        )
+        tree.bodies[tj.child] = body
+        tree.moves_with_root[tj.child] = tree.moves_with_root[tj.parent] or tj.kind != "fixed"
+        if tj.kind != "fixed":
+            _add_spring_joint(body, prefix, tj, spring_by_name[tj.name])
+    return tree
+
+
+def _add_spring_joint(body: Any, prefix: str, tj: TreeJoint, sj: SpringJoint) -> None:
+    """A spring joint as a hinge or slide with MuJoCo's own spring, damping and friction."""
+    joint = body.add_joint(
+        name=prefix + tj.name,
+        type=mujoco.mjtJoint.mjJNT_HINGE if tj.kind == "revolute" else mujoco.mjtJoint.mjJNT_SLIDE,
+        axis=list(unit(tj.axis)),
+    )
+    joint.stiffness = [sj.stiffness, 0.0, sj.stiffness * sj.stiffening]
+    joint.springref = sj.neutral
+    joint.damping = [sj.damping, 0.0, 0.0]
+    joint.frictionloss = sj.motor_limit
+    joint.solref_friction = list(FRICTION_SOLREF)
+    joint.solimp_friction = list(FRICTION_SOLIMP)
+    if tj.limits is not None:
+        joint.limited = mujoco.mjtLimited.mjLIMITED_TRUE
+        joint.range = list(tj.limits)
+    else:
+        joint.limited = mujoco.mjtLimited.mjLIMITED_FALSE
+
+
+def _add_links(
+    plan: BodyPlan,
+    tree_links: dict[str, TreeLink],
+    tree: _Tree,
+    body_id: int,
+    prefix: str,
+    contact_time_constant_s: float,
+) -> list[GeomInfo]:
+    """Every link's inertia and collision geoms (with its friction and colour)."""
+    infos = {info.name: info for info in plan.links}
+    index = {info.name: i - 1 for i, info in enumerate(plan.links)}
+    geoms: list[GeomInfo] = []
+    for name, link_tree in tree_links.items():
+        body, info = tree.bodies[name], infos[name]
+        if link_tree.mass_kg > 0:
+            body.explicitinertial = True
+            body.mass = link_tree.mass_kg
+            body.ipos = list(link_tree.com_m)
+            body.iquat = [1.0, 0.0, 0.0, 0.0]
+            body.inertia = list(_inertia(info, link_tree))
+        link = info.link
+        surface = Surface(
+            link.friction.lateral if link else 1.0,
+            link.friction.spinning if link else 0.0,
+            link.friction.rolling if link else 0.0,
+        )
+        rgba = list(link.color_rgba) if link else [0.55, 0.6, 0.7, 1.0]
+        static = not tree.moves_with_root[name]
+        for k, shape in enumerate(link_tree.shapes):
+            geom_name = f"{prefix}{name}#{k}"
+            geom = _add_geom(body, geom_name, shape, rgba, surface, contact_time_constant_s)
+            geoms.append(GeomInfo(geom_name, body_id, index[name], surface, static, geom))
+    return geoms
 
 
 def _add_geom(
