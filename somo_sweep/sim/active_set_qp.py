@@ -8,6 +8,7 @@ Pure NumPy / SciPy; used by :mod:`somo_sweep.sim.statics`.
 from __future__ import annotations
 
 import math
+from typing import Any
 
 import numpy as np
 from scipy.linalg import cho_factor, cho_solve
@@ -32,6 +33,9 @@ def solve_qp(
 ) -> tuple[np.ndarray | None, np.ndarray, str]:
     """min ½xᵀhx + cᵀx s.t. a·x ≥ b (h positive definite): Goldfarb–Idnani dual active set.
 
+    Starts from the unconstrained minimum and adds the most violated row until none is
+    violated (:meth:`_ActiveSet.add`, dropping rows whose multiplier would turn negative).
+
     Returns (x, multipliers of every row, "") or (None, ..., cause).
     """
     m = len(b)
@@ -43,30 +47,48 @@ def solve_qp(
     lam = np.zeros(m)
     if m == 0:
         return x, lam, ""
-    cols: dict[int, np.ndarray] = {}
-
-    def y(i: int) -> np.ndarray:  # h⁻¹ a_iᵀ, for the few rows that ever enter the active set
-        col = cols.get(i)
-        if col is None:
-            col = cols[i] = cho_solve(factor, a[i])
-        return col
-
+    qp = _ActiveSet(factor, a, b, x, max_iter)
     scale_b = max(float(np.max(np.abs(b))), 1e-9)
     tol = 1e-13 * scale_b
-    active: list[int] = []
     u = np.zeros(0)
     for _ in range(max_iter):
-        s = a @ x - b
+        s = a @ qp.x - b
         pidx = int(np.argmin(s))
-        if s[pidx] >= -tol or pidx in active:  # (an active row "violated": rounding, done)
-            lam[active] = u
-            return x, lam, ""
+        if s[pidx] >= -tol or pidx in qp.active:  # (an active row "violated": rounding, done)
+            lam[qp.active] = u
+            return qp.x, lam, ""
+        added, why = qp.add(pidx, u)
+        if added is None:
+            return None, lam, why
+        u = added
+    return None, lam, f"no contact set found in {max_iter} changes"
+
+
+class _ActiveSet:
+    """The dual active-set iteration's state: the point, the active rows and h⁻¹aᵢᵀ of the rows seen."""
+
+    def __init__(self, factor: Any, a: np.ndarray, b: np.ndarray, x: np.ndarray, max_iter: int):
+        self.factor, self.a, self.b, self.x, self.max_iter = factor, a, b, x, max_iter
+        self.active: list[int] = []
+        self._cols: dict[int, np.ndarray] = {}
+
+    def _y(self, i: int) -> np.ndarray:
+        """h⁻¹ a_iᵀ, for the few rows that ever enter the active set."""
+        col = self._cols.get(i)
+        if col is None:
+            col = self._cols[i] = cho_solve(self.factor, self.a[i])
+        return col
+
+    def add(self, pidx: int, u: np.ndarray) -> tuple[np.ndarray | None, str]:
+        """Make row ``pidx`` active (dropping rows on the way); the active rows' multipliers, or
+        None and why it failed. ``u``: the multipliers of the rows active before."""
+        a, b = self.a, self.b
         u_plus = np.append(u, 0.0)
-        for _inner in range(max_iter):
-            yp, np_ = y(pidx), a[pidx]
-            if active:
-                na = a[active]
-                ya = np.column_stack([y(i) for i in active])
+        for _inner in range(self.max_iter):
+            yp, np_ = self._y(pidx), a[pidx]
+            if self.active:
+                na = a[self.active]
+                ya = np.column_stack([self._y(i) for i in self.active])
                 mat = na @ ya
                 try:
                     r = np.linalg.solve(mat, na @ yp)
@@ -76,7 +98,7 @@ def solve_qp(
             else:
                 r, z = np.zeros(0), yp
             zn = float(np_ @ z)
-            s_p = float(np_ @ x - b[pidx])
+            s_p = float(np_ @ self.x - b[pidx])
             t2 = -s_p / zn if zn > 1e-12 * float(np_ @ yp) else math.inf
             t1, drop = math.inf, -1
             for j, rj in enumerate(r):
@@ -86,17 +108,14 @@ def solve_qp(
                         t1, drop = ratio, j
             t = min(t1, t2)
             if not math.isfinite(t):
-                return None, lam, "no contact set satisfies the plate (infeasible)"
+                return None, "no contact set satisfies the plate (infeasible)"
             if math.isfinite(t2):
-                x = x + t * z
+                self.x = self.x + t * z
             u_plus[:-1] -= t * r
             u_plus[-1] += t
             if t2 <= t1:
-                active.append(pidx)
-                u = u_plus
-                break
-            del active[drop]
+                self.active.append(pidx)
+                return u_plus, ""
+            del self.active[drop]
             u_plus = np.delete(u_plus, drop)
-        else:
-            return None, lam, "dual active set cycled"
-    return None, lam, f"no contact set found in {max_iter} changes"
+        return None, "dual active set cycled"

@@ -16,7 +16,7 @@ from somo_sweep.errors import SimulationError
 from somo_sweep.model.description import Pose
 from somo_sweep.model.load import load_model, model_from_dict
 from somo_sweep.model.setpoints import SetpointTable
-from somo_sweep.sim.pybullet import world as world_module
+from somo_sweep.sim.pybullet import clients
 from somo_sweep.sim.settings import WorldSettings
 from somo_sweep.sim.urdf import cache_dir, plan_assembly, write_urdf
 from somo_sweep.sim.worlds import open_world
@@ -243,18 +243,18 @@ def _sag_and_client() -> tuple[int, list[float], list[float]]:
 
 
 def test_a_forked_child_gets_the_spare_client_and_the_same_physics(monkeypatch: pytest.MonkeyPatch) -> None:
-    monkeypatch.setattr(world_module, "_spare_client", None)
+    monkeypatch.setattr(clients, "_spare_client", None)
     _, q_fresh, qd_fresh = _in_child(_sag_and_client)  # type: ignore[misc]
-    world_module.keep_spare_client()
-    spare = world_module._spare_client
+    clients.keep_spare_client()
+    spare = clients._spare_client
     assert spare is not None and spare[1] == os.getpid()
     child_client, q_spare, qd_spare = _in_child(_sag_and_client)  # type: ignore[misc]
     assert child_client == spare[0]  # the child took the inherited client ...
     assert (q_spare, qd_spare) == (q_fresh, qd_fresh)  # ... and it simulates bit for bit alike
     with open_world() as here:  # this process never takes its own spare
         assert here.client != spare[0]
-    world_module.keep_spare_client()  # connecting again keeps the one spare
-    assert world_module._spare_client == spare
+    clients.keep_spare_client()  # connecting again keeps the one spare
+    assert clients._spare_client == spare
     pb.disconnect(physicsClientId=spare[0])
 
 

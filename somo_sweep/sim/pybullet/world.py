@@ -7,8 +7,6 @@ stiffness ×Y²; masses unchanged. Every public method takes and returns SI.
 
 from __future__ import annotations
 
-import os
-import threading
 from collections.abc import Callable, Sequence
 from time import perf_counter
 from typing import cast
@@ -18,47 +16,19 @@ import numpy.typing as npt
 import pybullet as p
 
 from somo_sweep.errors import SimulationError, UnstableSimulation
-from somo_sweep.model.description import Link, Pose
+from somo_sweep.model.description import Pose
 from somo_sweep.model.load import Model
 from somo_sweep.sim.camera import Camera
 from somo_sweep.sim.plan import BodyPlan
+from somo_sweep.sim.pybullet.bodies import apply_dynamics, body_indices, hold_base, load_urdf
+from somo_sweep.sim.pybullet.clients import connect, keep_spare_client
 from somo_sweep.sim.pybullet.render import tiny_renderer_image
 from somo_sweep.sim.pybullet.springs import SpringDrive
 from somo_sweep.sim.settings import WorldSettings
-from somo_sweep.sim.urdf import plan_assembly, write_urdf
+from somo_sweep.sim.urdf import plan_assembly
 from somo_sweep.sim.world import MAX_JOINT_SPEED_RAD_S, THROWN_DISTANCE_M, Body, ModelHandle, World
 
 __all__ = ["PyBulletWorld", "keep_spare_client"]
-
-#: (client id, process id) of a PyBullet client connected ahead of time for the children this
-#: process forks (:func:`keep_spare_client`); the lock keeps two threads from connecting at once.
-_spare_client: tuple[int, int] | None = None
-_spare_lock = threading.Lock()
-
-
-def keep_spare_client() -> None:
-    """Connect one PyBullet client now, for the first world of each child forked from here.
-
-    A client connected in a newly forked child costs about 30 ms of CPU (9,500 page faults: its
-    buffers are allocated and zeroed there); one inherited from the parent, about 9 ms (2,300).
-    The sweep engine forks every trial, so its workers call this before forking. This process
-    never uses the client itself, and a child gets it exactly as just connected, with nothing
-    loaded: a trial is the same on it as on a new one.
-    """
-    global _spare_client
-    with _spare_lock:
-        if _spare_client is None:
-            _spare_client = (p.connect(p.DIRECT), os.getpid())
-
-
-def _connect() -> int:
-    """A new DIRECT client: the parent's spare in a forked child (once), else a fresh one."""
-    global _spare_client
-    spare = _spare_client  # no lock: a forked child has one thread, and the parent never takes it
-    if spare is not None and spare[1] != os.getpid():
-        _spare_client = None
-        return spare[0]
-    return int(p.connect(p.DIRECT))
 
 
 class PyBulletWorld(World):
@@ -76,7 +46,7 @@ class PyBulletWorld(World):
         if s.time_step_s <= 0 or s.scale <= 0:
             raise SimulationError("time_step_s and scale must be > 0")
         self.scale = float(s.scale)
-        self.client = _connect()
+        self.client = connect()
         p.resetSimulation(physicsClientId=self.client)
         p.setPhysicsEngineParameter(
             fixedTimeStep=s.time_step_s,
@@ -114,24 +84,6 @@ class PyBulletWorld(World):
             p.disconnect(physicsClientId=self.client)
             self.client = -1
 
-    def _apply_dynamics(self, body: int, index: int, link: Link) -> None:
-        f = link.friction
-        # Bullet's default link damping (0.04, with a speed-squared term) is switched off: it is
-        # not scale-invariant and would add an unmodelled drag; damping is the joints' business.
-        kwargs: dict[str, object] = dict(
-            lateralFriction=f.lateral,
-            spinningFriction=f.spinning * self.scale,
-            rollingFriction=f.rolling * self.scale,
-            restitution=link.restitution,
-            linearDamping=0.0,
-            angularDamping=0.0,
-        )
-        if f.anisotropic is not None:
-            kwargs["anisotropicFriction"] = list(f.anisotropic)
-        if f.anchor:
-            kwargs["frictionAnchor"] = 1
-        p.changeDynamics(body, index, physicsClientId=self.client, **kwargs)
-
     def load_plan(self, plan: BodyPlan, pose: Pose | None = None) -> Body:
         """Load one planned body at ``pose`` (default: the plan's pose)."""
         if abs(plan.scale - self.scale) > 1e-12:
@@ -139,30 +91,11 @@ class PyBulletWorld(World):
         pose = pose or plan.pose
         pos = [c * self.scale for c in pose.position_m]
         orn = p.getQuaternionFromEuler(pose.rpy_rad)
-        # Branches of one body (two fingers on a palm) collide; a chain never with its ancestors.
-        flags = (
-            p.URDF_USE_INERTIA_FROM_FILE
-            | p.URDF_MAINTAIN_LINK_ORDER
-            | p.URDF_USE_SELF_COLLISION
-            | p.URDF_USE_SELF_COLLISION_EXCLUDE_ALL_PARENTS
-        )
-        body_id = p.loadURDF(
-            str(write_urdf(plan.urdf)),
-            pos,
-            orn,
-            useFixedBase=plan.mode == "fixed",
-            flags=flags,
-            physicsClientId=self.client,
-        )
-        link_index = {plan.links[0].name: -1}
-        joint_index: dict[str, int] = {}
-        for j in range(p.getNumJoints(body_id, physicsClientId=self.client)):
-            info = p.getJointInfo(body_id, j, physicsClientId=self.client)
-            joint_index[info[1].decode()] = j
-            link_index[info[12].decode()] = j
+        body_id = load_urdf(self.client, plan, pos, orn)
+        link_index, joint_index = body_indices(self.client, body_id, plan.links[0].name)
         for info_l in plan.links:
             if info_l.link is not None:
-                self._apply_dynamics(body_id, link_index[info_l.name], info_l.link)
+                apply_dynamics(self.client, self.scale, body_id, link_index[info_l.name], info_l.link)
         drive = SpringDrive(
             self.client,
             body_id,
@@ -177,22 +110,7 @@ class PyBulletWorld(World):
         drive.enable_motors()
         body = Body(plan, body_id, link_index, drive)
         if plan.mode == "driven":
-            # The body's base frame is held at the world frame (pos, orn); drive_base moves that
-            # world frame. The orientations go by keyword: the fifth positional one is the
-            # parent's, which would yank a tilted base upright.
-            body.constraint = p.createConstraint(
-                body_id,
-                -1,
-                -1,
-                -1,
-                p.JOINT_FIXED,
-                jointAxis=[0, 0, 0],
-                parentFramePosition=[0, 0, 0],
-                childFramePosition=pos,
-                parentFrameOrientation=[0, 0, 0, 1],
-                childFrameOrientation=orn,
-                physicsClientId=self.client,
-            )
+            body.constraint = hold_base(self.client, body_id, pos, orn)
         if plan.mode != "fixed":
             self._free.append(body_id)
         self.bodies.append(body)
