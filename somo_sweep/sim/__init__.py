@@ -1,74 +1,29 @@
-"""The PyBullet stage. Importing it imports no PyBullet, but makes its first import quiet.
+"""The simulation stage: descriptions → body plans → worlds on either engine, and the bench.
 
-PyBullet's C extension prints ``pybullet build time: …`` when it is first imported (to
-standard error in the 3.2.7 wheels, to standard output in some builds), which would land
-in every command's output once per worker process. A finder on ``sys.meta_path`` loads
-``pybullet`` with file descriptors 1 and 2 pointed at ``/dev/null``; every module that
-imports PyBullet lives in or below this package or imports from it first (the task
+* plans: :mod:`~somo_sweep.sim.urdf` (with :mod:`~somo_sweep.sim.urdf_builder`) turns a model
+  into :class:`~somo_sweep.sim.plan.BodyPlan` objects (URDF text and metadata);
+* worlds: :class:`~somo_sweep.sim.world.World` is the interface tasks use, in SI;
+  :func:`~somo_sweep.sim.worlds.open_world` opens it on the engine its
+  :class:`~somo_sweep.sim.settings.WorldSettings` name: :mod:`somo_sweep.sim.pybullet` (the
+  default, the paper's) or :mod:`somo_sweep.sim.mujoco` (optional extra), the only packages
+  that import an engine; :mod:`~somo_sweep.sim.render` takes snapshots;
+* the bench: :func:`~somo_sweep.sim.bench.run_bench` runs a row of the bench protocols on the
+  rig of :mod:`~somo_sweep.sim.bench_rig`, solved statically (:mod:`~somo_sweep.sim.statics`)
+  or by dynamic relaxation (:mod:`~somo_sweep.sim.relaxation`);
+* numerics: :mod:`~somo_sweep.sim.numerics` chooses PyBullet's step and inertia shaping from
+  the chains' modes (:mod:`~somo_sweep.sim.modes`).
+
+The package itself re-exports nothing: loading a study imports :mod:`somo_sweep.sim.settings`,
+which must stay cheap, and each entry point above lives in its own module. Importing it
+imports no engine, but makes PyBullet's first import quiet (:mod:`~somo_sweep.sim.quiet`):
+every module that imports PyBullet lives below this package or imports from it first (the task
 registry does), so the hook is in place before any such import.
 """
 
 from __future__ import annotations
 
-import contextlib
-import ctypes
-import importlib.abc
-import importlib.machinery
-import os
-import sys
-from collections.abc import Iterator
-from types import ModuleType
-from typing import Any
+from somo_sweep.sim.quiet import quiet_pybullet_import
 
 __all__: list[str] = []
 
-
-@contextlib.contextmanager
-def _silenced() -> Iterator[None]:
-    """File descriptors 1 and 2 go to /dev/null inside the block (C-level prints included)."""
-    saved: list[tuple[int, int]] = []
-    null = os.open(os.devnull, os.O_WRONLY)
-    try:
-        for fd, stream in ((1, sys.stdout), (2, sys.stderr)):
-            with contextlib.suppress(OSError, ValueError, AttributeError):
-                stream.flush()
-            try:
-                saved.append((fd, os.dup(fd)))
-            except OSError:  # not open: nothing to silence
-                continue
-            os.dup2(null, fd)
-        yield
-    finally:
-        with contextlib.suppress(OSError, AttributeError):
-            ctypes.CDLL(None).fflush(None)  # the extension's buffered C stdio
-        for fd, copy in saved:
-            os.dup2(copy, fd)
-            os.close(copy)
-        os.close(null)
-
-
-class _QuietLoader(importlib.abc.Loader):
-    def __init__(self, inner: Any):
-        self.inner = inner
-
-    def create_module(self, spec: importlib.machinery.ModuleSpec) -> ModuleType | None:
-        with _silenced():
-            return self.inner.create_module(spec)
-
-    def exec_module(self, module: ModuleType) -> None:
-        with _silenced():
-            self.inner.exec_module(module)
-
-
-class _QuietPyBullet(importlib.abc.MetaPathFinder):
-    def find_spec(self, name: str, path: Any, target: Any = None) -> importlib.machinery.ModuleSpec | None:
-        if name != "pybullet":
-            return None
-        spec = importlib.machinery.PathFinder.find_spec(name, path)
-        if spec is not None and spec.loader is not None:
-            spec.loader = _QuietLoader(spec.loader)
-        return spec
-
-
-if "pybullet" not in sys.modules and not any(isinstance(f, _QuietPyBullet) for f in sys.meta_path):
-    sys.meta_path.insert(0, _QuietPyBullet())
+quiet_pybullet_import()

@@ -1,6 +1,6 @@
 """Numerics that choose themselves: the time step and inertia shaping of a model, from its modes.
 
-The springs are explicit torques (:mod:`somo_sweep.sim.springs`: τ = −k·(q − q0) − c·q̇ from
+The springs are explicit torques (:mod:`somo_sweep.sim.pybullet.springs`: τ = −k·(q − q0) − c·q̇ from
 the state at the start of the step) integrated by Bullet's semi-implicit Euler, which is
 stable for a linear undamped mode of frequency ω iff ω·dt < 2. Measured on PyBullet 3.2.7
 with the Coulomb motors off (:mod:`somo_sweep.sim.stability`): the blow-up step of one link

@@ -1,8 +1,8 @@
-"""The plan of one PyBullet body: its links and spring joints, before any client exists.
+"""The plan of one body: its links and spring joints, before any engine loads it.
 
 :mod:`somo_sweep.sim.urdf` turns descriptions into :class:`BodyPlan` objects (URDF
-text plus metadata); :mod:`somo_sweep.sim.world` loads them and keeps the metadata
-as numpy arrays for the per-step spring update.
+text plus metadata); each engine's world loads them (PyBullet from the URDF file, MuJoCo from
+the same text read back as a tree) and keeps the spring joints' metadata for its drive.
 """
 
 from __future__ import annotations

@@ -11,7 +11,7 @@ import numpy as np
 import pybullet as p
 
 from somo_sweep.model.description import Manipulator
-from somo_sweep.sim import _silenced
+from somo_sweep.sim.quiet import silenced
 from somo_sweep.sim.urdf import plan_manipulator, write_urdf
 
 __all__ = ["neutral_mass_matrix"]
@@ -22,7 +22,7 @@ def neutral_mass_matrix(manip: Manipulator, floating: bool) -> tuple[np.ndarray,
     plan = plan_manipulator(manip, 1.0, mode="free" if floating else "fixed")
     client = p.connect(p.DIRECT)
     try:
-        with _silenced():  # a massless anchor root makes Bullet print a warning; it has no DoF
+        with silenced():  # a massless anchor root makes Bullet print a warning; it has no DoF
             body = p.loadURDF(
                 str(write_urdf(plan.urdf)),
                 useFixedBase=not floating,
