@@ -106,7 +106,9 @@ def _solved_row(
     row = solve_row(manip, test, pressure_kpa, tip_load_n, settings, direction)
     if not row.status.converged:
         cause = row.status.cause
-        if not cause.startswith("no stable equilibrium"):  # proven absent, or the solver's failure
+        # A proof is the message; any other failure is the solver's (a tip-load row's cause names
+        # its state first, and is worded as the solver's).
+        if not (row.status.proven_absent and test != "tip_load"):
             cause = f"no static equilibrium found ({cause})"
         raise SimulationError(f"bench {test} at {pressure_kpa} kPa: {cause}")
     return BenchResult(row.value, row.status.iterations)

@@ -50,6 +50,9 @@ class SolveStatus:
         residual_norm: Largest generalized force imbalance left, N·m (N for prismatic joints).
         cause: Why it failed (empty when converged).
         contacts: Active plate contacts at the end (``blocked_force``).
+        proven_absent: The row has no stable equilibrium, proven: the cause gives the proof
+            (:func:`~somo_sweep.sim.no_equilibrium.proof_of_no_equilibrium`), after the state it
+            concerns for a ``tip_load`` row. False when the solver found none without a proof.
     """
 
     converged: bool
@@ -57,6 +60,7 @@ class SolveStatus:
     residual_norm: float
     cause: str = ""
     contacts: int = 0
+    proven_absent: bool = False
 
 
 @dataclass(frozen=True)
@@ -180,7 +184,7 @@ class StaticChain:
             found, tried = self._continued(starts, target, plate, budget, guard)
             if found is None:
                 first.iterations = MAX_ITERATIONS_TOTAL - budget[0]
-                first.cause = self._failure_cause(first.cause, target, plate, tried)
+                first.cause, first.proven_absent = self._failure_cause(first.cause, target, plate, tried)
                 return first
             eq = found
         eq.iterations = MAX_ITERATIONS_TOTAL - budget[0]
@@ -262,15 +266,15 @@ class StaticChain:
             guard[soft] = np.minimum(2 * np.maximum(zero, stable), DIVERGED_RAD)
         return guard
 
-    def _failure_cause(self, cause: str, load: Load, plate: bool, continuations: int) -> str:
-        """The proven reason there is no equilibrium, or what the solver tried."""
+    def _failure_cause(self, cause: str, load: Load, plate: bool, continuations: int) -> tuple[str, bool]:
+        """The proven reason there is no equilibrium, or what the solver tried; whether it is a proof."""
         proof = ""
         if self.body.all_revolute and not existence_proven(self.k, self.k3):
             limited = np.zeros(len(self.k), bool)
             limited[self.body.limited] = True
             proof = proof_of_no_equilibrium(self.k, self.k3, load.u, self._moments(load), plate, limited)
         if proof:
-            return proof
+            return proof, True
         exists = existence_proven(self.k, self.k3)
         why = "one exists (springs that never soften)" if exists else "none is proven absent"
         tried = (
@@ -278,7 +282,7 @@ class StaticChain:
             if continuations
             else ""
         )
-        return f"the solver found no equilibrium although {why}: {cause}{tried}"
+        return f"the solver found no equilibrium although {why}: {cause}{tried}", False
 
     # ----------------------------------------------------------------- protocols
     def free_state(self, pressure_kpa: float, approach: float, gravity: float) -> Equilibrium:
@@ -356,4 +360,5 @@ def _failed(test: str, eq: Equilibrium, where: str = "", iterations: int | None 
         (math.nan, math.nan, math.nan) if test == "free_bending" else math.nan
     )
     its = eq.iterations if iterations is None else iterations
-    return RowSolution(nan, SolveStatus(False, its, eq.residual, where + (eq.cause or "not converged")))
+    cause = where + (eq.cause or "not converged")
+    return RowSolution(nan, SolveStatus(False, its, eq.residual, cause, proven_absent=eq.proven_absent))

@@ -64,6 +64,8 @@ class Equilibrium:
         cause: Why it failed (empty when converged).
         force_n: Total plate reaction, N (``blocked_force``).
         contacts: Active plate contacts.
+        proven_absent: The cause is a proof that no stable equilibrium exists (not the solver's
+            failure).
     """
 
     q: np.ndarray
@@ -73,6 +75,7 @@ class Equilibrium:
     cause: str = ""
     force_n: float = 0.0
     contacts: int = 0
+    proven_absent: bool = False
 
 
 class Merit:

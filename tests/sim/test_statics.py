@@ -392,11 +392,20 @@ def test_a_row_without_equilibrium_is_a_status_not_an_exception() -> None:
     assert all(math.isnan(v) for v in row.value)  # type: ignore[union-attr]
     assert row.status.iterations <= MAX_ITERATIONS_TOTAL
     # Proven: the actuation exceeds what the softening springs hold where the finger is stable.
-    assert row.status.cause.startswith("no stable equilibrium: joint ")
+    assert row.status.proven_absent and row.status.cause.startswith("no stable equilibrium: joint ")
     with pytest.raises(SimulationError, match=r"no stable equilibrium: joint .* holds at most"):
         run_bench(_softened(), "free_bending", 100.0)
     bad = solve_row(_softened(), "tipload", 0.0)  # even a bad request is a status
-    assert not bad.ok and "unknown test" in bad.status.cause
+    assert not bad.ok and "unknown test" in bad.status.cause and not bad.status.proven_absent
+
+
+def test_a_tip_load_row_without_equilibrium_names_its_state_and_stays_the_solvers_failure_in_run_bench() -> (
+    None
+):
+    row = solve_row(_softened(), "tip_load", 100.0, 0.01)
+    assert row.status.proven_absent and row.status.cause.startswith("unloaded state: no stable equilibrium")
+    with pytest.raises(SimulationError, match=r"no static equilibrium found \(unloaded state: no stable"):
+        run_bench(_softened(), "tip_load", 100.0, 0.01)
 
 
 def test_simulate_rows_and_calibration_record_failed_rows_instead_of_aborting() -> None:
