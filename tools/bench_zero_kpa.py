@@ -24,8 +24,8 @@ from contextlib import contextmanager
 
 import numpy as np
 
-import somo_sweep.sim.bench as bench
 import somo_sweep.sim.chain_kinematics as chain_kinematics
+import somo_sweep.sim.relaxation as relaxation
 import somo_sweep.sim.statics as statics
 from somo_sweep.model.description import Manipulator
 from somo_sweep.model.load import load_model
@@ -47,7 +47,7 @@ def _segment_m(manip: Manipulator) -> float:
 @contextmanager
 def plate_past_first_segment(segments: float = 1.0) -> Iterator[None]:
     """The bench's plate, starting ``segments`` segments of the first actuator past the clamp."""
-    original = bench.stop_geometry
+    original = relaxation.stop_geometry
 
     def shifted(
         manip: Manipulator, origin_m: np.ndarray, tip_x_m: float, stop_z_m: float | None = None
@@ -61,11 +61,11 @@ def plate_past_first_segment(segments: float = 1.0) -> Iterator[None]:
 
     # The solved statics caches each finger's chain with its plate: start and end without it.
     statics.clear_cache()
-    bench.stop_geometry = chain_kinematics.stop_geometry = shifted
+    relaxation.stop_geometry = chain_kinematics.stop_geometry = shifted
     try:
         yield
     finally:
-        bench.stop_geometry = chain_kinematics.stop_geometry = original
+        relaxation.stop_geometry = chain_kinematics.stop_geometry = original
         statics.clear_cache()
 
 

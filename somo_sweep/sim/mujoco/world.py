@@ -31,14 +31,15 @@ from somo_sweep.sim.mujoco.compiled import filter_contacts, read_addresses
 from somo_sweep.sim.mujoco.contacts import contact_table, select_contacts
 from somo_sweep.sim.mujoco.drive import MujocoDrive
 from somo_sweep.sim.mujoco.driven import DrivenRoots
+from somo_sweep.sim.mujoco.free_joint import check_free_body, free_base_pose, free_base_velocity
 from somo_sweep.sim.mujoco.render import mujoco_image
 from somo_sweep.sim.mujoco.scene import GeomInfo, PlannedBody, add_plan, decorate_ground, set_options
 from somo_sweep.sim.mujoco.surfaces import Surface
 from somo_sweep.sim.plan import BodyPlan
-from somo_sweep.sim.rotations import matrix_from_quat, multiply_transforms, quat_from_rpy, rpy_from_quat, xyzw
+from somo_sweep.sim.rotations import multiply_transforms, quat_from_rpy, rpy_from_quat, xyzw
 from somo_sweep.sim.settings import WorldSettings
 from somo_sweep.sim.urdf import plan_assembly
-from somo_sweep.sim.world import MAX_JOINT_SPEED_RAD_S, THROWN_DISTANCE_M, Body, ModelHandle, World
+from somo_sweep.sim.world import MAX_JOINT_SPEED_RAD_S, Body, ModelHandle, World
 
 __all__ = ["MujocoWorld"]
 
@@ -55,8 +56,6 @@ def _keep_warning(text: str) -> None:
 mujoco.set_mju_user_warning(_keep_warning)
 
 
-#: Largest linear speed of a free body in a sane run, m/s (a blow-up detector: MuJoCo caps nothing).
-MAX_BODY_SPEED_M_S = 100.0
 #: Steps between checks of the spring joints' speeds (a blow-up persists: NaN or ever faster).
 SPEED_CHECK_EVERY = 10
 
@@ -329,24 +328,10 @@ class MujocoWorld(World):
         """Raise if a free body left the scene, moves implausibly fast, or is not finite."""
         d = self.data
         names = {b.id: b.plan.name for b in self.bodies}
+        capped = not self.settings.clamp_speed_cap
         for body_id in self._free:
-            name = f"body '{names[body_id]}'"
-            qpos = d.qpos[self._root_qpos[body_id]]
-            qvel = d.qvel[self._root_dof[body_id]]
-            dist = float(np.linalg.norm(qpos[:3]))
-            if not (np.isfinite(dist) and np.isfinite(qvel).all()):
-                raise UnstableSimulation("nan", self.time_s, f"{name} position")
-            if dist > THROWN_DISTANCE_M:
-                raise UnstableSimulation("thrown", self.time_s, f"{name} at {dist:.1f} m")
-            if not self.settings.clamp_speed_cap and (
-                np.abs(qvel[:3]).max() >= MAX_BODY_SPEED_M_S
-                or np.abs(qvel[3:]).max() >= MAX_JOINT_SPEED_RAD_S
-            ):
-                raise UnstableSimulation(
-                    "speed_cap",
-                    self.time_s,
-                    f"{name} past {MAX_BODY_SPEED_M_S:g} m/s or {MAX_JOINT_SPEED_RAD_S:g} rad/s",
-                )
+            qpos, qvel = d.qpos[self._root_qpos[body_id]], d.qvel[self._root_dof[body_id]]
+            check_free_body(f"body '{names[body_id]}'", qpos, qvel, self.time_s, capped)
 
     # ----------------------------------------------------------------- reading
     def _kinematics(self) -> None:
@@ -400,12 +385,7 @@ class MujocoWorld(World):
     def base_pose(self, body_id: int) -> tuple[np.ndarray, np.ndarray]:
         """Base position (its centre of mass, m) and quaternion (x, y, z, w) of a body."""
         if body_id in self._free and not self._dirty:  # from the free joint, without kinematics
-            qpos = self._qpos[self._root_qpos[body_id]]
-            quat = (qpos[4], qpos[5], qpos[6], qpos[3])
-            com = self._com_offset[body_id]
-            if com is None:  # the centre of mass at the body's origin (a plain rigid body)
-                return qpos[:3].copy(), np.array(quat)
-            return qpos[:3] + matrix_from_quat(quat) @ com, np.array(quat)
+            return free_base_pose(self._qpos[self._root_qpos[body_id]], self._com_offset[body_id])
         self._kinematics()
         bid = self._root_body(body_id)
         return self.data.xipos[bid].copy(), xyzw(self.data.xquat[bid])
@@ -413,14 +393,8 @@ class MujocoWorld(World):
     def base_velocity(self, body_id: int) -> tuple[np.ndarray, np.ndarray]:
         """Base linear velocity (m/s, of its centre of mass) and angular velocity (rad/s), world frame."""
         if body_id in self._free and not self._dirty:  # a free joint: origin's speed (world), spin (local)
-            qpos = self._qpos[self._root_qpos[body_id]]
-            qvel = self._qvel[self._root_dof[body_id]]
-            spin = matrix_from_quat((qpos[4], qpos[5], qpos[6], qpos[3])) @ qvel[3:]
-            com = self._com_offset[body_id]
-            if com is None:
-                return qvel[:3].copy(), spin
-            arm = matrix_from_quat((qpos[4], qpos[5], qpos[6], qpos[3])) @ com
-            return qvel[:3] + np.cross(spin, arm), spin
+            qpos, qvel = self._qpos[self._root_qpos[body_id]], self._qvel[self._root_dof[body_id]]
+            return free_base_velocity(qpos, qvel, self._com_offset[body_id])
         self._kinematics()
         m, d = self.model, self.data
         bid = self._root_body(body_id)
