@@ -25,8 +25,9 @@ from somo_sweep.sim.settings import WorldSettings
 from somo_sweep.sim.urdf import plan_rigid_body
 from somo_sweep.sim.world import World
 from somo_sweep.sweep.study import load_study
+from somo_sweep.tasks.pinch_grasp.gripper import gripper, object_body
 from somo_sweep.tasks.pinch_grasp.params import ORIGINAL_HULL_SIZE_M, Numerics, PinchGraspParams
-from somo_sweep.tasks.pinch_grasp.task import gripper, object_body, run_pinch_grasp
+from somo_sweep.tasks.pinch_grasp.task import run_pinch_grasp
 
 STUDIES = MODELS.parent
 REFERENCE = ROOT / "results" / "reference"

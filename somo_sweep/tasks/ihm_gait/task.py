@@ -38,7 +38,7 @@ from somo_sweep.sim.world import Body, World
 from somo_sweep.tasks.ihm_gait.params import GaitParams, check_hand
 from somo_sweep.tasks.registry import TaskResult
 
-__all__ = ["UNBUILDABLE", "GaitParams", "GaitRun", "load_pressure_table", "simulate_gait"]
+__all__ = ["UNBUILDABLE", "GaitParams", "GaitRun", "load_pressure_table", "run_ihm_gait", "simulate_gait"]
 
 #: The cube counts as dropped once it has moved this far up or down from its seat on the palm, m.
 DROP_HEIGHT_M = 0.020
@@ -165,7 +165,8 @@ def simulate_gait(model: Model, params: GaitParams, settings: WorldSettings, see
     return GaitRun(np.asarray(times), pos_arr, rot_z - rot_z[0], np.degrees(eul[:, :2]))
 
 
-def _run(model: Model, params: GaitParams, settings: WorldSettings, seed: int) -> TaskResult:
+def run_ihm_gait(model: Model, params: GaitParams, settings: WorldSettings, seed: int) -> TaskResult:
+    """One gait trial: the object's rotation, drift and tilt, and its outcome label."""
     try:
         run = simulate_gait(model, params, settings, seed)
     except UnstableSimulation as exc:

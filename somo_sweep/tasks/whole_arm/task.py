@@ -33,7 +33,7 @@ from somo_sweep.sim.world import World
 from somo_sweep.tasks.registry import TaskResult
 from somo_sweep.tasks.whole_arm.params import WholeArmParams, torque_columns
 
-__all__ = ["WholeArmParams", "WholeArmRun", "load_torque_table", "simulate_whole_arm"]
+__all__ = ["WholeArmParams", "WholeArmRun", "load_torque_table", "run_whole_arm", "simulate_whole_arm"]
 
 
 # Scene constants (m, kg). The rails leave a 60-mm gap the wrapping arm (40 mm wide) passes through.
@@ -242,7 +242,8 @@ def simulate_whole_arm(
     return run, frames
 
 
-def _run(model: Model, params: WholeArmParams, settings: WorldSettings, seed: int) -> TaskResult:
+def run_whole_arm(model: Model, params: WholeArmParams, settings: WorldSettings, seed: int) -> TaskResult:
+    """One whole-arm trial: the ball's lift and hoop crossing, and its outcome label."""
     del seed  # deterministic: no randomness in this task
     try:
         run, _ = simulate_whole_arm(model, params, settings)
