@@ -1,4 +1,4 @@
-"""The original configuration of the pinch study (issue #30): geometry, link numbering, hand path, object.
+"""The original configuration of the pinch study: geometry, link numbering, hand path, object.
 
 The reference numbers are the original code's own bodies as PyBullet loads them (GrauleM/somo
 755978b, read with ``tools/original_fig6/run_original_cells.py --inspect``): where each collision
