@@ -11,7 +11,6 @@ separated by commas, or by ``;`` or tabs when the header has no comma (then ``1,
 
 from __future__ import annotations
 
-import csv
 import io
 import math
 import re
@@ -19,6 +18,7 @@ from pathlib import Path
 
 import pandas as pd
 
+from somo_sweep.calibration.csv_rows import CsvRows, line_of, split_rows
 from somo_sweep.errors import MeasurementError, did_you_mean, shown
 from somo_sweep.model.files import decode_utf8, is_file, missing_or_special
 from somo_sweep.model.load import Model
@@ -74,88 +74,12 @@ RANGES: dict[str, tuple[float, float, str]] = {
 }
 
 
-def _line(row: int, row_lines: list[int]) -> int:
-    """File line (1-based) of data row ``row`` (0-based); past the known lines, the last known line."""
-    return row_lines[min(row, len(row_lines) - 1)] if row_lines else row + 2
-
-
-def _open_at_end(line: str, sep: str, quoted: bool) -> bool:
-    """Whether a quoted field is still open at the end of ``line`` (``quoted``: open at its start).
-
-    As the CSV readers have it: a field is quoted when ``"`` is its first character, ``""``
-    inside it is one quote, and a ``"`` elsewhere in an unquoted field is just a character.
-    """
-    i = 0
-    while True:
-        j = line.find('"', i)
-        if j < 0:
-            return quoted
-        if quoted:
-            if line[j + 1 : j + 2] == '"':  # a quote inside the field
-                i = j + 2
-                continue
-            quoted = False
-        else:  # j == 0 only on a row's first line: a continuation line starts inside the field
-            quoted = j == 0 or line[j - 1] == sep
-        i = j + 1
-
-
-def _records(lines: list[str], sep: str) -> list[tuple[int, str]]:
-    """The header and data rows of a CSV's lines, each with its first line (1-based).
-
-    Comments are whole lines starting with '#' (after blanks); a '#' inside a line is data
-    ('#N/A' from a spreadsheet is a bad value, not the end of the row). Blank lines are
-    skipped too. A quoted field holding a line break makes one row of several lines (a blank
-    or '#' line inside it is part of the field), so the rows after it keep their own lines.
-
-    Raises:
-        ValueError: A quoted field is still open at the end of the file (naming its line).
-    """
-    records: list[tuple[int, str]] = []
-    i = 0
-    while i < len(lines):
-        first = i
-        if lines[i].strip() and not lines[i].lstrip().startswith("#"):
-            still_open = _open_at_end(lines[i], sep, quoted=False)
-            while still_open and i + 1 < len(lines):
-                i += 1
-                still_open = _open_at_end(lines[i], sep, quoted=True)
-            if still_open:
-                raise ValueError(
-                    f'line {first + 1}: a field opens a quote (") that is never closed; close it, or '
-                    "remove the quote"
-                )
-            records.append((first + 1, "\n".join(lines[first : i + 1])))
-        i += 1
-    return records
-
-
 #: Most data rows a measurement file may have (a bench session has tens to hundreds).
 MAX_ROWS = 5000
 #: Largest measurement file read, in bytes (5000 rows of a bench file take well under 1 MiB).
 MAX_FILE_BYTES = 8 * 1024 * 1024
-
-
-def _separator(text: str) -> str:
-    """The field separator: ',' unless the header has none and has ';' or tabs instead.
-
-    Spreadsheets in locales with a decimal comma export "CSV" separated by ';' (and write
-    1,5 for 1.5); a header without a single comma is unambiguous about it.
-    """
-    for line in text.splitlines():
-        stripped = line.strip()
-        if not stripped or stripped.startswith("#"):
-            continue
-        if "," in stripped:
-            return ","
-        return ";" if ";" in stripped else "\t" if "\t" in stripped else ","
-    return ","
-
-
 #: A number as a measurement CSV writes it (ASCII digits, optional sign, point and exponent; inf).
 _NUMBER = re.compile(r"[+-]?(\d+\.?\d*|\.\d+)([eE][+-]?\d+)?|[+-]?inf(inity)?", re.IGNORECASE | re.ASCII)
-#: Most fields a line of a measurement CSV may have (it has at most a dozen columns).
-MAX_FIELDS = 64
 
 
 def read_measurements(path: str | Path, require_measured: bool = True) -> pd.DataFrame:
@@ -176,6 +100,30 @@ def read_measurements(path: str | Path, require_measured: bool = True) -> pd.Dat
         MeasurementError: Naming every bad row and column at once.
     """
     path = bundled_if_missing(path, "tables", ".csv")
+    rows = split_rows(path, _read_text(path))
+    raw = _parse_table(path, rows)
+    _check_columns(path, raw)
+    problems: list[str] = []
+    out = pd.DataFrame({"test": raw["test"].str.strip()})
+    for c in NUMERIC + list(OPTIONAL_MEASURED):
+        out[c] = _column_values(raw, c, rows, problems) if c in raw.columns else math.nan
+    for c, choices in OPTIONAL.items():
+        if c in raw.columns:
+            out[c] = raw[c].str.strip()
+            problems += _unknown_choices(out[c], c, choices, rows.row_lines)
+    out["line"] = [line_of(i, rows.row_lines) for i in range(len(out))]
+    problems += _row_problems(out, require_measured)
+    if problems:
+        raise MeasurementError(path, problems)
+    return out.reset_index(drop=True)
+
+
+def _read_text(path: Path) -> str:
+    """The text of a measurement file that exists, is not too large and is UTF-8.
+
+    Raises:
+        MeasurementError: Not found (naming the bundled tables), a special file, too large, not UTF-8.
+    """
     if not is_file(path):
         why = missing_or_special(path)
         raise MeasurementError(path, [not_found(path, "tables", ".csv") if why == "file not found" else why])
@@ -186,61 +134,22 @@ def read_measurements(path: str | Path, require_measured: bool = True) -> pd.Dat
             path, [f"file is {size} bytes; allowed: at most {limit} (at most {MAX_ROWS} data rows)"]
         )
     try:
-        text = decode_utf8(path.read_bytes())
+        return decode_utf8(path.read_bytes())
     except ValueError as exc:
         raise MeasurementError(path, [str(exc)]) from None
-    lines = text.splitlines()
-    sep = _separator(text)
-    for number, ln in enumerate(lines, start=1):  # before pandas makes a column of each field
-        if ln.count(sep) >= MAX_FIELDS and not ln.lstrip().startswith("#"):
-            raise MeasurementError(
-                path, [f"line {number} has {ln.count(sep) + 1} fields; allowed: at most {MAX_FIELDS}"]
-            )
-    # Every row keeps its first file line for the messages (a quoted field holding a line break
-    # makes one row of two lines).
-    try:
-        kept = _records(lines, sep)
-    except ValueError as exc:
-        raise MeasurementError(path, [str(exc)]) from None
-    row_lines = [n for n, _ in kept[1:]]
-    header_line, header = kept[0] if kept else (0, "")
-    try:
-        names = [c.strip() for c in next(csv.reader(io.StringIO(header), delimiter=sep))] if header else []
-    except csv.Error:  # a huge field: pandas' own message follows
-        names = []
-    repeated = sorted({c for c in names if c and names.count(c) > 1})
-    if repeated:  # pandas would rename a repeated column to 'name.1'
-        twice = f"column '{shown(repeated[0])}' appears more than once in the header"
-        raise MeasurementError(path, [f"line {header_line}: {twice}"])
-    body = [ln for _, ln in kept]
-    if names:
-        # A row with more fields than the header: pandas made its first field the row's index
-        # and shifted every value one column left ("'grasp' is not a number" 21 times). Empty
-        # extra fields (a trailing comma on the data rows only) are dropped; others are refused.
-        width, longer = len(names), []
-        for i, (number, ln) in enumerate(kept[1:], start=1):
-            if ln.count(sep) < width:
-                continue
-            try:
-                fields = next(csv.reader(io.StringIO(ln), delimiter=sep))
-            except csv.Error:
-                continue
-            if len(fields) <= width:
-                continue
-            if any(f.strip() for f in fields[width:]):
-                longer.append(
-                    f"line {number} has {len(fields)} fields, the header (line {header_line}) {width}"
-                )
-            else:
-                line = io.StringIO()
-                csv.writer(line, delimiter=sep, lineterminator="").writerow(fields[:width])
-                body[i] = line.getvalue()
-        if longer:
-            raise MeasurementError(path, longer)
+
+
+def _parse_table(path: Path, rows: CsvRows) -> pd.DataFrame:
+    """The rows as a table of stripped strings, without the columns that have neither a header
+    nor a value (a trailing comma on every line, as spreadsheets export).
+
+    Raises:
+        MeasurementError: pandas cannot parse the rows.
+    """
     try:
         raw = pd.read_csv(
-            io.StringIO("\n".join(body)),
-            sep=sep,
+            io.StringIO("\n".join(rows.body)),
+            sep=rows.sep,
             dtype=str,
             keep_default_na=False,
             skip_blank_lines=True,
@@ -249,9 +158,16 @@ def read_measurements(path: str | Path, require_measured: bool = True) -> pd.Dat
     except (pd.errors.ParserError, pd.errors.EmptyDataError) as exc:
         raise MeasurementError(path, [f"cannot parse CSV: {exc}"]) from None
     raw.columns = [c.strip() for c in raw.columns]
-    # A column with no header and no value (a trailing comma on every line, as spreadsheets export).
     blank = [c for c in raw.columns if c.startswith("Unnamed: ") and not raw[c].str.strip().any()]
-    raw = raw.drop(columns=blank)
+    return raw.drop(columns=blank)
+
+
+def _check_columns(path: Path, raw: pd.DataFrame) -> None:
+    """Refuse missing and unknown columns (all at once), too many rows, and no rows.
+
+    Raises:
+        MeasurementError: Naming the columns, or the number of rows and what is allowed.
+    """
     problems: list[str] = []
     missing = [c for c in COLUMNS if c not in raw.columns]
     if missing:
@@ -274,51 +190,63 @@ def read_measurements(path: str | Path, require_measured: bool = True) -> pd.Dat
         )
     if raw.empty:
         raise MeasurementError(path, ["no data rows"])
-    out = pd.DataFrame({"test": raw["test"].str.strip()})
-    for c in NUMERIC + list(OPTIONAL_MEASURED):
-        if c not in raw.columns:
-            out[c] = math.nan
+
+
+def _column_values(raw: pd.DataFrame, c: str, rows: CsvRows, problems: list[str]) -> list[float]:
+    """The numbers of column ``c`` (NaN where empty or bad); a problem for every bad cell."""
+    values = []
+    for i, cell in enumerate(raw[c].str.strip()):
+        if cell == "":
+            values.append(math.nan)
             continue
-        values = []
-        for i, cell in enumerate(raw[c].str.strip()):
-            if cell == "":
-                values.append(math.nan)
-                continue
-            if sep != "," and cell.count(",") == 1 and "." not in cell:
-                cell = cell.replace(",", ".")  # a decimal comma (a spreadsheet's ';'-separated export)
-            if cell.lower().lstrip("+-") == "nan":
-                problems.append(
-                    f"line {_line(i, row_lines)}, column {c}: '{shown(cell)}' is not a measured "
-                    "value; leave the cell empty where nothing was measured"
-                )
-                values.append(math.nan)
-                continue
-            try:
-                # Plain ASCII decimals only: float() would also take '1_000' and other scripts' digits.
-                v = float(cell) if _NUMBER.fullmatch(cell) else float("x")
-            except ValueError:
-                problems.append(f"line {_line(i, row_lines)}, column {c}: '{shown(cell)}' is not a number")
-                v = math.nan
-            if not math.isnan(v) and not math.isfinite(v):
-                problems.append(f"line {_line(i, row_lines)}, column {c}: {shown(cell)} is not finite")
-            elif c in RANGES and not math.isnan(v) and not RANGES[c][0] <= v <= RANGES[c][1]:
-                low, high, unit = RANGES[c]
-                problems.append(
-                    f"line {_line(i, row_lines)}, column {c}: {v:g} is outside what a bench "
-                    f"measures; allowed: {low:g} to {high:g} {unit}; check the unit"
-                )
-            values.append(v)
-        out[c] = values
-    for c, choices in OPTIONAL.items():
-        if c in raw.columns:
-            out[c] = raw[c].str.strip()
-            for i, cell in enumerate(out[c]):
-                if cell not in choices and cell != "":
-                    problems.append(
-                        f"line {_line(i, row_lines)}, column {c}: '{shown(cell)}' is not "
-                        f"allowed{did_you_mean(cell, choices)}; allowed: {', '.join(choices)}"
-                    )
-    out["line"] = [_line(i, row_lines) for i in range(len(out))]
+        if rows.sep != "," and cell.count(",") == 1 and "." not in cell:
+            cell = cell.replace(",", ".")  # a decimal comma (a spreadsheet's ';'-separated export)
+        where = f"line {line_of(i, rows.row_lines)}, column {c}"
+        if cell.lower().lstrip("+-") == "nan":
+            problems.append(
+                f"{where}: '{shown(cell)}' is not a measured value; leave the cell empty where nothing "
+                "was measured"
+            )
+            values.append(math.nan)
+            continue
+        values.append(_number(cell, c, where, problems))
+    return values
+
+
+def _number(cell: str, c: str, where: str, problems: list[str]) -> float:
+    """The value of one non-empty cell of column ``c``; a problem when it is not a finite
+    number within what a bench measures (:data:`RANGES`)."""
+    try:
+        # Plain ASCII decimals only: float() would also take '1_000' and other scripts' digits.
+        v = float(cell) if _NUMBER.fullmatch(cell) else float("x")
+    except ValueError:
+        problems.append(f"{where}: '{shown(cell)}' is not a number")
+        v = math.nan
+    if not math.isnan(v) and not math.isfinite(v):
+        problems.append(f"{where}: {shown(cell)} is not finite")
+    elif c in RANGES and not math.isnan(v) and not RANGES[c][0] <= v <= RANGES[c][1]:
+        low, high, unit = RANGES[c]
+        problems.append(
+            f"{where}: {v:g} is outside what a bench measures; allowed: {low:g} to {high:g} {unit}; "
+            "check the unit"
+        )
+    return v
+
+
+def _unknown_choices(cells: pd.Series, c: str, choices: tuple[str, ...], row_lines: list[int]) -> list[str]:
+    """A problem for every cell of column ``c`` that is neither empty nor one of ``choices``."""
+    return [
+        f"line {line_of(i, row_lines)}, column {c}: '{shown(cell)}' is not "
+        f"allowed{did_you_mean(cell, choices)}; allowed: {', '.join(choices)}"
+        for i, cell in enumerate(cells)
+        if cell not in choices and cell != ""
+    ]
+
+
+def _row_problems(out: pd.DataFrame, require_measured: bool) -> list[str]:
+    """A problem for every unknown test, every empty column a row's test needs, and every
+    measured column filled in a row whose test does not measure it."""
+    problems = []
     for _, row in out.iterrows():
         where = f"line {row['line']}"
         test = row["test"]
@@ -335,9 +263,7 @@ def read_measurements(path: str | Path, require_measured: bool = True) -> pd.Dat
         for c, owner in OPTIONAL_MEASURED.items():
             if test != owner and not math.isnan(row[c]):
                 problems.append(f"{where}, column {c}: only '{owner}' rows measure it; leave it empty")
-    if problems:
-        raise MeasurementError(path, problems)
-    return out.reset_index(drop=True)
+    return problems
 
 
 def simulate_measurements(

@@ -187,7 +187,8 @@ def simulate_rows(
     failures: list[RowFailure] | None = None,
     min_parallel_rows: int | None = None,
 ) -> np.ndarray:
-    """Simulate rows, in up to ``n_jobs`` processes; returns an (n, 3) array like :func:`measured_array`.
+    """Simulate rows, in up to ``n_jobs`` processes; returns an (n, 3) array like
+    :func:`~somo_sweep.calibration.metrics.measured_array`.
 
     Rows without an equilibrium are NaN; each is logged (warning) and, when ``failures``
     is given, appended to it as a :class:`RowFailure`. Batches smaller than

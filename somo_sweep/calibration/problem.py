@@ -34,8 +34,10 @@ __all__ = [
     "CALIBRATION_SETTINGS",
     "CALIBRATION_TESTS",
     "CalibrationProblem",
+    "blocked_force_slopes",
     "build_problem",
     "force_per_kpa",
+    "line_numbers",
     "tip_stiffness_n_per_m",
 ]
 
@@ -219,22 +221,39 @@ def build_problem(
         raise MeasurementError(source, ["calibration needs a model with a 'manipulator', not an assembly"])
     manip = base.manipulator
     rows = _prepare_rows(rows, manip, source)
-    problems, params = [], []
+    problems: list[str] = []
+    params = _stiffness_parameters(rows, manip, min_rows_per_parameter, problems)
+    blocked = rows[(rows["test"] == "blocked_force") & (rows["pressure_kpa"] != 0)]
+    problems += _gain_problems(blocked, manip, min_rows_per_parameter)
+    if problems:
+        raise MeasurementError(source, problems)
+    gain, others = _gain_parameter(params, manip, blocked)
+    return CalibrationProblem(base, rows, (*params, gain), settings, source, others)
+
+
+def _stiffness_parameters(
+    rows: pd.DataFrame, manip: Manipulator, min_rows: int, problems: list[str]
+) -> list[Parameter]:
+    """One stiffness parameter per axis with loaded ``tip_load`` rows (the side axis only when it
+    has some), started from the small-angle closed form; a problem for an axis with fewer than
+    ``min_rows`` of them or whose rows give no positive tip stiffness."""
+    params = []
     for axis_index, axis in enumerate(AXES):
         loaded = rows[(rows["test"] == "tip_load") & (rows["axis"] == axis) & (rows["tip_load_n"] > 0)]
         if axis == "side" and loaded.empty:
             continue
-        if len(loaded) < min_rows_per_parameter:
+        if len(loaded) < min_rows:
             problems.append(
                 f"column tip_load_n: {len(loaded)} {axis}-axis tip_load row(s) with a load > 0; "
-                f"calibrating the {axis} stiffness needs at least {min_rows_per_parameter}"
+                f"calibrating the {axis} stiffness needs at least {min_rows}"
             )
             continue
         tip_stiffness = tip_stiffness_n_per_m(loaded)
         if not np.isfinite(tip_stiffness) or tip_stiffness <= 0:
             problems.append(
-                f"column tip_deflection_mm: the {axis}-axis tip_load rows (lines {_lines(loaded)}) give a "
-                f"tip stiffness of {tip_stiffness:.4g} N/m; deflections must be > 0 and grow with the load"
+                f"column tip_deflection_mm: the {axis}-axis tip_load rows (lines {line_numbers(loaded)}) "
+                f"give a tip stiffness of {tip_stiffness:.4g} N/m; deflections must be > 0 and grow with "
+                "the load"
             )
             continue
         arms, rel, _ = joint_lever_arms(manip, axis_index)
@@ -247,36 +266,49 @@ def build_problem(
                 functools.partial(set_axis_stiffness, axis_index=axis_index),
             )
         )
-    blocked = rows[(rows["test"] == "blocked_force") & (rows["pressure_kpa"] != 0)]
-    if len(blocked) < min_rows_per_parameter:
+    return params
+
+
+def _gain_problems(blocked: pd.DataFrame, manip: Manipulator, min_rows: int) -> list[str]:
+    """Why the pressure gain cannot be calibrated from the ``blocked_force`` rows above 0 kPa:
+    too few of them, a force that does not grow with pressure, or no actuated joint."""
+    problems = []
+    if len(blocked) < min_rows:
         problems.append(
             f"column blocked_force_n: {len(blocked)} blocked_force row(s) above 0 kPa; "
-            f"calibrating the pressure gain needs at least {min_rows_per_parameter}"
+            f"calibrating the pressure gain needs at least {min_rows}"
         )
     else:
         slope = force_per_kpa(blocked)
         if not _grows(slope, blocked):
             problems.append(
                 f"column blocked_force_n: the blocked force does not grow with pressure_kpa "
-                f"(lines {_lines(blocked)}, slope {slope:.4g} N/kPa)"
+                f"(lines {line_numbers(blocked)}, slope {slope:.4g} N/kPa)"
             )
     if not any(j.actuated for j in manip.actuators[0].joints[:1]):
         problems.append("the model's first joint definition is not actuated: no pressure gain to calibrate")
-    if problems:
-        raise MeasurementError(source, problems)
-    seeded = functools.reduce(lambda m, p: p.apply(m, p.initial), params, manip)
+    return problems
+
+
+def _gain_parameter(
+    stiffness: list[Parameter], manip: Manipulator, blocked: pd.DataFrame
+) -> tuple[Parameter, tuple[tuple[float, ...], ...]]:
+    """The pressure gain, started from the blocked force's slope over the whole range with the
+    stiffness at its start; and, for a blocked force not linear in the pressure, a further start
+    of every parameter from the slope over the upper half of the pressures."""
+    seeded = functools.reduce(lambda m, p: p.apply(m, p.initial), stiffness, manip)
     arms, rel, act = joint_lever_arms(seeded, 0)
     k = seeded.actuators[0].joints[0].stiffness * rel
     per_slope = float(np.sum(arms**2 / k) / np.sum(act * arms / k))
     whole, upper = blocked_force_slopes(blocked)
-    params.append(Parameter("pressure_gain_n_m_per_kpa", "N·m/kPa", whole * per_slope, set_pressure_gain))
+    gain = Parameter("pressure_gain_n_m_per_kpa", "N·m/kPa", whole * per_slope, set_pressure_gain)
     others: tuple[tuple[float, ...], ...] = ()
     if _grows(upper, blocked) and not 0.8 <= upper / whole <= 1.25:
         # Not linear: a finger heavy for its stiffness rests on the plate at low pressures
         # (the force stays at its weight) and lifts off above; from the whole range's slope the
         # start can sit where the force does not depend on the gain at all, and the fit stays.
-        others = ((*(p.initial for p in params[:-1]), upper * per_slope),)
-    return CalibrationProblem(base, rows, tuple(params), settings, source, others)
+        others = ((*(p.initial for p in stiffness), upper * per_slope),)
+    return gain, others
 
 
 def blocked_force_slopes(blocked: pd.DataFrame) -> tuple[float, float]:
@@ -294,7 +326,7 @@ def _grows(slope: float, blocked: pd.DataFrame) -> bool:
     return bool(np.isfinite(slope) and slope * span > 1e-3 * float(np.max(np.abs(f))))
 
 
-def _lines(rows: pd.DataFrame, shown: int = 12) -> str:
+def line_numbers(rows: pd.DataFrame, shown: int = 12) -> str:
     """Line numbers of rows, the first ``shown`` and how many more (a long file stays one line)."""
     lines = [str(n) for n in rows["line"][:shown]]
     more = len(rows) - shown

@@ -77,13 +77,18 @@ class CalibrationResult:
         method: ``paper`` or ``fit``.
         problem: The problem that was solved.
         values: Calibrated value by parameter name.
-        model: The calibrated model (without provenance; see :func:`with_provenance`).
-        simulated: (n, 3) simulated values of every row (like :func:`measured_array`).
+        model: The calibrated model (without provenance; see
+            :func:`~somo_sweep.calibration.report.with_provenance`).
+        simulated: (n, 3) simulated values of every row (like
+            :func:`~somo_sweep.calibration.metrics.measured_array`).
         metrics: Per-test RMSE, in the test's units and relative.
         wall_time_s: Wall time of the solve, in s.
         simulations: Number of bench simulations run.
         relative_stderr: Relative standard error by parameter (fit only).
         message: Solver message.
+        fitted: False when nothing was fitted (the starting values leave calibration rows
+            without equilibrium): ``values`` are then the starting values and ``model`` must
+            not be used as a calibration.
         failures: Rows of ``simulated`` without an equilibrium (NaN there), with their causes
             (``row`` indexes ``problem.rows``).
     """
@@ -98,6 +103,7 @@ class CalibrationResult:
     simulations: int
     relative_stderr: dict[str, float] = field(default_factory=dict)
     message: str = ""
+    fitted: bool = True
     failures: list[RowFailure] = field(default_factory=list)
 
     def metric(self, label: str) -> TestMetric:
@@ -226,6 +232,33 @@ def _chord_fit(
     )
 
 
+def _best_fit(
+    fun: Callable[[np.ndarray], np.ndarray], starts: list[np.ndarray], r0: np.ndarray, max_evaluations: int
+) -> Any:
+    """The lowest-cost chord fit over the starts (``r0``: the residuals at the first); a further
+    start whose residuals are not all finite is skipped."""
+    sol = _chord_fit(fun, starts[0], r0, max_evaluations)
+    for other in starts[1:]:
+        r_other = fun(other)
+        if np.all(np.isfinite(r_other)):
+            candidate = _chord_fit(fun, other, r_other, max_evaluations)
+            if candidate.cost < sol.cost:
+                sol = candidate
+    return sol
+
+
+def _relative_stderr(problem: CalibrationProblem, sol: Any) -> dict[str, float]:
+    """Relative standard error of every parameter from the fit's Jacobian and residual cost
+    ({} when the Jacobian is singular)."""
+    dof = max(len(sol.fun) - len(problem.parameters), 1)
+    try:
+        cov = np.linalg.inv(sol.jac.T @ sol.jac) * (2 * sol.cost / dof)
+    except np.linalg.LinAlgError:
+        return {}
+    names = [p.name for p in problem.parameters]
+    return {name: float(math.sqrt(max(cov[i, i], 0.0)) / sol.x[i]) for i, name in enumerate(names)}
+
+
 def solve_fit(problem: CalibrationProblem, n_jobs: int = 1, max_evaluations: int = 40) -> CalibrationResult:
     """Least squares of the relative residuals of the calibration rows, simulator in the loop.
 
@@ -272,24 +305,11 @@ def solve_fit(problem: CalibrationProblem, n_jobs: int = 1, max_evaluations: int
             known=memo[x0.tobytes()][0],
             known_failures=memo[x0.tobytes()][1],
             message="not fitted: calibration rows without equilibrium at the starting values",
+            fitted=False,
         )
-    sol = _chord_fit(fun, x0, r0, max_evaluations)
-    for other in starts[1:]:
-        r_other = fun(other)
-        if np.all(np.isfinite(r_other)):
-            candidate = _chord_fit(fun, other, r_other, max_evaluations)
-            if candidate.cost < sol.cost:
-                sol = candidate
+    sol = _best_fit(fun, starts, r0, max_evaluations)
     meter.expect(len(problem.rows))  # the fit is done: at most every row once more
-    dof = max(len(sol.fun) - len(initial), 1)
-    stderr: dict[str, float] = {}
-    try:
-        cov = np.linalg.inv(sol.jac.T @ sol.jac) * (2 * sol.cost / dof)
-        stderr = {
-            p.name: float(math.sqrt(max(cov[i, i], 0.0)) / sol.x[i]) for i, p in enumerate(problem.parameters)
-        }
-    except np.linalg.LinAlgError:
-        pass
+    known, known_failures = memo.get(sol.x.tobytes(), (None, []))
     return _finish(
         problem,
         "fit",
@@ -297,8 +317,8 @@ def solve_fit(problem: CalibrationProblem, n_jobs: int = 1, max_evaluations: int
         start,
         sims[0],
         n_jobs,
-        known=memo[sol.x.tobytes()][0] if sol.x.tobytes() in memo else None,
-        known_failures=memo[sol.x.tobytes()][1] if sol.x.tobytes() in memo else (),
-        relative_stderr=stderr,
+        known=known,
+        known_failures=known_failures,
+        relative_stderr=_relative_stderr(problem, sol),
         message=str(sol.message),
     )

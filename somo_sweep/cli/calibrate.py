@@ -2,7 +2,6 @@
 
 from __future__ import annotations
 
-from dataclasses import replace
 from pathlib import Path
 from typing import TYPE_CHECKING, Annotated
 
@@ -22,13 +21,21 @@ from somo_sweep.cli.output import (
 )
 from somo_sweep.errors import SomoError
 
+__all__ = [
+    "CALIBRATION_KEYS",
+    "JOBS",
+    "KEEP_DUPLICATES",
+    "MEASUREMENTS",
+    "calibrate",
+    "default_output",
+]
+
 if TYPE_CHECKING:
-    import pandas as pd
+    from rich.console import Console
 
-    from somo_sweep.model.load import Model
-    from somo_sweep.sim.bench import BenchSettings
+    from somo_sweep.calibration.solve import CalibrationResult
+    from somo_sweep.calibration.workflow import Reporter
 
-METHODS = ("fit", "paper")
 #: Keys of every ``calibration.json`` (earlier versions wrote it without the JSON mark).
 CALIBRATION_KEYS = frozenset({"method", "measurements", "parameters", "tests", "somo_sweep_version"})
 
@@ -40,18 +47,6 @@ KEEP_DUPLICATES = Annotated[
         "measurements \\[default: each once, with a warning naming the lines].",
     ),
 ]
-
-
-def counted_rows(rows: pd.DataFrame, measurements: Path, keep_duplicates: bool) -> pd.DataFrame:
-    """The rows a command uses: a row repeating an earlier one exactly is counted once (unless
-    ``keep_duplicates``), and either way a warning on stderr names the lines."""
-    from somo_sweep.calibration.repeats import describe_repeats, drop_repeats, find_repeats
-
-    repeats = find_repeats(rows)
-    if not repeats:
-        return rows
-    typer.echo(f"warning: {measurements}: {describe_repeats(repeats, kept=keep_duplicates)}", err=True)
-    return rows if keep_duplicates else drop_repeats(rows, repeats)
 
 
 def default_output(measurements: Path, kind: str) -> Path:
@@ -66,122 +61,69 @@ def default_output(measurements: Path, kind: str) -> Path:
     return Path("results") / kind / stem
 
 
-def base_model(
-    measurements: Path,
-    model: Path | None,
-    length_mm: float | None,
-    segments: int | None,
-    mass_g: float | None,
-    width_mm: float | None,
-    thickness_mm: float | None,
-    allow_outside: bool = False,
-) -> Model:
-    """The model to calibrate: ``--model``, else the CSV's ``# finger:`` line with the flags over it.
-
-    Raises:
-        SomoError: Neither a model nor a complete finger (the message says what is missing).
-    """
-    from somo_sweep.calibration.finger import FINGER_KEYS, finger_from_header, read_finger_header
-    from somo_sweep.model.load import load_model
-
-    if model is not None:
-        return load_model(model, allow_outside)
-    flags = {"length_mm": length_mm, "segments": segments, "mass_g": mass_g}
-    header = read_finger_header(measurements) if measurements.is_file() else None
-    missing = [k for k, v in flags.items() if v is None and k not in (header or {})]
-    if missing:
-        flags_missing = ", ".join("--" + k.replace("_", "-") for k in missing)
-        raise SomoError(
-            f"{measurements}: no finger to calibrate; give --model BASE.yaml, or add a line "
-            f"'# finger: {{length_mm: 100, segments: 20, mass_g: 20}}' above the CSV header "
-            f"(keys: {', '.join(FINGER_KEYS)}), or pass {flags_missing}"
-        )
-    return finger_from_header(
-        header or {}, str(measurements), **flags, width_mm=width_mm, thickness_mm=thickness_mm
-    )
-
-
-def bench_settings(measurements: Path, base: Model, settings: BenchSettings) -> tuple[BenchSettings, str]:
-    """``settings`` with the CSV's ``# bench:`` stop, checked against the finger, and the line saying so.
-
-    Raises:
-        MeasurementError: A bad ``# bench:`` line, or a stop this finger would start inside or never reach.
-    """
-    from somo_sweep.calibration.bench_header import BenchHeader, read_bench_header
-
-    header = read_bench_header(measurements) if measurements.is_file() else BenchHeader()
-    if base.manipulator is None:  # an assembly: build_problem refuses it with its own message
-        return settings, ""
-    return header.settings(settings, base.manipulator), header.describe(base.manipulator)
-
-
-def _figure_bytes(result: object, label: str, fmt: str) -> bytes:
+def _figure_bytes(result: CalibrationResult, label: str, fmt: str) -> bytes:
     import matplotlib.pyplot as plt
 
     from somo_sweep.calibration.report import plot_test
 
     fig, ax = plt.subplots(figsize=(6, 4.5))
-    plot_test(ax, result, label)  # type: ignore[arg-type]
+    plot_test(ax, result, label)
     fig.tight_layout()
     return figure_bytes(fig, fmt, 120)
 
 
+MEASUREMENTS = Annotated[
+    Path, typer.Argument(help="Measurement CSV (tip_load / blocked_force / free_bending).")
+]
+OUTPUT = Annotated[
+    str | None,
+    typer.Option(
+        "-o",
+        "--output",
+        metavar="<path>",
+        help="Calibrated model YAML; a folder (out/, or one that exists) gets model.yaml in it "
+        "\\[default: results/calibration/CSV-NAME/model.yaml].",
+    ),
+]
+BASE_MODEL = Annotated[Path | None, typer.Option(help="Base manipulator model to calibrate.")]
+LENGTH_MM = Annotated[float | None, typer.Option(help="Finger length, mm (overrides the CSV's finger line).")]
+SEGMENTS = Annotated[int | None, typer.Option(help="Number of segments (overrides the CSV's finger line).")]
+MASS_G = Annotated[float | None, typer.Option(help="Finger mass, g (overrides the CSV's finger line).")]
+WIDTH_MM = Annotated[float | None, typer.Option(help="Link width (joint axis), mm \\[default: 20].")]
+THICKNESS_MM = Annotated[float | None, typer.Option(help="Link thickness (bending), mm \\[default: 15].")]
+METHOD = Annotated[str, typer.Option(help="fit (simulator in the loop) or paper (eq. 8 and 9).")]
+REPORT = Annotated[Path | None, typer.Option(help="Folder for plots and a JSON summary.")]
+JOBS = Annotated[
+    int,
+    typer.Option(
+        help="Worker processes for batches of 200 bench rows or more (smaller ones run in-process)."
+    ),
+]
+GRAVITY = Annotated[
+    float, typer.Option(help="Gravity on the bench, m/s² (0: a horizontal, weightless bench).")
+]
+
+
 def calibrate(
-    measurements: Annotated[
-        Path, typer.Argument(help="Measurement CSV (tip_load / blocked_force / free_bending).")
-    ],
-    output: Annotated[
-        str | None,
-        typer.Option(
-            "-o",
-            "--output",
-            metavar="<path>",
-            help="Calibrated model YAML; a folder (out/, or one that exists) gets model.yaml in it "
-            "\\[default: results/calibration/CSV-NAME/model.yaml].",
-        ),
-    ] = None,
-    model: Annotated[Path | None, typer.Option(help="Base manipulator model to calibrate.")] = None,
-    length_mm: Annotated[
-        float | None, typer.Option(help="Finger length, mm (overrides the CSV's finger line).")
-    ] = None,
-    segments: Annotated[
-        int | None, typer.Option(help="Number of segments (overrides the CSV's finger line).")
-    ] = None,
-    mass_g: Annotated[
-        float | None, typer.Option(help="Finger mass, g (overrides the CSV's finger line).")
-    ] = None,
-    width_mm: Annotated[
-        float | None, typer.Option(help="Link width (joint axis), mm \\[default: 20].")
-    ] = None,
-    thickness_mm: Annotated[
-        float | None, typer.Option(help="Link thickness (bending), mm \\[default: 15].")
-    ] = None,
-    method: Annotated[str, typer.Option(help="fit (simulator in the loop) or paper (eq. 8 and 9).")] = "fit",
-    report: Annotated[Path | None, typer.Option(help="Folder for plots and a JSON summary.")] = None,
-    jobs: Annotated[
-        int,
-        typer.Option(
-            help="Worker processes for batches of 200 bench rows or more (smaller ones run in-process)."
-        ),
-    ] = 2,
-    gravity_m_s2: Annotated[
-        float, typer.Option(help="Gravity on the bench, m/s² (0: a horizontal, weightless bench).")
-    ] = 9.81,
+    measurements: MEASUREMENTS,
+    output: OUTPUT = None,
+    model: BASE_MODEL = None,
+    length_mm: LENGTH_MM = None,
+    segments: SEGMENTS = None,
+    mass_g: MASS_G = None,
+    width_mm: WIDTH_MM = None,
+    thickness_mm: THICKNESS_MM = None,
+    method: METHOD = "fit",
+    report: REPORT = None,
+    jobs: JOBS = 2,
+    gravity_m_s2: GRAVITY = 9.81,
     allow_outside: ALLOW_OUTSIDE = False,
     keep_duplicates: KEEP_DUPLICATES = False,
 ) -> None:
     """Calibrate joint stiffness and pressure→torque gain; write the calibrated model."""
     from rich.console import Console
 
-    from somo_sweep.calibration.measurements import read_measurements
-    from somo_sweep.calibration.report import model_yaml, results_table, summary, with_provenance
-    from somo_sweep.calibration.solve import (
-        CALIBRATION_SETTINGS,
-        POOR_FIT_RELATIVE_RMSE,
-        build_problem,
-        solve_fit,
-        solve_paper,
-    )
+    from somo_sweep.calibration.workflow import METHODS, CalibrationOptions, FingerSize, calibrate_csv
     from somo_sweep.model.tables import bundled_if_missing
 
     if method not in METHODS:
@@ -191,74 +133,81 @@ def calibrate(
     except SomoError as exc:
         fail(exc)
     console = Console(width=max(Console().width, 100))  # tables fit when piped (default 80)
+    finger = FingerSize(length_mm, segments, mass_g, width_mm, thickness_mm)
+    options = CalibrationOptions(model, finger, method, jobs, gravity_m_s2, allow_outside, keep_duplicates)
     try:
         # the README's studies/tables/NAME.csv also from an installed package (no studies/ here)
         measurements = bundled_if_missing(measurements, "tables", ".csv")
-        target = (
-            file_target(output, "model.yaml") or default_output(measurements, "calibration") / "model.yaml"
-        )
-        check_replaceable(target, [measurements, model])
-        if report is not None:
-            check_replaceable(
-                report / "calibration.json", [measurements, model], kind="json", older_keys=CALIBRATION_KEYS
-            )
-            in_report = plain(target).parent == plain(report)
-            if in_report and (target.name == "calibration.json" or target.suffix.lower() == ".png"):
-                raise SomoError(
-                    f"-o {target} is a file the report writes in --report {report} (calibration.json and "
-                    "one PNG per metric); nothing was written: give the model another name"
-                )
-        rows = counted_rows(read_measurements(measurements), measurements, keep_duplicates)
-        base = base_model(
-            measurements, model, length_mm, segments, mass_g, width_mm, thickness_mm, allow_outside
-        )
-        settings, bench_line = bench_settings(
-            measurements, base, replace(CALIBRATION_SETTINGS, gravity_m_s2=gravity_m_s2)
-        )
-        console.print(bench_line, markup=False)
-        problem = build_problem(
-            rows, base, str(measurements), settings, min_rows_per_parameter=2 if method == "fit" else 1
-        )
-        console.print(problem.describe(), markup=False)
-        solve = solve_fit if method == "fit" else solve_paper
-        with working(f"calibrating ({method})", bench_rows=True):
-            result = solve(problem, n_jobs=jobs)
+        target = _checked_targets(measurements, output, model, report)
+        result = calibrate_csv(measurements, options, _reporter(console))
     except SomoError as exc:
         fail(exc)
+    _print_result(console, result, measurements)
+    outputs = _outputs(result, measurements, method, target, report)
+    try:
+        write_outputs(outputs, [measurements, model])
+    except SomoError as exc:
+        fail(exc)
+    console.print(f"wrote {', '.join(str(p) for p, _ in outputs)}")
+
+
+def _reporter(console: Console) -> Reporter:
+    """Progress on the console, warnings on stderr, a progress bar of the bench rows on long steps."""
+    from somo_sweep.calibration.workflow import Reporter
+
+    return Reporter(
+        say=lambda text: console.print(text, markup=False),
+        warn=lambda text: typer.echo(f"warning: {text}", err=True),
+        working=lambda what: working(what, bench_rows=True),
+    )
+
+
+def _checked_targets(measurements: Path, output: str | None, model: Path | None, report: Path | None) -> Path:
+    """The model file to write, after checking that it and the report may be written.
+
+    Raises:
+        SomoError: A file that exists and is not ours, or a model named like a report file.
+    """
+    target = file_target(output, "model.yaml") or default_output(measurements, "calibration") / "model.yaml"
+    check_replaceable(target, [measurements, model])
+    if report is not None:
+        check_replaceable(
+            report / "calibration.json", [measurements, model], kind="json", older_keys=CALIBRATION_KEYS
+        )
+        in_report = plain(target).parent == plain(report)
+        if in_report and (target.name == "calibration.json" or target.suffix.lower() == ".png"):
+            raise SomoError(
+                f"-o {target} is a file the report writes in --report {report} (calibration.json and "
+                "one PNG per metric); nothing was written: give the model another name"
+            )
+    return target
+
+
+def _print_result(console: Console, result: CalibrationResult, measurements: Path) -> None:
+    """The result's tables and warnings; exit 1 when nothing was fitted."""
+    from somo_sweep.calibration.report import results_table
+    from somo_sweep.calibration.workflow import calibration_warnings
+
     for table in results_table(result):
         console.print(table)
     console.print(f"{result.simulations} bench simulations in {result.wall_time_s:.1f} s")
-    if result.message.startswith("not fitted"):
+    if not result.fitted:
         typer.echo(
             f"error: {measurements}: {result.message}; nothing was written: check those rows (a value "
             "far from the others, a unit) and the finger line",
             err=True,
         )
         raise typer.Exit(1)
-    if result.failures:
-        typer.echo(f"warning: {result.message}", err=True)
-    for name, rel in result.relative_stderr.items():
-        if not rel <= 1.0:
-            typer.echo(
-                f"warning: {name} is not determined by these rows (relative standard error "
-                f"{rel:.0%}): its value means little; add rows that vary it",
-                err=True,
-            )
-    poor = result.poor_fits()
-    if poor:
-        missed = ", ".join(
-            f"the {m.label} rows by {m.relative_rmse:.0%}"
-            if m.relative_rmse == m.relative_rmse
-            else f"the {m.label} rows (some without equilibrium)"
-            for m in poor
-        )
-        typer.echo(
-            f"warning: the calibrated model misses {missed} (relative RMSE; above "
-            f"{POOR_FIT_RELATIVE_RMSE:.0%} the model does not fit the measurements): check the units "
-            "and the finger line, or run somo-sweep diagnose to name what the model lacks; "
-            "the model is written anyway",
-            err=True,
-        )
+    for warning in calibration_warnings(result):
+        typer.echo(f"warning: {warning}", err=True)
+
+
+def _outputs(
+    result: CalibrationResult, measurements: Path, method: str, target: Path, report: Path | None
+) -> list[tuple[Path, str | bytes]]:
+    """The calibrated model's YAML, and with ``report`` its JSON summary and one figure per metric."""
+    from somo_sweep.calibration.report import model_yaml, summary, with_provenance
+
     header = f"calibrated by somo-sweep calibrate --method {method} from {measurements}"
     outputs: list[tuple[Path, str | bytes]] = [
         (target, model_yaml(with_provenance(result, measurements), header))
@@ -268,8 +217,4 @@ def calibrate(
         for metric in result.metrics:
             name = metric.label.replace("[", "_").replace("]", "")
             outputs.append((report / f"{name}.png", _figure_bytes(result, metric.label, "png")))
-    try:
-        write_outputs(outputs, [measurements, model])
-    except SomoError as exc:
-        fail(exc)
-    console.print(f"wrote {', '.join(str(p) for p, _ in outputs)}")
+    return outputs

@@ -36,7 +36,14 @@ from somo_sweep.calibration import meter
 from somo_sweep.calibration.metrics import TestMetric, per_test_metrics
 from somo_sweep.calibration.parameters import simulate_rows
 from somo_sweep.diagnosis.effects import EFFECTS
-from somo_sweep.diagnosis.fit import CandidateFit, fit_candidate, jacobian, predict, standard_errors
+from somo_sweep.diagnosis.fit import (
+    CandidateFit,
+    Jacobian,
+    fit_candidate,
+    jacobian,
+    predict,
+    standard_errors,
+)
 from somo_sweep.diagnosis.noise import NoiseEstimate, estimate_noise, find_disagreements
 from somo_sweep.diagnosis.problem import DiagnosisProblem, build_diagnosis
 from somo_sweep.model.load import Model, model_from_dict
@@ -237,6 +244,81 @@ def _outcome(
     return reloaded, after, noise, score
 
 
+def _refits(
+    problem: DiagnosisProblem, jac: Jacobian, n_jobs: int, refine_top: int, max_evaluations: int
+) -> dict[str, CandidateFit]:
+    """Every candidate: ``none`` refitted; each effect predicted by the linear step, and refined
+    by simulation when it is among the ``refine_top`` best predicted or comes within
+    ``2·DELTA_BIC_NEXT`` of the best refined one."""
+    base = tuple(range(problem.n_base))
+    predicted = {
+        e.name: predict(problem, jac, e.name, (*base, *problem.effect_columns(e.name)))
+        for e, _ in problem.effects
+    }
+    fits = {"none": fit_candidate(problem, jac, "none", base, n_jobs, max_evaluations)}
+    queue = sorted(predicted.values(), key=lambda c: c.bic)
+    for i, pred in enumerate(queue):
+        best = min((f.bic for n, f in fits.items() if n != "none"), default=math.inf)
+        if i < refine_top or pred.bic < best + 2 * DELTA_BIC_NEXT:
+            fits[pred.name] = fit_candidate(problem, jac, pred.name, pred.columns, n_jobs, max_evaluations)
+        else:
+            fits[pred.name] = pred
+    return fits
+
+
+def _settle_close_calls(
+    problem: DiagnosisProblem,
+    jac: Jacobian,
+    fits: dict[str, CandidateFit],
+    n_jobs: int,
+    close_call_evaluations: int,
+) -> None:
+    """Refit (in ``fits``) every effect within ``2·DELTA_BIC_NEXT`` of the best one to
+    convergence (:data:`CLOSE_CALL_RTOL`), from a Jacobian taken again at its point."""
+    n_rows = len(problem.rows)
+    best = min((f.bic for n, f in fits.items() if n != "none"), default=math.inf)
+    close = [f for n, f in fits.items() if n != "none" and f.bic < best + 2 * DELTA_BIC_NEXT]
+    meter.expect(n_rows * (sum(close_call_evaluations + len(f.columns) for f in close) + 1))
+    for n, f in list(fits.items()):
+        if n != "none" and f.bic < best + 2 * DELTA_BIC_NEXT:
+            fits[n] = fit_candidate(
+                problem, jac, n, f.columns, n_jobs, close_call_evaluations, CLOSE_CALL_RTOL, resume=f
+            )
+
+
+def _pairs(
+    problem: DiagnosisProblem, jac: Jacobian, singles: list[CandidateFit], n_jobs: int, max_evaluations: int
+) -> list[CandidateFit]:
+    """Every pair of the leading single effects, refitted together."""
+    n_pairs = len(singles) * (len(singles) - 1) // 2
+    meter.expect(len(problem.rows) * (n_pairs * max_evaluations + 1))
+    return [
+        fit_candidate(
+            problem, jac, f"{a.name}+{b.name}", _pair_columns(problem, a, b), n_jobs, max_evaluations
+        )
+        for i, a in enumerate(singles)
+        for b in singles[i + 1 :]
+    ]
+
+
+def _unexplained(
+    problem: DiagnosisProblem, name: str, after: np.ndarray, noise: dict[str, NoiseEstimate], score: float
+) -> str:
+    """The verdict when the chosen candidate still misses the data (its combined ``score``
+    above ``FITS_WITHIN_NOISE``, or a systematic run of rows left), ``""`` when it fits."""
+    left = find_disagreements(problem.rows, after - problem.measured, noise)
+    systematic = [d for d in left if d.rows >= SYSTEMATIC_RUN_ROWS]
+    if not (score > FITS_WITHIN_NOISE or systematic):
+        return ""
+    where = "; ".join(d.describe() for d in (systematic or left)[:3]) or "scattered over every channel"
+    tried = "refitting without an effect" if name == "none" else name
+    return (
+        f"unexplained: the best candidate ({tried}) still misses the data (combined {score:.1f}x "
+        f"noise; a fit is <= {FITS_WITHIN_NOISE:g}x with no run of {SYSTEMATIC_RUN_ROWS} rows "
+        f"beyond 2x noise); remaining: {where}"
+    )
+
+
 def diagnose(
     problem: DiagnosisProblem,
     n_jobs: int = 1,
@@ -265,42 +347,15 @@ def diagnose(
         n_rows * (n_par + max_evaluations * (1 + refine_top) + 2 * (close_call_evaluations + n_par) + 1)
     )
     jac = jacobian(problem, n_jobs)
-    base = tuple(range(problem.n_base))
-    predicted = {
-        e.name: predict(problem, jac, e.name, (*base, *problem.effect_columns(e.name)))
-        for e, _ in problem.effects
-    }
-    fits = {"none": fit_candidate(problem, jac, "none", base, n_jobs, max_evaluations)}
-    queue = sorted(predicted.values(), key=lambda c: c.bic)
-    for i, pred in enumerate(queue):
-        best = min((f.bic for n, f in fits.items() if n != "none"), default=math.inf)
-        if i < refine_top or pred.bic < best + 2 * DELTA_BIC_NEXT:
-            fits[pred.name] = fit_candidate(problem, jac, pred.name, pred.columns, n_jobs, max_evaluations)
-        else:
-            fits[pred.name] = pred
-    best = min((f.bic for n, f in fits.items() if n != "none"), default=math.inf)
-    close = [f for n, f in fits.items() if n != "none" and f.bic < best + 2 * DELTA_BIC_NEXT]
-    meter.expect(n_rows * (sum(close_call_evaluations + len(f.columns) for f in close) + 1))
-    for n, f in list(fits.items()):
-        if n != "none" and f.bic < best + 2 * DELTA_BIC_NEXT:
-            fits[n] = fit_candidate(
-                problem, jac, n, f.columns, n_jobs, close_call_evaluations, CLOSE_CALL_RTOL, resume=f
-            )
+    fits = _refits(problem, jac, n_jobs, refine_top, max_evaluations)
+    _settle_close_calls(problem, jac, fits, n_jobs, close_call_evaluations)
     candidates = sorted(fits.values(), key=lambda c: c.bic)
     name, verdict = _decide(candidates)
     reloaded, after, noise, score = _outcome(problem, fits[name], n_jobs)
     outcomes = 1
     singles = [c for c in candidates if c.name != "none"][:PAIR_FROM_TOP]
     if score >= PAIR_TRIGGER and len(singles) >= 2:
-        n_pairs = len(singles) * (len(singles) - 1) // 2
-        meter.expect(n_rows * (n_pairs * max_evaluations + 1))
-        pairs = [
-            fit_candidate(
-                problem, jac, f"{a.name}+{b.name}", _pair_columns(problem, a, b), n_jobs, max_evaluations
-            )
-            for i, a in enumerate(singles)
-            for b in singles[i + 1 :]
-        ]
+        pairs = _pairs(problem, jac, singles, n_jobs, max_evaluations)
         best_pair = min(pairs, key=lambda c: c.bic)
         candidates = sorted([*candidates, *pairs], key=lambda c: c.bic)
         if best_pair.bic < min(c.bic for c in fits.values()) - DELTA_BIC_NONE:
@@ -312,17 +367,9 @@ def diagnose(
             reloaded, after, noise, score = _outcome(problem, best_pair, n_jobs)
             outcomes += 1
     best_candidate = name
-    left = find_disagreements(problem.rows, after - problem.measured, noise)
-    systematic = [d for d in left if d.rows >= SYSTEMATIC_RUN_ROWS]
-    if score > FITS_WITHIN_NOISE or systematic:
-        where = "; ".join(d.describe() for d in (systematic or left)[:3]) or "scattered over every channel"
-        tried = "refitting without an effect" if name == "none" else name
-        verdict = (
-            f"unexplained: the best candidate ({tried}) still misses the data (combined {score:.1f}x "
-            f"noise; a fit is <= {FITS_WITHIN_NOISE:g}x with no run of {SYSTEMATIC_RUN_ROWS} rows "
-            f"beyond 2x noise); remaining: {where}"
-        )
-        name = "unexplained"
+    unexplained = _unexplained(problem, name, after, noise, score)
+    if unexplained:
+        name, verdict = "unexplained", unexplained
     # The model as given, the Jacobian, every refit's re-simulations, and each outcome's.
     sims = n_rows + jac.simulations + n_rows * (outcomes + sum(c.evaluations for c in candidates))
     return DiagnosisResult(

@@ -159,15 +159,7 @@ def fit_candidate(
         z, simulated = resume.z.copy(), resume.simulated
         r = problem.normalised(simulated)
         chi2, done = float(r @ r), resume.evaluations + len(cols)
-        for i in cols:
-            h = BASE_STEP if i < problem.n_base else (0.25 if z[i] + 0.25 <= problem.upper[i] else -0.25)
-            probe = z.copy()
-            probe[i] += h
-            column = (
-                problem.normalised(problem.simulate(probe, n_jobs), failed=None)
-                - problem.normalised(simulated, failed=None)
-            ) / h
-            matrix[:, i] = np.nan_to_num(column, nan=0.0, posinf=0.0, neginf=0.0)
+        _retake_columns(problem, matrix, cols, z, simulated, n_jobs)
     evaluations = 0
     damping = 1.0
     while evaluations < max_evaluations:
@@ -200,6 +192,28 @@ def fit_candidate(
     return CandidateFit(
         name, cols, z, chi2, bic(problem, r, len(cols)), simulated, True, done + evaluations, matrix
     )
+
+
+def _retake_columns(
+    problem: DiagnosisProblem,
+    matrix: np.ndarray,
+    cols: tuple[int, ...],
+    z: np.ndarray,
+    simulated: np.ndarray,
+    n_jobs: int,
+) -> None:
+    """Take the Jacobian's ``cols`` again (in ``matrix``) by forward differences at ``z``, where
+    the rows simulate to ``simulated``: base columns by :data:`BASE_STEP`, an effect's by a
+    quarter of its probe, toward the inside of its bounds; one simulation of all rows per column."""
+    for i in cols:
+        h = BASE_STEP if i < problem.n_base else (0.25 if z[i] + 0.25 <= problem.upper[i] else -0.25)
+        probe = z.copy()
+        probe[i] += h
+        column = (
+            problem.normalised(problem.simulate(probe, n_jobs), failed=None)
+            - problem.normalised(simulated, failed=None)
+        ) / h
+        matrix[:, i] = np.nan_to_num(column, nan=0.0, posinf=0.0, neginf=0.0)
 
 
 def standard_errors(problem: DiagnosisProblem, fit: CandidateFit) -> dict[str, float]:

@@ -162,6 +162,52 @@ class DiagnosisProblem:
         return "\n".join(lines)
 
 
+def _unique_rows(rows: pd.DataFrame, keep_duplicates: bool) -> tuple[pd.DataFrame, tuple[str, ...]]:
+    """The rows with each exact repeat counted once (unless ``keep_duplicates``), and a note
+    naming the repeats.
+
+    A row repeated exactly (a copy) is no second measurement: it would halve the noise
+    estimate and double its weight in every comparison, and flip the verdict.
+    """
+    repeats = find_repeats(rows) if not keep_duplicates else {}
+    if not repeats:
+        return rows, ()
+    return drop_repeats(rows, repeats), (describe_repeats(repeats, kept=False),)
+
+
+def _effects_tried(
+    chosen: list[Effect], base_problem: CalibrationProblem, source: str, by_name: bool
+) -> tuple[tuple[tuple[Effect, tuple[EffectParameter, ...]], ...], tuple[str, ...]]:
+    """The chosen effects these rows can reveal, each with its sized parameters, and a note
+    naming those left out when they were asked for by name.
+
+    Raises:
+        SomoError: Every effect asked for by name is one these rows cannot reveal.
+    """
+    rows, manip = base_problem.rows, base_problem.manipulator
+    hidden = [e.name for e in chosen if not e.applies_to(rows)]
+    note: tuple[str, ...] = ()
+    if hidden and by_name:  # asked for by name: say why it is not tried
+        why = "a direction column with both loading and unloading rows"
+        if len(hidden) == len(chosen):
+            raise SomoError(
+                f"{source}: --effects {', '.join(hidden)}: these rows cannot reveal it (it needs {why}); "
+                "allowed: effects these rows can show, or add such rows"
+            )
+        note = (f"effect(s) {', '.join(hidden)} not tried: these rows lack {why}",)
+    return tuple((e, e.parameters(manip, rows)) for e in chosen if e.applies_to(rows)), note
+
+
+def _z_bounds(n_base: int, flat: list[EffectParameter]) -> tuple[np.ndarray, np.ndarray]:
+    """Bounds of the fit coordinates z: base parameters from 0.1 to 10 times their value, effect
+    parameters within their own bounds; z = 0 (the model as given) always inside."""
+    lo = [-0.9] * n_base + [(ep.lower - ep.current) / ep.probe for ep in flat]
+    hi = [9.0] * n_base + [(ep.upper - ep.current) / ep.probe for ep in flat]
+    # A negative probe (a softening taper) flips the bounds in z; the model as given (z = 0)
+    # stays inside them even when its own value lies beyond what a fit would try.
+    return np.minimum(np.minimum(lo, hi), 0.0), np.maximum(np.maximum(lo, hi), 0.0)
+
+
 def build_diagnosis(
     rows: pd.DataFrame,
     model: Model,
@@ -181,7 +227,7 @@ def build_diagnosis(
         effects: Effect names to try (default: every registered effect the rows can reveal).
         n_jobs: Worker processes for the bench rows.
         keep_duplicates: Count rows repeating an earlier row exactly
-            (:func:`~somo_sweep.calibration.measurements.find_repeats`) as separate measurements;
+            (:func:`~somo_sweep.calibration.repeats.find_repeats`) as separate measurements;
             by default each is counted once and :attr:`DiagnosisProblem.notes` says so.
 
     Raises:
@@ -189,38 +235,18 @@ def build_diagnosis(
         SomoError: An unknown effect name.
     """
     chosen = [get_effect(n) for n in effects] if effects is not None else list(EFFECTS.values())
-    # A row repeated exactly (a copy) is no second measurement: it would halve the noise
-    # estimate and double its weight in every comparison, and flip the verdict.
-    notes: tuple[str, ...] = ()
-    repeats = find_repeats(rows) if not keep_duplicates else {}
-    if repeats:
-        notes = (describe_repeats(repeats, kept=False),)
-        rows = drop_repeats(rows, repeats)
+    rows, notes = _unique_rows(rows, keep_duplicates)
     base_problem = build_problem(rows, model, source, settings)
     manip = base_problem.manipulator
     base = [replace(p, initial=_current(manip, p.name)) for p in base_problem.parameters]
-    hidden = [e.name for e in chosen if not e.applies_to(base_problem.rows)]
-    if hidden and effects is not None:  # asked for by name: say why it is not tried
-        why = "a direction column with both loading and unloading rows"
-        if len(hidden) == len(chosen):
-            raise SomoError(
-                f"{source}: --effects {', '.join(hidden)}: these rows cannot reveal it (it needs {why}); "
-                "allowed: effects these rows can show, or add such rows"
-            )
-        notes = (*notes, f"effect(s) {', '.join(hidden)} not tried: these rows lack {why}")
-    sized = tuple(
-        (e, e.parameters(manip, base_problem.rows)) for e in chosen if e.applies_to(base_problem.rows)
-    )
+    sized, hidden_note = _effects_tried(chosen, base_problem, source, by_name=effects is not None)
+    notes = (*notes, *hidden_note)
     flat = [ep for _, pars in sized for ep in pars]
     extra = [Parameter(ep.name, ep.unit, abs(ep.probe), ep.apply) for ep in flat]
     fit = replace(base_problem, parameters=(*base, *extra))
     start = np.array([p.initial for p in base] + [ep.current for ep in flat])
     scale = np.array([p.initial for p in base] + [ep.probe for ep in flat])
-    lo = [-0.9] * len(base) + [(ep.lower - ep.current) / ep.probe for ep in flat]
-    hi = [9.0] * len(base) + [(ep.upper - ep.current) / ep.probe for ep in flat]
-    # A negative probe (a softening taper) flips the bounds in z; the model as given (z = 0)
-    # stays inside them even when its own value lies beyond what a fit would try.
-    lower, upper = np.minimum(np.minimum(lo, hi), 0.0), np.maximum(np.maximum(lo, hi), 0.0)
+    lower, upper = _z_bounds(len(base), flat)
     measured = measured_array(fit.rows)
     meter.expect(len(fit.rows))
     before = fit.simulate(start.tolist(), fit.rows, n_jobs)

@@ -7,6 +7,8 @@ are only starting points.
 
 from __future__ import annotations
 
+from typing import Any
+
 from somo_sweep.model.description import MIN_MASS_KG
 from somo_sweep.model.load import Model, model_from_dict
 
@@ -55,6 +57,15 @@ def planar_finger(
     Raises:
         DescriptionError: When a value is out of range (message names the key).
     """
+    actuator = _actuator(name, length_m, segments, mass_kg, (width_m, thickness_m), joint_placement)
+    actuator["joints"] = [
+        {
+            "name": "grasp",
+            "axis": [1.0, 0.0, 0.0],
+            "stiffness_n_m_per_rad": stiffness_n_m_per_rad,
+            "motor_limit_n_m": MOTOR_LIMIT_N_M,
+        }
+    ]
     data = {
         "manipulator": {
             "name": name,
@@ -62,29 +73,32 @@ def planar_finger(
                 "mode": "fixed",
                 "link": {"shape": "box", "size_m": list(CLAMP_SIZE_M), "mass_kg": CLAMP_MASS_KG},
             },
-            "actuators": [
-                {
-                    "name": name,
-                    "length_m": length_m,
-                    "n_segments": segments,
-                    "joint_placement": joint_placement,
-                    "link": {
-                        "shape": "box",
-                        "size_m": [width_m, thickness_m],
-                        # 0 g: weightless links, each at the schema's least mass
-                        "mass_kg": mass_kg / max(segments, 1) if mass_kg != 0 else MIN_MASS_KG,
-                    },
-                    "joints": [
-                        {
-                            "name": "grasp",
-                            "axis": [1.0, 0.0, 0.0],
-                            "stiffness_n_m_per_rad": stiffness_n_m_per_rad,
-                            "motor_limit_n_m": MOTOR_LIMIT_N_M,
-                        }
-                    ],
-                }
-            ],
+            "actuators": [actuator],
             "actuation": {"pressure_gain_n_m_per_kpa": pressure_gain_n_m_per_kpa},
         }
     }
     return model_from_dict(data, source="<planar finger>")
+
+
+def _actuator(
+    name: str,
+    length_m: float,
+    segments: int,
+    mass_kg: float,
+    section_m: tuple[float, float],
+    joint_placement: str,
+) -> dict[str, Any]:
+    """The finger's actuator as a model file writes it, without its joints: ``segments`` equal
+    box links of cross-section ``section_m`` (width, thickness; m) sharing ``mass_kg``."""
+    return {
+        "name": name,
+        "length_m": length_m,
+        "n_segments": segments,
+        "joint_placement": joint_placement,
+        "link": {
+            "shape": "box",
+            "size_m": list(section_m),
+            # 0 g: weightless links, each at the schema's least mass
+            "mass_kg": mass_kg / max(segments, 1) if mass_kg != 0 else MIN_MASS_KG,
+        },
+    }

@@ -23,6 +23,7 @@ from typing import Any
 import yaml
 
 from somo_sweep.errors import DescriptionError, Problem, os_cause, shown
+from somo_sweep.model.key_lines import join_path, json_lines
 
 __all__ = [
     "MAX_DEPTH",
@@ -30,7 +31,6 @@ __all__ = [
     "MAX_VALUES",
     "decode_utf8",
     "is_file",
-    "join_path",
     "load_mapping",
     "missing_or_special",
     "parse_yaml_value",
@@ -43,13 +43,6 @@ MAX_FILE_BYTES = 4 * 1024 * 1024
 MAX_VALUES = 100_000
 #: Deepest nesting of mappings and lists.
 MAX_DEPTH = 64
-
-
-def join_path(parent: str, key: str | int) -> str:
-    """Join a key path the way error messages print it (``a.b[0].c``)."""
-    if isinstance(key, int):
-        return f"{parent}[{key}]"
-    return f"{parent}.{key}" if parent else str(key)
 
 
 def is_file(path: Path) -> bool:
@@ -303,84 +296,6 @@ def parse_yaml_value(text: str) -> Any:
     return data
 
 
-#: A JSON token the line scanner steps over whole: a string, or a number or literal.
-_JSON_STRING = re.compile(r'"(?:[^"\\]|\\.)*"')
-_JSON_SCALAR = re.compile(r"[^\s,:\[\]{}]+")
-_JSON_BLANK = re.compile(r"[ \t\r\n]+")
-
-
-def _json_lines(text: str, problems: list[Problem]) -> dict[str, int]:
-    """The line of every key path of a JSON text that parsed (``a.b[0].c`` → 1-based line).
-
-    A key's line is the line of the key, an array item's the line where it starts, as for
-    YAML. A key given twice in one object is reported with both lines.
-    """
-    lines: dict[str, int] = {}
-    # One frame per open object or array: [path, is_object, next index, current key, keys seen].
-    stack: list[list[Any]] = []
-    line, i, n = 1, 0, len(text)
-
-    def value_path() -> str:
-        if not stack:
-            return ""
-        path, is_object, index, key, _ = stack[-1]
-        return join_path(path, key if is_object else index)
-
-    def value_starts() -> str:
-        where = value_path()
-        if not stack or not stack[-1][1]:  # the top level, or an array item: where it starts
-            lines[where] = line
-        return where
-
-    expect_key = False
-    while i < n:
-        ch = text[i]
-        if ch in " \t\r\n":
-            blank = _JSON_BLANK.match(text, i)
-            end = blank.end() if blank else i + 1
-            line += text.count("\n", i, end)
-            i = end
-            continue
-        if ch in "{[":
-            stack.append([value_starts(), ch == "{", 0, "", {}])
-            expect_key = ch == "{"
-        elif ch in "}]":
-            stack.pop()
-            expect_key = False
-        elif ch == ",":
-            if stack[-1][1]:
-                expect_key = True
-            else:
-                stack[-1][2] += 1
-        elif ch == ":":
-            expect_key = False
-        else:
-            token = (_JSON_STRING if ch == '"' else _JSON_SCALAR).match(text, i)
-            end = token.end() if token else i + 1
-            if expect_key:
-                frame = stack[-1]
-                frame[3] = key = json.loads(text[i:end])
-                child = join_path(frame[0], key)
-                if key in frame[4]:
-                    problems.append(
-                        Problem(
-                            child,
-                            f"key '{key}' is given twice (lines {frame[4][key]} and {line}); "
-                            "allowed: each key once per object",
-                            line,
-                        )
-                    )
-                else:
-                    frame[4][key] = line
-                lines[child] = line
-            else:
-                value_starts()
-            i = end
-            continue
-        i += 1
-    return lines
-
-
 def _check_json(data: Any) -> None:
     """The limits of :func:`_check_events` for parsed JSON (which has no aliases)."""
     values, todo = 0, [(data, 0)]
@@ -420,7 +335,7 @@ def load_mapping(path: str | Path) -> tuple[dict[str, Any], dict[str, int]]:
                 _check_json(data)
             except ValueError as exc:
                 raise DescriptionError(path, [Problem("", str(exc))]) from None
-            lines = _json_lines(text, problems)
+            lines = json_lines(text, problems)
         else:
             data = _load_yaml(text, problems, lines)
     except yaml.YAMLError as exc:

@@ -14,7 +14,7 @@ from typing import Any, TypeVar
 from pydantic import BaseModel, ValidationError
 
 from somo_sweep.errors import DescriptionError, Problem, did_you_mean, quoted, shown
-from somo_sweep.model.files import join_path
+from somo_sweep.model.key_lines import join_path
 
 __all__ = ["validate"]
 

@@ -2,8 +2,9 @@
 
 Each task lives in its own subpackage: ``params.py`` declares the parameters and
 registers the task (light: pydantic only), ``task.py`` simulates. The registry
-names the run function by its import path and imports it only when a trial runs,
-so loading and expanding a study never imports PyBullet.
+names the run function (and the optional ``prepare`` function) by its import path
+and imports it only when it is called, so loading and expanding a study never
+imports PyBullet, and a task's parameters import nothing of its trial.
 """
 
 from __future__ import annotations
@@ -12,6 +13,7 @@ import importlib
 import pkgutil
 from collections.abc import Callable, Mapping
 from dataclasses import dataclass, field
+from pathlib import Path
 from typing import Any, Literal
 
 from pydantic import BaseModel
@@ -67,10 +69,12 @@ class TaskSpec:
         check_params: What the task needs of a model and its parameters together (a torque table
             with one column per input of the model), checked when a study is loaded:
             ``check_params(model, params)`` returns one sentence per unmet need.
-        prepare: The model a trial simulates, from the study's model and the trial's parameters
-            (``prepare(model, params)``: the pinch task re-splits the fingers, the snake drops its
-            anisotropic friction when asked); None: the study's model as it is. Loading a study
-            checks that its engine can express it.
+        prepare_path: ``"package.module:function"`` of ``prepare(model, params) -> Model``, the
+            model a trial simulates from the study's model and the trial's parameters (the pinch
+            task re-splits the fingers, the snake drops its anisotropic friction when asked);
+            empty: the study's model as it is. Named by its path, as ``run_path`` is, so that a
+            task's parameters module imports nothing of its trial. Loading a study checks that
+            its engine can express the prepared model.
         perturb: A small physical perturbation of a trial's parameters, for robustness replicas
             (:mod:`somo_sweep.sweep.robustness`): ``perturb(params, rng)`` returns new
             parameters drawn with the NumPy generator ``rng`` (e.g. the object moved by a fraction
@@ -86,16 +90,29 @@ class TaskSpec:
     metrics: Mapping[str, str] = field(default_factory=dict)
     check_model: Callable[[Model], list[str]] | None = None
     check_params: Callable[[Model, Any], list[str]] | None = None
-    prepare: Callable[[Model, Any], Model] | None = None
+    prepare_path: str = ""
     perturb: Callable[[Any, Any], Any] | None = None
     perturbation: str = ""
 
     @property
     def run(self) -> TaskFn:
         """The run function, imported on first use."""
-        module, _, attr = self.run_path.partition(":")
-        fn: TaskFn = getattr(importlib.import_module(module), attr)
+        fn: TaskFn = _imported(self.run_path)
         return fn
+
+    @property
+    def prepare(self) -> Callable[[Model, Any], Model] | None:
+        """The prepare function (see ``prepare_path``), imported on first use; None without one."""
+        if not self.prepare_path:
+            return None
+        fn: Callable[[Model, Any], Model] = _imported(self.prepare_path)
+        return fn
+
+
+def _imported(path: str) -> Any:
+    """The object a ``"package.module:attribute"`` path names, importing its module."""
+    module, _, attr = path.partition(":")
+    return getattr(importlib.import_module(module), attr)
 
 
 _TASKS: dict[str, TaskSpec] = {}
@@ -112,9 +129,8 @@ def _load_all() -> None:
     global _loaded
     if _loaded:
         return
-    import somo_sweep.tasks as pkg
-
-    for info in pkgutil.iter_modules(pkg.__path__):
+    # The task modules beside this one (the package itself is not imported from here).
+    for info in pkgutil.iter_modules([str(Path(__file__).parent)]):
         if info.name == "registry":
             continue
         suffix = ".params" if info.ispkg else ""

@@ -156,7 +156,7 @@ def test_the_problem_count_counts_every_problem_not_the_lines_listed(tmp_path: P
 
 
 def test_a_long_file_describes_its_rows_in_one_short_line() -> None:
-    from somo_sweep.calibration.problem import _lines
+    from somo_sweep.calibration.problem import line_numbers
 
     rows = pd.DataFrame({"line": range(2, 3002)})
-    assert _lines(rows) == "2, 3, 4, 5, 6, 7, 8, 9, 10, 11, 12, 13, … (2988 more)"
+    assert line_numbers(rows) == "2, 3, 4, 5, 6, 7, 8, 9, 10, 11, 12, 13, … (2988 more)"

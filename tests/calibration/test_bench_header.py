@@ -1,4 +1,4 @@
-"""The bench protocol stated in the CSV: ``# bench: {stop_z_mm: ...}`` (issue 33, point 4).
+"""The bench protocol stated in the CSV: ``# bench: {stop_z_mm: ...}``.
 
 The blocked-force stop defaults to the straight finger's underside; a CSV may put it elsewhere
 below it. ``calibrate`` and ``diagnose`` say which geometry they used; a bad line is refused like

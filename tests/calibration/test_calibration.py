@@ -1,4 +1,4 @@
-"""Calibration (issue 5): the paper's eq. (8)/(9), the simulator-in-the-loop fit, the CLI and its errors."""
+"""Calibration: the paper's eq. (8)/(9), the simulator-in-the-loop fit, the CLI and its errors."""
 
 from __future__ import annotations
 
@@ -158,7 +158,7 @@ def test_problem_says_which_rows_calibrate_and_which_validate() -> None:
 
 
 def test_problem_extends_with_an_extra_effect_parameter() -> None:
-    """Diagnosis (issue 6) appends parameters; residuals and solvers stay the same."""
+    """Diagnosis appends parameters; residuals and solvers stay the same."""
     from dataclasses import replace
 
     from somo_sweep.calibration.solve import Parameter
@@ -560,7 +560,7 @@ def test_rows_differing_in_any_field_are_not_repeats(tmp_path: Path) -> None:
 def test_diagnose_takes_keep_duplicates_and_counts_repeats_once_by_default(
     tmp_path: Path, monkeypatch: pytest.MonkeyPatch
 ) -> None:
-    from somo_sweep.diagnosis import diagnose as diagnose_module
+    from somo_sweep.diagnosis import workflow
     from somo_sweep.errors import SomoError
 
     seen: list[tuple[int, bool]] = []
@@ -569,7 +569,7 @@ def test_diagnose_takes_keep_duplicates_and_counts_repeats_once_by_default(
         seen.append((len(rows), keep_duplicates))
         raise SomoError("stopped here")
 
-    monkeypatch.setattr(diagnose_module, "build_diagnosis", stop)
+    monkeypatch.setattr(workflow, "build_diagnosis", stop)
     path, line, _ = _repeated(tmp_path)
     model = str(MODELS / "ihm_finger.yaml")
     for extra in ([], ["--keep-duplicates"]):

@@ -261,15 +261,16 @@ def test_a_fit_that_could_not_start_writes_nothing_and_exits_1(
 
     from typer.testing import CliRunner
 
-    from somo_sweep.calibration import solve
+    from somo_sweep.calibration import solve, workflow
     from somo_sweep.cli.app import app
 
     real = solve.solve_paper
 
     def unfitted(problem, n_jobs=1):  # type: ignore[no-untyped-def]
-        return replace(real(problem, n_jobs), message="not fitted: calibration rows without equilibrium")
+        result = real(problem, n_jobs)
+        return replace(result, message="not fitted: calibration rows without equilibrium", fitted=False)
 
-    monkeypatch.setattr(solve, "solve_fit", unfitted)
+    monkeypatch.setattr(workflow, "solve_fit", unfitted)
     res = CliRunner().invoke(app, ["calibrate", str(BUNDLED), "-o", str(tmp_path / "m.yaml")])
     assert res.exit_code == 1 and "not fitted: calibration rows without equilibrium" in res.output
     assert "nothing was written" in res.output and not (tmp_path / "m.yaml").exists()
@@ -367,7 +368,7 @@ def test_a_parameter_the_rows_do_not_determine_is_warned_about(
 
     from typer.testing import CliRunner
 
-    from somo_sweep.calibration import solve
+    from somo_sweep.calibration import solve, workflow
     from somo_sweep.cli.app import app
 
     real = solve.solve_fit
@@ -378,7 +379,7 @@ def test_a_parameter_the_rows_do_not_determine_is_warned_about(
             result, relative_stderr={**result.relative_stderr, "pressure_gain_n_m_per_kpa": 2.5e10}
         )
 
-    monkeypatch.setattr(solve, "solve_fit", loose)
+    monkeypatch.setattr(workflow, "solve_fit", loose)
     res = CliRunner().invoke(app, ["calibrate", str(BUNDLED), "-o", str(tmp_path / "m.yaml")])
     assert res.exit_code == 0
     assert "warning: pressure_gain_n_m_per_kpa is not determined by these rows" in res.output

@@ -1,4 +1,4 @@
-"""Diagnosis (issue 6): effects as model features, noise and disagreements, and hidden-effect acceptance.
+"""Diagnosis: effects as model features, noise and disagreements, and hidden-effect acceptance.
 
 Acceptance data come from the simulator with one effect switched on (its name and
 size known only to this file), plus relative noise; ``calibrate`` then ``diagnose``

@@ -50,7 +50,7 @@ class Case:
 
 
 #: The continuum's effects (rod.Rod fields), sized like real soft fingers at 240 kPa, and the
-#: hidden effects of issue 33 (a weight 12x what the model is told, a model told 0 g, and
+#: hidden effects a bench file can hide (a weight 12x what the model is told, a model told 0 g, and
 #: stiffness rising or falling 5:1 from base to tip).
 CASES: dict[str, Case] = {
     "none": Case("none"),

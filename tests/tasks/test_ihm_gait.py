@@ -11,7 +11,7 @@ from somo_sweep.model.load import load_model
 from somo_sweep.paper.fig5 import compare, load_hardware
 from somo_sweep.sim.settings import WorldSettings
 from somo_sweep.tasks.ihm_gait.params import GaitParams
-from somo_sweep.tasks.ihm_gait.task import _torques, load_pressure_table, simulate_gait
+from somo_sweep.tasks.ihm_gait.task import gait_torques_n_m, load_pressure_table, simulate_gait
 from somo_sweep.tasks.registry import get_task
 
 SETTINGS = WorldSettings(time_step_s=1e-3)
@@ -19,7 +19,7 @@ SETTINGS = WorldSettings(time_step_s=1e-3)
 
 def test_pressure_map_is_eq10() -> None:
     psi = np.array([10.0, 4.0, 0.0, 0.0, -5.0, -5.0, 16.0, 16.0])
-    tau = _torques(psi, 0.005, 0.01625)
+    tau = gait_torques_n_m(psi, 0.005, 0.01625)
     np.testing.assert_allclose(tau[0:2], [0.005 * 7.0, 0.01625 * 3.0])
     np.testing.assert_allclose(tau[4:6], [-0.025, 0.0])
 

@@ -12,8 +12,9 @@ from somo_sweep.model.load import load_model
 from somo_sweep.paper.numerics import CHOSEN
 from somo_sweep.sim.settings import WorldSettings
 from somo_sweep.tasks import get_task
+from somo_sweep.tasks.pinch_grasp.gripper import split_finger
 from somo_sweep.tasks.pinch_grasp.params import Numerics, PinchGraspParams
-from somo_sweep.tasks.pinch_grasp.task import run_pinch_grasp, split_finger
+from somo_sweep.tasks.pinch_grasp.task import run_pinch_grasp
 
 GRIPPER = MODELS / "pinch_gripper.yaml"
 

@@ -21,8 +21,8 @@ from somo_sweep.sim.urdf import plan_rigid_body
 from somo_sweep.sim.worlds import open_world
 from somo_sweep.sweep.jobs import build_jobs
 from somo_sweep.sweep.study import derive_study, load_study
+from somo_sweep.tasks.pinch_grasp.gripper import gripper, object_body
 from somo_sweep.tasks.pinch_grasp.params import PinchGraspParams
-from somo_sweep.tasks.pinch_grasp.task import gripper, object_body
 
 SCALE = 20.0
 #: The bundled finger's per-joint stiffness in N·m/rad: (grasp, side) proximal and distal.

@@ -1,4 +1,4 @@
-"""The original configuration of the pinch study (issue #30): geometry, link numbering, hand path, object.
+"""The original configuration of the pinch study: geometry, link numbering, hand path, object.
 
 The reference numbers are the original code's own bodies as PyBullet loads them (GrauleM/somo
 755978b, read with ``tools/original_fig6/run_original_cells.py --inspect``): where each collision
@@ -26,8 +26,9 @@ from somo_sweep.sim.urdf import plan_rigid_body
 from somo_sweep.sim.world import World
 from somo_sweep.sim.worlds import open_world
 from somo_sweep.sweep.study import load_study
+from somo_sweep.tasks.pinch_grasp.gripper import gripper, object_body
 from somo_sweep.tasks.pinch_grasp.params import ORIGINAL_HULL_SIZE_M, Numerics, PinchGraspParams
-from somo_sweep.tasks.pinch_grasp.task import gripper, object_body, run_pinch_grasp
+from somo_sweep.tasks.pinch_grasp.task import run_pinch_grasp
 
 STUDIES = MODELS.parent
 REFERENCE = ROOT / "results" / "reference"

@@ -80,7 +80,7 @@ def check_hand(model: Model) -> list[str]:
 register(
     TaskSpec(
         name="ihm_gait",
-        run_path="somo_sweep.tasks.ihm_gait.task:_run",
+        run_path="somo_sweep.tasks.ihm_gait.task:run_ihm_gait",
         params_model=GaitParams,
         description="Four-finger hand turning a cube with a finger gait from a pressure table",
         tags=("paper", "fig5", "manipulation"),

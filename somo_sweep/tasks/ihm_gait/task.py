@@ -39,7 +39,15 @@ from somo_sweep.sim.worlds import open_world
 from somo_sweep.tasks.ihm_gait.params import GaitParams, check_hand
 from somo_sweep.tasks.registry import TaskResult
 
-__all__ = ["UNBUILDABLE", "GaitParams", "GaitRun", "load_pressure_table", "simulate_gait"]
+__all__ = [
+    "UNBUILDABLE",
+    "GaitParams",
+    "GaitRun",
+    "gait_torques_n_m",
+    "load_pressure_table",
+    "run_ihm_gait",
+    "simulate_gait",
+]
 
 #: The cube counts as dropped once it has moved this far up or down from its seat on the palm, m.
 DROP_HEIGHT_M = 0.020
@@ -77,7 +85,9 @@ def load_pressure_table(path: str | Path) -> SetpointTable:
     return SetpointTable(frame["time_s"].to_numpy(), frame[cols].to_numpy())
 
 
-def _torques(pressures_psi: np.ndarray, w_grasp: float, w_side: float) -> np.ndarray:
+def gait_torques_n_m(pressures_psi: np.ndarray, w_grasp: float, w_side: float) -> np.ndarray:
+    """Eq. (10): the eight joint torques (N·m; per finger grasp then side) of eight chamber
+    pressures (psi; per finger a then b), with the weights ``w_grasp`` and ``w_side`` (N·m/psi)."""
     pa, pb = pressures_psi[0::2], pressures_psi[1::2]
     out = np.empty(8)
     out[0::2] = w_grasp * (pa + pb) / 2
@@ -96,6 +106,44 @@ def _check_palm_clear(world: World, bodies: list[Body], palm: RigidBody) -> None
         )
 
 
+def _designed_palm(model: Model, params: GaitParams) -> Model:
+    """The hand with the palm's height and diameter of a design study (the model as it is
+    when the parameters set neither)."""
+    if params.palm_height_m is None and params.palm_diameter_m is None:
+        return model
+    bodies = []
+    for body in model.as_assembly().bodies:
+        if body.name == "palm":
+            radius_m = params.palm_diameter_m / 2 if params.palm_diameter_m else body.link.radius_m
+            link = body.link.model_copy(update={"radius_m": radius_m})
+            z = (params.palm_height_m or body.pose.position_m[2] + 0.0025) - 0.0025
+            body = body.model_copy(update={"link": link, "pose": Pose(position_m=(0.0, 0.0, z))})
+        bodies.append(body)
+    return Model(assembly=model.as_assembly().model_copy(update={"bodies": bodies}))
+
+
+def _cube(params: GaitParams, palm_top_m: float, seed: int) -> RigidBody:
+    """The cube resting on the palm (top at ``palm_top_m``, m), shifted in x and y and turned
+    about z by normal draws from ``seed``."""
+    rng = np.random.default_rng(seed)
+    dx, dy = rng.normal(0.0, params.cube_offset_std_m, 2) if params.cube_offset_std_m else (0.0, 0.0)
+    yaw_deg = rng.normal(0.0, params.cube_yaw_std_deg) if params.cube_yaw_std_deg else 0.0
+    half = params.cube_size_m / 2
+    return RigidBody(
+        name="cube",
+        link=Link(
+            shape="box",
+            size_m=(2 * half, 2 * half, 2 * half),
+            mass_kg=params.cube_mass_kg,
+            friction={"lateral": params.cube_friction},
+        ),
+        pose=Pose(
+            position_m=(float(dx), float(dy), palm_top_m + half + 1e-4),
+            rpy_rad=(0.0, 0.0, float(np.radians(yaw_deg))),
+        ),
+    )
+
+
 def simulate_gait(model: Model, params: GaitParams, settings: WorldSettings, seed: int = 0) -> GaitRun:
     """Run the hand on the pressure table and record the cube's pose.
 
@@ -107,18 +155,8 @@ def simulate_gait(model: Model, params: GaitParams, settings: WorldSettings, see
         SimulationError: If the palm overlaps the fingers at the start.
         UnstableSimulation: If the run blows up.
     """
+    model = _designed_palm(model, params)
     assembly = model.as_assembly()
-    if params.palm_height_m is not None or params.palm_diameter_m is not None:
-        bodies = []
-        for body in assembly.bodies:
-            if body.name == "palm":
-                radius_m = params.palm_diameter_m / 2 if params.palm_diameter_m else body.link.radius_m
-                link = body.link.model_copy(update={"radius_m": radius_m})
-                z = (params.palm_height_m or body.pose.position_m[2] + 0.0025) - 0.0025
-                body = body.model_copy(update={"link": link, "pose": Pose(position_m=(0.0, 0.0, z))})
-            bodies.append(body)
-        assembly = assembly.model_copy(update={"bodies": bodies})
-        model = Model(assembly=assembly)
     needs = check_hand(Model(assembly=assembly))
     if needs:
         raise SomoError("; ".join(needs))
@@ -126,29 +164,13 @@ def simulate_gait(model: Model, params: GaitParams, settings: WorldSettings, see
     palm_top_m = palm.pose.position_m[2] + (palm.link.length_m or 0.0) / 2
     table = load_pressure_table(params.pressure_table)
     end_s = params.duration_s or table.end_time_s
-    rng = np.random.default_rng(seed)
-    dx, dy = rng.normal(0.0, params.cube_offset_std_m, 2) if params.cube_offset_std_m else (0.0, 0.0)
-    yaw_deg = rng.normal(0.0, params.cube_yaw_std_deg) if params.cube_yaw_std_deg else 0.0
+    cube = _cube(params, palm_top_m, seed)
     with open_world(settings) as world:
         hand = world.add_model(model)
         _check_palm_clear(world, hand.bodies, palm)
-        half = params.cube_size_m / 2
-        cube = RigidBody(
-            name="cube",
-            link=Link(
-                shape="box",
-                size_m=(2 * half, 2 * half, 2 * half),
-                mass_kg=params.cube_mass_kg,
-                friction={"lateral": params.cube_friction},
-            ),
-            pose=Pose(
-                position_m=(float(dx), float(dy), palm_top_m + half + 1e-4),
-                rpy_rad=(0.0, 0.0, float(np.radians(yaw_deg))),
-            ),
-        )
         obj = world.add_rigid_body(cube)
         w_g, w_s = params.w_grasp_n_m_per_psi, params.w_side_n_m_per_psi
-        world.pre_step.append(lambda w: hand.set_inputs(_torques(table(w.time_s), w_g, w_s)))
+        world.pre_step.append(lambda w: hand.set_inputs(gait_torques_n_m(table(w.time_s), w_g, w_s)))
         every = max(1, round(params.record_every_s / settings.time_step_s))
         times, pos, quats = [], [], []
         for step in range(0, round(end_s / settings.time_step_s) + 1, every):
@@ -166,7 +188,8 @@ def simulate_gait(model: Model, params: GaitParams, settings: WorldSettings, see
     return GaitRun(np.asarray(times), pos_arr, rot_z - rot_z[0], np.degrees(eul[:, :2]))
 
 
-def _run(model: Model, params: GaitParams, settings: WorldSettings, seed: int) -> TaskResult:
+def run_ihm_gait(model: Model, params: GaitParams, settings: WorldSettings, seed: int) -> TaskResult:
+    """One gait trial: the object's rotation, drift and tilt, and its outcome label."""
     try:
         run = simulate_gait(model, params, settings, seed)
     except UnstableSimulation as exc:

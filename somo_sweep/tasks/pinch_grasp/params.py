@@ -330,13 +330,6 @@ METRICS: dict[str, str] = {
 }
 
 
-def simulated_gripper(model: Model, params: PinchGraspParams) -> Model:
-    """The gripper a trial simulates: its fingers re-split by DSR, numerics and factors applied."""
-    from somo_sweep.tasks.pinch_grasp.task import gripper
-
-    return gripper(model, params)
-
-
 def perturb(params: PinchGraspParams, rng: np.random.Generator) -> PinchGraspParams:
     """A robustness replica of a trial: the object moved by up to ±0.5 mm in x and in y, and its
     friction coefficient scaled by a factor within ±5 % (uniform draws from ``rng``)."""
@@ -360,7 +353,7 @@ register(
         tags=("grasp", "paper", "fig6"),
         metrics=METRICS,
         check_model=check_gripper,
-        prepare=simulated_gripper,
+        prepare_path="somo_sweep.tasks.pinch_grasp.gripper:gripper",
         perturb=perturb,
         perturbation=(
             f"the object starts up to ±{JITTER_M * 1e3:g} mm off its spot in x and y, its friction "

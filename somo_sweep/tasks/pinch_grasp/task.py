@@ -21,17 +21,17 @@ lift the trial ends if its outcome is already settled as no grasp under both rul
 from __future__ import annotations
 
 from collections.abc import Callable, Sequence
-from dataclasses import replace
+from dataclasses import dataclass, replace
 
 import numpy as np
 
-from somo_sweep.errors import SomoError, UnstableSimulation
-from somo_sweep.model.description import Actuator, Joint, Link, Manipulator, Pose, RigidBody
+from somo_sweep.errors import UnstableSimulation
+from somo_sweep.model.description import Pose
 from somo_sweep.model.load import Model
 from somo_sweep.model.setpoints import SetpointTable
 from somo_sweep.sim.rotations import rpy_from_quat
 from somo_sweep.sim.settings import WorldSettings
-from somo_sweep.sim.world import World
+from somo_sweep.sim.world import ModelHandle, World
 from somo_sweep.sim.worlds import open_world
 from somo_sweep.tasks.pinch_grasp.classify import (
     GraspEvidence,
@@ -42,151 +42,14 @@ from somo_sweep.tasks.pinch_grasp.classify import (
     paper_mean_link,
 )
 from somo_sweep.tasks.pinch_grasp.contacts import HoldProbe
-from somo_sweep.tasks.pinch_grasp.params import (
-    Numerics,
-    PinchGraspParams,
-    final_count_columns,
-    original_hull_size_m,
-)
+from somo_sweep.tasks.pinch_grasp.gripper import GROUND_FRICTION, gripper, object_body
+from somo_sweep.tasks.pinch_grasp.params import PinchGraspParams, final_count_columns
 from somo_sweep.tasks.pinch_grasp.settled import Snapshot, settled_reason
 from somo_sweep.tasks.registry import TaskResult
 
-__all__ = ["Numerics", "PinchGraspParams", "gripper", "object_body", "run_pinch_grasp", "split_finger"]
+__all__ = ["run_pinch_grasp"]
 
-#: Links per finger (the facts sheet's finger).
-N_LINKS = 20
-#: Box object: height (z) and extent across the fingers (y), in m; mass in kg.
-OBJECT_HEIGHT_M = 0.060
-OBJECT_DEPTH_M = 0.060
-OBJECT_MASS_KG = 0.020
-OBJECT_FRICTION = 2.0
-GROUND_FRICTION = 1.0
-OBJECT_COLOR_RGBA = (0.95, 0.55, 0.15, 1.0)
-#: Gap between the object and the ground at spawn, m.
-SPAWN_GAP_M = 0.0005
-
-
-def split_finger(
-    finger: Manipulator,
-    n_distal: int,
-    numerics: Numerics | None = None,
-    *,
-    spring_scale: float = 1.0,
-    spinning_friction_m: float | None = None,
-    restitution: float | None = None,
-) -> Manipulator:
-    """Re-split a two-actuator finger into ``20 − n_distal`` proximal and ``n_distal`` distal links.
-
-    Link size, mass and per-joint stiffness do not change with the split. With one
-    distal link or none, the finger is a single driven 20-link actuator (the facts
-    sheet's rule).
-
-    Args:
-        finger: The two-actuator finger of the model file.
-        n_distal: Distal links, 0 … 20.
-        numerics: Overrides of inertia shaping, damping and motor limit (None: the file's).
-        spring_scale: Multiplier of every joint's stiffness (2: the original's effective springs).
-        spinning_friction_m: Spinning friction of every link and fingertip, m (None: the file's).
-        restitution: Restitution of every link and fingertip (None: the file's).
-    """
-    if len(finger.actuators) != 2:
-        raise SomoError(
-            f"finger '{finger.name}' needs a proximal and a distal actuator, got {len(finger.actuators)}"
-        )
-    proximal, distal = finger.actuators
-    seg_m = proximal.segment_m
-
-    def surface(link: Link) -> Link:
-        upd: dict[str, object] = {}
-        if spinning_friction_m is not None:
-            upd["friction"] = link.friction.model_copy(update={"spinning": spinning_friction_m})
-        if restitution is not None:
-            upd["restitution"] = restitution
-        return link.model_copy(update=upd) if upd else link
-
-    def tuned(act: Actuator, n: int, actuated: bool) -> Actuator:
-        link = surface(act.link.with_length_z(seg_m))
-        joints = list(act.joints)
-        if numerics is not None and numerics.added_inertia_kg_m2 is not None:
-            link = link.model_copy(update={"added_inertia_kg_m2": numerics.added_inertia_kg_m2})
-        if numerics is not None:
-            upd: dict[str, float] = {}
-            if numerics.damping_n_m_s_per_rad is not None:
-                upd["damping_n_m_s_per_rad"] = numerics.damping_n_m_s_per_rad
-            if numerics.motor_limit_n_m is not None:
-                upd["motor_limit_n_m"] = numerics.motor_limit_n_m
-            joints = [j.model_copy(update=upd) for j in joints]
-        if spring_scale != 1.0:
-            joints = [_scaled_spring(j, spring_scale) for j in joints]
-        # The first (grasp) axis of the proximal actuator is driven; nothing else is.
-        joints = [j.model_copy(update={"actuated": actuated and i == 0}) for i, j in enumerate(joints)]
-        return act.model_copy(
-            update={
-                "length_m": n * seg_m,
-                "n_segments": n,
-                "segment_length_m": None,
-                "link": link,
-                "joints": joints,
-                "stiffness_profile": None,
-            }
-        )
-
-    if n_distal <= 1:
-        actuators = [tuned(proximal, N_LINKS, True)]
-    else:
-        actuators = [tuned(proximal, N_LINKS - n_distal, True), tuned(distal, n_distal, False)]
-    tips = [surface(t) for t in finger.tip_links]
-    return finger.model_copy(update={"actuators": actuators, "tip_links": tips})
-
-
-def _scaled_spring(joint: Joint, factor: float) -> Joint:
-    """``joint`` with its stiffness (revolute or prismatic) multiplied by ``factor``."""
-    upd = {
-        name: value * factor
-        for name in ("stiffness_n_m_per_rad", "stiffness_n_per_m")
-        if (value := getattr(joint, name)) is not None
-    }
-    return joint.model_copy(update=upd)
-
-
-def gripper(model: Model, params: PinchGraspParams) -> Model:
-    """The trial's gripper: each finger re-split by DSR with the numerics and physical factors applied."""
-    assembly = model.as_assembly()
-    mounts = [
-        m.model_copy(
-            update={
-                "manipulator": split_finger(
-                    m.manipulator,
-                    params.n_distal,
-                    params.numerics,
-                    spring_scale=params.spring_scale,
-                    spinning_friction_m=params.finger_spinning_friction_m,
-                    restitution=params.restitution,
-                )
-            }
-        )
-        for m in assembly.manipulators
-    ]
-    return Model(assembly=assembly.model_copy(update={"manipulators": mounts}))
-
-
-def object_body(params: PinchGraspParams) -> RigidBody:
-    """The box to grasp, resting just above the ground at x = y = 0 (plus ``object_offset_m``)."""
-    size = (params.object_width_m, OBJECT_DEPTH_M, OBJECT_HEIGHT_M)
-    if params.object_shape == "original_hull":
-        size = original_hull_size_m(params.object_width_m) or size
-    return RigidBody(
-        name="object",
-        link=Link(
-            shape="box",
-            size_m=size,
-            mass_kg=OBJECT_MASS_KG,
-            friction={"lateral": OBJECT_FRICTION * params.object_friction_scale},
-            restitution=params.restitution or 0.0,
-            color_rgba=OBJECT_COLOR_RGBA,
-        ),
-        pose=Pose(position_m=(*params.object_offset_m, size[2] / 2 + SPAWN_GAP_M)),
-    )
+Metrics = dict[str, float | int | bool | str]
 
 
 def run_pinch_grasp(
@@ -211,96 +74,200 @@ def run_pinch_grasp(
     """
     del seed
     hand_model = gripper(model, params)
-    p = params
-    if p.clamp_speed_cap:
+    if params.clamp_speed_cap:
         settings = replace(settings, clamp_speed_cap=True)
     with open_world(settings) as world:
-        ground = world.add_ground(friction=GROUND_FRICTION)
-        box = object_body(p)
-        obj_start = np.array(box.pose.position_m)
-        obj = world.add_rigid_body(box)
-        # Load the hand far away, measure where its finger mounts sit relative to the palm.
-        far = np.array([1.0, 0.0, p.hand_height_m])
-        hand = world.add_model(hand_model, Pose(position_m=tuple(far)))
-        probe = HoldProbe(world, hand, obj.id, ground)
-        mount_to_palm_x = float(far[0] - probe.finger_mounts_m()[:, 0].mean())
-        # The hand aims at the object's nominal spot (x = 0): a replica's offset moves the object only.
-        x_end = p.base_distance_m + mount_to_palm_x
-        start = np.array([x_end + p.approach_m, 0.0, p.hand_height_m])
-        world.drive_model(hand, start, (0.0, 0.0, 0.0))
-        world.place_model(hand, start, (0.0, 0.0, 0.0))
-        t1 = p.approach_s
-        t2 = t1 + p.ramp_s
-        t3 = t2 + p.lift_s
-        t4 = t3 + p.hold_s
-        lift = [(0.0, 0.0), *p.lift_profile, (1.0, 1.0)]
-        path = SetpointTable(
-            [0.0, t1, *(t2 + f * p.lift_s for f, _ in lift)],
-            [
-                start,
-                [x_end, 0, p.hand_height_m],
-                *([x_end, 0, p.hand_height_m + h * p.lift_m] for _, h in lift),
-            ],
-        )
-        n_in = len(hand.input_names)
-        torque = SetpointTable([0.0, t1, t2], [[0.0] * n_in, [0.0] * n_in, [p.torque_n_m] * n_in])
-        # The world sends the setpoints at every step, and only when they change.
-        world.follow(
-            hand, inputs=torque, base=SetpointTable(path.times_s, np.pad(path.values, ((0, 0), (0, 3))))
-        )
-        dt = settings.time_step_s
+        scene = _build_scene(world, hand_model, params)
+        _plan_path(scene, params)
+        steps = _Steps.plan(params, settings.time_step_s, observe_at_s)
+        metrics: Metrics = {"n_distal_links": params.n_distal}
+        try:
+            ending = _step_through(scene, steps, metrics, observe)
+        except UnstableSimulation as exc:
+            return TaskResult(status="unstable", message=str(exc))
+        _collect_metrics(scene, steps, ending, params, metrics)
+    return _classified(metrics, params)
+
+
+@dataclass(frozen=True)
+class _Scene:
+    """The trial's world: the hand, the box and the probe of their contacts.
+
+    Attributes:
+        world: The world holding them.
+        hand: The gripper.
+        object_id: Id of the box.
+        object_start_m: Where the box starts, m.
+        probe: The contact probe between hand and box.
+        x_end_m: Palm x at the end of the approach, m.
+    """
+
+    world: World
+    hand: ModelHandle
+    object_id: int
+    object_start_m: np.ndarray
+    probe: HoldProbe
+    x_end_m: float
+
+
+def _build_scene(world: World, hand_model: Model, p: PinchGraspParams) -> _Scene:
+    """Ground, box and hand; the hand is loaded far away to measure where its finger mounts sit
+    relative to the palm, which places the end of its approach."""
+    ground = world.add_ground(friction=GROUND_FRICTION)
+    box = object_body(p)
+    obj_start = np.array(box.pose.position_m)
+    obj = world.add_rigid_body(box)
+    far = np.array([1.0, 0.0, p.hand_height_m])
+    hand = world.add_model(hand_model, Pose(position_m=tuple(far)))
+    probe = HoldProbe(world, hand, obj.id, ground)
+    mount_to_palm_x = float(far[0] - probe.finger_mounts_m()[:, 0].mean())
+    # The hand aims at the object's nominal spot (x = 0): a replica's offset moves the object only.
+    x_end = p.base_distance_m + mount_to_palm_x
+    return _Scene(world, hand, obj.id, obj_start, probe, x_end)
+
+
+def _phase_ends_s(p: PinchGraspParams) -> tuple[float, float, float, float]:
+    """Ends of the approach, the squeeze (torque ramp), the lift and the hold, s."""
+    t1 = p.approach_s
+    t2 = t1 + p.ramp_s
+    t3 = t2 + p.lift_s
+    t4 = t3 + p.hold_s
+    return t1, t2, t3, t4
+
+
+def _plan_path(scene: _Scene, p: PinchGraspParams) -> None:
+    """Put the hand at its start and give the world its path and its torque ramp to follow."""
+    world, hand, x_end = scene.world, scene.hand, scene.x_end_m
+    start = np.array([x_end + p.approach_m, 0.0, p.hand_height_m])
+    world.drive_model(hand, start, (0.0, 0.0, 0.0))
+    world.place_model(hand, start, (0.0, 0.0, 0.0))
+    t1, t2, _, _ = _phase_ends_s(p)
+    lift = [(0.0, 0.0), *p.lift_profile, (1.0, 1.0)]
+    path = SetpointTable(
+        [0.0, t1, *(t2 + f * p.lift_s for f, _ in lift)],
+        [
+            start,
+            [x_end, 0, p.hand_height_m],
+            *([x_end, 0, p.hand_height_m + h * p.lift_m] for _, h in lift),
+        ],
+    )
+    n_in = len(hand.input_names)
+    torque = SetpointTable([0.0, t1, t2], [[0.0] * n_in, [0.0] * n_in, [p.torque_n_m] * n_in])
+    # The world sends the setpoints at every step, and only when they change.
+    world.follow(hand, inputs=torque, base=SetpointTable(path.times_s, np.pad(path.values, ((0, 0), (0, 3)))))
+
+
+@dataclass(frozen=True)
+class _Steps:
+    """The step numbers where the step loop stops to read or check something.
+
+    Attributes:
+        dt: Time step, s.
+        n_steps: Steps of the whole trial.
+        i_lift: Step at the end of the squeeze (the lift starts).
+        i_hold: Step at the end of the lift (the hold starts).
+        observe: Steps before which the observer is called.
+        checks: Steps where the early-stop rule is checked.
+        samples: Steps after which the hold-phase contacts are sampled.
+    """
+
+    dt: float
+    n_steps: int
+    i_lift: int
+    i_hold: int
+    observe: set[int]
+    checks: set[int]
+    samples: set[int]
+
+    @classmethod
+    def plan(cls, p: PinchGraspParams, dt: float, observe_at_s: Sequence[float]) -> _Steps:
+        """The stops of a trial with parameters ``p`` at time step ``dt`` (s)."""
+        _, t2, t3, t4 = _phase_ends_s(p)
         n_steps = round(t4 / dt)
         sample_every = max(1, round(p.sample_period_s / dt))
         i_lift, i_hold = round(t2 / dt), round(t3 / dt)
-        z_obj: dict[int, float] = {}
-        metrics: dict[str, float | int | bool | str] = {"n_distal_links": p.n_distal}
-        ended_early_s, reason, touched = float("nan"), "", False
         observe_steps = {min(round(t / dt), n_steps - 1) for t in observe_at_s}
+        # From the end of the squeeze to the end of the lift, every sample period.
         checks = set(range(i_lift, i_hold + 1, sample_every)) if p.early_stop else set()
         # Hold-phase samples follow the steps counted back from the last, so the last comes last.
         samples = {i + 1 for i in range(i_hold, n_steps) if (n_steps - 1 - i) % sample_every == 0}
-        # The loop stops only where something is read or checked; the steps between run in one call.
-        stops = sorted({0, i_lift, i_hold, n_steps} | observe_steps | checks | samples)
-        try:
-            done = 0
-            for i in stops:
-                world.step(i - done)
-                done = i
-                if i in samples:
-                    probe.sample()  # after step i − 1
-                if i == n_steps:
-                    break
-                t = i * dt
-                if observe is not None and i in observe_steps:
-                    observe(world, t)
-                if i in (i_lift, i_hold):
-                    z_obj[i] = float(world.base_pose(obj.id)[0][2])
-                if i == i_lift:
-                    metrics["base_distance_m"] = float(probe.finger_mounts_m()[:, 0].mean() - obj_start[0])
-                    metrics["squeeze_end_hand_contact"] = touched = probe.touching_now()
-                # From the end of the squeeze to the end of the lift, every sample period.
-                if i in checks:
-                    reason = settled_reason(_snapshot(world, probe, obj.id), touched)
-                    if reason:
-                        ended_early_s = t
-                        break
-        except UnstableSimulation as exc:
-            return TaskResult(status="unstable", message=str(exc))
-        pos, quat = world.base_pose(obj.id)
-        metrics.update({f"object_{a}_m": float(v) for a, v in zip("xyz", pos, strict=True)})
-        rpy = rpy_from_quat(quat)
-        metrics.update({"object_roll_rad": rpy[0], "object_pitch_rad": rpy[1], "object_yaw_rad": rpy[2]})
-        metrics["lift_height_m"] = float(pos[2] - obj_start[2])
-        nan = float("nan")
-        lifted = z_obj[i_hold] - z_obj[i_lift] if not reason else nan
-        metrics["lift_slip_m"] = float(p.lift_m - lifted)
-        metrics["hold_slip_m"] = float(z_obj[i_hold] - pos[2]) if not reason else nan
-        metrics["ended_early_s"] = ended_early_s
-        metrics["ended_early_reason"] = reason
-        metrics.update(probe.metrics())
-        metrics["final_mean_link_paper"] = paper_mean_link(
-            [int(metrics[n]) for n in final_count_columns()[:-1]]
-        )
+        return cls(dt, n_steps, i_lift, i_hold, observe_steps, checks, samples)
+
+    @property
+    def stops(self) -> list[int]:
+        """Every step where the loop stops, in order; the steps between run in one call."""
+        return sorted({0, self.i_lift, self.i_hold, self.n_steps} | self.observe | self.checks | self.samples)
+
+
+@dataclass(frozen=True)
+class _Ending:
+    """How the step loop ended.
+
+    Attributes:
+        z_obj_m: Height of the box at the end of the squeeze and of the lift, by step, m.
+        ended_early_s: When the early stop ended the trial, s (NaN: run to its end).
+        reason: Why it ended early (``""``: it did not).
+    """
+
+    z_obj_m: dict[int, float]
+    ended_early_s: float
+    reason: str
+
+
+def _step_through(
+    scene: _Scene, steps: _Steps, metrics: Metrics, observe: Callable[[World, float], None] | None
+) -> _Ending:
+    """Step the trial from stop to stop: sample contacts, observe, record the box's height and the
+    squeeze-end metrics, and end early once the outcome is settled."""
+    world, probe = scene.world, scene.probe
+    z_obj: dict[int, float] = {}
+    ended_early_s, reason, touched = float("nan"), "", False
+    done = 0
+    for i in steps.stops:
+        world.step(i - done)
+        done = i
+        if i in steps.samples:
+            probe.sample()  # after step i − 1
+        if i == steps.n_steps:
+            break
+        t = i * steps.dt
+        if observe is not None and i in steps.observe:
+            observe(world, t)
+        if i in (steps.i_lift, steps.i_hold):
+            z_obj[i] = float(world.base_pose(scene.object_id)[0][2])
+        if i == steps.i_lift:
+            metrics["base_distance_m"] = float(probe.finger_mounts_m()[:, 0].mean() - scene.object_start_m[0])
+            metrics["squeeze_end_hand_contact"] = touched = probe.touching_now()
+        if i in steps.checks:
+            reason = settled_reason(_snapshot(world, probe, scene.object_id), touched)
+            if reason:
+                ended_early_s = t
+                break
+    return _Ending(z_obj, ended_early_s, reason)
+
+
+def _collect_metrics(
+    scene: _Scene, steps: _Steps, ending: _Ending, p: PinchGraspParams, metrics: Metrics
+) -> None:
+    """Add the box's final pose, lift and slips, the early stop and the contact metrics."""
+    pos, quat = scene.world.base_pose(scene.object_id)
+    metrics.update({f"object_{a}_m": float(v) for a, v in zip("xyz", pos, strict=True)})
+    rpy = rpy_from_quat(list(quat))
+    metrics.update({"object_roll_rad": rpy[0], "object_pitch_rad": rpy[1], "object_yaw_rad": rpy[2]})
+    metrics["lift_height_m"] = float(pos[2] - scene.object_start_m[2])
+    nan = float("nan")
+    z_obj, reason = ending.z_obj_m, ending.reason
+    lifted = z_obj[steps.i_hold] - z_obj[steps.i_lift] if not reason else nan
+    metrics["lift_slip_m"] = float(p.lift_m - lifted)
+    metrics["hold_slip_m"] = float(z_obj[steps.i_hold] - pos[2]) if not reason else nan
+    metrics["ended_early_s"] = ending.ended_early_s
+    metrics["ended_early_reason"] = reason
+    metrics.update(scene.probe.metrics())
+    metrics["final_mean_link_paper"] = paper_mean_link([int(metrics[n]) for n in final_count_columns()[:-1]])
+
+
+def _classified(metrics: Metrics, p: PinchGraspParams) -> TaskResult:
+    """The trial's result: its metrics with the force shares, and its labels under both rules."""
     evidence = GraspEvidence.from_metrics(metrics, p.distal_segment_ratio, p.lift_m)
     shares = distal_force_fractions(evidence)
     metrics["hold_force_fraction_distal"] = shares["distal"]

@@ -46,22 +46,15 @@ def check_manipulator(model: Model) -> list[str]:
     ]
 
 
-def simulated_snake(model: Model, params: SnakeParams) -> Model:
-    """The snake a trial simulates: its segments' anisotropic friction dropped when ``isotropic``."""
-    from somo_sweep.tasks.snake.task import isotropic
-
-    return isotropic(model) if params.friction == "isotropic" and model.manipulator is not None else model
-
-
 register(
     TaskSpec(
         name="snake",
-        run_path="somo_sweep.tasks.snake.task:_run",
+        run_path="somo_sweep.tasks.snake.task:run_snake",
         params_model=SnakeParams,
         description="Snake crawling by a travelling torque wave, isotropic vs anisotropic friction",
         tags=("paper", "fig8", "locomotion"),
         metrics=METRICS,
         check_model=check_manipulator,
-        prepare=simulated_snake,
+        prepare_path="somo_sweep.tasks.snake.body:simulated_snake",
     )
 )

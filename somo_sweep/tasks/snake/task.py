@@ -20,9 +20,10 @@ from somo_sweep.sim.settings import WorldSettings
 from somo_sweep.sim.world import World
 from somo_sweep.sim.worlds import open_world
 from somo_sweep.tasks.registry import TaskResult
+from somo_sweep.tasks.snake.body import isotropic
 from somo_sweep.tasks.snake.params import SnakeParams
 
-__all__ = ["SnakeParams", "SnakeRun", "isotropic", "simulate_snake"]
+__all__ = ["SnakeRun", "run_snake", "simulate_snake"]
 
 
 @dataclass(frozen=True)
@@ -56,16 +57,6 @@ class SnakeRun:
         """Displacement of the centre across the intended direction, m."""
         side = np.array([-self.direction[1], self.direction[0]])
         return float((self.com_xy_m[-1] - self.com_xy_m[0]) @ side)
-
-
-def isotropic(model: Model) -> Model:
-    """The snake with isotropic friction on every segment (its ``anisotropic`` scaling dropped)."""
-    assert model.manipulator is not None
-    acts = []
-    for act in model.manipulator.actuators:
-        friction = act.link.friction.model_copy(update={"anisotropic": None})
-        acts.append(act.model_copy(update={"link": act.link.model_copy(update={"friction": friction})}))
-    return model.model_copy(update={"manipulator": model.manipulator.model_copy(update={"actuators": acts})})
 
 
 def simulate_snake(model: Model, params: SnakeParams, settings: WorldSettings) -> SnakeRun:
@@ -120,7 +111,8 @@ def simulate_snake(model: Model, params: SnakeParams, settings: WorldSettings) -
     return SnakeRun(np.asarray(times), xy, direction, width_m, manip.length_m)
 
 
-def _run(model: Model, params: SnakeParams, settings: WorldSettings, seed: int) -> TaskResult:
+def run_snake(model: Model, params: SnakeParams, settings: WorldSettings, seed: int) -> TaskResult:
+    """One snake trial: its advance along the intended direction and its locomotion label."""
     del seed  # deterministic: no randomness in this task
     try:
         run = simulate_snake(model, params, settings)

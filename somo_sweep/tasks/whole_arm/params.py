@@ -100,7 +100,7 @@ def check_torque_table(model: Model, params: WholeArmParams) -> list[str]:
 register(
     TaskSpec(
         name="whole_arm",
-        run_path="somo_sweep.tasks.whole_arm.task:_run",
+        run_path="somo_sweep.tasks.whole_arm.task:run_whole_arm",
         params_model=WholeArmParams,
         description="Continuum arm wraps a ball, lifts it and drops it through a hoop (scripted torques)",
         tags=("paper", "fig7", "manipulation"),

@@ -29,12 +29,12 @@ from somo_sweep.model.setpoints import SetpointTable
 from somo_sweep.model.tables import read_table_text
 from somo_sweep.sim.render import Camera, snapshot
 from somo_sweep.sim.settings import WorldSettings
-from somo_sweep.sim.world import World
+from somo_sweep.sim.world import Body, World
 from somo_sweep.sim.worlds import open_world
 from somo_sweep.tasks.registry import TaskResult
 from somo_sweep.tasks.whole_arm.params import WholeArmParams, torque_columns
 
-__all__ = ["WholeArmParams", "WholeArmRun", "load_torque_table", "simulate_whole_arm"]
+__all__ = ["WholeArmParams", "WholeArmRun", "load_torque_table", "run_whole_arm", "simulate_whole_arm"]
 
 
 # Scene constants (m, kg). The rails leave a 60-mm gap the wrapping arm (40 mm wide) passes through.
@@ -167,6 +167,49 @@ def _add_hoop(world: World, centre_m: np.ndarray, inner_radius_m: float) -> list
     return ids
 
 
+def _add_ball(world: World, params: WholeArmParams, ball0: np.ndarray) -> Body:
+    """The ball, a thin shell (like a basketball), resting on the stand at ``ball0`` (m)."""
+    r, m = params.ball_radius_m, params.ball_mass_kg
+    ball_link = Link(
+        shape="sphere",
+        radius_m=r,
+        mass_kg=m,
+        inertia_kg_m2=(2 / 3 * m * r * r,) * 3,
+        friction={"lateral": params.ball_friction},
+        color_rgba=BALL_RGBA,
+    )
+    return world.add_rigid_body(RigidBody(name="ball", link=ball_link, pose=Pose(position_m=ball0)))
+
+
+def _record(
+    world: World,
+    ball_id: int,
+    ring: list[int],
+    n_steps: int,
+    every: int,
+    frame_steps: list[int],
+    camera: Camera | None,
+    frames: list[np.ndarray],
+) -> tuple[list[float], list[np.ndarray], list[bool]]:
+    """Step to ``n_steps``, recording every ``every`` steps the time (s), the ball's position (m)
+    and whether it touches the hoop, and rendering a frame (into ``frames``) at ``frame_steps``."""
+    times, path, contact = [], [], []
+    step = 0
+    while True:
+        if step % every == 0:
+            times.append(world.time_s)
+            path.append(world.base_pose(ball_id)[0])
+            contact.append(any(len(world.contacts(ball_id, i)["link_a"]) for i in ring))
+        if frame_steps and frame_steps[0] == step:
+            frames.append(snapshot(world, camera))  # type: ignore[arg-type]
+            frame_steps.pop(0)
+        if step >= n_steps:
+            break
+        world.step()
+        step += 1
+    return times, path, contact
+
+
 def simulate_whole_arm(
     model: Model,
     params: WholeArmParams,
@@ -203,47 +246,26 @@ def simulate_whole_arm(
         scaled = SetpointTable(table.times_s, table.values * params.torque_scale)
         _add_stand(world, ball0, params.ball_radius_m)
         ring = _add_hoop(world, hoop, params.hoop_inner_radius_m)
-        r, m = params.ball_radius_m, params.ball_mass_kg
-        ball_link = Link(
-            shape="sphere",
-            radius_m=r,
-            mass_kg=m,
-            inertia_kg_m2=(2 / 3 * m * r * r,) * 3,  # a thin shell, like a basketball
-            friction={"lateral": params.ball_friction},
-            color_rgba=BALL_RGBA,
-        )
-        ball = world.add_rigid_body(RigidBody(name="ball", link=ball_link, pose=Pose(position_m=ball0)))
+        ball = _add_ball(world, params, ball0)
         world.follow(arm, scaled)
         dt = settings.time_step_s
         every = max(1, round(params.record_every_s / dt))
         n_steps = round((params.duration_s or table.end_time_s) / dt)
         frame_steps = sorted({min(round(t / dt), n_steps) for t in frame_times_s}) if camera else []
-        times, path, contact = [], [], []
-        step = 0
-        while True:
-            if step % every == 0:
-                times.append(world.time_s)
-                path.append(world.base_pose(ball.id)[0])
-                contact.append(any(len(world.contacts(ball.id, i)["link_a"]) for i in ring))
-            if frame_steps and frame_steps[0] == step:
-                frames.append(snapshot(world, camera))  # type: ignore[arg-type]
-                frame_steps.pop(0)
-            if step >= n_steps:
-                break
-            world.step()
-            step += 1
+        times, path, contact = _record(world, ball.id, ring, n_steps, every, frame_steps, camera, frames)
     run = WholeArmRun(
         np.asarray(times),
         np.asarray(path),
         hoop,
         params.hoop_inner_radius_m,
-        r,
+        params.ball_radius_m,
         np.asarray(contact, dtype=bool),
     )
     return run, frames
 
 
-def _run(model: Model, params: WholeArmParams, settings: WorldSettings, seed: int) -> TaskResult:
+def run_whole_arm(model: Model, params: WholeArmParams, settings: WorldSettings, seed: int) -> TaskResult:
+    """One whole-arm trial: the ball's lift and hoop crossing, and its outcome label."""
     del seed  # deterministic: no randomness in this task
     try:
         run, _ = simulate_whole_arm(model, params, settings)

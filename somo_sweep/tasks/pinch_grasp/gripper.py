@@ -1,0 +1,171 @@
+"""What a pinch-grasp trial simulates: the gripper re-split by DSR, and the box to grasp.
+
+Light (no engine import): a study's loading calls :func:`gripper` through the task's
+``prepare_path`` to check that its engine can express the trial's gripper, and the trial
+(:mod:`somo_sweep.tasks.pinch_grasp.task`) builds its scene from both functions here.
+"""
+
+from __future__ import annotations
+
+from somo_sweep.errors import SomoError
+from somo_sweep.model.description import Actuator, Joint, Link, Manipulator, Pose, RigidBody
+from somo_sweep.model.load import Model
+from somo_sweep.tasks.pinch_grasp.params import Numerics, PinchGraspParams, original_hull_size_m
+
+__all__ = [
+    "GROUND_FRICTION",
+    "N_LINKS",
+    "OBJECT_DEPTH_M",
+    "OBJECT_HEIGHT_M",
+    "OBJECT_MASS_KG",
+    "gripper",
+    "object_body",
+    "split_finger",
+]
+
+#: Links per finger (the facts sheet's finger).
+N_LINKS = 20
+#: Box object: height (z) and extent across the fingers (y), in m; mass in kg.
+OBJECT_HEIGHT_M = 0.060
+OBJECT_DEPTH_M = 0.060
+OBJECT_MASS_KG = 0.020
+OBJECT_FRICTION = 2.0
+GROUND_FRICTION = 1.0
+OBJECT_COLOR_RGBA = (0.95, 0.55, 0.15, 1.0)
+#: Gap between the object and the ground at spawn, m.
+SPAWN_GAP_M = 0.0005
+
+
+def split_finger(
+    finger: Manipulator,
+    n_distal: int,
+    numerics: Numerics | None = None,
+    *,
+    spring_scale: float = 1.0,
+    spinning_friction_m: float | None = None,
+    restitution: float | None = None,
+) -> Manipulator:
+    """Re-split a two-actuator finger into ``20 − n_distal`` proximal and ``n_distal`` distal links.
+
+    Link size, mass and per-joint stiffness do not change with the split. With one
+    distal link or none, the finger is a single driven 20-link actuator (the facts
+    sheet's rule).
+
+    Args:
+        finger: The two-actuator finger of the model file.
+        n_distal: Distal links, 0 … 20.
+        numerics: Overrides of inertia shaping, damping and motor limit (None: the file's).
+        spring_scale: Multiplier of every joint's stiffness (2: the original's effective springs).
+        spinning_friction_m: Spinning friction of every link and fingertip, m (None: the file's).
+        restitution: Restitution of every link and fingertip (None: the file's).
+
+    Raises:
+        SomoError: The finger does not have exactly two actuators.
+    """
+    if len(finger.actuators) != 2:
+        raise SomoError(
+            f"finger '{finger.name}' needs a proximal and a distal actuator, got {len(finger.actuators)}"
+        )
+    proximal, distal = finger.actuators
+    seg_m = proximal.segment_m
+
+    def tuned(act: Actuator, n: int, actuated: bool) -> Actuator:
+        link = _surface(act.link.with_length_z(seg_m), spinning_friction_m, restitution)
+        if numerics is not None and numerics.added_inertia_kg_m2 is not None:
+            link = link.model_copy(update={"added_inertia_kg_m2": numerics.added_inertia_kg_m2})
+        joints = _tuned_joints(list(act.joints), numerics, spring_scale, actuated)
+        return act.model_copy(
+            update={
+                "length_m": n * seg_m,
+                "n_segments": n,
+                "segment_length_m": None,
+                "link": link,
+                "joints": joints,
+                "stiffness_profile": None,
+            }
+        )
+
+    if n_distal <= 1:
+        actuators = [tuned(proximal, N_LINKS, True)]
+    else:
+        actuators = [tuned(proximal, N_LINKS - n_distal, True), tuned(distal, n_distal, False)]
+    tips = [_surface(t, spinning_friction_m, restitution) for t in finger.tip_links]
+    return finger.model_copy(update={"actuators": actuators, "tip_links": tips})
+
+
+def _surface(link: Link, spinning_friction_m: float | None, restitution: float | None) -> Link:
+    """``link`` with the trial's spinning friction (m) and restitution, where they are set."""
+    upd: dict[str, object] = {}
+    if spinning_friction_m is not None:
+        upd["friction"] = link.friction.model_copy(update={"spinning": spinning_friction_m})
+    if restitution is not None:
+        upd["restitution"] = restitution
+    return link.model_copy(update=upd) if upd else link
+
+
+def _tuned_joints(
+    joints: list[Joint], numerics: Numerics | None, spring_scale: float, actuated: bool
+) -> list[Joint]:
+    """An actuator's joints with the numerics' damping and motor limit, the spring scale, and
+    only the first (grasp) axis driven, and that only in the driven (proximal) actuator."""
+    if numerics is not None:
+        upd: dict[str, float] = {}
+        if numerics.damping_n_m_s_per_rad is not None:
+            upd["damping_n_m_s_per_rad"] = numerics.damping_n_m_s_per_rad
+        if numerics.motor_limit_n_m is not None:
+            upd["motor_limit_n_m"] = numerics.motor_limit_n_m
+        joints = [j.model_copy(update=upd) for j in joints]
+    if spring_scale != 1.0:
+        joints = [_scaled_spring(j, spring_scale) for j in joints]
+    return [j.model_copy(update={"actuated": actuated and i == 0}) for i, j in enumerate(joints)]
+
+
+def _scaled_spring(joint: Joint, factor: float) -> Joint:
+    """``joint`` with its stiffness (revolute or prismatic) multiplied by ``factor``."""
+    upd = {
+        name: value * factor
+        for name in ("stiffness_n_m_per_rad", "stiffness_n_per_m")
+        if (value := getattr(joint, name)) is not None
+    }
+    return joint.model_copy(update=upd)
+
+
+def gripper(model: Model, params: PinchGraspParams) -> Model:
+    """The trial's gripper: each finger re-split by DSR with the numerics and physical factors
+    applied (the task's ``prepare``)."""
+    assembly = model.as_assembly()
+    mounts = [
+        m.model_copy(
+            update={
+                "manipulator": split_finger(
+                    m.manipulator,
+                    params.n_distal,
+                    params.numerics,
+                    spring_scale=params.spring_scale,
+                    spinning_friction_m=params.finger_spinning_friction_m,
+                    restitution=params.restitution,
+                )
+            }
+        )
+        for m in assembly.manipulators
+    ]
+    return Model(assembly=assembly.model_copy(update={"manipulators": mounts}))
+
+
+def object_body(params: PinchGraspParams) -> RigidBody:
+    """The box to grasp, resting just above the ground at x = y = 0 (plus ``object_offset_m``)."""
+    size = (params.object_width_m, OBJECT_DEPTH_M, OBJECT_HEIGHT_M)
+    if params.object_shape == "original_hull":
+        size = original_hull_size_m(params.object_width_m) or size
+    return RigidBody(
+        name="object",
+        link=Link(
+            shape="box",
+            size_m=size,
+            mass_kg=OBJECT_MASS_KG,
+            friction={"lateral": OBJECT_FRICTION * params.object_friction_scale},
+            restitution=params.restitution or 0.0,
+            color_rgba=OBJECT_COLOR_RGBA,
+        ),
+        pose=Pose(position_m=(*params.object_offset_m, size[2] / 2 + SPAWN_GAP_M)),
+    )
