@@ -1,4 +1,4 @@
-"""``make bench``, bench statics: solved rows against dynamic relaxation, side by side in one run.
+"""Bench statics: solved rows against dynamic relaxation, side by side in one run.
 
 Three numbers the calibration workflow lives on, each measured in this process:
 
@@ -6,15 +6,19 @@ Three numbers the calibration workflow lives on, each measured in this process:
   for 5, 20 and 40 segments;
 * ``calibrate`` on the bundled 36 rows (``planar_finger_bench_2.csv``), both ways;
 * ``diagnose`` on the same rows (solved statics; the dynamic diagnosis takes minutes).
+
+``python -m benchmarks.statics`` (``make bench-statics``); part of ``make bench`` too.
 """
 
 from __future__ import annotations
 
+import argparse
 from dataclasses import replace
 from time import perf_counter
 
 import numpy as np
 
+from benchmarks._cli import echo
 from somo_sweep.calibration.measurements import read_measurements
 from somo_sweep.calibration.problem import CALIBRATION_SETTINGS
 from somo_sweep.calibration.solve import build_problem, solve_fit
@@ -24,7 +28,7 @@ from somo_sweep.model.builders import planar_finger
 from somo_sweep.model.tables import bundled_path
 from somo_sweep.sim.bench import run_bench
 
-__all__ = ["statics_lines"]
+__all__ = ["main", "statics_lines"]
 
 #: Targets of issue 14 (ms per row, s per command on 2 cores).
 ROW_TARGET_MS, CALIBRATE_TARGET_S, DIAGNOSE_TARGET_S = 5.0, 3.0, 20.0
@@ -89,3 +93,16 @@ def statics_lines(dynamic_rows: int = 12) -> list[str]:
         f"named {result.missing_effect} (target <= {DIAGNOSE_TARGET_S:g} s: {mark})"
     )
     return lines
+
+
+def main(argv: list[str] | None = None) -> None:
+    """``python -m benchmarks.statics``: print the statics benchmark."""
+    argparse.ArgumentParser(
+        prog="python -m benchmarks.statics",
+        description="Bench statics: rows, calibrate and diagnose, solved vs dynamic relaxation.",
+    ).parse_args(argv)
+    echo(statics_lines())
+
+
+if __name__ == "__main__":
+    main()

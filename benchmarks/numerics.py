@@ -1,53 +1,42 @@
-"""Numerics of the pinch-grasp study: the chosen settings, and how to check them.
+"""Pinch-grasp numerics: one trial timed under two setups in turn, or a grid compared under two.
 
-The original ran 8000 steps of 0.5 ms per 4-s trial (12–13 s of wall time). Here the
-step is larger; what makes that stable is inertia shaping of the finger links (it
-lowers the chain's highest natural frequency, which the explicit springs must
-resolve, and leaves statics unchanged) on top of SoMo's Coulomb joint motor.
-:func:`compare` reruns a set of trials under two numerics and reports how often
-the labels agree and how far the metrics move; :func:`trial_seconds` times one trial.
-``somo-sweep paper numerics --help`` runs both.
+``python -m benchmarks.numerics`` times one trial at the chosen numerics against the same trial
+at the original's, in turn in this process (their ratio holds under load), with the ceiling of
+this engine (no joint friction) and the gripper's body layout. ``--compare half-step`` or
+``--compare reference`` (or ``--b SETUP``) instead reruns the points of a study's grid under
+two setups and reports how often the labels agree and how far the lift moves (:func:`compare`);
+``--perturb-m`` also shifts every object by that much both ways and sets apart the points whose
+label the shift moves. ``make bench-numerics``.
 """
 
 from __future__ import annotations
 
+import argparse
 import dataclasses
-import math
-from dataclasses import dataclass
+import json
 from pathlib import Path
-from time import perf_counter, process_time
 from typing import Any
 
 import numpy as np
 
-from somo_sweep.model.load import load_model
-from somo_sweep.model.tables import bundled_path
-from somo_sweep.sim.settings import WorldSettings
-from somo_sweep.tasks.pinch_grasp.params import Numerics, PinchGraspParams
-from somo_sweep.tasks.pinch_grasp.task import run_pinch_grasp
+from benchmarks import setups
+from benchmarks._cli import echo, int_in, jobs_option, user_errors
+from benchmarks.setups import CHOSEN, ORIGINAL_NUMERICS, QUICK_STUDY, REFERENCE, Setup, parse_setup
+from somo_sweep.cli.output import check_replaceable, file_target, write_atomic
+from somo_sweep.tasks.pinch_grasp.params import PinchGraspParams
 
 __all__ = [
-    "CHOSEN",
     "LABEL_KEYS",
+    "MAX_PERTURB_M",
     "ORIGINAL_CODE_OVER_ENGINE",
     "ORIGINAL_CODE_TARGET",
-    "ORIGINAL_NUMERICS",
     "ORIGINAL_TRIAL_S",
     "RATIO_TARGET",
-    "REFERENCE",
-    "Setup",
-    "alternating_trial_seconds",
     "compare",
-    "paired_trial_seconds",
-    "parse_setup",
-    "quick_points",
-    "trial_seconds",
+    "main",
     "trial_timing_lines",
-    "without_joint_friction",
 ]
 
-GRIPPER = bundled_path("models", "pinch_gripper.yaml")
-QUICK_STUDY = bundled_path("pinch_grasp_quick.yaml")
 #: Time of one 4-s trial of the original SoMo code (its ``run_single``, DSR 0.2, 40-mm box,
 #: c = 100 mm) on one core of the 2-core reference machine, s: the median of the 19 runs made in
 #: turn with ours on 2026-11-24 (7.5-8.9 s; its legacy branch, PyBullet 3.2.7 as ours;
@@ -58,66 +47,6 @@ ORIGINAL_TRIAL_S = 8.1
 #: 9 pairs run in turn on 2026-11-24 (1.93-2.26; each finger its own body in both).
 ORIGINAL_CODE_OVER_ENGINE = 2.09
 
-
-@dataclass(frozen=True)
-class Setup:
-    """Numerics of a run: time step (s), solver iterations and the finger regularisation.
-
-    ``body_per_manipulator`` False loads the gripper as one body (palm and both fingers)
-    instead of one body per finger and the palm; ``friction_rows_every`` 2 solves the joints'
-    Coulomb friction every other step; ``solver_residual_threshold`` lets Bullet's solver stop
-    early (:class:`WorldSettings`).
-    """
-
-    time_step_s: float
-    solver_iterations: int
-    numerics: Numerics
-    body_per_manipulator: bool = True
-    friction_rows_every: int = 1
-    solver_residual_threshold: float | None = None
-
-    def settings(self) -> WorldSettings:
-        """World settings of this setup."""
-        return WorldSettings(
-            time_step_s=self.time_step_s,
-            solver_iterations=self.solver_iterations,
-            body_per_manipulator=self.body_per_manipulator,
-            friction_rows_every=self.friction_rows_every,
-            solver_residual_threshold=self.solver_residual_threshold,
-        )
-
-    def describe(self) -> str:
-        """One line: dt, iterations, inertia shaping, damping, motor limit."""
-        n = self.numerics
-        return (
-            f"dt {self.time_step_s * 1e3:g} ms, {self.solver_iterations} solver iterations, "
-            f"added inertia {n.added_inertia_kg_m2:g} kg·m², damping "
-            f"{'file' if n.damping_n_m_s_per_rad is None else n.damping_n_m_s_per_rad}, motor limit "
-            f"{'file (0.005 N·m)' if n.motor_limit_n_m is None else n.motor_limit_n_m}"
-            + ("" if self.body_per_manipulator else ", the hand as one body")
-            + (
-                f", friction solved every {self.friction_rows_every} steps"
-                if self.friction_rows_every > 1
-                else ""
-            )
-            + (
-                f", solver early exit below {self.solver_residual_threshold:g}"
-                if self.solver_residual_threshold is not None
-                else ""
-            )
-        )
-
-
-#: The fine-step reference: the original's step and the physical finger (no inertia shaping).
-REFERENCE = Setup(5e-4, 50, Numerics(added_inertia_kg_m2=0.0))
-#: The bundled studies' numerics: the reference itself. Every cheaper setup measured moves labels
-#: of cells that are robust under it: 4 ms with 3e-5 kg·m² of inertia shaping, 2 ms with 3e-6 and
-#: 1 ms with 1e-6 agree with it on 91-96 % of their robust quick-study cells, and a linearly
-#: implicit spring is unstable at 2 ms and above once the fingers touch the box
-#: (docs/pinch_grasp.md, "Numerics").
-CHOSEN = REFERENCE
-#: The original study's numerics (0.5 ms, 8000 steps per 4-s trial, no shaping, 50 iterations).
-ORIGINAL_NUMERICS = REFERENCE
 #: ``make bench``'s target for ours vs the original numerics in this engine (issue #16): 20x the
 #: original trial over the engine's per-step advantage as first measured (1.48x, the gripper as one
 #: body). Measured side by side with the original's own layout the advantage is 2.09x
@@ -126,84 +55,6 @@ ORIGINAL_NUMERICS = REFERENCE
 RATIO_TARGET = 13.5
 #: The issue's target against the original code itself.
 ORIGINAL_CODE_TARGET = 20.0
-
-
-def parse_setup(text: str) -> Setup:
-    """A setup from ``DT_S,ITERATIONS,INERTIA_KG_M2[,DAMPING_N_M_S_PER_RAD][,FLAG...]``.
-
-    Flags, in any order, each at most once: ``one-body`` loads the gripper as one body instead
-    of the palm and each finger apart; ``friction-every-2`` solves the joints' Coulomb friction
-    every other step; ``residual=R`` lets Bullet's solver stop once an iteration's squared
-    corrections sum below R (:class:`WorldSettings`).
-
-    Raises:
-        ValueError: Malformed, out of range (0 < DT_S < 1, ITERATIONS >= 1, R > 0) or not finite.
-    """
-    fields = text.split(",")
-    flags: dict[str, str] = {}
-    while fields:
-        name, _, value = fields[-1].strip().partition("=")
-        if name not in {"one-body", "friction-every-2", "residual"} or name in flags:
-            break
-        if (name == "residual") != bool(value):
-            raise ValueError(text)
-        flags[name] = value
-        fields.pop()
-    one_body, every = "one-body" in flags, 2 if "friction-every-2" in flags else 1
-    residual = float(flags["residual"]) if "residual" in flags else None
-    if residual is not None and not (math.isfinite(residual) and residual > 0):
-        raise ValueError(text)
-    if len(fields) not in (3, 4):
-        raise ValueError(text)
-    dt, iters, inertia, *damping = fields
-    step_s, n_iter, j = float(dt), int(iters), float(inertia)
-    c = float(damping[0]) if damping else None
-    if not (0 < step_s < 1) or n_iter < 1 or not math.isfinite(j):
-        raise ValueError(text)
-    # Numerics refuses a negative or infinite damping / inertia (pydantic's ValidationError is a ValueError).
-    numerics = Numerics(added_inertia_kg_m2=j, damping_n_m_s_per_rad=c)
-    return Setup(
-        step_s,
-        n_iter,
-        numerics,
-        body_per_manipulator=not one_body,
-        friction_rows_every=every,
-        solver_residual_threshold=residual,
-    )
-
-
-def quick_points(study: Path = QUICK_STUDY) -> list[dict[str, float]]:
-    """The grid points of a pinch_grasp study file (default: the quick study) as task parameters."""
-    from somo_sweep.sweep.study import load_study
-
-    return [{k.removeprefix("task."): v for k, v in pt.items()} for pt in load_study(study).points()]
-
-
-def _trial(point: dict[str, float], setup: Setup) -> dict[str, Any]:
-    params = PinchGraspParams(numerics=setup.numerics, **point)
-    start, cpu = perf_counter(), process_time()
-    result = run_pinch_grasp(load_model(GRIPPER), params, setup.settings())
-    return {
-        "cpu_time_s": process_time() - cpu,
-        "point": point,
-        "status": result.status,
-        "labels": dict(result.labels),
-        "metrics": dict(result.metrics),
-        "wall_time_s": perf_counter() - start,
-    }
-
-
-def trial_seconds(
-    setup: Setup = CHOSEN, repeats: int = 3, point: dict[str, float] | None = None
-) -> tuple[list[float], list[float]]:
-    """Wall and CPU times (s) of one 4-s trial, ``repeats`` times, in this process (one core).
-
-    CPU time is what the trial costs on an idle core; wall time includes waiting for a core
-    when other processes share the machine.
-    """
-    point = point or {"distal_segment_ratio": 0.2, "object_width_m": 0.040, "centering_position_m": 0.100}
-    runs = [_trial(point, setup) for _ in range(repeats)]
-    return [float(r["wall_time_s"]) for r in runs], [float(r["cpu_time_s"]) for r in runs]
 
 
 #: Label keys compared by :func:`compare` (the two grasp rules).
@@ -243,7 +94,7 @@ def compare(
         raise ValueError(f"perturb_m must be finite and >= 0, got {perturb_m}")
     shifts = (0.0, -perturb_m, perturb_m) if perturb_m > 0 else (0.0,)
     todo = [(_shifted(pt, d), s) for s in (a, b) for d in shifts for pt in points]
-    runs = Parallel(n_jobs=n_jobs)(delayed(_trial)(pt, s) for pt, s in todo)
+    runs = Parallel(n_jobs=n_jobs)(delayed(setups.one_trial)(pt, s) for pt, s in todo)
     n = len(points)
     per = {  # setup -> shift index -> runs in point order
         name: [runs[(i * len(shifts) + k) * n : (i * len(shifts) + k + 1) * n] for k in range(len(shifts))]
@@ -287,36 +138,6 @@ def compare(
     return out
 
 
-def alternating_trial_seconds(
-    setups: list[Setup], repeats: int = 3, point: dict[str, float] | None = None
-) -> list[tuple[float, ...]]:
-    """CPU times (s) of one trial under each setup, the setups run in turn ``repeats`` times.
-
-    Alternating them in one process exposes all to the same machine load, so their ratios
-    hold where absolute times drift with the load. One tuple per repeat, in ``setups`` order.
-    """
-    return [tuple(trial_seconds(s, 1, point)[1][0] for s in setups) for _ in range(repeats)]
-
-
-def paired_trial_seconds(
-    a: Setup, b: Setup, repeats: int = 3, point: dict[str, float] | None = None
-) -> list[tuple[float, float]]:
-    """CPU times (s) of one trial under ``a`` and under ``b``, run alternately ``repeats`` times."""
-    return [(x, y) for x, y in alternating_trial_seconds([a, b], repeats, point)]
-
-
-def without_joint_friction(setup: Setup) -> Setup:
-    """``setup`` with every finger joint's Coulomb motor off (limit 0: Bullet adds no motor rows).
-
-    Not a valid model of the finger (against friction every step, labels moved in 6 % of the
-    quick study under the contacts rule and 11 % under the paper's): the bench times it as the
-    most a step of this size can gain in this engine, since the motor rows are most of Bullet's
-    work per step.
-    """
-    numerics = setup.numerics.model_copy(update={"motor_limit_n_m": 0.0})
-    return dataclasses.replace(setup, numerics=numerics, friction_rows_every=1)
-
-
 def trial_timing_lines(
     repeats: int = 3, setup: Setup = CHOSEN, original: Setup | None = ORIGINAL_NUMERICS
 ) -> list[str]:
@@ -330,13 +151,13 @@ def trial_timing_lines(
     original code is that ratio times this run's paired ratio, so machine load cancels out.
     """
     if original is None:
-        wall, cpu = trial_seconds(setup, repeats)
+        wall, cpu = setups.trial_seconds(setup, repeats)
         return [
             f"pinch-grasp trial (4 s simulated, one core), {setup.describe()}:",
             f"  wall time min {min(wall):.2f} s, median {float(np.median(wall)):.2f} s over {len(wall)} runs",
             f"  CPU time  min {min(cpu):.2f} s, median {float(np.median(cpu)):.2f} s",
         ]
-    runs = alternating_trial_seconds([original, setup, without_joint_friction(setup)], repeats)
+    runs = setups.alternating_trial_seconds([original, setup, setups.without_joint_friction(setup)], repeats)
     orig = [r[0] for r in runs]
     ours = [r[1] for r in runs]
     ratio = float(np.median([r[0] / r[1] for r in runs]))
@@ -378,10 +199,96 @@ def _one_body_lines(setup: Setup, repeats: int) -> list[str]:
     if not setup.body_per_manipulator:
         return []
     one = dataclasses.replace(setup, body_per_manipulator=False)
-    pairs = paired_trial_seconds(one, setup, repeats)
+    pairs = setups.paired_trial_seconds(one, setup, repeats)
     ratio = float(np.median([a / b for a, b in pairs]))
     return [
         f"  one body per finger and the palm: {ratio:.2f}x cheaper than the gripper as one body "
         f"(median {float(np.median([a for a, _ in pairs])):.2f} s against "
         f"{float(np.median([b for _, b in pairs])):.2f} s, {repeats} alternating runs)",
     ]
+
+
+#: Largest object shift ``--perturb-m`` takes, m (well below the grid's 5 mm).
+MAX_PERTURB_M = 1e-3
+SETUP_FORMAT = (
+    "DT_S,ITERATIONS,INERTIA_KG_M2[,DAMPING][,one-body][,friction-every-2][,residual=R] (0 < DT_S < 1, "
+    "ITERATIONS >= 1, INERTIA and DAMPING finite and >= 0, R finite and > 0; one-body: the gripper as "
+    "one body instead of the palm and each finger apart; friction-every-2: the joints' Coulomb friction "
+    "solved every other step; residual=R: Bullet's solver stops once an iteration's squared corrections "
+    "sum below R)"
+)
+
+
+def _setup_option(text: str) -> Setup:
+    try:
+        return parse_setup(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"must be {SETUP_FORMAT}, got '{text}'") from None
+
+
+def _shift_option(text: str) -> float:
+    value = float(text)
+    if not 0.0 <= value <= MAX_PERTURB_M:  # also refuses NaN
+        raise argparse.ArgumentTypeError(f"must be 0 to {MAX_PERTURB_M:g} m, got {value:g}")
+    return value
+
+
+def parser() -> argparse.ArgumentParser:
+    """The command line of ``python -m benchmarks.numerics``."""
+    ap = argparse.ArgumentParser(
+        prog="python -m benchmarks.numerics",
+        description="Pinch-grasp numerics: time the chosen setup, or compare it with its half step, the "
+        "fine reference or a second setup on a study's grid.",
+    )
+    ap.add_argument("--compare", choices=("half-step", "reference"), help="label agreement on a study's grid")
+    ap.add_argument("--repeats", type=int_in(1, 100), default=3, help="timed runs (default 3)")
+    ap.add_argument("--jobs", type=jobs_option(), default=2, help="worker processes (default 2)")
+    ap.add_argument(
+        "--save",
+        metavar="PATH",
+        help="write every trial's result to this JSON file; a folder (out/, or one that exists) gets "
+        "numerics_runs.json in it",
+    )
+    ap.add_argument("--study", type=Path, help="pinch_grasp study whose grid to compare on (default: quick)")
+    ap.add_argument(
+        "--a", type=_setup_option, metavar="SETUP", help="setup A (default: the chosen one): " + SETUP_FORMAT
+    )
+    ap.add_argument("--b", type=_setup_option, metavar="SETUP", help="setup B to compare A with (as --a)")
+    ap.add_argument(
+        "--perturb-m",
+        type=_shift_option,
+        default=0.0,
+        help="also run every point with the object moved this far (m, 0-0.001) both ways; agreement is "
+        "then also given over the points whose label survives the shift",
+    )
+    return ap
+
+
+def main(argv: list[str] | None = None) -> None:
+    """Time one trial, or compare two setups on a grid (see :func:`parser`)."""
+    args = parser().parse_args(argv)
+    setup = args.a or CHOSEN
+    if args.b is not None:
+        other = args.b
+    elif args.compare == "reference":
+        other = REFERENCE
+    elif args.compare == "half-step":
+        other = dataclasses.replace(setup, time_step_s=setup.time_step_s / 2)
+    else:
+        echo(trial_timing_lines(args.repeats, setup))
+        return
+    with user_errors():
+        target = file_target(args.save, "numerics_runs.json")
+        if target is not None:
+            check_replaceable(target, kind="any-json")
+        echo([f"A: {setup.describe()}", f"B: {other.describe()}"])
+        points = setups.quick_points(args.study or QUICK_STUDY)
+        result = compare(points, setup, other, args.jobs, args.perturb_m)
+        runs = result.pop("runs")
+        if target is not None:
+            write_atomic(target, json.dumps(runs, default=str))
+    print(json.dumps(result, indent=1, default=str))
+
+
+if __name__ == "__main__":
+    main()

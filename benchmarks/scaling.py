@@ -13,11 +13,13 @@ workers within one run. The wall times give the parallel efficiency ``T1 / (2 T2
 Dask's time over joblib's (the sum of its two runs over the sum of joblib's); the mean trial
 wall time of each backend says whether a difference lies in the trials or between them; all
 tables must hold the same labels (a job is a pure function of its parameters and seed).
-Part of ``make bench`` (``somo-sweep paper speed``).
+``python -m benchmarks.scaling`` (``make bench-scaling``); part of ``make bench`` too.
 """
 
 from __future__ import annotations
 
+import argparse
+import tempfile
 from collections.abc import Iterator
 from contextlib import contextmanager
 from dataclasses import dataclass
@@ -27,6 +29,7 @@ from typing import Any
 
 import pandas as pd
 
+from benchmarks._cli import echo
 from somo_sweep.model.tables import bundled_path
 from somo_sweep.sweep.dask_backend import DASK_WORKER_CONFIG
 
@@ -39,10 +42,12 @@ __all__ = [
     "ScalingRun",
     "dask_lines",
     "dask_runs",
+    "main",
     "numerics_note",
     "quick_note",
     "same_labels_line",
     "scaling_lines",
+    "scaling_report",
     "scaling_runs",
 ]
 
@@ -236,3 +241,33 @@ def scaling_lines(runs: list[ScalingRun], study_name: str = "pinch_grasp_demo", 
         f"(target >= {EFFICIENCY_TARGET:g} on an idle machine: {eff_ok})"
     )
     return [*lines, *dask_lines(rest, study_name, note)[:-1], same_labels_line(runs)]
+
+
+def scaling_report(quick_study: bool = True) -> None:
+    """Time the demo study (efficiency, Dask vs joblib) and, with ``quick_study``, the quick
+    study's cells (Dask vs joblib) in a temporary folder; print the lines of each as it ends."""
+    with tempfile.TemporaryDirectory(prefix="somo-sweep-scaling-") as tmp:
+        echo(scaling_lines(scaling_runs(Path(tmp) / "demo"), note=numerics_note(DEMO_STUDY)))
+        if quick_study:
+            runs = dask_runs(Path(tmp) / "quick", QUICK_STUDY)
+            echo(dask_lines(runs, QUICK_STUDY.stem, quick_note()))
+
+
+def main(argv: list[str] | None = None) -> None:
+    """``python -m benchmarks.scaling [--no-quick-study]``."""
+    ap = argparse.ArgumentParser(
+        prog="python -m benchmarks.scaling",
+        description="How a sweep scales: the demo study at 1 and 2 workers, and joblib against a Dask "
+        "LocalCluster in turn (joblib, Dask, Dask, joblib), on the demo and on the quick study's cells.",
+    )
+    ap.add_argument(
+        "--quick-study",
+        action=argparse.BooleanOptionalAction,
+        default=True,
+        help="Dask against joblib on the quick study's 192 cells at 4 ms too (default: on)",
+    )
+    scaling_report(quick_study=ap.parse_args(argv).quick_study)
+
+
+if __name__ == "__main__":
+    main()
