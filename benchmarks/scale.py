@@ -6,8 +6,8 @@ step (a trial is about 25 ms of CPU). Each size runs as ``somo-sweep run --jobs 
 of its own, whose peak resident memory (``VmHWM``, Linux) is read while it runs; the largest is
 then run again, stopped with SIGINT once half its trials are stored, and resumed: the resumed
 run's time from its start to its first finished trial (its first row in the folder, in its
-journal or a part file) bounds from above when its first new trial started. The sweep's memory
-is flat when the largest study's peak is within :data:`FLAT_RATIO` of the smallest's.
+journal or a part file) bounds from above when its first new trial started. The ratio of the
+largest study's peak to the smallest's says whether the sweep's memory grows with its trials.
 
 ``python -m benchmarks.scale [--trials 2000,20000] [--jobs 2] [--out DIR]``.
 """
@@ -34,8 +34,6 @@ from somo_sweep.model.tables import bundled_path
 from somo_sweep.sweep.folder import JOURNAL_GLOB, PART_GLOB
 
 __all__ = [
-    "FLAT_RATIO",
-    "RESUME_TARGET_S",
     "TRIALS_PER_MASS",
     "ScaleRun",
     "main",
@@ -44,10 +42,6 @@ __all__ = [
     "scale_study",
 ]
 
-#: The issue's targets: peak memory at the largest size over the smallest, and the seconds a
-#: resumed run may take to start its first new trial.
-FLAT_RATIO = 1.5
-RESUME_TARGET_S = 10.0
 #: Trials per link-mass value of the grid (25 pressures x 10 loads x 8 stiffnesses).
 TRIALS_PER_MASS = 2000
 _POLL_S = 0.1
@@ -197,18 +191,13 @@ def scale_lines(runs: list[ScaleRun], interrupted: ScaleRun, resumed: ScaleRun, 
         )
     small, large = min(runs, key=lambda r: r.trials), max(runs, key=lambda r: r.trials)
     ratio = large.peak_rss_mb / small.peak_rss_mb
-    ok = "ok" if ratio <= FLAT_RATIO else "not met"
-    lines.append(
-        f"  peak memory at {large.trials} / at {small.trials} trials = {ratio:.2f} "
-        f"(target <= {FLAT_RATIO:g}: {ok})"
-    )
+    lines.append(f"  peak memory at {large.trials} / at {small.trials} trials = {ratio:.2f}")
     first = resumed.first_row_s
-    ok = "ok" if first is not None and first <= RESUME_TARGET_S else "not met"
     cpu = "" if resumed.first_row_cpu_s is None else f" ({resumed.first_row_cpu_s:.1f} s of the sweep's CPU)"
     shown = "never" if first is None else f"{first:.1f} s{cpu}"
     lines.append(
         f"  {interrupted.trials} trials stopped (SIGINT) with {interrupted.stored} stored, then resumed: "
-        f"first new trial finished {shown} after the start (target <= {RESUME_TARGET_S:g} s: {ok}); "
+        f"first new trial finished {shown} after the start; "
         f"the resumed run took {resumed.wall_s:.1f} s, peak {resumed.peak_rss_mb:.1f} MiB, "
         f"{resumed.stored} stored"
     )

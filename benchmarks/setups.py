@@ -101,7 +101,7 @@ REFERENCE = Setup(5e-4, 50, Numerics(added_inertia_kg_m2=0.0))
 #: of cells that are robust under it: 4 ms with 3e-5 kg·m² of inertia shaping, 2 ms with 3e-6 and
 #: 1 ms with 1e-6 agree with it on 91-96 % of their robust quick-study cells, and a linearly
 #: implicit spring is unstable at 2 ms and above once the fingers touch the box
-#: (docs/pinch_grasp.md, "Numerics").
+#: (``python -m benchmarks.numerics --compare`` measures such agreement).
 CHOSEN = REFERENCE
 #: The original study's numerics (0.5 ms, 8000 steps per 4-s trial, no shaping, 50 iterations).
 ORIGINAL_NUMERICS = REFERENCE

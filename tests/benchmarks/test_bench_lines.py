@@ -45,13 +45,15 @@ def test_the_lines_print_the_paired_ratio_and_the_ceiling(monkeypatch: pytest.Mo
     monkeypatch.setattr(setups, "trial_seconds", fake)
     text = "\n".join(trial_timing_lines(repeats=2, setup=FAST))
     assert order[:6] == ["original", "ours", "ceiling"] * 2  # in turn, not one setup after another
-    assert "ours is 8.0x faster" in text and "target >= 13.5x: not met" in text
+    assert "ours is 8.0x faster (median of the paired ratios)" in text
     assert "16.0x the original numerics" in text
     assert "1.40x cheaper than the gripper as one body" in text
     # The original code against this engine is a recorded side-by-side ratio (2.09), said to be
     # one, and multiplies this run's paired ratio: 2.09 x 8.0.
-    assert "ours is 2.09 x 8.0 = 16.7x faster than the original code (target >= 20x: not met)" in text
-    assert "run in turn with this engine on 2026-11-24" in text
+    assert "ours is 2.09 x 8.0 = 16.7x faster than the original code" in text
+    assert "the original SoMo code, timed in turn with this engine, took 8.1 s" in text
+    # Measurements and ratios only: no pass or fail against a target.
+    assert "target" not in text and " ok" not in text and "not met" not in text
 
 
 def test_the_chosen_numerics_being_the_originals_is_said_not_hidden_in_a_ratio_of_one(

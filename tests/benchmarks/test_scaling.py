@@ -47,7 +47,8 @@ def test_every_way_of_running_one_study_gives_the_same_labels(tmp_path: Path) ->
     lines = scaling_lines(runs, "scaling_check")
     assert "labels and statuses identical in the 5 runs: yes" in lines[-1]
     assert any("parallel efficiency" in line for line in lines)
-    assert any("Dask / joblib wall time = " in line and "target <= 1.1" in line for line in lines)
+    assert any(line.startswith("  Dask / joblib wall time = ") for line in lines)
+    assert not any("target" in line for line in lines)
     assert any("Dask / joblib mean trial wall time = " in line for line in lines)
     runs[2].labels.loc[0, "status"] = "error"
     assert scaling_lines(runs)[-1].endswith("NO")
@@ -76,7 +77,7 @@ def test_the_scale_benchmark_measures_a_run_stops_it_halfway_and_times_the_resum
     assert resumed.peak_rss_mb > 20
     small = ScaleRun(2000, 100.0, 150.0, 2.0, 1.0, 2000, 0)
     lines = scale_lines([small, ScaleRun(20000, 1000.0, 160.0, 2.0, 1.0, 20000, 0)], stopped, resumed, 2)
-    assert "peak memory at 20000 / at 2000 trials = 1.07 (target <= 1.5: ok)" in lines[-2]
+    assert lines[-2] == "  peak memory at 20000 / at 2000 trials = 1.07"
     assert f"{stopped.stored} stored, then resumed" in lines[-1]
 
 
