@@ -95,24 +95,7 @@ def compare(
         out["perturb_m"] = perturb_m
         out["runs"]["shifted"] = {name: per[name][1:] for name in ("a", "b")}
     for key in LABEL_KEYS:
-        same = [_label(x, key) == _label(y, key) for x, y in zip(ra, rb, strict=True)]
-        out[f"agreement_{key}"] = float(np.mean(same))
-        out[f"differ_{key}"] = [
-            (x["point"], _label(x, key), _label(y, key))
-            for x, y, s in zip(ra, rb, same, strict=True)
-            if not s
-        ]
-        if perturb_m > 0:
-            robust = [
-                all(len({_label(per[name][k][j], key) for k in range(3)}) == 1 for name in ("a", "b"))
-                for j in range(n)
-            ]
-            kept = [s for s, r in zip(same, robust, strict=True) if r]
-            out[f"robust_{key}"] = float(np.mean(robust))
-            out[f"agreement_robust_{key}"] = float(np.mean(kept)) if kept else float("nan")
-            out[f"differ_sensitive_{key}"] = sum(
-                1 for s, r in zip(same, robust, strict=True) if not s and not r
-            )
+        out.update(_agreement(key, per if perturb_m > 0 else None, ra, rb))
     dl = [
         abs(x["metrics"]["lift_height_m"] - y["metrics"]["lift_height_m"])
         for x, y in zip(ra, rb, strict=True)
@@ -124,6 +107,36 @@ def compare(
     out["wall_s_b"] = float(np.mean([x["wall_time_s"] for x in rb]))
     out["status_a"] = sorted({x["status"] for x in ra})
     out["status_b"] = sorted({x["status"] for x in rb})
+    return out
+
+
+def _agreement(
+    key: str,
+    per: dict[str, list[list[dict[str, Any]]]] | None,
+    ra: list[dict[str, Any]],
+    rb: list[dict[str, Any]],
+) -> dict[str, Any]:
+    """Agreement of label ``key`` between the runs ``ra`` and ``rb`` (point by point), and with the
+    shifted runs ``per`` (setup -> shift -> runs), the same over the points robust to the shift."""
+    same = [_label(x, key) == _label(y, key) for x, y in zip(ra, rb, strict=True)]
+    out: dict[str, Any] = {
+        f"agreement_{key}": float(np.mean(same)),
+        f"differ_{key}": [
+            (x["point"], _label(x, key), _label(y, key))
+            for x, y, s in zip(ra, rb, same, strict=True)
+            if not s
+        ],
+    }
+    if per is None:
+        return out
+    robust = [
+        all(len({_label(per[name][k][j], key) for k in range(3)}) == 1 for name in ("a", "b"))
+        for j in range(len(ra))
+    ]
+    kept = [s for s, r in zip(same, robust, strict=True) if r]
+    out[f"robust_{key}"] = float(np.mean(robust))
+    out[f"agreement_robust_{key}"] = float(np.mean(kept)) if kept else float("nan")
+    out[f"differ_sensitive_{key}"] = sum(1 for s, r in zip(same, robust, strict=True) if not s and not r)
     return out
 
 
