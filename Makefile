@@ -5,7 +5,7 @@ BIN    := $(VENV)/bin
 STAMP  := $(VENV)/.installed-stamp
 
 .DEFAULT_GOAL := help
-.PHONY: help install demo test test-slow lint format bench bench-statics bench-scaling bench-scale bench-engines bench-robust bench-numerics bench-auto-numerics fig6 fig6-quick fig6-original fig6-ablation fig6-ablation-quick fig3 fig5 fig5-quick palm palm-quick fig7 fig7-quick fig8 fig8-quick diagnose-demo sweep-demo figures clean
+.PHONY: help install demo test test-slow lint format bench bench-statics bench-scaling bench-scale bench-engines bench-robust bench-numerics bench-auto-numerics bench-zero-kpa bench-original fig6 fig6-quick fig6-original fig6-ablation fig6-ablation-quick fig3 fig5 fig5-quick palm palm-quick fig7 fig7-quick fig8 fig8-quick diagnose-demo sweep-demo figures clean
 
 help: ## List the targets
 	@grep -E '^[a-zA-Z0-9_-]+:.*?## ' $(MAKEFILE_LIST) | awk 'BEGIN {FS = ":.*?## "}; {printf "  make %-20s %s\n", $$1, $$2}'
@@ -61,6 +61,15 @@ bench-numerics: $(STAMP) ## One pinch trial at the chosen numerics vs the origin
 
 bench-auto-numerics: $(STAMP) ## The automatic numerics on a family of pinch fingers vs a 4x finer step
 	$(BIN)/python -m benchmarks.auto_numerics
+
+bench-zero-kpa: $(STAMP) ## The 0-kPa blocked-force row on both engines over a step ladder, and with the plate moved (2-3 min)
+	$(BIN)/python -m benchmarks.zero_kpa
+
+# The original SoMo code's checkout and the Python of its own environment (benchmarks/original_fig6/README.md).
+ORIGINAL_SOMO   ?= ../somo_orig
+ORIGINAL_PYTHON ?= ../venv_orig/bin/python
+bench-original: $(STAMP) ## Cross-check against the original SoMo code on Fig. 6's 30 headline cells (needs ORIGINAL_SOMO, ORIGINAL_PYTHON; prints the set-up if missing) -> results/original_fig6
+	$(BIN)/python -m benchmarks.original_fig6 --somo $(ORIGINAL_SOMO) --original-python $(ORIGINAL_PYTHON)
 
 fig6: $(STAMP) ## Paper Fig. 6: pinch-grasp study, 2310 trials (resumable), figure + smallest all-width pinch DSR
 	$(BIN)/somo-sweep run studies/pinch_grasp_dsr.yaml

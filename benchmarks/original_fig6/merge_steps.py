@@ -48,8 +48,10 @@ def _suffix(step: str) -> str:
     return f"{float(step) * 1e3:g}ms".replace(".", "p")
 
 
-def main() -> None:
-    ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
+def main(argv: list[str] | None = None) -> None:
+    ap = argparse.ArgumentParser(
+        prog="python -m benchmarks.original_fig6.merge_steps", description=__doc__.split("\n")[0]
+    )
     ap.add_argument("--reference", type=Path, required=True, help="results/reference/original_cells.csv")
     ap.add_argument("--orig", action="append", default=[], help="STEP=CSV[,CSV] of run_original_cells.py")
     ap.add_argument("--ours", action="append", default=[], help="NAME=CSV of compare_cells.py")
@@ -58,7 +60,7 @@ def main() -> None:
         "--orig-shifted", action="append", default=[], help="STEP=CSV[,CSV]: the original at c ± 0.1 mm"
     )
     ap.add_argument("--out", type=Path, required=True)
-    args = ap.parse_args()
+    args = ap.parse_args(argv)
 
     ref = _read(str(args.reference))
     table: dict[Key, dict[str, object]] = {}
