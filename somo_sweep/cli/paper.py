@@ -1,4 +1,5 @@
-"""``somo-sweep paper …``: every figure of the SoMo paper, plus the bundled data.
+"""``somo-sweep paper …``: every figure of the SoMo paper (Figs. 3, 5-8, the Fig. 6 ablation and comparison,
+the palm study).
 
 Each command calls one ``build`` function of :mod:`somo_sweep.paper` (which returns
 figures, numbers and tables) and writes what it returns into ``--out``.
@@ -14,10 +15,8 @@ import typer
 
 from somo_sweep.cli.output import (
     check_output,
-    check_replaceable,
     checked_jobs,
     fail,
-    file_target,
     write_artifacts,
     write_atomic,
 )
@@ -286,39 +285,3 @@ def palm(
     except SomoError as exc:
         fail(SomoError(f"{results}: {exc}"))
     _finish(artifacts, out)
-
-
-#: The bundled table each data set regenerates (its name in a folder given as OUT).
-DATA_NAMES = {"synthetic": "planar_finger_synthetic.csv", "diagnosis-example": "planar_finger_bench_2.csv"}
-
-
-@app.command()
-def data(
-    which: Annotated[str, typer.Argument(help="synthetic or diagnosis-example.")],
-    out: Annotated[
-        str | None,
-        typer.Argument(
-            metavar="OUT",
-            help="CSV file to write (default: print); a folder (out/, or one that exists) gets the bundled "
-            "table's name in it.",
-        ),
-    ] = None,
-) -> None:
-    """Regenerate a bundled synthetic bench table (simulated, not measured)."""
-    if which == "synthetic":
-        from somo_sweep.calibration.synthetic import example_csv
-    elif which == "diagnosis-example":
-        from somo_sweep.diagnosis.example import example_csv
-    else:
-        fail(SomoError(f"unknown data set '{which}'; allowed: synthetic, diagnosis-example"))
-    target = file_target(out, DATA_NAMES[which])
-    if target is not None:
-        try:
-            check_replaceable(target)
-        except SomoError as exc:
-            fail(exc)
-    text = example_csv()
-    if target is None:
-        typer.echo(text, nl=False)
-    else:
-        typer.echo(f"wrote {write_atomic(target, text)}")
