@@ -23,7 +23,7 @@ from somo_sweep.cli.output import (
 from somo_sweep.errors import SomoError
 
 if TYPE_CHECKING:
-    from somo_sweep.paper.ablation import Configuration
+    from somo_sweep.paper.ablation import AblationFile, Configuration
     from somo_sweep.paper.artifacts import Artifacts
 
 __all__ = ["app"]
@@ -158,15 +158,7 @@ def fig6_ablation(
     Runs every configuration's missing trials (resumable), then writes fig6_ablation.csv, .md and
     .png and fig6_compare.png.
     """
-    from somo_sweep.paper.ablation import (
-        ABLATION_FILE,
-        compare_sides,
-        configurations,
-        load_ablation,
-        read_configurations,
-    )
-    from somo_sweep.paper.fig6_ablation import RULES, build
-    from somo_sweep.paper.fig6_compare import build as build_compare
+    from somo_sweep.paper.ablation import ABLATION_FILE, configurations, load_ablation
 
     grid = "quick" if quick else grid
     target = out or (Path("results/figures/quick") if grid == "quick" else Path("results/reference"))
@@ -180,15 +172,27 @@ def fig6_ablation(
                     "interrupted: finished trials kept; run the same command again to resume", err=True
                 )
                 raise typer.Exit(128 + stopped)
-        results = read_configurations(configs, RULES)
-        rules: dict[str, str] = {"ours": spec.rules.ours, "original": spec.rules.original}
-        artifacts = build(results, list(spec.factors), rules, title=f"{spec.name} ({grid} grid)")
-        compare = build_compare(compare_sides(results, spec), paper_style=paper_style)
+        artifacts = _ablation_artifacts(spec, configs, grid, paper_style)
     except SomoError as exc:
         fail(exc)
+    _finish(artifacts, target)
+
+
+def _ablation_artifacts(
+    spec: AblationFile, configs: list[Configuration], grid: str, paper_style: bool
+) -> Artifacts:
+    """The ablation's table and figure, and the side-by-side figure, from the stored results."""
+    from somo_sweep.paper.ablation import compare_sides, read_configurations
+    from somo_sweep.paper.fig6_ablation import RULES, build
+    from somo_sweep.paper.fig6_compare import build as build_compare
+
+    results = read_configurations(configs, RULES)
+    rules: dict[str, str] = {"ours": spec.rules.ours, "original": spec.rules.original}
+    artifacts = build(results, list(spec.factors), rules, title=f"{spec.name} ({grid} grid)")
+    compare = build_compare(compare_sides(results, spec), paper_style=paper_style)
     artifacts.figures.update(compare.figures)
     artifacts.lines += compare.lines
-    _finish(artifacts, target)
+    return artifacts
 
 
 def _run_ablation(configs: list[Configuration], jobs: int, adaptive: bool) -> int | None:
