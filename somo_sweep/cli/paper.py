@@ -28,7 +28,11 @@ if TYPE_CHECKING:
 
 __all__ = ["app"]
 
-app = typer.Typer(no_args_is_help=True, help="Reproduce the SoMo paper's figures (Figs. 3, 5-8, palm study).")
+app = typer.Typer(
+    no_args_is_help=True,
+    help="Reproduce the SoMo paper's figures: Figs. 3 and 5-8, the Fig. 6 ablation and comparison, "
+    "the palm study.",
+)
 
 OUT = Annotated[Path, typer.Option("--out", help="Folder for the figure files.")]
 QUICK = Annotated[bool, typer.Option("--quick", help="A short version (seconds to a minute).")]
