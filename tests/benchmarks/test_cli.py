@@ -69,3 +69,17 @@ def test_a_number_of_workers_the_machine_cannot_hold_is_refused(
     with pytest.raises(SystemExit) as stop:
         robust_cost.main(["--jobs", jobs])
     assert stop.value.code == 2 and "--jobs/-j: must be from 1 to" in capsys.readouterr().err
+
+
+def test_the_engine_benchmark_without_mujoco_installed_says_so_before_running_anything(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch, capsys: pytest.CaptureFixture[str]
+) -> None:
+    from benchmarks import engines
+
+    monkeypatch.setitem(sys.modules, "mujoco", None)
+    out = tmp_path / "out"
+    with pytest.raises(SystemExit) as stop:
+        engines.main(["--out", str(out)])
+    err = capsys.readouterr().err
+    assert stop.value.code == 2 and "engine mujoco needs MuJoCo" in err and "Traceback" not in err
+    assert not out.exists()
