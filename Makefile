@@ -5,10 +5,10 @@ BIN    := $(VENV)/bin
 STAMP  := $(VENV)/.installed-stamp
 
 .DEFAULT_GOAL := help
-.PHONY: help install demo test test-slow lint format bench bench-scale bench-engines bench-robust fig6 fig6-quick fig6-original fig6-ablation fig6-ablation-quick fig3 fig5 fig5-quick palm palm-quick fig7 fig7-quick fig8 fig8-quick diagnose-demo sweep-demo figures clean
+.PHONY: help install demo test test-slow lint format bench bench-statics bench-scaling bench-scale bench-engines bench-robust bench-numerics bench-auto-numerics bench-zero-kpa bench-original fig6 fig6-quick fig6-original fig6-ablation fig6-ablation-quick fig3 fig5 fig5-quick palm palm-quick fig7 fig7-quick fig8 fig8-quick diagnose-demo sweep-demo figures clean
 
 help: ## List the targets
-	@grep -E '^[a-zA-Z0-9_-]+:.*?## ' $(MAKEFILE_LIST) | awk 'BEGIN {FS = ":.*?## "}; {printf "  make %-12s %s\n", $$1, $$2}'
+	@grep -E '^[a-zA-Z0-9_-]+:.*?## ' $(MAKEFILE_LIST) | awk 'BEGIN {FS = ":.*?## "}; {printf "  make %-20s %s\n", $$1, $$2}'
 
 $(STAMP): pyproject.toml
 	$(PYTHON) -m venv $(VENV)
@@ -29,25 +29,47 @@ test-slow: $(STAMP) ## Run the long physics tests too
 	$(BIN)/python -m pytest -m "slow or not slow"
 
 lint: $(STAMP) ## ruff (lint + format check) and mypy
-	$(BIN)/ruff check somo_sweep tests
-	$(BIN)/ruff format --check somo_sweep tests
+	$(BIN)/ruff check somo_sweep tests benchmarks
+	$(BIN)/ruff format --check somo_sweep tests benchmarks
 	$(BIN)/mypy
 
 format: $(STAMP) ## Format the code with ruff
-	$(BIN)/ruff format somo_sweep tests
-	$(BIN)/ruff check --fix somo_sweep tests
+	$(BIN)/ruff format somo_sweep tests benchmarks
+	$(BIN)/ruff check --fix somo_sweep tests benchmarks
 
+# The benchmarks (benchmarks/, not installed; `python -m benchmarks.NAME --help` for each).
 bench: $(STAMP) ## Speed benchmark: grasp steps (Bullet vs Python), one trial, statics, sweep scaling, Dask vs joblib
-	$(BIN)/somo-sweep paper speed
+	$(BIN)/python -m benchmarks.speed
+
+bench-statics: $(STAMP) ## Bench statics: rows, calibrate and diagnose, solved vs dynamic relaxation
+	$(BIN)/python -m benchmarks.statics
+
+bench-scaling: $(STAMP) ## Sweep scaling: demo study at 1 and 2 workers, joblib vs Dask in turn, and the quick study's cells
+	$(BIN)/python -m benchmarks.scaling
 
 bench-scale: $(STAMP) ## Sweep memory at 2 000 and 20 000 trials, and a resume's start (30-60 min on 2 cores)
-	$(BIN)/somo-sweep paper scale
+	$(BIN)/python -m benchmarks.scale
 
-bench-engines: $(STAMP) ## The engine benchmark: one pinch trial on PyBullet and on MuJoCo side by side, MuJoCo's 4 ms vs 2 ms
-	$(BIN)/somo-sweep paper engines --convergence --out results/figures
+bench-engines: $(STAMP) ## The engine benchmark: one pinch trial on PyBullet and on MuJoCo side by side, MuJoCo's 4 ms vs 2 ms -> results/figures/engine_speed.json
+	$(BIN)/python -m benchmarks.engines --convergence --out results/figures
 
 bench-robust: $(STAMP) ## What robust labels cost: one trial and the quick study, plain before vs robust now (~40 min on 2 idle cores) -> results/reference/robust_cost.json
-	$(BIN)/somo-sweep paper robust-cost --out results/reference
+	$(BIN)/python -m benchmarks.robust_cost --out results/reference
+
+bench-numerics: $(STAMP) ## One pinch trial at the chosen numerics vs the original's, in turn (--compare and more: python -m benchmarks.numerics --help)
+	$(BIN)/python -m benchmarks.numerics
+
+bench-auto-numerics: $(STAMP) ## The automatic numerics on a family of pinch fingers vs a 4x finer step
+	$(BIN)/python -m benchmarks.auto_numerics
+
+bench-zero-kpa: $(STAMP) ## The 0-kPa blocked-force row on both engines over a step ladder, and with the plate moved (2-3 min)
+	$(BIN)/python -m benchmarks.zero_kpa
+
+# The original SoMo code's checkout and the Python of its own environment (benchmarks/original_fig6/README.md).
+ORIGINAL_SOMO   ?= ../somo_orig
+ORIGINAL_PYTHON ?= ../venv_orig/bin/python
+bench-original: $(STAMP) ## Cross-check against the original SoMo code on Fig. 6's 30 headline cells (needs ORIGINAL_SOMO, ORIGINAL_PYTHON; prints the set-up if missing) -> results/original_fig6
+	$(BIN)/python -m benchmarks.original_fig6 --somo $(ORIGINAL_SOMO) --original-python $(ORIGINAL_PYTHON)
 
 fig6: $(STAMP) ## Paper Fig. 6: pinch-grasp study, 2310 trials (resumable), figure + smallest all-width pinch DSR
 	$(BIN)/somo-sweep run studies/pinch_grasp_dsr.yaml

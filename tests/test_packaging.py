@@ -9,7 +9,8 @@ import tomllib
 from pathlib import Path
 
 ROOT = Path(__file__).resolve().parents[1]
-PYPROJECT = tomllib.loads((ROOT / "pyproject.toml").read_text())["project"]
+TOML = tomllib.loads((ROOT / "pyproject.toml").read_text())
+PYPROJECT = TOML["project"]
 #: Import name → distribution name, where they differ.
 DISTRIBUTIONS = {"PIL": "pillow", "yaml": "pyyaml", "distributed": "dask"}
 
@@ -63,3 +64,14 @@ def test_mujoco_is_an_extra_and_a_dev_dependency_not_a_core_one() -> None:
 def test_supported_platforms_are_classified() -> None:
     classifiers = PYPROJECT["classifiers"]
     assert "Operating System :: POSIX :: Linux" in classifiers and "Operating System :: MacOS" in classifiers
+
+
+def test_the_wheel_holds_the_package_and_not_the_lab() -> None:
+    """benchmarks/ (and tests/) stay in the repository: setuptools finds somo_sweep's packages only."""
+    from setuptools import find_packages
+
+    include = TOML["tool"]["setuptools"]["packages"]["find"]["include"]
+    found = find_packages(where=str(ROOT), include=include)
+    assert "somo_sweep" in found and "somo_sweep.paper" in found
+    assert (ROOT / "benchmarks" / "__init__.py").is_file()
+    assert not [name for name in found if not name.startswith("somo_sweep")]

@@ -1,11 +1,13 @@
-"""A wheel (non-editable) install carries its data: the bundled example and the paper figures run
-from an empty folder, with nothing of the source tree on the path."""
+"""A wheel (non-editable) install carries its data and not the lab: the bundled example and the paper
+figures run from an empty folder, with nothing of the source tree on the path, and benchmarks/ is
+not in it."""
 
 from __future__ import annotations
 
 import os
 import subprocess
 import sys
+import zipfile
 from pathlib import Path
 
 import pytest
@@ -22,6 +24,10 @@ def test_a_wheel_install_runs_the_bundled_example_and_figures_from_an_empty_fold
         [*pip, "wheel", "--no-deps", "-w", str(wheels), str(ROOT)], check=True, capture_output=True
     )
     (wheel,) = wheels.glob("somo_sweep-*.whl")
+    with zipfile.ZipFile(wheel) as archive:
+        tops = {name.split("/")[0] for name in archive.namelist()}
+    assert "benchmarks" not in tops and "tests" not in tops  # the lab is not installed
+    assert "somo_sweep" in tops
     subprocess.run([*pip, "install", "--no-deps", "--target", str(target), str(wheel)], check=True)
     env = {**os.environ, "PYTHONPATH": str(target)}
 

@@ -1,8 +1,8 @@
 """Synthetic bench data: simulate a plan of rows with a known model, then add relative noise.
 
-``somo-sweep paper data synthetic OUT.csv`` writes the bundled 36-row example
-(``studies/tables/planar_finger_synthetic.csv``): a 100 mm, 20-segment, 20 g planar
-finger with known stiffness and pressure gain, 1 % noise, seed 0.
+``python -m benchmarks.bundled_data synthetic OUT.csv`` (from the repository) writes the bundled
+36-row example (``studies/tables/planar_finger_synthetic.csv``): a 100 mm, 20-segment, 20 g
+planar finger with known stiffness and pressure gain, 1 % noise, seed 0.
 """
 
 from __future__ import annotations
@@ -112,7 +112,8 @@ def example_csv() -> str:
     """The bundled example (``studies/tables/planar_finger_synthetic.csv``) as CSV text."""
     rows = synthetic_rows(example_finger(), example_plan(), 0.01, np.random.default_rng(0), n_jobs=2)
     header = (
-        "Synthetic, effect-free bench data (somo-sweep paper data synthetic): simulated, NOT measured.\n"
+        "Synthetic, effect-free bench data (somo-sweep: python -m benchmarks.bundled_data synthetic): "
+        "simulated, NOT measured.\n"
         "Planar finger 100 mm, 20 segments, 20 g (somo-sweep calibrate --length-mm 100 --segments 20 "
         "--mass-g 20),\nknown stiffness and pressure gain, 1 % relative noise, seed 0.\n"
         "finger: {length_mm: 100, segments: 20, mass_g: 20, width_mm: 20, thickness_mm: 15}"

@@ -1,6 +1,6 @@
 """The bundled diagnosis example: bench data of a finger with one effect the plain model lacks.
 
-``somo-sweep paper data diagnosis-example OUT.csv`` writes
+``python -m benchmarks.bundled_data diagnosis-example OUT.csv`` (from the repository) writes
 ``studies/tables/planar_finger_bench_2.csv``: the 36-row plan of the calibration
 example (:func:`somo_sweep.calibration.synthetic.example_plan`) simulated at the 0.5 ms
 reference step with a hidden effect switched on, plus 1 % noise (seed 7). Which
@@ -35,7 +35,8 @@ def example_rows() -> pd.DataFrame:
 def example_csv() -> str:
     """The example (``studies/tables/planar_finger_bench_2.csv``) as CSV text."""
     header = (
-        "Synthetic bench data (somo-sweep paper data diagnosis-example): simulated, NOT measured.\n"
+        "Synthetic bench data (somo-sweep: python -m benchmarks.bundled_data diagnosis-example): "
+        "simulated, NOT measured.\n"
         "Planar finger 100 mm, 20 segments, 20 g; 1 % relative noise. Calibrate it, then run\n"
         "somo-sweep diagnose to see what the calibrated model is missing.\n"
         "finger: {length_mm: 100, segments: 20, mass_g: 20, width_mm: 20, thickness_mm: 15}"

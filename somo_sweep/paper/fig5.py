@@ -32,6 +32,7 @@ import matplotlib.pyplot as plt
 import numpy as np
 import pandas as pd
 from matplotlib.axes import Axes
+from matplotlib.figure import Figure
 from scipy.optimize import minimize_scalar
 
 from somo_sweep.errors import SomoError
@@ -285,18 +286,30 @@ def build(quick: bool = False, fit_cycles: int = 3, n_jobs: int = 2) -> Artifact
         **{key: _run_offaxis(run, end_s) for key, run in runs.items()},
     }
     summary["offaxis"] = offaxis_rows
+    fig = _figure(hw, {labels[k]: run for k, run in runs.items()}, end_s, fit_until)
+    name = "fig5-quick" if quick else "fig5"
+    return Artifacts(figures={name: fig}, json={f"{name}.json": summary}, lines=_lines(summary, offaxis_rows))
+
+
+def _figure(hw: Hardware, runs: dict[str, GaitRun], end_s: float, fit_until: float | None) -> Figure:
+    """Rotation of every run (by its label) against the hardware's, and the last run's off-axis
+    motion, up to ``end_s``; ``fit_until``: the end of the fitted cycles, s."""
     fig = plt.figure(figsize=(14, 6))
     grid = fig.add_gridspec(2, 2, width_ratios=[2, 1])
     ax_rot = fig.add_subplot(grid[:, 0])
     ax_position = fig.add_subplot(grid[0, 1])
     ax_tilt = fig.add_subplot(grid[1, 1], sharex=ax_position)
     shown = hw.until(end_s)
-    draw_rotation(ax_rot, shown, {labels[k]: run for k, run in runs.items()}, fit_until)
+    draw_rotation(ax_rot, shown, runs, fit_until)
     draw_offaxis(ax_position, ax_tilt, shown, list(runs.values())[-1])
     for ax in (ax_rot, ax_position):
         ax.set_xlim(0, end_s)
     fig.tight_layout()
-    name = "fig5-quick" if quick else "fig5"
+    return fig
+
+
+def _lines(summary: dict[str, object], offaxis_rows: dict[str, dict[str, float]]) -> list[str]:
+    """Each comparison (all cycles, then held out) and each run's off-axis motion, a line each."""
     lines = []
     for key in ("default", "finger_calibrated", "calibrated"):
         for part in (key, f"{key}_held_out"):
@@ -313,4 +326,4 @@ def build(quick: bool = False, fit_cycles: int = 3, n_jobs: int = 2) -> Artifact
             f"|z| {o['max_abs_z_mm']:4.1f} mm; max tilt |x| {o['max_abs_tilt_x_deg']:4.2f}, "
             f"|y| {o['max_abs_tilt_y_deg']:4.2f} deg"
         )
-    return Artifacts(figures={name: fig}, json={f"{name}.json": summary}, lines=lines)
+    return lines

@@ -16,7 +16,7 @@ from __future__ import annotations
 
 import math
 from collections.abc import Sequence
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 import pandas as pd
@@ -27,6 +27,9 @@ from somo_sweep.paper.grasp_trials import grasp_labels, inferred_rows
 from somo_sweep.sweep.robustness import fold
 from somo_sweep.tasks.pinch_grasp.classify import LABELS, find_column
 from somo_sweep.tasks.pinch_grasp.params import BASE_DISTANCE_AT_ZERO_CENTERING_M
+
+if TYPE_CHECKING:
+    from matplotlib.figure import Figure
 
 __all__ = [
     "COLORS",
@@ -276,12 +279,10 @@ def check_max_dsr(max_dsr: float, dsrs: Any) -> None:
         )
 
 
-def build(table: pd.DataFrame, stem: str = "fig6", max_dsr: float = 0.5) -> Artifacts:
-    """The figure, the summary table (CSV) and the headline (JSON, also in ``lines``)."""
+def _figure(table: pd.DataFrame, max_dsr: float) -> Figure:
+    """The panels, one per DSR up to ``max_dsr``, drawn and labelled (no legend or title yet)."""
     import matplotlib.pyplot as plt
-    from matplotlib.patches import Patch
 
-    check_max_dsr(max_dsr, table["distal_segment_ratio"])
     n = sum(1 for d in table["distal_segment_ratio"].unique() if d <= max_dsr + 1e-9)
     cols = min(max(n, 1), 4)
     rows = math.ceil(max(n, 1) / cols)
@@ -289,8 +290,7 @@ def build(table: pd.DataFrame, stem: str = "fig6", max_dsr: float = 0.5) -> Arti
     # narrower than the title's second line (a one- or two-DSR study clipped it).
     width_in, height_in = max(3.2 * cols, 9.0), 2.6 * rows + 1.4
     fig, axes = plt.subplots(rows, cols, figsize=(width_in, height_in), squeeze=False, layout="constrained")
-    flat = list(axes.ravel())
-    draw_fig6(flat, table, max_dsr)
+    draw_fig6(list(axes.ravel()), table, max_dsr)
     for ax in axes[-1]:
         ax.set_xlabel(CENTERING_LABEL)
     for ax in axes[:, 0]:
@@ -298,22 +298,29 @@ def build(table: pd.DataFrame, stem: str = "fig6", max_dsr: float = 0.5) -> Arti
     for ax in axes[0]:
         if ax.child_axes:
             ax.child_axes[0].set_xlabel(BASE_DISTANCE_LABEL, fontsize="small")
-    checked = "replicas" in table.columns and bool((table["replicas"] > 0).any())
-    best = smallest_all_width_pinch_dsr(table, robust_only=checked)
-    best_all = smallest_all_width_pinch_dsr(table)
+    return fig
+
+
+def _not_robust(table: pd.DataFrame) -> int:
+    """Cells whose replicas disagree (0 without robustness columns)."""
+    if "robust" not in table:
+        return 0
+    return int(table["robust"].eq(False).fillna(False).astype(bool).sum())
+
+
+def _add_legend(fig: Figure, table: pd.DataFrame) -> None:
+    """A legend below the panels: each label present, and the inferred and not robust hatches."""
+    from matplotlib.patches import Patch
+
     labels = set(table["label"])
-    present = [lab for lab in COLORS if lab in labels]
-    handles = [Patch(facecolor=COLORS[lab], edgecolor="0.5", label=lab) for lab in present]
+    handles = [Patch(facecolor=COLORS[lab], edgecolor="0.5", label=lab) for lab in COLORS if lab in labels]
     if labels - set(COLORS):
         handles.append(Patch(facecolor=OTHER_COLOR, edgecolor="0.5", label="no label"))
-    n_inferred = int(table["inferred"].sum()) if "inferred" in table.columns else 0
-    if n_inferred:
+    if "inferred" in table.columns and int(table["inferred"].sum()):
         handles.append(
             Patch(facecolor="white", edgecolor="0.5", hatch="///", label="inferred (not simulated)")
         )
-    uncertain = table["robust"].eq(False).fillna(False).astype(bool) if "robust" in table else None
-    n_uncertain = int(uncertain.sum()) if uncertain is not None else 0
-    if n_uncertain:
+    if _not_robust(table):
         handles.append(
             Patch(
                 facecolor="white",
@@ -324,6 +331,10 @@ def build(table: pd.DataFrame, stem: str = "fig6", max_dsr: float = 0.5) -> Arti
         )
     if handles:
         fig.legend(handles=handles, loc="outside lower center", ncol=len(handles))
+
+
+def _headline(table: pd.DataFrame, best: float | None, best_all: float | None, checked: bool) -> str:
+    """The smallest all-width pinch DSR in words, with what could move it."""
     headline = (
         "no DSR pinch-grasps every width" if best is None else f"smallest all-width pinch DSR: {best:.2f}"
     )
@@ -340,49 +351,69 @@ def build(table: pd.DataFrame, stem: str = "fig6", max_dsr: float = 0.5) -> Arti
             headline += f" ({shown_could} if the {n_failed} trial(s) without an outcome were pinches)"
         else:
             headline += f" (the same whatever the {n_failed} trial(s) without an outcome would give)"
+    return headline
+
+
+def _info(table: pd.DataFrame, best: float | None, best_all: float | None, checked: bool) -> dict[str, Any]:
+    """The headline's JSON: the DSR, the trials and their labels, and the robustness if checked."""
+    n_inferred = int(table["inferred"].sum()) if "inferred" in table.columns else 0
+    info: dict[str, Any] = {
+        "smallest_all_width_pinch_dsr": best,
+        "trials": len(table),
+        "inferred": n_inferred,
+        "labels": {str(k): int(v) for k, v in table["label"].value_counts().items()},
+    }
+    n_failed = int((~table["label"].isin(LABELS)).sum())
+    if n_failed:
+        info["trials_without_outcome"] = n_failed
+    if checked:
+        replicated = table["replicas"] > 0
+        info["robustness"] = {
+            "cells_replicated": int(replicated.sum()),
+            "robust": int(table["robust"].eq(True).fillna(False).astype(bool).sum()),
+            "not_robust": _not_robust(table),
+            "smallest_all_width_pinch_dsr_every_cell": best_all,
+        }
+        info["deciding_cells"] = deciding_cells(table, best)
+    return info
+
+
+def _lines(info: dict[str, Any], headline: str) -> list[str]:
+    """What the command prints: the trials and labels, the headline, the cells that decide it."""
+    trials = f"{info['trials']} trials"
+    if info["inferred"]:
+        trials += f" ({info['inferred']} inferred, not simulated)"
+    lines = [f"{trials}, labels: {info['labels']}", headline]
+    if "robustness" in info:
+        lines.append(
+            f"robustness: {info['robustness']['cells_replicated']} cells replicated, "
+            f"{info['robustness']['not_robust']} not robust (cross-hatched); the cells that decide the "
+            "headline:"
+        )
+        lines += [f"  {line}" for line in info["deciding_cells"]]
+    return lines
+
+
+def build(table: pd.DataFrame, stem: str = "fig6", max_dsr: float = 0.5) -> Artifacts:
+    """The figure, the summary table (CSV) and the headline (JSON, also in ``lines``)."""
+    check_max_dsr(max_dsr, table["distal_segment_ratio"])
+    fig = _figure(table, max_dsr)
+    checked = "replicas" in table.columns and bool((table["replicas"] > 0).any())
+    best = smallest_all_width_pinch_dsr(table, robust_only=checked)
+    best_all = smallest_all_width_pinch_dsr(table)
+    _add_legend(fig, table)
+    headline = _headline(table, best, best_all, checked)
     fig.suptitle(
         f"{headline}\nc: the paper's centering position; the finger bases end the approach "
         f"d = {BASE_DISTANCE_AT_ZERO_CENTERING_M * 1e3:g} mm − c from the object's centre",
         fontsize="medium",
     )
     summary = label_summary(table)
-    info: dict[str, object] = {
-        "smallest_all_width_pinch_dsr": best,
-        "trials": len(table),
-        "inferred": n_inferred,
-        "labels": {str(k): int(v) for k, v in table["label"].value_counts().items()},
-    }
-    if n_failed:
-        info["trials_without_outcome"] = n_failed
-    deciding: list[str] = []
-    if checked:
-        replicated = table["replicas"] > 0
-        info["robustness"] = {
-            "cells_replicated": int(replicated.sum()),
-            "robust": int(table["robust"].eq(True).fillna(False).astype(bool).sum()),
-            "not_robust": n_uncertain,
-            "smallest_all_width_pinch_dsr_every_cell": best_all,
-        }
-        deciding = deciding_cells(table, best)
-        info["deciding_cells"] = deciding
+    info = _info(table, best, best_all, checked)
     return Artifacts(
         figures={stem: fig},
         dpi=150,
         json={f"{stem}.json": info},
         tables={f"{stem}_summary.csv": summary},
-        lines=[
-            f"{info['trials']} trials ({n_inferred} inferred, not simulated), labels: {info['labels']}"
-            if n_inferred
-            else f"{info['trials']} trials, labels: {info['labels']}",
-            headline,
-            *(
-                [
-                    f"robustness: {info['robustness']['cells_replicated']} cells replicated, "  # type: ignore[index]
-                    f"{n_uncertain} not robust (cross-hatched); the cells that decide the headline:",
-                    *(f"  {line}" for line in deciding),
-                ]
-                if checked
-                else []
-            ),
-        ],
+        lines=_lines(info, headline),
     )

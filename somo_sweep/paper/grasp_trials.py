@@ -6,7 +6,7 @@ import math
 from collections import Counter
 from collections.abc import Sequence
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 import pandas as pd
@@ -14,6 +14,9 @@ import pandas as pd
 from somo_sweep.errors import SomoError, shown
 from somo_sweep.paper.artifacts import Artifacts
 from somo_sweep.tasks.pinch_grasp.classify import find_column, reclassify
+
+if TYPE_CHECKING:
+    from somo_sweep.tasks.registry import TaskResult
 
 __all__ = ["MAX_SNAPSHOTS", "find_trial", "grasp_labels", "read_results", "relabel", "render_trial"]
 
@@ -183,6 +186,34 @@ def find_trial(jobs: Sequence[Any], trial: str) -> Any:
 MAX_SNAPSHOTS = 100
 
 
+def _check_times(times_s: list[float], duration_s: float) -> None:
+    """Refuse no snapshot, too many, or one outside the trial's ``duration_s``."""
+    if not 1 <= len(times_s) <= MAX_SNAPSHOTS:
+        raise SomoError(f"--at-s: give 1 to {MAX_SNAPSHOTS} snapshot times, got {len(times_s)}")
+    outside = [t for t in times_s if not (math.isfinite(t) and 0.0 <= t <= duration_s)]
+    if outside:
+        raise SomoError(
+            f"--at-s {outside[0]:g}: a snapshot time must be from 0 to {duration_s:g} s (the trial's length)"
+        )
+
+
+def _trial_label(result: TaskResult, step_s: float, step_chosen: bool, times_s: list[float]) -> str:
+    """The trial's grasp label, whether it ended before a snapshot, and its step (``step_s``)."""
+    label = str(result.labels.get("grasp", result.status))
+    ended = result.metrics.get("ended_early_s")
+    if isinstance(ended, float) and math.isfinite(ended) and any(t > ended for t in times_s):
+        why = result.metrics.get("ended_early_reason", "")
+        label += f" (ended early at {ended:.2f} s: {why}; no snapshot after it)"
+    label += f"; step {step_s * 1e3:g} ms"
+    if not step_chosen:
+        # No step chosen yet: the jobs carry the modal starting guess, which a sweep may reject.
+        label += (
+            " (the automatic step's starting guess: this study has not chosen its step yet; "
+            "`somo-sweep check STUDY.yaml` or a run chooses it, then render uses that)"
+        )
+    return label
+
+
 def render_trial(
     study_path: str | Path, trial: str, times_s: list[float], engine: str | None = None
 ) -> tuple[Artifacts, str]:
@@ -216,14 +247,7 @@ def render_trial(
     job = find_trial(build_jobs(study).jobs, trial)
     params = job.params
     assert isinstance(params, PinchGraspParams)
-    duration_s = params.approach_s + params.ramp_s + params.lift_s + params.hold_s
-    if not 1 <= len(times_s) <= MAX_SNAPSHOTS:
-        raise SomoError(f"--at-s: give 1 to {MAX_SNAPSHOTS} snapshot times, got {len(times_s)}")
-    outside = [t for t in times_s if not (math.isfinite(t) and 0.0 <= t <= duration_s)]
-    if outside:
-        raise SomoError(
-            f"--at-s {outside[0]:g}: a snapshot time must be from 0 to {duration_s:g} s (the trial's length)"
-        )
+    _check_times(times_s, params.approach_s + params.ramp_s + params.lift_s + params.hold_s)
     images: dict[float, Any] = {}
     camera = Camera(target_m=(params.base_distance_m * 0.5, 0.0, params.hand_height_m))
 
@@ -238,16 +262,5 @@ def render_trial(
     # Two decimals, or as many more as keep snapshots a step apart from sharing a file name.
     digits = next(d for d in range(2, 10) if len({f"{t:.{d}f}" for t in images}) == len(images))
     out = Artifacts(images={f"{name}_t{t:.{digits}f}s.png": img for t, img in sorted(images.items())})
-    label = str(result.labels.get("grasp", result.status))
-    ended = result.metrics.get("ended_early_s")
-    if isinstance(ended, float) and math.isfinite(ended) and any(t > ended for t in times_s):
-        why = result.metrics.get("ended_early_reason", "")
-        label += f" (ended early at {ended:.2f} s: {why}; no snapshot after it)"
-    label += f"; step {job.settings.time_step_s * 1e3:g} ms"
-    if study.simulation is None and study.auto_step_s is None:
-        # No step chosen yet: the jobs carry the modal starting guess, which a sweep may reject.
-        label += (
-            " (the automatic step's starting guess: this study has not chosen its step yet; "
-            "`somo-sweep check STUDY.yaml` or a run chooses it, then render uses that)"
-        )
-    return out, label
+    step_chosen = not (study.simulation is None and study.auto_step_s is None)
+    return out, _trial_label(result, job.settings.time_step_s, step_chosen, times_s)

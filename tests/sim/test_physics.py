@@ -242,8 +242,8 @@ def test_the_solver_residual_threshold_reaches_bullet() -> None:
     """A pinch trial's contacts and joint rows do not converge to Bullet's 1e-7 in 50 iterations,
     so a looser early exit must change the trial (it is not silently dropped), while leaving its
     outcome, and the same threshold must give the same trial twice (deterministic)."""
-    from somo_sweep.paper.numerics import _trial
-    from somo_sweep.paper.robust_cost import BEFORE  # 4 ms: an eighth of the chosen 0.5 ms's steps
+    from benchmarks.setups import BEFORE  # 4 ms: an eighth of the chosen 0.5 ms's steps
+    from benchmarks.setups import one_trial as _trial
 
     point = {"distal_segment_ratio": 0.2, "object_width_m": 0.040, "centering_position_m": 0.100}
     early = dataclasses.replace(BEFORE, solver_residual_threshold=1e-2)

@@ -214,15 +214,14 @@ FINGER_MODEL = Path(__file__).parents[2] / "somo_sweep" / "data" / "models" / "i
     [
         (["calibrate", str(BENCH), "-o", "FILE"], "text"),
         (["measure", str(FINGER_MODEL), "--test", "tip_load", "--values", "0.1", "--csv", "FILE"], "text"),
-        (["paper", "data", "synthetic", "FILE"], "text"),
         (["recheck", "STUDY", "-n", "1", "--report", "FILE"], "json"),
     ],
-    ids=["calibrate", "measure", "paper-data", "recheck"],
+    ids=["calibrate", "measure", "recheck"],
 )
 def test_a_file_somo_sweep_did_not_write_is_never_replaced(
     tmp_path: Path, argv: list[str], kind: str
 ) -> None:
-    """`paper data ... /etc/passwd` replaced it; so would `-o notes.txt` have."""
+    """`-o notes.txt` would have replaced it."""
     precious = tmp_path / "notes.txt"
     precious.write_text("my own notes\n")
     study = selftest_study(tmp_path)

@@ -229,7 +229,7 @@ def test_compare_without_labels_gives_each_metric_per_cell_as_a_share_of_its_ran
     )
 
 
-@pytest.mark.parametrize("command", [["compare-engines", "STUDY"], ["paper", "engines"]])
+@pytest.mark.parametrize("command", [["compare-engines", "STUDY"]])
 def test_the_engine_commands_without_mujoco_installed_say_so_before_running_anything(
     tmp_path: Path, monkeypatch: pytest.MonkeyPatch, command: list[str]
 ) -> None:

@@ -5,7 +5,7 @@ job table built, the trials not yet stored picked out (half of them, as on resum
 first of them built. The peak of what Python allocates on the way must grow by bytes a
 trial, not by jobs (the table held every job before: about 440 bytes a trial here, far more
 with distinct models). The sweep process's own peak at 2 000 and 20 000 real trials is measured
-by ``somo-sweep paper scale`` (docs/cluster.md).
+by ``python -m benchmarks.scale`` (``make bench-scale``).
 """
 
 from __future__ import annotations

@@ -8,8 +8,8 @@ from pathlib import Path
 import pytest
 from conftest import MODELS
 
+from benchmarks.setups import CHOSEN
 from somo_sweep.model.load import load_model
-from somo_sweep.paper.numerics import CHOSEN
 from somo_sweep.sim.settings import WorldSettings
 from somo_sweep.tasks import get_task
 from somo_sweep.tasks.pinch_grasp.gripper import split_finger
@@ -168,7 +168,7 @@ def test_labels_and_lift_agree_at_half_the_time_step(
 
 
 def test_bundled_studies_use_the_facts_sheet_grid_and_the_chosen_numerics() -> None:
-    from somo_sweep.paper.numerics import CHOSEN
+    from benchmarks.setups import CHOSEN
     from somo_sweep.sweep.study import load_study
 
     full = load_study(MODELS.parent / "pinch_grasp_dsr.yaml")

@@ -102,7 +102,7 @@ def same(a: Any, b: Any) -> bool:
 @pytest.mark.slow
 @pytest.mark.timeout(1800)
 def test_early_stop_changes_no_label_over_the_whole_quick_study() -> None:
-    from somo_sweep.paper.numerics import quick_points
+    from benchmarks.setups import quick_points
 
     points = [
         (pt["distal_segment_ratio"], pt["object_width_m"], pt["centering_position_m"])

@@ -1,7 +1,7 @@
 """The original configuration of the pinch study: geometry, link numbering, hand path, object.
 
 The reference numbers are the original code's own bodies as PyBullet loads them (GrauleM/somo
-755978b, read with ``tools/original_fig6/run_original_cells.py --inspect``): where each collision
+755978b, read with ``python -m benchmarks.original_fig6.run_original_cells --inspect``): where each collision
 box sits along the finger and across it, measured from the finger's mount (SoMo's base frame, the
 back face of the base box). None of them comes from our own code.
 """

@@ -1,8 +1,8 @@
-"""``paper numerics`` comparison bookkeeping: label agreement, and with ``--perturb-m`` the
+"""The numerics benchmark's comparison bookkeeping: label agreement, and with ``--perturb-m`` the
 split into points whose label survives a sub-millimetre shift of the object and the rest.
 
 The trials are replaced by a stand-in whose labels are known, so every count is checked
-exactly; the physics of the comparison is the benchmark's (``somo-sweep paper numerics``).
+exactly; the physics of the comparison is the benchmark's (``python -m benchmarks.numerics``).
 """
 
 from __future__ import annotations
@@ -10,11 +10,11 @@ from __future__ import annotations
 from typing import Any
 
 import pytest
-from typer.testing import CliRunner
 
-import somo_sweep.paper.numerics as numerics
-from somo_sweep.cli import app
-from somo_sweep.paper.numerics import Setup, compare
+import benchmarks.setups as setups
+from benchmarks import auto_numerics, numerics
+from benchmarks.numerics import compare
+from benchmarks.setups import Setup
 from somo_sweep.tasks.pinch_grasp.params import Numerics
 
 A = Setup(4e-3, 50, Numerics())
@@ -48,7 +48,7 @@ def fake_trial(point: dict[str, float], setup: Setup) -> dict[str, Any]:
 
 @pytest.fixture
 def stand_in(monkeypatch: pytest.MonkeyPatch) -> None:
-    monkeypatch.setattr(numerics, "_trial", fake_trial)
+    monkeypatch.setattr(setups, "one_trial", fake_trial)
 
 
 def test_plain_comparison_counts_every_disagreement(stand_in: None) -> None:
@@ -78,20 +78,26 @@ def test_a_bad_shift_is_refused(stand_in: None, bad: float) -> None:
 
 
 @pytest.mark.parametrize("bad", ["-0.0001", "0.002", "nan"])
-def test_the_command_refuses_a_shift_out_of_range_before_any_trial(bad: str) -> None:
-    result = CliRunner().invoke(app, ["paper", "numerics", "--b", "2e-3,50,3e-5", "--perturb-m", bad])
-    assert result.exit_code == 2
-    assert "--perturb-m must be 0 to 0.001 m" in result.output
+def test_the_command_refuses_a_shift_out_of_range_before_any_trial(
+    bad: str, capsys: pytest.CaptureFixture[str]
+) -> None:
+    with pytest.raises(SystemExit) as stop:
+        numerics.main(["--b", "2e-3,50,3e-5", "--perturb-m", bad])
+    assert stop.value.code == 2
+    assert "--perturb-m: must be 0 to 0.001 m" in capsys.readouterr().err
 
 
-def test_corners_without_the_family_check_is_refused() -> None:
-    result = CliRunner().invoke(app, ["paper", "numerics", "--corners"])
-    assert result.exit_code == 2
-    assert "--corners belongs to --auto-family" in result.output
+@pytest.mark.parametrize("points", ["0", "4"])
+def test_the_family_check_refuses_a_sample_it_does_not_have(
+    points: str, capsys: pytest.CaptureFixture[str]
+) -> None:
+    with pytest.raises(SystemExit) as stop:
+        auto_numerics.main(["--points", points])
+    assert stop.value.code == 2 and "--points: must be from 1 to 3" in capsys.readouterr().err
 
 
 def test_the_corners_are_the_four_extremes_of_the_family_range() -> None:
-    from somo_sweep.paper.auto_numerics import FAMILY, FAMILY_CORNERS
+    from benchmarks.auto_numerics import FAMILY, FAMILY_CORNERS
 
     ks = {k for k, _ in FAMILY}
     ms = {m for _, m in FAMILY}

@@ -6,35 +6,37 @@ holds under whatever load the machine has:
 * **One trial** (the bench point: DSR 0.2, 40-mm box, c = 100 mm): CPU time under the numerics
   the pinch studies used before labels were checked for robustness (:data:`BEFORE`: 4 ms, the
   links' inertia shaped 400-fold) and under the chosen ones
-  (:data:`~somo_sweep.paper.numerics.CHOSEN`), alternating, ``rounds`` times each.
+  (:data:`~benchmarks.setups.CHOSEN`), alternating, ``rounds`` times each.
 * **The quick study** (192 cells): run plain at :data:`BEFORE`, then at the chosen numerics with
   robustness replicas (K = 4 on label-boundary cells plus the 10 % audit), each through the sweep
   engine into its own folder; summed trial time and wall time.
 
-``somo-sweep paper robust-cost`` prints both and writes them as JSON; ``make bench-robust``.
+``python -m benchmarks.robust_cost`` prints both and writes them as JSON into ``--out``
+(``robust_cost.json``); ``make bench-robust``.
 """
 
 from __future__ import annotations
 
+import argparse
 import dataclasses
+import json
 import os
 import statistics
+import tempfile
 from dataclasses import dataclass
 from pathlib import Path
 from time import perf_counter
 from typing import TYPE_CHECKING, Any
 
-from somo_sweep.paper.numerics import CHOSEN, QUICK_STUDY, Setup, alternating_trial_seconds
-from somo_sweep.tasks.pinch_grasp.params import Numerics
+from benchmarks._cli import echo, int_in, jobs_option, user_errors
+from benchmarks.setups import BEFORE, CHOSEN, QUICK_STUDY, Setup, alternating_trial_seconds
+from somo_sweep.cli.output import write_outputs
+from somo_sweep.errors import SomoError
 
 if TYPE_CHECKING:
     from somo_sweep.sweep.study import Study
 
-__all__ = ["BEFORE", "CostReport", "StudyCost", "cost_lines", "cost_runs", "study_for"]
-
-#: The pinch studies' numerics before robust labels: 4 ms, 3e-5 kg·m² on each finger link (about
-#: 400 times a link's own inertia), the joints' friction solved every other step.
-BEFORE = Setup(4e-3, 50, Numerics(added_inertia_kg_m2=3e-5), friction_rows_every=2)
+__all__ = ["CostReport", "StudyCost", "cost_lines", "cost_runs", "main", "study_for"]
 
 
 @dataclass(frozen=True)
@@ -176,3 +178,48 @@ def cost_lines(report: CostReport) -> list[str]:
             f"{robust.wall_s / before.wall_s:.2f}x wall"
         )
     return lines
+
+
+def parser() -> argparse.ArgumentParser:
+    """The command line of ``python -m benchmarks.robust_cost``."""
+    ap = argparse.ArgumentParser(
+        prog="python -m benchmarks.robust_cost",
+        description="What robust labels cost: one trial, and the quick study plain before vs robust "
+        "(K = 4) now.",
+    )
+    ap.add_argument(
+        "--out",
+        type=Path,
+        default=Path("results/reference"),
+        help="folder for robust_cost.json (default results/reference; the study runs go to a temporary one)",
+    )
+    ap.add_argument(
+        "--rounds", type=int_in(1), default=3, help="alternating rounds of the one-trial timing (default 3)"
+    )
+    ap.add_argument(
+        "--jobs", "-j", type=jobs_option(), default=2, help="workers of the two study runs (default 2)"
+    )
+    ap.add_argument(
+        "--work", type=Path, help="keep the two results folders here (before/, robust/; default: temporary)"
+    )
+    return ap
+
+
+def main(argv: list[str] | None = None) -> None:
+    """Run both measurements, print them and write ``robust_cost.json``."""
+    args = parser().parse_args(argv)
+    with user_errors():
+        if args.work is not None and (args.work / "before").exists():
+            raise SomoError(
+                f"--work {args.work} already holds a run (before/): the benchmark times fresh runs"
+            )
+        with tempfile.TemporaryDirectory(prefix="somo-sweep-robust-cost-") as tmp:
+            report = cost_runs(args.work or Path(tmp), rounds=args.rounds, n_jobs=args.jobs)
+        echo(cost_lines(report))
+        text = json.dumps(report.as_dict(), indent=2) + "\n"
+        (path,) = write_outputs([(args.out / "robust_cost.json", text)])
+    print(f"wrote {path}")
+
+
+if __name__ == "__main__":
+    main()

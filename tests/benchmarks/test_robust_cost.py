@@ -7,9 +7,7 @@ from pathlib import Path
 
 import pytest
 
-from somo_sweep.paper.numerics import CHOSEN, QUICK_STUDY
-from somo_sweep.paper.robust_cost import (
-    BEFORE,
+from benchmarks.robust_cost import (
     CostReport,
     StudyCost,
     _setup_overrides,
@@ -17,6 +15,7 @@ from somo_sweep.paper.robust_cost import (
     cost_runs,
     study_for,
 )
+from benchmarks.setups import BEFORE, CHOSEN, QUICK_STUDY
 from somo_sweep.sweep.jobs import first_jobs
 from somo_sweep.sweep.study import Simulation, derive_study, load_study
 

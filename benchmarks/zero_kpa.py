@@ -11,9 +11,13 @@ solved statics, at 0 and 25 kPa: once with the bench's plate, then with the plat
 ``--plate-starts`` segments past the clamp (an experiment: the bench itself keeps its plate). A gap
 that stays as the step shrinks is not a step error.
 
-Run from the repository: ``.venv/bin/python tools/bench_zero_kpa.py`` (2-3 min; ``--plate-starts
-0.25,0.5,1 --steps 5e-4`` for the plate at several starts, one step; MuJoCo needs the
-``[mujoco]`` extra). Results: docs/mujoco.md, "Bench".
+Run from the repository root: ``python -m benchmarks.zero_kpa`` (``make bench-zero-kpa``, 2-3 min;
+``--plate-starts 0.25,0.5,1 --steps 5e-4`` for the plate at several starts, one step; MuJoCo needs
+the ``[mujoco]`` extra).
+
+The package has no setting for where the plate starts along the finger (only for its height,
+``BenchSettings.stop_z_m``), so the experiment swaps the bench's plate geometry
+(``stop_geometry``) in this process while it runs, and restores it after.
 """
 
 from __future__ import annotations
@@ -92,8 +96,11 @@ def _ladder(model_path: str, steps_s: tuple[float, ...] = (1e-3, 5e-4, 2.5e-4, 1
             )
 
 
-def main() -> None:
-    parser = argparse.ArgumentParser(description=__doc__.split("\n")[0])
+def main(argv: list[str] | None = None) -> None:
+    """Print the finger's weight, then the ladder with the bench's plate and with each plate start."""
+    parser = argparse.ArgumentParser(
+        prog="python -m benchmarks.zero_kpa", description=__doc__.split("\n\n")[0]
+    )
     parser.add_argument("--model", default=str(bundled_path("models", "pinch_finger.yaml")))
     parser.add_argument(
         "--plate-starts",
@@ -105,7 +112,7 @@ def main() -> None:
         default="1e-3,5e-4,2.5e-4,1.25e-4",
         help="comma-separated time steps, s (default: the ladder)",
     )
-    args = parser.parse_args()
+    args = parser.parse_args(argv)
     steps_s = tuple(float(v) for v in args.steps.split(","))
     manip = load_model(args.model).manipulator
     if manip is None:

@@ -1,6 +1,7 @@
 """Run our pinch trial on the cells the original code ran, and tabulate both side by side.
 
-Runs in this repository's environment (``.venv/bin/python tools/original_fig6/compare_cells.py``).
+Runs in this repository's environment, from its root
+(``python -m benchmarks.original_fig6.compare_cells``).
 Input: the CSV written by ``run_original_cells.py`` (one row per cell: DSR, width, c and the
 original's label, mean_link and final position). For every cell it runs ``pinch_grasp`` with the
 task parameters, model and simulation settings of a study file (default:
@@ -40,29 +41,26 @@ def _setup(study_path: str, setup: str | None) -> tuple[dict[str, Any], Any, str
     return params, settings, str(study.model_path)
 
 
-def drop_friction_anchors() -> None:
-    """Load every link without Bullet's friction anchor, whatever its description says. An
+def without_friction_anchors(model: Any) -> Any:
+    """``model`` with no link holding Bullet's friction anchor, whatever its description says. An
     experiment of this script: the original finger (``pinch_finger_original.yaml``) sets the anchor
     on its links, as the original code does, and this shows what it changes."""
-    from somo_sweep.sim.pybullet.world import PyBulletWorld
+    from somo_sweep.model.load import model_from_dict
 
-    apply = PyBulletWorld._apply_dynamics
-    if getattr(apply, "without_anchors", False):
-        return
+    def clear(node: Any) -> Any:
+        if isinstance(node, dict):
+            friction = node.get("friction")
+            if isinstance(friction, dict) and "anchor" in friction:
+                node["friction"] = {**friction, "anchor": False}
+            return {k: clear(v) for k, v in node.items()}
+        return [clear(v) for v in node] if isinstance(node, list) else node
 
-    def apply_without_anchor(self: Any, body: int, index: int, link: Any) -> None:
-        friction = link.friction.model_copy(update={"anchor": False})
-        apply(self, body, index, link.model_copy(update={"friction": friction}))
-
-    apply_without_anchor.without_anchors = True  # type: ignore[attr-defined]
-    PyBulletWorld._apply_dynamics = apply_without_anchor  # type: ignore[method-assign]
+    return model_from_dict(clear(model.model_dump(mode="json", exclude_none=True)))
 
 
 def run_cell(args: tuple[dict[str, str], str, str | None, bool]) -> dict[str, Any]:
     """Our trial for one cell of the original's table."""
     row, study_path, setup, without_anchors = args
-    if without_anchors:
-        drop_friction_anchors()
     from somo_sweep.model.load import load_model
     from somo_sweep.tasks.pinch_grasp.params import PinchGraspParams
     from somo_sweep.tasks.pinch_grasp.task import run_pinch_grasp
@@ -73,7 +71,10 @@ def run_cell(args: tuple[dict[str, str], str, str | None, bool]) -> dict[str, An
         object_width_m=float(row["width_mm"]) / 1000,
         centering_position_m=float(row["c_mm"]) / 1000,
     )
-    result = run_pinch_grasp(load_model(model_path), PinchGraspParams(**params), settings)
+    model = load_model(model_path)
+    if without_anchors:
+        model = without_friction_anchors(model)
+    result = run_pinch_grasp(model, PinchGraspParams(**params), settings)
     m = result.metrics
     out = {
         **row,
@@ -94,8 +95,11 @@ def _number(value: object) -> float:
     return math.nan if value in ("", None) else float(str(value))
 
 
-def main() -> None:
-    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+def main(argv: list[str] | None = None) -> None:
+    """Run ours on every cell of the original's table, write both side by side, print the agreement."""
+    ap = argparse.ArgumentParser(
+        prog="python -m benchmarks.original_fig6.compare_cells", description=__doc__.split("\n\n")[0]
+    )
     ap.add_argument("original", type=Path, help="CSV of run_original_cells.py")
     ap.add_argument("--out", type=Path, required=True, help="CSV to write (one row per cell)")
     ap.add_argument("--study", default=str(REPO / "studies/pinch_grasp_dsr_original.yaml"))
@@ -108,7 +112,7 @@ def main() -> None:
         help="an experiment: no link gets Bullet's friction anchor (the original finger sets it)",
     )
     ap.add_argument("--jobs", type=int, default=1)
-    args = ap.parse_args()
+    args = ap.parse_args(argv)
     with open(args.original) as f:
         rows = list(csv.DictReader(f))
     work = [(r, args.study, args.setup, args.without_friction_anchor) for r in rows]

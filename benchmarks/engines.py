@@ -1,4 +1,4 @@
-"""``somo-sweep paper engines`` (``make bench-engines``): a pinch trial on both engines, side by side.
+"""The engine benchmark (``make bench-engines``): a pinch trial on both engines, side by side.
 
 A sample of the quick Fig. 6 grid (every ``every``-th cell of ``studies/pinch_grasp_quick.yaml``)
 runs on both engines in this one process, one cell after the other: PyBullet at the quick
@@ -7,16 +7,24 @@ ratio of the two totals is what one engine saves over the other on the same mach
 moment, whatever else the machine runs (the load is reported with it). With ``convergence``,
 the whole quick grid also runs on MuJoCo at its step and at half of it (in worker processes),
 and the share of cells whose labels agree is the step's convergence.
+
+``python -m benchmarks.engines [--every 8] [--mujoco-step 4e-3] [--convergence] [--out DIR]``
+writes ``engine_speed.json`` and ``engine_speed_trials.csv`` into ``--out`` (results/figures).
 """
 
 from __future__ import annotations
 
+import argparse
+import math
 import os
 import time
+from pathlib import Path
 from typing import Any
 
 import pandas as pd
 
+from benchmarks._cli import finish, int_in, jobs_option, user_errors
+from somo_sweep.errors import SomoError
 from somo_sweep.model.tables import bundled_path
 from somo_sweep.paper.artifacts import Artifacts
 from somo_sweep.sim.settings import MUJOCO_DEFAULT_STEP_S
@@ -25,7 +33,7 @@ from somo_sweep.sweep.jobs import Job, build_jobs
 from somo_sweep.sweep.study import load_study
 from somo_sweep.tasks.registry import get_task
 
-__all__ = ["build", "convergence", "timed_trials"]
+__all__ = ["build", "convergence", "main", "timed_trials"]
 
 QUICK = "pinch_grasp_quick.yaml"
 
@@ -140,3 +148,55 @@ def build(
         tables={"engine_speed_trials.csv": table},
         lines=lines,
     )
+
+
+def _step(text: str) -> float:
+    value = float(text)
+    if not (math.isfinite(value) and value > 0):
+        raise argparse.ArgumentTypeError(f"must be a time step in s, > 0, got {value:g}")
+    return value
+
+
+def parser() -> argparse.ArgumentParser:
+    """The command line of ``python -m benchmarks.engines``."""
+    ap = argparse.ArgumentParser(
+        prog="python -m benchmarks.engines",
+        description="The engine benchmark: one pinch trial on PyBullet and MuJoCo, side by side.",
+    )
+    ap.add_argument(
+        "--every",
+        type=int_in(1),
+        default=8,
+        help="time every N-th cell of the quick grid (192 cells; default 8)",
+    )
+    ap.add_argument("--mujoco-step", type=_step, default=4e-3, help="MuJoCo's time step, s (default 0.004)")
+    ap.add_argument(
+        "--convergence",
+        action="store_true",
+        help="also run the whole quick grid on MuJoCo at the step and half of it",
+    )
+    ap.add_argument(
+        "--jobs", "-j", type=jobs_option(), default=2, help="workers for --convergence (default 2)"
+    )
+    ap.add_argument(
+        "--out",
+        type=Path,
+        default=Path("results/figures"),
+        help="folder for engine_speed.json and the per-trial table (default results/figures)",
+    )
+    return ap
+
+
+def main(argv: list[str] | None = None) -> None:
+    """Time both engines (see :func:`build`) and write the results into ``--out``."""
+    from somo_sweep.sim.mujoco.support import missing  # no MuJoCo import
+
+    args = parser().parse_args(argv)
+    with user_errors():
+        if (why := missing()) is not None:
+            raise SomoError(why)
+        finish(build(args.every, args.mujoco_step, args.convergence, args.jobs), args.out)
+
+
+if __name__ == "__main__":
+    main()

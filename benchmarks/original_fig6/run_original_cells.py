@@ -50,6 +50,7 @@ import sys
 import tempfile
 import time
 from pathlib import Path
+from typing import Any
 
 DSR_VALUES = [round(0.05 * k, 2) for k in range(15)]
 WIDTHS_MM = [10, 20, 40, 60, 80, 100, 120]
@@ -133,8 +134,10 @@ class Tracer:
     def __init__(self, every: int, scale: float, inspect_steps: tuple[int, ...] = ()):
         import pybullet as p
 
-        self.p, self.every, self.scale, self.n, self.rows = p, every, scale, 0, []
-        self.inspect_steps, self.dumps = set(inspect_steps), []
+        self.p, self.every, self.scale, self.n = p, every, scale, 0
+        self.rows: list[dict[str, Any]] = []
+        self.inspect_steps = set(inspect_steps)
+        self.dumps: list[dict[str, Any]] = []
         self.step = p.stepSimulation
         p.stepSimulation = self.__call__
 
@@ -304,12 +307,13 @@ def choose_cells(args: argparse.Namespace) -> list[tuple[float, int, float]]:
     for spec in args.cell or []:
         d, w, c = spec.split(",")
         cells.append((round(float(d), 2), int(w), float(c)))
-    seen: set[tuple[float, int, float]] = set()
-    return [x for x in cells if not (x in seen or seen.add(x))]
+    return list(dict.fromkeys(cells))  # each cell once, in the order given
 
 
-def main() -> None:
-    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+def main(argv: list[str] | None = None) -> None:
+    ap = argparse.ArgumentParser(
+        prog="python -m benchmarks.original_fig6.run_original_cells", description=__doc__.split("\n\n")[0]
+    )
     ap.add_argument("--somo", type=Path, required=True, help="checkout of GrauleM/somo (commit 755978b)")
     ap.add_argument("--out", type=Path, required=True, help="CSV to append one row per cell to")
     ap.add_argument("--headline", action="store_true", help="the 30 headline cells")
@@ -329,7 +333,7 @@ def main() -> None:
         help="the original's time step in s (default: its sweep file's 0.0005); the trial stays 4 s long",
     )
     ap.add_argument("--list", action="store_true", help="print the cells and stop")
-    args = ap.parse_args()
+    args = ap.parse_args(argv)
     cells = choose_cells(args)
     if args.list:
         for c in cells:
@@ -398,12 +402,13 @@ def run_cells(
         wall = time.time() - t0
         iter_utils.delete_tmp("_tmp")
         run_folder = work / "data" / "cells" / f"dsr{dsr:.2f}_w{width}_c{c:g}"
-        row = {"dsr": dsr, "width_mm": width, "c_mm": c, "hand_x_units": h, "wall_s": round(wall, 2)}
+        row: dict[str, Any] = {"dsr": dsr, "width_mm": width, "c_mm": c, "hand_x_units": h}
+        row["wall_s"] = round(wall, 2)
         row["time_step_s"] = args.time_step or 0.0005
         row["restitution"] = "original" if restitution is None else restitution
         row.update(label_cell(region, run_folder, dsr, 20.0))
-        for f in run_folder.iterdir():
-            f.unlink()
+        for path in run_folder.iterdir():
+            path.unlink()
         run_folder.rmdir()
         new = not out.exists()
         with open(out, "a", newline="") as f:

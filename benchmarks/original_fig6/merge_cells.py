@@ -50,13 +50,15 @@ def kind(row: dict[str, str]) -> str:
     return f"{lost}_{what}"
 
 
-def main() -> None:
-    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+def main(argv: list[str] | None = None) -> None:
+    ap = argparse.ArgumentParser(
+        prog="python -m benchmarks.original_fig6.merge_cells", description=__doc__.split("\n\n")[0]
+    )
     ap.add_argument("--main", type=Path, required=True)
     ap.add_argument("--grid", type=Path)
     ap.add_argument("--shifted", type=Path)
     ap.add_argument("--out", type=Path, required=True)
-    args = ap.parse_args()
+    args = ap.parse_args(argv)
     with open(args.main) as f:
         rows = list(csv.DictReader(f))
     grid: dict[tuple[float, int, float], str] = {}

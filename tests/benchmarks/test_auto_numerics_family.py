@@ -4,8 +4,8 @@ from __future__ import annotations
 
 import pytest
 
+from benchmarks.auto_numerics import FAMILY_POINTS, GRIPPER, check_family, family_lines, finger_variant
 from somo_sweep.model.load import load_model
-from somo_sweep.paper.auto_numerics import FAMILY_POINTS, GRIPPER, check_family, family_lines, finger_variant
 from somo_sweep.tasks.pinch_grasp.params import PinchGraspParams
 
 

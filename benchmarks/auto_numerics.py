@@ -8,15 +8,19 @@ the same angles (at 0.15 N·m a ×0.1 finger would curl 2.2 rad per joint into i
 change. :func:`~somo_sweep.sim.numerics.choose_numerics` picks its step and
 shaping; a small grasp sample runs at that step and at a quarter of it with the same
 shaping, and the ``grasp`` labels are compared. No blow-up retry here: a blow-up counts.
-``somo-sweep paper numerics --auto-family`` runs it.
+``python -m benchmarks.auto_numerics [--points 1-3] [--corners] [--jobs J]`` runs it
+(``make bench-auto-numerics``).
 """
 
 from __future__ import annotations
 
+import argparse
+import sys
 from collections.abc import Callable
 from dataclasses import dataclass
 from typing import Any
 
+from benchmarks._cli import echo, int_in, jobs_option
 from somo_sweep.model.load import Model, load_model
 from somo_sweep.model.tables import bundled_path
 from somo_sweep.sim.numerics import ChosenNumerics, choose_numerics
@@ -24,7 +28,16 @@ from somo_sweep.sim.settings import WorldSettings
 from somo_sweep.tasks.pinch_grasp.params import Numerics, PinchGraspParams
 from somo_sweep.tasks.pinch_grasp.task import run_pinch_grasp
 
-__all__ = ["FAMILY", "FAMILY_CORNERS", "FAMILY_POINTS", "FingerCheck", "check_family", "finger_variant"]
+__all__ = [
+    "FAMILY",
+    "FAMILY_CORNERS",
+    "FAMILY_POINTS",
+    "FingerCheck",
+    "check_family",
+    "family_lines",
+    "finger_variant",
+    "main",
+]
 
 GRIPPER = bundled_path("models", "pinch_gripper.yaml")
 #: (stiffness factor, link mass factor) of the family members checked by default, cheapest first.
@@ -160,3 +173,40 @@ def family_lines(checks: list[FingerCheck]) -> list[str]:
     paper = sum(a[2] == f[2] for c in checks for a, f in zip(c.auto, c.fine, strict=True))
     lines.append(f"label agreement (paper rule): {paper}/{total} = {100 * paper / max(total, 1):.1f} %")
     return lines
+
+
+def _progress_line(check: FingerCheck) -> None:
+    print(
+        f"finger stiffness x{check.stiffness_factor:g}, link mass x{check.mass_factor:g}: "
+        f"{check.agree}/{len(check.auto)} labels agree",
+        file=sys.stderr,
+        flush=True,
+    )
+
+
+def main(argv: list[str] | None = None) -> None:
+    """``python -m benchmarks.auto_numerics``: the family check, a line per finger as it ends."""
+    ap = argparse.ArgumentParser(
+        prog="python -m benchmarks.auto_numerics",
+        description="Check the automatic numerics on a family of pinch fingers against a 4x finer step.",
+    )
+    ap.add_argument(
+        "--points",
+        type=int_in(1, len(FAMILY_POINTS)),
+        default=len(FAMILY_POINTS),
+        help=f"grasp trials per finger (1-{len(FAMILY_POINTS)}; default {len(FAMILY_POINTS)})",
+    )
+    ap.add_argument(
+        "--corners",
+        action="store_true",
+        help="also the four corners (stiffness x0.1/x10 with link mass x0.2/x5; long)",
+    )
+    ap.add_argument("--jobs", type=jobs_option(), default=2, help="worker processes (default 2)")
+    args = ap.parse_args(argv)
+    family = FAMILY + FAMILY_CORNERS if args.corners else FAMILY
+    checks = check_family(family, FAMILY_POINTS[: args.points], n_jobs=args.jobs, on_finger=_progress_line)
+    echo(family_lines(checks))
+
+
+if __name__ == "__main__":
+    main()
