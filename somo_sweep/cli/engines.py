@@ -65,7 +65,7 @@ def compare_engines(
     from somo_sweep.sweep.jobs import build_jobs
     from somo_sweep.sweep.runner import run_study
     from somo_sweep.sweep.store import read_results
-    from somo_sweep.sweep.study import RESULTS_ROOT, load_study
+    from somo_sweep.sweep.study import RESULTS_ROOT, load_study, with_sampling
 
     for name, step in (("--mujoco-step", mujoco_step), ("--pybullet-step", pybullet_step)):
         if step is not None and not (math.isfinite(step) and step > 0):
@@ -85,9 +85,9 @@ def compare_engines(
             "mujoco": on_engine(base, "mujoco", folder / "mujoco", mujoco_step),
         }
         n_jobs = jobs or joblib.cpu_count() or 1
+        if adaptive is not None:
+            runs = {engine: with_sampling(st, adaptive) for engine, st in runs.items()}
         for engine, st in runs.items():
-            if adaptive is not None:
-                st.sampling = "adaptive" if adaptive else "grid"
             typer.echo(f"{engine}: {st.output}", err=True)
             summary = run_study(st, n_jobs)
             typer.echo(f"{engine}: {summary.run} trial(s) run, {summary.skipped} already stored", err=True)

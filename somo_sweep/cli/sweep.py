@@ -115,7 +115,7 @@ def run(
     from somo_sweep.sweep.execution import start_workers, stop_workers
     from somo_sweep.sweep.jobs import build_jobs
     from somo_sweep.sweep.runner import run_study
-    from somo_sweep.sweep.study import load_study, with_replicas
+    from somo_sweep.sweep.study import load_study, with_replicas, with_sampling
 
     if backend not in ("loky", "dask"):
         fail(SomoError(f"--backend must be loky or dask, got '{backend}'"))
@@ -138,7 +138,7 @@ def run(
     try:
         st = load_study(study, out, max_trials, allow_outside)
         if adaptive is not None:
-            st.sampling = "adaptive" if adaptive else "grid"
+            st = with_sampling(st, adaptive)
         if robust is not None:
             st = with_replicas(st, robust)
         if dry_run:

@@ -26,7 +26,7 @@ under both rules (:mod:`somo_sweep.paper.fig6_ablation`).
 from __future__ import annotations
 
 from collections.abc import Callable
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from pathlib import Path
 from typing import Any, Literal
 
@@ -194,7 +194,7 @@ def configurations(spec: AblationFile, folder: Path, grid: str, results_root: Pa
         table = build_jobs(study)
         first = by_hash.get(table.study_hash)
         if first is not None:
-            study.output = first.folder
+            study = replace(study, output=first.folder)
         config = Configuration(name, base, factor, overrides, study, table, first.name if first else None)
         by_hash.setdefault(table.study_hash, config)
         out.append(config)

@@ -30,14 +30,22 @@ from typing import Any
 
 import numpy as np
 
-from somo_sweep.sweep.jobs import Job, code_version, iter_jobs, replica_jobs
-from somo_sweep.sweep.study import Study
+from somo_sweep.errors import ManifestError, SomoError, os_cause, shown
+from somo_sweep.sweep.code import code_version
+from somo_sweep.sweep.derive import with_auto_step
+from somo_sweep.sweep.folder import MANIFEST, read_manifest
+from somo_sweep.sweep.job import Job, replica_jobs
+from somo_sweep.sweep.jobs import iter_jobs
+from somo_sweep.sweep.loaded import Study
 
 __all__ = [
     "SAMPLE_CELLS",
     "Rung",
     "StepChoice",
+    "StepEvents",
+    "auto_step",
     "choose_step",
+    "folder_choice",
     "outcomes_of",
     "stored_choice",
     "with_stored_step",
@@ -240,9 +248,6 @@ def stored_choice(manifest: dict[str, Any], study: Study) -> StepChoice | None:
 def with_stored_step(study: Study) -> Study:
     """``study`` with the step its results folder recorded, if it has no ``simulation:`` and the
     folder holds a choice for it (else unchanged: its jobs then show the modal starting guess)."""
-    from somo_sweep.errors import SomoError
-    from somo_sweep.sweep.folder import read_manifest
-
     if study.simulation is not None or study.auto_step_s is not None:
         return study
     try:
@@ -251,7 +256,77 @@ def with_stored_step(study: Study) -> Study:
         return study
     if choice is None:
         return study
-    return replace(study, auto_step_s=choice.step_s, convergence=choice.as_dict())
+    return with_auto_step(study, choice.step_s, choice.as_dict())
+
+
+@dataclass(frozen=True)
+class StepEvents:
+    """What :func:`auto_step` reports as it goes (each optional), for a caller to show.
+
+    Attributes:
+        reused: Called with the choice the results folder recorded, when it is taken.
+        choosing: Called before the sample runs start (no choice recorded).
+        rung: Called with (candidate step in s, runs to do) before each candidate's runs.
+        chosen: Called with the choice made.
+    """
+
+    reused: Callable[[StepChoice], None] | None = None
+    choosing: Callable[[], None] | None = None
+    rung: Callable[[float, int], None] | None = None
+    chosen: Callable[[StepChoice], None] | None = None
+
+
+def folder_choice(study: Study) -> StepChoice | None:
+    """The choice the study's results folder recorded for it (:func:`stored_choice`), or None.
+
+    A damaged manifest holds none (the run rebuilds it, and the step is chosen again).
+
+    Raises:
+        SomoError: The results folder's name is one no folder can have (said before any sample
+            trial runs; nothing is written).
+    """
+    try:
+        stored = (study.output / MANIFEST).is_file()
+    except OSError as exc:
+        cause, advice = os_cause(exc)
+        raise SomoError(
+            f"cannot create the results folder {shown(str(study.output), 200)}: {cause}; nothing was "
+            f"written: {advice}, then run the same command again"
+        ) from None
+    if not stored:
+        return None
+    try:
+        return stored_choice(read_manifest(study.output), study)
+    except ManifestError:
+        return None
+
+
+def auto_step(study: Study, run_jobs: RunJobs, events: StepEvents | None = None) -> Study:
+    """``study`` (without ``simulation:``) with its step: the one its results folder recorded, else
+    chosen now by label convergence on a sample of its cells (:func:`choose_step`).
+
+    This is the one place a run's automatic step is chosen.
+
+    Args:
+        study: The study.
+        run_jobs: Runs a list of jobs and yields (job id, status, labels) as each finishes.
+        events: What to tell the caller as it goes.
+
+    Raises:
+        SomoError: The results folder's name is one no folder can have.
+    """
+    events = events or StepEvents()
+    choice = folder_choice(study)
+    if choice is not None:
+        if events.reused:
+            events.reused(choice)
+    else:
+        if events.choosing:
+            events.choosing()
+        choice = choose_step(study, run_jobs, on_rung=events.rung)
+        if events.chosen:
+            events.chosen(choice)
+    return with_auto_step(study, choice.step_s, choice.as_dict())
 
 
 def outcomes_of(results: Iterator[Any]) -> Iterator[tuple[str, str, dict[str, str]]]:

@@ -24,7 +24,7 @@ from somo_sweep.errors import SHOWN_CHARS, SomoError, shown
 
 if TYPE_CHECKING:
     from somo_sweep.sweep.execution import Outcome
-    from somo_sweep.sweep.jobs import Job
+    from somo_sweep.sweep.job import Job
 
 __all__ = [
     "ALLOWED_FAILURES",
@@ -109,7 +109,7 @@ def dask_client(scheduler: str | None, timeout_s: float = 15.0) -> Any:
 def trial_code(task: str, engine: str = "pybullet") -> str:
     """The code version (:func:`~somo_sweep.sweep.jobs.code_version`) of a task's trials on an
     engine here."""
-    from somo_sweep.sweep.jobs import code_version
+    from somo_sweep.sweep.code import code_version
     from somo_sweep.tasks.registry import get_task
 
     return code_version(get_task(task).run_path.partition(":")[0], engine)

@@ -23,8 +23,9 @@ import pandas as pd
 
 from somo_sweep.errors import SomoError
 from somo_sweep.sim.settings import ENGINES, MUJOCO_DEFAULT_STEP_S, WorldSettings
+from somo_sweep.sweep.loaded import Study
 from somo_sweep.sweep.robustness import fold
-from somo_sweep.sweep.study import Simulation, Study
+from somo_sweep.sweep.study_file import Simulation
 from somo_sweep.sweep.summary import label_columns
 
 __all__ = ["EngineComparison", "compare", "on_engine"]

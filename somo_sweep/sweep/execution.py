@@ -31,8 +31,9 @@ from typing import Any, Literal
 from joblib import Parallel, delayed, parallel_config
 
 from somo_sweep.errors import SomoError, UnstableSimulation
+from somo_sweep.sweep.code import trial_modules
 from somo_sweep.sweep.dask_backend import DASK_WORKER_CONFIG, dask_client, dask_environment, run_on_dask
-from somo_sweep.sweep.jobs import Job, trial_modules
+from somo_sweep.sweep.job import Job
 from somo_sweep.tasks.registry import TaskResult, get_task
 
 __all__ = [

@@ -22,7 +22,7 @@ import pyarrow as pa
 import pyarrow.compute as pc
 import pyarrow.parquet as pq
 
-from somo_sweep.errors import SomoError, shown
+from somo_sweep.errors import ManifestError, SomoError, shown
 from somo_sweep.sweep.schema import COLUMNS, MAX_REPLICAS
 
 __all__ = [
@@ -252,11 +252,11 @@ def read_manifest(folder: str | Path) -> dict[str, Any]:
     """The manifest of a results folder.
 
     Raises:
-        SomoError: No manifest (not a somo-sweep results folder), or a damaged one.
+        ManifestError: No manifest (not a somo-sweep results folder: ``missing``), or a damaged one.
     """
     path = Path(folder) / MANIFEST
     if not path.is_file():
-        raise SomoError(f"{folder} is not a somo-sweep results folder (no {MANIFEST})")
+        raise ManifestError(f"{folder} is not a somo-sweep results folder (no {MANIFEST})", folder, True)
     try:
         size = path.stat().st_size
         if size > MAX_MANIFEST_BYTES:
@@ -284,14 +284,18 @@ def read_manifest(folder: str | Path) -> dict[str, Any]:
             except ValueError:
                 raise ValueError(f"its column '{shown(str(name))}' has an unknown type") from None
     except RecursionError:
-        raise SomoError(
+        raise ManifestError(
             f"{path} is damaged (nested too deeply for a manifest); run the study again with --out {folder} "
-            "to rebuild it from the trials"
+            "to rebuild it from the trials",
+            folder,
+            False,
         ) from None
     except (ValueError, UnicodeDecodeError) as exc:
-        raise SomoError(
+        raise ManifestError(
             f"{path} is damaged ({exc}); run the study again with --out {folder} to rebuild it "
-            "from the trials"
+            "from the trials",
+            folder,
+            False,
         ) from None
     return data
 

@@ -32,9 +32,10 @@ import numpy as np
 import pandas as pd
 
 from somo_sweep.sweep.adaptive import UNKNOWN
-from somo_sweep.sweep.jobs import Job, JobTable, replica_jobs
+from somo_sweep.sweep.job import Job, replica_jobs
+from somo_sweep.sweep.jobs import JobTable
+from somo_sweep.sweep.loaded import Study
 from somo_sweep.sweep.sampling import Batch, Known
-from somo_sweep.sweep.study import Study
 
 __all__ = ["ROBUST", "ReplicaPlan", "boundary_mask", "fold", "label_names"]
 

@@ -30,12 +30,13 @@ import numpy as np
 from somo_sweep.errors import SomoError, StorageError, os_cause
 from somo_sweep.sweep.dask_backend import threads as _threads
 from somo_sweep.sweep.execution import Backend, Outcome, dask_client, execute, run_jobs
-from somo_sweep.sweep.jobs import Job, JobTable, build_jobs
+from somo_sweep.sweep.job import Job
+from somo_sweep.sweep.jobs import JobTable, build_jobs
+from somo_sweep.sweep.loaded import Study
 from somo_sweep.sweep.robustness import ReplicaPlan
 from somo_sweep.sweep.sampling import AdaptivePlan, Batch, Known
 from somo_sweep.sweep.schema import FIXED
 from somo_sweep.sweep.store import ResultStore
-from somo_sweep.sweep.study import Study
 
 __all__ = ["RoundSummary", "RunSummary", "outcome_row", "run_study"]
 

@@ -21,8 +21,9 @@ import numpy as np
 
 from somo_sweep.errors import DescriptionError, Problem
 from somo_sweep.sweep.adaptive import UNKNOWN, AdaptiveGrid, Cell, infer, next_cells
-from somo_sweep.sweep.jobs import Job, JobTable
-from somo_sweep.sweep.study import Study
+from somo_sweep.sweep.job import Job
+from somo_sweep.sweep.jobs import JobTable
+from somo_sweep.sweep.loaded import Study
 
 __all__ = ["INFERRED_MESSAGE", "AdaptivePlan", "Batch", "Known", "describe", "grid_of"]
 
