@@ -20,12 +20,12 @@ import pandas as pd
 
 from somo_sweep.errors import SomoError
 from somo_sweep.sweep.convergence import with_stored_step
-from somo_sweep.sweep.execution import outcome_of, run_job
 from somo_sweep.sweep.job import Job, replica_jobs
 from somo_sweep.sweep.jobs import build_jobs
 from somo_sweep.sweep.loaded import Study
 from somo_sweep.sweep.runner import outcome_row
 from somo_sweep.sweep.store import read_manifest, read_results
+from somo_sweep.sweep.trial import outcome_of, run_job
 
 __all__ = ["Mismatch", "RecheckReport", "recheck", "write_report"]
 
