@@ -46,6 +46,7 @@ __all__ = [
     "auto_step",
     "choose_step",
     "folder_choice",
+    "ladder",
     "outcomes_of",
     "stored_choice",
     "with_stored_step",
@@ -145,6 +146,19 @@ def _jobs_at(study: Study, step_s: float, trials: list[int]) -> list[Job]:
     return out
 
 
+def _first_model(study: Study) -> Any:
+    """The model of the study's first grid point (what the step ladder is read from)."""
+    return study.resolve_model(next(iter(study.points())))[1]
+
+
+def ladder(study: Study) -> tuple[list[float], str]:
+    """The candidate steps of a study without ``simulation:``, s, largest first, and what set the
+    first (:func:`~somo_sweep.sim.numerics.step_ladder` of its first grid point's model)."""
+    from somo_sweep.sim.numerics import step_ladder
+
+    return step_ladder(_first_model(study))
+
+
 def _key(outcome: Outcome) -> str:
     status, labels = outcome
     return status if status != "ok" else json.dumps(sorted(labels.items()))
@@ -164,12 +178,8 @@ def choose_step(
         sample_cells: Cells sampled.
         on_rung: Called with (candidate step, runs to do) before each candidate's runs.
     """
-    from somo_sweep.sim.numerics import step_ladder
-
     code = code_version(study.task.run_path.partition(":")[0])
-    path, model = study.resolve_model(next(iter(study.points())))
-    del path
-    ladder, why = step_ladder(model)
+    steps, why = ladder(study)
     trials = _sample(study, sample_cells)
     perturb = study.task.perturb
     done: dict[str, Outcome] = {}
@@ -182,7 +192,7 @@ def choose_step(
 
     rungs: list[Rung] = []
     labelled = False
-    for step in ladder:
+    for step in steps:
         full = _jobs_at(study, step, trials)
         half = _jobs_at(study, step / 2, trials)
         shaken = [replica_jobs(j, 2, perturb)[1] for j in half] if perturb is not None else []
@@ -202,20 +212,20 @@ def choose_step(
         rungs.append(Rung(step, trials, len(robust), len(robust) - len(differing), not_ok, differing, passed))
         if passed:
             reason = f"the largest candidate whose robust sample labels equal those at {step * 5e2:g} ms"
-            return StepChoice(step, ladder[0], why, rungs, reason, code, trials)
+            return StepChoice(step, steps[0], why, rungs, reason, code, trials)
     if not labelled:
         # Nothing to converge: the modal rule (lowest modes moved by at most 1 %) decides.
         from somo_sweep.sim.numerics import choose_numerics
 
-        modal = choose_numerics(model)
+        modal = choose_numerics(_first_model(study))
         reason = f"the task gives no labels to converge; the modal rule: {modal.reason}"
-        return StepChoice(modal.time_step_s, ladder[0], why, rungs, reason, code, trials)
-    last = ladder[-1]
+        return StepChoice(modal.time_step_s, steps[0], why, rungs, reason, code, trials)
+    last = steps[-1]
     reason = (
         "no candidate converged on the sample; the smallest, at which the model needs no shaping, is "
         "taken: its labels there are the model's own"
     )
-    return StepChoice(last, ladder[0], why, rungs, reason, code, trials)
+    return StepChoice(last, steps[0], why, rungs, reason, code, trials)
 
 
 def stored_choice(manifest: dict[str, Any], study: Study) -> StepChoice | None:

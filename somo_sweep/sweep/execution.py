@@ -15,13 +15,14 @@ import signal
 import threading
 import warnings
 from collections.abc import Callable, Generator, Iterable, Iterator, Sized
-from typing import Any, Literal
+from typing import Any
 
 from joblib import Parallel, delayed, parallel_config
 
 from somo_sweep.errors import SomoError
 from somo_sweep.sweep.dask_backend import DASK_WORKER_CONFIG, dask_client, dask_environment, run_on_dask
 from somo_sweep.sweep.job import Job
+from somo_sweep.sweep.options import Backend
 from somo_sweep.sweep.trial import (
     Attempt,
     Outcome,
@@ -48,7 +49,6 @@ __all__ = [
     "stop_workers",
 ]
 
-Backend = Literal["loky", "dask"]
 #: How often a worker restart is tried when a whole worker process (not a trial) dies.
 MAX_POOL_RESTARTS = 3
 

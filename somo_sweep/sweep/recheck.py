@@ -23,7 +23,7 @@ from somo_sweep.sweep.convergence import with_stored_step
 from somo_sweep.sweep.job import Job, replica_jobs
 from somo_sweep.sweep.jobs import build_jobs
 from somo_sweep.sweep.loaded import Study
-from somo_sweep.sweep.runner import outcome_row
+from somo_sweep.sweep.rows import outcome_row
 from somo_sweep.sweep.store import read_manifest, read_results
 from somo_sweep.sweep.trial import outcome_of, run_job
 

@@ -161,7 +161,7 @@ class ReplicaPlan:
         while chosen and number < MAX_ROUNDS:
             todo = [r for t in sorted(chosen) for r in self.replicas(t) if r.job_id not in known]
             if todo:
-                yield Batch(number, len(chosen), todo, kind="replicas")
+                yield Batch(number, len(chosen), todo, kind="replicas", replicas=self.k)
             self.replicated |= chosen
             before = self._keys(known, inferred, False)
             after = self._keys(known, inferred, True)

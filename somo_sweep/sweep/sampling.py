@@ -43,12 +43,14 @@ class Batch:
         cells: Grid cells in this round (some may be stored already).
         jobs: The round's trials not yet stored.
         kind: ``trials`` (the study's own) or ``replicas`` (:mod:`somo_sweep.sweep.robustness`).
+        replicas: For a replica round: the replicas each of its cells runs.
     """
 
     number: int | None
     cells: int
     jobs: Sequence[Job]
     kind: str = "trials"
+    replicas: int = 0
 
 
 def _refinable(values: tuple[Any, ...]) -> bool:

@@ -1,4 +1,4 @@
-"""Text summaries of a run and of a results folder (rich tables)."""
+"""Text summaries of a run and of a results folder (rich tables), as the command line prints them."""
 
 from __future__ import annotations
 
@@ -11,8 +11,8 @@ from rich.table import Table
 
 from somo_sweep.errors import printable, shown
 from somo_sweep.sweep.folder import MANIFEST
+from somo_sweep.sweep.options import RunSummary
 from somo_sweep.sweep.robustness import ROBUST, fold, label_names
-from somo_sweep.sweep.runner import RunSummary
 
 __all__ = ["breakdown", "inferred_mask", "label_columns", "print_results", "print_run_summary"]
 
