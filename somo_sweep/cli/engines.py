@@ -10,6 +10,7 @@ from typing import TYPE_CHECKING, Annotated
 import typer
 
 from somo_sweep.cli.output import checked_jobs, fail, write_atomic
+from somo_sweep.cli.sweep import JOBS
 from somo_sweep.errors import SomoError, StorageError
 
 if TYPE_CHECKING:
@@ -19,42 +20,43 @@ if TYPE_CHECKING:
 __all__ = ["compare_engines"]
 
 
+_OUT = Annotated[
+    Path | None,
+    typer.Option("--out", help="Folder for both runs and the comparison (default: results/<study>_engines)."),
+]
+_MUJOCO_STEP = Annotated[
+    float | None,
+    typer.Option(
+        "--mujoco-step", help="MuJoCo's time step, s (default: the study's if it runs on MuJoCo, else 4 ms)."
+    ),
+]
+_PYBULLET_STEP = Annotated[
+    float | None,
+    typer.Option(
+        "--pybullet-step",
+        help="PyBullet's time step, s (default: the study's if it runs on PyBullet, else 0.5 ms).",
+    ),
+]
+_ADAPTIVE = Annotated[
+    bool | None,
+    typer.Option(
+        "--adaptive/--exhaustive",
+        help="Sampling of both runs (default: the study's sampling:, else exhaustive).",
+    ),
+]
+_ALLOW_OUTSIDE = Annotated[
+    bool, typer.Option("--allow-outside", help="Let model files include files outside their own folder.")
+]
+
+
 def compare_engines(
     study: Annotated[Path, typer.Argument(help="Study file (YAML or JSON).")],
-    out: Annotated[
-        Path | None,
-        typer.Option(
-            "--out", help="Folder for both runs and the comparison (default: results/<study>_engines)."
-        ),
-    ] = None,
-    jobs: Annotated[
-        int,
-        typer.Option("--jobs", "-j", help="Worker processes (loky); default: the CPUs this process may use."),
-    ] = 0,
-    mujoco_step: Annotated[
-        float | None,
-        typer.Option(
-            "--mujoco-step",
-            help="MuJoCo's time step, s (default: the study's if it runs on MuJoCo, else 4 ms).",
-        ),
-    ] = None,
-    pybullet_step: Annotated[
-        float | None,
-        typer.Option(
-            "--pybullet-step",
-            help="PyBullet's time step, s (default: the study's if it runs on PyBullet, else 0.5 ms).",
-        ),
-    ] = None,
-    adaptive: Annotated[
-        bool | None,
-        typer.Option(
-            "--adaptive/--exhaustive",
-            help="Sampling of both runs (default: the study's sampling:, else exhaustive).",
-        ),
-    ] = None,
-    allow_outside: Annotated[
-        bool, typer.Option("--allow-outside", help="Let model files include files outside their own folder.")
-    ] = False,
+    out: _OUT = None,
+    jobs: JOBS = 0,
+    mujoco_step: _MUJOCO_STEP = None,
+    pybullet_step: _PYBULLET_STEP = None,
+    adaptive: _ADAPTIVE = None,
+    allow_outside: _ALLOW_OUTSIDE = False,
 ) -> None:
     """Run a study on both engines (resumable) and report, per cell, where their labels agree.
 

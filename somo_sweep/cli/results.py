@@ -3,7 +3,7 @@
 from __future__ import annotations
 
 from pathlib import Path
-from typing import Annotated
+from typing import TYPE_CHECKING, Annotated
 
 import typer
 from rich.console import Console
@@ -18,6 +18,9 @@ from somo_sweep.cli.output import (
     write_outputs,
 )
 from somo_sweep.errors import SomoError
+
+if TYPE_CHECKING:
+    from somo_sweep.sweep.parts import Damage
 
 __all__ = ["ALLOW_OUTSIDE", "MAX_TRIALS", "plot", "recheck", "save_plots", "show"]
 
@@ -35,20 +38,20 @@ ALLOW_OUTSIDE = Annotated[
 ]
 
 
-def _damaged(path: Path, reason: str) -> None:
-    from somo_sweep.sweep.folder import INFERRED, REPEATS, UNREADABLE
+def _damaged(path: Path, reason: Damage) -> None:
+    """Warn of a file of a results folder that a reader left out (or whose rows it counted once)."""
+    from somo_sweep.sweep.folder import INFERRED
 
-    if reason.startswith(UNREADABLE):
+    if reason.kind == "unreadable":
         typer.echo(
             f"warning: part file {path} {reason}: its trials are left out; give read access to it", err=True
         )
         return
-
     if path.name == INFERRED and path.parent.joinpath("manifest.json").exists():
-        what = reason.removeprefix(REPEATS).strip() if reason.startswith(REPEATS) else f"skipped ({reason})"
+        what = reason.detail if reason.kind == "repeats" else f"skipped ({reason})"
         typer.echo(f"warning: {path}: {what}; the next adaptive run of this study rebuilds it", err=True)
         return
-    if reason.startswith(REPEATS):  # readable, but a copy: its rows are counted once
+    if reason.kind == "repeats":  # readable, but a copy: its rows are counted once
         typer.echo(f"warning: part file {path} {reason}", err=True)
         return
     typer.echo(

@@ -29,7 +29,7 @@ if TYPE_CHECKING:  # the heavy modules are imported when a command runs
     from somo_sweep.sweep.sampling import Batch
     from somo_sweep.sweep.study import Study
 
-__all__ = ["MAX_TRIALS", "run", "step_events", "tasks"]
+__all__ = ["JOBS", "MAX_TRIALS", "run", "step_events", "tasks"]
 
 _err = Console(stderr=True)
 _out = Console()
@@ -37,55 +37,68 @@ _out = Console()
 DRY_ROWS = 10
 
 
+#: ``--jobs``, as ``run`` and ``compare-engines`` take it.
+JOBS = Annotated[
+    int,
+    typer.Option("--jobs", "-j", help="Worker processes (loky); default: the CPUs this process may use."),
+]
+_DRY_RUN = Annotated[bool, typer.Option("--dry-run", help="Print the job table; simulate nothing.")]
+_BACKEND = Annotated[str, typer.Option(help="loky (this machine) or dask (a cluster).")]
+_SCHEDULER = Annotated[str | None, typer.Option(help="Dask scheduler address, tcp://HOST:8786.")]
+_OUT = Annotated[
+    Path | None,
+    typer.Option("--out", help="Results folder, anywhere (default: the study's, inside results/)."),
+]
+_PLOTS = Annotated[bool, typer.Option("--plots/--no-plots", help="Draw summary plots at the end.")]
+_TIMEOUT = Annotated[float | None, typer.Option(help="Per-trial wall-time limit, s.")]
+_OVERWRITE = Annotated[
+    bool, typer.Option("--overwrite", help="Delete results of a different (changed) study in --out.")
+]
+_RETRY_ERRORS = Annotated[
+    bool, typer.Option("--retry-errors", help="Run again the trials stored as error (resume skips them).")
+]
+_ALLOW_ERRORS = Annotated[
+    bool, typer.Option("--allow-errors", help="Exit 0 even if trials ended in error (default: exit 1).")
+]
+_MAX_TRIALS = Annotated[int, typer.Option("--max-trials", help="Refuse a study with more trials than this.")]
+_ADAPTIVE = Annotated[
+    bool | None,
+    typer.Option(
+        "--adaptive/--exhaustive",
+        help="Simulate a coarse sub-grid, then only where labels change; the other cells are "
+        "stored as inferred (default: the study's sampling:, else exhaustive).",
+    ),
+]
+_ROBUST = Annotated[
+    int | None,
+    typer.Option(
+        "--robust",
+        metavar="K",
+        help="Run K perturbed replicas of the cells that matter (label boundaries, plus a 10 % audit "
+        "of the rest) and store each cell's majority label, agreement and robust flag "
+        "(default: the study's robustness:, else 0).",
+    ),
+]
+_CHUNK_ROWS = Annotated[int, typer.Option(help="Rows per Parquet part file.", hidden=True)]
+
+
 def run(
     study: Annotated[Path, typer.Argument(help="Study file (YAML or JSON).")],
-    jobs: Annotated[
-        int,
-        typer.Option("--jobs", "-j", help="Worker processes (loky); default: the CPUs this process may use."),
-    ] = 0,
-    dry_run: Annotated[
-        bool, typer.Option("--dry-run", help="Print the job table; simulate nothing.")
-    ] = False,
-    backend: Annotated[str, typer.Option(help="loky (this machine) or dask (a cluster).")] = "loky",
-    scheduler: Annotated[str | None, typer.Option(help="Dask scheduler address, tcp://HOST:8786.")] = None,
-    out: Annotated[
-        Path | None,
-        typer.Option("--out", help="Results folder, anywhere (default: the study's, inside results/)."),
-    ] = None,
-    plots: Annotated[bool, typer.Option("--plots/--no-plots", help="Draw summary plots at the end.")] = True,
-    timeout: Annotated[float | None, typer.Option(help="Per-trial wall-time limit, s.")] = None,
-    overwrite: Annotated[
-        bool, typer.Option("--overwrite", help="Delete results of a different (changed) study in --out.")
-    ] = False,
-    retry_errors: Annotated[
-        bool, typer.Option("--retry-errors", help="Run again the trials stored as error (resume skips them).")
-    ] = False,
-    allow_errors: Annotated[
-        bool, typer.Option("--allow-errors", help="Exit 0 even if trials ended in error (default: exit 1).")
-    ] = False,
-    max_trials: Annotated[
-        int, typer.Option("--max-trials", help="Refuse a study with more trials than this.")
-    ] = MAX_TRIALS,
+    jobs: JOBS = 0,
+    dry_run: _DRY_RUN = False,
+    backend: _BACKEND = "loky",
+    scheduler: _SCHEDULER = None,
+    out: _OUT = None,
+    plots: _PLOTS = True,
+    timeout: _TIMEOUT = None,
+    overwrite: _OVERWRITE = False,
+    retry_errors: _RETRY_ERRORS = False,
+    allow_errors: _ALLOW_ERRORS = False,
+    max_trials: _MAX_TRIALS = MAX_TRIALS,
     allow_outside: ALLOW_OUTSIDE = False,
-    adaptive: Annotated[
-        bool | None,
-        typer.Option(
-            "--adaptive/--exhaustive",
-            help="Simulate a coarse sub-grid, then only where labels change; the other cells are "
-            "stored as inferred (default: the study's sampling:, else exhaustive).",
-        ),
-    ] = None,
-    robust: Annotated[
-        int | None,
-        typer.Option(
-            "--robust",
-            metavar="K",
-            help="Run K perturbed replicas of the cells that matter (label boundaries, plus a 10 % audit "
-            "of the rest) and store each cell's majority label, agreement and robust flag "
-            "(default: the study's robustness:, else 0).",
-        ),
-    ] = None,
-    chunk_rows: Annotated[int, typer.Option(help="Rows per Parquet part file.", hidden=True)] = 50,
+    adaptive: _ADAPTIVE = None,
+    robust: _ROBUST = None,
+    chunk_rows: _CHUNK_ROWS = 50,
 ) -> None:
     """Run a study: every trial missing from its results folder, in parallel, into Parquet.
 

@@ -159,6 +159,19 @@ def ladder(study: Study) -> tuple[list[float], str]:
     return step_ladder(_first_model(study))
 
 
+def _rung(
+    step_s: float, trials: list[int], full: list[Outcome], half: list[Outcome], shaken: list[Outcome] | None
+) -> Rung:
+    """A candidate's verdict from its sample's outcomes at the step, at half of it, and at half of it
+    perturbed (None: the task has no perturbation, every sample cell counts as robust)."""
+    c = shaken if shaken is not None else half
+    robust = [i for i in range(len(trials)) if _key(half[i]) == _key(c[i])]
+    differing = [trials[i] for i in robust if _key(full[i]) != _key(half[i])]
+    not_ok = sum(o[0] != "ok" for o in (*full, *half, *(shaken or ())))
+    passed = not_ok == 0 and bool(robust) and not differing
+    return Rung(step_s, trials, len(robust), len(robust) - len(differing), not_ok, differing, passed)
+
+
 def _key(outcome: Outcome) -> str:
     status, labels = outcome
     return status if status != "ok" else json.dumps(sorted(labels.items()))
@@ -203,14 +216,9 @@ def choose_step(
         labelled = labelled or any(labels for status, labels in a if status == "ok")
         if not labelled:
             break
-        b = outcomes(half)
-        c = outcomes(shaken) if shaken else b
-        robust = [i for i in range(len(trials)) if _key(b[i]) == _key(c[i])]
-        differing = [trials[i] for i in robust if _key(a[i]) != _key(b[i])]
-        not_ok = sum(o[0] != "ok" for o in (*a, *b, *(c if shaken else ())))
-        passed = not_ok == 0 and bool(robust) and not differing
-        rungs.append(Rung(step, trials, len(robust), len(robust) - len(differing), not_ok, differing, passed))
-        if passed:
+        rung = _rung(step, trials, a, outcomes(half), outcomes(shaken) if shaken else None)
+        rungs.append(rung)
+        if rung.passed:
             reason = f"the largest candidate whose robust sample labels equal those at {step * 5e2:g} ms"
             return StepChoice(step, steps[0], why, rungs, reason, code, trials)
     if not labelled:

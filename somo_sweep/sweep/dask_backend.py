@@ -20,7 +20,7 @@ import uuid
 from collections.abc import Callable, Iterable, Iterator
 from typing import TYPE_CHECKING, Any
 
-from somo_sweep.errors import SHOWN_CHARS, SomoError, shown
+from somo_sweep.errors import SHOWN_CHARS, ClusterError, SomoError, shown
 from somo_sweep.sweep.trial import Outcome, run_isolated
 
 if TYPE_CHECKING:
@@ -107,7 +107,7 @@ def dask_client(scheduler: str | None, timeout_s: float = 15.0) -> Any:
 
 
 def trial_code(task: str, engine: str = "pybullet") -> str:
-    """The code version (:func:`~somo_sweep.sweep.jobs.code_version`) of a task's trials on an
+    """The code version (:func:`~somo_sweep.sweep.code.code_version`) of a task's trials on an
     engine here."""
     from somo_sweep.sweep.code import code_version
     from somo_sweep.tasks.registry import get_task
@@ -159,8 +159,8 @@ def run_on_dask(
             early (or stops on an error).
 
     Raises:
-        SomoError: The scheduler is lost, or a worker cannot run trials at all (somo-sweep missing
-            or of another version there); finished trials have been yielded.
+        ClusterError: The scheduler is lost or cancelled a trial, or a worker cannot run trials at
+            all (somo-sweep missing or of another version there); finished trials have been yielded.
     """
     from distributed import as_completed
 
@@ -253,25 +253,31 @@ class _DaskRun:
         raise _stopped(job, status, future, self.client)
 
 
-def _stopped(job: Job, status: str, future: Any, client: Any) -> SomoError:
+def _stopped(job: Job, status: str, future: Any, client: Any) -> ClusterError:
     """Why the cluster stopped running a trial: a worker failed it, the scheduler is gone, or it
     was cancelled."""
     if status == "error":
         exc = future.exception()
-        return SomoError(
+        return ClusterError(
             f"a Dask worker could not run trial {job.trial} ({type(exc).__name__}: "
             f"{shown(str(exc), 300)}); every worker needs the same somo-sweep as this machine "
             '(pip install "somo-sweep[dask]" of the same version, or the same checkout). Finished '
-            "trials are kept: run the same command again to resume"
+            "trials are kept: run the same command again to resume",
+            job.trial,
+            "worker",
         )
     if client.status != "running":  # cancelled: the connection to the scheduler is gone
-        return SomoError(
+        return ClusterError(
             f"lost the Dask scheduler (trial {job.trial} was {status}); finished trials are kept: "
-            "start the scheduler and workers again and run the same command to resume"
+            "start the scheduler and workers again and run the same command to resume",
+            job.trial,
+            "lost",
         )
     # cancelled by another client of the scheduler, or its restart
-    return SomoError(
+    return ClusterError(
         f"the Dask scheduler cancelled trial {job.trial} (another client cancelled it, or "
         "the cluster was restarted); finished trials are kept: run the same command again "
-        "to resume"
+        "to resume",
+        job.trial,
+        "cancelled",
     )

@@ -200,27 +200,41 @@ def compare(
             entry["robust_cells"] = int(robust.sum())
             entry["robust_agree"] = int((robust & (la == lb)).sum())
         summary[label] = entry
-    metrics: dict[str, dict[str, float]] = {}
-    if not summary:
-        for column in first.columns:
-            if column in _NOT_METRICS or column.startswith(("task_", "model_", "label_")):
-                continue
-            if column not in second.columns or not pd.api.types.is_float_dtype(first[column]):
-                continue
-            va, vb = left.loc[trials, column].astype(float), right.loc[trials, column].astype(float)
-            both = pd.concat([va, vb])
-            span = float(both.max() - both.min())
-            gap = (va - vb).abs()
-            diff = float(gap.max())
-            cells[f"{column}_{a}"], cells[f"{column}_{b}"] = va, vb
-            cells[f"share_{column}"] = gap / span if span else 0.0
-            metrics[column] = {
-                "max_abs_diff": diff,
-                "range": span,
-                "share_of_range": diff / span if span else 0.0,
-                "worst_trial": int(gap.idxmax()) if gap.notna().any() else -1,
-            }
+    metrics = {} if summary else _metrics(first, second, left.loc[trials], right.loc[trials], cells, engines)
     return EngineComparison(engines, cells.reset_index(), summary, metrics, tuple(keep))
+
+
+def _metrics(
+    first: pd.DataFrame,
+    second: pd.DataFrame,
+    left: pd.DataFrame,
+    right: pd.DataFrame,
+    cells: pd.DataFrame,
+    engines: tuple[str, str],
+) -> dict[str, dict[str, float]]:
+    """Per numeric metric (a task without labels): the largest difference between the engines and
+    its share of the metric's range; each engine's values and the share go into ``cells``."""
+    a, b = engines
+    metrics: dict[str, dict[str, float]] = {}
+    for column in first.columns:
+        if column in _NOT_METRICS or column.startswith(("task_", "model_", "label_")):
+            continue
+        if column not in second.columns or not pd.api.types.is_float_dtype(first[column]):
+            continue
+        va, vb = left[column].astype(float), right[column].astype(float)
+        both = pd.concat([va, vb])
+        span = float(both.max() - both.min())
+        gap = (va - vb).abs()
+        diff = float(gap.max())
+        cells[f"{column}_{a}"], cells[f"{column}_{b}"] = va, vb
+        cells[f"share_{column}"] = gap / span if span else 0.0
+        metrics[column] = {
+            "max_abs_diff": diff,
+            "range": span,
+            "share_of_range": diff / span if span else 0.0,
+            "worst_trial": int(gap.idxmax()) if gap.notna().any() else -1,
+        }
+    return metrics
 
 
 def _cells(table: pd.DataFrame) -> pd.DataFrame:

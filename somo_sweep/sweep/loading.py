@@ -94,29 +94,10 @@ def load_study(
     model_path = path.parent / raw.model
     if not is_file(model_path):
         found.add("model", no_model(model_path))
-    name = raw.name or path.stem
-    out = _results_folder(raw, name, output, found)
+    out = _results_folder(raw, raw.name or path.stem, output, found)
     fixed = _fixed(raw, found)
     read = _axes(raw, cells, path.parent, found)
-    study = Study(
-        name,
-        path,
-        task,
-        model_path,
-        raw.params,
-        fixed,
-        tuple(read.axes),
-        tuple(tuple(g) for g in read.groups),
-        raw.repeats,
-        raw.seed,
-        raw.simulation,
-        out,
-        allow_outside,
-        raw.sampling,
-        raw.adaptive,
-        cells,
-        raw.robustness,
-    )
+    study = _new_study(raw, path, task, cells, model_path, fixed, read, out, allow_outside)
     bases, bases_ok = read_bases(model_path, study.axes, allow_outside, lines, found.problems)
     study = replace(study, bases=bases)
     if found.problems and bases_ok:
@@ -126,6 +107,39 @@ def load_study(
     check_points(study, lines, found.problems)
     found.refuse()
     return study
+
+
+def _new_study(
+    raw: StudyFile,
+    path: Path,
+    task: TaskSpec,
+    cells: Cells | None,
+    model_path: Path,
+    fixed: dict[str, Any],
+    read: _Axes,
+    out: Path,
+    allow_outside: bool,
+) -> Study:
+    """The study the file describes (its trials not checked yet)."""
+    return Study(
+        name=raw.name or path.stem,
+        source=path,
+        task=task,
+        model_path=model_path,
+        params=raw.params,
+        fixed=fixed,
+        axes=tuple(read.axes),
+        groups=tuple(tuple(g) for g in read.groups),
+        repeats=raw.repeats,
+        seed=raw.seed,
+        simulation=raw.simulation,
+        output=out,
+        allow_outside=allow_outside,
+        sampling=raw.sampling,
+        adaptive=raw.adaptive,
+        cells=cells,
+        robustness=raw.robustness,
+    )
 
 
 def _task(raw: StudyFile, found: _Found) -> TaskSpec:
