@@ -109,13 +109,13 @@ def study_for(study_path: Path, setup: Setup, folder: Path, replicas: int) -> St
 
 
 def _run(study_path: Path, setup: Setup, folder: Path, replicas: int, n_jobs: int, name: str) -> StudyCost:
-    from somo_sweep.sweep.runner import run_study
+    from somo_sweep.sweep.runner import RunOptions, run_sweep
     from somo_sweep.sweep.store import read_results
 
     study = study_for(study_path, setup, folder, replicas)
     load = _load()
     start = perf_counter()
-    summary = run_study(study, n_jobs=n_jobs)
+    summary = run_sweep(study, RunOptions(n_jobs=n_jobs))
     wall = perf_counter() - start
     table = read_results(folder)
     return StudyCost(

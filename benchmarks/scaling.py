@@ -1,6 +1,6 @@
 """How a sweep scales over workers: ``--jobs 1`` vs ``--jobs 2``, and Dask against joblib, in turn.
 
-The same study runs through the sweep engine (:func:`somo_sweep.sweep.runner.run_study`), each
+The same study runs through the sweep engine (:func:`somo_sweep.sweep.runner.run_sweep`), each
 run into its own results folder under the folder the caller names. The demo study runs once
 with one local worker and in turn at two workers, joblib's loky backend against a two-worker
 Dask ``LocalCluster`` (one thread per worker, the settings of a somo-sweep cluster,
@@ -107,7 +107,7 @@ def _labels(folder: Path) -> tuple[pd.DataFrame, float]:
 
 @contextmanager
 def _backend(kind: str, n_workers: int) -> Iterator[dict[str, Any]]:
-    """Fresh workers of one backend: ``run_study`` keyword arguments that use them."""
+    """Fresh workers of one backend: the ``RunOptions`` keyword arguments that use them."""
     if kind == "joblib":
         from joblib.externals.loky import get_reusable_executor
 
@@ -133,7 +133,7 @@ def _backend(kind: str, n_workers: int) -> Iterator[dict[str, Any]]:
 def _timed(name: str, study_path: Path, out: Path, kind: str, n_workers: int) -> ScalingRun:
     from somo_sweep.sweep.execution import run_jobs
     from somo_sweep.sweep.jobs import first_jobs
-    from somo_sweep.sweep.runner import run_study
+    from somo_sweep.sweep.runner import RunOptions, run_sweep
     from somo_sweep.sweep.study import load_study
 
     study = load_study(study_path, out)
@@ -144,7 +144,7 @@ def _timed(name: str, study_path: Path, out: Path, kind: str, n_workers: int) ->
         else:
             list(run_jobs(warm, "dask", scheduler=how["scheduler"]))
         start = perf_counter()
-        summary = run_study(study, **how)
+        summary = run_sweep(study, RunOptions(**how))
         wall_s = perf_counter() - start
     labels, trial_wall_s = _labels(out)
     return ScalingRun(name, wall_s, summary.run, labels, trial_wall_s)

@@ -18,12 +18,17 @@ from pathlib import Path
 __all__ = [
     "MAX_LISTED",
     "SHOWN_CHARS",
+    "ClusterError",
     "DescriptionError",
+    "FolderInUse",
+    "Interrupted",
+    "ManifestError",
     "MeasurementError",
     "Problem",
     "SimulationError",
     "SomoError",
     "StorageError",
+    "StudyChanged",
     "UnstableSimulation",
     "did_you_mean",
     "os_cause",
@@ -137,6 +142,103 @@ class UnstableSimulation(SimulationError):
 
     def __reduce__(self) -> tuple[type, tuple[str, float, str]]:
         return type(self), (self.reason, self.time_s, self.detail)
+
+
+class ManifestError(SomoError):
+    """A results folder's manifest is missing (not a results folder) or damaged.
+
+    Attributes:
+        folder: The results folder.
+        missing: True when there is no manifest; False when it is there and damaged.
+    """
+
+    def __init__(self, message: str, folder: str | Path, missing: bool):
+        self.folder = str(folder)
+        self.missing = missing
+        super().__init__(message)
+
+    def __reduce__(self) -> tuple[type, tuple[str, str, bool]]:
+        return type(self), (str(self), self.folder, self.missing)
+
+
+class FolderInUse(SomoError):
+    """Another run holds a results folder's lock.
+
+    Attributes:
+        folder: The results folder.
+        holder: Who holds it (``pid … on HOST since …``), as its lock file says.
+    """
+
+    def __init__(self, folder: str | Path, holder: str):
+        self.folder = str(folder)
+        self.holder = holder
+        super().__init__(
+            f"{self.folder} is in use by another somo-sweep run ({holder}); "
+            "wait for it to finish or stop it, or use another --out folder"
+        )
+
+    def __reduce__(self) -> tuple[type, tuple[str, str]]:
+        return type(self), (self.folder, self.holder)
+
+
+class StudyChanged(SomoError):
+    """A results folder holds results of a different study (results are never mixed).
+
+    Attributes:
+        folder: The results folder.
+        stored_hash: The hash of the study whose results it holds (as the message shows it).
+        study_hash: The hash of the study being run.
+        changed: What differs between the two, in words.
+    """
+
+    def __init__(self, folder: str | Path, stored_hash: str, study_hash: str, changed: str):
+        self.folder = str(folder)
+        self.stored_hash = stored_hash
+        self.study_hash = study_hash
+        self.changed = changed
+        super().__init__(
+            f"{self.folder} holds results of a different study (hash {stored_hash}, this one is "
+            f"{study_hash}); changed: {changed}. Results are never mixed: run with --out NEW_FOLDER, "
+            "or with --overwrite to delete them and start over"
+        )
+
+    def __reduce__(self) -> tuple[type, tuple[str, str, str, str]]:
+        return type(self), (self.folder, self.stored_hash, self.study_hash, self.changed)
+
+
+class ClusterError(SomoError):
+    """A Dask cluster stopped running a sweep's trials; finished trials are kept.
+
+    Attributes:
+        trial: The trial it stopped at (its number in the study's grid).
+        reason: ``worker`` (a worker could not run it: another somo-sweep there), ``lost`` (the
+            connection to the scheduler is gone) or ``cancelled`` (another client, or a restart).
+    """
+
+    def __init__(self, message: str, trial: int, reason: str):
+        self.trial = trial
+        self.reason = reason
+        super().__init__(message)
+
+    def __reduce__(self) -> tuple[type, tuple[str, int, str]]:
+        return type(self), (str(self), self.trial, self.reason)
+
+
+class Interrupted(KeyboardInterrupt):
+    """A run was stopped (SIGINT, or SIGTERM where it is taken as one) before its first trial.
+
+    A :class:`KeyboardInterrupt`, so that a caller's Ctrl-C handling still applies.
+
+    Attributes:
+        stage: What the run was doing: ``step`` (choosing the time step), ``jobs`` (building the
+            job table) or ``folder`` (opening the results folder).
+        signum: The signal that stopped it.
+    """
+
+    def __init__(self, stage: str, signum: int):
+        super().__init__(stage, signum)
+        self.stage = stage
+        self.signum = signum
 
 
 #: Longest user value echoed whole in a message; longer ones are cut (see :func:`shown`).

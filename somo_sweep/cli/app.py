@@ -14,7 +14,7 @@ from typing import Annotated
 
 import typer
 
-from somo_sweep.cli import calibrate, diagnose, engines, grasp, model, paper, sweep
+from somo_sweep.cli import calibrate, diagnose, engines, grasp, model, paper, results, sweep
 from somo_sweep.cli.help import HelpGroup, plain_help
 from somo_sweep.cli.output import state
 from somo_sweep.errors import SHOWN_CHARS, os_cause, printable, shown
@@ -58,10 +58,10 @@ def _main(
 app.command()(model.check)
 app.command()(model.measure)
 app.command()(sweep.run)
-app.command()(sweep.show)
-app.command()(sweep.plot)
+app.command()(results.show)
+app.command()(results.plot)
 app.command()(sweep.tasks)
-app.command()(sweep.recheck)
+app.command()(results.recheck)
 app.command()(engines.compare_engines)
 app.command()(calibrate.calibrate)
 app.command()(diagnose.diagnose)

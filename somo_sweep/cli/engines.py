@@ -5,52 +5,58 @@ from __future__ import annotations
 import json
 import math
 from pathlib import Path
-from typing import Annotated
+from typing import TYPE_CHECKING, Annotated
 
 import typer
 
 from somo_sweep.cli.output import checked_jobs, fail, write_atomic
+from somo_sweep.cli.sweep import JOBS
 from somo_sweep.errors import SomoError, StorageError
+
+if TYPE_CHECKING:
+    from somo_sweep.sweep.engines import EngineComparison
+    from somo_sweep.sweep.study import Study
 
 __all__ = ["compare_engines"]
 
 
+_OUT = Annotated[
+    Path | None,
+    typer.Option("--out", help="Folder for both runs and the comparison (default: results/<study>_engines)."),
+]
+_MUJOCO_STEP = Annotated[
+    float | None,
+    typer.Option(
+        "--mujoco-step", help="MuJoCo's time step, s (default: the study's if it runs on MuJoCo, else 4 ms)."
+    ),
+]
+_PYBULLET_STEP = Annotated[
+    float | None,
+    typer.Option(
+        "--pybullet-step",
+        help="PyBullet's time step, s (default: the study's if it runs on PyBullet, else 0.5 ms).",
+    ),
+]
+_ADAPTIVE = Annotated[
+    bool | None,
+    typer.Option(
+        "--adaptive/--exhaustive",
+        help="Sampling of both runs (default: the study's sampling:, else exhaustive).",
+    ),
+]
+_ALLOW_OUTSIDE = Annotated[
+    bool, typer.Option("--allow-outside", help="Let model files include files outside their own folder.")
+]
+
+
 def compare_engines(
     study: Annotated[Path, typer.Argument(help="Study file (YAML or JSON).")],
-    out: Annotated[
-        Path | None,
-        typer.Option(
-            "--out", help="Folder for both runs and the comparison (default: results/<study>_engines)."
-        ),
-    ] = None,
-    jobs: Annotated[
-        int,
-        typer.Option("--jobs", "-j", help="Worker processes (loky); default: the CPUs this process may use."),
-    ] = 0,
-    mujoco_step: Annotated[
-        float | None,
-        typer.Option(
-            "--mujoco-step",
-            help="MuJoCo's time step, s (default: the study's if it runs on MuJoCo, else 4 ms).",
-        ),
-    ] = None,
-    pybullet_step: Annotated[
-        float | None,
-        typer.Option(
-            "--pybullet-step",
-            help="PyBullet's time step, s (default: the study's if it runs on PyBullet, else 0.5 ms).",
-        ),
-    ] = None,
-    adaptive: Annotated[
-        bool | None,
-        typer.Option(
-            "--adaptive/--exhaustive",
-            help="Sampling of both runs (default: the study's sampling:, else exhaustive).",
-        ),
-    ] = None,
-    allow_outside: Annotated[
-        bool, typer.Option("--allow-outside", help="Let model files include files outside their own folder.")
-    ] = False,
+    out: _OUT = None,
+    jobs: JOBS = 0,
+    mujoco_step: _MUJOCO_STEP = None,
+    pybullet_step: _PYBULLET_STEP = None,
+    adaptive: _ADAPTIVE = None,
+    allow_outside: _ALLOW_OUTSIDE = False,
 ) -> None:
     """Run a study on both engines (resumable) and report, per cell, where their labels agree.
 
@@ -59,12 +65,8 @@ def compare_engines(
     and OUT/engines.json (the summary). A task without labels (the bench) is compared metric by
     metric, as a share of each metric's range.
     """
-    import joblib
-
-    from somo_sweep.sweep.engines import compare, on_engine
-    from somo_sweep.sweep.jobs import build_jobs
-    from somo_sweep.sweep.runner import run_study
-    from somo_sweep.sweep.store import read_results
+    from somo_sweep.sweep.engines import compare_runs, on_engines
+    from somo_sweep.sweep.runner import RunOptions, run_sweep
     from somo_sweep.sweep.study import RESULTS_ROOT, load_study
 
     for name, step in (("--mujoco-step", mujoco_step), ("--pybullet-step", pybullet_step)):
@@ -80,36 +82,32 @@ def compare_engines(
         folder = out if out is not None else RESULTS_ROOT / f"{base.name}_engines"
         if folder.exists() and not folder.is_dir():
             raise SomoError(f"--out {folder} is a file, not a folder")
-        runs = {
-            "pybullet": on_engine(base, "pybullet", folder / "pybullet", pybullet_step),
-            "mujoco": on_engine(base, "mujoco", folder / "mujoco", mujoco_step),
-        }
-        n_jobs = jobs or joblib.cpu_count() or 1
+        runs = on_engines(base, folder, {"pybullet": pybullet_step, "mujoco": mujoco_step})
         for engine, st in runs.items():
-            if adaptive is not None:
-                st.sampling = "adaptive" if adaptive else "grid"
             typer.echo(f"{engine}: {st.output}", err=True)
-            summary = run_study(st, n_jobs)
+            summary = run_sweep(st, RunOptions(n_jobs=jobs, adaptive=adaptive))
             typer.echo(f"{engine}: {summary.run} trial(s) run, {summary.skipped} already stored", err=True)
-        tables = {engine: read_results(st.output) for engine, st in runs.items()}
-        axes = tuple(build_jobs(base).axes.values())
-        result = compare(tables["pybullet"], tables["mujoco"], ("pybullet", "mujoco"), axes)
-        write_atomic(folder / "engines.csv", result.cells.to_csv(index=False))
-        report = {
-            "written_by": "somo-sweep compare-engines",
-            "study": str(study),
-            "engines": {
-                e: st.simulation.model_dump(mode="json") if st.simulation else "auto"
-                for e, st in runs.items()
-            },
-            "labels": result.labels,
-            "metrics": result.metrics,
-        }
-        write_atomic(folder / "engines.json", json.dumps(report, indent=1) + "\n")
+        result = compare_runs(base, runs)
+        _write(folder, study, runs, result)
     except SomoError as exc:
-        fail(exc, code=1 if isinstance(exc, StorageError) else 2)
+        fail(exc)
     except OSError as exc:
         fail(StorageError(f"{exc.filename or folder}: {exc.strerror or exc}"), code=1)
     for line in result.lines():
         typer.echo(line)
     typer.echo(f"wrote {folder / 'engines.csv'} and {folder / 'engines.json'}")
+
+
+def _write(folder: Path, study: Path, runs: dict[str, Study], result: EngineComparison) -> None:
+    """The comparison as OUT/engines.csv (cell by cell) and OUT/engines.json (the summary)."""
+    write_atomic(folder / "engines.csv", result.cells.to_csv(index=False))
+    report = {
+        "written_by": "somo-sweep compare-engines",
+        "study": str(study),
+        "engines": {
+            e: st.simulation.model_dump(mode="json") if st.simulation else "auto" for e, st in runs.items()
+        },
+        "labels": result.labels,
+        "metrics": result.metrics,
+    }
+    write_atomic(folder / "engines.json", json.dumps(report, indent=1) + "\n")

@@ -107,9 +107,8 @@ def _is_study(path: Path) -> bool:
 
 def _check_study(path: Path, allow_outside: bool, jobs: int) -> None:
     """Load a study and print its automatic step, chosen as run chooses it."""
-    import joblib
-
-    from somo_sweep.cli.sweep import auto_step
+    from somo_sweep.cli.sweep import step_events
+    from somo_sweep.sweep.runner import RunOptions, choose_auto_step
     from somo_sweep.sweep.study import load_study
 
     try:
@@ -122,7 +121,7 @@ def _check_study(path: Path, allow_outside: bool, jobs: int) -> None:
         typer.echo(f"simulation: time step {study.simulation.step_s * 1e3:g} ms, from the study file")
         return
     try:
-        chosen = auto_step(study, jobs or joblib.cpu_count() or 1, "loky", None, None, stream=typer.echo)
+        chosen = choose_auto_step(study, RunOptions(n_jobs=jobs), step_events(typer.echo, study.output))
     except SomoError as exc:
         fail(exc)
     typer.echo(f"automatic step: {chosen.auto_step_s * 1e3:g} ms" if chosen.auto_step_s else "")

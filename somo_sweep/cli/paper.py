@@ -203,8 +203,8 @@ def _run_ablation(configs: list[Configuration], jobs: int, adaptive: bool) -> in
     """Run the configurations with a line each; returns the signal number if interrupted."""
     from rich.console import Console
 
+    from somo_sweep.cli.summary import print_run_summary
     from somo_sweep.paper.ablation import run_configurations
-    from somo_sweep.sweep.summary import print_run_summary
 
     console = Console()
     shared = {c.name: c.same_as for c in configs if c.same_as}

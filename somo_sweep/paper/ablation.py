@@ -26,7 +26,7 @@ under both rules (:mod:`somo_sweep.paper.fig6_ablation`).
 from __future__ import annotations
 
 from collections.abc import Callable
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from pathlib import Path
 from typing import Any, Literal
 
@@ -43,7 +43,7 @@ from somo_sweep.paper.fig6_compare import Side
 from somo_sweep.paper.grasp_trials import read_results
 from somo_sweep.sweep.execution import Outcome
 from somo_sweep.sweep.jobs import JobTable, build_jobs
-from somo_sweep.sweep.runner import RunSummary, run_study
+from somo_sweep.sweep.runner import RunEvents, RunOptions, RunSummary, run_sweep
 from somo_sweep.sweep.study import Study, derive_study, load_study
 
 __all__ = [
@@ -194,7 +194,7 @@ def configurations(spec: AblationFile, folder: Path, grid: str, results_root: Pa
         table = build_jobs(study)
         first = by_hash.get(table.study_hash)
         if first is not None:
-            study.output = first.folder
+            study = replace(study, output=first.folder)
         config = Configuration(name, base, factor, overrides, study, table, first.name if first else None)
         by_hash.setdefault(table.study_hash, config)
         out.append(config)
@@ -222,7 +222,7 @@ def run_configurations(
 ) -> list[RunSummary]:
     """Run the trials missing from every configuration's folder (each shared folder once).
 
-    Resumable: each run is :func:`somo_sweep.sweep.runner.run_study`, the function behind
+    Resumable: each run is :func:`somo_sweep.sweep.runner.run_sweep`, the function behind
     ``somo-sweep run``. Stops after a run that was interrupted (SIGINT / SIGTERM).
 
     Args:
@@ -239,9 +239,8 @@ def run_configurations(
             continue
         if on_config is not None:
             on_config(config)
-        summary = run_study(
-            config.study, n_jobs, table=config.table, adaptive=adaptive, on_outcome=on_outcome
-        )
+        options = RunOptions(n_jobs=n_jobs, adaptive=adaptive)
+        summary = run_sweep(config.study, options, RunEvents(outcome=on_outcome), table=config.table)
         summaries.append(summary)
         if on_done is not None:
             on_done(config, summary)

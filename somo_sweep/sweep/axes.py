@@ -128,24 +128,7 @@ def expand_axis(spec: Any, where: str, distinct: bool = True) -> tuple[list[Any]
     trial twice. A linked axis may repeat values; its group's combinations must be distinct.
     """
     if isinstance(spec, list):
-        if not spec:
-            return [], [Problem(where, "an axis needs at least one value, got []")]
-        if not distinct:
-            return spec, []
-        first: dict[Any, int] = {}
-        for i, value in enumerate(spec):
-            number = isinstance(value, int | float) and not isinstance(value, bool)
-            key = ("number", float(value)) if number else ("other", repr(value))
-            if key in first:  # the same trial twice: refused here, so --dry-run says it too
-                return [], [
-                    Problem(
-                        where,
-                        f"value {value!r} is given twice (entries {first[key]} and {i}); "
-                        "allowed: distinct values",
-                    )
-                ]
-            first[key] = i
-        return spec, []
+        return _listed(spec, where, distinct)
     if not isinstance(spec, dict):
         return [], [
             Problem(
@@ -163,15 +146,42 @@ def expand_axis(spec: Any, where: str, distinct: bool = True) -> tuple[list[Any]
         return [], [Problem(where, f"{hint}an axis mapping has keys {shape}; got {got}")]
     if keys == {"values"}:
         return expand_axis(spec["values"], f"{where}.values", distinct)
-    problems = []
-    for k in sorted(keys):
-        v = spec[k]
-        if isinstance(v, bool) or not isinstance(v, int | float) or not math.isfinite(v):
-            problems.append(Problem(f"{where}.{k}", f"must be a finite number, got {v!r}"))
+    problems = [
+        Problem(f"{where}.{k}", f"must be a finite number, got {spec[k]!r}")
+        for k in sorted(keys)
+        if isinstance(spec[k], bool) or not isinstance(spec[k], int | float) or not math.isfinite(spec[k])
+    ]
     if problems:
         return [], problems
+    return _ranged(spec, where)
+
+
+def _listed(spec: list[Any], where: str, distinct: bool) -> tuple[list[Any], list[Problem]]:
+    """A list axis; with ``distinct``, a value given twice is refused (the same trial twice)."""
+    if not spec:
+        return [], [Problem(where, "an axis needs at least one value, got []")]
+    if not distinct:
+        return spec, []
+    first: dict[Any, int] = {}
+    for i, value in enumerate(spec):
+        number = isinstance(value, int | float) and not isinstance(value, bool)
+        key = ("number", float(value)) if number else ("other", repr(value))
+        if key in first:  # the same trial twice: refused here, so --dry-run says it too
+            return [], [
+                Problem(
+                    where,
+                    f"value {value!r} is given twice (entries {first[key]} and {i}); "
+                    "allowed: distinct values",
+                )
+            ]
+        first[key] = i
+    return spec, []
+
+
+def _ranged(spec: dict[str, Any], where: str) -> tuple[list[Any], list[Problem]]:
+    """A ``{start, stop, num}`` or inclusive ``{start, stop, step}`` axis of finite numbers."""
     start, stop = spec["start"], spec["stop"]
-    if "num" in keys:
+    if "num" in spec:
         num = spec["num"]
         if not isinstance(num, int) or num < 1:
             return [], [Problem(f"{where}.num", f"must be an integer >= 1, got {num!r}")]

@@ -24,6 +24,7 @@ import hashlib
 import json
 import math
 import re
+from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -182,6 +183,24 @@ def parse_cells(
         if why:
             where = f"cells[0].{key}"
             problems.append(Problem(where, why, lines.get(where, at)))
+    rows = _inline_rows(spec, keys, lines, at, problems)
+    if problems:
+        return None, problems
+    where_rows = tuple(f"cells[{i}]" for i in range(len(rows)))
+    row_lines = tuple(lines.get(w, at) for w in where_rows)
+    cells = Cells(tuple(keys), tuple(rows), where_rows, row_lines)
+    return cells, _repeats(cells, lambda i: Problem(where_rows[i], "", row_lines[i]))
+
+
+def _inline_rows(
+    spec: list[dict[str, Any]],
+    keys: list[Any],
+    lines: dict[str, int],
+    at: int | None,
+    problems: list[Problem],
+) -> list[tuple[Any, ...]]:
+    """The rows of an inline table, in ``keys`` order; a row with other keys, or a value that is
+    not finite, is a problem (naming ``cells[i]`` and its key)."""
     rows: list[tuple[Any, ...]] = []
     for i, row in enumerate(spec):
         where = f"cells[{i}]"
@@ -204,12 +223,7 @@ def parse_cells(
         rows.append(tuple(row[k] for k in keys))
         if len(problems) >= MAX_PROBLEMS:
             break
-    if problems:
-        return None, problems
-    where_rows = tuple(f"cells[{i}]" for i in range(len(rows)))
-    row_lines = tuple(lines.get(w, at) for w in where_rows)
-    cells = Cells(tuple(keys), tuple(rows), where_rows, row_lines)
-    return cells, _repeats(cells, lambda i: Problem(where_rows[i], "", row_lines[i]))
+    return rows
 
 
 def _repeats(cells: Cells, problem_at: Any) -> list[Problem]:
@@ -281,6 +295,22 @@ def _from_csv(
     if not body:
         problem(header_line, "no rows after the header; allowed: at least one row")
         return None, problems
+    rows, row_lines = _csv_rows(body, keys, header_line, problem, problems)
+    if problems:
+        return None, problems
+    where = tuple(f"{name} line {n}" for n in row_lines)
+    cells = Cells(tuple(keys), tuple(rows), where, tuple(row_lines), path)
+    return cells, _repeats(cells, lambda i: Problem("cells", f"{where[i]}: ", at))
+
+
+def _csv_rows(
+    body: list[tuple[int, list[str]]],
+    keys: list[str],
+    header_line: int,
+    problem: Callable[[int, str], None],
+    problems: list[Problem],
+) -> tuple[list[tuple[Any, ...]], list[int]]:
+    """The rows of a cells CSV after its header, and their lines; each problem names its line."""
     rows: list[tuple[Any, ...]] = []
     row_lines: list[int] = []
     for line, fields in body:
@@ -306,8 +336,4 @@ def _from_csv(
         row_lines.append(line)
         if len(problems) >= MAX_PROBLEMS:
             break
-    if problems:
-        return None, problems
-    where = tuple(f"{name} line {n}" for n in row_lines)
-    cells = Cells(tuple(keys), tuple(rows), where, tuple(row_lines), path)
-    return cells, _repeats(cells, lambda i: Problem("cells", f"{where[i]}: ", at))
+    return rows, row_lines

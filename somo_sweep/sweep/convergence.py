@@ -30,14 +30,23 @@ from typing import Any
 
 import numpy as np
 
-from somo_sweep.sweep.jobs import Job, code_version, iter_jobs, replica_jobs
-from somo_sweep.sweep.study import Study
+from somo_sweep.errors import ManifestError, SomoError, os_cause, shown
+from somo_sweep.sweep.code import code_version
+from somo_sweep.sweep.derive import with_auto_step
+from somo_sweep.sweep.folder import MANIFEST, read_manifest
+from somo_sweep.sweep.job import Job, replica_jobs
+from somo_sweep.sweep.jobs import iter_jobs
+from somo_sweep.sweep.loaded import Study
 
 __all__ = [
     "SAMPLE_CELLS",
     "Rung",
     "StepChoice",
+    "StepEvents",
+    "auto_step",
     "choose_step",
+    "folder_choice",
+    "ladder",
     "outcomes_of",
     "stored_choice",
     "with_stored_step",
@@ -137,6 +146,32 @@ def _jobs_at(study: Study, step_s: float, trials: list[int]) -> list[Job]:
     return out
 
 
+def _first_model(study: Study) -> Any:
+    """The model of the study's first grid point (what the step ladder is read from)."""
+    return study.resolve_model(next(iter(study.points())))[1]
+
+
+def ladder(study: Study) -> tuple[list[float], str]:
+    """The candidate steps of a study without ``simulation:``, s, largest first, and what set the
+    first (:func:`~somo_sweep.sim.numerics.step_ladder` of its first grid point's model)."""
+    from somo_sweep.sim.numerics import step_ladder
+
+    return step_ladder(_first_model(study))
+
+
+def _rung(
+    step_s: float, trials: list[int], full: list[Outcome], half: list[Outcome], shaken: list[Outcome] | None
+) -> Rung:
+    """A candidate's verdict from its sample's outcomes at the step, at half of it, and at half of it
+    perturbed (None: the task has no perturbation, every sample cell counts as robust)."""
+    c = shaken if shaken is not None else half
+    robust = [i for i in range(len(trials)) if _key(half[i]) == _key(c[i])]
+    differing = [trials[i] for i in robust if _key(full[i]) != _key(half[i])]
+    not_ok = sum(o[0] != "ok" for o in (*full, *half, *(shaken or ())))
+    passed = not_ok == 0 and bool(robust) and not differing
+    return Rung(step_s, trials, len(robust), len(robust) - len(differing), not_ok, differing, passed)
+
+
 def _key(outcome: Outcome) -> str:
     status, labels = outcome
     return status if status != "ok" else json.dumps(sorted(labels.items()))
@@ -156,12 +191,8 @@ def choose_step(
         sample_cells: Cells sampled.
         on_rung: Called with (candidate step, runs to do) before each candidate's runs.
     """
-    from somo_sweep.sim.numerics import step_ladder
-
     code = code_version(study.task.run_path.partition(":")[0])
-    path, model = study.resolve_model(next(iter(study.points())))
-    del path
-    ladder, why = step_ladder(model)
+    steps, why = ladder(study)
     trials = _sample(study, sample_cells)
     perturb = study.task.perturb
     done: dict[str, Outcome] = {}
@@ -174,7 +205,7 @@ def choose_step(
 
     rungs: list[Rung] = []
     labelled = False
-    for step in ladder:
+    for step in steps:
         full = _jobs_at(study, step, trials)
         half = _jobs_at(study, step / 2, trials)
         shaken = [replica_jobs(j, 2, perturb)[1] for j in half] if perturb is not None else []
@@ -185,29 +216,24 @@ def choose_step(
         labelled = labelled or any(labels for status, labels in a if status == "ok")
         if not labelled:
             break
-        b = outcomes(half)
-        c = outcomes(shaken) if shaken else b
-        robust = [i for i in range(len(trials)) if _key(b[i]) == _key(c[i])]
-        differing = [trials[i] for i in robust if _key(a[i]) != _key(b[i])]
-        not_ok = sum(o[0] != "ok" for o in (*a, *b, *(c if shaken else ())))
-        passed = not_ok == 0 and bool(robust) and not differing
-        rungs.append(Rung(step, trials, len(robust), len(robust) - len(differing), not_ok, differing, passed))
-        if passed:
+        rung = _rung(step, trials, a, outcomes(half), outcomes(shaken) if shaken else None)
+        rungs.append(rung)
+        if rung.passed:
             reason = f"the largest candidate whose robust sample labels equal those at {step * 5e2:g} ms"
-            return StepChoice(step, ladder[0], why, rungs, reason, code, trials)
+            return StepChoice(step, steps[0], why, rungs, reason, code, trials)
     if not labelled:
         # Nothing to converge: the modal rule (lowest modes moved by at most 1 %) decides.
         from somo_sweep.sim.numerics import choose_numerics
 
-        modal = choose_numerics(model)
+        modal = choose_numerics(_first_model(study))
         reason = f"the task gives no labels to converge; the modal rule: {modal.reason}"
-        return StepChoice(modal.time_step_s, ladder[0], why, rungs, reason, code, trials)
-    last = ladder[-1]
+        return StepChoice(modal.time_step_s, steps[0], why, rungs, reason, code, trials)
+    last = steps[-1]
     reason = (
         "no candidate converged on the sample; the smallest, at which the model needs no shaping, is "
         "taken: its labels there are the model's own"
     )
-    return StepChoice(last, ladder[0], why, rungs, reason, code, trials)
+    return StepChoice(last, steps[0], why, rungs, reason, code, trials)
 
 
 def stored_choice(manifest: dict[str, Any], study: Study) -> StepChoice | None:
@@ -240,9 +266,6 @@ def stored_choice(manifest: dict[str, Any], study: Study) -> StepChoice | None:
 def with_stored_step(study: Study) -> Study:
     """``study`` with the step its results folder recorded, if it has no ``simulation:`` and the
     folder holds a choice for it (else unchanged: its jobs then show the modal starting guess)."""
-    from somo_sweep.errors import SomoError
-    from somo_sweep.sweep.folder import read_manifest
-
     if study.simulation is not None or study.auto_step_s is not None:
         return study
     try:
@@ -251,7 +274,77 @@ def with_stored_step(study: Study) -> Study:
         return study
     if choice is None:
         return study
-    return replace(study, auto_step_s=choice.step_s, convergence=choice.as_dict())
+    return with_auto_step(study, choice.step_s, choice.as_dict())
+
+
+@dataclass(frozen=True)
+class StepEvents:
+    """What :func:`auto_step` reports as it goes (each optional), for a caller to show.
+
+    Attributes:
+        reused: Called with the choice the results folder recorded, when it is taken.
+        choosing: Called before the sample runs start (no choice recorded).
+        rung: Called with (candidate step in s, runs to do) before each candidate's runs.
+        chosen: Called with the choice made.
+    """
+
+    reused: Callable[[StepChoice], None] | None = None
+    choosing: Callable[[], None] | None = None
+    rung: Callable[[float, int], None] | None = None
+    chosen: Callable[[StepChoice], None] | None = None
+
+
+def folder_choice(study: Study) -> StepChoice | None:
+    """The choice the study's results folder recorded for it (:func:`stored_choice`), or None.
+
+    A damaged manifest holds none (the run rebuilds it, and the step is chosen again).
+
+    Raises:
+        SomoError: The results folder's name is one no folder can have (said before any sample
+            trial runs; nothing is written).
+    """
+    try:
+        stored = (study.output / MANIFEST).is_file()
+    except OSError as exc:
+        cause, advice = os_cause(exc)
+        raise SomoError(
+            f"cannot create the results folder {shown(str(study.output), 200)}: {cause}; nothing was "
+            f"written: {advice}, then run the same command again"
+        ) from None
+    if not stored:
+        return None
+    try:
+        return stored_choice(read_manifest(study.output), study)
+    except ManifestError:
+        return None
+
+
+def auto_step(study: Study, run_jobs: RunJobs, events: StepEvents | None = None) -> Study:
+    """``study`` (without ``simulation:``) with its step: the one its results folder recorded, else
+    chosen now by label convergence on a sample of its cells (:func:`choose_step`).
+
+    This is the one place a run's automatic step is chosen.
+
+    Args:
+        study: The study.
+        run_jobs: Runs a list of jobs and yields (job id, status, labels) as each finishes.
+        events: What to tell the caller as it goes.
+
+    Raises:
+        SomoError: The results folder's name is one no folder can have.
+    """
+    events = events or StepEvents()
+    choice = folder_choice(study)
+    if choice is not None:
+        if events.reused:
+            events.reused(choice)
+    else:
+        if events.choosing:
+            events.choosing()
+        choice = choose_step(study, run_jobs, on_rung=events.rung)
+        if events.chosen:
+            events.chosen(choice)
+    return with_auto_step(study, choice.step_s, choice.as_dict())
 
 
 def outcomes_of(results: Iterator[Any]) -> Iterator[tuple[str, str, dict[str, str]]]:

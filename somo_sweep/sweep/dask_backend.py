@@ -1,6 +1,6 @@
 """Run trials on a Dask cluster: connect to its scheduler, keep its workers fed, survive worker loss.
 
-Every trial is one Dask task (:func:`~somo_sweep.sweep.execution.run_isolated`, which forks the
+Every trial is one Dask task (:func:`~somo_sweep.sweep.trial.run_isolated`, which forks the
 trial in the worker), submitted straight to the scheduler with the job in it. At most
 :data:`IN_FLIGHT_PER_THREAD` tasks per worker thread are out at a time, so that a worker
 always has its next trial at hand (it starts the moment the last one ends) while the sweep
@@ -20,11 +20,11 @@ import uuid
 from collections.abc import Callable, Iterable, Iterator
 from typing import TYPE_CHECKING, Any
 
-from somo_sweep.errors import SHOWN_CHARS, SomoError, shown
+from somo_sweep.errors import SHOWN_CHARS, ClusterError, SomoError, shown
+from somo_sweep.sweep.trial import Outcome, run_isolated
 
 if TYPE_CHECKING:
-    from somo_sweep.sweep.execution import Outcome
-    from somo_sweep.sweep.jobs import Job
+    from somo_sweep.sweep.job import Job
 
 __all__ = [
     "ALLOWED_FAILURES",
@@ -107,9 +107,9 @@ def dask_client(scheduler: str | None, timeout_s: float = 15.0) -> Any:
 
 
 def trial_code(task: str, engine: str = "pybullet") -> str:
-    """The code version (:func:`~somo_sweep.sweep.jobs.code_version`) of a task's trials on an
+    """The code version (:func:`~somo_sweep.sweep.code.code_version`) of a task's trials on an
     engine here."""
-    from somo_sweep.sweep.jobs import code_version
+    from somo_sweep.sweep.code import code_version
     from somo_sweep.tasks.registry import get_task
 
     return code_version(get_task(task).run_path.partition(":")[0], engine)
@@ -125,8 +125,6 @@ def run_remote(job: Job, timeout_s: float | None, code: str) -> Outcome:
         SomoError: The worker's trial code differs from ``code``.
     """
     import socket
-
-    from somo_sweep.sweep.execution import run_isolated
 
     here = trial_code(job.task, job.settings.engine)
     if here != code:
@@ -161,94 +159,125 @@ def run_on_dask(
             early (or stops on an error).
 
     Raises:
-        SomoError: The scheduler is lost, or a worker cannot run trials at all (somo-sweep missing
-            or of another version there); finished trials have been yielded.
+        ClusterError: The scheduler is lost or cancelled a trial, or a worker cannot run trials at
+            all (somo-sweep missing or of another version there); finished trials have been yielded.
     """
     from distributed import as_completed
-    from distributed.scheduler import KilledWorker
 
-    from somo_sweep.sweep.execution import Outcome
-
-    source = iter(jobs)
-    codes: dict[tuple[str, str], str] = {}
-    in_flight: dict[str, tuple[Job, Any]] = {}
-    done = as_completed(loop=client.loop)
-    run = uuid.uuid4().hex[:8]
-
-    lost: dict[str, int] = {}  # job id -> results lost with their worker so far
-
-    def submit(job: Job) -> None:
-        again = lost.get(job.job_id, 0)
-        key = f"somo-trial-{job.job_id}-{run}" + (f"-again{again}" if again else "")
-        which = (job.task, job.settings.engine)
-        code = codes.get(which) or codes.setdefault(which, trial_code(*which))
-        future = client.submit(run_remote, job, timeout_s, code, key=key, pure=False)
-        in_flight[key] = (job, future)
-        done.add(future)
-
-    def top_up() -> None:
-        target = max(IN_FLIGHT_PER_THREAD, IN_FLIGHT_PER_THREAD * threads(client))
-        while len(in_flight) < target:
-            job = next(source, None)
-            if job is None:
-                return
-            submit(job)
-
-    top_up()
+    run = _DaskRun(jobs, client, timeout_s, as_completed(loop=client.loop))
+    run.top_up()
     try:
-        for future in done:
-            job, _ = in_flight.pop(future.key)
-            status = future.status
-            if status == "lost" and lost.get(job.job_id, 0) < ALLOWED_FAILURES:
-                # The trial finished, but its worker died before its result reached us: the
-                # result died with it. Not the scheduler: run the trial again (it is a pure
-                # function of its job, so the rerun stores what the first run would have).
-                lost[job.job_id] = lost.get(job.job_id, 0) + 1
-                future.release()
-                submit(job)
+        for future in run.done:
+            job, _ = run.in_flight.pop(future.key)
+            out = run.outcome(job, future)
+            if out is None:  # its result died with its worker: submitted again
                 continue
-            if status == "finished":
-                out = future.result()
-            elif status == "lost":
-                out = Outcome(
-                    job.job_id,
-                    "error",
-                    f"the Dask workers holding this trial's result died {ALLOWED_FAILURES + 1} times "
-                    "before it was read; run with --retry-errors to try again",
-                )
-            elif status == "error" and isinstance(future.exception(), KilledWorker):
-                out = Outcome(
-                    job.job_id,
-                    "error",
-                    f"the Dask workers running this trial died {ALLOWED_FAILURES} times "
-                    "(KilledWorker); run with --retry-errors to try again",
-                )
-            elif status == "error":
-                exc = future.exception()
-                raise SomoError(
-                    f"a Dask worker could not run trial {job.trial} ({type(exc).__name__}: "
-                    f"{shown(str(exc), 300)}); every worker needs the same somo-sweep as this machine "
-                    '(pip install "somo-sweep[dask]" of the same version, or the same checkout). Finished '
-                    "trials are kept: run the same command again to resume"
-                )
-            elif client.status != "running":  # cancelled: the connection to the scheduler is gone
-                raise SomoError(
-                    f"lost the Dask scheduler (trial {job.trial} was {status}); finished trials are kept: "
-                    "start the scheduler and workers again and run the same command to resume"
-                )
-            else:  # cancelled by another client of the scheduler, or its restart
-                raise SomoError(
-                    f"the Dask scheduler cancelled trial {job.trial} (another client cancelled it, or "
-                    "the cluster was restarted); finished trials are kept: run the same command again "
-                    "to resume"
-                )
             future.release()
-            top_up()
+            run.top_up()
             yield job, out
     finally:
-        if in_flight:  # stopped early (Ctrl-C, an error): take the trials off the cluster
-            futures = [f for _, f in in_flight.values()]
+        if run.in_flight:  # stopped early (Ctrl-C, an error): take the trials off the cluster
+            futures = [f for _, f in run.in_flight.values()]
             with contextlib.suppress(Exception):  # the scheduler may be gone already
                 client.cancel(futures)
             if on_stop is not None:
                 on_stop(len(futures))
+
+
+class _DaskRun:
+    """The trials of one :func:`run_on_dask` out on the cluster, and how each came back."""
+
+    def __init__(self, jobs: Iterable[Job], client: Any, timeout_s: float | None, done: Any):
+        self.source = iter(jobs)
+        self.client = client
+        self.timeout_s = timeout_s
+        self.done = done
+        self.codes: dict[tuple[str, str], str] = {}
+        self.in_flight: dict[str, tuple[Job, Any]] = {}
+        self.run = uuid.uuid4().hex[:8]
+        self.lost: dict[str, int] = {}  # job id -> results lost with their worker so far
+
+    def submit(self, job: Job) -> None:
+        """Put one trial on the cluster (a fresh key when its earlier result was lost)."""
+        again = self.lost.get(job.job_id, 0)
+        key = f"somo-trial-{job.job_id}-{self.run}" + (f"-again{again}" if again else "")
+        which = (job.task, job.settings.engine)
+        code = self.codes.get(which) or self.codes.setdefault(which, trial_code(*which))
+        future = self.client.submit(run_remote, job, self.timeout_s, code, key=key, pure=False)
+        self.in_flight[key] = (job, future)
+        self.done.add(future)
+
+    def top_up(self) -> None:
+        """Submit trials until every worker thread has :data:`IN_FLIGHT_PER_THREAD` of them."""
+        target = max(IN_FLIGHT_PER_THREAD, IN_FLIGHT_PER_THREAD * threads(self.client))
+        while len(self.in_flight) < target:
+            job = next(self.source, None)
+            if job is None:
+                return
+            self.submit(job)
+
+    def outcome(self, job: Job, future: Any) -> Outcome | None:
+        """The outcome of a trial's future, or None when it was submitted again.
+
+        Raises:
+            SomoError: The scheduler is gone or cancelled the trial, or a worker cannot run it.
+        """
+        from distributed.scheduler import KilledWorker
+
+        status = future.status
+        if status == "lost" and self.lost.get(job.job_id, 0) < ALLOWED_FAILURES:
+            # The trial finished, but its worker died before its result reached us: the
+            # result died with it. Not the scheduler: run the trial again (it is a pure
+            # function of its job, so the rerun stores what the first run would have).
+            self.lost[job.job_id] = self.lost.get(job.job_id, 0) + 1
+            future.release()
+            self.submit(job)
+            return None
+        if status == "finished":
+            out: Outcome = future.result()
+            return out
+        if status == "lost":
+            return Outcome(
+                job.job_id,
+                "error",
+                f"the Dask workers holding this trial's result died {ALLOWED_FAILURES + 1} times "
+                "before it was read; run with --retry-errors to try again",
+            )
+        if status == "error" and isinstance(future.exception(), KilledWorker):
+            return Outcome(
+                job.job_id,
+                "error",
+                f"the Dask workers running this trial died {ALLOWED_FAILURES} times "
+                "(KilledWorker); run with --retry-errors to try again",
+            )
+        raise _stopped(job, status, future, self.client)
+
+
+def _stopped(job: Job, status: str, future: Any, client: Any) -> ClusterError:
+    """Why the cluster stopped running a trial: a worker failed it, the scheduler is gone, or it
+    was cancelled."""
+    if status == "error":
+        exc = future.exception()
+        return ClusterError(
+            f"a Dask worker could not run trial {job.trial} ({type(exc).__name__}: "
+            f"{shown(str(exc), 300)}); every worker needs the same somo-sweep as this machine "
+            '(pip install "somo-sweep[dask]" of the same version, or the same checkout). Finished '
+            "trials are kept: run the same command again to resume",
+            job.trial,
+            "worker",
+        )
+    if client.status != "running":  # cancelled: the connection to the scheduler is gone
+        return ClusterError(
+            f"lost the Dask scheduler (trial {job.trial} was {status}); finished trials are kept: "
+            "start the scheduler and workers again and run the same command to resume",
+            job.trial,
+            "lost",
+        )
+    # cancelled by another client of the scheduler, or its restart
+    return ClusterError(
+        f"the Dask scheduler cancelled trial {job.trial} (another client cancelled it, or "
+        "the cluster was restarted); finished trials are kept: run the same command again "
+        "to resume",
+        job.trial,
+        "cancelled",
+    )

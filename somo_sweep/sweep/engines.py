@@ -23,11 +23,11 @@ import pandas as pd
 
 from somo_sweep.errors import SomoError
 from somo_sweep.sim.settings import ENGINES, MUJOCO_DEFAULT_STEP_S, WorldSettings
-from somo_sweep.sweep.robustness import fold
-from somo_sweep.sweep.study import Simulation, Study
-from somo_sweep.sweep.summary import label_columns
+from somo_sweep.sweep.loaded import Study
+from somo_sweep.sweep.robustness import fold, label_names
+from somo_sweep.sweep.study_file import Simulation
 
-__all__ = ["EngineComparison", "compare", "on_engine"]
+__all__ = ["EngineComparison", "compare", "compare_runs", "on_engine", "on_engines"]
 
 #: Columns that are bookkeeping, not results, in a metrics comparison.
 _NOT_METRICS = {"trial", "repeat", "seed", "wall_time_s", "time_step_used_s", "retried_half_step"}
@@ -59,6 +59,31 @@ def on_engine(study: Study, engine: str, output: Path, time_step_s: float | None
         default = MUJOCO_DEFAULT_STEP_S if engine == "mujoco" else WorldSettings.time_step_s
         simulation = Simulation(engine=engine, time_step_s=time_step_s or default, **shared)
     return replace(study, simulation=simulation, output=Path(output), name=f"{study.name}_{engine}")
+
+
+def on_engines(study: Study, folder: Path, steps: dict[str, float | None]) -> dict[str, Study]:
+    """``study`` as each engine runs it (:func:`on_engine`), each into ``folder/<engine>``.
+
+    Args:
+        study: A loaded study.
+        folder: The folder of both runs.
+        steps: Engine name → its step, s (None: :func:`on_engine`'s default), in run order.
+    """
+    return {engine: on_engine(study, engine, folder / engine, step) for engine, step in steps.items()}
+
+
+def compare_runs(study: Study, runs: dict[str, Study]) -> EngineComparison:
+    """Compare the results folders of the two engines' runs of ``study`` (:func:`compare`).
+
+    Raises:
+        SomoError: A folder holds no results, or the two share no simulated trial.
+    """
+    from somo_sweep.sweep.folder import read_results
+    from somo_sweep.sweep.jobs import build_jobs
+
+    (first, a), (second, b) = runs.items()
+    axes = tuple(build_jobs(study).axes.values())
+    return compare(read_results(a.output), read_results(b.output), (first, second), axes)
 
 
 @dataclass(frozen=True)
@@ -161,7 +186,7 @@ def compare(
     cells[f"status_{a}"] = left.loc[trials, "status"]
     cells[f"status_{b}"] = right.loc[trials, "status"]
     summary: dict[str, dict[str, Any]] = {}
-    for column in label_columns(first):
+    for column in label_names(first):
         label = column.removeprefix("label_")
         la = left.loc[trials].apply(_label_of, axis=1, column=column)
         lb = right.loc[trials].apply(_label_of, axis=1, column=column)
@@ -175,27 +200,41 @@ def compare(
             entry["robust_cells"] = int(robust.sum())
             entry["robust_agree"] = int((robust & (la == lb)).sum())
         summary[label] = entry
-    metrics: dict[str, dict[str, float]] = {}
-    if not summary:
-        for column in first.columns:
-            if column in _NOT_METRICS or column.startswith(("task_", "model_", "label_")):
-                continue
-            if column not in second.columns or not pd.api.types.is_float_dtype(first[column]):
-                continue
-            va, vb = left.loc[trials, column].astype(float), right.loc[trials, column].astype(float)
-            both = pd.concat([va, vb])
-            span = float(both.max() - both.min())
-            gap = (va - vb).abs()
-            diff = float(gap.max())
-            cells[f"{column}_{a}"], cells[f"{column}_{b}"] = va, vb
-            cells[f"share_{column}"] = gap / span if span else 0.0
-            metrics[column] = {
-                "max_abs_diff": diff,
-                "range": span,
-                "share_of_range": diff / span if span else 0.0,
-                "worst_trial": int(gap.idxmax()) if gap.notna().any() else -1,
-            }
+    metrics = {} if summary else _metrics(first, second, left.loc[trials], right.loc[trials], cells, engines)
     return EngineComparison(engines, cells.reset_index(), summary, metrics, tuple(keep))
+
+
+def _metrics(
+    first: pd.DataFrame,
+    second: pd.DataFrame,
+    left: pd.DataFrame,
+    right: pd.DataFrame,
+    cells: pd.DataFrame,
+    engines: tuple[str, str],
+) -> dict[str, dict[str, float]]:
+    """Per numeric metric (a task without labels): the largest difference between the engines and
+    its share of the metric's range; each engine's values and the share go into ``cells``."""
+    a, b = engines
+    metrics: dict[str, dict[str, float]] = {}
+    for column in first.columns:
+        if column in _NOT_METRICS or column.startswith(("task_", "model_", "label_")):
+            continue
+        if column not in second.columns or not pd.api.types.is_float_dtype(first[column]):
+            continue
+        va, vb = left[column].astype(float), right[column].astype(float)
+        both = pd.concat([va, vb])
+        span = float(both.max() - both.min())
+        gap = (va - vb).abs()
+        diff = float(gap.max())
+        cells[f"{column}_{a}"], cells[f"{column}_{b}"] = va, vb
+        cells[f"share_{column}"] = gap / span if span else 0.0
+        metrics[column] = {
+            "max_abs_diff": diff,
+            "range": span,
+            "share_of_range": diff / span if span else 0.0,
+            "worst_trial": int(gap.idxmax()) if gap.notna().any() else -1,
+        }
+    return metrics
 
 
 def _cells(table: pd.DataFrame) -> pd.DataFrame:

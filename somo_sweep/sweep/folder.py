@@ -1,19 +1,18 @@
-"""A results folder as it lies on disk, read-only: part files (damaged ones found), manifest, journals.
+"""A results folder as it lies on disk, read-only: manifest, trials (damaged parts left out), journals.
 
 :class:`~somo_sweep.sweep.store.ResultStore` writes a results folder; this module reads
 one without changing it, so ``show``, ``plot`` and ``recheck`` never crash on a damaged
 part file: they skip it and say so (the next ``run`` moves it to ``trials/quarantine/``
-and runs its trials again).
+and runs its trials again). Which part files are damaged, and why, is
+:mod:`somo_sweep.sweep.parts`.
 """
 
 from __future__ import annotations
 
 import contextlib
 import json
-import os
 import warnings
-from collections import Counter
-from collections.abc import Callable, Collection, Iterator, Mapping
+from collections.abc import Collection, Iterator
 from pathlib import Path
 from typing import Any
 
@@ -22,8 +21,20 @@ import pyarrow as pa
 import pyarrow.compute as pc
 import pyarrow.parquet as pq
 
-from somo_sweep.errors import SomoError, shown
-from somo_sweep.sweep.schema import COLUMNS, MAX_REPLICAS
+from somo_sweep.errors import ManifestError, SomoError, shown
+from somo_sweep.sweep.parts import (
+    PART_COLUMN,
+    REPEATS,
+    UNREADABLE,
+    Damage,
+    OnDamaged,
+    damage_of,
+    declared_types,
+    max_part_rows,
+    part_files,
+    split_parts,
+)
+from somo_sweep.sweep.schema import COLUMNS
 
 __all__ = [
     "INFERRED",
@@ -33,6 +44,7 @@ __all__ = [
     "QUARANTINE",
     "REPEATS",
     "UNREADABLE",
+    "Damage",
     "DamagedPartWarning",
     "declared_types",
     "journal_rows",
@@ -45,10 +57,6 @@ __all__ = [
 ]
 
 MANIFEST = "manifest.json"
-#: How the reason given to ``on_damaged`` for a readable part repeating another's rows starts.
-REPEATS = "repeats"
-#: How the reason for a part we may not read starts (its trials are left out; it is not moved).
-UNREADABLE = "cannot be read"
 #: Largest manifest read; a larger one is damaged (thousands of resumed runs take well under 1 MiB).
 MAX_MANIFEST_BYTES = 64 * 1024 * 1024
 #: The cells an adaptive run inferred instead of simulating (outside ``trials/``: never resumed from).
@@ -60,173 +68,6 @@ JOURNAL_GLOB = ".journal-*.jsonl"
 #: Where damaged part files go, inside ``trials/``; their names get a ``_`` prefix so that
 #: ``pd.read_parquet("…/trials")`` (which reads sub-folders) skips them.
 QUARANTINE = "quarantine"
-
-OnDamaged = Callable[[Path, str], None]
-
-
-def part_files(folder: Path) -> list[Path]:
-    """The part files of a results folder, sorted (none if it has no ``trials/``).
-
-    Raises:
-        SomoError: ``trials`` is not a folder, or one we may not read (its parts would look
-            missing, and the study unfinished).
-    """
-    trials = folder / "trials"
-    if not trials.exists():
-        return []
-    if not trials.is_dir():
-        raise SomoError(f"{trials} is not a folder; a results folder keeps its trials there: move it away")
-    if not os.access(trials, os.R_OK | os.X_OK):
-        raise SomoError(f"cannot read {trials}: permission denied; give read access to it and its files")
-    return sorted(trials.glob("*.parquet"))
-
-
-def _damage(path: Path, part: bool = True) -> str | None:
-    """Why a part file cannot be read as one of ours (None if its footer and schema read back
-    and hold the columns every part file has, of the right kinds)."""
-    try:
-        schema = pq.read_schema(path)
-    except (pa.ArrowException, OSError) as exc:
-        return "empty file" if path.stat().st_size == 0 else str(exc).split("\n")[0]
-    names = schema.names
-    twice = sorted(n for n, k in Counter(names).items() if k > 1)
-    if twice:
-        return f"its column '{shown(twice[0])}' appears twice"
-    reserved = [n for n in (_PART, "inferred" if part else _PART) if n in names]
-    if reserved:  # a reader's own column, or an inferred cell's mark: never in what a run writes
-        return f"it holds a column '{reserved[0]}', which somo-sweep never writes there"
-    for name, (is_kind, kind_name) in _CORE.items():
-        if name not in schema.names:
-            return f"no '{name}' column: not a part file of a somo-sweep results folder"
-        kind = schema.field(name).type
-        if not (is_kind(kind) or (is_kind is pa.types.is_string and pa.types.is_large_string(kind))):
-            return f"its '{name}' column holds {kind}, not the {kind_name} somo-sweep writes"
-    return None
-
-
-#: The columns every part file has, and their kinds (:data:`~somo_sweep.sweep.schema.COLUMNS`).
-_CORE: dict[str, tuple[Callable[[pa.DataType], bool], str]] = {
-    "job_id": (pa.types.is_string, "text"),
-    "trial": (pa.types.is_integer, "whole numbers"),
-    "status": (pa.types.is_string, "text"),
-    "study_hash": (pa.types.is_string, "text"),
-}
-
-
-def split_parts(
-    folder: Path,
-    listed: Collection[str] = (),
-    declared: Mapping[str, str] | None = None,
-    max_rows: int | None = None,
-    schemas: dict[Path, pa.Schema] | None = None,
-) -> tuple[list[Path], list[tuple[Path, str]]]:
-    """(readable part files, [(damaged part file, why)]) of a results folder.
-
-    A part is damaged when it is not a regular file, when its footer or schema does not read,
-    when it lacks a column every part has (or holds it as another kind), when it holds more
-    rows than the study has trials (``max_rows``), or when a column holds another type than
-    the folder's: the type the manifest records for it (``declared``: column → Arrow type
-    alias), else the type most parts give it. So one edited part is set aside, never the
-    parts that agree with each other, whatever their names. Parts the manifest lists
-    (``listed``: its ``trials/NAME`` files) come first, so on a tie a stray file never
-    displaces one a run wrote. ``schemas``, if given, receives the schema of each readable part.
-    """
-    good: list[Path] = []
-    bad: list[tuple[Path, str]] = []
-    found: dict[Path, pa.Schema] = {}
-    for part in sorted(part_files(folder), key=lambda p: f"trials/{p.name}" not in listed):
-        reason = None if part.is_file() else "not a regular file"
-        if reason is None and not os.access(part, os.R_OK):  # not damaged: never set aside for it
-            reason = f"{UNREADABLE} (permission denied)"
-        reason = reason or _damage(part)
-        if reason is None:
-            try:
-                rows = pq.read_metadata(part).num_rows
-                if max_rows is not None and rows > max_rows:
-                    reason = f"{rows} rows, more than the study's {max_rows} trials"
-                else:
-                    found[part] = pq.read_schema(part)
-            except (pa.ArrowException, OSError) as exc:
-                reason = str(exc).split("\n")[0]
-        if reason is not None:
-            bad.append((part, reason))
-    if schemas is not None:
-        schemas.update(found)
-    reference = _reference_types(list(found.values()), declared or {})
-    merged: pa.Schema | None = None
-    for part, schema in found.items():
-        reason = None
-        for field in schema:
-            want = reference.get(field.name)
-            if want is not None and not _fits(field.type, want):
-                reason = f"its '{shown(field.name)}' column holds {field.type}, where the results hold {want}"
-                break
-        if reason is None:
-            try:
-                merged = (
-                    schema
-                    if merged is None
-                    else pa.unify_schemas([merged, schema], promote_options="permissive")
-                )
-            except (pa.ArrowException, ValueError) as exc:
-                reason = f"columns of other types than the part files before it ({str(exc).splitlines()[0]})"
-        if reason is None:
-            good.append(part)
-        else:
-            bad.append((part, reason))
-    return good, bad
-
-
-def _reference_types(schemas: list[pa.Schema], declared: Mapping[str, str]) -> dict[str, pa.DataType]:
-    """Each column's type in a folder: as the manifest declares it, else the most parts' (first on a tie)."""
-    counts: dict[str, Counter[pa.DataType]] = {}
-    for schema in schemas:
-        for field in schema:
-            if not pa.types.is_null(field.type):  # an all-missing column fits any type
-                counts.setdefault(field.name, Counter())[field.type] += 1
-    out = {name: c.most_common(1)[0][0] for name, c in counts.items()}
-    for name, alias in declared.items():
-        with contextlib.suppress(ValueError, TypeError):
-            out[name] = pa.type_for_alias(alias)
-    return out
-
-
-def _fits(kind: pa.DataType, want: pa.DataType) -> bool:
-    """Whether a column of type ``kind`` can be read together with the folder's ``want``."""
-    if kind == want or pa.types.is_null(kind):
-        return True
-    try:
-        pa.unify_schemas([pa.schema([("c", want)]), pa.schema([("c", kind)])], promote_options="permissive")
-    except (pa.ArrowException, ValueError):
-        return False
-    return True
-
-
-def declared_types(manifest: Mapping[str, Any]) -> dict[str, str]:
-    """Column → Arrow type alias, as a results folder's manifest records them."""
-    columns = manifest.get("columns")
-    if not isinstance(columns, dict):
-        return {}
-    return {
-        str(n): info["type"]
-        for n, info in columns.items()
-        if isinstance(info, dict) and isinstance(info.get("type"), str)
-    }
-
-
-def max_part_rows(manifest: Mapping[str, Any]) -> int | None:
-    """The most rows one part file of the folder's study can hold: its trials, and their
-    robustness replicas if a run asked for some (each run records its ``replicas`` at its start)."""
-    n = manifest.get("n_trials")
-    if not (isinstance(n, int) and not isinstance(n, bool) and n > 0):
-        return None
-    runs = manifest.get("runs")
-    asked = 0
-    for run in runs if isinstance(runs, list) else []:
-        k = run.get("replicas") if isinstance(run, dict) else None
-        if isinstance(k, int) and not isinstance(k, bool) and k > asked:
-            asked = k
-    return n * (1 + min(asked, MAX_REPLICAS))
 
 
 #: The type of each manifest key the commands read (:func:`~somo_sweep.sweep.manifest.new_manifest`).
@@ -252,11 +93,11 @@ def read_manifest(folder: str | Path) -> dict[str, Any]:
     """The manifest of a results folder.
 
     Raises:
-        SomoError: No manifest (not a somo-sweep results folder), or a damaged one.
+        ManifestError: No manifest (not a somo-sweep results folder: ``missing``), or a damaged one.
     """
     path = Path(folder) / MANIFEST
     if not path.is_file():
-        raise SomoError(f"{folder} is not a somo-sweep results folder (no {MANIFEST})")
+        raise ManifestError(f"{folder} is not a somo-sweep results folder (no {MANIFEST})", folder, True)
     try:
         size = path.stat().st_size
         if size > MAX_MANIFEST_BYTES:
@@ -284,14 +125,18 @@ def read_manifest(folder: str | Path) -> dict[str, Any]:
             except ValueError:
                 raise ValueError(f"its column '{shown(str(name))}' has an unknown type") from None
     except RecursionError:
-        raise SomoError(
+        raise ManifestError(
             f"{path} is damaged (nested too deeply for a manifest); run the study again with --out {folder} "
-            "to rebuild it from the trials"
+            "to rebuild it from the trials",
+            folder,
+            False,
         ) from None
     except (ValueError, UnicodeDecodeError) as exc:
-        raise SomoError(
+        raise ManifestError(
             f"{path} is damaged ({exc}); run the study again with --out {folder} to rebuild it "
-            "from the trials"
+            "from the trials",
+            folder,
+            False,
         ) from None
     return data
 
@@ -300,7 +145,7 @@ class DamagedPartWarning(UserWarning):
     """A part file of a results folder was skipped (the command line prints it as one line)."""
 
 
-def _warn(path: Path, reason: str) -> None:
+def _warn(path: Path, reason: Damage) -> None:
     warnings.warn(f"skipped damaged part file {path} ({reason})", DamagedPartWarning, stacklevel=3)
 
 
@@ -313,8 +158,8 @@ def read_results(folder: str | Path, on_damaged: OnDamaged | None = None) -> pd.
 
     Args:
         folder: The results folder.
-        on_damaged: Called with (part file, why) for each part that cannot be read, which
-            is skipped (default: a warning).
+        on_damaged: Called with (file, why) for each file, or rows of one, left out or counted
+            once (default: a warning).
 
     Raises:
         SomoError: Not a results folder, or rows of another study in it.
@@ -328,21 +173,45 @@ def read_results(folder: str | Path, on_damaged: OnDamaged | None = None) -> pd.
     )
     for path, reason in bad:
         report(path, reason)
-    tables: list[pa.Table] = []
-    names: list[Path] = []
-    for part in good:
-        try:
-            table = pq.read_table(part)
-        except (pa.ArrowException, OSError) as exc:  # a footer that reads, pages that do not
-            report(part, str(exc).split("\n")[0])
-            continue
-        tables.append(table.append_column(_PART, pa.array([len(names)] * table.num_rows, pa.int64())))
-        names.append(part)
+    tables, names = _part_tables(good, report)
     inferred = _read_inferred(folder, report)
     if inferred is not None:
         inferred = _inferred_cells(inferred, tables, manifest, folder / INFERRED, report)
     if not tables and inferred is None:
         return pd.DataFrame(columns=[*(c.name for c in COLUMNS), "inferred"])
+    df = _together(folder, tables, inferred, report)
+    if PART_COLUMN not in df.columns:
+        df[PART_COLUMN] = pd.Series(pd.NA, index=df.index, dtype="Int64")
+    _refuse_foreign(folder, df, manifest, names)
+    df = _counted_once(df, names, report)
+    missing = {c.name: None for c in COLUMNS if c.name not in df.columns}  # parts from an older version
+    df = df.drop(columns=[PART_COLUMN]).assign(**missing)
+    return df.sort_values("trial", kind="stable").reset_index(drop=True)
+
+
+def _part_tables(parts: list[Path], report: OnDamaged) -> tuple[list[pa.Table], list[Path]]:
+    """The readable parts' tables, each row marked with its part's number, and those parts."""
+    tables: list[pa.Table] = []
+    names: list[Path] = []
+    for part in parts:
+        try:
+            table = pq.read_table(part)
+        except (pa.ArrowException, OSError) as exc:  # a footer that reads, pages that do not
+            report(part, Damage(str(exc).split("\n")[0]))
+            continue
+        tables.append(table.append_column(PART_COLUMN, pa.array([len(names)] * table.num_rows, pa.int64())))
+        names.append(part)
+    return tables, names
+
+
+def _together(
+    folder: Path, tables: list[pa.Table], inferred: pa.Table | None, report: OnDamaged
+) -> pd.DataFrame:
+    """The simulated trials (``inferred`` false), then the inferred cells not simulated since.
+
+    Raises:
+        SomoError: The simulated trials cannot be read together.
+    """
     if tables:
         simulated = pa.concat_tables(tables, promote_options="permissive")
         tables = [simulated.append_column("inferred", pa.array([False] * simulated.num_rows))]
@@ -350,19 +219,27 @@ def read_results(folder: str | Path, on_damaged: OnDamaged | None = None) -> pd.
         done = pa.array(tables[0].column("job_id").to_pylist() if tables else [], type=pa.string())
         tables.append(inferred.filter(pc.invert(pc.is_in(inferred.column("job_id"), value_set=done))))
     try:
-        df = pa.concat_tables(tables, promote_options="permissive").to_pandas()
+        return pa.concat_tables(tables, promote_options="permissive").to_pandas()
     except (pa.ArrowException, ValueError) as exc:
         if inferred is None or len(tables) < 2:
             raise SomoError(
                 f"{folder}: the trials cannot be read together ({str(exc).splitlines()[0]})"
             ) from None
         # The inferred cells do not fit the simulated trials: set them aside, keep the trials.
-        report(folder / INFERRED, f"does not fit the part files ({str(exc).splitlines()[0]})")
-        df = tables[0].to_pandas()
-    if _PART not in df.columns:
-        df[_PART] = pd.Series(pd.NA, index=df.index, dtype="Int64")
-    # Rows of another study first: one that shares cells with this one has the same job ids, and
-    # its part is foreign, not a copy of ours.
+        report(folder / INFERRED, Damage(f"does not fit the part files ({str(exc).splitlines()[0]})"))
+        return tables[0].to_pandas()
+
+
+def _refuse_foreign(folder: Path, df: pd.DataFrame, manifest: dict[str, Any], names: list[Path]) -> None:
+    """Refuse rows of another study.
+
+    Rows of another study are looked for first: one that shares cells with this one has the
+    same job ids, and its part is foreign, not a copy of ours.
+
+    Raises:
+        SomoError: Naming the file that holds them, or the manifest when every row disagrees
+            with it alone.
+    """
     foreign = df[df["study_hash"] != manifest["study_hash"]]
     if len(foreign) and len(foreign) == len(df) and foreign["study_hash"].nunique() == 1:
         # Every row agrees with every other and none with the manifest: the manifest is the odd one.
@@ -373,24 +250,23 @@ def read_results(folder: str | Path, on_damaged: OnDamaged | None = None) -> pd.
             f"{folder}: it is rebuilt from the trials"
         )
     if len(foreign):
-        parts = sorted({names[int(i)].name for i in foreign[_PART].dropna()}) or [INFERRED]
+        parts = sorted({names[int(i)].name for i in foreign[PART_COLUMN].dropna()}) or [INFERRED]
         raise SomoError(
             f"{folder}: {len(foreign)} row(s) belong to another study "
             f"(hash {foreign['study_hash'].iloc[0]}), in {', '.join(parts)}; move that file away"
         )
-    repeated = df["job_id"].duplicated(keep="first") & df[_PART].notna()
-    for index, rows in df[repeated].groupby(_PART):
-        first = df.loc[df["job_id"].isin(rows["job_id"]) & ~repeated, _PART]
+
+
+def _counted_once(df: pd.DataFrame, names: list[Path], report: OnDamaged) -> pd.DataFrame:
+    """``df`` with each simulated job's row once: the first part's (a later part repeating it is a copy)."""
+    repeated = df["job_id"].duplicated(keep="first") & df[PART_COLUMN].notna()
+    for index, rows in df[repeated].groupby(PART_COLUMN):
+        first = df.loc[df["job_id"].isin(rows["job_id"]) & ~repeated, PART_COLUMN]
         where = ", ".join(sorted({names[int(i)].name for i in first.dropna()}))
-        report(names[int(index)], f"{REPEATS} {len(rows)} row(s) stored in {where}: counted once (a copy?)")
-    df = df[~repeated]
-    missing = {c.name: None for c in COLUMNS if c.name not in df.columns}  # parts from an older version
-    df = df.drop(columns=[_PART]).assign(**missing)
-    return df.sort_values("trial", kind="stable").reset_index(drop=True)
-
-
-#: A column added while reading: which part file a row came from.
-_PART = "__part_file__"
+        report(
+            names[int(index)], Damage.repeats(f"{len(rows)} row(s) stored in {where}: counted once (a copy?)")
+        )
+    return df[~repeated]
 
 
 def _read_inferred(folder: Path, report: OnDamaged) -> pa.Table | None:
@@ -398,19 +274,19 @@ def _read_inferred(folder: Path, report: OnDamaged) -> pa.Table | None:
     if not (path.exists() or path.is_symlink()):
         return None
     if not path.is_file():  # a folder, a FIFO, a dangling link: its cells are missing, say so
-        report(path, "not a regular file")
+        report(path, Damage("not a regular file"))
         return None
     try:
         table = pq.read_table(path)
     except (pa.ArrowException, OSError) as exc:
-        report(path, str(exc).split("\n")[0])
+        report(path, Damage(str(exc).split("\n")[0]))
         return None
     if "inferred" not in table.column_names:
-        report(path, "no 'inferred' column: not the inferred cells of an adaptive run")
+        report(path, Damage("no 'inferred' column: not the inferred cells of an adaptive run"))
         return None
-    why = _damage(path, part=False)
+    why = damage_of(path, part=False)
     if why is not None:  # readable, but not what an adaptive run writes
-        report(path, why)
+        report(path, Damage(why))
         return None
     # Every row of this file is inferred, whatever its column says (a hand edit must not pass
     # an inferred cell off as simulated); rows without a job, trial or status are not cells;
@@ -424,7 +300,7 @@ def _read_inferred(folder: Path, report: OnDamaged) -> pa.Table | None:
     )
     if not pc.all(whole).as_py() and table.num_rows:
         broken = table.num_rows - pc.sum(whole).as_py()
-        report(path, f"{REPEATS} {broken} row(s) without a job, trial or status: left out")
+        report(path, Damage.repeats(f"{broken} row(s) without a job, trial or status: left out"))
         table = table.filter(whole)
     ids = table.column("job_id").to_pylist()
     first_of: dict[str, int] = {}
@@ -432,7 +308,7 @@ def _read_inferred(folder: Path, report: OnDamaged) -> pa.Table | None:
         first_of.setdefault(job, i)
     first = sorted(first_of.values())
     if len(first) < table.num_rows:
-        report(path, f"{REPEATS} {table.num_rows - len(first)} repeated row(s): counted once")
+        report(path, Damage.repeats(f"{table.num_rows - len(first)} repeated row(s): counted once"))
         table = table.take(pa.array(first, pa.int64()))
     return table
 
@@ -456,7 +332,7 @@ def _inferred_cells(
         if outside:
             last = n_trials - 1
             why = f"{outside} row(s) numbered outside the study's trials 0 … {last}: left out"
-            report(path, f"{REPEATS} {why}")
+            report(path, Damage.repeats(why))
             keep = pc.and_(keep, inside)
     done_ids: set[str] = set()
     done_trials: set[int] = set()
@@ -467,7 +343,10 @@ def _inferred_cells(
     clash = pa.array([n in done_trials and j not in done_ids for j, n in zip(ids, numbers, strict=True)])
     n_clash = pc.sum(pc.cast(clash, pa.int64())).as_py() or 0
     if n_clash:
-        report(path, f"{REPEATS} {n_clash} row(s) numbered as simulated trials with another job id: left out")
+        report(
+            path,
+            Damage.repeats(f"{n_clash} row(s) numbered as simulated trials with another job id: left out"),
+        )
         keep = pc.and_(keep, pc.invert(clash))
     return inferred.filter(keep)
 

@@ -26,7 +26,7 @@ from datetime import UTC, datetime
 from pathlib import Path
 from typing import Any
 
-from somo_sweep.errors import SomoError, StorageError, os_cause
+from somo_sweep.errors import FolderInUse, SomoError, StorageError, os_cause
 
 __all__ = ["LOCK_BYTES", "LOCK_NAME", "FolderLock", "acquire", "holder_now"]
 
@@ -48,6 +48,11 @@ class FolderLock:
     path: Path
     fd: int
     previous: str = ""
+
+    @property
+    def holder_line(self) -> str:
+        """The holder line a killed run left in the file (``pid … on HOST since …``), or ""."""
+        return self.previous if self.previous.startswith("pid ") else ""
 
     @property
     def stop_record(self) -> dict[str, Any] | None:
@@ -135,7 +140,8 @@ def acquire(path: Path) -> FolderLock:
     """Take the folder lock ``path``.
 
     Raises:
-        SomoError: Another run holds it (the message names its pid and host), or it is a link.
+        FolderInUse: Another run holds it (the message names its pid and host).
+        SomoError: It is a link, a folder or not a regular file.
         StorageError: It cannot be created or written (a read-only or full disk); no file is left.
     """
     while True:
@@ -148,10 +154,7 @@ def acquire(path: Path) -> FolderLock:
         except BlockingIOError:
             holder = os.pread(fd, LOCK_BYTES, 0).decode(errors="replace").strip() or "another process"
             os.close(fd)
-            raise SomoError(
-                f"{path.parent} is in use by another somo-sweep run ({holder}); "
-                "wait for it to finish or stop it, or use another --out folder"
-            ) from None
+            raise FolderInUse(path.parent, holder) from None
         try:  # a run that ended between our open and our flock removed the file: lock the new one
             current = os.path.samestat(os.fstat(fd), os.lstat(path))
         except FileNotFoundError:

@@ -13,12 +13,13 @@ import json
 import os
 import platform
 import tempfile
+from collections.abc import Callable
 from datetime import UTC, datetime
 from importlib.metadata import PackageNotFoundError, version
 from pathlib import Path
 from typing import Any
 
-from somo_sweep.errors import SomoError
+from somo_sweep.errors import SomoError, os_error_for
 from somo_sweep.sweep.folder import MANIFEST, read_manifest
 from somo_sweep.sweep.lock import LOCK_NAME, acquire
 
@@ -29,6 +30,7 @@ __all__ = [
     "now_utc",
     "record_files",
     "versions",
+    "write_atomically",
     "write_json",
 ]
 
@@ -76,6 +78,28 @@ def fresh_tmp(path: Path) -> Path:
     os.umask(mask)
     os.chmod(name, 0o666 & ~mask)
     return Path(name)
+
+
+def write_atomically(path: Path, write: Callable[[Path], object]) -> None:
+    """Write ``path`` through a fresh temporary file beside it (``write`` fills it), then a rename.
+
+    Raises:
+        OSError: As raised for ``path`` (the errno kept), never naming the temporary file; the
+            temporary file is removed.
+    """
+    try:
+        tmp = fresh_tmp(path)
+    except OSError as exc:
+        raise os_error_for(exc, path) from None
+    try:
+        write(tmp)
+        os.replace(tmp, path)
+    except OSError as exc:
+        tmp.unlink(missing_ok=True)
+        raise os_error_for(exc, path) from None
+    except BaseException:
+        tmp.unlink(missing_ok=True)
+        raise
 
 
 def write_json(path: Path, data: dict[str, Any]) -> None:

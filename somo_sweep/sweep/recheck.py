@@ -10,7 +10,7 @@ and lists every cell that differs. ``somo-sweep recheck STUDY.yaml`` is its comm
 from __future__ import annotations
 
 import math
-from collections.abc import Callable, Sequence
+from collections.abc import Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -20,11 +20,13 @@ import pandas as pd
 
 from somo_sweep.errors import SomoError
 from somo_sweep.sweep.convergence import with_stored_step
-from somo_sweep.sweep.execution import outcome_of, run_job
-from somo_sweep.sweep.jobs import Job, build_jobs, replica_jobs
-from somo_sweep.sweep.runner import outcome_row
-from somo_sweep.sweep.store import read_manifest, read_results
-from somo_sweep.sweep.study import Study
+from somo_sweep.sweep.folder import read_manifest, read_results
+from somo_sweep.sweep.job import Job, replica_jobs
+from somo_sweep.sweep.jobs import build_jobs
+from somo_sweep.sweep.loaded import Study
+from somo_sweep.sweep.parts import OnDamaged
+from somo_sweep.sweep.rows import outcome_row
+from somo_sweep.sweep.trial import outcome_of, run_job
 
 __all__ = ["Mismatch", "RecheckReport", "recheck", "write_report"]
 
@@ -88,7 +90,7 @@ def _same(a: Any, b: Any) -> bool:
 
 
 def recheck(
-    study: Study, n_trials: int = 20, seed: int = 0, on_damaged: Callable[[Path, str], None] | None = None
+    study: Study, n_trials: int = 20, seed: int = 0, on_damaged: OnDamaged | None = None
 ) -> RecheckReport:
     """Re-run ``n_trials`` stored trials of ``study`` drawn at random; compare cell by cell.
 

@@ -32,9 +32,10 @@ import numpy as np
 import pandas as pd
 
 from somo_sweep.sweep.adaptive import UNKNOWN
-from somo_sweep.sweep.jobs import Job, JobTable, replica_jobs
+from somo_sweep.sweep.job import Job, replica_jobs
+from somo_sweep.sweep.jobs import JobTable
+from somo_sweep.sweep.loaded import Study
 from somo_sweep.sweep.sampling import Batch, Known
-from somo_sweep.sweep.study import Study
 
 __all__ = ["ROBUST", "ReplicaPlan", "boundary_mask", "fold", "label_names"]
 
@@ -160,7 +161,7 @@ class ReplicaPlan:
         while chosen and number < MAX_ROUNDS:
             todo = [r for t in sorted(chosen) for r in self.replicas(t) if r.job_id not in known]
             if todo:
-                yield Batch(number, len(chosen), todo, kind="replicas")
+                yield Batch(number, len(chosen), todo, kind="replicas", replicas=self.k)
             self.replicated |= chosen
             before = self._keys(known, inferred, False)
             after = self._keys(known, inferred, True)

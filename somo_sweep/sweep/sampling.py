@@ -21,8 +21,9 @@ import numpy as np
 
 from somo_sweep.errors import DescriptionError, Problem
 from somo_sweep.sweep.adaptive import UNKNOWN, AdaptiveGrid, Cell, infer, next_cells
-from somo_sweep.sweep.jobs import Job, JobTable
-from somo_sweep.sweep.study import Study
+from somo_sweep.sweep.job import Job
+from somo_sweep.sweep.jobs import JobTable
+from somo_sweep.sweep.loaded import Study
 
 __all__ = ["INFERRED_MESSAGE", "AdaptivePlan", "Batch", "Known", "describe", "grid_of"]
 
@@ -42,12 +43,14 @@ class Batch:
         cells: Grid cells in this round (some may be stored already).
         jobs: The round's trials not yet stored.
         kind: ``trials`` (the study's own) or ``replicas`` (:mod:`somo_sweep.sweep.robustness`).
+        replicas: For a replica round: the replicas each of its cells runs.
     """
 
     number: int | None
     cells: int
     jobs: Sequence[Job]
     kind: str = "trials"
+    replicas: int = 0
 
 
 def _refinable(values: tuple[Any, ...]) -> bool:

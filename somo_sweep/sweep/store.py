@@ -27,10 +27,8 @@ a results folder is never written into.
 from __future__ import annotations
 
 import contextlib
-import errno
 import json
 import os
-import re
 import sys
 import uuid
 from datetime import UTC, datetime
@@ -47,79 +45,33 @@ from somo_sweep.sweep.folder import (
     INFERRED,
     JOURNAL_GLOB,
     MANIFEST,
-    PART_GLOB,
-    QUARANTINE,
-    UNREADABLE,
-    declared_types,
     journal_rows,
-    max_part_rows,
     read_manifest,
     read_results,
-    split_parts,
 )
 from somo_sweep.sweep.lock import LOCK_NAME, FolderLock, acquire
-from somo_sweep.sweep.manifest import (
-    describe_changes,
-    fresh_tmp,
-    new_manifest,
-    now_utc,
-    record_files,
-    versions,
-    write_json,
+from somo_sweep.sweep.manifest import now_utc, record_files, versions, write_atomically, write_json
+from somo_sweep.sweep.opening import (
+    NAME_ERRORS,
+    OWN,
+    check_target,
+    credit,
+    mark_aborted,
+    open_manifest,
+    quarantine,
 )
+from somo_sweep.sweep.parts import stored_ids, stored_labels, stored_statuses
 from somo_sweep.sweep.schema import COLUMNS, FIXED, arrow_type, merge_types, unit_of
 
 __all__ = ["ResultStore", "read_manifest", "read_results", "record_files"]
 
-#: Files a run may find in a folder that is not (yet) a results folder.
-_OWN = re.compile(rf"\.lock|\.({re.escape(MANIFEST)}|study\.yaml|study\.json)(\.[^/]*)?\.tmp")
-
-
-#: Errors that blame the name given, not the disk.
-_NAME_ERRORS = (errno.ENAMETOOLONG, errno.ENOTDIR, errno.ELOOP, errno.EISDIR, errno.EEXIST, errno.EINVAL)
-
-
-def _check_target(folder: Path) -> None:
-    """Refuse a file, or a non-empty folder that is not a results folder."""
-    if folder.exists() and not folder.is_dir():
-        raise SomoError(f"{folder} is a file, not a folder; give --out a folder (new or a results folder)")
-    own = ("trials", f"trials/{QUARANTINE}", "plots", MANIFEST)
-    linked = [name for name in own if (folder / name).is_symlink()]
-    if linked:
-        raise SomoError(
-            f"{folder / linked[0]} is a symbolic link; a results folder's own files and folders must "
-            "be in it (the run would write through the link, outside the folder); nothing was written"
-        )
-    if not folder.is_dir() or (folder / MANIFEST).exists() or (folder / "trials").is_dir():
-        return
-    others = sorted(p.name for p in folder.iterdir() if not _OWN.fullmatch(p.name))
-    if others:
-        shown = ", ".join(others[:3]) + (", …" if len(others) > 3 else "")
-        raise SomoError(
-            f"{folder} is not empty ({shown}) and is not a somo-sweep results folder (no {MANIFEST}); "
-            "nothing was written: give --out a new folder or a results folder"
-        )
-
-
-def _inside(folder: Path, rel: str) -> Path | None:
-    """``folder / rel`` if ``rel`` is a plain relative path inside ``folder``, else None.
-
-    Every folder on the way must be a real folder, not a link: a link to a folder elsewhere
-    would take ``rel`` (say ``evil/victim.txt`` in a hand-edited manifest) outside ``folder``.
-    """
-    path = Path(rel)
-    if path.is_absolute() or ".." in path.parts or not path.parts:
-        return None
-    step = folder
-    for part in path.parts[:-1]:
-        step = step / part
-        if step.is_symlink() or not step.is_dir():
-            return None
-    return folder / path
-
 
 class ResultStore:
     """Write access to a results folder for one run: lock, resume, parts, journal, manifest.
+
+    Opening it sets the folder in order (:mod:`somo_sweep.sweep.opening`): a folder that is not a
+    results folder is refused, damaged parts are set aside, the manifest is continued or rebuilt,
+    killed runs are marked and their journalled rows recovered.
 
     Args:
         folder: The results folder (created if missing).
@@ -136,8 +88,10 @@ class ResultStore:
         rows_written: Rows this run put into part files.
 
     Raises:
-        SomoError: Another run holds the folder, it holds rows of a different study, or it is
-            a file or a folder that is not a results folder.
+        SomoError: Another run holds the folder (:class:`~somo_sweep.errors.FolderInUse`), it holds
+            rows of a different study (:class:`~somo_sweep.errors.StudyChanged`), or it is a file
+            or a folder that is not a results folder.
+        StorageError: The folder could not be created or set in order (a full or read-only disk).
     """
 
     def __init__(
@@ -158,18 +112,7 @@ class ResultStore:
         self._schemas: dict[Path, pa.Schema] = {}  # of the part files, read once on opening
         self._keep_lock_file = False
         created = not os.path.lexists(self.folder)
-        try:
-            _check_target(self.folder)
-            self.folder.mkdir(parents=True, exist_ok=True)
-        except OSError as exc:  # a name too long, no permission, a file in the way, ...
-            where = shown(str(self.folder), 200)
-            cause, advice = os_cause(exc)
-            # A name no folder can have is bad input (exit 2); a full or read-only disk a failed run (1).
-            kind = SomoError if exc.errno in _NAME_ERRORS else StorageError
-            raise kind(
-                f"cannot create the results folder {where}: {cause}; nothing was written: {advice}, "
-                "then run the same command again"
-            ) from None
+        self._create()
         try:
             self._lock: FolderLock | None = acquire(self.folder / LOCK_NAME)
         except BaseException:
@@ -178,150 +121,75 @@ class ResultStore:
                     self.folder.rmdir()
             raise
         try:
-            self.trials.mkdir(exist_ok=True)
-            for tmp in self.trials.glob(".*.tmp"):
-                tmp.unlink()
-            for tmp in self.folder.glob(".*.tmp"):  # a killed run's manifest or study copy
-                if _OWN.fullmatch(tmp.name):
-                    tmp.unlink()
-            self._quarantine()
-            self.manifest = self._open(study_hash, resolved, axes, overwrite)
+            self._set_in_order(study_hash, resolved, axes, overwrite)
             self._init_types(param_types, column_types or {})
             # Unique per run, so that a resumed run never overwrites an earlier part file.
             self.run_id = f"{datetime.now(UTC):%Y%m%dT%H%M%S}-{uuid.uuid4().hex[:8]}"
             self.seq = 0
-            self._mark_aborted()
+            mark_aborted(self.manifest, self._lock, self.notes)
             self._heal_schemas()
             self._recover(study_hash)
             self._write_manifest()
         except BaseException as exc:
-            stop = self._lock.stop_record if self._lock is not None else None
-            if (
-                stop is not None and self._lock is not None
-            ):  # not yet in the manifest: keep it for the next run
-                self._keep_lock_file = self._lock.record_stop(stop)
-            self.close()
-            if created:  # a start that failed on a new folder leaves no empty folder behind
-                with contextlib.suppress(OSError):
-                    self.trials.rmdir()
-                    self.folder.rmdir()
-            if isinstance(exc, OSError):  # a full disk while setting the folder in order
-                cause, advice = os_cause(exc)
-                where = f"cannot write {exc.filename}" if exc.filename else "cannot write in it"
-                raise StorageError(
-                    f"cannot open the results folder {self.folder}: {where}: {cause}; what it holds is "
-                    f"intact (finished trials of a killed run stay in its journal): {advice}, then run "
-                    "the same command again"
-                ) from None
+            self._abandon(exc, created)
             raise
 
     # -- opening ---------------------------------------------------------------------------
 
-    def _quarantine(self) -> None:
-        try:  # judged as every reader judges them: the manifest's files first, its column types
-            manifest = read_manifest(self.folder)
-            listed = {str(f) for f in manifest.get("files", [])}
-            declared, max_rows = declared_types(manifest), max_part_rows(manifest)
-        except SomoError:  # no manifest yet, or a damaged one (rebuilt from the parts)
-            listed, declared, max_rows = set(), {}, None
-        _, bad = split_parts(self.folder, listed, declared, max_rows, self._schemas)
-        unreadable = [part for part, reason in bad if reason.startswith(UNREADABLE)]
-        if unreadable:  # not damaged: moving it away would rerun trials that are safely stored
-            raise SomoError(
-                f"cannot read {unreadable[0]}: permission denied; give read access to it and run the same "
-                "command again (nothing was moved)"
-            )
-        for part, reason in bad:
-            target = self.trials / QUARANTINE / f"_{part.name}"
-            target.parent.mkdir(exist_ok=True)
-            os.replace(part, target)
-            self.notes.append(
-                f"damaged part file {part.name} ({reason}) moved to {target}; its trials run again"
-            )
+    def _create(self) -> None:
+        """Create the folder (after checking what is there).
 
-    def _quarantine_foreign(self, study_hash: str, manifest: dict[str, Any]) -> None:
-        """Move part files holding rows of another study (copied in by hand) to the quarantine,
-        as ``show`` would otherwise refuse the folder; their rows of this study run again."""
-        for part in self._parts():
-            column = pq.read_table(part, columns=["study_hash"]).column("study_hash")
-            others = {str(h) for h in pc.unique(column).to_pylist()} - {study_hash}
-            if others:
-                target = self.trials / QUARANTINE / f"_{part.name}"
-                target.parent.mkdir(exist_ok=True)
-                os.replace(part, target)
-                rel = part.relative_to(self.folder).as_posix()
-                manifest["files"] = [f for f in manifest["files"] if f != rel]
-                self.notes.append(
-                    f"part file {part.name} holds rows of another study (hash {shown(sorted(others)[0])}): "
-                    f"moved to {target}; any trials of this study in it run again"
-                )
+        Raises:
+            SomoError: A name no folder can have (bad input, exit 2), or what is there is refused.
+            StorageError: A full or read-only disk (a failed run, exit 1).
+        """
+        try:
+            check_target(self.folder)
+            self.folder.mkdir(parents=True, exist_ok=True)
+        except OSError as exc:  # a name too long, no permission, a file in the way, ...
+            where = shown(str(self.folder), 200)
+            cause, advice = os_cause(exc)
+            kind = SomoError if exc.errno in NAME_ERRORS else StorageError
+            raise kind(
+                f"cannot create the results folder {where}: {cause}; nothing was written: {advice}, "
+                "then run the same command again"
+            ) from None
 
-    def _stored_hashes(self) -> set[str]:
-        hashes: set[str] = set()
-        for part in self._parts():
-            hashes.update(_study_hashes(part))
-        for journal in self.trials.glob(JOURNAL_GLOB):
-            hashes.update(str(r.get("study_hash")) for r in journal_rows(journal))
-        return hashes
-
-    def _open(
+    def _set_in_order(
         self, study_hash: str, resolved: dict[str, Any], axes: dict[str, str], overwrite: bool
-    ) -> dict[str, Any]:
-        old: dict[str, Any] | None = None
-        damaged = ""
-        if (self.folder / MANIFEST).exists():
-            try:
-                old = read_manifest(self.folder)
-            except SomoError as exc:
-                damaged = str(exc)
-        stored = self._stored_hashes()
-        if old is not None and (old["study_hash"] == study_hash or not stored):
-            if old["study_hash"] == study_hash:
-                old.setdefault("files", [])
-                if stored - {study_hash}:
-                    self._quarantine_foreign(study_hash, old)
-                return old
-            return new_manifest(study_hash, resolved, axes)
-        if old is None and stored <= {study_hash}:
-            if stored:
-                if damaged:
-                    os.replace(self.folder / MANIFEST, self.folder / f"{MANIFEST}.damaged")
-                why = "damaged (kept as manifest.json.damaged)" if damaged else "missing"
-                self.notes.append(f"{MANIFEST} was {why}: rebuilt from the part files (earlier runs unknown)")
-            new = new_manifest(study_hash, resolved, axes)
-            new["files"] = [f"{MANIFEST}.damaged"] if damaged and stored else []
-            return new
-        other = shown(old["study_hash"] if old is not None else ", ".join(sorted(stored - {study_hash})))
-        if overwrite:
-            n = self._delete_tool_files(old)
-            self.notes.append(f"--overwrite: deleted {n} file(s) of the previous study (hash {other})")
-            return new_manifest(study_hash, resolved, axes)
-        changed = (
-            describe_changes(old.get("study", {}), resolved)
-            if old is not None
-            else "unknown (no readable manifest)"
-        )
-        raise SomoError(
-            f"{self.folder} holds results of a different study (hash {other}, this one is {study_hash}); "
-            f"changed: {changed}. Results are never mixed: run with --out NEW_FOLDER, or with --overwrite "
-            "to delete them and start over"
-        )
+    ) -> None:
+        """Remove a killed run's temporary files, set damaged parts aside, open the manifest."""
+        self.trials.mkdir(exist_ok=True)
+        for tmp in self.trials.glob(".*.tmp"):
+            tmp.unlink()
+        for tmp in self.folder.glob(".*.tmp"):  # a killed run's manifest or study copy
+            if OWN.fullmatch(tmp.name):
+                tmp.unlink()
+        quarantine(self.folder, self._schemas, self.notes)
+        self.manifest = open_manifest(self.folder, study_hash, resolved, axes, overwrite, self.notes)
 
-    def _delete_tool_files(self, old: dict[str, Any] | None) -> int:
-        """Delete what the tool wrote here (listed in the manifest, or its part and journal files)."""
-        paths = {p for p in (_inside(self.folder, str(f)) for f in (old or {}).get("files", [])) if p}
-        paths.update(self.trials.glob(PART_GLOB))
-        paths.update(self.trials.glob(JOURNAL_GLOB))
-        paths.update((self.trials / QUARANTINE).glob(f"_{PART_GLOB}"))
-        n = 0
-        for path in sorted(paths):
-            if path.is_file() and not path.is_symlink():
-                path.unlink()
-                n += 1
-        for sub in (self.folder / "plots", self.trials / QUARANTINE):
-            with contextlib.suppress(OSError):  # kept if anything else is in it
-                sub.rmdir()
-        return n
+    def _abandon(self, exc: BaseException, created: bool) -> None:
+        """Release the folder after an opening that failed; a full disk becomes a StorageError.
+
+        Raises:
+            StorageError: ``exc`` was an operating-system error (what the folder holds is intact).
+        """
+        stop = self._lock.stop_record if self._lock is not None else None
+        if stop is not None and self._lock is not None:  # not yet in the manifest: keep it for the next run
+            self._keep_lock_file = self._lock.record_stop(stop)
+        self.close()
+        if created:  # a start that failed on a new folder leaves no empty folder behind
+            with contextlib.suppress(OSError):
+                self.trials.rmdir()
+                self.folder.rmdir()
+        if isinstance(exc, OSError):  # a full disk while setting the folder in order
+            cause, advice = os_cause(exc)
+            where = f"cannot write {exc.filename}" if exc.filename else "cannot write in it"
+            raise StorageError(
+                f"cannot open the results folder {self.folder}: {where}: {cause}; what it holds is "
+                f"intact (finished trials of a killed run stay in its journal): {advice}, then run "
+                "the same command again"
+            ) from None
 
     def _init_types(self, param_types: dict[str, list[Any]], declared: dict[str, str]) -> None:
         self.types: dict[str, pa.DataType] = {
@@ -333,29 +201,6 @@ class ResultStore:
             self.types[name] = merge_types(self.types.get(name, pa.null()), pa.type_for_alias(alias))
         for name, values in param_types.items():
             self.types[name] = merge_types(self.types.get(name, pa.null()), arrow_type(values))
-
-    def _mark_aborted(self) -> None:
-        assert self._lock is not None
-        stop = self._lock.stop_record
-        left = self._lock.previous if self._lock.previous.startswith("pid ") else ""
-        for run in self.manifest["runs"]:
-            if run.get("status") != "running":
-                continue
-            # We hold the lock: its process is gone. It stopped itself if it left a stop record.
-            if stop is not None and stop.get("stopped") == run.get("start_utc"):
-                info = {k: stop[k] for k in ("trials_finished", "trials_written") if k in stop}
-                run.update(status="failed", end_utc=stop.get("at"), failure=stop.get("cause"), **info)
-                self.notes.append(
-                    f"the run started {run.get('start_utc')} stopped itself at {stop.get('at')} "
-                    f"({stop.get('cause')}): marked failed"
-                )
-            else:
-                run.update(status="aborted", aborted_found_utc=now_utc())
-                holder = f" ({shown(left, 200)})" if left else ""
-                self.notes.append(
-                    f"the run started {run.get('start_utc')}{holder} was killed (or its disk could not "
-                    "be written even to record its end): marked aborted"
-                )
 
     def _heal_schemas(self) -> None:
         """Give every part the current schema (a rewrite cut short by a full disk leaves mixed ones)."""
@@ -387,74 +232,28 @@ class ResultStore:
         if rows:
             self.write(list(rows.values()))
             self.rows_written = 0  # written now, but finished by the killed run
-            whose = self._credit(by_run)
+            whose = credit(self.manifest, by_run)
             source = "their journals" if len(by_run) > 1 else "its journal"
             self.notes.append(f"recovered {len(rows)} finished trial(s) of {whose} from {source}")
         for journal in journals:
             journal.unlink()
-
-    def _credit(self, by_run: dict[str, int]) -> str:
-        """Count the rows recovered from each run's journal as that run's (``show`` lists them);
-        returns whose they were, in words (``a killed run``, ``a run that stopped itself``).
-
-        A run is found by its id; a journal of a run recorded without one (an older version)
-        goes to the one run left without an end, if there is exactly one."""
-        runs = self.manifest["runs"]
-        ended = [r for r in runs if r.get("status") in ("aborted", "failed") and "run_id" not in r]
-        statuses: set[str | None] = set()
-        for run_id, n in by_run.items():
-            run = next((r for r in runs if r.get("run_id") == run_id), None)
-            if run is None and len(ended) == 1:
-                run = ended[0]
-            if run is not None:
-                run["trials_recovered"] = run.get("trials_recovered", 0) + n
-                run["trials_written"] = run.get("trials_written", 0) + n
-            statuses.add(run.get("status") if run is not None else None)
-        status = statuses.pop() if len(statuses) == 1 else None
-        unknown = "an earlier run" if len(by_run) == 1 else "earlier runs"
-        return {"aborted": "a killed run", "failed": "a run that stopped itself"}.get(status or "", unknown)
 
     # -- reading -----------------------------------------------------------------------------
 
     def _parts(self) -> list[Path]:
         return sorted(self.trials.glob("*.parquet"))
 
-    def done_statuses(self) -> dict[str, str]:
-        """Status of every trial already stored, by job id."""
-        parts = self._parts()
-        if not parts:
-            return {}
-        table = _read_columns(parts, ["job_id", "status"])
-        return dict(zip(table.column("job_id").to_pylist(), table.column("status").to_pylist(), strict=True))
+    def done_ids(self) -> set[str]:
+        """Ids of the trials already stored."""
+        return set(stored_statuses(self._parts()))
 
     def stored_labels(self) -> dict[str, tuple[str, dict[str, str]]]:
         """Status and labels (names without ``label_``) of every trial already stored, by job id."""
-        parts = self._parts()
-        if not parts:
-            return {}
-        names = [n for n in self._schema().names if n.startswith("label_")]
-        table = pq.read_table(parts, columns=["job_id", "status", *names]).to_pylist()
-        return {
-            r["job_id"]: (r["status"], {n.removeprefix("label_"): r[n] for n in names if r[n] is not None})
-            for r in table
-        }
-
-    def done_ids(self) -> set[str]:
-        """Ids of the trials already stored."""
-        return set(self.done_statuses())
+        return stored_labels(self._parts(), [n for n in self._schema().names if n.startswith("label_")])
 
     def stored_ids(self) -> tuple[np.ndarray, np.ndarray]:
-        """(ids of the trials stored, ids of those stored as ``error``), as NumPy ``S16`` arrays.
-
-        16 bytes a trial, never a Python object per row: resume costs the same memory at any size.
-        """
-        parts = self._parts()
-        if not parts:
-            return np.empty(0, dtype="S16"), np.empty(0, dtype="S16")
-        table = _read_columns(parts, ["job_id", "status"])
-        ids = table.column("job_id").cast(pa.binary()).to_numpy(zero_copy_only=False).astype("S16")
-        errors = pc.equal(table.column("status"), "error").to_numpy(zero_copy_only=False)
-        return ids, ids[errors.astype(bool)]
+        """(ids of the trials stored, ids of those stored as ``error``), as NumPy ``S16`` arrays."""
+        return stored_ids(self._parts())
 
     # -- writing -----------------------------------------------------------------------------
 
@@ -479,19 +278,7 @@ class ResultStore:
         """Keep a copy of the study file (``study.yaml`` / ``study.json``)."""
         target = self.folder / f"study{source.suffix}"
         text = source.read_bytes()
-        try:
-            tmp = fresh_tmp(target)
-        except OSError as exc:
-            raise os_error_for(exc, target) from None
-        try:
-            tmp.write_bytes(text)
-            os.replace(tmp, target)
-        except OSError as exc:
-            tmp.unlink(missing_ok=True)
-            raise os_error_for(exc, target) from None
-        except BaseException:
-            tmp.unlink(missing_ok=True)
-            raise
+        write_atomically(target, lambda tmp: tmp.write_bytes(text))
         self._record(target)
 
     def start_run(self, info: dict[str, Any]) -> None:
@@ -645,24 +432,12 @@ class ResultStore:
         return pa.schema([pa.field(n, types[n], metadata={"unit": unit_of(n)}) for n in order])
 
     def _atomic(self, table: pa.Table, path: Path, schema: pa.Schema) -> None:
-        """Write ``table`` as ``path`` through a temporary file; an error names ``path``."""
+        """Write ``table`` as ``path`` (in ``schema``) through a temporary file; an error names ``path``."""
         for name in schema.names:
             if name not in table.column_names:
                 table = table.append_column(name, pa.nulls(len(table), schema.field(name).type))
         table = table.select(schema.names).cast(schema)
-        try:
-            tmp = fresh_tmp(path)
-        except OSError as exc:
-            raise os_error_for(exc, path) from None
-        try:
-            pq.write_table(table, tmp)
-            os.replace(tmp, path)
-        except OSError as exc:
-            tmp.unlink(missing_ok=True)
-            raise os_error_for(exc, path) from None
-        except BaseException:
-            tmp.unlink(missing_ok=True)
-            raise
+        write_atomically(path, lambda tmp: pq.write_table(table, tmp))
 
     def _write_manifest(self) -> None:
         schema = self._schema() if hasattr(self, "types") else pa.schema([])
@@ -690,34 +465,6 @@ class ResultStore:
         if self._lock is not None:
             self._lock.release(remove=not self._keep_lock_file)
             self._lock = None
-
-
-def _read_columns(parts: list[Path], columns: list[str]) -> pa.Table:
-    """Some columns of part files, read one file at a time on this thread.
-
-    ``pq.read_table`` of a list of files goes through Arrow's dataset layer and its thread
-    pools: on resume of a 200-part folder that left 34 MB more resident in the sweep's process,
-    this 7 MB.
-    """
-    return pa.concat_tables(
-        [pq.ParquetFile(part).read(columns=columns, use_threads=False) for part in parts],
-        promote_options="permissive",
-    )
-
-
-def _study_hashes(part: Path) -> set[str]:
-    """The study hashes in a part file: from its row groups' statistics when every one has them,
-    null-free and one value (a part a run wrote), else from the column itself."""
-    meta = pq.read_metadata(part)
-    index = meta.schema.to_arrow_schema().get_field_index("study_hash")
-    found: set[str] = set()
-    for i in range(meta.num_row_groups):
-        stats = meta.row_group(i).column(index).statistics if index >= 0 else None
-        if stats is None or not stats.has_min_max or stats.null_count != 0 or stats.min != stats.max:
-            column = _read_columns([part], ["study_hash"]).column("study_hash")
-            return {str(h) for h in pc.unique(column).to_pylist()}
-        found.add(str(stats.min))
-    return found
 
 
 def _column(values: list[Any], kind: pa.DataType) -> pa.Array:

@@ -19,7 +19,7 @@ from conftest import MODELS
 from typer.testing import CliRunner
 
 from somo_sweep.cli import app
-from somo_sweep.sweep.runner import run_study
+from somo_sweep.sweep.runner import RunOptions, run_sweep
 from somo_sweep.sweep.study import load_study
 from somo_sweep.tasks.ihm_gait.task import UNBUILDABLE
 
@@ -81,7 +81,7 @@ def test_palm_study_and_plot_give_rotation_and_drop_rate_and_cross_out_unbuildab
             """
         )
     )
-    summary = run_study(load_study(study_file, tmp_path / "palm_tiny"), n_jobs=2)
+    summary = run_sweep(load_study(study_file, tmp_path / "palm_tiny"), RunOptions(n_jobs=2))
     # A 120 mm palm at 85 mm cuts through the fingers (inner faces ~49 mm from the axis there).
     assert summary.by_status == {"ok": 1, "error": 1}
     paper("palm", str(tmp_path / "palm_tiny"), "--out", str(tmp_path / "figures"))

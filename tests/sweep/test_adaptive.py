@@ -22,7 +22,7 @@ from somo_sweep.errors import DescriptionError, SomoError
 from somo_sweep.model.tables import bundled_path
 from somo_sweep.sweep.adaptive import UNKNOWN, AdaptiveGrid, default_stride, infer, next_cells
 from somo_sweep.sweep.jobs import build_jobs
-from somo_sweep.sweep.runner import run_study
+from somo_sweep.sweep.runner import RunEvents, RunOptions, run_sweep
 from somo_sweep.sweep.sampling import AdaptivePlan, grid_of
 from somo_sweep.sweep.store import read_manifest, read_results
 from somo_sweep.sweep.study import load_study
@@ -126,7 +126,7 @@ def test_an_adaptive_run_labels_every_cell_as_the_full_grid_would(
     tmp_path: Path, body: str, radius: float, n_cells: int
 ) -> None:
     path = study_2d(tmp_path) if body == "2d" else make_study(tmp_path, STUDY_3D)
-    summary = run_study(load_study(path, tmp_path / "out"), n_jobs=2)
+    summary = run_sweep(load_study(path, tmp_path / "out"), RunOptions(n_jobs=2))
     df = read_results(tmp_path / "out")
     assert len(df) == n_cells and df["job_id"].is_unique
     assert (df["label_region"] == region(df, radius)).all()
@@ -141,7 +141,7 @@ def test_an_adaptive_run_labels_every_cell_as_the_full_grid_would(
 
 
 def test_inferred_cells_are_marked_have_no_metrics_and_stay_out_of_the_trials(tmp_path: Path) -> None:
-    run_study(load_study(study_2d(tmp_path), tmp_path / "out"), n_jobs=1)
+    run_sweep(load_study(study_2d(tmp_path), tmp_path / "out"), RunOptions(n_jobs=1))
     df = read_results(tmp_path / "out")
     assert df["inferred"].dtype == bool
     inferred, simulated = df[df["inferred"]], df[~df["inferred"]]
@@ -153,22 +153,22 @@ def test_inferred_cells_are_marked_have_no_metrics_and_stay_out_of_the_trials(tm
     assert pq.read_table(tmp_path / "out" / "inferred.parquet").column("inferred").to_pylist() == [
         True
     ] * len(inferred)
-    again = run_study(load_study(study_2d(tmp_path), tmp_path / "out"), n_jobs=1)
+    again = run_sweep(load_study(study_2d(tmp_path), tmp_path / "out"), RunOptions(n_jobs=1))
     assert again.run == 0 and again.skipped == len(simulated)
     pd.testing.assert_frame_equal(read_results(tmp_path / "out"), df)
 
 
 def test_the_same_cells_are_simulated_with_one_or_two_workers(tmp_path: Path) -> None:
     path = study_2d(tmp_path)
-    run_study(load_study(path, tmp_path / "one"), n_jobs=1)
-    run_study(load_study(path, tmp_path / "two"), n_jobs=2)
+    run_sweep(load_study(path, tmp_path / "one"), RunOptions(n_jobs=1))
+    run_sweep(load_study(path, tmp_path / "two"), RunOptions(n_jobs=2))
     one, two = read_results(tmp_path / "one"), read_results(tmp_path / "two")
     pd.testing.assert_frame_equal(results_only(one), results_only(two))
 
 
 def test_an_interrupted_adaptive_run_resumes_its_rounds_without_rerunning_trials(tmp_path: Path) -> None:
     path = study_2d(tmp_path)
-    run_study(load_study(path, tmp_path / "reference"), n_jobs=2)
+    run_sweep(load_study(path, tmp_path / "reference"), RunOptions(n_jobs=2))
     reference = read_results(tmp_path / "reference")
     seen: list[object] = []
 
@@ -177,11 +177,13 @@ def test_an_interrupted_adaptive_run_resumes_its_rounds_without_rerunning_trials
         if len(seen) == 30:
             raise KeyboardInterrupt
 
-    first = run_study(load_study(path, tmp_path / "out"), n_jobs=2, on_outcome=stop_after_30)
+    first = run_sweep(
+        load_study(path, tmp_path / "out"), RunOptions(n_jobs=2), RunEvents(outcome=stop_after_30)
+    )
     assert first.interrupted is not None and first.run == 30 and first.inferred == 0
     assert not (tmp_path / "out" / "inferred.parquet").exists()
     assert read_manifest(tmp_path / "out")["runs"][-1]["status"] == "interrupted"
-    second = run_study(load_study(path, tmp_path / "out"), n_jobs=2)
+    second = run_sweep(load_study(path, tmp_path / "out"), RunOptions(n_jobs=2))
     assert second.skipped == 30 and first.run + second.run == (~reference["inferred"]).sum()
     assert second.rounds[0].number > 0  # the finished rounds were replayed, not rerun
     pd.testing.assert_frame_equal(results_only(read_results(tmp_path / "out")), results_only(reference))
@@ -189,7 +191,9 @@ def test_an_interrupted_adaptive_run_resumes_its_rounds_without_rerunning_trials
 
 def test_failed_trials_are_a_label_of_their_own_and_are_refined_around(tmp_path: Path) -> None:
     extra = "set: {task.crash_x: [-3.0, -2.0, -1.0], task.how: raise}"
-    summary = run_study(load_study(study_2d(tmp_path, "selftest_crash", extra), tmp_path / "out"), n_jobs=2)
+    summary = run_sweep(
+        load_study(study_2d(tmp_path, "selftest_crash", extra), tmp_path / "out"), RunOptions(n_jobs=2)
+    )
     df = read_results(tmp_path / "out")
     failed = df["task_x"].isin([-3.0, -2.0, -1.0])
     assert (df.loc[failed, "status"] == "error").all() and (df.loc[~failed, "status"] == "ok").all()
@@ -203,9 +207,9 @@ def test_failed_trials_are_a_label_of_their_own_and_are_refined_around(tmp_path:
 
 
 def test_only_the_labels_the_study_names_are_refined(tmp_path: Path) -> None:
-    both = run_study(load_study(study_2d(tmp_path), tmp_path / "both"), n_jobs=2)
+    both = run_sweep(load_study(study_2d(tmp_path), tmp_path / "both"), RunOptions(n_jobs=2))
     path = study_2d(tmp_path, extra="adaptive: {labels: [label_region]}")
-    one = run_study(load_study(path, tmp_path / "one"), n_jobs=2)
+    one = run_sweep(load_study(path, tmp_path / "one"), RunOptions(n_jobs=2))
     assert one.run < both.run  # the sign boundary (x = 0) is not followed
     df = read_results(tmp_path / "one")
     assert (df["label_region"] == region(df, 5.5)).all()
@@ -218,7 +222,7 @@ def test_only_the_labels_the_study_names_are_refined(tmp_path: Path) -> None:
 def test_a_label_the_task_does_not_give_names_the_key_and_the_labels_it_does(tmp_path: Path) -> None:
     path = study_2d(tmp_path, extra="adaptive: {labels: [regoin]}")
     with pytest.raises(DescriptionError) as info:
-        run_study(load_study(path, tmp_path / "out"), n_jobs=1)
+        run_sweep(load_study(path, tmp_path / "out"), RunOptions(n_jobs=1))
     assert str(path) in str(info.value)
     assert (
         "adaptive.labels: 'regoin' is not a label of task selftest_sleep; its trials give: region, sign"
@@ -267,7 +271,7 @@ def test_the_cli_shows_one_bar_per_round_and_exhaustive_overrides_the_study(tmp_
 
 
 def test_show_and_plot_count_inferred_cells_apart(tmp_path: Path) -> None:
-    summary = run_study(load_study(study_2d(tmp_path), tmp_path / "out"), n_jobs=2)
+    summary = run_sweep(load_study(study_2d(tmp_path), tmp_path / "out"), RunOptions(n_jobs=2))
     res = CliRunner().invoke(app, ["show", str(tmp_path / "out")])
     assert res.exit_code == 0, res.output
     assert (
@@ -286,9 +290,9 @@ def test_other_adaptive_settings_on_a_finished_folder_never_infer_against_stored
     """Stored cells the new plan never asked for (here: a finer earlier run) take part in its
     decisions: a coarse stride on the same folder had inferred 37 labels wrong, 'agreeing'."""
     out = tmp_path / "out"
-    run_study(load_study(study_2d(tmp_path), out), n_jobs=2)
+    run_sweep(load_study(study_2d(tmp_path), out), RunOptions(n_jobs=2))
     coarse = study_2d(tmp_path, extra="adaptive: {labels: [region], coarse_step: 16}")
-    summary = run_study(load_study(coarse, out), n_jobs=2)
+    summary = run_sweep(load_study(coarse, out), RunOptions(n_jobs=2))
     df = read_results(out)
     assert (df["label_region"] == region(df, 5.5)).all()
     assert summary.simulated_cells == (~df["inferred"]).sum()  # every stored cell counts
@@ -300,8 +304,10 @@ def test_a_named_label_is_refused_when_the_task_gives_none(tmp_path: Path) -> No
     text = bundled_path("finger_pressure_sweep.yaml").read_text() + "sampling: adaptive\n"
     bad = make_study(tmp_path, text + "adaptive: {labels: [grasp]}\n", name="bad.yaml")
     with pytest.raises(DescriptionError, match="'grasp' is not a label of task bench; its trials give: none"):
-        run_study(load_study(bad, tmp_path / "bad"), n_jobs=2)
-    summary = run_study(load_study(make_study(tmp_path, text, name="ok.yaml"), tmp_path / "ok"), n_jobs=2)
+        run_sweep(load_study(bad, tmp_path / "bad"), RunOptions(n_jobs=2))
+    summary = run_sweep(
+        load_study(make_study(tmp_path, text, name="ok.yaml"), tmp_path / "ok"), RunOptions(n_jobs=2)
+    )
     assert any(
         "gives no labels: refinement followed the trials' status only" in n for n in summary.sampling_notes
     )
@@ -309,7 +315,7 @@ def test_a_named_label_is_refused_when_the_task_gives_none(tmp_path: Path) -> No
 
 def test_a_hand_edited_inferred_file_cannot_pass_cells_off_as_simulated(tmp_path: Path) -> None:
     out = tmp_path / "out"
-    run_study(load_study(study_2d(tmp_path), out), n_jobs=1)
+    run_sweep(load_study(study_2d(tmp_path), out), RunOptions(n_jobs=1))
     before = read_results(out)
     table = pq.read_table(out / "inferred.parquet")
     edited = pa.concat_tables([table, table.slice(0, 5)])  # five rows twice
@@ -324,13 +330,13 @@ def test_a_hand_edited_inferred_file_cannot_pass_cells_off_as_simulated(tmp_path
     (out / "inferred.parquet").unlink()
     (out / "inferred.parquet").mkdir()
     with pytest.raises(SomoError, match="is not a file"):
-        run_study(load_study(study_2d(tmp_path), out), n_jobs=1)
+        run_sweep(load_study(study_2d(tmp_path), out), RunOptions(n_jobs=1))
     assert (out / "inferred.parquet").is_dir()  # left where it was
 
 
 def test_inferred_rows_that_are_not_cells_of_the_study_are_left_out(tmp_path: Path) -> None:
     out = tmp_path / "out"
-    run_study(load_study(study_2d(tmp_path), out), n_jobs=1)
+    run_sweep(load_study(study_2d(tmp_path), out), RunOptions(n_jobs=1))
     before = read_results(out)
     table = pq.read_table(out / "inferred.parquet")
     simulated_trial = int(before.loc[~before["inferred"], "trial"].iloc[0])
@@ -349,7 +355,7 @@ def test_an_inferred_file_that_does_not_fit_is_set_aside_and_the_trials_still_re
     """A retyped column in inferred.parquet made every reader refuse the whole folder; one without
     its inferred column, or a folder in its place, lost the inferred cells without a word."""
     out = tmp_path / "out"
-    run_study(load_study(study_2d(tmp_path), out), n_jobs=1)
+    run_sweep(load_study(study_2d(tmp_path), out), RunOptions(n_jobs=1))
     table = pq.read_table(out / "inferred.parquet")
     (out / "inferred.parquet").unlink()
     simulated = read_results(out)  # what the parts alone give

@@ -14,7 +14,7 @@ from somo_sweep.cli.app import app
 from somo_sweep.model.load import load_model
 from somo_sweep.sim.numerics import choose_numerics
 from somo_sweep.sweep.jobs import build_jobs
-from somo_sweep.sweep.runner import run_study
+from somo_sweep.sweep.runner import RunOptions, run_sweep
 from somo_sweep.sweep.store import read_manifest, read_results
 from somo_sweep.sweep.study import load_study
 
@@ -60,7 +60,7 @@ def test_job_ids_follow_the_step_actually_used(tmp_path: Path) -> None:
 def test_a_blow_up_is_retried_at_half_the_step_and_recorded(tmp_path: Path) -> None:
     extra = f"set: {{task.unstable_x: [3.0], task.unstable_above_step_s: 6.0e-4}}\n{SIMULATION}"
     path = selftest_study(tmp_path, task="selftest_unstable", extra=extra, n=4)
-    summary = run_study(load_study(path, tmp_path / "out"), n_jobs=1)
+    summary = run_sweep(load_study(path, tmp_path / "out"), RunOptions(n_jobs=1))
     assert summary.by_status == {"ok": 4}
     df = read_results(tmp_path / "out").set_index("task_x")
     assert df.loc[3.0, "retried_half_step"] and df.loc[3.0, "time_step_used_s"] == pytest.approx(5e-4)
@@ -71,7 +71,7 @@ def test_a_blow_up_is_retried_at_half_the_step_and_recorded(tmp_path: Path) -> N
 def test_a_retry_that_blows_up_too_stays_unstable(tmp_path: Path) -> None:
     extra = f"set: {{task.unstable_x: [3.0]}}\n{SIMULATION}"
     path = selftest_study(tmp_path, task="selftest_unstable", extra=extra, n=4)
-    summary = run_study(load_study(path, tmp_path / "out"), n_jobs=1)
+    summary = run_sweep(load_study(path, tmp_path / "out"), RunOptions(n_jobs=1))
     assert summary.by_status == {"ok": 3, "unstable": 1}
     row = read_results(tmp_path / "out").set_index("task_x").loc[3.0]
     assert row["status"] == "unstable" and row["retried_half_step"]
@@ -79,7 +79,7 @@ def test_a_retry_that_blows_up_too_stays_unstable(tmp_path: Path) -> None:
 
 
 def test_the_manifest_records_the_automatic_numerics(tmp_path: Path) -> None:
-    run_study(load_study(selftest_study(tmp_path, n=2, auto=True), tmp_path / "out"), n_jobs=1)
+    run_sweep(load_study(selftest_study(tmp_path, n=2, auto=True), tmp_path / "out"), RunOptions(n_jobs=1))
     auto = read_manifest(tmp_path / "out")["study"]["simulation"]["auto"]
     (choice,) = auto.values()
     assert {"time_step_s", "reason", "chains"} <= set(choice)

@@ -14,7 +14,7 @@ from test_sweep import make_study
 
 from somo_sweep.errors import DescriptionError
 from somo_sweep.sweep.jobs import build_jobs
-from somo_sweep.sweep.runner import run_study
+from somo_sweep.sweep.runner import RunOptions, run_sweep
 from somo_sweep.sweep.sampling import describe
 from somo_sweep.sweep.store import read_results
 from somo_sweep.sweep.study import load_study
@@ -89,7 +89,7 @@ def test_cells_cross_the_sweep_axes_and_resume_skips_every_finished_row(tmp_path
     path = make_study(tmp_path, HEAD + "cells:\n" + rows + "sweep:\n  task.v: [1, 2]\n")
     study = load_study(path, tmp_path / "out")
     assert (study.n_points, study.n_trials) == (6, 6)
-    first = run_study(study, n_jobs=1)
+    first = run_sweep(study, RunOptions(n_jobs=1))
     assert first.by_status == {"ok": 6}
     df = read_results(tmp_path / "out")
     assert list(zip(df["task_x"], df["task_u"], df["task_v"], strict=True))[:3] == [
@@ -97,7 +97,7 @@ def test_cells_cross_the_sweep_axes_and_resume_skips_every_finished_row(tmp_path
         (0.16, 0.02, 2.0),
         (0.16, 0.04, 1.0),
     ]
-    again = run_study(load_study(path, tmp_path / "out"), n_jobs=1)
+    again = run_sweep(load_study(path, tmp_path / "out"), RunOptions(n_jobs=1))
     assert (again.skipped, again.run) == (6, 0)
 
 
@@ -169,7 +169,7 @@ def test_adaptive_sampling_runs_every_row_and_refines_only_the_sweep_axes(tmp_pa
     rows = "  - {task.u: 0.5}\n  - {task.u: -0.5}\n"
     only = make_study(tmp_path, HEAD + "cells:\n" + rows + "sampling: adaptive\n", "only.yaml")
     with pytest.raises(DescriptionError, match="adaptive sampling refines numeric sweep: axes"):
-        run_study(load_study(only, tmp_path / "never"), n_jobs=1)
+        run_sweep(load_study(only, tmp_path / "never"), RunOptions(n_jobs=1))
     assert not (tmp_path / "never").exists()
     crossed = make_study(
         tmp_path,
@@ -180,7 +180,7 @@ def test_adaptive_sampling_runs_every_row_and_refines_only_the_sweep_axes(tmp_pa
     text = describe(study)
     assert "cells (task.u): 2 rows, every row (not refined)" in text
     assert "task.x: 9 values, refined, coarse: every 4th value and the last" in text
-    summary = run_study(study, n_jobs=1)
+    summary = run_sweep(study, RunOptions(n_jobs=1))
     assert summary.run == 6 and summary.inferred == 12  # x = 1, 5, 9 in each row; the rest agree
 
 
@@ -189,6 +189,6 @@ def test_a_list_of_cells_gets_robustness_replicas_too(tmp_path: Path) -> None:
     rows = "".join(f"  - {{task.x: {x}}}\n" for x in (-2, 0.5, 3))
     body = HEAD + "params: {jitter: 0.1}\ncells:\n" + rows + "robustness: {replicas: 2, where: all}\n"
     study = load_study(make_study(tmp_path, body + "simulation: {time_step_s: 1.0e-3}\n"), tmp_path / "out")
-    summary = run_study(study, n_jobs=1)
+    summary = run_sweep(study, RunOptions(n_jobs=1))
     assert (summary.run, summary.replicas_run) == (3, 6)
     assert sorted(read_results(tmp_path / "out")["replica"]) == [0, 0, 0, 1, 1, 1, 2, 2, 2]

@@ -24,7 +24,7 @@ from test_sweep_processes import BENCH_STUDY, FinishedTrials, _all_gone, _descen
 from somo_sweep.errors import SomoError
 from somo_sweep.sweep import dask_backend
 from somo_sweep.sweep.execution import dask_environment
-from somo_sweep.sweep.runner import run_study
+from somo_sweep.sweep.runner import RunOptions, run_sweep
 from somo_sweep.sweep.store import read_manifest, read_results
 from somo_sweep.sweep.study import load_study
 
@@ -112,7 +112,7 @@ def test_a_study_on_a_scheduler_and_two_worker_processes_matches_joblib_bit_for_
     path = make_study(tmp_path, BENCH_STUDY)
     done = _run(path, tmp_path / "dask", cluster.address)
     assert done.returncode == 0, done.stderr
-    run_study(load_study(path, tmp_path / "joblib"), n_jobs=1)  # joblib, trials forked from here
+    run_sweep(load_study(path, tmp_path / "joblib"), RunOptions(n_jobs=1))  # joblib, trials forked from here
     on_dask, on_joblib = read_results(tmp_path / "dask"), read_results(tmp_path / "joblib")
     pd.testing.assert_frame_equal(results_only(on_dask), results_only(on_joblib), check_exact=True)
     assert len(on_dask) == 8 and set(on_dask["status"]) == {"ok"}
@@ -128,7 +128,7 @@ def test_a_worker_with_other_trial_code_stops_the_run_with_what_to_do(
     with pytest.raises(
         SomoError, match=r"somo-sweep code \S+ for task selftest_sleep, the sweep 0.0.0\+stale"
     ):
-        run_study(load_study(path, tmp_path / "out"), backend="dask", scheduler=cluster.address)
+        run_sweep(load_study(path, tmp_path / "out"), RunOptions(backend="dask", scheduler=cluster.address))
     assert read_manifest(tmp_path / "out")["runs"][-1]["status"] == "failed"
 
 
@@ -140,8 +140,10 @@ def test_robustness_replicas_run_on_the_cluster_as_on_local_workers(tmp_path: Pa
         "simulation: {time_step_s: 1.0e-3}\n"
     )
     path = make_study(tmp_path, body)
-    on_dask = run_study(load_study(path, tmp_path / "dask"), backend="dask", scheduler=cluster.address)
-    on_joblib = run_study(load_study(path, tmp_path / "joblib"), n_jobs=2)
+    on_dask = run_sweep(
+        load_study(path, tmp_path / "dask"), RunOptions(backend="dask", scheduler=cluster.address)
+    )
+    on_joblib = run_sweep(load_study(path, tmp_path / "joblib"), RunOptions(n_jobs=2))
     assert (on_dask.run, on_dask.replicas_run) == (on_joblib.run, on_joblib.replicas_run) == (6, 8)
     dask_rows, joblib_rows = read_results(tmp_path / "dask"), read_results(tmp_path / "joblib")
     pd.testing.assert_frame_equal(results_only(dask_rows), results_only(joblib_rows), check_exact=True)

@@ -56,7 +56,7 @@ def test_engines_give_their_jobs_different_ids_and_pybullet_ids_ignore_mujoco_se
 def test_a_jobs_id_is_the_hash_of_its_identity_on_either_engine(tmp_path: Path, engine: str) -> None:
     """The job table writes a PyBullet id from parts made once per model and parameter set; it
     must be the hash of the same identity a MuJoCo job (and every replica) is hashed from."""
-    from somo_sweep.sweep.jobs import _hash, _identity
+    from somo_sweep.sweep.job import _hash, _identity
 
     sweep = "sweep:\n  task.object_width_m: [0.01, 0.04]\n"
     study = load_study(_study(tmp_path, f"{{time_step_s: 4.0e-3, engine: {engine}}}", extra=sweep))

@@ -22,7 +22,7 @@ import pandas as pd
 import pyarrow.parquet as pq
 from test_sweep import results_only, selftest_study
 
-from somo_sweep.sweep.runner import run_study
+from somo_sweep.sweep.runner import RunOptions, run_sweep
 from somo_sweep.sweep.store import read_manifest, read_results
 from somo_sweep.sweep.study import load_study
 
@@ -90,5 +90,5 @@ def test_random_sigkills_lose_no_finished_trial_and_duplicate_none(tmp_path: Pat
     runs = read_manifest(out)["runs"]
     assert runs[-1]["status"] == "completed" and {r["status"] for r in runs[:-1]} <= {"aborted"}
     reference = tmp_path / "reference"
-    run_study(load_study(path, reference), n_jobs=WORKERS)
+    run_sweep(load_study(path, reference), RunOptions(n_jobs=WORKERS))
     pd.testing.assert_frame_equal(results_only(read_results(out)), results_only(read_results(reference)))

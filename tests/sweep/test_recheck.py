@@ -14,7 +14,7 @@ from typer.testing import CliRunner
 from somo_sweep.cli.app import app
 from somo_sweep.errors import SomoError
 from somo_sweep.sweep.recheck import recheck
-from somo_sweep.sweep.runner import run_study
+from somo_sweep.sweep.runner import RunOptions, run_sweep
 from somo_sweep.sweep.study import load_study
 
 runner = CliRunner()
@@ -22,7 +22,7 @@ runner = CliRunner()
 
 def _finished(tmp_path: Path) -> Path:
     path = selftest_study(tmp_path, n=6)
-    run_study(load_study(path, tmp_path / "out"), n_jobs=2)
+    run_sweep(load_study(path, tmp_path / "out"), RunOptions(n_jobs=2))
     return path
 
 

@@ -19,7 +19,7 @@ from somo_sweep.errors import DescriptionError
 from somo_sweep.sweep.adaptive import UNKNOWN
 from somo_sweep.sweep.jobs import build_jobs, replica_jobs
 from somo_sweep.sweep.robustness import ReplicaPlan, boundary_mask, fold
-from somo_sweep.sweep.runner import run_study
+from somo_sweep.sweep.runner import RunOptions, run_sweep
 from somo_sweep.sweep.store import read_manifest, read_results
 from somo_sweep.sweep.study import load_study, with_replicas
 
@@ -101,7 +101,7 @@ def test_boundary_replicas_find_exactly_the_cells_a_perturbation_can_flip(tmp_pa
     xs = "[-3, -2, -0.01, 0.01, 2, 3]"
     extra = "robustness: {replicas: 8, audit_fraction: 0}"
     study = load_study(sign_study(tmp_path, extra, 1.0, xs), tmp_path / "out")
-    summary = run_study(study, n_jobs=1)
+    summary = run_sweep(study, RunOptions(n_jobs=1))
     assert summary.run == 6 and summary.replicas_run == 16
     assert summary.robustness is not None and summary.robustness["boundary_cells"] == 2
     cells = fold(read_results(tmp_path / "out"))
@@ -113,7 +113,7 @@ def test_boundary_replicas_find_exactly_the_cells_a_perturbation_can_flip(tmp_pa
 
 def test_an_audit_replicates_a_seeded_share_of_the_other_cells_and_robust_ones_agree(tmp_path: Path) -> None:
     study = load_study(sign_study(tmp_path, "robustness: {replicas: 2, audit_fraction: 0.5}"), tmp_path / "o")
-    summary = run_study(study, n_jobs=1)
+    summary = run_sweep(study, RunOptions(n_jobs=1))
     assert summary.robustness is not None and summary.robustness["audited_cells"] == 2  # half of 4
     cells = fold(read_results(tmp_path / "o"))
     audited = cells[(cells["replicas"] > 0) & (cells["task_x"].abs() >= 1)]
@@ -124,11 +124,11 @@ def test_replicas_join_a_finished_run_without_rerunning_it_and_a_resume_reruns_n
     tmp_path: Path,
 ) -> None:
     path = sign_study(tmp_path)
-    first = run_study(load_study(path, tmp_path / "out"), n_jobs=1)
+    first = run_sweep(load_study(path, tmp_path / "out"), RunOptions(n_jobs=1))
     assert first.run == 6 and first.robustness is None
-    again = run_study(with_replicas(load_study(path, tmp_path / "out"), 2), n_jobs=1)
+    again = run_sweep(with_replicas(load_study(path, tmp_path / "out"), 2), RunOptions(n_jobs=1))
     assert again.run == 0 and again.skipped == 6 and again.replicas_run > 0
-    third = run_study(with_replicas(load_study(path, tmp_path / "out"), 2), n_jobs=1)
+    third = run_sweep(with_replicas(load_study(path, tmp_path / "out"), 2), RunOptions(n_jobs=1))
     assert third.run == 0 and third.replicas_run == 0
     # A part holding a cell's replicas has more rows than the study has trials: still not damage.
     assert not (tmp_path / "out" / "trials" / "quarantine").exists() and not third.notes
@@ -141,7 +141,7 @@ def test_the_majority_moving_makes_its_neighbours_boundary_cells(tmp_path: Path)
     study = load_study(
         sign_study(tmp_path, "robustness: {replicas: 6, audit_fraction: 0}", 1.5, xs), tmp_path / "o"
     )
-    run_study(study, n_jobs=1)
+    run_sweep(study, RunOptions(n_jobs=1))
     cells = fold(read_results(tmp_path / "o"))
     moved = cells["label_sign_majority"] != cells["label_sign"]
     replicated = cells["replicas"] > 0
@@ -153,7 +153,7 @@ def test_the_majority_moving_makes_its_neighbours_boundary_cells(tmp_path: Path)
 
 def test_a_replica_plan_replays_from_stored_outcomes_alone(tmp_path: Path) -> None:
     study = load_study(sign_study(tmp_path, "robustness: {replicas: 3}"), tmp_path / "out")
-    run_study(study, n_jobs=1)
+    run_sweep(study, RunOptions(n_jobs=1))
     table = build_jobs(study)
     known = {
         r.job_id: (r.status, {"sign": r.label_sign}) for r in read_results(tmp_path / "out").itertuples()
@@ -192,7 +192,7 @@ def test_with_adaptive_sampling_replicas_go_to_simulated_boundary_cells_never_to
         "robustness: {replicas: 2, labels: [region], audit_fraction: 0.1}\n"
     )
     study = load_study(make_study(tmp_path, body), tmp_path / "out")
-    summary = run_study(study, n_jobs=1)
+    summary = run_sweep(study, RunOptions(n_jobs=1))
     assert summary.inferred > 0 and summary.robustness is not None
     cells = fold(read_results(tmp_path / "out"), ["label_region"])
     replicated = cells[cells["replicas"] > 0]
@@ -209,7 +209,7 @@ def test_recheck_reruns_replicas_as_well_as_trials(tmp_path: Path) -> None:
 
     path = sign_study(tmp_path, jitter=1.0, xs="[-3, -2, -0.01, 0.01, 2, 3]")
     study = with_replicas(load_study(path, tmp_path / "out"), 8)
-    run_study(study, n_jobs=1)
+    run_sweep(study, RunOptions(n_jobs=1))
     stored = read_results(tmp_path / "out")
     assert (stored["replica"] > 0).sum() == 24
     report = recheck(study, n_trials=len(stored))

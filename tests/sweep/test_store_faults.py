@@ -18,10 +18,11 @@ from typer.testing import CliRunner
 
 from somo_sweep.cli.app import app
 from somo_sweep.errors import SomoError, StorageError
+from somo_sweep.sweep import job as job_module
 from somo_sweep.sweep import jobs as jobs_module
 from somo_sweep.sweep import store as store_module
 from somo_sweep.sweep.jobs import build_jobs
-from somo_sweep.sweep.runner import run_study
+from somo_sweep.sweep.runner import RunEvents, RunOptions, run_sweep
 from somo_sweep.sweep.store import ResultStore, read_manifest, read_results
 from somo_sweep.sweep.study import load_study
 
@@ -30,7 +31,7 @@ def _finished(tmp_path: Path, n: int = 8, chunk_rows: int = 4) -> tuple[Path, Pa
     """A study of ``n`` selftest trials run into ``out`` in parts of ``chunk_rows``."""
     path = selftest_study(tmp_path, n=n)
     out = tmp_path / "out"
-    run_study(load_study(path, out), n_jobs=1, chunk_rows=chunk_rows)
+    run_sweep(load_study(path, out), RunOptions(n_jobs=1, chunk_rows=chunk_rows))
     return path, out
 
 
@@ -235,7 +236,7 @@ def test_out_pointing_at_a_file_is_a_clear_error(tmp_path: Path) -> None:
     assert res.exit_code == 2 and f"error: --out {target} is a file, not a folder" in res.output
     assert target.read_text() == "keep me"
     with pytest.raises(SomoError, match="is a file, not a folder"):
-        run_study(load_study(path, target), n_jobs=1)
+        run_sweep(load_study(path, target), RunOptions(n_jobs=1))
 
 
 class _DiskFull:
@@ -260,7 +261,7 @@ def test_a_full_disk_stops_the_run_keeping_every_written_row(
     out = tmp_path / "out"
     monkeypatch.setattr(store_module.pq, "write_table", _DiskFull(allowed=2))
     with pytest.raises(StorageError) as info:
-        run_study(load_study(path, out), n_jobs=1, chunk_rows=2)
+        run_sweep(load_study(path, out), RunOptions(n_jobs=1, chunk_rows=2))
     text = str(info.value)
     assert text.startswith(f"stopped: cannot write {out / 'trials' / 'part-'}")  # the part, not a tmp
     assert ".parquet: the disk is full (No space left on device)." in text
@@ -271,7 +272,7 @@ def test_a_full_disk_stops_the_run_keeping_every_written_row(
     run = read_manifest(out)["runs"][-1]
     assert len(kept) == 4 and run["status"] == "failed" and run["trials_written"] == 4
     assert not list((out / "trials").glob(".*.tmp"))
-    summary = run_study(load_study(path, out), n_jobs=1)
+    summary = run_sweep(load_study(path, out), RunOptions(n_jobs=1))
     assert any("recovered" in note for note in summary.notes)
     df = read_results(out)
     assert len(df) == 8 and df["job_id"].is_unique
@@ -299,7 +300,7 @@ def _killed_after(path: Path, out: Path, finished: int) -> int:
                 if seen[0] == finished:
                     os._exit(9)
 
-            run_study(load_study(path, out), n_jobs=1, chunk_rows=100, on_outcome=die)
+            run_sweep(load_study(path, out), RunOptions(n_jobs=1, chunk_rows=100), RunEvents(outcome=die))
         finally:
             os._exit(1)
     _, status = os.waitpid(pid, 0)
@@ -316,7 +317,7 @@ def test_finished_trials_of_a_killed_run_are_recovered_from_its_journal(tmp_path
         not _parts(out)
         and len((out / "trials").glob(".journal-*.jsonl").__next__().read_text().splitlines()) == 5
     )
-    summary = run_study(load_study(path, out), n_jobs=1)  # the stale lock does not stop it
+    summary = run_sweep(load_study(path, out), RunOptions(n_jobs=1))  # the stale lock does not stop it
     assert (summary.skipped, summary.run) == (5, 3)
     assert "recovered 5 finished trial(s) of a killed run from its journal" in summary.notes
     killed = "was killed (or its disk could not be written even to record its end): marked aborted"
@@ -337,7 +338,7 @@ def test_show_tells_a_killed_run_and_the_trials_its_journal_holds(tmp_path: Path
     )
     assert "→ killed (no end recorded): 5 finished trial(s) in its journal" in before.output
     assert "running" not in before.output
-    run_study(load_study(path, out), n_jobs=1)
+    run_sweep(load_study(path, out), RunOptions(n_jobs=1))
     after = CliRunner().invoke(app, ["show", str(out)], env={"COLUMNS": "300"})
     assert "8 of 8 trials stored, study hash" in after.output
     assert "→ killed (found " in after.output
@@ -496,7 +497,7 @@ def test_a_run_that_stopped_on_a_full_disk_is_not_reported_killed(
     monkeypatch.setattr(store_module.pq, "write_table", parts)
     monkeypatch.setattr(store_module, "write_json", manifest)
     with pytest.raises(StorageError) as info:
-        run_study(load_study(path, out), n_jobs=1, chunk_rows=2)
+        run_sweep(load_study(path, out), RunOptions(n_jobs=1, chunk_rows=2))
     assert cause in str(info.value)
     assert ("free space" in str(info.value)) == (code == errno.ENOSPC)
     monkeypatch.undo()
@@ -504,14 +505,14 @@ def test_a_run_that_stopped_on_a_full_disk_is_not_reported_killed(
     assert '"stopped"' in (out / ".lock").read_text()  # the lock file says it instead
     monkeypatch.setattr(store_module.pq, "write_table", _DiskFull(allowed=0))
     with pytest.raises(StorageError) as info:  # still full when the next run recovers the journal
-        run_study(load_study(path, out), n_jobs=1)
+        run_sweep(load_study(path, out), RunOptions(n_jobs=1))
     assert str(info.value).startswith(f"cannot open the results folder {out}: cannot write {out / 'trials'}")
     assert "the disk is full (No space left on device); what it holds is intact" in str(info.value)
     monkeypatch.undo()
     assert '"stopped"' in (out / ".lock").read_text()  # kept for the run that gets through
     assert CliRunner().invoke(app, ["plot", str(out)]).exit_code == 0  # plot takes the lock too ...
     assert '"stopped"' in (out / ".lock").read_text()  # ... and leaves the record
-    summary = run_study(load_study(path, out), n_jobs=1)
+    summary = run_sweep(load_study(path, out), RunOptions(n_jobs=1))
     note = next(n for n in summary.notes if "stopped itself" in n)
     assert "(cannot write " in note and f": {cause}): marked failed" in note
     assert not any("killed" in n for n in summary.notes), summary.notes
@@ -529,12 +530,12 @@ def test_a_run_stopped_by_a_full_disk_records_the_cause_and_the_next_run_does_no
     out = tmp_path / "out"
     monkeypatch.setattr(store_module.pq, "write_table", _DiskFull(allowed=1))
     with pytest.raises(StorageError):
-        run_study(load_study(path, out), n_jobs=1, chunk_rows=2)
+        run_sweep(load_study(path, out), RunOptions(n_jobs=1, chunk_rows=2))
     monkeypatch.undo()
     run = read_manifest(out)["runs"][-1]
     assert run["status"] == "failed" and "the disk is full (No space left on device)" in run["failure"]
     assert not (out / ".lock").exists()  # the manifest says it all: no stop record needed
-    summary = run_study(load_study(path, out), n_jobs=1)
+    summary = run_sweep(load_study(path, out), RunOptions(n_jobs=1))
     assert not any("killed" in n for n in summary.notes), summary.notes
     show = CliRunner().invoke(app, ["show", str(out)], env={"COLUMNS": "300"})
     assert ": failed (cannot write " in show.output and "the disk is full" in show.output
@@ -552,7 +553,7 @@ def test_trials_cut_short_by_a_stop_are_counted_in_our_words_not_joblibs(
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always")
         with pytest.raises(StorageError) as info:
-            run_study(load_study(path, tmp_path / "out"), n_jobs=2, chunk_rows=1)
+            run_sweep(load_study(path, tmp_path / "out"), RunOptions(n_jobs=2, chunk_rows=1))
     assert not [w for w in caught if "tasks" in str(w.message)], [str(w.message) for w in caught]
     assert re.search(r"; the \d+ trial\(s\) still running were stopped\. To go on:", str(info.value))
 
@@ -564,7 +565,7 @@ def test_a_run_left_running_by_a_killed_process_is_marked_aborted(tmp_path: Path
     killed = ResultStore(study.output, table.study_hash, table.resolved, table.axes, {})
     killed.start_run({"backend": "loky"})
     killed.close()  # the process died: no end_run
-    summary = run_study(study, n_jobs=1)
+    summary = run_sweep(study, RunOptions(n_jobs=1))
     runs = read_manifest(study.output)["runs"]
     assert [r["status"] for r in runs] == ["aborted", "completed"]
     killed = "was killed (or its disk could not be written even to record its end): marked aborted"
@@ -593,21 +594,21 @@ def test_a_column_empty_in_the_first_part_takes_numbers_on_resume(tmp_path: Path
 def test_declared_metric_types_fix_the_schema_from_the_first_part(tmp_path: Path) -> None:
     # Every trial fails: no row has a metric, yet the columns are there with the declared types.
     path = selftest_study(tmp_path, task="selftest_crash", extra="set: {task.crash_x: [1.0, 2.0]}", n=2)
-    run_study(load_study(path, tmp_path / "out"), n_jobs=1)
+    run_sweep(load_study(path, tmp_path / "out"), RunOptions(n_jobs=1))
     schema = pq.read_schema(_parts(tmp_path / "out")[0])
     assert schema.field("y").type == pa.float64() and schema.field("noise").type == pa.float64()
 
 
 def test_a_metric_missing_in_early_trials_keeps_its_type(tmp_path: Path) -> None:
     path = selftest_study(tmp_path, extra="set: {task.none_x: [1.0, 2.0]}", n=4)
-    run_study(load_study(path, tmp_path / "out"), n_jobs=1, chunk_rows=2)
+    run_sweep(load_study(path, tmp_path / "out"), RunOptions(n_jobs=1, chunk_rows=2))
     df = read_results(tmp_path / "out")
     assert df["y"].dtype == "float64" and df["y"].isna().tolist() == [True, True, False, False]
 
 
 def test_every_run_keeps_its_versions(tmp_path: Path) -> None:
     path, out = _finished(tmp_path)
-    run_study(load_study(path, out), n_jobs=1)
+    run_sweep(load_study(path, out), RunOptions(n_jobs=1))
     runs = read_manifest(out)["runs"]
     assert len(runs) == 2 and all({"python", "pybullet", "somo-sweep"} <= set(r["versions"]) for r in runs)
 
@@ -615,6 +616,7 @@ def test_every_run_keeps_its_versions(tmp_path: Path) -> None:
 def test_job_ids_change_with_the_pybullet_version(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
     path = selftest_study(tmp_path)
     before = build_jobs(load_study(path))
+    monkeypatch.setattr(job_module, "pybullet_version", lambda: "0.0.1")
     monkeypatch.setattr(jobs_module, "pybullet_version", lambda: "0.0.1")
     after = build_jobs(load_study(path))
     assert not {j.job_id for j in before.jobs} & {j.job_id for j in after.jobs}
@@ -626,7 +628,7 @@ def test_resume_after_a_crash_mid_rewrite_heals_mixed_schemas(tmp_path: Path) ->
     part = _parts(out)[0]
     table = pq.read_table(part)
     pq.write_table(table.append_column("extra_m", pa.array([1.0] * len(table))), part)
-    summary = run_study(load_study(path, out), n_jobs=1)
+    summary = run_sweep(load_study(path, out), RunOptions(n_jobs=1))
     assert summary.run == 0
     schemas = {pq.read_schema(p).remove_metadata().to_string() for p in _parts(out)}
     assert len(schemas) == 1 and len(pd.read_parquet(out / "trials")) == 8
@@ -635,7 +637,7 @@ def test_resume_after_a_crash_mid_rewrite_heals_mixed_schemas(tmp_path: Path) ->
 
 def test_study_copy_and_manifest_name_what_was_written(tmp_path: Path) -> None:
     path = make_study(tmp_path, "task: selftest_sleep\nmodel: models/ihm_finger.yaml\n")
-    run_study(load_study(path, tmp_path / "out"), n_jobs=1)
+    run_sweep(load_study(path, tmp_path / "out"), RunOptions(n_jobs=1))
     manifest = json.loads((tmp_path / "out" / "manifest.json").read_text())
     assert "study.yaml" in manifest["files"] and manifest["runs"][0]["trials_written"] == 1
 
@@ -724,7 +726,7 @@ def test_a_part_of_another_study_sharing_job_ids_is_one_foreign_study_error(tmp_
     reported as "repeats 4 row(s) … (a copy?)" beside the foreign-study error."""
     path, out = _finished(tmp_path)
     other = make_study(tmp_path / "b", (tmp_path / "study.yaml").read_text().replace("stop: 8", "stop: 4"))
-    run_study(load_study(other, tmp_path / "b" / "out"), n_jobs=1)
+    run_sweep(load_study(other, tmp_path / "b" / "out"), RunOptions(n_jobs=1))
     (copy,) = _parts(tmp_path / "b" / "out")
     assert set(pd.read_parquet(copy)["job_id"]) <= set(read_results(out)["job_id"])  # the same cells
     shutil.copy(copy, out / "trials" / "part-from-b.parquet")

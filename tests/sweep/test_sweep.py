@@ -25,7 +25,7 @@ from somo_sweep.errors import SomoError
 from somo_sweep.sweep.execution import dask_client
 from somo_sweep.sweep.jobs import build_jobs, trial_modules
 from somo_sweep.sweep.plots import summary_figure
-from somo_sweep.sweep.runner import run_study
+from somo_sweep.sweep.runner import RunOptions, run_sweep
 from somo_sweep.sweep.store import ResultStore, read_manifest, read_results
 from somo_sweep.sweep.study import load_study
 
@@ -65,7 +65,7 @@ def results_only(df: pd.DataFrame) -> pd.DataFrame:
 
 def test_run_writes_one_row_per_trial_with_params_metrics_labels_and_provenance(tmp_path: Path) -> None:
     study = load_study(selftest_study(tmp_path), tmp_path / "out")
-    summary = run_study(study, n_jobs=1)
+    summary = run_sweep(study, RunOptions(n_jobs=1))
     assert summary.run == 8 and summary.by_status == {"ok": 8}
     df = pd.read_parquet(tmp_path / "out" / "trials")  # one pandas call
     assert len(df) == 8 and set(df["status"]) == {"ok"}
@@ -139,18 +139,18 @@ def test_code_version_covers_the_code_a_trial_runs_and_nothing_else() -> None:
 def test_resume_runs_only_missing_trials_and_gives_the_same_table(tmp_path: Path) -> None:
     path = selftest_study(tmp_path, extra="repeats: 2")
     full = load_study(path, tmp_path / "full")
-    run_study(full, n_jobs=1)
+    run_sweep(full, RunOptions(n_jobs=1))
     reference = read_results(tmp_path / "full")
     part = load_study(path, tmp_path / "part")
-    run_study(part, n_jobs=1, chunk_rows=4)
+    run_sweep(part, RunOptions(n_jobs=1, chunk_rows=4))
     parts = sorted((tmp_path / "part" / "trials").glob("*.parquet"))
     assert len(parts) == 4
     for p in parts[1:3]:
         p.unlink()
-    summary = run_study(load_study(path, tmp_path / "part"), n_jobs=1)
+    summary = run_sweep(load_study(path, tmp_path / "part"), RunOptions(n_jobs=1))
     assert (summary.skipped, summary.run) == (8, 8)
     pd.testing.assert_frame_equal(results_only(read_results(tmp_path / "part")), results_only(reference))
-    again = run_study(load_study(path, tmp_path / "part"), n_jobs=1)
+    again = run_sweep(load_study(path, tmp_path / "part"), RunOptions(n_jobs=1))
     assert again.run == 0
 
 
@@ -161,7 +161,7 @@ def test_a_dying_trial_process_is_an_error_and_the_sweep_goes_on(tmp_path: Path)
         extra="  task.how: [exit, segfault, kill]\nset: {task.crash_x: [2.0]}",
         n=3,
     )
-    summary = run_study(load_study(path, tmp_path / "out"), n_jobs=2)
+    summary = run_sweep(load_study(path, tmp_path / "out"), RunOptions(n_jobs=2))
     assert summary.run == 9 and summary.by_status == {"ok": 6, "error": 3}
     df = read_results(tmp_path / "out").set_index(["task_x", "task_how"])
     assert df.loc[(1.0, "kill"), "status"] == "ok"
@@ -177,7 +177,7 @@ def test_an_exception_in_a_trial_is_an_error_with_its_message(tmp_path: Path) ->
     path = selftest_study(
         tmp_path, task="selftest_crash", extra="set: {task.crash_x: [2.0], task.how: raise}", n=3
     )
-    summary = run_study(load_study(path, tmp_path / "out"), n_jobs=1)
+    summary = run_sweep(load_study(path, tmp_path / "out"), RunOptions(n_jobs=1))
     assert summary.by_status == {"ok": 2, "error": 1}
     df = read_results(tmp_path / "out").set_index("task_x")
     assert df.loc[2.0, "message"] == "RuntimeError: selftest failure at x=2.0"
@@ -194,9 +194,9 @@ def test_identical_trials_are_refused(tmp_path: Path) -> None:
 
 def test_resume_skips_errors_unless_asked_to_retry_them(tmp_path: Path) -> None:
     path = selftest_study(tmp_path, task="selftest_crash", extra="set: {task.crash_x: [2.0, 5.0]}", n=6)
-    run_study(load_study(path, tmp_path / "out"), n_jobs=1, chunk_rows=4)
-    assert run_study(load_study(path, tmp_path / "out"), n_jobs=1).run == 0
-    again = run_study(load_study(path, tmp_path / "out"), n_jobs=1, retry_errors=True)
+    run_sweep(load_study(path, tmp_path / "out"), RunOptions(n_jobs=1, chunk_rows=4))
+    assert run_sweep(load_study(path, tmp_path / "out"), RunOptions(n_jobs=1)).run == 0
+    again = run_sweep(load_study(path, tmp_path / "out"), RunOptions(n_jobs=1, retry_errors=True))
     assert (again.skipped, again.run, again.by_status) == (4, 2, {"error": 2})
     df = read_results(tmp_path / "out")
     assert len(df) == 6 and df["job_id"].is_unique and (df["status"] == "error").sum() == 2
@@ -204,7 +204,7 @@ def test_resume_skips_errors_unless_asked_to_retry_them(tmp_path: Path) -> None:
 
 def test_first_rows_without_metrics_still_give_one_readable_schema(tmp_path: Path) -> None:
     path = selftest_study(tmp_path, task="selftest_crash", extra="set: {task.crash_x: [1.0, 2.0]}", n=4)
-    run_study(load_study(path, tmp_path / "out"), n_jobs=1, chunk_rows=1)
+    run_sweep(load_study(path, tmp_path / "out"), RunOptions(n_jobs=1, chunk_rows=1))
     df = pd.read_parquet(tmp_path / "out" / "trials").sort_values("trial")
     assert list(df["status"]) == ["error", "error", "ok", "ok"]
     assert df["y"].isna().tolist() == [True, True, False, False]
@@ -212,7 +212,7 @@ def test_first_rows_without_metrics_still_give_one_readable_schema(tmp_path: Pat
 
 def test_a_blow_up_is_stored_as_unstable_not_as_an_outcome(tmp_path: Path) -> None:
     path = selftest_study(tmp_path, task="selftest_unstable", extra="set: {task.unstable_x: [3.0]}", n=4)
-    summary = run_study(load_study(path, tmp_path / "out"), n_jobs=1)
+    summary = run_sweep(load_study(path, tmp_path / "out"), RunOptions(n_jobs=1))
     assert summary.by_status == {"ok": 3, "unstable": 1}
     row = read_results(tmp_path / "out").set_index("task_x").loc[3.0]
     assert row["status"] == "unstable" and "unstable" in row["message"]
@@ -238,21 +238,21 @@ def test_a_second_run_on_a_locked_folder_refuses_clearly(tmp_path: Path) -> None
 
 def test_results_of_a_changed_study_are_never_mixed_in(tmp_path: Path) -> None:
     path = selftest_study(tmp_path)
-    run_study(load_study(path, tmp_path / "out"), n_jobs=1)
+    run_sweep(load_study(path, tmp_path / "out"), RunOptions(n_jobs=1))
     before = read_results(tmp_path / "out")
     path.write_text(path.read_text().replace("stop: 8", "stop: 9"))
     with pytest.raises(SomoError, match="holds results of a different study") as info:
-        run_study(load_study(path, tmp_path / "out"), n_jobs=1)
+        run_sweep(load_study(path, tmp_path / "out"), RunOptions(n_jobs=1))
     assert "changed: sweep.task.x (8 values -> 9 values)" in str(info.value) and "--out" in str(info.value)
     pd.testing.assert_frame_equal(read_results(tmp_path / "out"), before)
-    summary = run_study(load_study(path, tmp_path / "out"), n_jobs=1, overwrite=True)
+    summary = run_sweep(load_study(path, tmp_path / "out"), RunOptions(n_jobs=1, overwrite=True))
     assert (summary.skipped, summary.run) == (0, 9)
     assert len(read_results(tmp_path / "out")) == 9
 
 
 def test_a_trial_over_its_time_limit_is_an_error(tmp_path: Path) -> None:
     path = selftest_study(tmp_path, extra="set: {task.sleep_s: 30.0}", n=1)
-    summary = run_study(load_study(path, tmp_path / "out"), n_jobs=1, timeout_s=0.5)
+    summary = run_sweep(load_study(path, tmp_path / "out"), RunOptions(n_jobs=1, timeout_s=0.5))
     assert summary.by_status == {"error": 1}
     assert read_results(tmp_path / "out")["message"].iloc[0] == "timed out after 0.5 s"
 
@@ -343,7 +343,7 @@ def test_bad_input_exits_2_with_one_message_and_writes_nothing(
 
 
 def test_show_and_plot_summarise_a_results_folder(tmp_path: Path) -> None:
-    run_study(load_study(selftest_study(tmp_path), tmp_path / "out"), n_jobs=1)
+    run_sweep(load_study(selftest_study(tmp_path), tmp_path / "out"), RunOptions(n_jobs=1))
     res = CliRunner().invoke(app, ["show", str(tmp_path / "out")])
     assert res.exit_code == 0, res.output
     assert (
@@ -359,7 +359,7 @@ def test_show_and_plot_summarise_a_results_folder(tmp_path: Path) -> None:
 
 def test_signal_handlers_are_restored_after_a_run(tmp_path: Path) -> None:
     before = (signal.getsignal(signal.SIGINT), signal.getsignal(signal.SIGTERM))
-    run_study(load_study(selftest_study(tmp_path, n=2), tmp_path / "out"), n_jobs=1)
+    run_sweep(load_study(selftest_study(tmp_path, n=2), tmp_path / "out"), RunOptions(n_jobs=1))
     assert (signal.getsignal(signal.SIGINT), signal.getsignal(signal.SIGTERM)) == before
 
 
@@ -370,7 +370,7 @@ def test_plots_of_a_folder_without_one_ok_trial_draw_without_warnings(tmp_path: 
         "params: {sleep_s: 0.0, crash_x: [1, 2, 3], how: raise}\n"
         "sweep:\n  task.x: [1, 2, 3]\n  task.u: [0.5, 1.5]\n"
     )
-    summary = run_study(load_study(make_study(tmp_path, body), tmp_path / "out"), n_jobs=1)
+    summary = run_sweep(load_study(make_study(tmp_path, body), tmp_path / "out"), RunOptions(n_jobs=1))
     assert summary.by_status == {"error": 6}
     df = pd.read_parquet(tmp_path / "out" / "trials")
     with warnings.catch_warnings():

@@ -20,7 +20,7 @@ import pytest
 from conftest import signals_as_in_a_shell
 from test_sweep import make_study, results_only, selftest_study
 
-from somo_sweep.sweep.runner import run_study
+from somo_sweep.sweep.runner import RunOptions, run_sweep
 from somo_sweep.sweep.store import read_manifest, read_results
 from somo_sweep.sweep.study import load_study
 
@@ -41,7 +41,7 @@ def bench_reference(tmp_path_factory: pytest.TempPathFactory) -> tuple[Path, pd.
     """The small bench study run serially (``--jobs 1``)."""
     folder = tmp_path_factory.mktemp("bench")
     path = make_study(folder, BENCH_STUDY)
-    run_study(load_study(path, folder / "jobs1"), n_jobs=1)
+    run_sweep(load_study(path, folder / "jobs1"), RunOptions(n_jobs=1))
     return path, read_results(folder / "jobs1")
 
 
@@ -58,7 +58,7 @@ def test_bench_sweep_gives_the_bench_protocols_numbers(bench_reference: tuple[Pa
 def test_same_table_with_one_and_two_loky_workers(bench_reference: tuple[Path, pd.DataFrame]) -> None:
     path, reference = bench_reference
     out = path.parent / "jobs2"
-    run_study(load_study(path, out), n_jobs=2)
+    run_sweep(load_study(path, out), RunOptions(n_jobs=2))
     pd.testing.assert_frame_equal(results_only(read_results(out)), results_only(reference))
 
 
@@ -70,7 +70,9 @@ def test_same_table_on_a_dask_local_cluster(bench_reference: tuple[Path, pd.Data
     with LocalCluster(
         n_workers=2, threads_per_worker=1, processes=True, host="127.0.0.1", dashboard_address=None
     ) as cluster:
-        summary = run_study(load_study(path, out), backend="dask", scheduler=cluster.scheduler_address)
+        summary = run_sweep(
+            load_study(path, out), RunOptions(backend="dask", scheduler=cluster.scheduler_address)
+        )
     assert summary.by_status == {"ok": 8}
     pd.testing.assert_frame_equal(results_only(read_results(out)), results_only(reference))
     assert read_manifest(out)["runs"][-1]["backend"] == "dask"
@@ -106,10 +108,10 @@ def test_interrupt_keeps_every_finished_trial_and_resume_completes(tmp_path: Pat
     kept = read_results(out)
     assert 0 < len(kept) < n and set(kept["status"]) == {"ok"} and kept["job_id"].is_unique
     assert read_manifest(out)["runs"][-1]["status"] == "interrupted"
-    summary = run_study(load_study(path, out), n_jobs=2)
+    summary = run_sweep(load_study(path, out), RunOptions(n_jobs=2))
     assert (summary.skipped, summary.run) == (len(kept), n - len(kept))
     reference = tmp_path / "reference"
-    run_study(load_study(path, reference), n_jobs=2)
+    run_sweep(load_study(path, reference), RunOptions(n_jobs=2))
     pd.testing.assert_frame_equal(results_only(read_results(out)), results_only(read_results(reference)))
 
 
@@ -176,7 +178,7 @@ def test_a_killed_run_leaves_no_process_and_a_readable_table(tmp_path: Path) -> 
     assert "leaked" not in said and "Warning" not in said and "Traceback" not in said, said
     kept = read_results(out)  # even a killed run leaves a readable table
     assert len(kept) >= 2 and kept["job_id"].is_unique
-    summary = run_study(load_study(path, out), n_jobs=2)
+    summary = run_sweep(load_study(path, out), RunOptions(n_jobs=2))
     assert summary.skipped + summary.run == 30
 
 

@@ -1,4 +1,4 @@
-"""Text summaries of a run and of a results folder (rich tables)."""
+"""Text summaries of a run and of a results folder (rich tables), as the command line prints them."""
 
 from __future__ import annotations
 
@@ -11,8 +11,8 @@ from rich.table import Table
 
 from somo_sweep.errors import printable, shown
 from somo_sweep.sweep.folder import MANIFEST
+from somo_sweep.sweep.options import RunSummary
 from somo_sweep.sweep.robustness import ROBUST, fold, label_names
-from somo_sweep.sweep.runner import RunSummary
 
 __all__ = ["breakdown", "inferred_mask", "label_columns", "print_results", "print_run_summary"]
 
@@ -198,13 +198,38 @@ def print_results(
             (:func:`~somo_sweep.sweep.folder.pending_journal_rows`).
     """
     pending = pending or {}
-    total = manifest.get("n_trials") or 0
     replica_runs = 0
     if not df.empty:
         n_rows = len(df)
         df = fold(df)
         replica_runs = n_rows - len(df)
     inferred = inferred_mask(df)
+    console.print(_header(df, manifest, inferred, replica_runs, holder, pending))
+    _print_runs(console, manifest.get("runs", []), holder, pending)
+    if df.empty:
+        return
+    counts = _by_sampling(df["status"].rename("status"), inferred)
+    console.print(_table("trials by status", counts, "status"))
+    for label in label_columns(df):
+        counts = _by_sampling(df[label].fillna("-"), inferred)
+        console.print(_table(f"trials by {label.removeprefix('label_')}", counts, "value"))
+    for key, column in manifest.get("axes", {}).items():
+        if isinstance(column, str) and column in df.columns:  # a hand-edited manifest may hold anything
+            console.print(_table(f"by {key}", breakdown(df, column), column))
+    _print_robustness(console, df, manifest)
+    _print_reasons(console, df[~inferred])
+
+
+def _header(
+    df: pd.DataFrame,
+    manifest: dict[str, Any],
+    inferred: pd.Series,
+    replica_runs: int,
+    holder: str | None,
+    pending: dict[str, int],
+) -> str:
+    """The folder's first line: study, trials stored of how many, hash and task."""
+    total = manifest.get("n_trials") or 0
     stored = f"{len(df)} of {total} trials stored"
     if inferred.any():
         stored = (
@@ -217,11 +242,16 @@ def print_results(
         stored += f" (and {sum(pending.values())} finished in a killed run's journal, stored by the next run)"
     elif sum(pending.values()):
         stored += f" (and {sum(pending.values())} finished in the running run's journal)"
-    console.print(
+    return (
         f"[bold]{_text(manifest.get('study_name'))}[/bold]: {stored}, "
         f"study hash {_text(manifest['study_hash'])}, task {_text(manifest.get('study', {}).get('task'))}"
     )
-    runs = manifest.get("runs", [])
+
+
+def _print_runs(
+    console: Console, runs: list[dict[str, Any]], holder: str | None, pending: dict[str, int]
+) -> None:
+    """The latest runs, one line each."""
     if len(runs) > SHOWN_RUNS:  # a folder resumed thousands of times: its latest runs
         console.print(f"  … {len(runs) - SHOWN_RUNS} earlier run(s) (all in {MANIFEST})")
     unclaimed = sum(n for run_id, n in pending.items() if all(r.get("run_id") != run_id for r in runs))
@@ -230,18 +260,10 @@ def print_results(
         if run.get("status") == "running" and "run_id" not in run:  # an older version's run: no id
             waiting += unclaimed
         console.print(f"  {_run_line(run, holder, waiting)}")
-    if df.empty:
-        return
-    counts = _by_sampling(df["status"].rename("status"), inferred)
-    console.print(_table("trials by status", counts, "status"))
-    for label in label_columns(df):
-        counts = _by_sampling(df[label].fillna("-"), inferred)
-        console.print(_table(f"trials by {label.removeprefix('label_')}", counts, "value"))
-    for key, column in manifest.get("axes", {}).items():
-        if isinstance(column, str) and column in df.columns:  # a hand-edited manifest may hold anything
-            console.print(_table(f"by {key}", breakdown(df, column), column))
-    _print_robustness(console, df, manifest)
-    simulated = df[~inferred]
+
+
+def _print_reasons(console: Console, simulated: pd.DataFrame) -> None:
+    """The commonest reasons of the trials not ``ok``, and the mean wall time per trial."""
     bad = simulated[simulated["status"] != "ok"]
     if len(bad):
         counts = bad.groupby(["status", "message"]).size().sort_values(ascending=False).head(5)

@@ -1,0 +1,154 @@
+"""``somo-sweep show``, ``plot`` and ``recheck``: what a results folder holds, drawn, and re-run."""
+
+from __future__ import annotations
+
+from pathlib import Path
+from typing import TYPE_CHECKING, Annotated
+
+import typer
+from rich.console import Console
+
+from somo_sweep.cli.output import (
+    check_replaceable,
+    fail,
+    figure_bytes,
+    file_target,
+    json_report,
+    write_atomic,
+    write_outputs,
+)
+from somo_sweep.errors import SomoError
+
+if TYPE_CHECKING:
+    from somo_sweep.sweep.parts import Damage
+
+__all__ = ["ALLOW_OUTSIDE", "MAX_TRIALS", "plot", "recheck", "save_plots", "show"]
+
+_out = Console()
+#: Default of ``--max-trials`` (the library's :data:`somo_sweep.sweep.study_file.MAX_TRIALS`).
+MAX_TRIALS = 1_000_000
+#: Keys of every ``recheck --report`` file (earlier versions wrote it without the JSON mark).
+RECHECK_KEYS = frozenset({"trials", "columns_compared", "identical", "mismatches"})
+
+ALLOW_OUTSIDE = Annotated[
+    bool,
+    typer.Option(
+        "--allow-outside", help="Let model files include files outside their own folder (file: ../x.yaml)."
+    ),
+]
+
+
+def _damaged(path: Path, reason: Damage) -> None:
+    """Warn of a file of a results folder that a reader left out (or whose rows it counted once)."""
+    from somo_sweep.sweep.folder import INFERRED
+
+    if reason.kind == "unreadable":
+        typer.echo(
+            f"warning: part file {path} {reason}: its trials are left out; give read access to it", err=True
+        )
+        return
+    if path.name == INFERRED and path.parent.joinpath("manifest.json").exists():
+        what = reason.detail if reason.kind == "repeats" else f"skipped ({reason})"
+        typer.echo(f"warning: {path}: {what}; the next adaptive run of this study rebuilds it", err=True)
+        return
+    if reason.kind == "repeats":  # readable, but a copy: its rows are counted once
+        typer.echo(f"warning: part file {path} {reason}", err=True)
+        return
+    typer.echo(
+        f"warning: skipped damaged part file {path} ({reason}); the next somo-sweep run of this study "
+        "moves it to trials/quarantine/ and runs its trials again",
+        err=True,
+    )
+
+
+def save_plots(folder: Path) -> None:
+    from somo_sweep.sweep.folder import read_manifest, read_results
+    from somo_sweep.sweep.manifest import record_files
+    from somo_sweep.sweep.plots import summary_figure
+
+    df, manifest = read_results(folder, _damaged), read_manifest(folder)
+    target = folder / "plots"
+    if target.is_symlink():
+        raise SomoError(f"{target} is a symbolic link; the plots go in the results folder itself: remove it")
+    written = write_outputs(
+        [
+            (target / "summary.png", figure_bytes(summary_figure(df, manifest), "png", 120)),
+            (target / "summary.svg", figure_bytes(summary_figure(df, manifest), "svg", 120)),
+        ]
+    )
+    record_files(folder, written)
+    _out.print(f"plots: {target / 'summary.png'} (and .svg)")
+
+
+def show(results: Annotated[Path, typer.Argument(help="Results folder, e.g. results/<study>.")]) -> None:
+    """Print a results folder's summary: counts by status and label, per-axis breakdown."""
+    from somo_sweep.cli.summary import print_results
+    from somo_sweep.sweep.folder import pending_journal_rows, read_manifest, read_results
+    from somo_sweep.sweep.lock import holder_now
+
+    try:
+        df, manifest = read_results(results, _damaged), read_manifest(results)
+        pending = pending_journal_rows(results, manifest["study_hash"], set(df["job_id"]))
+        print_results(_out, df, manifest, holder_now(results), pending)
+    except SomoError as exc:
+        fail(exc)
+
+
+def plot(results: Annotated[Path, typer.Argument(help="Results folder, e.g. results/<study>.")]) -> None:
+    """Draw a results folder's summary plots (PNG and SVG in <folder>/plots)."""
+    try:
+        save_plots(results)
+    except SomoError as exc:
+        fail(exc)
+
+
+def recheck(
+    study: Annotated[Path, typer.Argument(help="Study file whose finished results to recheck.")],
+    trials: Annotated[int, typer.Option("--trials", "-n", help="How many stored trials to re-run.")] = 20,
+    seed: Annotated[int, typer.Option(help="Seed of the random draw of trials.")] = 0,
+    out: Annotated[
+        Path | None,
+        typer.Option("--out", help="Results folder, anywhere (default: the study's, inside results/)."),
+    ] = None,
+    report: Annotated[
+        str | None,
+        typer.Option(
+            metavar="<path>",
+            help="Also write the comparison as JSON here; a folder (out/, or one that exists) gets "
+            "recheck.json in it.",
+        ),
+    ] = None,
+    max_trials: Annotated[
+        int, typer.Option("--max-trials", help="Refuse a study with more trials than this.")
+    ] = MAX_TRIALS,
+    allow_outside: ALLOW_OUTSIDE = False,
+) -> None:
+    """Re-run random stored trials in this process; exit 1 unless every cell is identical."""
+    import json
+
+    from somo_sweep.sweep.recheck import recheck as run_recheck
+    from somo_sweep.sweep.study import load_study
+
+    if max_trials < 1:
+        fail(SomoError(f"--max-trials must be >= 1, got {max_trials}"))
+    if not 0 <= seed < 2**63:
+        fail(SomoError(f"--seed must be from 0 to 2**63 - 1, got {seed}"))
+    target = file_target(report, "recheck.json")
+    try:
+        if target is not None:
+            check_replaceable(target, [study], kind="json", older_keys=RECHECK_KEYS)
+        result = run_recheck(load_study(study, out, max_trials, allow_outside), trials, seed, _damaged)
+    except SomoError as exc:
+        fail(exc)
+    if target is not None:
+        write_atomic(target, json_report(json.loads(json.dumps(result.to_dict(), default=str)), "recheck"))
+    n_bad = len({m.trial for m in result.mismatches})
+    typer.echo(
+        f"re-ran {len(result.trials)} trial(s) {sorted(result.trials)}: "
+        f"{len(result.trials) - n_bad} identical, {n_bad} different "
+        f"({result.columns_compared} cells compared; status, labels, metrics, parameters)"
+    )
+    for m in result.mismatches[:20]:
+        typer.echo(f"  trial {m.trial}: {m.column}: stored {m.stored!r}, re-run {m.rerun!r}")
+    if not result.identical:
+        raise typer.Exit(1)
