@@ -8,7 +8,11 @@ positive pressure curls the tip toward −z:
   displacement relative to the unloaded finger at the same pressure.
 * ``blocked_force``: a frictionless horizontal stop, by default at the height of the
   straight finger's underside (``BenchSettings.stop_z_m`` puts it elsewhere below it);
-  ``blocked_force_n`` is the total vertical contact force at ``pressure_kpa``.
+  ``blocked_force_n`` is the total vertical contact force at ``pressure_kpa``. The stop is
+  a ``plate`` under the whole finger (the default: every link may rest on it) or a
+  ``fingertip`` stop that touches the finger only at its end face (a load cell under the
+  fingertip: the clamp holds the weight the tip does not put on it; statics ``solve`` only),
+  ``BenchSettings.stop``.
 * ``free_bending``: no contact; ``tip_x_mm``, ``tip_z_mm`` are the tip position
   relative to the base (the chain start), z up, and ``tip_angle_deg`` the angle of the
   tip's chain axis in the x–z plane: 0 along +x (straight), positive curling toward
@@ -45,6 +49,7 @@ from somo_sweep.sim.world import Body, World
 
 __all__ = [
     "STATICS",
+    "STOPS",
     "TESTS",
     "BenchResult",
     "BenchSettings",
@@ -58,6 +63,8 @@ __all__ = [
 TESTS = ("tip_load", "blocked_force", "free_bending")
 #: How a row's equilibrium is found: solved statically, or by dynamic relaxation.
 STATICS = ("solve", "dynamic")
+#: What the blocked-force stop touches: every link lying on a plate, or only the finger's end face.
+STOPS = ("plate", "fingertip")
 
 
 #: Largest bench gravity accepted, m/s² (ten times the Earth's: a centrifuge bench at most).
@@ -82,6 +89,9 @@ class BenchSettings:
             ``dynamic`` (dynamic relaxation; ``time_step_s``, ``tolerance_m``, ``max_steps``).
         stop_z_m: Height of the blocked-force stop's top face relative to the straight finger's
             centre line, m (z up; negative below it); None: the straight finger's underside.
+        stop: ``plate`` (a plate under the whole finger; every link may rest on it and the
+            force is their total) or ``fingertip`` (only the end face of the finger's last link
+            touches the stop, as a load cell under the fingertip; statics ``solve`` only).
         engine: ``pybullet`` or ``mujoco`` (:class:`~somo_sweep.sim.settings.WorldSettings`).
     """
 
@@ -93,6 +103,7 @@ class BenchSettings:
     gravity_m_s2: float = 9.81
     statics: str = "solve"
     stop_z_m: float | None = None
+    stop: str = "plate"
     engine: str = "pybullet"
 
     def __post_init__(self) -> None:
@@ -110,6 +121,8 @@ class BenchSettings:
             )
         if self.statics not in ("solve", "dynamic"):
             raise SomoError(f"statics must be solve or dynamic, got {self.statics!r}")
+        if self.stop not in STOPS:
+            raise SomoError(f"the bench stop must be one of {', '.join(STOPS)}, got {self.stop!r}")
         if self.engine not in ENGINES:
             raise SomoError(f"engine must be one of {', '.join(ENGINES)}, got {self.engine!r}")
 
@@ -389,6 +402,8 @@ def run_bench(
                 cause = f"no static equilibrium found ({cause})"
             raise SimulationError(f"bench {test} at {pressure_kpa} kPa: {cause}")
         return BenchResult(row.value, row.status.iterations)
+    if settings.stop != "plate":
+        raise SimulationError(f"a {settings.stop} stop is solved statically only (statics: solve)")
     rig = _Rig(manip, settings)
     try:
         rig.body.drive.set_inputs(_inputs(manip, pressure_kpa))

@@ -201,6 +201,8 @@ class StaticChain:
         stop_z_m: Height of the blocked-force stop's top relative to the straight finger's centre
             line, m (None: its underside; :func:`~somo_sweep.sim.bench.stop_geometry`).
         engine: The engine whose kinematics the solver reads (``pybullet`` or ``mujoco``).
+        stop: ``plate`` (every link's lowest points may touch the stop) or ``fingertip`` (only
+            those on the end face of the last link; ``BenchSettings.stop``).
     """
 
     def __init__(
@@ -210,6 +212,7 @@ class StaticChain:
         added_inertia_kg_m2: float = 1e-5,
         stop_z_m: float | None = None,
         engine: str = "pybullet",
+        stop: str = "plate",
     ):
         self.manip = manip
         scale = scale if engine == "pybullet" else 1.0  # MuJoCo runs in SI
@@ -219,6 +222,8 @@ class StaticChain:
         self.plate = (
             self.body.plate if stop_z_m is None else dataclass_replace(self.body.plate, top_m=stop_z_m)
         )
+        features = self.body.features
+        self.touches_stop = features.end_face(self.body.tip_link) if stop == "fingertip" else np.bool_(True)
         joints = plan.joints
         self.k = np.array([j.stiffness for j in joints], float)
         self.q0 = np.array([j.neutral for j in joints], float)
@@ -265,6 +270,7 @@ class StaticChain:
             (r[:, 0] >= plate.x_range_m[0] - 1e-9)
             & (r[:, 0] <= plate.x_range_m[1])
             & (np.abs(r[:, 1]) <= plate.half_y_m)
+            & self.touches_stop
         )
         return r, links, r[:, 2] - drop - plate.top_m, on
 
@@ -734,7 +740,7 @@ def _failed(test: str, eq: _Equilibrium, where: str = "", iterations: int | None
 
 # --------------------------------------------------------------------- caches
 _BODIES: OrderedDict[tuple[str, float, tuple[float, ...], str], BenchBody] = OrderedDict()
-_CHAINS: OrderedDict[tuple[str, float, float, float | None, str], StaticChain] = OrderedDict()
+_CHAINS: OrderedDict[tuple[str, float, float, float | None, str, str], StaticChain] = OrderedDict()
 
 
 def _body(manip: Manipulator, plan: BodyPlan, scale: float, engine: str) -> BenchBody:
@@ -758,14 +764,15 @@ def static_chain(
     added_inertia_kg_m2: float = 1e-5,
     stop_z_m: float | None = None,
     engine: str = "pybullet",
+    stop: str = "plate",
 ) -> StaticChain:
     """The (cached) static chain of a manipulator; keyed on its JSON, the bench's scale, stop and engine."""
-    key = (manip.model_dump_json(), float(scale), float(added_inertia_kg_m2), stop_z_m, engine)
+    key = (manip.model_dump_json(), float(scale), float(added_inertia_kg_m2), stop_z_m, engine, stop)
     chain = _CHAINS.get(key)
     if chain is not None and chain.body.is_open:
         _CHAINS.move_to_end(key)
         return chain
-    chain = StaticChain(manip, scale, added_inertia_kg_m2, stop_z_m, engine)
+    chain = StaticChain(manip, scale, added_inertia_kg_m2, stop_z_m, engine, stop)
     _CHAINS[key] = chain
     while len(_CHAINS) > CHAIN_CACHE:
         _CHAINS.popitem(last=False)
@@ -813,7 +820,7 @@ def solve_row(
         if not math.isfinite(pressure_kpa):
             raise SimulationError(f"pressure_kpa must be finite, got {pressure_kpa}")
         manip = _manipulator(model)
-        chain = static_chain(manip, st.scale, st.added_inertia_kg_m2, st.stop_z_m, st.engine)
+        chain = static_chain(manip, st.scale, st.added_inertia_kg_m2, st.stop_z_m, st.engine, st.stop)
         return chain.solve(test, pressure_kpa, tip_load_n, direction, st.gravity_m_s2)
     except Exception as exc:  # a row's failure is data, not an abort
         return RowSolution(nan, SolveStatus(False, 0, math.nan, f"{type(exc).__name__}: {exc}"))
