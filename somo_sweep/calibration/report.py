@@ -61,6 +61,7 @@ def summary(result: CalibrationResult, source: str | Path | None = None) -> dict
             for p in result.problem.parameters
         },
         "bench_stop_z_mm": _stop_mm(result.problem.settings.stop_z_m),
+        "bench_stop": result.problem.settings.stop,
         "calibration_lines": [int(n) for n in result.problem.calibration_rows["line"]],
         "validation_lines": [int(n) for n in result.problem.validation_rows["line"]],
         "tests": [m.as_dict() for m in result.metrics],

@@ -188,6 +188,7 @@ class DiagnosisResult:
             "bench_stop_z_mm": (
                 "underside" if (stop := self.problem.fit.settings.stop_z_m) is None else stop * 1e3
             ),
+            "bench_stop": self.problem.fit.settings.stop,
             "rmse_before": rmse(self.problem.before),
             "rmse_after": rmse(self.after),
             "noise": _noise_dict(self.noise),

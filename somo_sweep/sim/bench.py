@@ -87,6 +87,8 @@ def run_bench(
     manip = bench_manipulator(model)
     if statics == "solve":
         return _solved_row(manip, test, pressure_kpa, tip_load_n, settings, direction)
+    if settings.stop != "plate":
+        raise SimulationError(f"a {settings.stop} stop is solved statically only (statics: solve)")
     return relaxed_row(manip, test, pressure_kpa, tip_load_n, settings, direction)
 
 

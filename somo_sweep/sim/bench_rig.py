@@ -26,6 +26,7 @@ __all__ = [
     "MAX_GRAVITY_M_S2",
     "MAX_STOP_DEPTH_M",
     "STATICS",
+    "STOPS",
     "TESTS",
     "BenchResult",
     "BenchSettings",
@@ -41,6 +42,8 @@ __all__ = [
 TESTS = ("tip_load", "blocked_force", "free_bending")
 #: How a row's equilibrium is found: solved statically, or by dynamic relaxation.
 STATICS = ("solve", "dynamic")
+#: What the blocked-force stop touches: every link lying on a plate, or only the finger's end face.
+STOPS = ("plate", "fingertip")
 
 
 #: Largest bench gravity accepted, m/s² (ten times the Earth's: a centrifuge bench at most).
@@ -65,6 +68,9 @@ class BenchSettings:
             ``dynamic`` (dynamic relaxation; ``time_step_s``, ``tolerance_m``, ``max_steps``).
         stop_z_m: Height of the blocked-force stop's top face relative to the straight finger's
             centre line, m (z up; negative below it); None: the straight finger's underside.
+        stop: ``plate`` (a plate under the whole finger; every link may rest on it and the
+            force is their total) or ``fingertip`` (only the end face of the finger's last link
+            touches the stop, as a load cell under the fingertip; statics ``solve`` only).
         engine: ``pybullet`` or ``mujoco`` (:class:`~somo_sweep.sim.settings.WorldSettings`).
     """
 
@@ -76,6 +82,7 @@ class BenchSettings:
     gravity_m_s2: float = 9.81
     statics: str = "solve"
     stop_z_m: float | None = None
+    stop: str = "plate"
     engine: str = "pybullet"
 
     def __post_init__(self) -> None:
@@ -93,6 +100,8 @@ class BenchSettings:
             )
         if self.statics not in ("solve", "dynamic"):
             raise SomoError(f"statics must be solve or dynamic, got {self.statics!r}")
+        if self.stop not in STOPS:
+            raise SomoError(f"the bench stop must be one of {', '.join(STOPS)}, got {self.stop!r}")
         if self.engine not in ENGINES:
             raise SomoError(f"engine must be one of {', '.join(ENGINES)}, got {self.engine!r}")
 

@@ -29,10 +29,21 @@ class ChainEnergy:
         k: Joint stiffness, N·m/rad (N/m for prismatic joints).
         k3: Cubic coefficient k·a of every joint, N·m/rad³.
         q0: Neutral joint positions, rad (m).
+        touches_stop: Which contact candidates (in :meth:`ContactFeatures.lowest`'s order) may
+            touch the stop; None: all of them (a plate).
     """
 
-    def __init__(self, body: BenchBody, plate: Plate, k: np.ndarray, k3: np.ndarray, q0: np.ndarray):
+    def __init__(
+        self,
+        body: BenchBody,
+        plate: Plate,
+        k: np.ndarray,
+        k3: np.ndarray,
+        q0: np.ndarray,
+        touches_stop: np.ndarray | None = None,
+    ):
         self.body = body
+        self.touches_stop = np.bool_(True) if touches_stop is None else touches_stop
         self.plate = plate
         self.k = k
         self.k3 = k3
@@ -64,6 +75,7 @@ class ChainEnergy:
             (r[:, 0] >= plate.x_range_m[0] - 1e-9)
             & (r[:, 0] <= plate.x_range_m[1])
             & (np.abs(r[:, 1]) <= plate.half_y_m)
+            & self.touches_stop
         )
         return r, links, r[:, 2] - drop - plate.top_m, on
 

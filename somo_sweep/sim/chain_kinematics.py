@@ -93,6 +93,16 @@ class ContactFeatures:
             f.rim_radius = np.array([r for _, _, r in rims], float)
         return f
 
+    def end_face(self, link: int) -> np.ndarray:
+        """Mask of the candidates (in :meth:`lowest`'s order) on ``link``'s distal end (its largest
+        local z): the corners of a box's end face, a sphere's bottom, a cylinder's far rim."""
+        links = np.concatenate([self.point_link, self.sphere_link, self.rim_link])
+        z = np.concatenate([self.point_local[:, 2], self.sphere_local[:, 2], self.rim_local[:, 2]])
+        mine = links == link
+        if not mine.any():
+            return mine
+        return mine & (z >= z[mine].max() - 1e-12)
+
     def lowest(self, kin: Kin) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """World force points (m, 3), their links and the drop below them to the shape's bottom."""
         parts_r, parts_l, parts_d = [], [], []

@@ -70,7 +70,9 @@ def plate_force_range(
     st = settings or BenchSettings()
     if not math.isfinite(pressure_kpa):
         raise SimulationError(f"pressure_kpa must be finite, got {pressure_kpa}")
-    chain = static_chain(bench_manipulator(model), st.scale, st.added_inertia_kg_m2, st.stop_z_m, st.engine)
+    chain = static_chain(
+        bench_manipulator(model), st.scale, st.added_inertia_kg_m2, st.stop_z_m, st.engine, st.stop
+    )
     approach = {"loading": 1.0, "unloading": -1.0}.get(direction or "", 0.0)
     u = chain.joint_torques(pressure_kpa) - approach * chain.hysteresis
     eq = chain.equilibrium(u, 0.0, st.gravity_m_s2, plate=True)

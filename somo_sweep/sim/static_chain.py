@@ -86,6 +86,8 @@ class StaticChain:
         stop_z_m: Height of the blocked-force stop's top relative to the straight finger's centre
             line, m (None: its underside; :func:`~somo_sweep.sim.bench_rig.stop_geometry`).
         engine: The engine whose kinematics the solver reads (``pybullet`` or ``mujoco``).
+        stop: ``plate`` (every link's lowest points may touch the stop) or ``fingertip`` (only
+            those on the end face of the last link; ``BenchSettings.stop``).
     """
 
     def __init__(
@@ -95,6 +97,7 @@ class StaticChain:
         added_inertia_kg_m2: float = 1e-5,
         stop_z_m: float | None = None,
         engine: str = "pybullet",
+        stop: str = "plate",
     ):
         self.manip = manip
         scale = scale if engine == "pybullet" else 1.0  # MuJoCo runs in SI
@@ -111,7 +114,8 @@ class StaticChain:
         self.hysteresis = np.array([j.hysteresis for j in joints], float)
         self.input_index = np.array([j.input_index for j in joints], int)
         self.n_inputs = len(plan.inputs)
-        self.energy = ChainEnergy(self.body, self.plate, self.k, self.k3, self.q0)
+        touches = self.body.features.end_face(self.body.tip_link) if stop == "fingertip" else None
+        self.energy = ChainEnergy(self.body, self.plate, self.k, self.k3, self.q0, touches)
         self._free: OrderedDict[tuple[float, float, float], Equilibrium] = OrderedDict()
         # Solved equilibria (load, q) per plate flag: starts for continuation from the last rows.
         self._solved: dict[bool, OrderedDict[bytes, tuple[Load, np.ndarray]]] = {

