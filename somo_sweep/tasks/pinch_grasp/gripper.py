@@ -18,6 +18,7 @@ __all__ = [
     "OBJECT_DEPTH_M",
     "OBJECT_HEIGHT_M",
     "OBJECT_MASS_KG",
+    "finger_length_m",
     "gripper",
     "object_body",
     "split_finger",
@@ -150,6 +151,13 @@ def gripper(model: Model, params: PinchGraspParams) -> Model:
         for m in assembly.manipulators
     ]
     return Model(assembly=assembly.model_copy(update={"manipulators": mounts}))
+
+
+def finger_length_m(model: Model) -> float:
+    """L, the chain length of the gripper's first finger (its segment links, without base or tip
+    links), m."""
+    finger = model.as_assembly().manipulators[0].manipulator
+    return float(sum(act.segments * act.segment_m for act in finger.actuators))
 
 
 def object_body(params: PinchGraspParams) -> RigidBody:

@@ -32,8 +32,6 @@ __all__ = [
     "PinchGraspParams",
     "check_gripper",
     "distal_link_count",
-    "final_count_columns",
-    "link_columns",
     "original_hull_size_m",
     "perturb",
 ]
@@ -103,11 +101,6 @@ def check_gripper(model: Model) -> list[str]:
     return needs
 
 
-def link_columns(prefix: str) -> list[str]:
-    """Metric names of a per-link quantity, link 1 … 20 then the tip (e.g. ``hold_normal_force_n``)."""
-    return [f"{prefix}_link{k:02d}" for k in range(1, N_FINGER_LINKS)] + [f"{prefix}_tip"]
-
-
 #: The original study's object collision shapes (its cube_60mm set: a V-HACD convex hull of each
 #: box mesh, 8-10 vertices), as boxes of the hulls' extents (x along the approach, y across the
 #: fingers, z up), m, by nominal width. Each is 0.3-1.1 mm larger than the nominal box, and its
@@ -129,12 +122,6 @@ def original_hull_size_m(width_m: float) -> tuple[float, float, float] | None:
         if abs(width_m - nominal) < 1e-9:
             return size
     return None
-
-
-def final_count_columns() -> list[str]:
-    """Metric names of the final step's contact counts per part: the finger base boxes (both
-    fingers added; the original's link number 0), links 1 … 20, the fingertip, then the palm."""
-    return ["final_contact_count_base", *link_columns("final_contact_count"), "final_contact_count_palm"]
 
 
 class Numerics(BaseModel):
@@ -300,6 +287,8 @@ class PinchGraspParams(BaseModel):
 #: Arrow type of every metric a trial returns (the results table's schema).
 METRICS: dict[str, str] = {
     "n_distal_links": "int64",
+    "n_finger_links": "int64",
+    "finger_length_m": "double",
     **{name: "double" for name in ("object_x_m", "object_y_m", "object_z_m")},
     **{name: "double" for name in ("object_roll_rad", "object_pitch_rad", "object_yaw_rad")},
     "lift_height_m": "double",
@@ -308,19 +297,22 @@ METRICS: dict[str, str] = {
     "hold_samples": "int64",
     "hold_contact_fraction_both_fingers": "double",
     "hold_ground_contact_fraction": "double",
-    **{name: "int64" for name in link_columns("hold_contact_count")},
-    **{name: "double" for name in link_columns("hold_normal_force_n")},
+    "hold_contact_count_finger": "int64",
     "hold_contact_count_palm": "int64",
+    "hold_normal_force_n": "double",
     "hold_normal_force_n_palm": "double",
     "hold_normal_force_n_left": "double",
     "hold_normal_force_n_right": "double",
     "final_contact_count": "int64",
     "final_mean_contact_link": "double",
-    **{name: "int64" for name in final_count_columns()},
+    "final_contact_count_base": "int64",
+    "final_contact_count_palm": "int64",
     "final_mean_link_paper": "double",
+    "final_mean_position_paper": "double",
     "hold_force_fraction_distal": "double",
     "hold_force_fraction_tip": "double",
     "hold_force_fraction_proximal": "double",
+    "hold_force_fraction_palm": "double",
     "hold_mean_contact_position": "double",
     "held": "bool",
     "base_distance_m": "double",

@@ -9,8 +9,8 @@ paper's centering position, ``centering_position_m``); 1–2 s the proximal torq
 ramps 0 → 0.15 N·m; 2–3 s the hand lifts 75 mm; 3–4 s hold. The finger bases
 (mounts, SoMo's base frames: the back faces of the base boxes) stay 35 mm above the
 ground until the lift. Contacts are sampled over the hold phase and stored as
-per-link counts and forces, so grasps can be reclassified without rerunning
-(:mod:`somo_sweep.tasks.pinch_grasp.classify`).
+scalars on position along the finger (shares of force by zone, mean positions), so
+grasps can be reclassified without rerunning (:mod:`somo_sweep.tasks.pinch_grasp.classify`).
 
 Early stop (``early_stop``, on by default): at the end of the squeeze and of the
 lift the trial ends if its outcome is already settled as no grasp under both rules
@@ -33,17 +33,11 @@ from somo_sweep.sim.rotations import rpy_from_quat
 from somo_sweep.sim.settings import WorldSettings
 from somo_sweep.sim.world import ModelHandle, World
 from somo_sweep.sim.worlds import open_world
-from somo_sweep.tasks.pinch_grasp.classify import (
-    GraspEvidence,
-    classify,
-    contact_position,
-    distal_force_fractions,
-    is_held,
-    paper_mean_link,
-)
+from somo_sweep.tasks.pinch_grasp.classify import GraspEvidence, classify, is_held
 from somo_sweep.tasks.pinch_grasp.contacts import HoldProbe
-from somo_sweep.tasks.pinch_grasp.gripper import GROUND_FRICTION, gripper, object_body
-from somo_sweep.tasks.pinch_grasp.params import PinchGraspParams, final_count_columns
+from somo_sweep.tasks.pinch_grasp.gripper import GROUND_FRICTION, finger_length_m, gripper, object_body
+from somo_sweep.tasks.pinch_grasp.params import PinchGraspParams
+from somo_sweep.tasks.pinch_grasp.positions import contact_position, paper_mean_link, zone_force_fractions
 from somo_sweep.tasks.pinch_grasp.settled import Snapshot, settled_reason
 from somo_sweep.tasks.registry import TaskResult
 
@@ -80,7 +74,7 @@ def run_pinch_grasp(
         scene = _build_scene(world, hand_model, params)
         _plan_path(scene, params)
         steps = _Steps.plan(params, settings.time_step_s, observe_at_s)
-        metrics: Metrics = {"n_distal_links": params.n_distal}
+        metrics: Metrics = {"n_distal_links": params.n_distal, "finger_length_m": finger_length_m(hand_model)}
         try:
             ending = _step_through(scene, steps, metrics, observe)
         except UnstableSimulation as exc:
@@ -262,18 +256,21 @@ def _collect_metrics(
     metrics["hold_slip_m"] = float(z_obj[steps.i_hold] - pos[2]) if not reason else nan
     metrics["ended_early_s"] = ending.ended_early_s
     metrics["ended_early_reason"] = reason
-    metrics.update(scene.probe.metrics())
-    metrics["final_mean_link_paper"] = paper_mean_link([int(metrics[n]) for n in final_count_columns()[:-1]])
+    probe = scene.probe
+    metrics.update(probe.metrics())
+    n_links = metrics["n_finger_links"] = probe.n_links
+    mean_link = paper_mean_link(probe.final_counts())
+    metrics["final_mean_link_paper"] = mean_link
+    metrics["final_mean_position_paper"] = mean_link / n_links
+    forces = probe.hold_forces_n()
+    shares = zone_force_fractions(forces, float(metrics["hold_normal_force_n_palm"]), p.n_distal)
+    metrics.update({f"hold_force_fraction_{zone}": share for zone, share in shares.items()})
+    metrics["hold_mean_contact_position"] = contact_position(forces)
 
 
 def _classified(metrics: Metrics, p: PinchGraspParams) -> TaskResult:
-    """The trial's result: its metrics with the force shares, and its labels under both rules."""
+    """The trial's result: its metrics with ``held``, and its labels under both rules."""
     evidence = GraspEvidence.from_metrics(metrics, p.distal_segment_ratio, p.lift_m)
-    shares = distal_force_fractions(evidence)
-    metrics["hold_force_fraction_distal"] = shares["distal"]
-    metrics["hold_force_fraction_tip"] = shares["tip"]
-    metrics["hold_force_fraction_proximal"] = shares["proximal"]
-    metrics["hold_mean_contact_position"] = contact_position(evidence.hold_normal_force_n)
     metrics["held"] = is_held(evidence)
     labels = {"grasp": classify(evidence, "contacts"), "grasp_paper": classify(evidence, "paper")}
     return TaskResult(status="ok", metrics=metrics, labels=labels)
