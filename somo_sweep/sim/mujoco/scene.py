@@ -44,7 +44,7 @@ __all__ = [
 #: (0.02 s, impedance 0.9-0.95), with which a joint held below its limit creeps (1e-3 rad/s under 4 %
 #: of the limit on a test rotor); with these, 8 times slower. Stiffer still (1 ms) creeps 50 times
 #: slower but moves the quick pinch grid's labels between 4 and 2 ms steps (93 % agree, against
-#: 99 % with these): docs/mujoco.md, "Joint friction".
+#: 99 % with these): docs/physics.md, "Joint friction every other step".
 FRICTION_SOLREF = (8e-3, 1.0)
 FRICTION_SOLIMP = (0.99, 0.999, 0.001, 0.5, 2.0)
 #: Armature of a driven root's joints, per kg of the whole body (kg, kg·m² per kg): the root
