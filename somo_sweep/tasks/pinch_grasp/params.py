@@ -359,5 +359,13 @@ register(
             f"the object starts up to ±{JITTER_M * 1e3:g} mm off its spot in x and y, its friction "
             f"coefficient within ±{FRICTION_SPREAD:.0%}"
         ),
+        summary_metrics=(
+            "hold_normal_force_n_left",
+            "hold_normal_force_n_right",
+            "held",
+            "hold_mean_contact_position",
+            "hold_force_fraction_proximal",
+            "lift_slip_m",
+        ),
     )
 )
