@@ -201,7 +201,7 @@ def test_the_circle_check_sees_a_circle_inside_a_package(
     (package / "a.py").write_text("def f():\n    from somo_sweep.stage.b import g\n")
     (package / "b.py").write_text("def g():\n    from . import a\n")
     monkeypatch.setattr(sys.modules[__name__], "PACKAGE", tmp_path / "somo_sweep")
-    with pytest.raises(pytest.fail.Exception, match="import circle: somo_sweep.stage"):
+    with pytest.raises(pytest.fail.Exception, match=r"import circle: somo_sweep\.stage"):
         test_no_import_circle_between_any_two_modules()
 
 
