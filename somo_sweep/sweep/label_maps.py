@@ -116,6 +116,34 @@ def folded_cells(folded: pd.DataFrame, label: str) -> pd.DataFrame:
     return cells
 
 
+def _legend(cells: pd.DataFrame, colours: dict[str, str]) -> list[Any]:
+    """Legend entries: each label's colour, then the not-robust and inferred hatches with counts."""
+    from matplotlib.patches import Patch
+
+    handles = [Patch(facecolor=c, edgecolor="0.5", label=v) for v, c in colours.items()]
+    not_robust = int(cells[ROBUST].eq(False).fillna(False).astype(bool).sum()) if ROBUST in cells else 0
+    if not_robust:
+        handles.append(
+            Patch(
+                facecolor="white",
+                edgecolor="black",
+                hatch=NOT_ROBUST_HATCH,
+                label=f"not robust ({not_robust}: replicas disagree; majority drawn)",
+            )
+        )
+    inferred = int(cells["inferred"].fillna(False).astype(bool).sum()) if "inferred" in cells else 0
+    if inferred:
+        handles.append(
+            Patch(
+                facecolor="white",
+                edgecolor="0.5",
+                hatch=INFERRED_HATCH,
+                label=f"inferred ({inferred}: not simulated)",
+            )
+        )
+    return handles
+
+
 def label_map_figure(
     cells: pd.DataFrame, label: str, axes: Sequence[str], short: dict[str, str], title: str
 ) -> Figure:
@@ -123,7 +151,6 @@ def label_map_figure(
     in ``label``) over the swept ``axes``, one panel per combination of the axes beyond x and y
     (at most :data:`MAX_PANELS`; the title says how many are left out), with a legend."""
     import matplotlib.pyplot as plt
-    from matplotlib.patches import Patch
 
     x, y, rest = map_axes(cells, axes)
     groups = list(cells.groupby(rest, sort=True)) if rest else [((), cells)]
@@ -151,27 +178,7 @@ def label_map_figure(
         ax.set_xlabel(_axis_title(x, short))
     for ax in grid[:, 0]:
         ax.set_ylabel(_axis_title(y, short) if y else "")
-    handles = [Patch(facecolor=c, edgecolor="0.5", label=v) for v, c in colours.items()]
-    not_robust = int(cells[ROBUST].eq(False).fillna(False).astype(bool).sum()) if ROBUST in cells else 0
-    if not_robust:
-        handles.append(
-            Patch(
-                facecolor="white",
-                edgecolor="black",
-                hatch=NOT_ROBUST_HATCH,
-                label=f"not robust ({not_robust}: replicas disagree; majority drawn)",
-            )
-        )
-    inferred = int(cells["inferred"].fillna(False).astype(bool).sum()) if "inferred" in cells else 0
-    if inferred:
-        handles.append(
-            Patch(
-                facecolor="white",
-                edgecolor="0.5",
-                hatch=INFERRED_HATCH,
-                label=f"inferred ({inferred}: not simulated)",
-            )
-        )
+    handles = _legend(cells, colours)
     fig.legend(handles=handles, loc="outside lower center", ncol=min(len(handles), 4), fontsize="small")
     left_out = len(groups) - len(shown)
     more = f"; {left_out} more panels left out" if left_out else ""
