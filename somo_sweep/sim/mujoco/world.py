@@ -27,8 +27,9 @@ from somo_sweep.errors import SimulationError, UnstableSimulation
 from somo_sweep.model.description import Pose
 from somo_sweep.model.load import Model
 from somo_sweep.sim.camera import Camera
+from somo_sweep.sim.follow import Follow, PlannedSends
 from somo_sweep.sim.mujoco.compiled import filter_contacts, read_addresses
-from somo_sweep.sim.mujoco.contacts import contact_table, select_contacts
+from somo_sweep.sim.mujoco.contacts import StepContacts
 from somo_sweep.sim.mujoco.drive import MujocoDrive
 from somo_sweep.sim.mujoco.driven import DrivenRoots
 from somo_sweep.sim.mujoco.free_joint import check_free_body, free_base_pose, free_base_velocity
@@ -58,6 +59,15 @@ mujoco.set_mju_user_warning(_keep_warning)
 
 #: Steps between checks of the spring joints' speeds (a blow-up persists: NaN or ever faster).
 SPEED_CHECK_EVERY = 10
+
+
+def _only_follows(hooks: list[Callable[[World], None]], n: int) -> bool:
+    """Whether a run of ``n`` steps can plan its hooks' sends (only setpoint tables, n > 1)."""
+    return n > 1 and bool(hooks) and all(type(h) is Follow for h in hooks)
+
+
+def _follows(hooks: list[Callable[[World], None]]) -> list[Follow]:
+    return [h for h in hooks if isinstance(h, Follow)]
 
 
 class MujocoWorld(World):
@@ -91,7 +101,7 @@ class MujocoWorld(World):
         self._kinematics_stale = True
         self._external = False
         self._driven = DrivenRoots()
-        self._step_contacts: tuple[Any, ...] | None = None  # the last step's, once read
+        self._step_contacts: StepContacts | None = None  # the last step's, once read
         self._contact_memo: dict[tuple[int, int | None], dict[str, np.ndarray]] = {}
         self._free: set[int] = set()  # ids of bodies on a free joint (known once compiled)
         self._engine_time_s = 0.0
@@ -290,14 +300,22 @@ class MujocoWorld(World):
         bad_acc = d.warning[int(mujoco.mjtWarning.mjWARN_BADQACC)]
         qvel = self._qvel  # views kept from the compile: reading d.qvel builds a new one each time
         step, hooks, clock, driven = mujoco.mj_step, self.pre_step, perf_counter, self._driven
-        for _ in range(n):
-            for hook in hooks:
-                hook(self)
-            if self._dirty:  # a hook added a body
-                self._ready()
-                m, d, qvel = self.model, self.data, self._qvel
-                dofs = self._spring_dofs if self._n_springs else None
-                bad_acc = d.warning[int(mujoco.mjtWarning.mjWARN_BADQACC)]
+        # Setpoint tables alone: their sends planned for the whole run, no Python call per step.
+        planned = PlannedSends(_follows(hooks), self.step_count, n, dt) if _only_follows(hooks, n) else None
+        due = planned.due if planned is not None else []
+        next_due = 0
+        for k in range(n):
+            if planned is None:
+                for hook in hooks:
+                    hook(self)
+                if self._dirty:  # a hook added a body
+                    self._ready()
+                    m, d, qvel = self.model, self.data, self._qvel
+                    dofs = self._spring_dofs if self._n_springs else None
+                    bad_acc = d.warning[int(mujoco.mjtWarning.mjWARN_BADQACC)]
+            elif k == due[next_due]:
+                planned.send(self, k)
+                next_due += 1
             if driven.targets:
                 driven.drive(dt)
             t0 = clock()
@@ -427,10 +445,18 @@ class MujocoWorld(World):
         memo[key] = found = self._find_contacts(body_a, body_b)
         return found
 
+    def contact_count(self, body_a: int, body_b: int) -> int:
+        """Number of contact points between two bodies in the last step (no arrays built)."""
+        self._ready()
+        return self._read_contacts().count(body_a, body_b)
+
     def _find_contacts(self, body_a: int, body_b: int | None) -> dict[str, np.ndarray]:
-        if self._step_contacts is None:  # the step's table, built once
-            self._step_contacts = contact_table(self.data, self._geom_owner) or ()
-        return select_contacts(self._step_contacts or None, self._geom_link, body_a, body_b)
+        return self._read_contacts().select(body_a, body_b)
+
+    def _read_contacts(self) -> StepContacts:
+        if self._step_contacts is None:  # the step's, grouped once
+            self._step_contacts = StepContacts(self.data, self._geom_owner, self._geom_link)
+        return self._step_contacts
 
     def render(self, camera: Camera) -> np.ndarray:
         """An RGB image of the scene (MuJoCo's renderer on an offscreen OpenGL context)."""
