@@ -11,7 +11,7 @@ without calling Python for the tables at every step
 from __future__ import annotations
 
 from bisect import bisect_left, bisect_right
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from typing import Any, Protocol
 
 import numpy as np
@@ -132,6 +132,15 @@ class PlannedSends:
         self._plans = [(f, *f.changes(first_step, n_steps, time_step_s)) for f in follows]
         self.due = sorted({k for _, ins, base in self._plans for k in (*ins, *base)})
         self.due.append(n_steps)
+
+    @classmethod
+    def for_run(
+        cls, hooks: Sequence[Callable[[Any], None]], first_step: int, n_steps: int, time_step_s: float
+    ) -> PlannedSends | None:
+        """The planned sends of a run of ``n_steps`` (> 1) if every hook is a :class:`Follow`, else None."""
+        if n_steps < 2 or not hooks or not all(type(h) is Follow for h in hooks):
+            return None
+        return cls([h for h in hooks if isinstance(h, Follow)], first_step, n_steps, time_step_s)
 
     def send(self, world: Any, offset: int) -> None:
         """Send what is due before the step ``offset`` of the run, in the hooks' order."""

@@ -35,7 +35,9 @@ __all__ = [
     "GeomInfo",
     "PlannedBody",
     "add_plan",
+    "check_plan",
     "decorate_ground",
+    "plan_key",
     "set_options",
     "unsupported_link",
 ]
@@ -137,6 +139,20 @@ def _inertia(info: LinkInfo, tree: TreeLink) -> np.ndarray:
     return info.link.principal_inertia_kg_m2() - info.link.added_inertia_kg_m2
 
 
+def check_plan(plan: BodyPlan) -> None:
+    """Raise :class:`SimulationError` if the mujoco engine cannot load ``plan`` (scale, links)."""
+    if plan.scale != 1.0:
+        raise SimulationError(f"the mujoco engine takes plans made at scale 1 (SI), got {plan.scale}")
+    problems = [p for info in plan.links for p in unsupported_link(info)]
+    if problems:
+        raise SimulationError("; ".join(problems))
+
+
+def plan_key(plan: BodyPlan) -> str:
+    """Everything of a plan that :func:`add_plan` reads, as text (a key for compiled scenes)."""
+    return repr((plan.name, plan.urdf, plan.scale, plan.mode, plan.links, plan.joints, plan.part_of))
+
+
 def add_plan(
     spec: mujoco.MjSpec,
     plan: BodyPlan,
@@ -154,11 +170,7 @@ def add_plan(
         position_m, quat_xyzw: Where the root goes (a driven root's joints are set there later).
         contact_time_constant_s: The contacts' time constant (``solref``), s.
     """
-    if plan.scale != 1.0:
-        raise SimulationError(f"the mujoco engine takes plans made at scale 1 (SI), got {plan.scale}")
-    problems = [p for info in plan.links for p in unsupported_link(info)]
-    if problems:
-        raise SimulationError("; ".join(problems))
+    check_plan(plan)
     tree_links, tree_joints = read_tree(plan)
     prefix = f"b{body_id}/"
     total = sum(t.mass_kg for t in tree_links.values())

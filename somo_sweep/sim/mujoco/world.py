@@ -15,7 +15,7 @@ automatic reset, so a blow-up shows as NaN (or speeds past :data:`MAX_JOINT_SPEE
 from __future__ import annotations
 
 import math
-from collections.abc import Callable, Sequence
+from collections.abc import Callable, Hashable, Sequence
 from time import perf_counter
 from typing import Any
 
@@ -27,14 +27,23 @@ from somo_sweep.errors import SimulationError, UnstableSimulation
 from somo_sweep.model.description import Pose
 from somo_sweep.model.load import Model
 from somo_sweep.sim.camera import Camera
-from somo_sweep.sim.follow import Follow, PlannedSends
+from somo_sweep.sim.follow import PlannedSends
 from somo_sweep.sim.mujoco.compiled import filter_contacts, read_addresses
 from somo_sweep.sim.mujoco.contacts import StepContacts
 from somo_sweep.sim.mujoco.drive import MujocoDrive
 from somo_sweep.sim.mujoco.driven import DrivenRoots
 from somo_sweep.sim.mujoco.free_joint import check_free_body, free_base_pose, free_base_velocity
 from somo_sweep.sim.mujoco.render import mujoco_image
-from somo_sweep.sim.mujoco.scene import GeomInfo, PlannedBody, add_plan, decorate_ground, set_options
+from somo_sweep.sim.mujoco.scene import (
+    GeomInfo,
+    PlannedBody,
+    add_plan,
+    check_plan,
+    decorate_ground,
+    plan_key,
+    set_options,
+)
+from somo_sweep.sim.mujoco.scene_cache import SCENES
 from somo_sweep.sim.mujoco.surfaces import Surface
 from somo_sweep.sim.plan import BodyPlan
 from somo_sweep.sim.rotations import multiply_transforms, quat_from_rpy, rpy_from_quat, xyzw
@@ -59,15 +68,6 @@ mujoco.set_mju_user_warning(_keep_warning)
 
 #: Steps between checks of the spring joints' speeds (a blow-up persists: NaN or ever faster).
 SPEED_CHECK_EVERY = 10
-
-
-def _only_follows(hooks: list[Callable[[World], None]], n: int) -> bool:
-    """Whether a run of ``n`` steps can plan its hooks' sends (only setpoint tables, n > 1)."""
-    return n > 1 and bool(hooks) and all(type(h) is Follow for h in hooks)
-
-
-def _follows(hooks: list[Callable[[World], None]]) -> list[Follow]:
-    return [h for h in hooks if isinstance(h, Follow)]
 
 
 class MujocoWorld(World):
@@ -106,6 +106,10 @@ class MujocoWorld(World):
         self._free: set[int] = set()  # ids of bodies on a free joint (known once compiled)
         self._engine_time_s = 0.0
         self._pairs: list[Any] = []
+        # Changes to the scene not yet in the spec (built at the next compile), each with its key;
+        # after a compile served from the cache, the ones it stood for (built if the scene changes).
+        self._pending: list[tuple[Hashable, Callable[[], None]]] = []
+        self._unbuilt: list[tuple[Hashable, Callable[[], None]]] = []
         self._excludes: list[Any] = []
         self._open = True
 
@@ -136,19 +140,22 @@ class MujocoWorld(World):
         return self._load(plan, np.asarray(pose.position_m, float), quat_from_rpy(pose.rpy_rad))
 
     def _load(self, plan: BodyPlan, position_m: np.ndarray, quat: tuple[float, ...]) -> Body:
+        check_plan(plan)
         body_id = self._new_id()
-        planned, geoms = add_plan(
-            self.spec, plan, body_id, position_m, quat, self.settings.contact_time_constant_s
-        )
-        self._planned[body_id] = planned
-        self._geoms.extend(geoms)
+
+        def build() -> None:
+            tc = self.settings.contact_time_constant_s
+            self._planned[body_id], geoms = add_plan(self.spec, plan, body_id, position_m, quat, tc)
+            self._geoms.extend(geoms)
+
+        where = (np.asarray(position_m, float).tobytes(), tuple(quat))
+        self._defer(("plan", body_id, plan_key(plan), where), build)
         drive = MujocoDrive(self, plan.joints, len(plan.inputs))
         link_index = {info.name: i - 1 for i, info in enumerate(plan.links)}
         body = Body(plan, body_id, link_index, drive, constraint=body_id if plan.mode == "driven" else None)
         if plan.mode == "driven":
             self._driven.add(body_id, position_m, quat)
         self.bodies.append(body)
-        self._dirty = True
         return body
 
     def add_model(self, model: Model, pose: Pose | None = None) -> ModelHandle:
@@ -165,17 +172,30 @@ class MujocoWorld(World):
             bodies.append(body)
         return ModelHandle(assembly.name, bodies, [n for b in bodies for n in b.plan.inputs])
 
-    def _add_static_geom(self, kind: Any, size: list[float], pos: list[float], surface: Surface) -> int:
+    def _add_static_geom(
+        self, kind: Any, size: list[float], pos: list[float], surface: Surface, drawn: bool = False
+    ) -> int:
+        """A geom welded to the world (``drawn``: a checkered ground when rendered); its id."""
         body_id = self._new_id()
-        name = f"b{body_id}/static"
-        geom = self.spec.worldbody.add_geom(name=name, type=kind, size=size, pos=pos)
-        geom.friction = list(surface.own())
-        geom.solref = [self.settings.contact_time_constant_s, 1.0]
-        geom.rgba = [0.8, 0.8, 0.78, 1.0]
-        self._geoms.append(GeomInfo(name, body_id, -1, surface, True, geom))
+
+        def build() -> None:
+            name = f"b{body_id}/static"
+            geom = self.spec.worldbody.add_geom(name=name, type=kind, size=size, pos=pos)
+            geom.friction = list(surface.own())
+            geom.solref = [self.settings.contact_time_constant_s, 1.0]
+            geom.rgba = [0.8, 0.8, 0.78, 1.0]
+            self._geoms.append(GeomInfo(name, body_id, -1, surface, True, geom))
+            if drawn:
+                decorate_ground(self.spec, geom, f"checker{len(self._geoms)}")
+
+        self._defer(("static", body_id, int(kind), tuple(size), tuple(pos), surface, drawn), build)
         self._statics.add(body_id)
-        self._dirty = True
         return body_id
+
+    def _defer(self, key: Hashable, build: Callable[[], None]) -> None:
+        """A change to the scene, made in the spec at the next compile (none if the cache has it)."""
+        self._pending.append((key, build))
+        self._dirty = True
 
     def add_ground(
         self,
@@ -190,9 +210,7 @@ class MujocoWorld(World):
                 f"ground: {field} cannot be expressed on engine mujoco; allowed: none, or engine pybullet"
             )
         plane = mujoco.mjtGeom.mjGEOM_PLANE  # infinite for contacts; 2 m by 2 m when drawn
-        ground = self._add_static_geom(plane, [1.0, 1.0, 0.05], [0.0, 0.0, 0.0], Surface(friction))
-        decorate_ground(self.spec, self._geoms[-1].spec, f"checker{len(self._geoms)}")
-        return ground
+        return self._add_static_geom(plane, [1.0, 1.0, 0.05], [0.0, 0.0, 0.0], Surface(friction), drawn=True)
 
     def add_static_box(self, centre_m: npt.ArrayLike, half_extents_m: npt.ArrayLike) -> int:
         """Add a static frictionless box (a bench's stop) centred at ``centre_m``; returns its id."""
@@ -207,15 +225,11 @@ class MujocoWorld(World):
             raise SimulationError("the world is closed")
         if not self._dirty:
             return
-        self._filter_contacts()
-        try:
-            if self.model is None:
-                self.model = self.spec.compile()
-                self.data = mujoco.MjData(self.model)
-            else:
-                self.model, self.data = self.spec.recompile(self.model, self.data)
-        except ValueError as exc:
-            raise SimulationError(f"MuJoCo could not build the scene: {exc}") from None
+        if self.model is None:
+            self._compile_first()
+        else:
+            self._build_spec()
+            self.model, self.data = self._compiled(lambda: self.spec.recompile(self.model, self.data))
         self._dirty = False
         self._step_contacts, self._contact_memo = None, {}
         self._qpos, self._qvel = self.data.qpos, self.data.qvel
@@ -225,6 +239,39 @@ class MujocoWorld(World):
             self.push_efforts(body.drive)  # type: ignore[arg-type]
         mujoco.mj_kinematics(self.model, self.data)
         self._kinematics_stale = False
+
+    def _compile_first(self) -> None:
+        """The first compile: a copy of the cached model if this process compiled the same scene."""
+        key = (self.settings, int(self.spec.option.jacobian), tuple(k for k, _ in self._pending))
+        hit = SCENES.get(key)
+        if hit is not None:
+            self.model, self._planned, self._geoms = hit
+            self._unbuilt, self._pending = self._pending, []
+        else:
+            self._build_spec()
+            self.model = self._compiled(self.spec.compile)
+            SCENES.put(key, self.model, self._planned, self._geoms)
+        self.data = mujoco.MjData(self.model)
+
+    def _build_spec(self) -> None:
+        """Make the pending changes in the spec, then filter the contacts."""
+        if self._unbuilt:  # the model came from the cache: its spec is built and compiled first
+            self._planned, self._geoms = {}, []
+            for _, build in self._unbuilt:
+                build()
+            self._unbuilt = []
+            self._filter_contacts()
+            self._compiled(self.spec.compile)  # the spec knows the model's layout: recompile keeps state
+        for _, build in self._pending:
+            build()
+        self._pending = []
+        self._filter_contacts()
+
+    def _compiled(self, compile: Callable[[], Any]) -> Any:
+        try:
+            return compile()
+        except ValueError as exc:
+            raise SimulationError(f"MuJoCo could not build the scene: {exc}") from None
 
     def _filter_contacts(self) -> None:
         """Collision bits, explicit pairs with Bullet's friction, and excluded ancestor pairs."""
@@ -301,7 +348,7 @@ class MujocoWorld(World):
         qvel = self._qvel  # views kept from the compile: reading d.qvel builds a new one each time
         step, hooks, clock, driven = mujoco.mj_step, self.pre_step, perf_counter, self._driven
         # Setpoint tables alone: their sends planned for the whole run, no Python call per step.
-        planned = PlannedSends(_follows(hooks), self.step_count, n, dt) if _only_follows(hooks, n) else None
+        planned = PlannedSends.for_run(hooks, self.step_count, n, dt)
         due = planned.due if planned is not None else []
         next_due = 0
         for k in range(n):
@@ -383,9 +430,12 @@ class MujocoWorld(World):
 
     def set_joint_armature(self, body: Body, armature_kg_m2: float) -> None:
         """Give every spring joint of a body a rotor inertia (kg·m², or kg for prismatic joints)."""
-        for name in self._planned[body.id].spring_joints:  # in the spec: a recompile keeps it
-            self.spec.joint(name).armature = armature_kg_m2
-        self._dirty = True
+
+        def build() -> None:  # in the spec: a recompile keeps it
+            for name in self._planned[body.id].spring_joints:
+                self.spec.joint(name).armature = armature_kg_m2
+
+        self._defer(("armature", body.id, float(armature_kg_m2)), build)
 
     def apply_force(self, body: Body, link: str, force_n: npt.ArrayLike, point_m: npt.ArrayLike) -> None:
         """Apply a world-frame force (N) at a world point (m) for the coming step only."""
