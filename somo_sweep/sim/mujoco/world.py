@@ -1,7 +1,8 @@
 """The MuJoCo engine's world: the same interface as PyBullet's (:class:`World`), in SI.
 
-Bodies are added to an ``MjSpec`` (:mod:`somo_sweep.sim.mujoco.scene`); the model is compiled
-when it is first needed and recompiled, state kept, when bodies are added after that. Contacts
+Bodies are added to an ``MjSpec`` (:mod:`.spec_scene`, :mod:`.scene`); the model is compiled
+when it is first needed (or copied from the process's compiled scenes, :mod:`.scene_cache`) and
+recompiled, state kept, when bodies are added after that. Contacts
 are soft (``solref`` time constant ``contact_time_constant_s``, critically damped), frictional
 with elliptic cones and ``impratio``, and with Bullet's pair friction (:mod:`.surfaces`); links
 of one body never touch their ancestors, as in PyBullet's self-collision rule.
@@ -15,7 +16,7 @@ automatic reset, so a blow-up shows as NaN (or speeds past :data:`MAX_JOINT_SPEE
 from __future__ import annotations
 
 import math
-from collections.abc import Callable, Hashable, Sequence
+from collections.abc import Callable, Sequence
 from time import perf_counter
 from typing import Any
 
@@ -28,22 +29,13 @@ from somo_sweep.model.description import Pose
 from somo_sweep.model.load import Model
 from somo_sweep.sim.camera import Camera
 from somo_sweep.sim.follow import PlannedSends
-from somo_sweep.sim.mujoco.compiled import filter_contacts, read_addresses
+from somo_sweep.sim.mujoco.compiled import read_addresses
 from somo_sweep.sim.mujoco.contacts import StepContacts
 from somo_sweep.sim.mujoco.drive import MujocoDrive
 from somo_sweep.sim.mujoco.driven import DrivenRoots
 from somo_sweep.sim.mujoco.free_joint import check_free_body, free_base_pose, free_base_velocity
 from somo_sweep.sim.mujoco.render import mujoco_image
-from somo_sweep.sim.mujoco.scene import (
-    GeomInfo,
-    PlannedBody,
-    add_plan,
-    check_plan,
-    decorate_ground,
-    plan_key,
-    set_options,
-)
-from somo_sweep.sim.mujoco.scene_cache import SCENES
+from somo_sweep.sim.mujoco.spec_scene import SpecScene
 from somo_sweep.sim.mujoco.surfaces import Surface
 from somo_sweep.sim.plan import BodyPlan
 from somo_sweep.sim.rotations import multiply_transforms, quat_from_rpy, rpy_from_quat, xyzw
@@ -89,12 +81,9 @@ class MujocoWorld(World):
         self.step_count = 0
         self.bodies: list[Body] = []
         self.pre_step: list[Callable[[World], None]] = []
-        self.spec: Any = mujoco.MjSpec()
-        set_options(self.spec, self.settings)
+        self._scene = SpecScene(self.settings)
         self.model: Any = None
         self.data: Any = None
-        self._geoms: list[GeomInfo] = []
-        self._planned: dict[int, PlannedBody] = {}
         self._statics: set[int] = set()  # ids of bodies that never move (ground, stops)
         self._next_id = 0
         self._dirty = True
@@ -105,12 +94,6 @@ class MujocoWorld(World):
         self._contact_memo: dict[tuple[int, int | None], dict[str, np.ndarray]] = {}
         self._free: set[int] = set()  # ids of bodies on a free joint (known once compiled)
         self._engine_time_s = 0.0
-        self._pairs: list[Any] = []
-        # Changes to the scene not yet in the spec (built at the next compile), each with its key;
-        # after a compile served from the cache, the ones it stood for (built if the scene changes).
-        self._pending: list[tuple[Hashable, Callable[[], None]]] = []
-        self._unbuilt: list[tuple[Hashable, Callable[[], None]]] = []
-        self._excludes: list[Any] = []
         self._open = True
 
     # ----------------------------------------------------------------- life
@@ -118,6 +101,11 @@ class MujocoWorld(World):
     def engine_time_s(self) -> float:
         """Wall time spent inside ``mj_step`` so far, s."""
         return self._engine_time_s
+
+    @property
+    def spec(self) -> Any:
+        """The scene's ``MjSpec`` (empty while the compiled model came from the process's cache)."""
+        return self._scene.spec
 
     @property
     def is_open(self) -> bool:
@@ -140,16 +128,9 @@ class MujocoWorld(World):
         return self._load(plan, np.asarray(pose.position_m, float), quat_from_rpy(pose.rpy_rad))
 
     def _load(self, plan: BodyPlan, position_m: np.ndarray, quat: tuple[float, ...]) -> Body:
-        check_plan(plan)
         body_id = self._new_id()
-
-        def build() -> None:
-            tc = self.settings.contact_time_constant_s
-            self._planned[body_id], geoms = add_plan(self.spec, plan, body_id, position_m, quat, tc)
-            self._geoms.extend(geoms)
-
-        where = (np.asarray(position_m, float).tobytes(), tuple(quat))
-        self._defer(("plan", body_id, plan_key(plan), where), build)
+        self._scene.add_plan(plan, body_id, position_m, quat)
+        self._dirty = True
         drive = MujocoDrive(self, plan.joints, len(plan.inputs))
         link_index = {info.name: i - 1 for i, info in enumerate(plan.links)}
         body = Body(plan, body_id, link_index, drive, constraint=body_id if plan.mode == "driven" else None)
@@ -177,25 +158,10 @@ class MujocoWorld(World):
     ) -> int:
         """A geom welded to the world (``drawn``: a checkered ground when rendered); its id."""
         body_id = self._new_id()
-
-        def build() -> None:
-            name = f"b{body_id}/static"
-            geom = self.spec.worldbody.add_geom(name=name, type=kind, size=size, pos=pos)
-            geom.friction = list(surface.own())
-            geom.solref = [self.settings.contact_time_constant_s, 1.0]
-            geom.rgba = [0.8, 0.8, 0.78, 1.0]
-            self._geoms.append(GeomInfo(name, body_id, -1, surface, True, geom))
-            if drawn:
-                decorate_ground(self.spec, geom, f"checker{len(self._geoms)}")
-
-        self._defer(("static", body_id, int(kind), tuple(size), tuple(pos), surface, drawn), build)
+        self._scene.add_static(body_id, kind, size, pos, surface, drawn)
         self._statics.add(body_id)
-        return body_id
-
-    def _defer(self, key: Hashable, build: Callable[[], None]) -> None:
-        """A change to the scene, made in the spec at the next compile (none if the cache has it)."""
-        self._pending.append((key, build))
         self._dirty = True
+        return body_id
 
     def add_ground(
         self,
@@ -226,10 +192,10 @@ class MujocoWorld(World):
         if not self._dirty:
             return
         if self.model is None:
-            self._compile_first()
+            self.model = self._scene.compile()
+            self.data = mujoco.MjData(self.model)
         else:
-            self._build_spec()
-            self.model, self.data = self._compiled(lambda: self.spec.recompile(self.model, self.data))
+            self.model, self.data = self._scene.recompile(self.model, self.data)
         self._dirty = False
         self._step_contacts, self._contact_memo = None, {}
         self._qpos, self._qvel = self.data.qpos, self.data.qvel
@@ -240,47 +206,8 @@ class MujocoWorld(World):
         mujoco.mj_kinematics(self.model, self.data)
         self._kinematics_stale = False
 
-    def _compile_first(self) -> None:
-        """The first compile: a copy of the cached model if this process compiled the same scene."""
-        key = (self.settings, int(self.spec.option.jacobian), tuple(k for k, _ in self._pending))
-        hit = SCENES.get(key)
-        if hit is not None:
-            self.model, self._planned, self._geoms = hit
-            self._unbuilt, self._pending = self._pending, []
-        else:
-            self._build_spec()
-            self.model = self._compiled(self.spec.compile)
-            SCENES.put(key, self.model, self._planned, self._geoms)
-        self.data = mujoco.MjData(self.model)
-
-    def _build_spec(self) -> None:
-        """Make the pending changes in the spec, then filter the contacts."""
-        if self._unbuilt:  # the model came from the cache: its spec is built and compiled first
-            self._planned, self._geoms = {}, []
-            for _, build in self._unbuilt:
-                build()
-            self._unbuilt = []
-            self._filter_contacts()
-            self._compiled(self.spec.compile)  # the spec knows the model's layout: recompile keeps state
-        for _, build in self._pending:
-            build()
-        self._pending = []
-        self._filter_contacts()
-
-    def _compiled(self, compile: Callable[[], Any]) -> Any:
-        try:
-            return compile()
-        except ValueError as exc:
-            raise SimulationError(f"MuJoCo could not build the scene: {exc}") from None
-
-    def _filter_contacts(self) -> None:
-        """Collision bits, explicit pairs with Bullet's friction, and excluded ancestor pairs."""
-        tc = self.settings.contact_time_constant_s
-        old = self._pairs + self._excludes
-        self._pairs, self._excludes = filter_contacts(self.spec, self._geoms, self._planned, tc, old)
-
     def _addresses(self) -> None:
-        a = read_addresses(self.model, self.bodies, self._planned, self._geoms)
+        a = read_addresses(self.model, self.bodies, self._scene.planned, self._scene.geoms)
         self._link_bodies, self._root_qpos, self._root_dof = a.link_bodies, a.root_qpos, a.root_dof
         self._com_offset, self._free = a.com_offset, a.free
         self._spring_dofs, self._n_springs = a.spring_dofs, a.n_springs
@@ -430,12 +357,8 @@ class MujocoWorld(World):
 
     def set_joint_armature(self, body: Body, armature_kg_m2: float) -> None:
         """Give every spring joint of a body a rotor inertia (kg·m², or kg for prismatic joints)."""
-
-        def build() -> None:  # in the spec: a recompile keeps it
-            for name in self._planned[body.id].spring_joints:
-                self.spec.joint(name).armature = armature_kg_m2
-
-        self._defer(("armature", body.id, float(armature_kg_m2)), build)
+        self._scene.set_armature(body.id, armature_kg_m2)
+        self._dirty = True
 
     def apply_force(self, body: Body, link: str, force_n: npt.ArrayLike, point_m: npt.ArrayLike) -> None:
         """Apply a world-frame force (N) at a world point (m) for the coming step only."""
