@@ -18,7 +18,10 @@ import numpy as np
 
 from somo_sweep.model.setpoints import SetpointTable
 
-__all__ = ["Follow", "PlannedSends"]
+__all__ = ["PLAN_RUNS", "Follow", "PlannedSends"]
+
+#: Whether engines that can plan a run of steps do (the engine benchmark times both ways).
+PLAN_RUNS = True
 
 
 class _Inputs(Protocol):
@@ -138,7 +141,7 @@ class PlannedSends:
         cls, hooks: Sequence[Callable[[Any], None]], first_step: int, n_steps: int, time_step_s: float
     ) -> PlannedSends | None:
         """The planned sends of a run of ``n_steps`` (> 1) if every hook is a :class:`Follow`, else None."""
-        if n_steps < 2 or not hooks or not all(type(h) is Follow for h in hooks):
+        if not PLAN_RUNS or n_steps < 2 or not hooks or not all(type(h) is Follow for h in hooks):
             return None
         return cls([h for h in hooks if isinstance(h, Follow)], first_step, n_steps, time_step_s)
 

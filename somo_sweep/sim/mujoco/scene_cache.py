@@ -57,7 +57,9 @@ class SceneCache:
 
     def get(self, key: Hashable) -> tuple[Any, dict[int, PlannedBody], list[GeomInfo]] | None:
         """A copy of the model compiled for ``key``, its planned bodies and geoms; None if unknown."""
-        scene = self._scenes.get(key) if self.enabled else None
+        if not self.enabled:
+            return None
+        scene = self._scenes.get(key)
         if scene is None:
             self.misses += 1
             return None
