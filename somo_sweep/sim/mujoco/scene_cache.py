@@ -7,7 +7,9 @@ key (the plan's text, pose and world id; the ground's friction; a box's extents;
 and, at its first compile, looks the whole list up here with the settings and the options the
 engine sets itself. A hit gives a copy of the compiled model and what the world needs to address
 it; nothing is parsed, filtered or compiled. The copy is bit for bit the model a compile gives,
-so results do not change.
+so results do not change. A sweep's trial runs in a process forked from its worker: the scenes
+it compiles go back to the worker with its result (:mod:`somo_sweep.sim.shared_caches`), so the
+worker's next trials start with them.
 """
 
 from __future__ import annotations
@@ -18,6 +20,7 @@ from collections.abc import Hashable
 from dataclasses import dataclass, replace
 from typing import Any
 
+from somo_sweep.sim import shared_caches
 from somo_sweep.sim.mujoco.scene import GeomInfo, PlannedBody
 
 __all__ = ["SCENES", "CompiledScene", "SceneCache"]
@@ -54,6 +57,7 @@ class SceneCache:
         self.enabled = True
         self.hits = self.misses = 0
         self._scenes: OrderedDict[Hashable, CompiledScene] = OrderedDict()
+        self._new: list[Hashable] = []  # keys put since the last mark
 
     def get(self, key: Hashable) -> tuple[Any, dict[int, PlannedBody], list[GeomInfo]] | None:
         """A copy of the model compiled for ``key``, its planned bodies and geoms; None if unknown."""
@@ -72,15 +76,37 @@ class SceneCache:
         if not self.enabled:
             return
         bare = tuple(replace(g, spec=None) for g in geoms)
-        self._scenes[key] = CompiledScene(copy.copy(model), dict(planned), bare)
+        self._keep(key, CompiledScene(copy.copy(model), dict(planned), bare))
+        self._new.append(key)
+
+    def _keep(self, key: Hashable, scene: CompiledScene) -> None:
+        self._scenes[key] = scene
         self._scenes.move_to_end(key)
         while len(self._scenes) > self.max_scenes:
             self._scenes.popitem(last=False)
+
+    def mark(self) -> None:
+        """Forget which scenes are new (a trial's forked process starts)."""
+        self._new = []
+
+    def learned(self) -> list[tuple[Hashable, Any]]:
+        """The scenes compiled since :meth:`mark` and still kept (a compiled model pickles whole)."""
+        return [(key, self._scenes[key]) for key in self._new if key in self._scenes]
+
+    def adopt(self, entries: list[tuple[Hashable, Any]]) -> None:
+        """Keep scenes a trial's process compiled (its worker forks the next trials with them)."""
+        if self.enabled:
+            for key, scene in entries:
+                self._keep(key, scene)
+
+    def __len__(self) -> int:
+        return len(self._scenes)
 
     def clear(self) -> None:
         """Forget every scene."""
         self._scenes.clear()
 
 
-#: This process's compiled scenes.
+#: This process's compiled scenes; a sweep's trials hand the ones they compile to their worker.
 SCENES = SceneCache()
+shared_caches.register("mujoco_scenes", SCENES)
