@@ -12,7 +12,7 @@ from somo_sweep.sim.settings import WorldSettings
 from somo_sweep.sim.worlds import open_world
 
 pytest.importorskip("mujoco")
-from somo_sweep.sim.mujoco.scene_cache import SCENES  # noqa: E402
+from somo_sweep.sim.mujoco.scene_cache import SCENES
 
 
 def _box(name: str, x_m: float) -> RigidBody:

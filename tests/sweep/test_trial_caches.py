@@ -11,7 +11,7 @@ from somo_sweep.sweep.study import load_study
 from somo_sweep.sweep.trial import run_isolated
 
 pytest.importorskip("mujoco")
-from somo_sweep.sim.mujoco.scene_cache import SCENES  # noqa: E402
+from somo_sweep.sim.mujoco.scene_cache import SCENES
 
 
 def test_a_trials_compiled_scene_reaches_its_worker_and_changes_nothing() -> None:
