@@ -215,7 +215,8 @@ def print_results(
     for key, column in manifest.get("axes", {}).items():
         if isinstance(column, str) and column in df.columns:  # a hand-edited manifest may hold anything
             name = str(key).rsplit(".", 1)[-1]
-            for label in label_columns(df) or [None]:
+            rules: list[str | None] = [*label_columns(df)] or [None]
+            for label in rules:
                 rule = f": {label.removeprefix('label_')}" if label else ""
                 console.print(_table(f"by {key}{rule}", breakdown(df, column, label), name))
     _print_robustness(console, df, manifest)
