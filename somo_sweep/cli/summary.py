@@ -216,9 +216,9 @@ def print_results(
         if isinstance(column, str) and column in df.columns:  # a hand-edited manifest may hold anything
             name = str(key).rsplit(".", 1)[-1]
             rules: list[str | None] = [*label_columns(df)] or [None]
-            for label in rules:
-                rule = f": {label.removeprefix('label_')}" if label else ""
-                console.print(_table(f"by {key}{rule}", breakdown(df, column, label), name))
+            for by in rules:
+                rule = f": {by.removeprefix('label_')}" if by else ""
+                console.print(_table(f"by {key}{rule}", breakdown(df, column, by), name))
     _print_robustness(console, df, manifest)
     _print_reasons(console, df[~inferred])
 
