@@ -83,7 +83,8 @@ def draw_label_panel(
         j = int(np.searchsorted(ys, cell[y])) if y else 0
         value = "-" if pd.isna(cell[label]) else str(cell[label])
         not_robust = cell.get(ROBUST) is False or cell.get(ROBUST) is np.False_
-        inferred = bool(cell.get("inferred", False) is True)
+        flag = cell.get("inferred", False)
+        inferred = bool(flag) if pd.notna(flag) else False  # numpy's True too, not only Python's
         ax.add_patch(
             Rectangle(
                 (i - 0.5, j - 0.5),

@@ -12,7 +12,13 @@ import numpy as np
 import pandas as pd
 import pytest
 
-from somo_sweep.sweep.label_maps import MAX_PANELS, NOT_ROBUST_HATCH, label_map_figure, map_axes
+from somo_sweep.sweep.label_maps import (
+    INFERRED_HATCH,
+    MAX_PANELS,
+    NOT_ROBUST_HATCH,
+    label_map_figure,
+    map_axes,
+)
 from somo_sweep.sweep.plots import label_maps, summary_metrics
 
 
@@ -48,6 +54,14 @@ def test_a_cell_whose_replicas_disagree_is_hatched_and_counted_in_the_legend() -
     legend = [t.get_text() for t in fig.legends[0].get_texts()]
     assert "not robust (1: replicas disagree; majority drawn)" in legend
     assert {"pinch", "power"} <= set(legend)
+
+
+def test_a_cell_an_adaptive_run_inferred_is_grey_hatched() -> None:
+    cells = _cells({"task_x_m": [0.07, 0.1, 0.13], "task_w_m": [0.02, 0.08]})
+    cells["inferred"] = np.array([True, False, False, False, False, True])  # numpy booleans
+    fig = label_map_figure(cells, "label_grasp", ["task_x_m", "task_w_m"], {}, "study")
+    assert sum(p.get_hatch() == INFERRED_HATCH for ax in fig.axes for p in ax.patches) == 2
+    assert "inferred (2: not simulated)" in [t.get_text() for t in fig.legends[0].get_texts()]
 
 
 def test_panels_beyond_the_limit_are_left_out_and_the_title_says_how_many() -> None:
