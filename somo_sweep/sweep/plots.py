@@ -23,6 +23,8 @@ __all__ = [
 ]
 
 STATUS_COLOURS = {"ok": "tab:green", "unstable": "tab:orange", "error": "tab:red", "inferred": "0.75"}
+#: A label column with more values than this gets no map (its colours could not be told apart).
+MAX_MAP_LABELS = 12
 #: At most this many metric panels in the summary figure.
 MAX_METRICS = 6
 
@@ -168,7 +170,8 @@ def summary_metrics(df: pd.DataFrame, first: tuple[str, ...] = ()) -> list[str]:
 
 def label_maps(df: pd.DataFrame, manifest: dict[str, Any]) -> list[tuple[str, Figure]]:
     """``(file stem, figure)`` of each label column's map over the study's swept axes
-    (:mod:`somo_sweep.sweep.label_maps`); none for a study without labels or axes."""
+    (:mod:`somo_sweep.sweep.label_maps`); none for a study without labels or axes, nor for a
+    label of more than :data:`MAX_MAP_LABELS` values."""
     from somo_sweep.sweep.label_maps import folded_cells, label_map_figure
 
     folded = fold(df)
@@ -183,6 +186,7 @@ def label_maps(df: pd.DataFrame, manifest: dict[str, Any]) -> list[tuple[str, Fi
             label_map_figure(folded_cells(folded, label), label, axes, short, title),
         )
         for label in label_names(folded)
+        if folded[label].nunique(dropna=False) <= MAX_MAP_LABELS
     ]
 
 

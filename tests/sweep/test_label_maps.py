@@ -82,6 +82,12 @@ def test_every_label_column_gets_a_map_and_a_study_without_axes_none() -> None:
     manifest = {"study_name": "s", "axes": {"task.c_m": "task_c_m", "task.dsr": "task_dsr"}}
     assert [name for name, _ in label_maps(cells, manifest)] == ["label_map_grasp", "label_map_grasp_paper"]
     assert label_maps(cells, {"study_name": "s", "axes": {}}) == []
+    cells["label_dt"] = [f"{v:g}" for v in range(len(cells))]  # a label of its own per cell: drawn
+    assert "label_map_dt" in [name for name, _ in label_maps(cells, manifest)]
+    many = pd.concat([cells] * 4, ignore_index=True)
+    many["trial"] = range(len(many))
+    many["label_dt"] = [f"{v:g}" for v in range(len(many))]  # 16 values: no map
+    assert "label_map_dt" not in [name for name, _ in label_maps(many, manifest)]
 
 
 def test_the_summary_draws_the_tasks_metrics_first_and_none_without_a_spread() -> None:
