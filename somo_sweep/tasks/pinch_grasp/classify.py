@@ -55,6 +55,7 @@ __all__ = [
     "GraspEvidence",
     "classify",
     "contact_position",
+    "distal_ratio",
     "find_column",
     "is_held",
     "paper_mean_link",
@@ -139,6 +140,17 @@ class GraspEvidence:
             n_finger_links=int(n_links) if n_links is not None and _finite(n_links) else BUNDLED_FINGER_LINKS,
             hold_contact_count_palm=int(palm) if palm is not None and _finite(palm) else -1,
         )
+
+
+def distal_ratio(distal_segment_ratio: Any, metrics: Mapping[str, Any]) -> float:
+    """The DSR the rules compare with: the trial's ratio, or for fingers simulated as written
+    (no ratio) their distal zone's share of the links, ``n_distal_links / n_finger_links``."""
+    if distal_segment_ratio is not None and _finite(distal_segment_ratio):
+        return float(distal_segment_ratio)
+    n_distal, n_links = metrics.get("n_distal_links", "nan"), metrics.get("n_finger_links", "nan")
+    if _finite(n_distal) and _finite(n_links) and float(n_links) > 0:
+        return float(n_distal) / float(n_links)
+    return float("nan")
 
 
 def _finite(value: Any) -> bool:
@@ -283,6 +295,7 @@ def reclassify(table: Any, rule: str = "contacts", **options: float) -> Any:
         "final_contact_count_base",
         "final_mean_link_paper",
         "n_finger_links",
+        "n_distal_links",
         "hold_contact_count_palm",
     )
     optional = {n: find_column(cols, n) for n in optional_names}
@@ -296,7 +309,7 @@ def reclassify(table: Any, rule: str = "contacts", **options: float) -> Any:
             continue
         metrics = {n: row[c] for n, c in found.items()}
         lift = float(row[lift_col]) if lift_col is not None else 0.075
-        ev = GraspEvidence.from_metrics(metrics, float(metrics["distal_segment_ratio"]), lift)
+        ev = GraspEvidence.from_metrics(metrics, distal_ratio(metrics["distal_segment_ratio"], metrics), lift)
         labels.append(classify(ev, rule, **options))
     return pd.Series(labels, index=table.index, name=f"grasp_{rule}", dtype=object)
 

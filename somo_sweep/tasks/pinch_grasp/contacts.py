@@ -161,8 +161,9 @@ class HoldProbe:
         out["hold_contact_count_palm"] = self.palm_count
         out["hold_normal_force_n_palm"] = self.palm_force_sum_n / n
         out["hold_normal_force_n"] = float(self.hold_forces_n().sum()) + self.palm_force_sum_n / n
-        for name, v in zip(self.fingers, self.finger_force_sums_n / n, strict=True):
-            out[f"hold_normal_force_n_{name}"] = float(v)
+        per_finger = self.finger_force_sums_n / n
+        out["hold_normal_force_n_finger_min"] = float(per_finger.min())
+        out["hold_normal_force_n_finger_max"] = float(per_finger.max())
         last = np.asarray(self.last_links, float)
         out["final_contact_count"] = len(last)
         out["final_mean_contact_link"] = float(last.mean()) if len(last) else float("nan")

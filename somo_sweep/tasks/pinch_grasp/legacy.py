@@ -45,11 +45,14 @@ def _ratio_column(cols: list[str]) -> str | None:
 def upgrade_table(table: Any) -> Any:
     """``table`` (a pandas DataFrame of trials) with per-link columns replaced by today's scalars.
 
-    Adds ``n_finger_links`` (20), the zone shares ``hold_force_fraction_distal``, ``_tip``,
-    ``_proximal``, ``_palm`` (from the per-link forces and the row's DSR, as the trial computes
-    them), ``final_mean_link_paper`` and ``final_mean_position_paper`` where missing, then drops
-    the per-link columns. A table without them is returned unchanged.
+    The two-finger forces ``hold_normal_force_n_left`` / ``_right`` become the per-finger
+    extremes ``hold_normal_force_n_finger_min`` / ``_max``. Adds ``n_finger_links`` (20), the
+    zone shares ``hold_force_fraction_distal``, ``_tip``, ``_proximal``, ``_palm`` (from the
+    per-link forces and the row's DSR, as the trial computes them), ``final_mean_link_paper`` and
+    ``final_mean_position_paper`` where missing, then drops the per-link columns. A table
+    without them is returned unchanged.
     """
+    table = _per_finger_extremes(table)
     cols = [str(c) for c in table.columns]
     force_cols = [_column(cols, n) for n in legacy_columns("hold_normal_force_n")]
     if any(c is None for c in force_cols):
@@ -75,6 +78,21 @@ def upgrade_table(table: Any) -> Any:
     prefixes = ("hold_normal_force_n", "hold_contact_count", "final_contact_count")
     drop = [c for p in prefixes for n in legacy_columns(p) if (c := _column(cols, n)) is not None]
     return out.drop(columns=drop)
+
+
+def _per_finger_extremes(table: Any) -> Any:
+    """``table`` with the two-finger gripper's ``hold_normal_force_n_left`` / ``_right`` turned into
+    ``hold_normal_force_n_finger_min`` / ``_max`` (unchanged without them)."""
+    cols = [str(c) for c in table.columns]
+    pair = [_column(cols, f"hold_normal_force_n_{side}") for side in ("left", "right")]
+    if any(c is None for c in pair) or _column(cols, "hold_normal_force_n_finger_min") is not None:
+        return table
+    out = table.copy()
+    forces = out[pair].to_numpy(dtype=float)
+    prefix = str(pair[0]).removesuffix("hold_normal_force_n_left")
+    out[f"{prefix}hold_normal_force_n_finger_min"] = forces.min(axis=1)
+    out[f"{prefix}hold_normal_force_n_finger_max"] = forces.max(axis=1)
+    return out.drop(columns=pair)
 
 
 def _fill(table: Any, name: str, rows: np.ndarray, values: Any) -> None:
