@@ -26,8 +26,10 @@ from somo_sweep.tasks.registry import TaskSpec, register
 
 __all__ = [
     "BASE_DISTANCE_AT_ZERO_CENTERING_M",
+    "MIN_FINGER_LINKS",
     "N_FINGER_LINKS",
     "ORIGINAL_HULL_SIZE_M",
+    "PAPER_TORQUE_N_M",
     "Numerics",
     "PinchGraspParams",
     "check_gripper",
@@ -226,8 +228,8 @@ class PinchGraspParams(BaseModel):
             the module docstring; 0.070 … 0.175 m in the paper's grid).
         approach_m: Distance travelled toward the object in the first second, m; the hand
             starts this much farther out.
-        torque_n_m: Final actuation torque of every driven joint, N·m (the paper's studies;
-            0.15 by default).
+        torque_n_m: Final actuation torque of every driven joint, N·m (the paper's studies).
+            ``None`` with no ``pressure_kpa`` either: the paper's 0.15 N·m.
         pressure_kpa: Final pressure, kPa, instead of ``torque_n_m``: each finger's driven
             joints get that finger's ``actuation`` torque at this pressure (gain·p, saturating if
             the finger says so; what ``somo-sweep calibrate`` fits). Giving both is refused.
@@ -275,7 +277,7 @@ class PinchGraspParams(BaseModel):
     object_width_m: float = Field(0.040, ge=MIN_LENGTH_M, le=MAX_LENGTH_M)
     centering_position_m: float = Field(0.100, gt=0, lt=BASE_DISTANCE_AT_ZERO_CENTERING_M)
     approach_m: float = Field(0.100, ge=-MAX_LENGTH_M, le=MAX_LENGTH_M)
-    torque_n_m: float = Field(PAPER_TORQUE_N_M, ge=-1e3, le=1e3)
+    torque_n_m: float | None = Field(None, ge=-1e3, le=1e3)
     pressure_kpa: float | None = Field(None, ge=-MAX_PRESSURE_KPA, le=MAX_PRESSURE_KPA)
     lift_m: float = Field(0.075, ge=-MAX_LENGTH_M, le=MAX_LENGTH_M)
     hand_height_m: float = Field(0.035, gt=0, le=MAX_LENGTH_M)
@@ -312,7 +314,7 @@ class PinchGraspParams(BaseModel):
 
     @model_validator(mode="after")
     def _one_drive(self) -> PinchGraspParams:
-        if self.pressure_kpa is not None and "torque_n_m" in self.model_fields_set:
+        if self.pressure_kpa is not None and self.torque_n_m is not None:
             raise ValueError(
                 "give the fingers' drive once: task.torque_n_m (N·m on every driven joint) or "
                 "task.pressure_kpa (through each finger's pressure gain), not both"
@@ -357,6 +359,13 @@ class PinchGraspParams(BaseModel):
     def base_distance_m(self) -> float:
         """d, the finger bases' (mounts') distance along x from the object's centre after the approach, m."""
         return BASE_DISTANCE_AT_ZERO_CENTERING_M - self.centering_position_m
+
+    @property
+    def drive_torque_n_m(self) -> float | None:
+        """The torque every driven joint ends at, N·m; None when ``pressure_kpa`` drives the fingers."""
+        if self.pressure_kpa is not None:
+            return None
+        return PAPER_TORQUE_N_M if self.torque_n_m is None else self.torque_n_m
 
     @property
     def duration_s(self) -> float:

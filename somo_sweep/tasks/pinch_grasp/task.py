@@ -42,7 +42,7 @@ from somo_sweep.tasks.pinch_grasp.gripper import (
     gripper,
     object_body,
 )
-from somo_sweep.tasks.pinch_grasp.params import PinchGraspParams
+from somo_sweep.tasks.pinch_grasp.params import PAPER_TORQUE_N_M, PinchGraspParams
 from somo_sweep.tasks.pinch_grasp.positions import contact_position, paper_mean_link, zone_force_fractions
 from somo_sweep.tasks.pinch_grasp.settled import Snapshot, settled_reason
 from somo_sweep.tasks.registry import TaskResult
@@ -93,15 +93,17 @@ def run_pinch_grasp(
 def drive_n_m(hand_model: Model, params: PinchGraspParams, input_names: Sequence[str]) -> list[float]:
     """Final torque of each control input (``<finger>/<actuator>/<joint>``), N·m: ``torque_n_m``,
     or under ``pressure_kpa`` the input's finger's actuation torque at that pressure."""
-    if params.pressure_kpa is None:
-        return [params.torque_n_m] * len(input_names)
+    torque = params.drive_torque_n_m
+    if torque is not None or params.pressure_kpa is None:
+        return [torque if torque is not None else PAPER_TORQUE_N_M] * len(input_names)
+    pressure_kpa = params.pressure_kpa
     fingers = {m.name: m.manipulator for m in hand_model.as_assembly().manipulators}
     torques = []
     for name in input_names:
         actuation = fingers[name.split("/")[0]].actuation
         if actuation is None:  # the task's check refuses such a study before any trial
             raise ValueError(f"input {name}: its finger has no actuation to turn pressure into torque")
-        torques.append(actuation.torque_n_m(params.pressure_kpa))
+        torques.append(actuation.torque_n_m(pressure_kpa))
     return torques
 
 
