@@ -177,3 +177,19 @@ def test_tasks_name_lists_every_parameter_with_its_default_and_meaning() -> None
     assert max(len(line) for line in lines) <= 80
     wrong = CliRunner().invoke(app, ["tasks", "pinch_grap"])
     assert wrong.exit_code == 2 and "did you mean 'pinch_grasp'" in wrong.output
+
+
+def test_a_study_whose_fingers_reach_the_box_in_no_cell_is_refused(tmp_path: Path) -> None:
+    short = _gripper([_finger(n_links=6, length_m=0.030), _finger(n_links=6, length_m=0.030)])
+    sweep = {"task.centering_position_m": [0.08, 0.1], "task.object_width_m": [0.02, 0.04]}
+    with pytest.raises(DescriptionError) as info:
+        load_study(_study(tmp_path, short, {"distal_segment_ratio": 0.5}, sweep))
+    text = " ".join(str(info.value).split())
+    assert "the fingers reach at most 40.0 mm from their mounts" in text
+    assert (
+        "the nearest, centering_position_m 0.1 with object_width_m 0.04, leaves its near face 40.0 mm" in text
+    )
+    assert "allowed: centering_position_m of at least 0.140 for that width, or longer fingers" in text
+    # One cell in reach is enough: the others are no-grasp results, as in the paper's grid.
+    sweep["task.centering_position_m"] = [0.08, 0.15]
+    load_study(_study(tmp_path, short, {"distal_segment_ratio": 0.5}, sweep))

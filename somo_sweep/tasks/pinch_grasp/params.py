@@ -33,10 +33,12 @@ __all__ = [
     "Numerics",
     "PinchGraspParams",
     "check_gripper",
+    "check_reach",
     "check_trial",
     "distal_link_count",
     "distal_split_problem",
     "finger_links",
+    "finger_reach_m",
     "original_hull_size_m",
     "perturb",
 ]
@@ -140,6 +142,34 @@ def check_gripper(model: Model) -> list[str]:
         shown = ", ".join(f"'{k}' {n}" for k, (n, _) in counts.items())
         needs.append(f"the fingers have different link counts ({shown}); allowed: one link count for all")
     return needs
+
+
+def finger_reach_m(finger: Any) -> float:
+    """How far a finger can reach from its mount, m: base box, chain and tip links end to end (an
+    upper bound: the straight finger, as if it pointed at the box)."""
+    base = finger.base.link.half_extent_m(2) * 2 if finger.base.link is not None else 0.0
+    return base + finger.length_m + sum(tip.half_extent_m(2) * 2 for tip in finger.tip_links)
+
+
+def check_reach(model: Model, param_sets: list[PinchGraspParams]) -> list[str]:
+    """A gripper whose fingers reach the box in none of the study's cells: the straight fingers
+    end short of the box's near face (d − width/2 from the mounts) everywhere. A cell out of reach
+    is a valid result (no grasp, as in the paper's grid); a study of only such cells is not."""
+    if not param_sets:
+        return []
+    reach = max(finger_reach_m(f) for _, f in _fingers(model))
+    gaps = [(p.base_distance_m - p.object_width_m / 2 - reach, p) for p in param_sets]
+    gap, nearest = min(gaps, key=lambda g: g[0])
+    if gap <= 0:
+        return []
+    least_c = BASE_DISTANCE_AT_ZERO_CENTERING_M - reach - nearest.object_width_m / 2
+    return [
+        f"the fingers reach at most {reach * 1e3:.1f} mm from their mounts (base box, chain and tips "
+        f"straight), and no cell brings the box that close: the nearest, centering_position_m "
+        f"{nearest.centering_position_m:g} with object_width_m {nearest.object_width_m:g}, leaves its near "
+        f"face {gap * 1e3:.1f} mm beyond the fingertips; allowed: centering_position_m of at least "
+        f"{least_c:.3f} for that width, or longer fingers"
+    ]
 
 
 def check_trial(model: Model, params: PinchGraspParams) -> list[str]:
@@ -435,6 +465,7 @@ register(
         metrics=METRICS,
         check_model=check_gripper,
         check_params=check_trial,
+        check_grid=check_reach,
         prepare_path="somo_sweep.tasks.pinch_grasp.gripper:gripper",
         perturb=perturb,
         perturbation=(
