@@ -193,3 +193,24 @@ def test_a_study_whose_fingers_reach_the_box_in_no_cell_is_refused(tmp_path: Pat
     # One cell in reach is enough: the others are no-grasp results, as in the paper's grid.
     sweep["task.centering_position_m"] = [0.08, 0.15]
     load_study(_study(tmp_path, short, {"distal_segment_ratio": 0.5}, sweep))
+
+
+def test_a_three_finger_gripper_of_two_actuator_fingers_runs_as_written() -> None:
+    pytest.importorskip("mujoco")
+    from somo_sweep.sim.settings import WorldSettings
+    from somo_sweep.tasks.pinch_grasp.task import run_pinch_grasp
+
+    finger = _finger(n_links=8, length_m=0.060)
+    act = finger["actuators"][0]
+    finger["actuators"] = [
+        {**act, "name": "base_half", "length_m": 0.030, "n_segments": 4},
+        {**act, "name": "tip_half", "length_m": 0.030, "n_segments": 4},
+    ]
+    hand = model_from_dict(_gripper([finger, finger, finger]))
+    params = PinchGraspParams(distal_segment_ratio=None, pressure_kpa=100, centering_position_m=0.15)
+    result = run_pinch_grasp(hand, params, WorldSettings(time_step_s=4e-3, engine="mujoco"))
+    assert result.status == "ok", result.message
+    m = result.metrics
+    assert m["n_finger_links"] == 8 and m["n_distal_links"] == 4  # the last actuator, as written
+    assert m["finger_length_m"] == pytest.approx(0.060)
+    assert result.labels["grasp"] in {"pinch", "power", "no_grasp"}
