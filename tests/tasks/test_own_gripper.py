@@ -214,3 +214,15 @@ def test_a_three_finger_gripper_of_two_actuator_fingers_runs_as_written() -> Non
     assert m["n_finger_links"] == 8 and m["n_distal_links"] == 4  # the last actuator, as written
     assert m["finger_length_m"] == pytest.approx(0.060)
     assert result.labels["grasp"] in {"pinch", "power", "no_grasp"}
+
+
+def test_a_ratio_finer_than_a_link_and_fingers_out_of_reach_are_reported_together(tmp_path: Path) -> None:
+    short = _gripper([_finger(n_links=6, length_m=0.030), _finger(n_links=6, length_m=0.030)])
+    sweep = {"task.centering_position_m": [0.08], "task.distal_segment_ratio": [0.1]}
+    with pytest.raises(DescriptionError) as info:
+        load_study(_study(tmp_path, short, {}, sweep))
+    text = " ".join(str(info.value).split())
+    assert "2 problem(s)" in text
+    assert "distal_segment_ratio 0.1 cannot be expressed by a finger of 6 links of 5 mm" in text
+    assert "nearest: 0 (0 distal links), 0.1667 (1 distal link)" in text
+    assert "the fingers reach at most 40.0 mm from their mounts" in text
