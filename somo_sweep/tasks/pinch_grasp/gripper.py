@@ -130,8 +130,8 @@ def _tuned_joints(
     joints: list[Joint], numerics: Numerics | None, spring_scale: float, actuated: bool | None
 ) -> list[Joint]:
     """An actuator's joints with the numerics' damping and motor limit, the spring scale, and
-    only the first (grasp) axis driven, and that only in the driven (proximal) actuator
-    (``actuated`` None: the joints' own flags)."""
+    only the first (grasp) axis driven, if the file drives it, and that only in the driven
+    (proximal) actuator (``actuated`` None: the joints' own flags)."""
     if numerics is not None:
         upd: dict[str, float] = {}
         if numerics.damping_n_m_s_per_rad is not None:
@@ -143,7 +143,9 @@ def _tuned_joints(
         joints = [_scaled_spring(j, spring_scale) for j in joints]
     if actuated is None:
         return joints
-    return [j.model_copy(update={"actuated": actuated and i == 0}) for i, j in enumerate(joints)]
+    return [
+        j.model_copy(update={"actuated": actuated and i == 0 and j.actuated}) for i, j in enumerate(joints)
+    ]
 
 
 def _scaled_spring(joint: Joint, factor: float) -> Joint:

@@ -187,6 +187,12 @@ def check_trial(model: Model, params: PinchGraspParams) -> list[str]:
                     "proximal and a passive distal segment); or distal_segment_ratio: null to "
                     "simulate the fingers as written"
                 )
+            if not finger.actuators[0].joints[0].actuated:
+                needs.append(
+                    f"finger '{name}': its first joint definition is not actuated; allowed with a "
+                    "distal_segment_ratio: a finger whose first actuator's first joint (the grasp "
+                    "axis, where pressure acts) is actuated"
+                )
             why = distal_split_problem(dsr, n_links, link_m)
             if why is not None:
                 needs.append(f"task.distal_segment_ratio: {why}")
