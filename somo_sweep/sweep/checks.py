@@ -135,10 +135,10 @@ def check_points(study: Study, lines: Mapping[str, int], problems: list[Problem]
                 _blamed(study, point, exc, lines, seen, problems)
             if len(problems) >= MAX_CHECK_PROBLEMS:
                 return
-    resolved = not problems  # every model and parameter set built: the task's checks can run
-    if study.task.check_params is not None and resolved:
+    all_built = not problems  # every model and parameter set built: the task's checks can run
+    if study.task.check_params is not None and all_built:
         _check_pairs(study, resolver, study.task.check_params, lines, problems)
-    if study.task.check_grid is not None and resolved:
+    if study.task.check_grid is not None and all_built:
         _check_grid(study, resolver, study.task.check_grid, lines, problems)
     if study.simulation is not None and study.simulation.engine == "mujoco" and not problems:
         _check_pairs(study, resolver, _mujoco_needs(study.task), lines, problems, where="model")
