@@ -5,7 +5,7 @@ BIN    := $(VENV)/bin
 STAMP  := $(VENV)/.installed-stamp
 
 .DEFAULT_GOAL := help
-.PHONY: help install demo test test-slow lint format bench bench-statics bench-scaling bench-scale bench-engines bench-mujoco bench-robust bench-numerics bench-auto-numerics bench-zero-kpa bench-original fig6 fig6-fast fig6-quick fig6-original fig6-ablation fig6-ablation-quick fig3 fig5 fig5-quick palm palm-quick fig7 fig7-quick fig8 fig8-quick diagnose-demo sweep-demo figures clean
+.PHONY: help install demo test test-slow lint format bench bench-statics bench-scaling bench-scale bench-engines bench-mujoco bench-robust bench-numerics bench-auto-numerics bench-zero-kpa bench-original fig6 fig6-fast fig6-quick fig6-original fig6-ablation fig6-ablation-quick fig3 fig5 fig5-quick palm palm-quick fig7 fig7-quick fig8 fig8-quick diagnose-demo sweep-demo example-gripper example-gripper-pybullet figures clean
 
 help: ## List the targets
 	@grep -E '^[a-zA-Z0-9_-]+:.*?## ' $(MAKEFILE_LIST) | awk 'BEGIN {FS = ":.*?## "}; {printf "  make %-20s %s\n", $$1, $$2}'
@@ -135,6 +135,20 @@ diagnose-demo: $(STAMP) ## Calibrate the bundled bench file, then name what the 
 sweep-demo: $(STAMP) ## Run the example study (27 trials) and print its summary
 	$(BIN)/somo-sweep run studies/finger_pressure_sweep.yaml --overwrite
 	$(BIN)/somo-sweep show results/finger_pressure_sweep
+
+EXAMPLE := results/own_gripper
+example-gripper: $(STAMP) ## Your own gripper end to end: bench CSV -> calibrate -> gripper -> robust grasp map (MuJoCo, ~2 min)
+	test -f $(EXAMPLE)/study.yaml || $(BIN)/somo-sweep new grasp-study $(EXAMPLE) --finger examples/own_gripper/finger.yaml
+	$(BIN)/somo-sweep calibrate examples/own_gripper/finger_bench.csv --model examples/own_gripper/finger.yaml -o $(EXAMPLE)/finger.yaml --report $(EXAMPLE)/calibration
+	$(BIN)/somo-sweep run $(EXAMPLE)/study.yaml --out $(EXAMPLE)/grasp_map --jobs 2
+	$(BIN)/somo-sweep show $(EXAMPLE)/grasp_map
+
+example-gripper-pybullet: example-gripper ## The same grasp map on PyBullet: 0.25-ms steps, light inertia shaping (about an hour on 2 cores)
+	sed -e 's/^name: my_grasp_study/name: my_grasp_study_pybullet/' \
+	    -e 's/^  pressure_kpa: 150/  pressure_kpa: 150\n  numerics: {added_inertia_kg_m2: 2.0e-8}/' \
+	    -e 's/^simulation: .*/simulation: {engine: pybullet, time_step_s: 2.5e-4}/' $(EXAMPLE)/study.yaml > $(EXAMPLE)/study_pybullet.yaml
+	$(BIN)/somo-sweep run $(EXAMPLE)/study_pybullet.yaml --out $(EXAMPLE)/grasp_map_pybullet --jobs 2
+	$(BIN)/somo-sweep show $(EXAMPLE)/grasp_map_pybullet
 
 figures: fig3 fig5 fig6 fig7 fig8 ## Every paper figure (Figs. 3, 5, 6, 7, 8) into results/figures
 

@@ -25,7 +25,7 @@ from somo_sweep.model.load import Model, load_model
 from somo_sweep.model.tables import bundled_path
 from somo_sweep.sim.numerics import ChosenNumerics, choose_numerics
 from somo_sweep.sim.settings import WorldSettings
-from somo_sweep.tasks.pinch_grasp.params import Numerics, PinchGraspParams
+from somo_sweep.tasks.pinch_grasp.params import PAPER_TORQUE_N_M, Numerics, PinchGraspParams
 from somo_sweep.tasks.pinch_grasp.task import run_pinch_grasp
 
 __all__ = [
@@ -135,7 +135,7 @@ def check_family(
     members = [(k, m, finger_variant(base, k, m)) for k, m in family]
     chosen = [choose_numerics(model) for _, _, model in members]
     tasks: list[Any] = []
-    torque = PinchGraspParams().torque_n_m
+    torque = PAPER_TORQUE_N_M
     for (k, _, model), c in zip(members, chosen, strict=True):
         j = max(c.added_inertia_kg_m2.values())
         for step in (c.time_step_s, c.time_step_s / refine):

@@ -14,7 +14,7 @@ from typing import Annotated
 
 import typer
 
-from somo_sweep.cli import calibrate, diagnose, engines, grasp, model, paper, results, sweep
+from somo_sweep.cli import calibrate, diagnose, engines, grasp, model, new, paper, results, sweep
 from somo_sweep.cli.help import HelpGroup, plain_help
 from somo_sweep.cli.output import state
 from somo_sweep.errors import SHOWN_CHARS, os_cause, printable, shown
@@ -67,6 +67,7 @@ app.command()(calibrate.calibrate)
 app.command()(diagnose.diagnose)
 app.command()(grasp.classify)
 app.command()(grasp.render)
+app.add_typer(new.app, name="new", cls=HelpGroup)
 app.add_typer(paper.app, name="paper", cls=HelpGroup)
 plain_help(app)
 

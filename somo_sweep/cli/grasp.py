@@ -50,7 +50,7 @@ def classify(
     if legacy:
         typer.echo(
             f"note: {legacy} trials were stored before the final step's per-part contact counts "
-            "(final_contact_count_link01 ...): they are relabelled from their stored mean link where it "
+            "(final_contact_count_base ...): they are relabelled from their stored mean link where it "
             "decides the label, 'unknown' where it does not; re-run them (somo-sweep run) for exact labels"
         )
     typer.echo(f"labels written to {path}")

@@ -154,7 +154,7 @@ def rows_without_final_counts(table: pd.DataFrame) -> int:
     (:mod:`somo_sweep.tasks.pinch_grasp.classify`).
     """
     cols = [str(c) for c in table.columns]
-    column = find_column(cols, "final_contact_count_link01")
+    column = find_column(cols, "final_contact_count_base")
     status = find_column(cols, "status")
     rows = ~inferred_rows(table)
     if status is not None:

@@ -1,8 +1,9 @@
 """Sweep axes: key paths into the model and the task, axis values, linked groups.
 
 A key path is ``model.<field path>`` or ``task.<parameter path>``, with list items as
-``[i]`` (``model.manipulator.actuators[0].length_m``). An axis spec is a list,
-``{values: [...]}``, an inclusive ``{start, stop, step}`` range (float round-off is
+``[i]`` (``model.manipulator.actuators[0].length_m``) and every item of a list as ``[*]``
+(``model.assembly.manipulators[*].manipulator.actuators[0].n_segments``: every finger).
+An axis spec is a list, ``{values: [...]}``, an inclusive ``{start, stop, step}`` range (float round-off is
 cleaned to :data:`RANGE_DIGITS` significant digits) or ``{start, stop, num}``.
 :func:`axis_length` counts an axis's values from its spec, without expanding it, so a
 study can be sized (and refused) before anything is built.
@@ -30,7 +31,9 @@ __all__ = [
 
 #: Significant digits kept when a range is expanded (kills 0.30000000000000004).
 RANGE_DIGITS = 12
-_TOKEN = re.compile(r"\.?([A-Za-z_][A-Za-z0-9_]*)|\[(\d+)\]")
+_TOKEN = re.compile(r"\.?([A-Za-z_][A-Za-z0-9_]*)|\[(\d+|\*)\]")
+#: A key path's part that stands for every item of a list (``[*]``).
+EVERY = "*"
 
 
 @dataclass(frozen=True)
@@ -53,7 +56,8 @@ def parse_key_path(key: str) -> tuple[str, list[str | int]]:
         m = _TOKEN.match(key, pos)
         if not m or (pos == 0 and key.startswith((".", "["))):
             raise ValueError(f"malformed key path '{key}' at character {pos + 1}; write e.g. model.a.b[0].c")
-        parts.append(m.group(1) if m.group(1) is not None else int(m.group(2)))
+        index = m.group(2)
+        parts.append(m.group(1) if m.group(1) is not None else (EVERY if index == EVERY else int(index)))
         pos = m.end()
     if not parts or parts[0] not in ("model", "task"):
         raise ValueError(f"key path '{key}' must start with 'model.' or 'task.'")
@@ -67,10 +71,22 @@ def parse_key_path(key: str) -> tuple[str, list[str | int]]:
 
 
 def set_path(data: Any, parts: list[str | int], value: Any) -> None:
-    """Set ``data[parts...] = value`` in nested dicts / lists; missing dict keys are created."""
+    """Set ``data[parts...] = value`` in nested dicts / lists; missing dict keys are created.
+
+    A part ``[*]`` sets the rest of the path in every item of the list there (both fingers of a
+    gripper: ``model.assembly.manipulators[*].manipulator.actuators[0].n_segments``).
+    """
     node = data
     for i, part in enumerate(parts):
         last = i == len(parts) - 1
+        if part == EVERY:
+            if not isinstance(node, list) or not node:
+                raise ValueError(f"[*] stands for every item of a list, but the value there is {node!r}")
+            for item in node:
+                if last:
+                    raise ValueError("[*] must be followed by a field, e.g. manipulators[*].manipulator")
+                set_path(item, parts[i + 1 :], value)
+            return
         if isinstance(part, int):
             if not isinstance(node, list):
                 raise ValueError(f"[{part}] indexes a list, but the value there is {type(node).__name__}")

@@ -28,6 +28,8 @@ __all__ = ["CHECK_PAIRS", "check_points", "line_of", "nested", "no_model", "no_p
 #: Most models (and parameter sets) a task's ``check_params`` sees when a study is loaded: each
 #: distinct model with the first parameter set, each distinct parameter set with the first model.
 CHECK_PAIRS = 32
+#: Most distinct parameter sets a task's ``check_grid`` sees (a larger grid is not checked whole).
+MAX_GRID_CHECK = 20_000
 #: Problems after which the checks stop (the message counts those found).
 MAX_CHECK_PROBLEMS = 20
 
@@ -133,8 +135,11 @@ def check_points(study: Study, lines: Mapping[str, int], problems: list[Problem]
                 _blamed(study, point, exc, lines, seen, problems)
             if len(problems) >= MAX_CHECK_PROBLEMS:
                 return
-    if study.task.check_params is not None and not problems:
+    all_built = not problems  # every model and parameter set built: the task's checks can run
+    if study.task.check_params is not None and all_built:
         _check_pairs(study, resolver, study.task.check_params, lines, problems)
+    if study.task.check_grid is not None and all_built:
+        _check_grid(study, resolver, study.task.check_grid, lines, problems)
     if study.simulation is not None and study.simulation.engine == "mujoco" and not problems:
         _check_pairs(study, resolver, _mujoco_needs(study.task), lines, problems, where="model")
 
@@ -189,6 +194,28 @@ def _check_pairs(
             if need not in seen:
                 seen.add(need)
                 problems.append(Problem(where, need, line_of(lines, where)))
+
+
+def _check_grid(
+    study: Study,
+    resolver: Resolver,
+    check: Callable[[Model, list[Any]], list[str]],
+    lines: Mapping[str, int],
+    problems: list[Problem],
+) -> None:
+    """Report what the task needs of each model (the first ``CHECK_PAIRS``) over the whole grid's
+    parameter sets (skipped beyond ``MAX_GRID_CHECK`` distinct sets)."""
+    param_points = list(itertools.islice(_distinct(study, False), MAX_GRID_CHECK + 1))
+    if len(param_points) > MAX_GRID_CHECK:
+        return
+    param_sets = [resolver.params(p, False) for p in param_points]
+    seen: set[str] = set()
+    for model_point in itertools.islice(_distinct(study, True), CHECK_PAIRS):
+        _, model = resolver.model(model_point, False)
+        for need in check(model, param_sets):
+            if need not in seen:
+                seen.add(need)
+                problems.append(Problem("sweep", need, line_of(lines, "sweep")))
 
 
 def _check_model_fits(

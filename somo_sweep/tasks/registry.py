@@ -69,6 +69,10 @@ class TaskSpec:
         check_params: What the task needs of a model and its parameters together (a torque table
             with one column per input of the model), checked when a study is loaded:
             ``check_params(model, params)`` returns one sentence per unmet need.
+        check_grid: What a study's grid as a whole needs of a model, checked when a study is
+            loaded: ``check_grid(model, param_sets)`` with every distinct parameter set of the
+            study returns one sentence per unmet need (a gripper whose fingers reach the box in
+            none of the study's cells).
         prepare_path: ``"package.module:function"`` of ``prepare(model, params) -> Model``, the
             model a trial simulates from the study's model and the trial's parameters (the pinch
             task re-splits the fingers, the snake drops its anisotropic friction when asked);
@@ -92,6 +96,7 @@ class TaskSpec:
     metrics: Mapping[str, str] = field(default_factory=dict)
     check_model: Callable[[Model], list[str]] | None = None
     check_params: Callable[[Model, Any], list[str]] | None = None
+    check_grid: Callable[[Model, list[Any]], list[str]] | None = None
     prepare_path: str = ""
     perturb: Callable[[Any, Any], Any] | None = None
     perturbation: str = ""

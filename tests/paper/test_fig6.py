@@ -12,7 +12,7 @@ from typer.testing import CliRunner
 
 from somo_sweep.cli.app import app
 from somo_sweep.paper.fig6 import build, grasp_table, smallest_all_width_pinch_dsr
-from somo_sweep.tasks.pinch_grasp.params import final_count_columns, link_columns
+from somo_sweep.tasks.pinch_grasp.legacy import legacy_columns
 
 
 def tidy(labels: dict[tuple[float, float], list[str]]) -> pd.DataFrame:
@@ -126,10 +126,10 @@ def results_folder(
             "final_mean_contact_link": final,
             "hold_contact_count_palm": 0,
         }
-        for k, name in enumerate(link_columns("hold_normal_force_n"), start=1):
+        for k, name in enumerate(legacy_columns("hold_normal_force_n"), start=1):
             row[name] = per_link.get(k, 0.0)
         if final_counts:
-            for k, name in enumerate(final_count_columns()):
+            for k, name in enumerate(["final_contact_count_base", *legacy_columns("final_contact_count")]):
                 row[name] = 0 if status != "ok" else int(k == 16)  # one contact on link 16: mean 16
         rows.append(row)
     folder = tmp_path / "results" / "pinch"

@@ -25,7 +25,7 @@ def test_the_worker_settings_read_as_the_environment_dask_reads() -> None:
         assert node == value, key
 
 
-def test_the_readme_gives_exactly_these_settings_to_a_cluster() -> None:
-    readme = (Path(__file__).resolve().parents[2] / "README.md").read_text()
-    given = dict(re.findall(r"(DASK_[A-Z_]+)=(\S+)", readme))
+def test_the_cluster_page_gives_exactly_these_settings_to_a_cluster() -> None:
+    page = (Path(__file__).resolve().parents[2] / "docs" / "cluster.md").read_text()
+    given = dict(re.findall(r"(DASK_[A-Z_]+)=(\S+)", page))
     assert given == dask_environment()

@@ -1,27 +1,39 @@
-"""Grasp classification on hand-made contact sets: the paper rule and the hold-phase contact rule."""
+"""Grasp classification on hand-made contact sets: the paper rule and the hold-phase contact rule.
+
+Tables here are written with the old per-link columns (``hold_normal_force_n_link01`` ...), so
+relabelling them also checks their conversion on read (:mod:`somo_sweep.tasks.pinch_grasp.legacy`).
+"""
 
 from __future__ import annotations
 
 import math
 
+import numpy as np
 import pandas as pd
 import pytest
 
 from somo_sweep.errors import SomoError
-from somo_sweep.tasks.pinch_grasp.classify import (
-    GraspEvidence,
-    classify,
-    contact_position,
-    distal_force_fractions,
-    paper_mean_link,
-    reclassify,
-)
-from somo_sweep.tasks.pinch_grasp.params import distal_link_count, final_count_columns, link_columns
+from somo_sweep.tasks.pinch_grasp.classify import GraspEvidence, classify, reclassify
+from somo_sweep.tasks.pinch_grasp.legacy import legacy_columns
+from somo_sweep.tasks.pinch_grasp.params import distal_link_count
+from somo_sweep.tasks.pinch_grasp.positions import contact_position, paper_mean_link, zone_force_fractions
+
+#: The old tables' final per-part count columns: base boxes, links 1 … 20, fingertip, palm.
+FINAL_COUNT_COLUMNS = [
+    "final_contact_count_base",
+    *legacy_columns("final_contact_count"),
+    "final_contact_count_palm",
+]
 
 
-def forces(per_link: dict[int, float]) -> tuple[float, ...]:
-    """Per-link mean forces (N) from {link number: force}; 21 is the fingertip."""
-    return tuple(per_link.get(k, 0.0) for k in range(1, 22))
+def forces(per_link: dict[int, float], n_links: int = 20) -> np.ndarray:
+    """Per-link mean forces (N) from {link number: force}; N + 1 is the fingertip."""
+    return np.array([per_link.get(k, 0.0) for k in range(1, n_links + 2)])
+
+
+def shares(per_link: dict[int, float], dsr: float = 0.2, palm_n: float = 0.0) -> dict[str, float]:
+    """Zone shares of the bundled finger's hold force at ``dsr``."""
+    return zone_force_fractions(forces(per_link), palm_n, distal_link_count(dsr))
 
 
 def evidence(
@@ -34,9 +46,8 @@ def evidence(
     position_m: tuple[float, float, float] = (0.0, 0.0, 0.10),
     on_ground: float = 0.0,
 ) -> GraspEvidence:
-    return GraspEvidence(
-        dsr, position_m, lift_m, 0.075, forces(per_link), palm_n, both, final_link, on_ground
-    )
+    proximal = shares(per_link, dsr, palm_n)["proximal"]
+    return GraspEvidence(dsr, position_m, lift_m, 0.075, proximal, both, final_link, on_ground)
 
 
 def test_distal_link_count_has_no_float_trap() -> None:
@@ -47,13 +58,13 @@ def test_distal_link_count_has_no_float_trap() -> None:
 def test_fingertip_and_distal_contacts_are_a_pinch() -> None:
     ev = evidence({18: 0.5, 20: 1.0, 21: 0.5})
     assert classify(ev) == "pinch"
-    assert distal_force_fractions(ev)["proximal"] == pytest.approx(0.0)
+    assert shares({18: 0.5, 20: 1.0, 21: 0.5})["proximal"] == pytest.approx(0.0)
 
 
 def test_force_on_the_proximal_finger_is_a_power_grasp() -> None:
     ev = evidence({5: 1.0, 10: 1.0, 19: 1.0})
     assert classify(ev) == "power"
-    assert distal_force_fractions(ev)["proximal"] == pytest.approx(2 / 3)
+    assert shares({5: 1.0, 10: 1.0, 19: 1.0})["proximal"] == pytest.approx(2 / 3)
 
 
 def test_palm_contact_counts_as_proximal() -> None:
@@ -95,17 +106,8 @@ def paper(
     position_m: tuple[float, float, float] = (0.0, 0.0, 0.10),
 ) -> str:
     """The paper rule's label of a trial whose final step touched the object at ``per_part``."""
-    ev = GraspEvidence(
-        dsr,
-        position_m,
-        0.07,
-        0.075,
-        forces({}),
-        0.0,
-        1.0,
-        math.nan,
-        final_contact_counts=final_counts(per_part),
-    )
+    mean = paper_mean_link(final_counts(per_part))
+    ev = GraspEvidence(dsr, position_m, 0.07, 0.075, math.nan, 1.0, math.nan, final_mean_link_paper=mean)
     return classify(ev, "paper")
 
 
@@ -136,7 +138,7 @@ def test_paper_rule_counts_a_base_box_as_link_0() -> None:
 
 def test_paper_rule_leaves_the_palm_out() -> None:
     # The original has no palm; a palm contact is stored apart and is no part of the mean.
-    metrics = {name: 0 for name in final_count_columns()}
+    metrics = {name: 0 for name in FINAL_COUNT_COLUMNS}
     metrics.update({"final_contact_count_link19": 3, "final_contact_count_palm": 5})
     row = {**_row({19: 1.0}, 0.2), **metrics, "hold_contact_count_palm": 40}
     assert reclassify(pd.DataFrame([row]), "paper").tolist() == ["pinch"]
@@ -183,11 +185,10 @@ def test_rules_can_disagree_on_a_late_slip() -> None:
         (0.0, 0.0, 0.1),
         0.07,
         0.075,
-        forces({4: 2.0, 20: 0.5}),
-        0.0,
+        shares({4: 2.0, 20: 0.5})["proximal"],
         1.0,
         20.0,
-        final_contact_counts=final_counts({20: 2}),
+        final_mean_link_paper=paper_mean_link(final_counts({20: 2})),
     )
     assert classify(ev, "paper") == "pinch"
     assert classify(ev, "contacts") == "power"
@@ -213,9 +214,48 @@ def test_rows_stored_before_the_final_counts_are_relabelled_where_the_mean_decid
 
 
 def test_contact_position_runs_from_base_to_tip() -> None:
-    assert contact_position(forces({1: 1.0})) == pytest.approx(0.0025 / 0.115)
-    assert contact_position(forces({21: 1.0})) == pytest.approx(0.1075 / 0.115)
+    assert contact_position(forces({1: 1.0})) == pytest.approx(0.5 / 20)
+    assert contact_position(forces({21: 1.0})) == pytest.approx(1.0)
+    assert contact_position(forces({3: 1.0}, n_links=12)) == pytest.approx(2.5 / 12)
     assert math.isnan(contact_position(forces({})))
+
+
+def test_a_twelve_link_finger_is_labelled_by_the_same_definitions() -> None:
+    # DSR 0.25 of 12 links: 3 distal links (10-12) and the tip; the paper mean is a link number / 12.
+    twelve = zone_force_fractions(forces({10: 1.0, 13: 1.0}, n_links=12), 0.0, 3)
+    assert twelve["proximal"] == pytest.approx(0.0)
+    assert zone_force_fractions(forces({9: 1.0, 13: 1.0}, n_links=12), 0.0, 3)["proximal"] == pytest.approx(
+        0.5
+    )
+    counts = (0, *([0] * 9), 2, 0, 0, 1)  # base, links 1-12, tip: two contacts on link 10, one on the tip
+    mean = paper_mean_link(counts)
+    assert mean == pytest.approx((10 + 10 + 12) / 3)
+    ev = GraspEvidence(
+        0.25, (0.0, 0.0, 0.1), 0.07, 0.075, twelve["proximal"], 1.0, 11.0, 0.0, mean, n_finger_links=12
+    )
+    assert classify(ev, "paper") == "pinch"  # 10.67 / 12 = 0.89 > 0.75
+    assert classify(ev, "contacts") == "pinch"
+
+
+def test_new_rows_relabel_from_their_scalars_alone() -> None:
+    row = {
+        "task_distal_segment_ratio": 0.25,
+        "status": "ok",
+        "object_x_m": 0.0,
+        "object_y_m": 0.0,
+        "object_z_m": 0.1,
+        "lift_height_m": 0.07,
+        "hold_force_fraction_proximal": 0.3,
+        "hold_contact_fraction_both_fingers": 1.0,
+        "hold_ground_contact_fraction": 0.0,
+        "final_mean_contact_link": 9.0,
+        "final_contact_count_base": 0,
+        "final_mean_link_paper": 8.5,
+        "n_finger_links": 12,
+    }
+    table = pd.DataFrame([row, {**row, "final_mean_link_paper": 9.5, "hold_force_fraction_proximal": 0.1}])
+    assert reclassify(table, "paper").tolist() == ["power", "pinch"]  # 8.5 / 12 < 0.75 < 9.5 / 12
+    assert reclassify(table, "contacts").tolist() == ["power", "pinch"]
 
 
 def test_unknown_rule_or_option_is_a_clear_error() -> None:
@@ -246,7 +286,7 @@ def _row(per_link: dict[int, float], dsr: float, prefix: str = "") -> dict[str, 
         f"{prefix}hold_ground_contact_fraction": 0.0,
         f"{prefix}final_mean_contact_link": 20.0,
     }
-    for name, f in zip(link_columns(f"{prefix}hold_normal_force_n"), forces(per_link), strict=True):
+    for name, f in zip(legacy_columns(f"{prefix}hold_normal_force_n"), forces(per_link), strict=True):
         row[name] = f
     return row
 
@@ -257,7 +297,7 @@ def test_reclassify_relabels_a_results_table_from_stored_metrics() -> None:
     assert reclassify(table).tolist() == ["pinch", "power", None]
     # No final per-part counts and no palm count: a mean of 20 could hide base-box contacts.
     assert reclassify(table, "paper").tolist() == ["unknown", "unknown", None]
-    for name in final_count_columns():
+    for name in FINAL_COUNT_COLUMNS:
         table[f"metrics.{name}"] = 0
     table["metrics.final_contact_count_tip"] = [2, 2, 2]
     assert reclassify(table, "paper").tolist() == ["pinch", "pinch", None]

@@ -84,19 +84,21 @@ def test_run_refuses_a_hand_for_the_pinch_task_and_writes_nothing(tmp_path: Path
     result = CliRunner().invoke(app, ["run", str(path), "--out", str(tmp_path / "out")])
     assert result.exit_code == 2
     output = " ".join(result.output.split())
-    assert "got 4 manipulator(s) ('f1', 'f2', 'f3', 'f4'); allowed: an assembly with 2 manipulators" in output
+    # Four fingers are a gripper the task takes; a hand fixed in place is not.
+    assert "got base mode 'fixed'; allowed: an assembly with base: {mode: driven}" in output
+    assert "manipulator(s)" not in output
     assert not (tmp_path / "out").exists()
 
 
 def test_an_override_that_breaks_the_finger_is_named(tmp_path: Path) -> None:
-    # The proximal actuator of the left finger given 20 links: 24 in all, where the split counts 20.
+    # The proximal actuator of the left finger given 20 links: 24 in all, where the right has 20.
     key = "model.assembly.manipulators[0].manipulator.actuators[0]"
     path = _study(tmp_path, "pinch_grasp", "pinch_gripper", f"set:\n  {key}.n_segments: 20\n")
     with pytest.raises(DescriptionError) as info:
         load_study(path)
     text = str(info.value)
-    assert f"with {key}.n_segments: finger 'left' has 24 links; allowed: 20" in text
-    assert "'right'" not in text
+    assert f"with {key}.n_segments: the fingers have different link counts ('left' 24, 'right' 20); " in text
+    assert "allowed: one link count for all" in text
 
 
 def test_unequal_proximal_and_distal_links_are_refused() -> None:
@@ -109,8 +111,8 @@ def test_unequal_proximal_and_distal_links_are_refused() -> None:
     broken = model.model_copy(update={"assembly": hand.model_copy(update={"manipulators": mounts})})
     assert check_gripper(model) == []
     assert check_gripper(broken) == [
-        "finger 'left': proximal links of 5 mm and distal links of 6 mm; allowed: links of one length "
-        "(the split moves links from one actuator to the other)"
+        "finger 'left' has links of 5, 6 mm; allowed: links of one length (the distal segment "
+        "ratio and the contact positions are measured in links)"
     ]
 
 

@@ -12,7 +12,7 @@ from benchmarks.setups import CHOSEN
 from somo_sweep.model.load import load_model
 from somo_sweep.sim.settings import WorldSettings
 from somo_sweep.tasks import get_task
-from somo_sweep.tasks.pinch_grasp.gripper import split_finger
+from somo_sweep.tasks.pinch_grasp.gripper import distal_zone_links, split_finger
 from somo_sweep.tasks.pinch_grasp.params import Numerics, PinchGraspParams
 from somo_sweep.tasks.pinch_grasp.task import run_pinch_grasp
 
@@ -30,8 +30,7 @@ def finger():
 def test_dsr_resplits_twenty_links_between_a_driven_and_a_passive_segment(
     dsr: float, proximal: int, distal: int
 ) -> None:
-    params = PinchGraspParams(distal_segment_ratio=dsr)
-    split = split_finger(finger(), params.n_distal)
+    split = split_finger(finger(), distal_zone_links(finger(), dsr))
     counts = [a.segments for a in split.actuators]
     assert counts == ([proximal, distal] if distal else [proximal])
     assert sum(a.length_m for a in split.actuators) == pytest.approx(0.100)
@@ -186,7 +185,7 @@ def test_bundled_studies_use_the_facts_sheet_grid_and_the_chosen_numerics() -> N
     cs = sorted({pt["task.centering_position_m"] for pt in full.points()})
     assert len(cs) == 22 and cs[0] == pytest.approx(0.070) and cs[-1] == pytest.approx(0.175)
     assert {pt["task.centering_position_m"] for pt in quick.points()} <= set(cs)
-    assert [PinchGraspParams(distal_segment_ratio=d).n_distal for d in dsrs] == list(range(15))
+    assert [distal_zone_links(finger(), d) for d in dsrs] == list(range(15))
     # The task's default regularisation is none: the model's own inertia (no shaping), the file's joints.
     default = PinchGraspParams().numerics
     assert default.added_inertia_kg_m2 is None and CHOSEN.numerics.added_inertia_kg_m2 == 0.0

@@ -8,16 +8,18 @@ can be relabelled without rerunning it):
     and −50 mm ≤ x, y ≤ 50 mm and 40 mm ≤ z ≤ 200 mm (its ``bounding_box``); the
     bounds are absolute world coordinates, and the object starts at x = y = 0 in both
     codes, so they are also relative to the start. Then the finger–object contact points
-    of the *final step* are averaged by link number (its ``mean_link``): links 1 … 20,
-    the fingertip counts as 20 (the original merges the fingertip into the last link),
-    a finger's base box as 0 (it is link −1 of the original's finger body); the palm,
-    which the original does not have, is left out. Pinch if mean / 20 > 1 − DSR, with
-    DSR the grid's decimal value as the original's notebook compares it, power otherwise.
-    A grasped trial with no finger contact at the final step is power: the notebook
-    compares NaN, which is never above the threshold. So at DSR 0 nothing is a pinch.
-    Rows stored before the per-part final counts (``final_contact_count_link01`` …)
-    are relabelled from ``final_mean_contact_link`` (fingertip 21, base boxes left
-    out) where every split of it gives the same label, else ``unknown``.
+    of the *final step* are averaged by link number (its ``mean_link``, stored as
+    ``final_mean_link_paper``): links 1 … N, the fingertip counts as N (the original merges
+    the fingertip into the last link), a finger's base box as 0 (it is link −1 of the
+    original's finger body); the palm, which the original does not have, is left out.
+    Pinch if mean / N > 1 − DSR (the mean position along the finger,
+    ``final_mean_position_paper``, beyond the distal segment's start), with DSR the grid's
+    decimal value as the original's notebook compares it, power otherwise. A grasped
+    trial with no finger contact at the final step is power: the notebook compares NaN,
+    which is never above the threshold. So at DSR 0 nothing is a pinch. Rows stored
+    before the final step's per-part counts (no ``final_contact_count_base``) are
+    relabelled from ``final_mean_contact_link`` (fingertip N + 1, base boxes left out)
+    where every split of it gives the same label, else ``unknown``.
 
 ``contacts`` (default)
     Uses where the contact *force* sits over the whole hold phase, not one step.
@@ -25,9 +27,11 @@ can be relabelled without rerunning it):
     samples, touched by both fingers in at least 90 % of them, and higher at the
     end than at the start by at least ``MIN_LIFT_M`` (10 mm). An object that swings
     in the fingertips but stays off the ground is held; one left on the ground is not.
-    The finger's distal zone is its last round(20·DSR) links plus the fingertip
-    (the links past the driven segment, whether the distal segment is a separate
-    actuator or not); the rest of the finger and the palm form the proximal zone.
+    The finger's distal zone is the links past the driven segment (its last
+    DSR·N links, whether the distal segment is a separate actuator or not) plus the
+    fingertip; the rest of the finger and the palm form the proximal zone. The trial
+    stores the zones' shares of the hold-phase normal force
+    (``hold_force_fraction_distal``, ``_tip``, ``_proximal``, ``_palm``).
     Pinch if the proximal zone carries less than ``max_proximal_fraction`` (25 %)
     of the hold-phase normal force, power otherwise: a power grasp is one where
     the object is pressed into the proximal finger or the palm, while a light
@@ -37,19 +41,13 @@ can be relabelled without rerunning it):
 from __future__ import annotations
 
 import math
-from collections.abc import Mapping, Sequence
+from collections.abc import Mapping
 from dataclasses import dataclass
 from typing import Any, Literal
 
-import numpy as np
-
 from somo_sweep.errors import SomoError, did_you_mean
-from somo_sweep.tasks.pinch_grasp.params import (
-    N_FINGER_LINKS,
-    distal_link_count,
-    final_count_columns,
-    link_columns,
-)
+from somo_sweep.tasks.pinch_grasp.legacy import upgrade_table
+from somo_sweep.tasks.pinch_grasp.positions import contact_position, paper_mean_link, zone_force_fractions
 
 __all__ = [
     "LABELS",
@@ -57,20 +55,20 @@ __all__ = [
     "GraspEvidence",
     "classify",
     "contact_position",
-    "distal_force_fractions",
+    "distal_ratio",
     "find_column",
     "is_held",
     "paper_mean_link",
     "reclassify",
+    "zone_force_fractions",
 ]
 
 Label = Literal["pinch", "power", "no_grasp", "unknown"]
 LABELS: tuple[str, ...] = ("pinch", "power", "no_grasp")
 RULES: tuple[str, ...] = ("contacts", "paper")
 
-#: Segment length and fingertip length along the finger, m (facts sheet).
-SEGMENT_M = 0.005
-TIP_M = 0.015
+#: Links per finger of rows stored without ``n_finger_links`` (the bundled finger).
+BUNDLED_FINGER_LINKS = 20
 #: Paper rule bounds on the final object position, m.
 PAPER_MIN_Z_M = 0.040
 PAPER_MAX_Z_M = 0.200
@@ -83,37 +81,36 @@ MAX_PROXIMAL_FRACTION = 0.25
 
 @dataclass(frozen=True)
 class GraspEvidence:
-    """What the rules look at, for one trial.
+    """What the rules look at, for one trial (scalars only: any finger's rows alike).
 
     Attributes:
         distal_segment_ratio: DSR of the fingers.
         object_position_m: Final object centre (x, y, z) relative to the world, m; it starts at x = y = 0.
         lift_height_m: Final object height above its start, m.
         commanded_lift_m: How far the hand lifted, m.
-        hold_normal_force_n: Mean normal force per link number over the hold samples
-            (links 1 … 20 then the fingertip; both fingers added), N.
-        hold_normal_force_palm_n: Same for the palm and finger base boxes, N.
+        hold_force_fraction_proximal: Share of the hold-phase normal force on the proximal zone
+            (proximal links, base boxes and palm; NaN: no contact force at all).
         hold_contact_fraction_both_fingers: Share of hold samples with both fingers touching.
-        hold_ground_contact_fraction: Share of hold samples with the object touching the ground.
-        final_mean_contact_link: Mean link number of the final step's contacts (fingertip 21,
+        final_mean_contact_link: Mean link number of the final step's contacts (fingertip N + 1,
             base boxes and palm left out; NaN: none).
         hold_ground_contact_fraction: Share of hold samples with the object on the ground.
-        final_contact_counts: The final step's contact points per part (base boxes, links
-            1 … 20, fingertip; both fingers added), or None for a row stored before them.
+        final_mean_link_paper: The original's mean link of the final step's contacts (base boxes
+            0, fingertip N; NaN: no contact), or None for a row stored before it.
+        n_finger_links: N, segment links per finger.
         hold_contact_count_palm: Palm and base-box contact points over the hold samples (the
-            final step is one of them; -1 unknown); used only when ``final_contact_counts`` is None.
+            final step is one of them; -1 unknown); used only when ``final_mean_link_paper`` is None.
     """
 
     distal_segment_ratio: float
     object_position_m: tuple[float, float, float]
     lift_height_m: float
     commanded_lift_m: float
-    hold_normal_force_n: tuple[float, ...]
-    hold_normal_force_palm_n: float
+    hold_force_fraction_proximal: float
     hold_contact_fraction_both_fingers: float
     final_mean_contact_link: float
     hold_ground_contact_fraction: float = 0.0
-    final_contact_counts: tuple[int, ...] | None = None
+    final_mean_link_paper: float | None = None
+    n_finger_links: int = BUNDLED_FINGER_LINKS
     hold_contact_count_palm: int = -1
 
     @classmethod
@@ -121,12 +118,11 @@ class GraspEvidence:
         cls, metrics: Mapping[str, Any], distal_segment_ratio: float, commanded_lift_m: float = 0.075
     ) -> GraspEvidence:
         """Evidence from a trial's metrics (a task result or one row of a results table)."""
-        forces = tuple(float(metrics[c]) for c in link_columns("hold_normal_force_n"))
-        count_names = final_count_columns()[:-1]  # the palm is no part of the rule
-        counts = None
-        if all(n in metrics and _finite(metrics[n]) for n in count_names):
-            counts = tuple(int(metrics[n]) for n in count_names)
+        mean_paper = None
+        if _finite(metrics.get("final_contact_count_base")):
+            mean_paper = float(metrics["final_mean_link_paper"])
         palm = metrics.get("hold_contact_count_palm")
+        n_links = metrics.get("n_finger_links")
         return cls(
             distal_segment_ratio=float(distal_segment_ratio),
             object_position_m=(
@@ -136,45 +132,25 @@ class GraspEvidence:
             ),
             lift_height_m=float(metrics["lift_height_m"]),
             commanded_lift_m=float(commanded_lift_m),
-            hold_normal_force_n=forces,
-            hold_normal_force_palm_n=float(metrics["hold_normal_force_n_palm"]),
+            hold_force_fraction_proximal=float(metrics["hold_force_fraction_proximal"]),
             hold_contact_fraction_both_fingers=float(metrics["hold_contact_fraction_both_fingers"]),
             final_mean_contact_link=float(metrics["final_mean_contact_link"]),
             hold_ground_contact_fraction=float(metrics["hold_ground_contact_fraction"]),
-            final_contact_counts=counts,
+            final_mean_link_paper=mean_paper,
+            n_finger_links=int(n_links) if n_links is not None and _finite(n_links) else BUNDLED_FINGER_LINKS,
             hold_contact_count_palm=int(palm) if palm is not None and _finite(palm) else -1,
         )
 
-    @property
-    def n_distal_links(self) -> int:
-        """round(20·DSR), without float traps."""
-        return distal_link_count(self.distal_segment_ratio)
 
-
-def distal_force_fractions(evidence: GraspEvidence) -> dict[str, float]:
-    """Shares of the hold-phase normal force on the distal links, the fingertip and the proximal zone.
-
-    Returns NaN shares when there was no contact force at all.
-    """
-    f = np.asarray(evidence.hold_normal_force_n, float)
-    total = float(f.sum()) + evidence.hold_normal_force_palm_n
-    if total <= 0:
-        nan = float("nan")
-        return {"distal": nan, "tip": nan, "proximal": nan}
-    n_seg = N_FINGER_LINKS - 1
-    distal = float(f[n_seg - evidence.n_distal_links : n_seg].sum()) / total
-    tip = float(f[n_seg]) / total
-    return {"distal": distal, "tip": tip, "proximal": 1.0 - distal - tip}
-
-
-def contact_position(forces_n: tuple[float, ...] | np.ndarray) -> float:
-    """Force-weighted mean contact position along the finger, 0 at the base … 1 at the tip end."""
-    f = np.asarray(forces_n, float)
-    n_seg = N_FINGER_LINKS - 1
-    centres = np.append((np.arange(n_seg) + 0.5) * SEGMENT_M, n_seg * SEGMENT_M + TIP_M / 2)
-    if f.sum() <= 0:
-        return float("nan")
-    return float((f * centres).sum() / f.sum() / (n_seg * SEGMENT_M + TIP_M))
+def distal_ratio(distal_segment_ratio: Any, metrics: Mapping[str, Any]) -> float:
+    """The DSR the rules compare with: the trial's ratio, or for fingers simulated as written
+    (no ratio) their distal zone's share of the links, ``n_distal_links / n_finger_links``."""
+    if distal_segment_ratio is not None and _finite(distal_segment_ratio):
+        return float(distal_segment_ratio)
+    n_distal, n_links = metrics.get("n_distal_links", "nan"), metrics.get("n_finger_links", "nan")
+    if _finite(n_distal) and _finite(n_links) and float(n_links) > 0:
+        return float(n_distal) / float(n_links)
+    return float("nan")
 
 
 def _finite(value: Any) -> bool:
@@ -182,20 +158,6 @@ def _finite(value: Any) -> bool:
         return math.isfinite(float(value))
     except (TypeError, ValueError):
         return False
-
-
-def paper_mean_link(counts: Sequence[int] | np.ndarray) -> float:
-    """The original's ``mean_link`` from the final step's contact counts (base, links 1 … 20, tip).
-
-    As the original computes it: the mean of the contacts' 0-based link indices in its finger
-    body (base box −1, links 0 … 19, the fingertip merged into 19), plus 1. NaN without contacts.
-    """
-    n = np.asarray(counts, float)
-    if len(n) != N_FINGER_LINKS + 1:
-        raise ValueError(f"expected {N_FINGER_LINKS + 1} counts (base, links 1-20, tip), got {len(n)}")
-    index = np.append(np.arange(-1, N_FINGER_LINKS - 1), N_FINGER_LINKS - 2)
-    total = n.sum()
-    return float((n * index).sum() / total + 1) if total > 0 else float("nan")
 
 
 def _paper_threshold(dsr: float) -> float:
@@ -215,21 +177,22 @@ def _paper(ev: GraspEvidence) -> Label:
     if not grasped:
         return "no_grasp"
     threshold = _paper_threshold(ev.distal_segment_ratio)
-    if ev.final_contact_counts is not None:
-        mean = paper_mean_link(ev.final_contact_counts)
-        return "pinch" if mean / 20 > threshold else "power"  # NaN (no contact): power
+    n_links = ev.n_finger_links
+    if ev.final_mean_link_paper is not None:
+        mean = ev.final_mean_link_paper
+        return "pinch" if mean / n_links > threshold else "power"  # NaN (no contact): power
     # A row stored before the per-part counts: its mean numbers the fingertip 21 and leaves the
     # base boxes out. With a tip share f of the contacts the paper's mean is m − f, and
-    # max(0, m − 20) ≤ f ≤ (m − 1) / 20; base-box contacts (possible only if the palm or a base
+    # max(0, m − N) ≤ f ≤ (m − 1) / N; base-box contacts (possible only if the palm or a base
     # box was touched during the hold) can pull it down to 0.
     m = ev.final_mean_contact_link
     if not math.isfinite(m):
         return "power"  # no finger contact: with or without base-box contacts, power
-    high = min(m, 20.0)
-    low = m - (m - 1) / 20 if ev.hold_contact_count_palm == 0 else 0.0
-    if low / 20 > threshold:
+    high = min(m, float(n_links))
+    low = m - (m - 1) / n_links if ev.hold_contact_count_palm == 0 else 0.0
+    if low / n_links > threshold:
         return "pinch"
-    if high / 20 <= threshold:
+    if high / n_links <= threshold:
         return "power"
     return "unknown"
 
@@ -246,10 +209,10 @@ def is_held(ev: GraspEvidence) -> bool:
 def _contacts(ev: GraspEvidence, max_proximal_fraction: float = MAX_PROXIMAL_FRACTION) -> Label:
     if not is_held(ev):
         return "no_grasp"
-    shares = distal_force_fractions(ev)
-    if not math.isfinite(shares["proximal"]):
+    proximal = ev.hold_force_fraction_proximal
+    if not math.isfinite(proximal):
         return "no_grasp"
-    return "pinch" if shares["proximal"] < max_proximal_fraction else "power"
+    return "pinch" if proximal < max_proximal_fraction else "power"
 
 
 def classify(evidence: GraspEvidence, rule: str = "contacts", **options: float) -> Label:
@@ -296,7 +259,8 @@ def reclassify(table: Any, rule: str = "contacts", **options: float) -> Any:
     (``metrics.lift_height_m``, ``task.distal_segment_ratio``...). Rows whose status is
     not ``ok`` keep no label (``None``). Under the paper rule, rows without the final step's
     per-part counts (stored before them) get ``unknown`` where their stored mean does not
-    decide the label (see the module docstring).
+    decide the label (see the module docstring). A table stored with per-link columns is
+    converted first (:func:`~somo_sweep.tasks.pinch_grasp.legacy.upgrade_table`).
 
     Returns:
         A pandas Series of labels aligned with ``table``.
@@ -307,6 +271,7 @@ def reclassify(table: Any, rule: str = "contacts", **options: float) -> Any:
     import pandas as pd
 
     classify(_DUMMY, rule, **options)  # fail early on a bad rule or option
+    table = upgrade_table(table)
     cols = [str(c) for c in table.columns]
     needed = [
         "distal_segment_ratio",
@@ -314,11 +279,10 @@ def reclassify(table: Any, rule: str = "contacts", **options: float) -> Any:
         "object_y_m",
         "object_z_m",
         "lift_height_m",
-        "hold_normal_force_n_palm",
+        "hold_force_fraction_proximal",
         "hold_contact_fraction_both_fingers",
         "hold_ground_contact_fraction",
         "final_mean_contact_link",
-        *link_columns("hold_normal_force_n"),
     ]
     found = {n: find_column(cols, n) for n in needed}
     missing = [n for n, c in found.items() if c is None]
@@ -327,7 +291,14 @@ def reclassify(table: Any, rule: str = "contacts", **options: float) -> Any:
             f"results table lacks the columns needed to classify grasps: {', '.join(missing)} "
             "(was it made by the pinch_grasp task?)"
         )
-    optional = {n: find_column(cols, n) for n in (*final_count_columns()[:-1], "hold_contact_count_palm")}
+    optional_names = (
+        "final_contact_count_base",
+        "final_mean_link_paper",
+        "n_finger_links",
+        "n_distal_links",
+        "hold_contact_count_palm",
+    )
+    optional = {n: find_column(cols, n) for n in optional_names}
     found.update({n: c for n, c in optional.items() if c is not None})
     lift_col = find_column(cols, "lift_m")
     status_col = find_column(cols, "status")
@@ -338,9 +309,9 @@ def reclassify(table: Any, rule: str = "contacts", **options: float) -> Any:
             continue
         metrics = {n: row[c] for n, c in found.items()}
         lift = float(row[lift_col]) if lift_col is not None else 0.075
-        ev = GraspEvidence.from_metrics(metrics, float(metrics["distal_segment_ratio"]), lift)
+        ev = GraspEvidence.from_metrics(metrics, distal_ratio(metrics["distal_segment_ratio"], metrics), lift)
         labels.append(classify(ev, rule, **options))
     return pd.Series(labels, index=table.index, name=f"grasp_{rule}", dtype=object)
 
 
-_DUMMY = GraspEvidence(0.2, (0.0, 0.0, 0.0), 0.0, 0.075, (0.0,) * N_FINGER_LINKS, 0.0, 0.0, float("nan"))
+_DUMMY = GraspEvidence(0.2, (0.0, 0.0, 0.0), 0.0, 0.075, float("nan"), 0.0, float("nan"))

@@ -1,12 +1,13 @@
-"""Finger–object contacts of a gripper, sampled over a phase and reduced to per-link metrics.
+"""Finger–object contacts of a gripper, sampled over a phase and reduced to position-based metrics.
 
-Links are numbered along each finger as in SoMo: 1 at the base … 20 at the last
-segment, 21 for the fingertip; palm and finger base boxes are ``palm``. Counts
-and forces of both fingers are added per link number, so a stored row holds
-everything :mod:`somo_sweep.tasks.pinch_grasp.classify` needs to relabel a trial.
+Links are numbered along each finger as in SoMo: 1 at the base … N at the last
+segment, N + 1 for the fingertip; palm and finger base boxes are ``palm``. Counts and
+forces of all fingers are added per link number while sampling; a trial stores only
+scalars of them (shares of force by zone, mean positions along the finger, see
+:mod:`somo_sweep.tasks.pinch_grasp.classify`), so tables of fingers of any link count
+have the same columns and relabel with the same code.
 
-The final step's contacts are also stored per part for the paper rule
-(``final_contact_count_base``, ``_link01`` … ``_link20``, ``_tip``, ``_palm``): the finger
+The final step's contacts are also counted per part for the paper rule: the finger
 base boxes apart from the palm, because the original counts a base box as part of its
 finger (its link −1, link number 0) and has no palm.
 """
@@ -16,9 +17,26 @@ from __future__ import annotations
 import numpy as np
 
 from somo_sweep.sim.world import Body, ModelHandle, World
-from somo_sweep.tasks.pinch_grasp.params import N_FINGER_LINKS, final_count_columns, link_columns
 
-__all__ = ["HoldProbe"]
+__all__ = ["HoldProbe", "finger_link_count"]
+
+
+def finger_link_count(hand: ModelHandle) -> int:
+    """N, the segment links of each finger of ``hand`` (rigid pieces, as numbered along the chain).
+
+    Raises:
+        ValueError: The fingers differ in link count (the task's model check refuses them first).
+    """
+    fingers = {name for body in hand.bodies for name in body.plan.tip}
+    counts: dict[str, int] = {}
+    for body in hand.bodies:
+        for info in body.plan.links:
+            if info.role == "segment" and info.manipulator in fingers:
+                counts[info.manipulator] = max(counts.get(info.manipulator, 0), info.number)
+    values = set(counts.values())
+    if len(values) != 1:
+        raise ValueError(f"the fingers must have one link count each alike, got {counts}")
+    return values.pop()
 
 
 class HoldProbe:
@@ -38,10 +56,11 @@ class HoldProbe:
         self.ground_id = ground_id
         self.on_ground = 0
         self.fingers = [name for body in hand.bodies for name in body.plan.tip]
-        # (PyBullet body id, link index) → (finger number, link number 1..21) or palm (-1, 0).
+        self.n_links = n = finger_link_count(hand)
+        # (PyBullet body id, link index) → (finger number, link number 1..N + 1) or palm (-1, 0).
         self._where: dict[tuple[int, int], tuple[int, int]] = {}
-        # (PyBullet body id, link index) → slot of final_count_columns():
-        # base 0, links 1..20, tip 21, palm 22.
+        # (PyBullet body id, link index) → slot of the final counts:
+        # base 0, links 1..N, tip N + 1, palm N + 2.
         self._slot: dict[tuple[int, int], int] = {}
         self._link_body: dict[str, Body] = {}
         for body in hand.bodies:
@@ -59,17 +78,17 @@ class HoldProbe:
                 else:
                     self._where[body.id, idx] = (-1, 0)
                     self._slot[body.id, idx] = (
-                        0 if info.role == "base" and info.manipulator in self.fingers else 22
+                        0 if info.role == "base" and info.manipulator in self.fingers else n + 2
                     )
-        self.counts = np.zeros(N_FINGER_LINKS)
-        self.force_sums_n = np.zeros(N_FINGER_LINKS)
+        self.counts = np.zeros(n + 1)
+        self.force_sums_n = np.zeros(n + 1)
         self.palm_count = 0
         self.palm_force_sum_n = 0.0
         self.finger_force_sums_n = np.zeros(len(self.fingers))
         self.samples = 0
         self.both_touching = 0
         self.last_links: list[int] = []
-        self.last_counts = np.zeros(N_FINGER_LINKS + 2, int)
+        self.last_counts = np.zeros(n + 3, int)
 
     def finger_mounts_m(self) -> np.ndarray:
         """World positions (m, one row per finger) of the finger mounts.
@@ -101,11 +120,12 @@ class HoldProbe:
         """Record the current contacts (one sample)."""
         touched = np.zeros(len(self.fingers), bool)
         links: list[int] = []
-        slots = np.zeros(N_FINGER_LINKS + 2, int)
+        palm = self.n_links + 2
+        slots = np.zeros(self.n_links + 3, int)
         for body in self.hand.bodies:
             c = self.world.contacts(self.object_id, body.id)
             for link_b, force in zip(c["link_b"].tolist(), c["normal_force_n"].tolist(), strict=True):
-                slots[self._slot.get((body.id, int(link_b)), 22)] += 1
+                slots[self._slot.get((body.id, int(link_b)), palm)] += 1
                 finger, number = self._where.get((body.id, int(link_b)), (-1, 0))
                 if finger < 0:
                     self.palm_count += 1
@@ -122,24 +142,31 @@ class HoldProbe:
         self.last_links = links
         self.last_counts = slots
 
+    def hold_forces_n(self) -> np.ndarray:
+        """Mean normal force per link number over the samples (links 1 … N, then the fingertip;
+        all fingers added), N."""
+        return self.force_sums_n / max(self.samples, 1)
+
+    def final_counts(self) -> np.ndarray:
+        """The final step's contact points per part: base boxes, links 1 … N, fingertip (no palm)."""
+        return self.last_counts[:-1]
+
     def metrics(self) -> dict[str, float | int]:
-        """Per-link and summary metrics over the samples taken (means per sample)."""
+        """Summary metrics over the samples taken (means per sample)."""
         n = max(self.samples, 1)
         out: dict[str, float | int] = {"hold_samples": self.samples}
         out["hold_contact_fraction_both_fingers"] = self.both_touching / n
         out["hold_ground_contact_fraction"] = self.on_ground / n
-        mean_force = self.force_sums_n / n
-        for name, v in zip(link_columns("hold_contact_count"), self.counts, strict=True):
-            out[name] = int(v)
-        for name, v in zip(link_columns("hold_normal_force_n"), mean_force, strict=True):
-            out[name] = float(v)
+        out["hold_contact_count_finger"] = int(self.counts.sum())
         out["hold_contact_count_palm"] = self.palm_count
         out["hold_normal_force_n_palm"] = self.palm_force_sum_n / n
-        for name, v in zip(self.fingers, self.finger_force_sums_n / n, strict=True):
-            out[f"hold_normal_force_n_{name}"] = float(v)
+        out["hold_normal_force_n"] = float(self.hold_forces_n().sum()) + self.palm_force_sum_n / n
+        per_finger = self.finger_force_sums_n / n
+        out["hold_normal_force_n_finger_min"] = float(per_finger.min())
+        out["hold_normal_force_n_finger_max"] = float(per_finger.max())
         last = np.asarray(self.last_links, float)
         out["final_contact_count"] = len(last)
         out["final_mean_contact_link"] = float(last.mean()) if len(last) else float("nan")
-        for name, v in zip(final_count_columns(), self.last_counts, strict=True):
-            out[name] = int(v)
+        out["final_contact_count_base"] = int(self.last_counts[0])
+        out["final_contact_count_palm"] = int(self.last_counts[-1])
         return out

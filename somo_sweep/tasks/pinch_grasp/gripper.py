@@ -10,21 +10,25 @@ from __future__ import annotations
 from somo_sweep.errors import SomoError
 from somo_sweep.model.description import Actuator, Joint, Link, Manipulator, Pose, RigidBody
 from somo_sweep.model.load import Model
-from somo_sweep.tasks.pinch_grasp.params import Numerics, PinchGraspParams, original_hull_size_m
+from somo_sweep.tasks.pinch_grasp.params import (
+    Numerics,
+    PinchGraspParams,
+    distal_link_count,
+    original_hull_size_m,
+)
 
 __all__ = [
     "GROUND_FRICTION",
-    "N_LINKS",
     "OBJECT_DEPTH_M",
     "OBJECT_HEIGHT_M",
     "OBJECT_MASS_KG",
+    "distal_zone_links",
+    "finger_length_m",
     "gripper",
     "object_body",
     "split_finger",
 ]
 
-#: Links per finger (the facts sheet's finger).
-N_LINKS = 20
 #: Box object: height (z) and extent across the fingers (y), in m; mass in kg.
 OBJECT_HEIGHT_M = 0.060
 OBJECT_DEPTH_M = 0.060
@@ -38,42 +42,42 @@ SPAWN_GAP_M = 0.0005
 
 def split_finger(
     finger: Manipulator,
-    n_distal: int,
+    n_distal: int | None,
     numerics: Numerics | None = None,
     *,
     spring_scale: float = 1.0,
     spinning_friction_m: float | None = None,
     restitution: float | None = None,
 ) -> Manipulator:
-    """Re-split a two-actuator finger into ``20 − n_distal`` proximal and ``n_distal`` distal links.
+    """Re-split a finger of N equal links into ``N − n_distal`` driven proximal links and
+    ``n_distal`` passive distal ones; or, with ``n_distal`` None, keep its actuators as written.
 
-    Link size, mass and per-joint stiffness do not change with the split. With one
-    distal link or none, the finger is a single driven 20-link actuator (the facts
-    sheet's rule).
+    Link size, mass and per-joint stiffness do not change with the split: a two-actuator finger
+    keeps its first actuator's link and joint definitions for the proximal part and its second's
+    for the distal part; a one-actuator finger uses its one actuator's for both. With one distal
+    link or none, the finger is a single driven N-link actuator (the facts sheet's rule). Only the
+    first (grasp) axis of the driven part is actuated. Kept as written, every actuated joint of
+    the file stays actuated.
 
     Args:
-        finger: The two-actuator finger of the model file.
-        n_distal: Distal links, 0 … 20.
+        finger: A finger of the gripper (one or two actuators when re-split).
+        n_distal: Distal links, 0 … N, or None to keep the finger as written.
         numerics: Overrides of inertia shaping, damping and motor limit (None: the file's).
         spring_scale: Multiplier of every joint's stiffness (2: the original's effective springs).
         spinning_friction_m: Spinning friction of every link and fingertip, m (None: the file's).
         restitution: Restitution of every link and fingertip (None: the file's).
 
     Raises:
-        SomoError: The finger does not have exactly two actuators.
+        SomoError: A re-split finger with more than two actuators (the task's check refuses it first).
     """
-    if len(finger.actuators) != 2:
-        raise SomoError(
-            f"finger '{finger.name}' needs a proximal and a distal actuator, got {len(finger.actuators)}"
-        )
-    proximal, distal = finger.actuators
-    seg_m = proximal.segment_m
 
-    def tuned(act: Actuator, n: int, actuated: bool) -> Actuator:
+    def tuned(act: Actuator, n: int | None, actuated: bool | None) -> Actuator:
+        seg_m = act.segment_m
         link = _surface(act.link.with_length_z(seg_m), spinning_friction_m, restitution)
         if numerics is not None and numerics.added_inertia_kg_m2 is not None:
             link = link.model_copy(update={"added_inertia_kg_m2": numerics.added_inertia_kg_m2})
         joints = _tuned_joints(list(act.joints), numerics, spring_scale, actuated)
+        n = act.segments if n is None else n
         return act.model_copy(
             update={
                 "length_m": n * seg_m,
@@ -85,12 +89,31 @@ def split_finger(
             }
         )
 
-    if n_distal <= 1:
-        actuators = [tuned(proximal, N_LINKS, True)]
-    else:
-        actuators = [tuned(proximal, N_LINKS - n_distal, True), tuned(distal, n_distal, False)]
     tips = [_surface(t, spinning_friction_m, restitution) for t in finger.tip_links]
+    if n_distal is None:
+        actuators = [tuned(a, None, None) for a in finger.actuators]
+        return finger.model_copy(update={"actuators": actuators, "tip_links": tips})
+    if len(finger.actuators) > 2:
+        raise SomoError(
+            f"finger '{finger.name}' has {len(finger.actuators)} actuators; allowed with a distal "
+            "segment ratio: 1 or 2"
+        )
+    proximal, distal = finger.actuators[0], finger.actuators[-1]
+    n_links = sum(a.segments for a in finger.actuators)
+    if n_distal <= 1:
+        actuators = [tuned(proximal, n_links, True)]
+    else:
+        actuators = [tuned(proximal, n_links - n_distal, True), tuned(distal, n_distal, False)]
     return finger.model_copy(update={"actuators": actuators, "tip_links": tips})
+
+
+def distal_zone_links(finger: Manipulator, distal_segment_ratio: float | None) -> int:
+    """Links of a finger (as the study gives it) in its distal zone: DSR·N links with a ratio, else
+    its last actuator's links when it has two or more actuators, else none."""
+    n_links = sum(a.segments for a in finger.actuators)
+    if distal_segment_ratio is not None:
+        return distal_link_count(distal_segment_ratio, n_links)
+    return finger.actuators[-1].segments if len(finger.actuators) > 1 else 0
 
 
 def _surface(link: Link, spinning_friction_m: float | None, restitution: float | None) -> Link:
@@ -104,10 +127,11 @@ def _surface(link: Link, spinning_friction_m: float | None, restitution: float |
 
 
 def _tuned_joints(
-    joints: list[Joint], numerics: Numerics | None, spring_scale: float, actuated: bool
+    joints: list[Joint], numerics: Numerics | None, spring_scale: float, actuated: bool | None
 ) -> list[Joint]:
     """An actuator's joints with the numerics' damping and motor limit, the spring scale, and
-    only the first (grasp) axis driven, and that only in the driven (proximal) actuator."""
+    only the first (grasp) axis driven, if the file drives it, and that only in the driven
+    (proximal) actuator (``actuated`` None: the joints' own flags)."""
     if numerics is not None:
         upd: dict[str, float] = {}
         if numerics.damping_n_m_s_per_rad is not None:
@@ -117,7 +141,11 @@ def _tuned_joints(
         joints = [j.model_copy(update=upd) for j in joints]
     if spring_scale != 1.0:
         joints = [_scaled_spring(j, spring_scale) for j in joints]
-    return [j.model_copy(update={"actuated": actuated and i == 0}) for i, j in enumerate(joints)]
+    if actuated is None:
+        return joints
+    return [
+        j.model_copy(update={"actuated": actuated and i == 0 and j.actuated}) for i, j in enumerate(joints)
+    ]
 
 
 def _scaled_spring(joint: Joint, factor: float) -> Joint:
@@ -131,15 +159,16 @@ def _scaled_spring(joint: Joint, factor: float) -> Joint:
 
 
 def gripper(model: Model, params: PinchGraspParams) -> Model:
-    """The trial's gripper: each finger re-split by DSR with the numerics and physical factors
-    applied (the task's ``prepare``)."""
+    """The trial's gripper: each finger re-split by DSR (or kept as written) with the numerics
+    and physical factors applied (the task's ``prepare``)."""
     assembly = model.as_assembly()
+    dsr = params.distal_segment_ratio
     mounts = [
         m.model_copy(
             update={
                 "manipulator": split_finger(
                     m.manipulator,
-                    params.n_distal,
+                    None if dsr is None else distal_zone_links(m.manipulator, dsr),
                     params.numerics,
                     spring_scale=params.spring_scale,
                     spinning_friction_m=params.finger_spinning_friction_m,
@@ -150,6 +179,13 @@ def gripper(model: Model, params: PinchGraspParams) -> Model:
         for m in assembly.manipulators
     ]
     return Model(assembly=assembly.model_copy(update={"manipulators": mounts}))
+
+
+def finger_length_m(model: Model) -> float:
+    """L, the chain length of the gripper's first finger (its segment links, without base or tip
+    links), m."""
+    finger = model.as_assembly().manipulators[0].manipulator
+    return float(sum(act.segments * act.segment_m for act in finger.actuators))
 
 
 def object_body(params: PinchGraspParams) -> RigidBody:

@@ -26,14 +26,19 @@ from somo_sweep.tasks.registry import TaskSpec, register
 
 __all__ = [
     "BASE_DISTANCE_AT_ZERO_CENTERING_M",
+    "MIN_FINGER_LINKS",
     "N_FINGER_LINKS",
     "ORIGINAL_HULL_SIZE_M",
+    "PAPER_TORQUE_N_M",
     "Numerics",
     "PinchGraspParams",
     "check_gripper",
+    "check_reach",
+    "check_trial",
     "distal_link_count",
-    "final_count_columns",
-    "link_columns",
+    "distal_split_problem",
+    "finger_links",
+    "finger_reach_m",
     "original_hull_size_m",
     "perturb",
 ]
@@ -50,21 +55,56 @@ JITTER_M = 0.5e-3
 FRICTION_SPREAD = 0.05
 #: Largest start offset of the object a study may set, m.
 MAX_OFFSET_M = 0.05
+#: Fewest segment links a finger may have.
+MIN_FINGER_LINKS = 2
+#: Largest pressure a study may set, kPa.
+MAX_PRESSURE_KPA = 1e4
+#: The paper's final actuation torque, N·m (used when a study sets neither torque nor pressure).
+PAPER_TORQUE_N_M = 0.15
 
 
-def distal_link_count(distal_segment_ratio: float) -> int:
-    """Distal links of a 20-link finger: round(20·DSR), half up, robust to float round-off.
+def distal_link_count(distal_segment_ratio: float, n_links: int = N_FINGER_LINKS - 1) -> int:
+    """Distal links of a finger of ``n_links`` equal links: round(N·DSR), robust to float round-off.
 
     ``20 * 0.35`` is 7.000000000000001 and ``20 * 0.15`` is 3.0000000000000004: the
-    count is taken to the nearest integer, never compared for float equality.
+    count is taken to the nearest integer (half up), never compared for float equality.
     """
-    return math.floor((N_FINGER_LINKS - 1) * distal_segment_ratio + 0.5 + 1e-9)
+    return math.floor(n_links * distal_segment_ratio + 0.5 + 1e-9)
+
+
+def distal_split_problem(distal_segment_ratio: float, n_links: int, link_m: float) -> str | None:
+    """Why a DSR (a length fraction) cannot be expressed by a finger of ``n_links`` links of
+    ``link_m`` (m), naming the nearest ratios it can express; None when it can.
+
+    The distal segment is the last DSR·L of the chain (L = N·link); its start must fall on a
+    link boundary, within 1e-6 of a link.
+    """
+    exact = n_links * distal_segment_ratio
+    if abs(exact - round(exact)) <= 1e-6:
+        return None
+    below, above = math.floor(exact), math.ceil(exact)
+    nearest = ", ".join(f"{k / n_links:.4g} ({k} distal link{'s' * (k != 1)})" for k in (below, above))
+    return (
+        f"distal_segment_ratio {distal_segment_ratio:g} cannot be expressed by a finger of {n_links} "
+        f"links of {link_m * 1e3:.4g} mm (the distal segment must start at a link boundary); "
+        f"nearest: {nearest}"
+    )
+
+
+def _fingers(model: Model) -> list[tuple[str, Any]]:
+    """(name, manipulator) of each finger of the model's gripper."""
+    return [(m.name, m.manipulator) for m in model.as_assembly().manipulators]
+
+
+def finger_links(finger: Any) -> tuple[int, float]:
+    """N, a finger's segment links, and the length of its first link, m."""
+    return sum(a.segments for a in finger.actuators), finger.actuators[0].segment_m
 
 
 def check_gripper(model: Model) -> list[str]:
-    """What the trial needs of its gripper: two fingers of 20 equal links in two actuators on a
-    driven base (the distal segment ratio moves links between a finger's two actuators, and the
-    contact metrics are stored per link 1 … 20)."""
+    """What the trial needs of its gripper, every unmet need at once: a driven base, two or more
+    fingers of one link count, each finger a chain of links of one length with at least
+    ``MIN_FINGER_LINKS`` links and a driven joint."""
     hand = model.as_assembly()
     needs: list[str] = []
     if hand.base.mode != "driven":
@@ -72,40 +112,97 @@ def check_gripper(model: Model) -> list[str]:
             "the pinch_grasp task moves the hand along its path, so its base must be driven; "
             f"got base mode '{hand.base.mode}'; allowed: an assembly with base: {{mode: driven}}"
         )
-    if len(hand.manipulators) != 2:
+    if len(hand.manipulators) < 2:
         names = ", ".join(f"'{m.name}'" for m in hand.manipulators)
         needs.append(
-            f"the pinch_grasp task needs a two-finger gripper; got {len(hand.manipulators)} "
-            f"manipulator(s) ({names}); allowed: an assembly with 2 manipulators"
+            f"the pinch_grasp task needs a gripper of two or more fingers; got {len(hand.manipulators)} "
+            f"manipulator(s) ({names}); allowed: an assembly with 2 or more manipulators"
         )
-    n_links = N_FINGER_LINKS - 1
-    for mount in hand.manipulators:
-        finger = mount.manipulator
-        if len(finger.actuators) != 2:
+    counts = {}
+    for name, finger in _fingers(model):
+        n_links, _ = counts[name] = finger_links(finger)
+        if n_links < MIN_FINGER_LINKS:
             needs.append(
-                f"finger '{mount.name}' has {len(finger.actuators)} actuator(s); allowed: 2, a proximal "
-                "and a distal one (the distal segment ratio moves links between them)"
+                f"finger '{name}' has {n_links} link(s); allowed: {MIN_FINGER_LINKS} or more "
+                "(contact positions along the finger are resolved to one link)"
             )
-            continue
-        proximal, distal = finger.actuators
-        links = proximal.segments + distal.segments
-        if links != n_links:
+        lengths = sorted({round(a.segment_m, 9) for a in finger.actuators})
+        if len(lengths) > 1:
+            shown = ", ".join(f"{v * 1e3:g}" for v in lengths)
             needs.append(
-                f"finger '{mount.name}' has {links} links; allowed: {n_links} (the distal segment ratio "
-                f"splits {n_links} links and the contact metrics are stored per link)"
+                f"finger '{name}' has links of {shown} mm; allowed: links of one length (the distal "
+                "segment ratio and the contact positions are measured in links)"
             )
-        if not math.isclose(proximal.segment_m, distal.segment_m, rel_tol=1e-6):
+        if not any(a.actuated_axes for a in finger.actuators):
             needs.append(
-                f"finger '{mount.name}': proximal links of {proximal.segment_m * 1e3:g} mm and distal "
-                f"links of {distal.segment_m * 1e3:g} mm; allowed: links of one length (the split "
-                "moves links from one actuator to the other)"
+                f"finger '{name}' has no actuated joint; allowed: a finger whose first actuator has "
+                "an actuated joint (the task closes the fingers through it)"
             )
+    if len({n for n, _ in counts.values()}) > 1:
+        shown = ", ".join(f"'{k}' {n}" for k, (n, _) in counts.items())
+        needs.append(f"the fingers have different link counts ({shown}); allowed: one link count for all")
     return needs
 
 
-def link_columns(prefix: str) -> list[str]:
-    """Metric names of a per-link quantity, link 1 … 20 then the tip (e.g. ``hold_normal_force_n``)."""
-    return [f"{prefix}_link{k:02d}" for k in range(1, N_FINGER_LINKS)] + [f"{prefix}_tip"]
+def finger_reach_m(finger: Any) -> float:
+    """How far a finger can reach from its mount, m: base box, chain and tip links end to end (an
+    upper bound: the straight finger, as if it pointed at the box)."""
+    base = finger.base.link.half_extent_m(2) * 2 if finger.base.link is not None else 0.0
+    return base + finger.length_m + sum(tip.half_extent_m(2) * 2 for tip in finger.tip_links)
+
+
+def check_reach(model: Model, param_sets: list[PinchGraspParams]) -> list[str]:
+    """A gripper whose fingers reach the box in none of the study's cells: the straight fingers
+    end short of the box's near face (d − width/2 from the mounts) everywhere. A cell out of reach
+    is a valid result (no grasp, as in the paper's grid); a study of only such cells is not."""
+    if not param_sets:
+        return []
+    reach = max(finger_reach_m(f) for _, f in _fingers(model))
+    gaps = [(p.base_distance_m - p.object_width_m / 2 - reach, p) for p in param_sets]
+    gap, nearest = min(gaps, key=lambda g: g[0])
+    if gap <= 0:
+        return []
+    least_c = BASE_DISTANCE_AT_ZERO_CENTERING_M - reach - nearest.object_width_m / 2
+    return [
+        f"the fingers reach at most {reach * 1e3:.1f} mm from their mounts (base box, chain and tips "
+        f"straight), and no cell brings the box that close: the nearest, centering_position_m "
+        f"{nearest.centering_position_m:g} with object_width_m {nearest.object_width_m:g}, leaves its near "
+        f"face {gap * 1e3:.1f} mm beyond the fingertips; allowed: centering_position_m of at least "
+        f"{least_c:.3f} for that width, or longer fingers"
+    ]
+
+
+def check_trial(model: Model, params: PinchGraspParams) -> list[str]:
+    """What a trial's parameters need of the gripper: a DSR its fingers can express (one or two
+    actuators each), and, under ``pressure_kpa``, a pressure gain in every finger."""
+    needs: list[str] = []
+    dsr = params.distal_segment_ratio
+    for name, finger in _fingers(model):
+        n_links, link_m = finger_links(finger)
+        if dsr is not None:
+            if len(finger.actuators) > 2:
+                needs.append(
+                    f"finger '{name}' has {len(finger.actuators)} actuators; allowed with a "
+                    "distal_segment_ratio: 1 or 2 (the ratio re-splits the finger into a driven "
+                    "proximal and a passive distal segment); or distal_segment_ratio: null to "
+                    "simulate the fingers as written"
+                )
+            if not finger.actuators[0].joints[0].actuated:
+                needs.append(
+                    f"finger '{name}': its first joint definition is not actuated; allowed with a "
+                    "distal_segment_ratio: a finger whose first actuator's first joint (the grasp "
+                    "axis, where pressure acts) is actuated"
+                )
+            why = distal_split_problem(dsr, n_links, link_m)
+            if why is not None:
+                needs.append(f"task.distal_segment_ratio: {why}")
+        if params.pressure_kpa is not None and finger.actuation is None:
+            needs.append(
+                f"task.pressure_kpa drives each finger through its actuation.pressure_gain_n_m_per_kpa, "
+                f"and finger '{name}' has none; allowed: a finger with an actuation block (what "
+                "`somo-sweep calibrate` writes), or task.torque_n_m"
+            )
+    return sorted(set(needs), key=needs.index)
 
 
 #: The original study's object collision shapes (its cube_60mm set: a V-HACD convex hull of each
@@ -129,12 +226,6 @@ def original_hull_size_m(width_m: float) -> tuple[float, float, float] | None:
         if abs(width_m - nominal) < 1e-9:
             return size
     return None
-
-
-def final_count_columns() -> list[str]:
-    """Metric names of the final step's contact counts per part: the finger base boxes (both
-    fingers added; the original's link number 0), links 1 … 20, the fingertip, then the palm."""
-    return ["final_contact_count_base", *link_columns("final_contact_count"), "final_contact_count_palm"]
 
 
 class Numerics(BaseModel):
@@ -161,14 +252,23 @@ class PinchGraspParams(BaseModel):
     """Parameters of one pinch-grasp trial (SI).
 
     Attributes:
-        distal_segment_ratio: DSR in [0, 1]; distal links = round(20·DSR).
+        distal_segment_ratio: DSR in [0, 1], a length fraction: the last DSR·L of each finger's
+            chain (L its length) is a passive distal segment, the rest the driven proximal one;
+            DSR·N must be a whole number of links (N links per finger; the study is refused
+            otherwise, naming the nearest ratios). ``None``: the fingers are simulated as
+            written, every actuated joint driven; the labels' distal zone is then a finger's last
+            actuator when it has two or more, else none.
         object_width_m: Box extent along x (the approach direction), m.
         centering_position_m: The paper's centering position c, m: the finger bases end the
             approach ``base_distance_m`` = 0.200 m − c from the object's centre along x (see
             the module docstring; 0.070 … 0.175 m in the paper's grid).
         approach_m: Distance travelled toward the object in the first second, m; the hand
             starts this much farther out.
-        torque_n_m: Final proximal actuation torque, N·m.
+        torque_n_m: Final actuation torque of every driven joint, N·m (the paper's studies).
+            ``None`` with no ``pressure_kpa`` either: the paper's 0.15 N·m.
+        pressure_kpa: Final pressure, kPa, instead of ``torque_n_m``: each finger's driven
+            joints get that finger's ``actuation`` torque at this pressure (gain·p, saturating if
+            the finger says so; what ``somo-sweep calibrate`` fits). Giving both is refused.
         lift_m: Lift of the hand, m.
         hand_height_m: Height of the fingers' centre line above the ground, m.
         approach_s, ramp_s, lift_s, hold_s: Phase durations, s.
@@ -209,11 +309,12 @@ class PinchGraspParams(BaseModel):
 
     model_config = ConfigDict(extra="forbid", frozen=True)
 
-    distal_segment_ratio: float = Field(0.2, ge=0, le=1)
+    distal_segment_ratio: float | None = Field(0.2, ge=0, le=1)
     object_width_m: float = Field(0.040, ge=MIN_LENGTH_M, le=MAX_LENGTH_M)
     centering_position_m: float = Field(0.100, gt=0, lt=BASE_DISTANCE_AT_ZERO_CENTERING_M)
     approach_m: float = Field(0.100, ge=-MAX_LENGTH_M, le=MAX_LENGTH_M)
-    torque_n_m: float = 0.15
+    torque_n_m: float | None = Field(None, ge=-1e3, le=1e3)
+    pressure_kpa: float | None = Field(None, ge=-MAX_PRESSURE_KPA, le=MAX_PRESSURE_KPA)
     lift_m: float = Field(0.075, ge=-MAX_LENGTH_M, le=MAX_LENGTH_M)
     hand_height_m: float = Field(0.035, gt=0, le=MAX_LENGTH_M)
     approach_s: float = Field(1.0, gt=0)
@@ -246,6 +347,15 @@ class PinchGraspParams(BaseModel):
                 f"lift_profile heights are fractions of lift_m in [0, 1], got {[h for _, h in v]}"
             )
         return v
+
+    @model_validator(mode="after")
+    def _one_drive(self) -> PinchGraspParams:
+        if self.pressure_kpa is not None and self.torque_n_m is not None:
+            raise ValueError(
+                "give the fingers' drive once: task.torque_n_m (N·m on every driven joint) or "
+                "task.pressure_kpa (through each finger's pressure gain), not both"
+            )
+        return self
 
     @model_validator(mode="after")
     def _hull_exists(self) -> PinchGraspParams:
@@ -287,9 +397,11 @@ class PinchGraspParams(BaseModel):
         return BASE_DISTANCE_AT_ZERO_CENTERING_M - self.centering_position_m
 
     @property
-    def n_distal(self) -> int:
-        """Distal links: round(20·DSR) (no float-equality trap)."""
-        return distal_link_count(self.distal_segment_ratio)
+    def drive_torque_n_m(self) -> float | None:
+        """The torque every driven joint ends at, N·m; None when ``pressure_kpa`` drives the fingers."""
+        if self.pressure_kpa is not None:
+            return None
+        return PAPER_TORQUE_N_M if self.torque_n_m is None else self.torque_n_m
 
     @property
     def duration_s(self) -> float:
@@ -300,6 +412,8 @@ class PinchGraspParams(BaseModel):
 #: Arrow type of every metric a trial returns (the results table's schema).
 METRICS: dict[str, str] = {
     "n_distal_links": "int64",
+    "n_finger_links": "int64",
+    "finger_length_m": "double",
     **{name: "double" for name in ("object_x_m", "object_y_m", "object_z_m")},
     **{name: "double" for name in ("object_roll_rad", "object_pitch_rad", "object_yaw_rad")},
     "lift_height_m": "double",
@@ -308,19 +422,22 @@ METRICS: dict[str, str] = {
     "hold_samples": "int64",
     "hold_contact_fraction_both_fingers": "double",
     "hold_ground_contact_fraction": "double",
-    **{name: "int64" for name in link_columns("hold_contact_count")},
-    **{name: "double" for name in link_columns("hold_normal_force_n")},
+    "hold_contact_count_finger": "int64",
     "hold_contact_count_palm": "int64",
+    "hold_normal_force_n": "double",
     "hold_normal_force_n_palm": "double",
-    "hold_normal_force_n_left": "double",
-    "hold_normal_force_n_right": "double",
+    "hold_normal_force_n_finger_min": "double",
+    "hold_normal_force_n_finger_max": "double",
     "final_contact_count": "int64",
     "final_mean_contact_link": "double",
-    **{name: "int64" for name in final_count_columns()},
+    "final_contact_count_base": "int64",
+    "final_contact_count_palm": "int64",
     "final_mean_link_paper": "double",
+    "final_mean_position_paper": "double",
     "hold_force_fraction_distal": "double",
     "hold_force_fraction_tip": "double",
     "hold_force_fraction_proximal": "double",
+    "hold_force_fraction_palm": "double",
     "hold_mean_contact_position": "double",
     "held": "bool",
     "base_distance_m": "double",
@@ -349,10 +466,12 @@ register(
         name="pinch_grasp",
         run_path="somo_sweep.tasks.pinch_grasp.task:run_pinch_grasp",
         params_model=PinchGraspParams,
-        description="Two-finger pinch grasp of a box (SoMo Fig. 6): approach, close, lift 75 mm, hold.",
+        description="Grasp of a box by a gripper of 2+ fingers (SoMo Fig. 6): approach, close, lift, hold.",
         tags=("grasp", "paper", "fig6"),
         metrics=METRICS,
         check_model=check_gripper,
+        check_params=check_trial,
+        check_grid=check_reach,
         prepare_path="somo_sweep.tasks.pinch_grasp.gripper:gripper",
         perturb=perturb,
         perturbation=(
@@ -360,8 +479,8 @@ register(
             f"coefficient within ±{FRICTION_SPREAD:.0%}"
         ),
         summary_metrics=(
-            "hold_normal_force_n_left",
-            "hold_normal_force_n_right",
+            "hold_normal_force_n_finger_min",
+            "hold_normal_force_n",
             "held",
             "hold_mean_contact_position",
             "hold_force_fraction_proximal",

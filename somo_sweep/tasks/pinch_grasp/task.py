@@ -9,8 +9,8 @@ paper's centering position, ``centering_position_m``); 1–2 s the proximal torq
 ramps 0 → 0.15 N·m; 2–3 s the hand lifts 75 mm; 3–4 s hold. The finger bases
 (mounts, SoMo's base frames: the back faces of the base boxes) stay 35 mm above the
 ground until the lift. Contacts are sampled over the hold phase and stored as
-per-link counts and forces, so grasps can be reclassified without rerunning
-(:mod:`somo_sweep.tasks.pinch_grasp.classify`).
+scalars on position along the finger (shares of force by zone, mean positions), so
+grasps can be reclassified without rerunning (:mod:`somo_sweep.tasks.pinch_grasp.classify`).
 
 Early stop (``early_stop``, on by default): at the end of the squeeze and of the
 lift the trial ends if its outcome is already settled as no grasp under both rules
@@ -33,21 +33,21 @@ from somo_sweep.sim.rotations import rpy_from_quat
 from somo_sweep.sim.settings import WorldSettings
 from somo_sweep.sim.world import ModelHandle, World
 from somo_sweep.sim.worlds import open_world
-from somo_sweep.tasks.pinch_grasp.classify import (
-    GraspEvidence,
-    classify,
-    contact_position,
-    distal_force_fractions,
-    is_held,
-    paper_mean_link,
-)
+from somo_sweep.tasks.pinch_grasp.classify import GraspEvidence, classify, distal_ratio, is_held
 from somo_sweep.tasks.pinch_grasp.contacts import HoldProbe
-from somo_sweep.tasks.pinch_grasp.gripper import GROUND_FRICTION, gripper, object_body
-from somo_sweep.tasks.pinch_grasp.params import PinchGraspParams, final_count_columns
+from somo_sweep.tasks.pinch_grasp.gripper import (
+    GROUND_FRICTION,
+    distal_zone_links,
+    finger_length_m,
+    gripper,
+    object_body,
+)
+from somo_sweep.tasks.pinch_grasp.params import PAPER_TORQUE_N_M, PinchGraspParams
+from somo_sweep.tasks.pinch_grasp.positions import contact_position, paper_mean_link, zone_force_fractions
 from somo_sweep.tasks.pinch_grasp.settled import Snapshot, settled_reason
 from somo_sweep.tasks.registry import TaskResult
 
-__all__ = ["run_pinch_grasp"]
+__all__ = ["drive_n_m", "run_pinch_grasp"]
 
 Metrics = dict[str, float | int | bool | str]
 
@@ -74,19 +74,37 @@ def run_pinch_grasp(
     """
     del seed
     hand_model = gripper(model, params)
+    n_distal = distal_zone_links(model.as_assembly().manipulators[0].manipulator, params.distal_segment_ratio)
     if params.clamp_speed_cap:
         settings = replace(settings, clamp_speed_cap=True)
     with open_world(settings) as world:
         scene = _build_scene(world, hand_model, params)
-        _plan_path(scene, params)
+        _plan_path(scene, params, drive_n_m(hand_model, params, scene.hand.input_names))
         steps = _Steps.plan(params, settings.time_step_s, observe_at_s)
-        metrics: Metrics = {"n_distal_links": params.n_distal}
+        metrics: Metrics = {"n_distal_links": n_distal, "finger_length_m": finger_length_m(hand_model)}
         try:
             ending = _step_through(scene, steps, metrics, observe)
         except UnstableSimulation as exc:
             return TaskResult(status="unstable", message=str(exc))
         _collect_metrics(scene, steps, ending, params, metrics)
     return _classified(metrics, params)
+
+
+def drive_n_m(hand_model: Model, params: PinchGraspParams, input_names: Sequence[str]) -> list[float]:
+    """Final torque of each control input (``<finger>/<actuator>/<joint>``), N·m: ``torque_n_m``,
+    or under ``pressure_kpa`` the input's finger's actuation torque at that pressure."""
+    torque = params.drive_torque_n_m
+    if torque is not None or params.pressure_kpa is None:
+        return [torque if torque is not None else PAPER_TORQUE_N_M] * len(input_names)
+    pressure_kpa = params.pressure_kpa
+    fingers = {m.name: m.manipulator for m in hand_model.as_assembly().manipulators}
+    torques = []
+    for name in input_names:
+        actuation = fingers[name.split("/")[0]].actuation
+        if actuation is None:  # the task's check refuses such a study before any trial
+            raise ValueError(f"input {name}: its finger has no actuation to turn pressure into torque")
+        torques.append(actuation.torque_n_m(pressure_kpa))
+    return torques
 
 
 @dataclass(frozen=True)
@@ -135,8 +153,9 @@ def _phase_ends_s(p: PinchGraspParams) -> tuple[float, float, float, float]:
     return t1, t2, t3, t4
 
 
-def _plan_path(scene: _Scene, p: PinchGraspParams) -> None:
-    """Put the hand at its start and give the world its path and its torque ramp to follow."""
+def _plan_path(scene: _Scene, p: PinchGraspParams, final_n_m: Sequence[float]) -> None:
+    """Put the hand at its start and give the world its path and its torque ramp (to ``final_n_m``,
+    one torque per control input, N·m) to follow."""
     world, hand, x_end = scene.world, scene.hand, scene.x_end_m
     start = np.array([x_end + p.approach_m, 0.0, p.hand_height_m])
     world.drive_model(hand, start, (0.0, 0.0, 0.0))
@@ -152,7 +171,7 @@ def _plan_path(scene: _Scene, p: PinchGraspParams) -> None:
         ],
     )
     n_in = len(hand.input_names)
-    torque = SetpointTable([0.0, t1, t2], [[0.0] * n_in, [0.0] * n_in, [p.torque_n_m] * n_in])
+    torque = SetpointTable([0.0, t1, t2], [[0.0] * n_in, [0.0] * n_in, list(final_n_m)])
     # The world sends the setpoints at every step, and only when they change.
     world.follow(hand, inputs=torque, base=SetpointTable(path.times_s, np.pad(path.values, ((0, 0), (0, 3)))))
 
@@ -262,18 +281,23 @@ def _collect_metrics(
     metrics["hold_slip_m"] = float(z_obj[steps.i_hold] - pos[2]) if not reason else nan
     metrics["ended_early_s"] = ending.ended_early_s
     metrics["ended_early_reason"] = reason
-    metrics.update(scene.probe.metrics())
-    metrics["final_mean_link_paper"] = paper_mean_link([int(metrics[n]) for n in final_count_columns()[:-1]])
+    probe = scene.probe
+    metrics.update(probe.metrics())
+    n_links = metrics["n_finger_links"] = probe.n_links
+    mean_link = paper_mean_link(probe.final_counts())
+    metrics["final_mean_link_paper"] = mean_link
+    metrics["final_mean_position_paper"] = mean_link / n_links
+    forces = probe.hold_forces_n()
+    shares = zone_force_fractions(
+        forces, float(metrics["hold_normal_force_n_palm"]), int(metrics["n_distal_links"])
+    )
+    metrics.update({f"hold_force_fraction_{zone}": share for zone, share in shares.items()})
+    metrics["hold_mean_contact_position"] = contact_position(forces)
 
 
 def _classified(metrics: Metrics, p: PinchGraspParams) -> TaskResult:
-    """The trial's result: its metrics with the force shares, and its labels under both rules."""
-    evidence = GraspEvidence.from_metrics(metrics, p.distal_segment_ratio, p.lift_m)
-    shares = distal_force_fractions(evidence)
-    metrics["hold_force_fraction_distal"] = shares["distal"]
-    metrics["hold_force_fraction_tip"] = shares["tip"]
-    metrics["hold_force_fraction_proximal"] = shares["proximal"]
-    metrics["hold_mean_contact_position"] = contact_position(evidence.hold_normal_force_n)
+    """The trial's result: its metrics with ``held``, and its labels under both rules."""
+    evidence = GraspEvidence.from_metrics(metrics, distal_ratio(p.distal_segment_ratio, metrics), p.lift_m)
     metrics["held"] = is_held(evidence)
     labels = {"grasp": classify(evidence, "contacts"), "grasp_paper": classify(evidence, "paper")}
     return TaskResult(status="ok", metrics=metrics, labels=labels)
