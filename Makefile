@@ -5,7 +5,7 @@ BIN    := $(VENV)/bin
 STAMP  := $(VENV)/.installed-stamp
 
 .DEFAULT_GOAL := help
-.PHONY: help install demo test test-slow lint format bench bench-statics bench-scaling bench-scale bench-engines bench-robust bench-numerics bench-auto-numerics bench-zero-kpa bench-original fig6 fig6-quick fig6-original fig6-ablation fig6-ablation-quick fig3 fig5 fig5-quick palm palm-quick fig7 fig7-quick fig8 fig8-quick diagnose-demo sweep-demo figures clean
+.PHONY: help install demo test test-slow lint format bench bench-statics bench-scaling bench-scale bench-engines bench-mujoco bench-robust bench-numerics bench-auto-numerics bench-zero-kpa bench-original fig6 fig6-fast fig6-quick fig6-original fig6-ablation fig6-ablation-quick fig3 fig5 fig5-quick palm palm-quick fig7 fig7-quick fig8 fig8-quick diagnose-demo sweep-demo figures clean
 
 help: ## List the targets
 	@grep -E '^[a-zA-Z0-9_-]+:.*?## ' $(MAKEFILE_LIST) | awk 'BEGIN {FS = ":.*?## "}; {printf "  make %-20s %s\n", $$1, $$2}'
@@ -53,6 +53,9 @@ bench-scale: $(STAMP) ## Sweep memory at 2 000 and 20 000 trials, and a resume's
 bench-engines: $(STAMP) ## The engine benchmark: one pinch trial on PyBullet and on MuJoCo side by side, MuJoCo's 4 ms vs 2 ms -> results/figures/engine_speed.json
 	$(BIN)/python -m benchmarks.engines --convergence --out results/figures
 
+bench-mujoco: $(STAMP) ## A MuJoCo pinch trial before and after the step's cuts, side by side: CPU per trial and the share inside mj_step -> results/reference/mujoco_step_speed.json
+	$(BIN)/python -m benchmarks.mujoco_step --out results/reference
+
 bench-robust: $(STAMP) ## What robust labels cost: one trial and the quick study, plain before vs robust now (~40 min on 2 idle cores) -> results/reference/robust_cost.json
 	$(BIN)/python -m benchmarks.robust_cost --out results/reference
 
@@ -75,6 +78,11 @@ fig6: $(STAMP) ## Paper Fig. 6: pinch-grasp study, 2310 trials (resumable), figu
 	$(BIN)/somo-sweep run studies/pinch_grasp_dsr.yaml
 	$(BIN)/somo-sweep paper fig6 results/pinch_grasp_dsr --out results/figures
 	$(BIN)/somo-sweep paper fig6 results/pinch_grasp_dsr --out results/figures --rule paper
+
+fig6-fast: $(STAMP) ## Fig. 6 on MuJoCo (4 ms) with robust labels: 2310 cells, 4 replicas on boundary cells + 10 % audit (resumable) -> results/figures/mujoco
+	$(BIN)/somo-sweep run studies/pinch_grasp_dsr_mujoco.yaml --exhaustive --robust 4
+	$(BIN)/somo-sweep paper fig6 results/pinch_grasp_dsr_mujoco --out results/figures/mujoco
+	$(BIN)/somo-sweep paper fig6 results/pinch_grasp_dsr_mujoco --out results/figures/mujoco --rule paper
 
 fig6-quick: $(STAMP) ## Fig. 6 on a 192-trial subset (a few minutes on 2 cores), into results/figures/quick
 	$(BIN)/somo-sweep run studies/pinch_grasp_quick.yaml

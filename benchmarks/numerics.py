@@ -216,11 +216,10 @@ def _one_body_lines(setup: Setup, repeats: int) -> list[str]:
 #: Largest object shift ``--perturb-m`` takes, m (well below the grid's 5 mm).
 MAX_PERTURB_M = 1e-3
 SETUP_FORMAT = (
-    "DT_S,ITERATIONS,INERTIA_KG_M2[,DAMPING][,one-body][,friction-every-2][,residual=R] (0 < DT_S < 1, "
-    "ITERATIONS >= 1, INERTIA and DAMPING finite and >= 0, R finite and > 0; one-body: the gripper as "
+    "DT_S,ITERATIONS,INERTIA_KG_M2[,DAMPING][,one-body][,friction-every-2] (0 < DT_S < 1, "
+    "ITERATIONS >= 1, INERTIA and DAMPING finite and >= 0; one-body: the gripper as "
     "one body instead of the palm and each finger apart; friction-every-2: the joints' Coulomb friction "
-    "solved every other step; residual=R: Bullet's solver stops once an iteration's squared corrections "
-    "sum below R)"
+    "solved every other step)"
 )
 
 

@@ -52,8 +52,7 @@ class Setup:
 
     ``body_per_manipulator`` False loads the gripper as one body (palm and both fingers)
     instead of one body per finger and the palm; ``friction_rows_every`` 2 solves the joints'
-    Coulomb friction every other step; ``solver_residual_threshold`` lets Bullet's solver stop
-    early (:class:`WorldSettings`).
+    Coulomb friction every other step (:class:`WorldSettings`).
     """
 
     time_step_s: float
@@ -61,7 +60,6 @@ class Setup:
     numerics: Numerics
     body_per_manipulator: bool = True
     friction_rows_every: int = 1
-    solver_residual_threshold: float | None = None
 
     def settings(self) -> WorldSettings:
         """World settings of this setup."""
@@ -70,7 +68,6 @@ class Setup:
             solver_iterations=self.solver_iterations,
             body_per_manipulator=self.body_per_manipulator,
             friction_rows_every=self.friction_rows_every,
-            solver_residual_threshold=self.solver_residual_threshold,
         )
 
     def describe(self) -> str:
@@ -85,11 +82,6 @@ class Setup:
             + (
                 f", friction solved every {self.friction_rows_every} steps"
                 if self.friction_rows_every > 1
-                else ""
-            )
-            + (
-                f", solver early exit below {self.solver_residual_threshold:g}"
-                if self.solver_residual_threshold is not None
                 else ""
             )
         )
@@ -115,26 +107,22 @@ def parse_setup(text: str) -> Setup:
 
     Flags, in any order, each at most once: ``one-body`` loads the gripper as one body instead
     of the palm and each finger apart; ``friction-every-2`` solves the joints' Coulomb friction
-    every other step; ``residual=R`` lets Bullet's solver stop once an iteration's squared
-    corrections sum below R (:class:`WorldSettings`).
+    every other step (:class:`WorldSettings`).
 
     Raises:
-        ValueError: Malformed, out of range (0 < DT_S < 1, ITERATIONS >= 1, R > 0) or not finite.
+        ValueError: Malformed, out of range (0 < DT_S < 1, ITERATIONS >= 1) or not finite.
     """
     fields = text.split(",")
     flags: dict[str, str] = {}
     while fields:
         name, _, value = fields[-1].strip().partition("=")
-        if name not in {"one-body", "friction-every-2", "residual"} or name in flags:
+        if name not in {"one-body", "friction-every-2"} or name in flags:
             break
-        if (name == "residual") != bool(value):
+        if value:
             raise ValueError(text)
         flags[name] = value
         fields.pop()
     one_body, every = "one-body" in flags, 2 if "friction-every-2" in flags else 1
-    residual = float(flags["residual"]) if "residual" in flags else None
-    if residual is not None and not (math.isfinite(residual) and residual > 0):
-        raise ValueError(text)
     if len(fields) not in (3, 4):
         raise ValueError(text)
     dt, iters, inertia, *damping = fields
@@ -150,7 +138,6 @@ def parse_setup(text: str) -> Setup:
         numerics,
         body_per_manipulator=not one_body,
         friction_rows_every=every,
-        solver_residual_threshold=residual,
     )
 
 

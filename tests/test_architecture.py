@@ -146,3 +146,79 @@ def test_loading_a_mujoco_study_imports_neither_engine(tmp_path: Path) -> None:
     )
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)
     assert out.stdout.strip() == "[]"
+
+
+def _module_name(path: Path) -> str:
+    parts = path.relative_to(PACKAGE.parent).with_suffix("").parts
+    return ".".join(parts[:-1] if parts[-1] == "__init__" else parts)
+
+
+def _module_graph() -> dict[str, set[str]]:
+    """Every somo_sweep module and the somo_sweep modules it imports anywhere in its body
+    (function-local imports too): ``from a.b import c`` names a.b.c when c is a module, else a.b."""
+    modules = {_module_name(p): p for p in PACKAGE.rglob("*.py")}
+    graph: dict[str, set[str]] = {}
+    for name, path in modules.items():
+        package = name if path.name == "__init__.py" else name.rpartition(".")[0]
+        targets: set[str] = set()
+        for node in ast.walk(ast.parse(path.read_text(encoding="utf-8"))):
+            if isinstance(node, ast.Import):
+                targets |= {a.name for a in node.names}
+            elif isinstance(node, ast.ImportFrom):
+                base = node.module or ""
+                if node.level:
+                    anchor = package.split(".")[: len(package.split(".")) - node.level + 1]
+                    base = ".".join([*anchor, *([base] if base else [])])
+                targets |= {f"{base}.{a.name}" if f"{base}.{a.name}" in modules else base for a in node.names}
+        graph[name] = set()
+        for target in targets:
+            while target not in modules and "." in target:
+                target = target.rpartition(".")[0]
+            if target in modules and target != name:
+                graph[name].add(target)
+    return graph
+
+
+def test_no_import_circle_between_any_two_modules() -> None:
+    """Not only between stages: two modules of one package that import each other (even inside a
+    function) are a circle too, and each is a knot a reader has to untie."""
+    import graphlib
+
+    try:
+        graphlib.TopologicalSorter(_module_graph()).prepare()
+    except graphlib.CycleError as circle:
+        pytest.fail(f"import circle: {' -> '.join(circle.args[1])}")
+
+
+def test_the_circle_check_sees_a_circle_inside_a_package(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """The check above can fail: two sibling modules importing each other in functions are found."""
+    package = tmp_path / "somo_sweep" / "stage"
+    package.mkdir(parents=True)
+    (package.parent / "__init__.py").write_text("")
+    (package / "__init__.py").write_text("")
+    (package / "a.py").write_text("def f():\n    from somo_sweep.stage.b import g\n")
+    (package / "b.py").write_text("def g():\n    from . import a\n")
+    monkeypatch.setattr(sys.modules[__name__], "PACKAGE", tmp_path / "somo_sweep")
+    with pytest.raises(pytest.fail.Exception, match=r"import circle: somo_sweep\.stage"):
+        test_no_import_circle_between_any_two_modules()
+
+
+#: Hard limits of a unit's size (the habit is about 60 lines a function and 400 a module).
+MAX_MODULE_LINES, MAX_FUNCTION_LINES = 500, 80
+
+
+def test_no_module_or_function_outgrows_its_limit() -> None:
+    too_long = []
+    for path in sorted(PACKAGE.rglob("*.py")):
+        text = path.read_text(encoding="utf-8")
+        where = path.relative_to(PACKAGE)
+        if text.count("\n") > MAX_MODULE_LINES:
+            too_long.append(f"{where}: {text.count(chr(10))} lines")
+        for node in ast.walk(ast.parse(text)):
+            if isinstance(node, (ast.FunctionDef, ast.AsyncFunctionDef)):
+                lines = (node.end_lineno or node.lineno) - node.lineno + 1
+                if lines > MAX_FUNCTION_LINES:
+                    too_long.append(f"{where}:{node.lineno} {node.name}: {lines} lines")
+    assert too_long == []

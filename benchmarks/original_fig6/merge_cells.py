@@ -10,7 +10,7 @@ Inputs, all written by the other two scripts here:
   labels become ``orig_label_c_minus`` / ``orig_label_c_plus``; empty where not run).
 
 Adds ``orig_robust`` (the original's label is the same at c − 0.1, c and c + 0.1 mm; empty if not
-run) and ``kind``, the disagreement's class from the final positions (docs/pinch_grasp.md,
+run) and ``kind``, the disagreement's class from the final positions (docs/paper_figures.md,
 "The original configuration"): ``pinch/power`` (both grasped), else which side did not grasp
 (``orig_`` or ``ours_``) and how its object ended: ``thrown`` (more than 50 mm from its start in
 x, y), ``dropped`` (within 50 mm, on the ground: centre at most 40 mm up) or ``out_of_box``

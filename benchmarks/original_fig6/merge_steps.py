@@ -1,7 +1,7 @@
 """One table of the cell-by-cell check at several time steps (``results/reference/original_cells_steps.csv``).
 
 The original code's 0.5 ms is beyond its finger chain's explicit-spring stability limit
-(docs/pinch_grasp.md, "The original's step is not converged"). This script puts the same cells,
+(benchmarks/history/original.md). This script puts the same cells,
 run at smaller steps by both codes, beside each other and prints the agreements that section
 quotes. Inputs, written by the other scripts here:
 

@@ -62,21 +62,27 @@ def _damaged(path: Path, reason: Damage) -> None:
 
 
 def save_plots(folder: Path) -> None:
+    """The summary figure and, for a study with labels, a label map per label column."""
     from somo_sweep.sweep.folder import read_manifest, read_results
     from somo_sweep.sweep.manifest import record_files
-    from somo_sweep.sweep.plots import summary_figure
+    from somo_sweep.sweep.plots import label_maps, summary_figure
 
     df, manifest = read_results(folder, _damaged), read_manifest(folder)
     target = folder / "plots"
     if target.is_symlink():
         raise SomoError(f"{target} is a symbolic link; the plots go in the results folder itself: remove it")
-    written = write_outputs(
-        [
-            (target / "summary.png", figure_bytes(summary_figure(df, manifest), "png", 120)),
-            (target / "summary.svg", figure_bytes(summary_figure(df, manifest), "svg", 120)),
-        ]
-    )
+    files = [
+        (target / "summary.png", figure_bytes(summary_figure(df, manifest), "png", 120)),
+        (target / "summary.svg", figure_bytes(summary_figure(df, manifest), "svg", 120)),
+    ]
+    files += [
+        (target / f"{name}.png", figure_bytes(fig, "png", 120)) for name, fig in label_maps(df, manifest)
+    ]
+    written = write_outputs(files)
     record_files(folder, written)
+    maps = [path.name for path, _ in files[2:]]
+    if maps:
+        _out.print(f"label maps: {', '.join(maps)} in {target}")
     _out.print(f"plots: {target / 'summary.png'} (and .svg)")
 
 

@@ -41,17 +41,16 @@ def _by_sampling(values: pd.Series, inferred: pd.Series) -> pd.DataFrame:
     return counts.reindex(columns=["simulated", "inferred"], fill_value=0)
 
 
-def breakdown(df: pd.DataFrame, column: str) -> pd.DataFrame:
-    """Trials per value of ``column``: counts by status, by each label value, and inferred."""
+def breakdown(df: pd.DataFrame, column: str, label: str | None = None) -> pd.DataFrame:
+    """Trials per value of ``column``: counts by status and inferred, then (with ``label``) by each
+    value of that label column. One label per table keeps a table within 80 columns."""
     parts = [pd.crosstab(df[column], df["status"])]
     inferred = inferred_mask(df)
     if inferred.any():
         parts.append(pd.crosstab(df[column], inferred).reindex(columns=[True], fill_value=0))
         parts[-1].columns = ["inferred"]
-    for label in label_columns(df):
-        counts = pd.crosstab(df[column], df[label].fillna("-"))
-        counts.columns = [f"{label.removeprefix('label_')}={v}" for v in counts.columns]
-        parts.append(counts)
+    if label is not None:
+        parts.append(pd.crosstab(df[column], df[label].fillna("-")))
     return pd.concat(parts, axis=1).fillna(0).astype(int)
 
 
@@ -115,7 +114,7 @@ def _text(value: object, limit: int = 200) -> str:
 
 
 def _table(title: str, frame: pd.DataFrame, index_name: str) -> Table:
-    table = Table(title=_text(title), title_justify="left")
+    table = Table(title=_text(title), title_justify="left", min_width=min(len(title), 78))
     table.add_column(_text(index_name))
     for c in frame.columns:
         table.add_column(_text(c), justify="right")
@@ -226,7 +225,11 @@ def print_results(
         console.print(_table(f"trials by {label.removeprefix('label_')}", counts, "value"))
     for key, column in manifest.get("axes", {}).items():
         if isinstance(column, str) and column in df.columns:  # a hand-edited manifest may hold anything
-            console.print(_table(f"by {key}", breakdown(df, column), column))
+            name = str(key).rsplit(".", 1)[-1]
+            rules: list[str | None] = [*label_columns(df)] or [None]
+            for by in rules:
+                rule = f": {by.removeprefix('label_')}" if by else ""
+                console.print(_table(f"by {key}{rule}", breakdown(df, column, by), name))
     _print_robustness(console, df, manifest)
     _print_reasons(console, df[~inferred])
 

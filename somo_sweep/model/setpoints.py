@@ -57,6 +57,19 @@ class SetpointTable:
         i = bisect_right(t, time_s) - 1
         return self.values[i] + self._slopes[i] * (time_s - t[i])
 
+    def at(self, times_s: np.ndarray) -> np.ndarray:
+        """Values at each of ``times_s`` (s), one row each: bit for bit what :meth:`__call__` gives."""
+        t = np.asarray(times_s, dtype=float)
+        i = np.clip(np.searchsorted(self.times_s, t, side="right") - 1, 0, len(self._times) - 1)
+        out = np.empty((len(t), self.width))
+        inside = (t > self.times_s[0]) & (t < self.times_s[-1])
+        k = i[inside]
+        slopes = self._slopes[np.minimum(k, len(self._slopes) - 1)]
+        out[inside] = self.values[k] + slopes * (t[inside] - self.times_s[k])[:, None]
+        out[t <= self.times_s[0]] = self.values[0]
+        out[t >= self.times_s[-1]] = self.values[-1]
+        return out
+
     def still_stretch(self, time_s: float) -> int | None:
         """The stretch ``time_s`` lies in if the table holds still there (before its first row,
         after its last, or between two equal rows; numbered −1 … n − 1), else None."""

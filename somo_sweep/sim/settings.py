@@ -27,14 +27,13 @@ ENGINES = ("pybullet", "mujoco")
 #: MuJoCo's integrators we allow: ``discrete`` treats the joint springs implicitly (stable at any
 #: step), ``implicitfast`` only their damping (docs/physics.md, "MuJoCo").
 MUJOCO_INTEGRATORS = ("discrete", "implicitfast")
-#: The step a MuJoCo study gets when it gives none, s (labels converge at it: docs/mujoco.md).
+#: The step a MuJoCo study gets when it gives none, s (labels converge at it: docs/engines.md).
 MUJOCO_DEFAULT_STEP_S = 4e-3
 #: Settings that only one engine reads, by name.
 PYBULLET_ONLY = (
     "scale",
     "body_per_manipulator",
     "friction_rows_every",
-    "solver_residual_threshold",
 )
 MUJOCO_ONLY = ("integrator", "contact_time_constant_s", "impratio", "noslip_iterations")
 
@@ -70,15 +69,8 @@ class WorldSettings:
             step; on the step between, a joint that was sliding keeps its friction torque and a
             stuck one gets its static demand from Newton's law over the solved step
             (:class:`~somo_sweep.sim.pybullet.springs.SpringDrive`), within its limit: 0.79-0.83x
-            the CPU of a pinch trial, labels checked against 2 ms (docs/pinch_grasp.md, "Friction
+            the CPU of a pinch trial, labels checked against 2 ms (docs/physics.md, "Joint friction
             every other step"). Other values are refused. PyBullet only.
-        solver_residual_threshold: Early exit of Bullet's constraint solver: it stops iterating
-            once one iteration changes the constraint velocities by less than this (Bullet's
-            ``solverResidualThreshold``: the sum of squared velocity corrections of all rows, in
-            the scaled world's units, so linear rows count in (Y·m/s)² and joint rows in
-            (rad/s)²). None keeps Bullet's 1e-7, at which a pinch trial runs all its
-            iterations; larger values cut steps whose constraints settle early (docs/pinch_grasp.md,
-            "Engine settings"). Must be finite and > 0. PyBullet only.
         clamp_speed_cap: Let a run go on when a joint or a body reaches Bullet's speed cap
             (Bullet clamps the speed and steps on, as the original SoMo code let it; MuJoCo, which
             caps nothing, then just goes on). False (default) stops the run as unstable there: past
@@ -105,7 +97,6 @@ class WorldSettings:
     check_every: int = 100
     body_per_manipulator: bool = False
     friction_rows_every: int = 1
-    solver_residual_threshold: float | None = None
     clamp_speed_cap: bool = False
     engine: str = "pybullet"
     integrator: str = "discrete"
@@ -118,9 +109,6 @@ class WorldSettings:
             raise ValueError(f"engine must be one of {', '.join(ENGINES)}, got {self.engine!r}")
         if self.friction_rows_every not in (1, 2):
             raise ValueError(f"friction_rows_every must be 1 or 2, got {self.friction_rows_every!r}")
-        r = self.solver_residual_threshold
-        if r is not None and not (math.isfinite(r) and r > 0):
-            raise ValueError(f"solver_residual_threshold must be finite and > 0 (or None), got {r!r}")
         if self.integrator not in MUJOCO_INTEGRATORS:
             raise ValueError(
                 f"integrator must be one of {', '.join(MUJOCO_INTEGRATORS)}, got {self.integrator!r}"

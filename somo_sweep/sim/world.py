@@ -23,6 +23,7 @@ from somo_sweep.model.description import Pose, RigidBody
 from somo_sweep.model.load import Model
 from somo_sweep.model.setpoints import SetpointTable
 from somo_sweep.sim.camera import Camera
+from somo_sweep.sim.follow import Follow
 from somo_sweep.sim.plan import BodyPlan, SpringJoint
 from somo_sweep.sim.settings import WorldSettings
 from somo_sweep.sim.urdf import plan_rigid_body
@@ -256,6 +257,10 @@ class World:
         """
         raise NotImplementedError
 
+    def contact_count(self, body_a: int, body_b: int) -> int:
+        """Number of contact points between two bodies in the last step (as :meth:`contacts` finds)."""
+        return len(self.contacts(body_a, body_b)["link_a"])
+
     def render(self, camera: Camera) -> np.ndarray:
         """An RGB image of the scene (height, width, 3), uint8, headless."""
         raise NotImplementedError
@@ -328,31 +333,5 @@ class World:
                 f"and a driven base; got {base.width} columns, {len(driven)} driven bodies"
             )
 
-        # Setpoints are resent only when they change, and not even looked up while a table holds
-        # still in the stretch of the last value sent (holds cost next to nothing per step).
-        last: dict[str, bytes] = {}
-        still: dict[str, int | None] = {"inputs": None, "base": None}
-
-        def hook(world: World) -> None:
-            t = world.time_s
-            if inputs is not None:
-                stretch = inputs.still_stretch(t)
-                if stretch is None or stretch != still["inputs"]:
-                    u = inputs(t)
-                    key = u.tobytes()
-                    if last.get("inputs") != key:
-                        handle.set_inputs(u)
-                        last["inputs"] = key
-                    still["inputs"] = stretch
-            if base is not None:
-                stretch = base.still_stretch(t)
-                if stretch is None or stretch != still["base"]:
-                    pose = base(t)
-                    key = pose.tobytes()
-                    if last.get("base") != key:
-                        for body in driven:
-                            world.drive_base(body, pose[:3], pose[3:], max_force_n)
-                        last["base"] = key
-                    still["base"] = stretch
-
-        self.pre_step.append(hook)
+        # Setpoints are resent only when they change (see Follow).
+        self.pre_step.append(Follow(handle, inputs, base, driven, max_force_n))

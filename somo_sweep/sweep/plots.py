@@ -13,9 +13,19 @@ from somo_sweep.sweep.folder import planned_replicas
 from somo_sweep.sweep.robustness import AWAITED, ROBUST, fold, label_names
 from somo_sweep.sweep.schema import FIXED, unit_of
 
-__all__ = ["metric_columns", "plot_labels", "plot_metric", "plot_status", "summary_figure"]
+__all__ = [
+    "label_maps",
+    "metric_columns",
+    "plot_labels",
+    "plot_metric",
+    "plot_status",
+    "summary_figure",
+    "summary_metrics",
+]
 
 STATUS_COLOURS = {"ok": "tab:green", "unstable": "tab:orange", "error": "tab:red", "inferred": "0.75"}
+#: A label column with more values than this gets no map (its colours could not be told apart).
+MAX_MAP_LABELS = 12
 #: At most this many metric panels in the summary figure.
 MAX_METRICS = 6
 
@@ -132,6 +142,58 @@ def plot_metric(
     ax.grid(alpha=0.3)
 
 
+def _first_metrics(manifest: dict[str, Any]) -> tuple[str, ...]:
+    """The summary metrics of the manifest's task (none for a task not registered here)."""
+    from somo_sweep.tasks.registry import all_tasks
+
+    study = manifest.get("study")
+    task = all_tasks().get(str(study.get("task", ""))) if isinstance(study, dict) else None
+    return task.summary_metrics if task is not None else ()
+
+
+def _informative(df: pd.DataFrame, column: str) -> bool:
+    """A metric worth a panel: some ``ok`` trial has a value, and not every one the same (to 1e-6)."""
+    values = df.loc[df["status"] == "ok", column].dropna()
+    if values.empty:
+        return False
+    if pd.api.types.is_bool_dtype(values) or not pd.api.types.is_numeric_dtype(values):
+        return bool(values.nunique() > 1)
+    numbers = values.astype(float)
+    # a spread at rounding level (1e-9 of 85 mm) is one value, not a result
+    return bool(numbers.max() - numbers.min() > 1e-6 * max(float(numbers.abs().max()), 1e-12))
+
+
+def summary_metrics(df: pd.DataFrame, first: tuple[str, ...] = ()) -> list[str]:
+    """The metric panels: the task's ``first`` (a designer's metrics; flags drawn as the share of
+    trials), then the other metrics, leaving out those without a value or with one value only."""
+    numeric = metric_columns(df)
+    flags = [c for c in first if c in df.columns and pd.api.types.is_bool_dtype(df[c])]
+    ordered = [c for c in first if c in numeric or c in flags] + [c for c in numeric if c not in first]
+    return [c for c in ordered if _informative(df, c)][:MAX_METRICS]
+
+
+def label_maps(df: pd.DataFrame, manifest: dict[str, Any]) -> list[tuple[str, Figure]]:
+    """``(file stem, figure)`` of each label column's map over the study's swept axes
+    (:mod:`somo_sweep.sweep.label_maps`); none for a study without labels or axes, nor for a
+    label of more than :data:`MAX_MAP_LABELS` values."""
+    from somo_sweep.sweep.label_maps import folded_cells, label_map_figure
+
+    folded = fold(df, planned=planned_replicas(manifest))
+    short = {c: k.rsplit(".", 1)[-1] for k, c in manifest.get("axes", {}).items()}
+    axes = [c for c in short if c in folded.columns]
+    if not axes or folded.empty:
+        return []
+    title = str(manifest.get("study_name") or "study")
+    return [
+        (
+            f"label_map_{label.removeprefix('label_')}",
+            label_map_figure(folded_cells(folded, label), label, axes, short, title),
+        )
+        for label in label_names(folded)
+        if folded[label].nunique(dropna=False) <= MAX_MAP_LABELS
+    ]
+
+
 def summary_figure(df: pd.DataFrame, manifest: dict[str, Any]) -> Figure:
     """Trials by status, by each label, then each metric against the first numeric axis.
 
@@ -146,7 +208,7 @@ def summary_figure(df: pd.DataFrame, manifest: dict[str, Any]) -> Figure:
     x = numeric[0] if numeric else (axes[0] if axes else None)
     others = [c for c in axes if c != x]
     hue = others[0] if others else None
-    metrics = metric_columns(df)[:MAX_METRICS] if x is not None else []
+    metrics = summary_metrics(df, _first_metrics(manifest)) if x is not None else []
     labels = label_names(df)[:MAX_METRICS]
     n = 1 + len(labels) + len(metrics)
     cols = min(n, 3)

@@ -68,25 +68,19 @@ class Simulation(Spec):
     body per finger plus the palm, at a lower cost per step
     (:func:`somo_sweep.sim.urdf.plan_assembly`). The hand moves the same, but knife-edge
     contact outcomes can come out the other way, so check a study's results before opting
-    in (docs/pinch_grasp.md, "Engine settings").
+    in (docs/model.md, "Simulation settings").
 
     ``friction_rows_every: 2`` solves the joints' Coulomb friction every other step; on the step
     between, a sliding joint keeps its friction torque and a stuck one gets its static demand
     (:attr:`~somo_sweep.sim.settings.WorldSettings.friction_rows_every`). 1 (default) solves it
     every step.
 
-    ``solver_residual_threshold`` lets Bullet's solver stop iterating once an iteration's squared
-    velocity corrections sum below it
-    (:attr:`~somo_sweep.sim.settings.WorldSettings.solver_residual_threshold`); left out,
-    Bullet's 1e-7 applies.
-
-    ``engine: mujoco`` runs every trial on MuJoCo (optional extra ``somo-sweep[mujoco]``; docs/mujoco.md):
+    ``engine: mujoco`` runs every trial on MuJoCo (optional extra ``somo-sweep[mujoco]``; docs/engines.md):
     springs implicit, no inertia shaping, SI throughout. ``time_step_s`` left out is then 4 ms
     (:data:`~somo_sweep.sim.settings.MUJOCO_DEFAULT_STEP_S`), and ``integrator``,
     ``contact_time_constant_s``, ``impratio`` and ``noslip_iterations`` tune it. Each engine
     refuses the other's own options set to anything but their defaults (``scale``,
-    ``body_per_manipulator``, ``friction_rows_every`` and ``solver_residual_threshold`` are
-    PyBullet's).
+    ``body_per_manipulator`` and ``friction_rows_every`` are PyBullet's).
     """
 
     time_step_s: float | None = Field(None, gt=0)
@@ -95,7 +89,6 @@ class Simulation(Spec):
     gravity_m_s2: tuple[float, float, float] = (0.0, 0.0, -9.81)
     body_per_manipulator: bool = False
     friction_rows_every: int = Field(1, ge=1, le=2)
-    solver_residual_threshold: float | None = Field(None, gt=0)
     engine: Literal["pybullet", "mujoco"] = "pybullet"
     integrator: Literal["discrete", "implicitfast"] = "discrete"
     contact_time_constant_s: float = Field(WorldSettings.contact_time_constant_s, gt=0, le=1.0)
@@ -133,7 +126,6 @@ class Simulation(Spec):
             solver_iterations=self.solver_iterations,
             body_per_manipulator=self.body_per_manipulator,
             friction_rows_every=self.friction_rows_every,
-            solver_residual_threshold=self.solver_residual_threshold,
             engine=self.engine,
             integrator=self.integrator,
             contact_time_constant_s=self.contact_time_constant_s,

@@ -29,6 +29,7 @@ from dataclasses import dataclass, field, replace
 from typing import Any
 
 from somo_sweep.errors import UnstableSimulation
+from somo_sweep.sim import shared_caches
 from somo_sweep.sweep.code import trial_modules
 from somo_sweep.sweep.job import Job
 from somo_sweep.tasks.registry import TaskResult, get_task
@@ -73,11 +74,14 @@ class Attempt:
         result: What the task returned (for the retry, if there was one).
         retried_half_step: The first run was ``unstable`` and this is the half-step rerun.
         time_step_used_s: Time step of ``result``'s run, s.
+        learned: What the trial's process cached that its worker may keep
+            (:mod:`somo_sweep.sim.shared_caches`).
     """
 
     result: TaskResult
     retried_half_step: bool
     time_step_used_s: float
+    learned: dict[str, Any] = field(default_factory=dict)
 
 
 def _die_with_parent() -> None:
@@ -211,6 +215,8 @@ def run_isolated(job: Job, timeout_s: float | None = None, owner_pid: int | None
     except Exception:
         msg = f"the process running this trial died ({_exit_text(status)})"
         return Outcome(job.job_id, "error", msg, wall_time_s=wall, host=host)
+    with contextlib.suppress(Exception):  # a cache is a saving, never a trial's failure
+        shared_caches.adopt(attempt.learned)
     return outcome_of(job, attempt, wall, host)
 
 
@@ -222,7 +228,11 @@ def _child(job: Job, write_fd: int) -> None:
     code = 1
     try:
         try:
-            data = pickle.dumps(run_job(job))
+            shared_caches.mark()
+            attempt = run_job(job)
+            data = pickle.dumps(attempt)
+            with contextlib.suppress(Exception):  # what the worker may keep, when it pickles
+                data = pickle.dumps(replace(attempt, learned=shared_caches.learned()))
         except BaseException as exc:  # SystemExit in a task, or metrics that cannot be pickled
             failed = TaskResult(status="error", message=f"{type(exc).__name__}: {exc}")
             data = pickle.dumps(Attempt(failed, False, job.settings.time_step_s))

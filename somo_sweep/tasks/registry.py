@@ -80,6 +80,8 @@ class TaskSpec:
             parameters drawn with the NumPy generator ``rng`` (e.g. the object moved by a fraction
             of a millimetre). None: the task has none, and its studies cannot ask for replicas.
         perturbation: One line saying what ``perturb`` changes (for ``--help`` and the docs).
+        summary_metrics: The metrics a designer reads first (``plot`` draws these before any
+            other); empty: every metric in the order the task returns them.
     """
 
     name: str
@@ -93,6 +95,7 @@ class TaskSpec:
     prepare_path: str = ""
     perturb: Callable[[Any, Any], Any] | None = None
     perturbation: str = ""
+    summary_metrics: tuple[str, ...] = ()
 
     @property
     def run(self) -> TaskFn:

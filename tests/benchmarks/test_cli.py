@@ -17,6 +17,7 @@ COMMANDS = (
     "scaling",
     "scale",
     "engines",
+    "mujoco_step",
     "robust_cost",
     "numerics",
     "auto_numerics",

@@ -69,3 +69,15 @@ def test_still_stretch_names_where_a_table_holds_still_and_nothing_else() -> Non
         stretch = table.still_stretch(t)
         assert stretch is not None
         np.testing.assert_array_equal(table(t), table.values[max(stretch, 0)])
+
+
+@pytest.mark.parametrize(
+    ("times", "values"),
+    [([0.013, 0.0217, 0.04], [[0.0, -0.0], [5.0, 0.0], [5.0, 0.3]]), ([0.5], [[1.0, 2.0]])],
+)
+def test_values_at_many_times_are_bit_for_bit_the_scalar_calls(times: list[float], values: list) -> None:
+    table = SetpointTable(times, values)
+    steps = np.arange(60) * 1e-3
+    rows = table.at(steps)
+    for t, row in zip(steps.tolist(), rows, strict=True):
+        assert row.tobytes() == table(t).tobytes(), t

@@ -287,7 +287,7 @@ def test_the_flat_fingers_blocked_force_lies_where_the_rigid_model_leaves_it_on_
     range wide (tests/sim/test_plate_force_range.py). Each engine's contacts pick a point: MuJoCo's
     soft constraints one inside it; Bullet one just below its least, the finger resting its contact
     slop (0.5 µm) into the plate so the stiff joints hang a little more on the clamp (0.8 % below
-    at 0.5 ms, 1.2 % at 0.125 ms; docs/mujoco.md, "Bench"). The two differ by 0.504 % of range,
+    at 0.5 ms, 1.2 % at 0.125 ms; docs/engines.md, "Agreement"). The two differ by 0.504 % of range,
     which is a difference of contact regularisation, not of the model."""
     from somo_sweep.sim.plate_force_range import plate_force_range
 

@@ -109,11 +109,14 @@ def test_contacts_report_links_forces_and_normals_in_si() -> None:
         world.step(100)
         c = world.contacts(body.id, ground)
         swapped = world.contacts(ground, body.id)
+        counts = (world.contact_count(body.id, ground), world.contact_count(ground, body.id))
+        own = world.contact_count(body.id, body.id)
     assert len(c["link_a"]) == 4 and set(c["link_a"]) == {-1}
     assert c["normal_force_n"].sum() == pytest.approx(0.1 * 9.81, rel=1e-3)
     np.testing.assert_allclose(c["normal_b_to_a"], [[0, 0, 1]] * 4, atol=1e-9)  # ground pushes the box up
     np.testing.assert_allclose(swapped["normal_b_to_a"], -c["normal_b_to_a"])
     assert np.all(np.abs(c["position_on_a_m"][:, 2]) < 5e-4)  # the box's bottom face
+    assert counts == (4, 4) and own == 0  # counted without building the arrays
 
 
 def test_a_snapshot_of_each_engine_shows_the_scene_from_the_same_eye() -> None:

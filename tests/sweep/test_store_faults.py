@@ -172,14 +172,15 @@ def test_overwrite_deletes_only_the_files_the_tool_wrote(tmp_path: Path) -> None
     out = tmp_path / "out"
     assert CliRunner().invoke(app, ["run", str(path), "--out", str(out), "-j", "1"]).exit_code == 0
     files = read_manifest(out)["files"]
-    assert {"study.yaml", "plots/summary.png", "plots/summary.svg"} <= set(files)
+    assert {"study.yaml", "plots/summary.png", "plots/summary.svg", "plots/label_map_sign.png"} <= set(files)
     assert all(f in files for f in (p.relative_to(out).as_posix() for p in _parts(out)))
     (out / "plots" / "important.png").write_bytes(b"mine")
     (out / "trials" / "notes.txt").write_text("mine too")
     path.write_text(path.read_text().replace("stop: 8", "stop: 3"))
     res = _run(path, out, "--overwrite")
     assert res.exit_code == 0, res.output
-    assert "--overwrite: deleted 4 file(s) of the previous study" in res.output
+    # study.yaml, one part, the summary's two files and the label map
+    assert "--overwrite: deleted 5 file(s) of the previous study" in res.output
     assert (out / "plots" / "important.png").read_bytes() == b"mine"
     assert (out / "trials" / "notes.txt").read_text() == "mine too"
     assert len(read_results(out)) == 3 and not (out / "plots" / "summary.png").exists()

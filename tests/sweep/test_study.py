@@ -271,21 +271,12 @@ def test_friction_every_other_step_reaches_the_world_settings(tmp_path: Path) ->
     assert (settings.friction_rows_every, settings.time_step_s) == (2, 4e-3)
 
 
-@pytest.mark.parametrize("residual", ["0", "-1.0e-3", ".nan", ".inf", "'loose'"])
-def test_a_solver_residual_threshold_that_is_not_a_positive_number_is_refused_with_its_line(
-    tmp_path: Path, residual: str
-) -> None:
+def test_an_engine_option_no_study_needs_is_not_taken(tmp_path: Path) -> None:
+    """Bullet's solver early exit moved labels for 4-8 % of the CPU, so it is not an option: a
+    study that sets it is told the key is unknown and which keys ``simulation`` takes."""
     path = write_study(
-        tmp_path, HEAD + f"simulation: {{time_step_s: 4.0e-3, solver_residual_threshold: {residual}}}\n"
+        tmp_path, HEAD + "simulation: {time_step_s: 4.0e-3, solver_residual_threshold: 1.0e-3}\n"
     )
     text = problems_of(path)
     assert "line 4: simulation.solver_residual_threshold:" in text
-
-
-def test_the_solver_residual_threshold_reaches_the_world_settings(tmp_path: Path) -> None:
-    plain = write_study(tmp_path, HEAD + "simulation: {time_step_s: 4.0e-3}\n")
-    assert load_study(plain).simulation.world_settings().solver_residual_threshold is None  # type: ignore[union-attr]
-    text = HEAD + "simulation: {time_step_s: 4.0e-3, solver_residual_threshold: 1.0e-3}\n"
-    path = write_study(tmp_path, text)
-    settings = load_study(path).simulation.world_settings()  # type: ignore[union-attr]
-    assert settings.solver_residual_threshold == 1e-3
+    assert "friction_rows_every" in text

@@ -63,7 +63,7 @@ def test_task_is_registered_with_its_parameters() -> None:
 
 
 #: The fast numerics of the logic tests: 4 ms, each finger link's inertia shaped by 3e-5 kg·m²
-#: (about 400 times its own). It moves labels near a boundary (docs/pinch_grasp.md, "Numerics"),
+#: (about 400 times its own). It moves labels near a boundary (docs/physics.md, "Numerics"),
 #: so the tests of physical outcomes below run the studies' numerics (CHOSEN: 0.5 ms, none).
 FAST = (4e-3, Numerics(added_inertia_kg_m2=3e-5))
 

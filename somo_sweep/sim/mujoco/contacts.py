@@ -1,9 +1,9 @@
 """The last MuJoCo step's contacts, as :meth:`~somo_sweep.sim.world.World.contacts` reports them.
 
-:func:`contact_table` groups the step's contacts by the world bodies their geoms belong to (once
-per step); :func:`select_contacts` reads one body's (or one pair's) from it, turned round where
-the body is MuJoCo's second geom, in SI: links, point on the body, normal from the other body to
-it, and the normal force.
+:class:`StepContacts` groups the step's contacts by the world bodies their geoms belong to (once
+per step) and counts a pair's without building arrays; :meth:`StepContacts.select` reads one
+body's (or one pair's), turned round where the body is MuJoCo's second geom, in SI: links, point
+on the body, normal from the other body to it, and the normal force.
 """
 
 from __future__ import annotations
@@ -12,11 +12,7 @@ from typing import Any
 
 import numpy as np
 
-__all__ = ["ContactTable", "contact_table", "no_contacts", "select_contacts"]
-
-#: A step's contacts grouped by (owner of geom 1, owner of geom 2), and their arrays: geoms,
-#: normals (MuJoCo's frame rows 0-2), positions, distances and normal forces.
-ContactTable = tuple[dict[tuple[int, int], list[int]], tuple[np.ndarray, ...]]
+__all__ = ["StepContacts", "no_contacts"]
 
 _EMPTY = {
     "link_a": np.zeros(0, int),
@@ -32,58 +28,63 @@ def no_contacts() -> dict[str, np.ndarray]:
     return dict(_EMPTY)
 
 
-def contact_table(data: Any, geom_owner: np.ndarray) -> ContactTable | None:
-    """The step's contacts grouped by owner pair, and their arrays; None without contacts.
+class StepContacts:
+    """The contacts of one MuJoCo step, grouped by owner pair once; arrays built only when read.
 
     Args:
         data: The scene's ``MjData`` after the step.
         geom_owner: Per MuJoCo geom, the world body it belongs to.
-    """
-    con = data.contact
-    if not len(con.dist):
-        return None
-    geom = con.geom
-    groups: dict[tuple[int, int], list[int]] = {}
-    for row, pair in enumerate(geom_owner[geom].tolist()):
-        groups.setdefault((pair[0], pair[1]), []).append(row)
-    adr = con.efc_address
-    force = np.where(adr >= 0, data.efc_force[np.maximum(adr, 0)], 0.0)
-    return groups, (geom, con.frame[:, :3], con.pos, con.dist, force)
-
-
-def select_contacts(
-    table: ContactTable | None, geom_link: np.ndarray, body_a: int, body_b: int | None
-) -> dict[str, np.ndarray]:
-    """Contact points of ``body_a`` (with ``body_b`` if given), in SI.
-
-    Args:
-        table: The step's :func:`contact_table`.
         geom_link: Per MuJoCo geom, its link index in its body.
-        body_a, body_b: World body ids.
     """
-    if table is None:
-        return no_contacts()
-    groups, arrays = table
-    if body_b is None:
-        first = [r for (o1, _), rows in groups.items() if o1 == body_a for r in rows]
-        second = [r for (o1, o2), rows in groups.items() if o2 == body_a and o1 != body_a for r in rows]
-    else:
-        first, second = groups.get((body_a, body_b), []), groups.get((body_b, body_a), [])
+
+    def __init__(self, data: Any, geom_owner: np.ndarray, geom_link: np.ndarray):
+        self._data, self._geom_link = data, geom_link
+        self.groups: dict[tuple[int, int], list[int]] = {}  # (owner of geom 1, of geom 2) → rows
+        con = data.contact
+        if len(con.dist):
+            for row, pair in enumerate(geom_owner[con.geom].tolist()):
+                self.groups.setdefault((pair[0], pair[1]), []).append(row)
+        self._arrays: tuple[np.ndarray, ...] | None = None
+
+    def count(self, body_a: int, body_b: int) -> int:
+        """Number of contact points between two bodies (no arrays built)."""
+        groups = self.groups
         if body_a == body_b:
-            second = []
-    if not first and not second:
-        return no_contacts()
-    rows = np.array(first + second, dtype=int)
-    geom, frame, pos, dist, force = (a[rows] for a in arrays)
-    if second:  # where body_a is MuJoCo's geom2, the pair turns round
-        flip = np.arange(len(rows)) >= len(first)
-        geom = np.where(flip[:, None], geom[:, ::-1], geom)
-        frame = np.where(flip[:, None], -frame, frame)
-    normal = -frame  # MuJoCo's normal points from geom1 (body_a's) to geom2
-    return {
-        "link_a": geom_link[geom[:, 0]],
-        "link_b": geom_link[geom[:, 1]],
-        "position_on_a_m": pos + normal * (0.5 * dist)[:, None],
-        "normal_b_to_a": normal,
-        "normal_force_n": force,
-    }
+            return len(groups.get((body_a, body_a), ()))
+        return len(groups.get((body_a, body_b), ())) + len(groups.get((body_b, body_a), ()))
+
+    def _read(self) -> tuple[np.ndarray, ...]:
+        """Links of both geoms, normals (geom 1 to 2), points, normal·depth/2 and normal forces."""
+        if self._arrays is None:
+            con = self._data.contact
+            adr = con.efc_address
+            force = np.where(adr >= 0, self._data.efc_force[np.maximum(adr, 0)], 0.0)
+            frame = con.frame[:, :3]
+            half = frame * (0.5 * con.dist)[:, None]
+            self._arrays = (self._geom_link[con.geom], frame, con.pos, half, force)
+        return self._arrays
+
+    def select(self, body_a: int, body_b: int | None) -> dict[str, np.ndarray]:
+        """Contact points of ``body_a`` (with ``body_b`` if given), in SI, as
+        :meth:`~somo_sweep.sim.world.World.contacts` reports them."""
+        groups = self.groups
+        if body_b is None:
+            first = [r for (o1, _), rows in groups.items() if o1 == body_a for r in rows]
+            second = [r for (o1, o2), rows in groups.items() if o2 == body_a and o1 != body_a for r in rows]
+        else:
+            first = groups.get((body_a, body_b), [])
+            second = groups.get((body_b, body_a), []) if body_a != body_b else []
+        if not first and not second:
+            return no_contacts()
+        links, frame, pos, half, force = self._read()
+        # MuJoCo's normal points from geom1 to geom2: rows where body_a is geom2 turn round.
+        # pos − frame·d/2 is bit for bit pos + (−frame)·d/2 (negation is exact).
+        parts = []
+        if first:
+            r = np.array(first)
+            parts.append((links[r, 0], links[r, 1], pos[r] - half[r], -frame[r], force[r]))
+        if second:
+            r = np.array(second)
+            parts.append((links[r, 1], links[r, 0], pos[r] + half[r], frame[r], force[r]))
+        cols = parts[0] if len(parts) == 1 else tuple(np.concatenate(c) for c in zip(*parts, strict=True))
+        return dict(zip(_EMPTY, cols, strict=True))

@@ -30,7 +30,8 @@ class DrivenRoots:
     def __init__(self) -> None:
         self.targets: dict[int, np.ndarray] = {}
         self._views: list[tuple[np.ndarray, np.ndarray, np.ndarray]] = []  # target, qpos and qvel views
-        self._turns: dict[tuple[float, ...], tuple[np.ndarray, np.ndarray]] = {}
+        self._turns: dict[tuple[int, bytes], tuple[np.ndarray, np.ndarray]] = {}
+        self._angles_at: dict[int, tuple[int, bytes]] = {}  # driven body id → rpy its angles reached
         self._initial: dict[int, np.ndarray] = {}  # driven body id → pose to set at the next compile
 
     def add(self, body_id: int, position_m: np.ndarray, quat: tuple[float, ...]) -> None:
@@ -43,10 +44,11 @@ class DrivenRoots:
         self, body: Body, position_m: Sequence[float] | np.ndarray, rpy_rad: Sequence[float] | np.ndarray
     ) -> None:
         """Move a driven body's root target to a world pose (m, rad), its mount offset kept."""
-        key = (body.id, *(float(a) for a in rpy_rad))
+        rpy = np.asarray(rpy_rad, dtype=float)
+        key = (body.id, rpy.tobytes())
         turn = self._turns.get(key)
         if turn is None:  # the orientation part, once per distinct rpy (paths rarely turn)
-            quat = quat_from_rpy(key[1:])
+            quat = quat_from_rpy(rpy.tolist())
             _, composed = multiply_transforms((0.0, 0.0, 0.0), quat, body.offset[0], body.offset[1])
             turn = (
                 matrix_from_quat(quat) @ np.asarray(body.offset[0], float),
@@ -54,10 +56,16 @@ class DrivenRoots:
             )
             self._turns[key] = turn
         target = self.targets[body.id]
-        target[:3] = turn[0]
-        target[:3] += position_m
+        np.add(turn[0], position_m, out=target[:3])  # one rounding, as copy-then-add
+        if self._angles_at.get(body.id) == key:
+            return  # the angles already are this rpy's: the step below would add +0.0 to each
         # The angles continue from the last target's (no jump of 2π for the root to follow).
-        target[3:] += (turn[1] - target[3:] + math.pi) % (2 * math.pi) - math.pi
+        step = (turn[1] - target[3:] + math.pi) % (2 * math.pi) - math.pi
+        target[3:] += step
+        if step.any():
+            self._angles_at.pop(body.id, None)
+        else:  # the same rpy again adds +0.0 to angles that hold no −0.0: nothing
+            self._angles_at[body.id] = key
 
     def bind(
         self, qpos: np.ndarray, qvel: np.ndarray, root_qpos: dict[int, Any], root_dof: dict[int, Any]

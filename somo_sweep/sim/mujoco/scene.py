@@ -35,7 +35,9 @@ __all__ = [
     "GeomInfo",
     "PlannedBody",
     "add_plan",
+    "check_plan",
     "decorate_ground",
+    "plan_key",
     "set_options",
     "unsupported_link",
 ]
@@ -44,7 +46,7 @@ __all__ = [
 #: (0.02 s, impedance 0.9-0.95), with which a joint held below its limit creeps (1e-3 rad/s under 4 %
 #: of the limit on a test rotor); with these, 8 times slower. Stiffer still (1 ms) creeps 50 times
 #: slower but moves the quick pinch grid's labels between 4 and 2 ms steps (93 % agree, against
-#: 99 % with these): docs/mujoco.md, "Joint friction".
+#: 99 % with these): docs/physics.md, "Joint friction every other step".
 FRICTION_SOLREF = (8e-3, 1.0)
 FRICTION_SOLIMP = (0.99, 0.999, 0.001, 0.5, 2.0)
 #: Armature of a driven root's joints, per kg of the whole body (kg, kg·m² per kg): the root
@@ -137,6 +139,20 @@ def _inertia(info: LinkInfo, tree: TreeLink) -> np.ndarray:
     return info.link.principal_inertia_kg_m2() - info.link.added_inertia_kg_m2
 
 
+def check_plan(plan: BodyPlan) -> None:
+    """Raise :class:`SimulationError` if the mujoco engine cannot load ``plan`` (scale, links)."""
+    if plan.scale != 1.0:
+        raise SimulationError(f"the mujoco engine takes plans made at scale 1 (SI), got {plan.scale}")
+    problems = [p for info in plan.links for p in unsupported_link(info)]
+    if problems:
+        raise SimulationError("; ".join(problems))
+
+
+def plan_key(plan: BodyPlan) -> str:
+    """Everything of a plan that :func:`add_plan` reads, as text (a key for compiled scenes)."""
+    return repr((plan.name, plan.urdf, plan.scale, plan.mode, plan.links, plan.joints, plan.part_of))
+
+
 def add_plan(
     spec: mujoco.MjSpec,
     plan: BodyPlan,
@@ -154,11 +170,7 @@ def add_plan(
         position_m, quat_xyzw: Where the root goes (a driven root's joints are set there later).
         contact_time_constant_s: The contacts' time constant (``solref``), s.
     """
-    if plan.scale != 1.0:
-        raise SimulationError(f"the mujoco engine takes plans made at scale 1 (SI), got {plan.scale}")
-    problems = [p for info in plan.links for p in unsupported_link(info)]
-    if problems:
-        raise SimulationError("; ".join(problems))
+    check_plan(plan)
     tree_links, tree_joints = read_tree(plan)
     prefix = f"b{body_id}/"
     total = sum(t.mass_kg for t in tree_links.values())
@@ -306,6 +318,13 @@ def _add_geom(
     return geom
 
 
+#: Layout of MuJoCo's constraint Jacobian, ``dense`` or ``sparse``. Measured on the pinch gripper
+#: (52 dofs, ~72 constraint rows): dense takes ~1 % fewer instructions in ``mj_step`` and ~6 %
+#: less CPU per trial than sparse, and moves no label (docs/engines.md). One island is cheaper
+#: than islands on this model. A module setting, so the engine benchmark can time the old layout.
+JACOBIAN = "dense"
+
+
 def set_options(spec: Any, settings: WorldSettings) -> None:
     """The scene's options from the world's settings (step, gravity, integrator, solver, contacts)."""
     s, opt = settings, spec.option
@@ -322,8 +341,7 @@ def set_options(spec: Any, settings: WorldSettings) -> None:
     opt.solver = mujoco.mjtSolver.mjSOL_NEWTON
     opt.iterations = s.solver_iterations
     opt.disableflags |= mujoco.mjtDisableBit.mjDSBL_AUTORESET
-    # Measured on the pinch gripper (52 dofs): sparse Jacobians and one island are 10-35 % cheaper.
-    opt.jacobian = mujoco.mjtJacobian.mjJAC_SPARSE
+    opt.jacobian = mujoco.mjtJacobian.mjJAC_DENSE if JACOBIAN == "dense" else mujoco.mjtJacobian.mjJAC_SPARSE
     opt.disableflags |= mujoco.mjtDisableBit.mjDSBL_ISLAND
     spec.compiler.inertiafromgeom = mujoco.mjtInertiaFromGeom.mjINERTIAFROMGEOM_FALSE
     spec.visual.global_.offwidth = 1920

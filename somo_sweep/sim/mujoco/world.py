@@ -1,7 +1,8 @@
 """The MuJoCo engine's world: the same interface as PyBullet's (:class:`World`), in SI.
 
-Bodies are added to an ``MjSpec`` (:mod:`somo_sweep.sim.mujoco.scene`); the model is compiled
-when it is first needed and recompiled, state kept, when bodies are added after that. Contacts
+Bodies are added to an ``MjSpec`` (:mod:`.spec_scene`, :mod:`.scene`); the model is compiled
+when it is first needed (or copied from the process's compiled scenes, :mod:`.scene_cache`) and
+recompiled, state kept, when bodies are added after that. Contacts
 are soft (``solref`` time constant ``contact_time_constant_s``, critically damped), frictional
 with elliptic cones and ``impratio``, and with Bullet's pair friction (:mod:`.surfaces`); links
 of one body never touch their ancestors, as in PyBullet's self-collision rule.
@@ -27,13 +28,14 @@ from somo_sweep.errors import SimulationError, UnstableSimulation
 from somo_sweep.model.description import Pose
 from somo_sweep.model.load import Model
 from somo_sweep.sim.camera import Camera
-from somo_sweep.sim.mujoco.compiled import filter_contacts, read_addresses
-from somo_sweep.sim.mujoco.contacts import contact_table, select_contacts
+from somo_sweep.sim.follow import PlannedSends
+from somo_sweep.sim.mujoco.compiled import read_addresses
+from somo_sweep.sim.mujoco.contacts import StepContacts
 from somo_sweep.sim.mujoco.drive import MujocoDrive
 from somo_sweep.sim.mujoco.driven import DrivenRoots
 from somo_sweep.sim.mujoco.free_joint import check_free_body, free_base_pose, free_base_velocity
 from somo_sweep.sim.mujoco.render import mujoco_image
-from somo_sweep.sim.mujoco.scene import GeomInfo, PlannedBody, add_plan, decorate_ground, set_options
+from somo_sweep.sim.mujoco.spec_scene import SpecScene
 from somo_sweep.sim.mujoco.surfaces import Surface
 from somo_sweep.sim.plan import BodyPlan
 from somo_sweep.sim.rotations import multiply_transforms, quat_from_rpy, rpy_from_quat, xyzw
@@ -79,24 +81,19 @@ class MujocoWorld(World):
         self.step_count = 0
         self.bodies: list[Body] = []
         self.pre_step: list[Callable[[World], None]] = []
-        self.spec: Any = mujoco.MjSpec()
-        set_options(self.spec, self.settings)
+        self._scene = SpecScene(self.settings)
         self.model: Any = None
         self.data: Any = None
-        self._geoms: list[GeomInfo] = []
-        self._planned: dict[int, PlannedBody] = {}
         self._statics: set[int] = set()  # ids of bodies that never move (ground, stops)
         self._next_id = 0
         self._dirty = True
         self._kinematics_stale = True
         self._external = False
         self._driven = DrivenRoots()
-        self._step_contacts: tuple[Any, ...] | None = None  # the last step's, once read
+        self._step_contacts: StepContacts | None = None  # the last step's, once read
         self._contact_memo: dict[tuple[int, int | None], dict[str, np.ndarray]] = {}
         self._free: set[int] = set()  # ids of bodies on a free joint (known once compiled)
         self._engine_time_s = 0.0
-        self._pairs: list[Any] = []
-        self._excludes: list[Any] = []
         self._open = True
 
     # ----------------------------------------------------------------- life
@@ -104,6 +101,11 @@ class MujocoWorld(World):
     def engine_time_s(self) -> float:
         """Wall time spent inside ``mj_step`` so far, s."""
         return self._engine_time_s
+
+    @property
+    def spec(self) -> Any:
+        """The scene's ``MjSpec`` (empty while the compiled model came from the process's cache)."""
+        return self._scene.spec
 
     @property
     def is_open(self) -> bool:
@@ -127,18 +129,14 @@ class MujocoWorld(World):
 
     def _load(self, plan: BodyPlan, position_m: np.ndarray, quat: tuple[float, ...]) -> Body:
         body_id = self._new_id()
-        planned, geoms = add_plan(
-            self.spec, plan, body_id, position_m, quat, self.settings.contact_time_constant_s
-        )
-        self._planned[body_id] = planned
-        self._geoms.extend(geoms)
+        self._scene.add_plan(plan, body_id, position_m, quat)
+        self._dirty = True
         drive = MujocoDrive(self, plan.joints, len(plan.inputs))
         link_index = {info.name: i - 1 for i, info in enumerate(plan.links)}
         body = Body(plan, body_id, link_index, drive, constraint=body_id if plan.mode == "driven" else None)
         if plan.mode == "driven":
             self._driven.add(body_id, position_m, quat)
         self.bodies.append(body)
-        self._dirty = True
         return body
 
     def add_model(self, model: Model, pose: Pose | None = None) -> ModelHandle:
@@ -155,14 +153,12 @@ class MujocoWorld(World):
             bodies.append(body)
         return ModelHandle(assembly.name, bodies, [n for b in bodies for n in b.plan.inputs])
 
-    def _add_static_geom(self, kind: Any, size: list[float], pos: list[float], surface: Surface) -> int:
+    def _add_static_geom(
+        self, kind: Any, size: list[float], pos: list[float], surface: Surface, drawn: bool = False
+    ) -> int:
+        """A geom welded to the world (``drawn``: a checkered ground when rendered); its id."""
         body_id = self._new_id()
-        name = f"b{body_id}/static"
-        geom = self.spec.worldbody.add_geom(name=name, type=kind, size=size, pos=pos)
-        geom.friction = list(surface.own())
-        geom.solref = [self.settings.contact_time_constant_s, 1.0]
-        geom.rgba = [0.8, 0.8, 0.78, 1.0]
-        self._geoms.append(GeomInfo(name, body_id, -1, surface, True, geom))
+        self._scene.add_static(body_id, kind, size, pos, surface, drawn)
         self._statics.add(body_id)
         self._dirty = True
         return body_id
@@ -180,9 +176,7 @@ class MujocoWorld(World):
                 f"ground: {field} cannot be expressed on engine mujoco; allowed: none, or engine pybullet"
             )
         plane = mujoco.mjtGeom.mjGEOM_PLANE  # infinite for contacts; 2 m by 2 m when drawn
-        ground = self._add_static_geom(plane, [1.0, 1.0, 0.05], [0.0, 0.0, 0.0], Surface(friction))
-        decorate_ground(self.spec, self._geoms[-1].spec, f"checker{len(self._geoms)}")
-        return ground
+        return self._add_static_geom(plane, [1.0, 1.0, 0.05], [0.0, 0.0, 0.0], Surface(friction), drawn=True)
 
     def add_static_box(self, centre_m: npt.ArrayLike, half_extents_m: npt.ArrayLike) -> int:
         """Add a static frictionless box (a bench's stop) centred at ``centre_m``; returns its id."""
@@ -197,15 +191,11 @@ class MujocoWorld(World):
             raise SimulationError("the world is closed")
         if not self._dirty:
             return
-        self._filter_contacts()
-        try:
-            if self.model is None:
-                self.model = self.spec.compile()
-                self.data = mujoco.MjData(self.model)
-            else:
-                self.model, self.data = self.spec.recompile(self.model, self.data)
-        except ValueError as exc:
-            raise SimulationError(f"MuJoCo could not build the scene: {exc}") from None
+        if self.model is None:
+            self.model = self._scene.compile()
+            self.data = mujoco.MjData(self.model)
+        else:
+            self.model, self.data = self._scene.recompile(self.model, self.data)
         self._dirty = False
         self._step_contacts, self._contact_memo = None, {}
         self._qpos, self._qvel = self.data.qpos, self.data.qvel
@@ -216,14 +206,8 @@ class MujocoWorld(World):
         mujoco.mj_kinematics(self.model, self.data)
         self._kinematics_stale = False
 
-    def _filter_contacts(self) -> None:
-        """Collision bits, explicit pairs with Bullet's friction, and excluded ancestor pairs."""
-        tc = self.settings.contact_time_constant_s
-        old = self._pairs + self._excludes
-        self._pairs, self._excludes = filter_contacts(self.spec, self._geoms, self._planned, tc, old)
-
     def _addresses(self) -> None:
-        a = read_addresses(self.model, self.bodies, self._planned, self._geoms)
+        a = read_addresses(self.model, self.bodies, self._scene.planned, self._scene.geoms)
         self._link_bodies, self._root_qpos, self._root_dof = a.link_bodies, a.root_qpos, a.root_dof
         self._com_offset, self._free = a.com_offset, a.free
         self._spring_dofs, self._n_springs = a.spring_dofs, a.n_springs
@@ -290,14 +274,22 @@ class MujocoWorld(World):
         bad_acc = d.warning[int(mujoco.mjtWarning.mjWARN_BADQACC)]
         qvel = self._qvel  # views kept from the compile: reading d.qvel builds a new one each time
         step, hooks, clock, driven = mujoco.mj_step, self.pre_step, perf_counter, self._driven
-        for _ in range(n):
-            for hook in hooks:
-                hook(self)
-            if self._dirty:  # a hook added a body
-                self._ready()
-                m, d, qvel = self.model, self.data, self._qvel
-                dofs = self._spring_dofs if self._n_springs else None
-                bad_acc = d.warning[int(mujoco.mjtWarning.mjWARN_BADQACC)]
+        # Setpoint tables alone: their sends planned for the whole run, no Python call per step.
+        planned = PlannedSends.for_run(hooks, self.step_count, n, dt)
+        due = planned.due if planned is not None else []
+        next_due = 0
+        for k in range(n):
+            if planned is None:
+                for hook in hooks:
+                    hook(self)
+                if self._dirty:  # a hook added a body
+                    self._ready()
+                    m, d, qvel = self.model, self.data, self._qvel
+                    dofs = self._spring_dofs if self._n_springs else None
+                    bad_acc = d.warning[int(mujoco.mjtWarning.mjWARN_BADQACC)]
+            elif k == due[next_due]:
+                planned.send(self, k)
+                next_due += 1
             if driven.targets:
                 driven.drive(dt)
             t0 = clock()
@@ -365,8 +357,7 @@ class MujocoWorld(World):
 
     def set_joint_armature(self, body: Body, armature_kg_m2: float) -> None:
         """Give every spring joint of a body a rotor inertia (kg·m², or kg for prismatic joints)."""
-        for name in self._planned[body.id].spring_joints:  # in the spec: a recompile keeps it
-            self.spec.joint(name).armature = armature_kg_m2
+        self._scene.set_armature(body.id, armature_kg_m2)
         self._dirty = True
 
     def apply_force(self, body: Body, link: str, force_n: npt.ArrayLike, point_m: npt.ArrayLike) -> None:
@@ -427,10 +418,18 @@ class MujocoWorld(World):
         memo[key] = found = self._find_contacts(body_a, body_b)
         return found
 
+    def contact_count(self, body_a: int, body_b: int) -> int:
+        """Number of contact points between two bodies in the last step (no arrays built)."""
+        self._ready()
+        return self._read_contacts().count(body_a, body_b)
+
     def _find_contacts(self, body_a: int, body_b: int | None) -> dict[str, np.ndarray]:
-        if self._step_contacts is None:  # the step's table, built once
-            self._step_contacts = contact_table(self.data, self._geom_owner) or ()
-        return select_contacts(self._step_contacts or None, self._geom_link, body_a, body_b)
+        return self._read_contacts().select(body_a, body_b)
+
+    def _read_contacts(self) -> StepContacts:
+        if self._step_contacts is None:  # the step's, grouped once
+            self._step_contacts = StepContacts(self.data, self._geom_owner, self._geom_link)
+        return self._step_contacts
 
     def render(self, camera: Camera) -> np.ndarray:
         """An RGB image of the scene (MuJoCo's renderer on an offscreen OpenGL context)."""

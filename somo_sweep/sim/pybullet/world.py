@@ -55,10 +55,6 @@ class PyBulletWorld(World):
             deterministicOverlappingPairs=1,
             physicsClientId=self.client,
         )
-        if s.solver_residual_threshold is not None:
-            p.setPhysicsEngineParameter(
-                solverResidualThreshold=s.solver_residual_threshold, physicsClientId=self.client
-            )
         p.setGravity(*(g * self.scale for g in s.gravity_m_s2), physicsClientId=self.client)
         self.time_s = 0.0
         self.step_count = 0

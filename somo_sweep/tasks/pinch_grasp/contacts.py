@@ -89,13 +89,13 @@ class HoldProbe:
 
     def touching_now(self) -> bool:
         """Whether any part of the hand (fingers, palm, base boxes) touches the object now."""
-        return any(len(self.world.contacts(self.object_id, b.id)["link_a"]) > 0 for b in self.hand.bodies)
+        return any(self.world.contact_count(self.object_id, b.id) > 0 for b in self.hand.bodies)
 
     def on_ground_now(self) -> bool:
         """Whether the object touches the ground now (False without a ground)."""
         if self.ground_id is None:
             return False
-        return len(self.world.contacts(self.object_id, self.ground_id)["link_a"]) > 0
+        return self.world.contact_count(self.object_id, self.ground_id) > 0
 
     def sample(self) -> None:
         """Record the current contacts (one sample)."""

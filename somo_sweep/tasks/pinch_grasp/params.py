@@ -145,7 +145,7 @@ class Numerics(BaseModel):
             (lowers the chain's highest mode so a larger explicit step is stable). ``None`` (the
             default) keeps the model's: none in the bundled finger, or what a study without
             ``simulation:`` chose for its step (:mod:`somo_sweep.sweep.convergence`). Shaping
-            moves labels (docs/pinch_grasp.md, "Numerics"), so the bundled studies use none.
+            moves labels (docs/physics.md, "Numerics"), so the bundled studies use none.
         damping_n_m_s_per_rad: Viscous damping of every finger joint (``None`` keeps the file's).
         motor_limit_n_m: Coulomb motor limit of every finger joint (``None`` keeps the file's).
     """
@@ -358,6 +358,14 @@ register(
         perturbation=(
             f"the object starts up to ±{JITTER_M * 1e3:g} mm off its spot in x and y, its friction "
             f"coefficient within ±{FRICTION_SPREAD:.0%}"
+        ),
+        summary_metrics=(
+            "hold_normal_force_n_left",
+            "hold_normal_force_n_right",
+            "held",
+            "hold_mean_contact_position",
+            "hold_force_fraction_proximal",
+            "lift_slip_m",
         ),
     )
 )

@@ -1,0 +1,44 @@
+"""``somo-sweep show`` of a grasp study fits an 80-column terminal without cutting a header."""
+
+from __future__ import annotations
+
+import io
+
+import pandas as pd
+from rich.console import Console
+
+from somo_sweep.cli.summary import print_results
+
+
+def test_a_two_rule_grasp_study_is_shown_in_80_columns_with_every_header_whole() -> None:
+    n = 12
+    df = pd.DataFrame(
+        {
+            "trial": range(n),
+            "status": ["ok"] * n,
+            "replica": 0,
+            "wall_time_s": 1.0,
+            "message": "",
+            "task_distal_segment_ratio": [0.1, 0.2, 0.3] * 4,
+            "task_object_width_m": [0.02] * 6 + [0.08] * 6,
+            "label_grasp": ["pinch", "power", "no_grasp"] * 4,
+            "label_grasp_paper": ["power", "pinch", "no_grasp"] * 4,
+        }
+    )
+    manifest = {
+        "study_name": "grasp",
+        "study_hash": "0" * 16,
+        "n_trials": n,
+        "runs": [],
+        "axes": {
+            "task.distal_segment_ratio": "task_distal_segment_ratio",
+            "task.object_width_m": "task_object_width_m",
+        },
+    }
+    out = io.StringIO()
+    print_results(Console(file=out, width=80), df, manifest)
+    text = out.getvalue()
+    assert max(len(line) for line in text.splitlines()) <= 80
+    assert "…" not in text
+    assert "by task.distal_segment_ratio: grasp_paper" in text
+    assert "no_grasp" in text and "distal_segment_ratio" in text
