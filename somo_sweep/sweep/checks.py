@@ -11,7 +11,7 @@ once (:func:`check_points`); each problem is reported once, against the study ke
 from __future__ import annotations
 
 import itertools
-from collections.abc import Callable, Iterator, Mapping
+from collections.abc import Callable, Iterable, Iterator, Mapping, Sequence
 from pathlib import Path
 from typing import Any
 
@@ -23,7 +23,16 @@ from somo_sweep.sweep.loaded import Study
 from somo_sweep.sweep.resolve import Resolver, canonical, load_model_dict
 from somo_sweep.tasks.registry import TaskSpec
 
-__all__ = ["CHECK_PAIRS", "check_points", "line_of", "nested", "no_model", "no_perturbation", "read_bases"]
+__all__ = [
+    "CHECK_PAIRS",
+    "check_points",
+    "line_of",
+    "nested",
+    "no_model",
+    "no_perturbation",
+    "read_bases",
+    "unknown_labels",
+]
 
 #: Most models (and parameter sets) a task's ``check_params`` sees when a study is loaded: each
 #: distinct model with the first parameter set, each distinct parameter set with the first model.
@@ -65,6 +74,29 @@ def no_perturbation(task: TaskSpec) -> str:
         f"task {task.name} defines no perturbation, so its trials cannot be replicated; allowed: 0, "
         f"or a task that defines one ({', '.join(able) or 'none'})"
     )
+
+
+def unknown_labels(
+    task: TaskSpec, key: str, names: Sequence[str], given: Iterable[str], whose: str = "allowed"
+) -> list[Problem]:
+    """One problem per name in ``names`` (``grasp`` or ``label_grasp``) that is not in ``given``.
+
+    Args:
+        task: The study's task.
+        key: The key path naming the labels (``adaptive.labels``, ``robustness.labels``).
+        names: The label names the study gives.
+        given: The labels the task gives (declared, or seen in its trials).
+        whose: What the list of ``given`` is (``allowed``, ``its trials give``).
+    """
+    known = sorted(set(given))
+    return [
+        Problem(
+            key,
+            f"'{n}' is not a label of task {task.name}; {whose}: {', '.join(known) or 'none'}",
+        )
+        for n in names
+        if n.removeprefix("label_") not in known
+    ]
 
 
 def read_bases(

@@ -95,6 +95,18 @@ def test_a_task_without_a_perturbation_cannot_ask_for_replicas(tmp_path: Path) -
         with_replicas(plain, 3)
 
 
+def test_a_robustness_label_the_task_does_not_give_is_refused_at_load(tmp_path: Path) -> None:
+    """``labels: [nope]`` ran, with 0 boundary cells and not a word."""
+    path = sign_study(tmp_path, extra="robustness: {replicas: 4, labels: [nope, label_sign]}")
+    with pytest.raises(DescriptionError) as info:
+        load_study(path, tmp_path / "out")
+    text = str(info.value)
+    assert str(path) in text
+    allowed = "allowed: dt, region, sign, step"
+    assert f"robustness.labels: 'nope' is not a label of task selftest_sleep; {allowed}" in text
+    assert "label_sign" not in text  # a label the task gives passes, with or without its prefix
+
+
 def test_boundary_replicas_find_exactly_the_cells_a_perturbation_can_flip(tmp_path: Path) -> None:
     # Sign flips between x = -0.01 and 0.01: those two are the boundary; a jitter of 1 flips each
     # replica of them with probability 1/2 (all 8 agreeing: 1 in 128), and no other cell.
