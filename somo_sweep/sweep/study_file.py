@@ -45,7 +45,7 @@ folder (``--out``) may be anywhere.
 from __future__ import annotations
 
 from pathlib import Path
-from typing import Annotated, Any, Literal
+from typing import Annotated, Any, ClassVar, Literal
 
 from pydantic import Field, model_validator
 
@@ -82,6 +82,8 @@ class Simulation(Spec):
     refuses the other's own options set to anything but their defaults (``scale``,
     ``body_per_manipulator`` and ``friction_rows_every`` are PyBullet's).
     """
+
+    text_numbers: ClassVar[bool] = False
 
     time_step_s: float | None = Field(None, gt=0)
     scale: float = Field(20.0, gt=0)
@@ -144,6 +146,8 @@ class Adaptive(Spec):
             largest power of two ≤ (values − 1) / 2 of each axis).
     """
 
+    text_numbers: ClassVar[bool] = False
+
     labels: list[Annotated[str, Field(pattern=r"^[A-Za-z0-9_]+$")]] = Field(default_factory=list)
     coarse_step: int | None = Field(None, ge=1)
 
@@ -167,6 +171,8 @@ class Robustness(Spec):
         labels: Labels that decide boundaries and robustness (default: every label).
     """
 
+    text_numbers: ClassVar[bool] = False
+
     replicas: int = Field(0, ge=0, le=MAX_REPLICAS)
     where: Literal["boundary", "all"] = "boundary"
     audit_fraction: float = Field(0.1, ge=0.0, le=1.0)
@@ -175,6 +181,8 @@ class Robustness(Spec):
 
 class StudyFile(Spec):
     """The raw schema of a study file (see the module docstring)."""
+
+    text_numbers: ClassVar[bool] = False
 
     name: str | None = Field(None, pattern=r"^[A-Za-z0-9_.-]+$", max_length=100)
     task: str

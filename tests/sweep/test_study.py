@@ -177,7 +177,7 @@ def test_empty_range_and_wrong_types(tmp_path: Path) -> None:
         + "  task.tip_load_n: {start: a, stop: 1, step: 0.5}\n",
     )
     text = problems_of(path)
-    assert "line 4: repeats: Input should be a valid integer" in text
+    assert "line 4: repeats: expected an integer >= 1, not text, got 'two'" in text
     path.write_text(path.read_text().replace("repeats: two\n", ""))
     text = problems_of(path)
     assert "sweep.task.pressure_kpa.stop: must be >= start (10) for an inclusive range, got 0" in text
