@@ -190,7 +190,7 @@ def test_cli_run_robust_then_show_lists_the_cells_that_are_not_robust(tmp_path: 
 def test_cli_robust_out_of_range_is_refused_by_name(tmp_path: Path) -> None:
     res = CliRunner().invoke(app, ["run", str(sign_study(tmp_path)), "--robust", "99", "--dry-run"])
     assert res.exit_code == 2
-    assert "--robust must be 0 … 16, got 99" in res.output
+    assert "Invalid value for '--robust'" in res.output and "16" in res.output
 
 
 def test_with_adaptive_sampling_replicas_go_to_simulated_boundary_cells_never_to_inferred_ones(
@@ -294,3 +294,41 @@ def test_after_robust_4_then_robust_2_the_run_and_the_readers_agree_on_2(tmp_pat
     shown = CliRunner().invoke(app, ["show", str(tmp_path / "out")], terminal_width=200)
     text = " ".join(shown.output.split())  # rich wraps long lines
     assert "6 of 6 trials stored, and 6 robustness replica run(s) (6 more stored beyond the 2" in text
+
+
+def test_an_interrupted_run_counts_the_replicas_it_kept(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """After SIGINT it said "24 finished trial(s) kept" while 30 rows were kept (6 replicas)."""
+    import io
+
+    import typer
+    from rich.console import Console
+
+    from somo_sweep.cli import sweep as cli_sweep
+    from somo_sweep.sweep.options import RunSummary
+
+    said = io.StringIO()
+    monkeypatch.setattr(cli_sweep, "_err", Console(file=said, width=200))
+    monkeypatch.setattr(cli_sweep, "_out", Console(file=io.StringIO(), width=200))
+    summary = RunSummary(folder=tmp_path, total=48, skipped=0, run=24, interrupted=2, replicas_run=6)
+    with pytest.raises(typer.Exit):
+        cli_sweep._report(summary, plots=False, allow_errors=False)
+    assert "interrupted: 24 finished trial(s) and 6 robustness replica run(s) kept" in said.getvalue()
+
+
+def test_an_empty_robust_names_its_range(
+    capsys: pytest.CaptureFixture[str], monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """``--robust ''`` said any non-empty value was allowed; it takes 0 … 16."""
+    from somo_sweep.cli.app import main
+
+    monkeypatch.setattr("sys.argv", ["somo-sweep", "run", "s.yaml", "--robust", ""])
+    with pytest.raises(SystemExit) as exit_:
+        main()
+    assert exit_.value.code == 2
+    err = capsys.readouterr().err
+    assert (
+        "--robust was given an empty value (an unset shell variable?); allowed: an integer from 0 to 16"
+        in err
+    )
