@@ -98,7 +98,7 @@ def load_study(
     fixed = _fixed(raw, found)
     read = _axes(raw, cells, path.parent, found)
     study = _new_study(raw, path, task, cells, model_path, fixed, read, out, allow_outside)
-    bases, bases_ok = read_bases(model_path, study.axes, allow_outside, lines, found.problems)
+    bases, bases_ok = read_bases(model_path, study.axes, allow_outside, lines, found.problems, cells)
     study = replace(study, bases=bases)
     if found.problems and bases_ok:
         # Check the trials of the good axes too, so that every problem is reported at once.
