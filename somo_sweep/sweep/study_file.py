@@ -47,10 +47,16 @@ from __future__ import annotations
 from pathlib import Path
 from typing import Annotated, Any, ClassVar, Literal
 
-from pydantic import Field, model_validator
+from pydantic import Field, field_validator, model_validator
 
 from somo_sweep.model.description import Spec
-from somo_sweep.sim.settings import MUJOCO_DEFAULT_STEP_S, MUJOCO_ONLY, PYBULLET_ONLY, WorldSettings
+from somo_sweep.sim.settings import (
+    MUJOCO_DEFAULT_STEP_S,
+    MUJOCO_ONLY,
+    PYBULLET_ONLY,
+    WorldSettings,
+    step_problem,
+)
 from somo_sweep.sweep.schema import MAX_REPLICAS
 
 __all__ = ["MAX_REPLICAS", "MAX_TRIALS", "RESULTS_ROOT", "Adaptive", "Robustness", "Simulation", "StudyFile"]
@@ -96,6 +102,14 @@ class Simulation(Spec):
     contact_time_constant_s: float = Field(WorldSettings.contact_time_constant_s, gt=0, le=1.0)
     impratio: float = Field(WorldSettings.impratio, gt=0, le=1e4)
     noslip_iterations: int = Field(WorldSettings.noslip_iterations, ge=0, le=1000)
+
+    @field_validator("time_step_s")
+    @classmethod
+    def _a_stable_step(cls, value: float | None) -> float | None:
+        """A step beyond any model's stability (1e9 s: every trial ends in error) is refused."""
+        if value is not None and (why := step_problem(value)) is not None:
+            raise ValueError(why)
+        return value
 
     @model_validator(mode="after")
     def _options_of_the_engine(self) -> Simulation:
