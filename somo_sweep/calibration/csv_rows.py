@@ -140,7 +140,7 @@ def split_rows(path: Path, text: str) -> CsvRows:
     header_line, header = kept[0] if kept else (0, "")
     try:
         names = [c.strip() for c in next(csv.reader(io.StringIO(header), delimiter=sep))] if header else []
-    except csv.Error:  # a huge field: pandas' own message follows
+    except csv.Error:  # a huge column name: refused by name (and line) once pandas read the header
         names = []
     repeated = sorted({c for c in names if c and names.count(c) > 1})
     if repeated:  # pandas would rename a repeated column to 'name.1'
@@ -148,6 +148,14 @@ def split_rows(path: Path, text: str) -> CsvRows:
         raise MeasurementError(path, [f"line {header_line}: {twice}"])
     body = _trimmed(path, kept, sep, len(names), header_line) if names else [ln for _, ln in kept]
     return CsvRows(sep, header_line, names, [n for n, _ in kept[1:]], body)
+
+
+def _too_long(line: int) -> str:
+    """Why a line the CSV reader cannot split (a field beyond its limit) is refused."""
+    return (
+        f"line {line}: a field is longer than {csv.field_size_limit()} characters; allowed: shorter "
+        "fields (a bench value is a number or a short word)"
+    )
 
 
 def _trimmed(path: Path, kept: list[tuple[int, str]], sep: str, width: int, header_line: int) -> list[str]:
@@ -165,6 +173,7 @@ def _trimmed(path: Path, kept: list[tuple[int, str]], sep: str, width: int, head
         try:
             fields = next(csv.reader(io.StringIO(ln), delimiter=sep))
         except csv.Error:
+            longer.append(_too_long(number))
             continue
         if len(fields) <= width:
             continue

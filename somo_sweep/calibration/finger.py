@@ -36,9 +36,9 @@ REQUIRED = ("length_mm", "segments", "mass_g")
 #: Most segments of the planar finger: with its base and tip link, PyBullet's 128 links of a body.
 MAX_FINGER_SEGMENTS = 126
 _PREFIX = "# finger:"
-#: Only the comment lines above the CSV header are searched, at most this many bytes of them,
-#: so a huge file costs nothing here.
-_SEARCH_BYTES = 1024 * 1024
+#: Bytes of a CSV searched for header lines: those of the largest measurement file read
+#: (:data:`~somo_sweep.calibration.measurements.MAX_FILE_BYTES`), so a huge file costs no more.
+_SEARCH_BYTES = 8 * 1024 * 1024
 #: Longest header line read, in bytes (a longer one is cut and then refused).
 _MAX_LINE_BYTES = 4096
 
@@ -62,22 +62,36 @@ def read_header_mapping(
 ) -> tuple[int, dict[Any, Any]] | None:
     """The YAML mapping of a ``# <key>:`` comment line above a CSV's header, with its line number.
 
-    Only the comment lines above the column header are searched. None when there is no such line.
+    Header lines belong among the comment lines above the column header. None when there is no
+    such line.
 
     Raises:
-        MeasurementError: The line given twice, too long, or not a mapping (naming the line).
+        MeasurementError: The line given twice, too long, not a mapping, or placed after the
+            column header, where it would not be read (naming the line).
     """
     path = Path(path)
     with path.open("rb") as fh:
         # Split like the CSV reader: \n, \r\n or a lone \r (old Mac exports) end a line.
         head = fh.read(_SEARCH_BYTES).splitlines(keepends=True)
     found: list[tuple[int, bytes, str]] = []
+    header = 0  # the column header's line
     for number, raw in enumerate(head, start=1):
+        if header and not raw.lstrip().startswith(b"#"):
+            continue  # a data row (only the comments after the header are looked at)
         line = raw.decode("utf-8", errors="replace").lstrip("\ufeff").strip()  # Excel's "CSV UTF-8" BOM
-        if line and not line.startswith("#"):
-            break  # the column header: the header lines are among the comments above it
-        if line.lower().startswith(prefix):
+        if line and not line.startswith("#") and not header:
+            header = number
+        elif line.lower().startswith(prefix):
             found.append((number, raw, line))
+    late = [n for n, _, _ in found if header and n > header]
+    if late:
+        raise MeasurementError(
+            path,
+            [
+                f"line {late[0]}: the {what} is after the column header (line {header}), where it is "
+                f"not read; allowed: one '{prefix}' line above the header"
+            ],
+        )
     if len(found) > 1:
         lines = " and ".join(str(n) for n, _, _ in found[:2])
         raise MeasurementError(

@@ -102,7 +102,7 @@ def read_measurements(path: str | Path, require_measured: bool = True) -> pd.Dat
     path = bundled_if_missing(path, "tables", ".csv")
     rows = split_rows(path, _read_text(path))
     raw = _parse_table(path, rows)
-    _check_columns(path, raw)
+    _check_columns(path, raw, rows.header_line)
     problems: list[str] = []
     out = pd.DataFrame({"test": raw["test"].str.strip()})
     for c in NUMERIC + list(OPTIONAL_MEASURED):
@@ -162,7 +162,7 @@ def _parse_table(path: Path, rows: CsvRows) -> pd.DataFrame:
     return raw.drop(columns=blank)
 
 
-def _check_columns(path: Path, raw: pd.DataFrame) -> None:
+def _check_columns(path: Path, raw: pd.DataFrame, header_line: int) -> None:
     """Refuse missing and unknown columns (all at once), too many rows, and no rows.
 
     Raises:
@@ -170,13 +170,16 @@ def _check_columns(path: Path, raw: pd.DataFrame) -> None:
     """
     problems: list[str] = []
     missing = [c for c in COLUMNS if c not in raw.columns]
+    at = f"line {header_line}: " if header_line else ""
     if missing:
-        problems.append(f"missing column(s) {', '.join(missing)}; the header must have {','.join(COLUMNS)}")
+        problems.append(
+            f"{at}missing column(s) {', '.join(missing)}; the header must have {','.join(COLUMNS)}"
+        )
     allowed = COLUMNS + list(OPTIONAL_MEASURED) + list(OPTIONAL)
     for c in raw.columns:
         if c not in allowed:
             problems.append(
-                f"unknown column '{shown(c)}'{did_you_mean(c, allowed)}; allowed: {', '.join(allowed)}"
+                f"{at}unknown column '{shown(c)}'{did_you_mean(c, allowed)}; allowed: {', '.join(allowed)}"
             )
     if problems:
         raise MeasurementError(path, problems)

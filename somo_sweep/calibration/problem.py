@@ -127,9 +127,7 @@ class CalibrationProblem:
         def lines(df: pd.DataFrame) -> str:
             if df.empty:
                 return "none"
-            parts = [
-                f"{t} ({len(g)}: lines {', '.join(str(n) for n in g['line'])})" for t, g in df.groupby("test")
-            ]
+            parts = [f"{t} ({len(g)}: lines {line_numbers(g)})" for t, g in df.groupby("test")]
             return "; ".join(parts)
 
         pars = ", ".join(f"{p.name} (start {p.initial:.4g} {p.unit})" for p in self.parameters)

@@ -10,7 +10,8 @@ from __future__ import annotations
 import os
 import sys
 import warnings
-from typing import Annotated
+from pathlib import Path
+from typing import Annotated, Any
 
 import typer
 
@@ -106,6 +107,33 @@ def empty_value(args: list[str]) -> str | None:
     return None
 
 
+def allowed_value(args: list[str]) -> str:
+    """What the option left empty in ``args`` takes (``an integer from 0 to 16``), from its
+    command's own declaration; ``any non-empty value`` when that cannot be told."""
+    command: Any = typer.main.get_command(app)
+    option = None
+    for i, arg in enumerate(args):
+        name = arg.split("=", 1)[0]
+        if name in getattr(command, "commands", {}):
+            command = command.commands[name]
+        elif arg == "" and i and args[i - 1].startswith("-"):
+            option = args[i - 1]
+            break
+        elif arg.startswith("--") and arg.endswith("="):
+            option = name
+            break
+    param = next((p for p in getattr(command, "params", []) if option in p.opts), None)
+    descriptor = getattr(param, "type_descriptor", None)
+    kinds: dict[Any, str] = {int: "an integer", float: "a number", Path: "a path"}
+    kind = kinds.get(getattr(descriptor, "annotation", None))
+    if kind is None:
+        return "any non-empty value"
+    low, high = getattr(param, "min", None), getattr(param, "max", None)
+    if low is not None and high is not None:
+        return f"{kind} from {low:g} to {high:g}"
+    return kind
+
+
 def not_utf8(args: list[str]) -> str | None:
     """The first argument holding bytes that are not UTF-8 (a folder named in Latin-1), shown, or None.
 
@@ -162,7 +190,7 @@ def main() -> None:
     warnings.formatwarning = _one_line_for_ours
     args = global_flags_first(sys.argv[1:])
     if (empty := empty_value(args)) is not None:
-        print(f"error: {empty} (an unset shell variable?); allowed: any non-empty value", file=sys.stderr)
+        print(f"error: {empty} (an unset shell variable?); allowed: {allowed_value(args)}", file=sys.stderr)
         raise SystemExit(2)
     if (bad := not_utf8(args)) is not None:
         print(

@@ -3,7 +3,6 @@
 from __future__ import annotations
 
 import json
-import math
 from pathlib import Path
 from typing import TYPE_CHECKING, Annotated
 
@@ -12,6 +11,7 @@ import typer
 from somo_sweep.cli.output import checked_jobs, fail, write_atomic
 from somo_sweep.cli.sweep import JOBS
 from somo_sweep.errors import SomoError, StorageError
+from somo_sweep.sim.settings import step_problem
 
 if TYPE_CHECKING:
     from somo_sweep.sweep.engines import EngineComparison
@@ -70,8 +70,8 @@ def compare_engines(
     from somo_sweep.sweep.study import RESULTS_ROOT, load_study
 
     for name, step in (("--mujoco-step", mujoco_step), ("--pybullet-step", pybullet_step)):
-        if step is not None and not (math.isfinite(step) and step > 0):
-            fail(SomoError(f"{name} must be a time step in s, > 0, got {step:g}"))
+        if step is not None and (why := step_problem(step)) is not None:
+            fail(SomoError(f"{name}: {why}, got {step:g} s"))
     from somo_sweep.sim.mujoco.support import missing  # no MuJoCo import
 
     try:

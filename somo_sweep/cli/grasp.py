@@ -41,9 +41,12 @@ def classify(
     if "robust" in table.columns:
         checked = table[table["replicas"] > 0]
         shaky = checked[checked["robust"].eq(False).fillna(False).astype(bool)]
+        sure = int(checked["robust"].eq(True).fillna(False).astype(bool).sum())
+        awaiting = len(checked) - sure - len(shaky)
+        waits = f", {awaiting} await replicas (a run cut short)" if awaiting else ""
         typer.echo(
-            f"robustness: {len(checked)} cell(s) with replicas, {len(checked) - len(shaky)} robust under "
-            f"rule {rule}, {len(shaky)} not (counts above are majorities; per cell: grasp_{rule}_majority, "
+            f"robustness: {len(checked)} cell(s) with replicas, {sure} robust under rule {rule}, "
+            f"{len(shaky)} not{waits} (counts above are majorities; per cell: grasp_{rule}_majority, "
             f"grasp_{rule}_agreement, robust)"
         )
     legacy = table.attrs.get("rows_without_final_counts", 0)

@@ -10,9 +10,9 @@ from rich.markup import escape
 from rich.table import Table
 
 from somo_sweep.errors import printable, shown
-from somo_sweep.sweep.folder import MANIFEST
+from somo_sweep.sweep.folder import MANIFEST, planned_replicas
 from somo_sweep.sweep.options import RunSummary
-from somo_sweep.sweep.robustness import ROBUST, fold, label_names
+from somo_sweep.sweep.robustness import AWAITED, ROBUST, fold, label_names
 
 __all__ = ["breakdown", "inferred_mask", "label_columns", "print_results", "print_run_summary"]
 
@@ -59,10 +59,12 @@ SHOWN_UNCERTAIN = 15
 
 
 def _print_robustness(console: Console, cells: pd.DataFrame, manifest: dict[str, Any]) -> None:
-    """Per label: cells replicated, robust, mean agreement; then the first uncertain cells."""
+    """Per label: cells replicated, robust, mean agreement; the cells awaiting replicas; then the
+    first uncertain cells."""
     checked = cells[cells["replicas"] > 0]
     if checked.empty:
         return
+    complete = checked[AWAITED] == 0
     table = Table(title="robustness (cells with replicas)", title_justify="left")
     for name in ("label", "cells", "robust", "mean agreement", "majority differs from own trial"):
         table.add_column(name, justify="left" if name == "label" else "right")
@@ -72,14 +74,22 @@ def _print_robustness(console: Console, cells: pd.DataFrame, manifest: dict[str,
         table.add_row(
             _text(label.removeprefix("label_")),
             str(len(checked)),
-            str(int((agree >= 1.0).sum())),
+            str(int(((agree >= 1.0) & complete).sum())),
             f"{agree.mean():.3f}",
             str(int(moved)),
         )
     console.print(table)
+    awaiting = int((~complete).sum())
+    if awaiting:
+        planned = int((checked["replicas"] + checked[AWAITED]).max())
+        console.print(
+            f"{awaiting} cell(s) await replicas (fewer than the {planned} planned stored; a run cut "
+            "short): not robust until the same run command, run again, adds them"
+        )
     uncertain = checked[checked[ROBUST].eq(False).fillna(False).astype(bool)]
     if uncertain.empty:
-        console.print(f"every one of the {len(checked)} replicated cell(s) is robust")
+        if not awaiting:
+            console.print(f"every one of the {len(checked)} replicated cell(s) is robust")
         return
     axes = [c for c in manifest.get("axes", {}).values() if isinstance(c, str) and c in cells.columns]
     lines = []
@@ -197,13 +207,14 @@ def print_results(
             (:func:`~somo_sweep.sweep.folder.pending_journal_rows`).
     """
     pending = pending or {}
-    replica_runs = 0
+    replica_runs = beyond = 0
     if not df.empty:
         n_rows = len(df)
-        df = fold(df)
-        replica_runs = n_rows - len(df)
+        df = fold(df, planned=planned_replicas(manifest))
+        replica_runs = int(df["replicas"].sum())
+        beyond = n_rows - len(df) - replica_runs
     inferred = inferred_mask(df)
-    console.print(_header(df, manifest, inferred, replica_runs, holder, pending))
+    console.print(_header(df, manifest, inferred, (replica_runs, beyond), holder, pending))
     _print_runs(console, manifest.get("runs", []), holder, pending)
     if df.empty:
         return
@@ -227,11 +238,12 @@ def _header(
     df: pd.DataFrame,
     manifest: dict[str, Any],
     inferred: pd.Series,
-    replica_runs: int,
+    replica_runs: tuple[int, int],
     holder: str | None,
     pending: dict[str, int],
 ) -> str:
-    """The folder's first line: study, trials stored of how many, hash and task."""
+    """The folder's first line: study, trials stored of how many, hash and task; ``replica_runs``
+    is (replicas folded, replicas stored beyond the planned count)."""
     total = manifest.get("n_trials") or 0
     stored = f"{len(df)} of {total} trials stored"
     if inferred.any():
@@ -239,8 +251,15 @@ def _header(
             f"{(~inferred).sum()} simulated and {inferred.sum()} inferred (adaptive sampling) "
             f"of {total} trials"
         )
-    if replica_runs:
-        stored += f", and {replica_runs} robustness replica run(s)"
+    folded, beyond = replica_runs
+    if folded:
+        stored += f", and {folded} robustness replica run(s)"
+    if beyond:
+        planned = planned_replicas(manifest)
+        stored += (
+            f" ({beyond} more stored beyond the {planned} per cell the latest run with replicas "
+            "planned: left out)"
+        )
     if sum(pending.values()) and holder is None:
         stored += f" (and {sum(pending.values())} finished in a killed run's journal, stored by the next run)"
     elif sum(pending.values()):

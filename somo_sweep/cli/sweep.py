@@ -69,11 +69,16 @@ _ADAPTIVE = Annotated[
         "stored as inferred (default: the study's sampling:, else exhaustive).",
     ),
 ]
+#: Most replicas ``--robust`` takes (the library's :data:`somo_sweep.sweep.schema.MAX_REPLICAS`;
+#: named here so that the command line imports no Arrow).
+MAX_REPLICAS = 16
 _ROBUST = Annotated[
     int | None,
     typer.Option(
         "--robust",
         metavar="K",
+        min=0,
+        max=MAX_REPLICAS,
         help="Run K perturbed replicas of the cells that matter (label boundaries, plus a 10 % audit "
         "of the rest) and store each cell's majority label, agreement and robust flag "
         "(default: the study's robustness:, else 0).",
@@ -262,7 +267,11 @@ def _report(summary: RunSummary, plots: bool, allow_errors: bool) -> None:
 
     print_run_summary(_out, summary)
     if summary.interrupted is not None:
-        _err.print(f"interrupted: {summary.run} finished trial(s) kept; run the same command again to resume")
+        replicas = f" and {summary.replicas_run} robustness replica run(s)" if summary.replicas_run else ""
+        _err.print(
+            f"interrupted: {summary.run} finished trial(s){replicas} kept; run the same command again to "
+            "resume"
+        )
         raise typer.Exit(128 + summary.interrupted)
     if plots and summary.run:
         try:

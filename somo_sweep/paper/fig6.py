@@ -1,15 +1,16 @@
 """Paper Fig. 6: grasp type over centering position × object width, one panel per DSR.
 
-Works on a tidy table with one row per cell and the columns
-``distal_segment_ratio``, ``centering_position_m`` (the paper's centering position c),
-``object_width_m``, ``label``, ``inferred`` and the robustness columns ``replicas``,
-``agreement`` and ``robust``; :func:`grasp_table` makes it from a results table (any column
-prefix), relabelling every run with a chosen rule and folding a cell's robustness replicas into
-its majority label (:mod:`somo_sweep.sweep.robustness`). Cells an adaptive run inferred keep
-their stored label and are drawn hatched; cells whose replicas disagree are cross-hatched, and
-the headline counts only robust cells (:func:`counted_cells`). The x axis is c, as in the
-paper; a secondary axis on top gives d = 200 mm − c, the finger bases' distance from the
-object's centre. Plot helpers draw on given axes; only the CLI saves files.
+Works on a tidy table with one row per cell and the columns ``distal_segment_ratio``,
+``centering_position_m`` (the paper's centering position c), ``object_width_m``, ``label``,
+``inferred`` and the robustness columns ``replicas``, ``agreement``, ``robust`` and (optional)
+``replicas_awaited``; :func:`grasp_table` makes it from a results table (any column prefix),
+relabelling every run with a chosen rule and folding a cell's robustness replicas into its
+majority label (:mod:`somo_sweep.sweep.robustness`). Cells an adaptive run inferred keep their
+stored label and are drawn hatched; cells whose replicas disagree are cross-hatched, and the
+headline counts only robust cells (:func:`counted_cells`): a cell that awaits some of its
+planned replicas (a run cut short) is not robust yet. The x axis is c, as in the paper; a
+secondary axis on top gives d = 200 mm − c, the finger bases' distance from the object's centre.
+Plot helpers draw on given axes; only the CLI saves files.
 """
 
 from __future__ import annotations
@@ -24,7 +25,8 @@ import pandas as pd
 from somo_sweep.errors import SomoError
 from somo_sweep.paper.artifacts import Artifacts
 from somo_sweep.paper.grasp_trials import grasp_labels, inferred_rows
-from somo_sweep.sweep.robustness import fold
+from somo_sweep.sweep.folder import REPLICAS_PLANNED
+from somo_sweep.sweep.robustness import AWAITED, fold
 from somo_sweep.tasks.pinch_grasp.classify import LABELS, find_column
 from somo_sweep.tasks.pinch_grasp.params import BASE_DISTANCE_AT_ZERO_CENTERING_M
 
@@ -97,8 +99,8 @@ def grasp_table(results: pd.DataFrame, rule: str = "contacts") -> pd.DataFrame:
             **{n: results[c].astype(float).to_numpy() for n, c in found.items() if c is not None},
         }
     )
-    cells = fold(runs, ["label"])
-    out = cells[[*found, "inferred", "replicas"]].copy()
+    cells = fold(runs, ["label"], planned=results.attrs.get(REPLICAS_PLANNED))
+    out = cells[[*found, "inferred", "replicas", AWAITED]].copy()
     out["distal_segment_ratio"] = out["distal_segment_ratio"].round(DSR_DECIMALS)
     out["label"] = cells["label_majority"].to_numpy()
     out["agreement"] = cells["label_agreement"].where(cells["replicas"] > 0).to_numpy(dtype=float)
@@ -183,7 +185,12 @@ def deciding_cells(table: pd.DataFrame, best: float | None, limit: int = 3) -> l
                 lines.append(f"{where}: pinch at c = {_centerings(good, limit)}")
             elif good.empty:
                 weak = pinch[~counted[pinch.index]]
-                why = f"; not robust: c = {_centerings(weak, limit)}" if len(weak) else ""
+                waits = (
+                    (weak[AWAITED].fillna(0) > 0) if AWAITED in weak else pd.Series(False, index=weak.index)
+                )
+                why = f"; not robust: c = {_centerings(weak[~waits], limit)}" if (~waits).any() else ""
+                if waits.any():
+                    why += f"; awaiting replicas: c = {_centerings(weak[waits], limit)}"
                 lines.append(f"{where}: no robust pinch{why}")
     return lines
 
@@ -301,6 +308,13 @@ def _figure(table: pd.DataFrame, max_dsr: float) -> Figure:
     return fig
 
 
+def _awaiting(table: pd.DataFrame) -> int:
+    """Cells that have some of their planned replicas, not all (0 without that column)."""
+    if AWAITED not in table:
+        return 0
+    return int((table[AWAITED].fillna(0) > 0).sum())
+
+
 def _not_robust(table: pd.DataFrame) -> int:
     """Cells whose replicas disagree (0 without robustness columns)."""
     if "robust" not in table:
@@ -372,6 +386,7 @@ def _info(table: pd.DataFrame, best: float | None, best_all: float | None, check
             "cells_replicated": int(replicated.sum()),
             "robust": int(table["robust"].eq(True).fillna(False).astype(bool).sum()),
             "not_robust": _not_robust(table),
+            "awaiting_replicas": _awaiting(table),
             "smallest_all_width_pinch_dsr_every_cell": best_all,
         }
         info["deciding_cells"] = deciding_cells(table, best)
@@ -390,6 +405,13 @@ def _lines(info: dict[str, Any], headline: str) -> list[str]:
             f"{info['robustness']['not_robust']} not robust (cross-hatched); the cells that decide the "
             "headline:"
         )
+        awaiting = info["robustness"]["awaiting_replicas"]
+        if awaiting:
+            lines.insert(
+                -1,
+                f"robustness: {awaiting} cell(s) await replicas (a run cut short): not counted as robust "
+                "until the same run command, run again, adds them",
+            )
         lines += [f"  {line}" for line in info["deciding_cells"]]
     return lines
 

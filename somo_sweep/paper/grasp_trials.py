@@ -102,7 +102,8 @@ def relabel(
         Counts per label (``unstable``/``error`` for trials that are not ``ok``; a cell with
         robustness replicas counts with its majority) and the table, one row per cell: job id,
         the three sweep parameters, ``grasp_<rule>`` (the cell's own trial), and where replicas
-        ran ``grasp_<rule>_majority``, ``grasp_<rule>_agreement``, ``replicas`` and ``robust``
+        ran ``grasp_<rule>_majority``, ``grasp_<rule>_agreement``, ``replicas``,
+        ``replicas_awaited`` and ``robust``
         (:func:`somo_sweep.sweep.robustness.fold`); an old folder's ``centering_m``, the bases'
         distance before the paper's centering position, is kept under its own name.
     """
@@ -131,12 +132,15 @@ def relabel(
     runs["status"] = "ok"  # a run that is not ok carries its status as its label already
     runs[name] = labels
     runs["inferred"] = inferred_rows(table)
-    cells = fold(runs, [name])
+    from somo_sweep.sweep.folder import REPLICAS_PLANNED
+
+    cells = fold(runs, [name], planned=table.attrs.get(REPLICAS_PLANNED))
     out = cells[[*keep, name, "inferred"]].copy()
     if (cells["replicas"] > 0).any():
         out[f"{name}_majority"] = cells[f"{name}_majority"]
         out[f"{name}_agreement"] = cells[f"{name}_agreement"].where(cells["replicas"] > 0)
         out["replicas"] = cells["replicas"]
+        out["replicas_awaited"] = cells["replicas_awaited"]
         out["robust"] = cells["robust"]
         counted = out[f"{name}_majority"]
     else:

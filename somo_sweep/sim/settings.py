@@ -14,12 +14,14 @@ from importlib.metadata import PackageNotFoundError, version
 
 __all__ = [
     "ENGINES",
+    "MAX_TIME_STEP_S",
     "MUJOCO_DEFAULT_STEP_S",
     "MUJOCO_INTEGRATORS",
     "MUJOCO_ONLY",
     "PYBULLET_ONLY",
     "WorldSettings",
     "engine_version",
+    "step_problem",
 ]
 
 #: The engines a world can run on.
@@ -29,6 +31,23 @@ ENGINES = ("pybullet", "mujoco")
 MUJOCO_INTEGRATORS = ("discrete", "implicitfast")
 #: The step a MuJoCo study gets when it gives none, s (labels converge at it: docs/engines.md).
 MUJOCO_DEFAULT_STEP_S = 4e-3
+#: Largest time step a study may give, s, on either engine: five times the largest step validated
+#: with contact (4 ms, :data:`somo_sweep.sim.numerics.MAX_STEP_S`), room for a convergence study
+#: above it. A step of seconds is a slipped unit: no chain of millimetre links and soft springs
+#: is stable at it (PyBullet blows up, MuJoCo's contacts fail), and every trial would end in error.
+MAX_TIME_STEP_S = 0.02
+
+
+def step_problem(time_step_s: float) -> str | None:
+    """Why a time step (s) is refused, naming the range allowed; None when it is allowed."""
+    if math.isfinite(time_step_s) and 0 < time_step_s <= MAX_TIME_STEP_S:
+        return None
+    return (
+        f"the time step must be > 0 and at most {MAX_TIME_STEP_S * 1e3:g} ms ({MAX_TIME_STEP_S:g} s: "
+        f"five times the largest step validated with contact; a larger one is beyond any model's stability)"
+    )
+
+
 #: Settings that only one engine reads, by name.
 PYBULLET_ONLY = (
     "scale",

@@ -3,23 +3,20 @@
 A manipulator, a rigid body or a whole assembly becomes one or more
 :class:`~somo_sweep.sim.plan.BodyPlan` (the URDF itself is written by
 :class:`~somo_sweep.sim.urdf_builder.UrdfBuilder`). Scaling by ``Y`` (paper Sec. III-B.4):
-lengths ×Y, inertias ×Y², masses ×1. URDF files are written once per content hash into the
-user cache (``$SOMO_SWEEP_CACHE`` or ``~/.cache/somo-sweep``), never into the user's folders.
+lengths ×Y, inertias ×Y², masses ×1. URDF files are written once per content hash into a
+bounded user cache (:mod:`somo_sweep.sim.urdf_cache`), never into the user's folders.
 """
 
 from __future__ import annotations
 
 import dataclasses
-import hashlib
-import os
-import tempfile
-from pathlib import Path
 
 import numpy as np
 
 from somo_sweep.model.description import Assembly, Base, Manipulator, Pose, RigidBody
 from somo_sweep.sim.plan import BodyPlan, LinkInfo
 from somo_sweep.sim.urdf_builder import UrdfBuilder
+from somo_sweep.sim.urdf_cache import cache_dir, write_urdf
 
 __all__ = [
     "cache_dir",
@@ -29,29 +26,6 @@ __all__ = [
     "splits_into_bodies",
     "write_urdf",
 ]
-
-
-def cache_dir() -> Path:
-    """Folder holding generated URDF files."""
-    root = os.environ.get("SOMO_SWEEP_CACHE")
-    if root:
-        return Path(root) / "urdf"
-    base = os.environ.get("XDG_CACHE_HOME") or str(Path.home() / ".cache")
-    return Path(base) / "somo-sweep" / "urdf"
-
-
-def write_urdf(text: str) -> Path:
-    """Write URDF text under its content hash (atomically) and return the path."""
-    digest = hashlib.sha256(text.encode()).hexdigest()[:24]
-    folder = cache_dir()
-    folder.mkdir(parents=True, exist_ok=True)
-    path = folder / f"{digest}.urdf"
-    if not path.exists():
-        fd, tmp = tempfile.mkstemp(dir=folder, suffix=".tmp")
-        with os.fdopen(fd, "w") as fh:
-            fh.write(text)
-        os.replace(tmp, path)
-    return path
 
 
 def plan_manipulator(

@@ -183,11 +183,22 @@ def parse_cells(
         if why:
             where = f"cells[0].{key}"
             problems.append(Problem(where, why, lines.get(where, at)))
+    bad_keys = len(problems)
     rows = _inline_rows(spec, keys, lines, at, problems)
-    if problems:
-        return None, problems
     where_rows = tuple(f"cells[{i}]" for i in range(len(rows)))
     row_lines = tuple(lines.get(w, at) for w in where_rows)
+    good = [i for i, k in enumerate(keys) if _key_problem(k, task_params) is None]
+    if bad_keys and len(problems) == bad_keys and good and len(rows) == len(spec):
+        # Only some keys are wrong: the rows' other values are still checked when the study loads.
+        kept = Cells(
+            tuple(keys[i] for i in good),
+            tuple(tuple(r[i] for i in good) for r in rows),
+            where_rows,
+            row_lines,
+        )
+        return kept, problems
+    if problems:
+        return None, problems
     cells = Cells(tuple(keys), tuple(rows), where_rows, row_lines)
     return cells, _repeats(cells, lambda i: Problem(where_rows[i], "", row_lines[i]))
 

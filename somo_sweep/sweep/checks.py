@@ -11,7 +11,7 @@ once (:func:`check_points`); each problem is reported once, against the study ke
 from __future__ import annotations
 
 import itertools
-from collections.abc import Callable, Iterator, Mapping
+from collections.abc import Callable, Iterable, Iterator, Mapping, Sequence
 from pathlib import Path
 from typing import Any
 
@@ -19,11 +19,21 @@ from somo_sweep.errors import DescriptionError, Problem, shown
 from somo_sweep.model.files import is_file, missing_or_special
 from somo_sweep.model.load import Model
 from somo_sweep.sweep.axes import Axis
+from somo_sweep.sweep.cells import Cells
 from somo_sweep.sweep.loaded import Study
 from somo_sweep.sweep.resolve import Resolver, canonical, load_model_dict
 from somo_sweep.tasks.registry import TaskSpec
 
-__all__ = ["CHECK_PAIRS", "check_points", "line_of", "nested", "no_model", "no_perturbation", "read_bases"]
+__all__ = [
+    "CHECK_PAIRS",
+    "check_points",
+    "line_of",
+    "nested",
+    "no_model",
+    "no_perturbation",
+    "read_bases",
+    "unknown_labels",
+]
 
 #: Most models (and parameter sets) a task's ``check_params`` sees when a study is loaded: each
 #: distinct model with the first parameter set, each distinct parameter set with the first model.
@@ -69,34 +79,68 @@ def no_perturbation(task: TaskSpec) -> str:
     )
 
 
+def unknown_labels(
+    task: TaskSpec, key: str, names: Sequence[str], given: Iterable[str], whose: str = "allowed"
+) -> list[Problem]:
+    """One problem per name in ``names`` (``grasp`` or ``label_grasp``) that is not in ``given``.
+
+    Args:
+        task: The study's task.
+        key: The key path naming the labels (``adaptive.labels``, ``robustness.labels``).
+        names: The label names the study gives.
+        given: The labels the task gives (declared, or seen in its trials).
+        whose: What the list of ``given`` is (``allowed``, ``its trials give``).
+    """
+    known = sorted(set(given))
+    return [
+        Problem(
+            key,
+            f"'{n}' is not a label of task {task.name}; {whose}: {', '.join(known) or 'none'}",
+        )
+        for n in names
+        if n.removeprefix("label_") not in known
+    ]
+
+
 def read_bases(
     model_path: Path,
     axes: tuple[Axis, ...],
     allow_outside: bool,
     lines: Mapping[str, int],
     problems: list[Problem],
+    cells: Cells | None = None,
 ) -> tuple[dict[str, Mapping[str, Any]], bool]:
-    """Load every model file the study starts from; a broken one is blamed on its study key.
+    """Load every model file the study starts from; a broken one is blamed on its study key
+    (the first row giving it, for a ``model`` column of ``cells``).
 
     Returns:
         Model file → its content, and whether every file loaded.
     """
-    files = [("model", model_path)]
-    files += [("sweep.model", Path(v)) for a in axes if a.key == "model" for v in a.values]
+    rows = cells is not None and "model" in cells.keys
+    files: list[tuple[str, Path, int | None]] = [("model", model_path, None)]
+    files += [
+        ("sweep.model", Path(v), i if rows else None)
+        for a in axes
+        if a.key == "model"
+        for i, v in enumerate(a.values)
+    ]
     bases: dict[str, Mapping[str, Any]] = {}
-    ok = True
-    for key, path in files:
+    broken: set[str] = set()
+    for key, path, row in files:
         if not is_file(path):
-            ok = False
+            broken.add(str(path))
             continue
-        if str(path) in bases:
+        if str(path) in bases or str(path) in broken:
             continue
         try:
             bases[str(path)] = load_model_dict(path, allow_outside)
         except DescriptionError as exc:
-            ok = False
-            problems.append(Problem(key, nested(path, exc), line_of(lines, key)))
-    return bases, ok
+            broken.add(str(path))  # blamed once, on its first row
+            if cells is not None and row is not None:
+                problems.append(_row_problem(cells, row, "model", nested(path, exc), lines))
+            else:
+                problems.append(Problem(key, nested(path, exc), line_of(lines, key)))
+    return bases, not broken
 
 
 def _distinct(study: Study, model: bool) -> Iterator[dict[str, Any]]:
@@ -249,7 +293,11 @@ def _in_cells(study: Study, where: str, point: dict[str, Any], msg: str, lines: 
     cells = study.cells
     if cells is None or not where.startswith("sweep.") or key not in cells.keys:
         return Problem(where, msg, line_of(lines, where))
-    row = cells.row_of(point) or 0
+    return _row_problem(cells, cells.row_of(point) or 0, key, msg, lines)
+
+
+def _row_problem(cells: Cells, row: int, key: str, msg: str, lines: Mapping[str, int]) -> Problem:
+    """A problem of ``key`` in row ``row`` of a ``cells:`` table, naming the row."""
     if cells.file is None:  # inline: the row's key in the study file
         at = f"{cells.where[row]}.{key}"
         return Problem(at, msg, lines.get(at, lines.get("cells")))

@@ -16,6 +16,7 @@ run asks for it.
 from __future__ import annotations
 
 import contextlib
+import logging
 import uuid
 from collections.abc import Callable, Iterable, Iterator
 from typing import TYPE_CHECKING, Any
@@ -91,7 +92,7 @@ def dask_client(scheduler: str | None, timeout_s: float = 15.0) -> Any:
 
     where = shown(scheduler, 4 * SHOWN_CHARS)
     try:
-        return Client(scheduler, timeout=f"{timeout_s}s", set_as_default=False)
+        return _connected(Client, scheduler, timeout_s)
     except (OSError, TimeoutError) as exc:
         raise SomoError(f"cannot connect to the Dask scheduler at {where}: {shown(str(exc), 200)}") from None
     except ValueError as exc:  # an address Dask cannot parse (unknown scheme, no port, ...)
@@ -100,10 +101,64 @@ def dask_client(scheduler: str | None, timeout_s: float = 15.0) -> Any:
             "SCHEME://HOST:PORT, e.g. tcp://HOST:8786"
         ) from None
     except Exception as exc:  # a server that is not a Dask scheduler answers garbage
+        # (read as Dask's framing, a few bytes of it ask for exabytes: a MemoryError)
         raise SomoError(
-            f"the server at {where} did not answer as a Dask scheduler ({type(exc).__name__}); "
-            "check the address and port"
+            f"the server at {where} did not answer as a Dask scheduler (its reply is not Dask's "
+            f"protocol: {type(exc).__name__}); check the address and port"
         ) from None
+
+
+def _connected(client_class: Any, scheduler: str, timeout_s: float) -> Any:
+    """A client of ``scheduler``; a client that failed to connect is dropped at once, quietly."""
+    client = client_class.__new__(client_class)
+    try:
+        with quiet_dask():
+            client.__init__(scheduler, timeout=f"{timeout_s}s", set_as_default=False)
+    except BaseException:
+        # The half-made client would close itself when collected: a 30-s wait, then a traceback
+        # ("Exception ignored in: Client.__del__"). It never connected: drop it now.
+        discard_client(client)
+        raise
+    return client
+
+
+def discard_client(client: Any, timeout_s: float = 2.0) -> None:
+    """Close a Dask client within ``timeout_s`` (s), whatever state its scheduler is in: the client
+    is closed afterwards, so that it never tries again when collected (a 30-s wait and a traceback
+    when the scheduler is gone)."""
+    with quiet_dask(), contextlib.suppress(Exception):
+        if client.status == "running":
+            client.close(timeout=timeout_s)
+    client.status = "closed"
+    with contextlib.suppress(Exception):
+        client._loop_runner.stop()
+
+
+@contextlib.contextmanager
+def quiet_dask() -> Iterator[None]:
+    """Dask's own loggers silenced (a lost scheduler logs some 40 lines of tracebacks; the run says
+    what happened in one line), and on again afterwards unless the block failed: a client that
+    lost its scheduler goes on logging its attempts to reconnect from its own thread."""
+    was = silence_dask()
+    yield
+    for lg, disabled in was:
+        lg.disabled = disabled
+
+
+def silence_dask() -> list[tuple[logging.Logger, bool]]:
+    """Switch Dask's loggers off; returns each with whether it was off before. Dask's logging
+    configuration gives some of them levels of their own, so each is switched off, not its
+    parent's level raised."""
+    names = [n for n in logging.Logger.manager.loggerDict if n.split(".")[0] in _DASK_LOGGERS]
+    loggers = [logging.getLogger(n) for n in sorted({*_DASK_LOGGERS, *names})]
+    was = [(lg, lg.disabled) for lg in loggers]
+    for lg in loggers:
+        lg.disabled = True
+    return was
+
+
+#: The loggers :func:`quiet_dask` switches off, with their children.
+_DASK_LOGGERS = ("distributed", "tornado")
 
 
 def trial_code(task: str, engine: str = "pybullet") -> str:

@@ -22,7 +22,7 @@ import numpy as np
 import pandas as pd
 
 from somo_sweep.errors import SomoError
-from somo_sweep.sim.settings import ENGINES, MUJOCO_DEFAULT_STEP_S, WorldSettings
+from somo_sweep.sim.settings import ENGINES, MUJOCO_DEFAULT_STEP_S, WorldSettings, step_problem
 from somo_sweep.sweep.loaded import Study
 from somo_sweep.sweep.robustness import fold, label_names
 from somo_sweep.sweep.study_file import Simulation
@@ -45,6 +45,8 @@ def on_engine(study: Study, engine: str, output: Path, time_step_s: float | None
     """
     if engine not in ENGINES:
         raise SomoError(f"engine must be one of {', '.join(ENGINES)}, got '{engine}'")
+    if time_step_s is not None and (why := step_problem(time_step_s)) is not None:
+        raise SomoError(f"{engine}: {why}, got {time_step_s:g} s")
     sim = study.simulation
     if sim is not None and sim.engine == engine:
         simulation: Simulation | None = (

@@ -20,7 +20,14 @@ from typing import Any
 from joblib import Parallel, delayed, parallel_config
 
 from somo_sweep.errors import SomoError
-from somo_sweep.sweep.dask_backend import DASK_WORKER_CONFIG, dask_client, dask_environment, run_on_dask
+from somo_sweep.sweep.dask_backend import (
+    DASK_WORKER_CONFIG,
+    dask_client,
+    dask_environment,
+    discard_client,
+    quiet_dask,
+    run_on_dask,
+)
 from somo_sweep.sweep.job import Job
 from somo_sweep.sweep.options import Backend
 from somo_sweep.sweep.trial import (
@@ -141,10 +148,11 @@ def run_jobs(
         own = client is None
         client = dask_client(scheduler) if own else client
         try:
-            yield from run_on_dask(jobs, client, timeout_s, on_stop)
+            with quiet_dask():
+                yield from run_on_dask(jobs, client, timeout_s, on_stop)
         finally:
             if own:
-                client.close()
+                discard_client(client)
         return
     yield from _run_local(jobs, n_jobs, timeout_s, on_stop)
 

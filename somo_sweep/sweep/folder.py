@@ -43,6 +43,7 @@ __all__ = [
     "PART_GLOB",
     "QUARANTINE",
     "REPEATS",
+    "REPLICAS_PLANNED",
     "UNREADABLE",
     "Damage",
     "DamagedPartWarning",
@@ -51,6 +52,7 @@ __all__ = [
     "max_part_rows",
     "part_files",
     "pending_journal_rows",
+    "planned_replicas",
     "read_manifest",
     "read_results",
     "split_parts",
@@ -68,6 +70,9 @@ JOURNAL_GLOB = ".journal-*.jsonl"
 #: Where damaged part files go, inside ``trials/``; their names get a ``_`` prefix so that
 #: ``pd.read_parquet("…/trials")`` (which reads sub-folders) skips them.
 QUARANTINE = "quarantine"
+#: ``DataFrame.attrs`` key of :func:`read_results`'s table: the robustness replicas per replicated
+#: cell that the folder's latest run with replicas planned (:func:`planned_replicas`).
+REPLICAS_PLANNED = "replicas_planned"
 
 
 #: The type of each manifest key the commands read (:func:`~somo_sweep.sweep.manifest.new_manifest`).
@@ -186,7 +191,24 @@ def read_results(folder: str | Path, on_damaged: OnDamaged | None = None) -> pd.
     df = _counted_once(df, names, report)
     missing = {c.name: None for c in COLUMNS if c.name not in df.columns}  # parts from an older version
     df = df.drop(columns=[PART_COLUMN]).assign(**missing)
-    return df.sort_values("trial", kind="stable").reset_index(drop=True)
+    df = df.sort_values("trial", kind="stable").reset_index(drop=True)
+    planned = planned_replicas(manifest)
+    if planned is not None:
+        df.attrs[REPLICAS_PLANNED] = planned
+    return df
+
+
+def planned_replicas(manifest: dict[str, Any]) -> int | None:
+    """Robustness replicas per replicated cell that the folder's latest run with replicas planned
+    (its manifest entry's ``replicas``: ``--robust K`` or the study's ``robustness.replicas``), or
+    None when no run recorded any. A cell with fewer awaits replicas; replicas numbered above it,
+    stored by an earlier run that planned more, are not folded
+    (:func:`~somo_sweep.sweep.robustness.fold`)."""
+    for run in reversed(manifest.get("runs", [])):
+        k = run.get("replicas") if isinstance(run, dict) else None
+        if isinstance(k, int) and not isinstance(k, bool) and k > 0:
+            return k
+    return None
 
 
 def _part_tables(parts: list[Path], report: OnDamaged) -> tuple[list[pa.Table], list[Path]]:

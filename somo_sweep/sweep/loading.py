@@ -21,7 +21,7 @@ from somo_sweep.model.tables import bundled_if_missing
 from somo_sweep.model.validation import validate
 from somo_sweep.sweep.axes import Axis, axis_length, expand_axis, link_groups, parse_key_path
 from somo_sweep.sweep.cells import Cells, cells_key, parse_cells
-from somo_sweep.sweep.checks import check_points, no_model, no_perturbation, read_bases
+from somo_sweep.sweep.checks import check_points, no_model, no_perturbation, read_bases, unknown_labels
 from somo_sweep.sweep.loaded import Study
 from somo_sweep.sweep.study_file import MAX_TRIALS, RESULTS_ROOT, StudyFile
 from somo_sweep.tasks.registry import TaskSpec, get_task
@@ -98,7 +98,7 @@ def load_study(
     fixed = _fixed(raw, found)
     read = _axes(raw, cells, path.parent, found)
     study = _new_study(raw, path, task, cells, model_path, fixed, read, out, allow_outside)
-    bases, bases_ok = read_bases(model_path, study.axes, allow_outside, lines, found.problems)
+    bases, bases_ok = read_bases(model_path, study.axes, allow_outside, lines, found.problems, cells)
     study = replace(study, bases=bases)
     if found.problems and bases_ok:
         # Check the trials of the good axes too, so that every problem is reported at once.
@@ -153,7 +153,8 @@ def _task(raw: StudyFile, found: _Found) -> TaskSpec:
 
 
 def _cells(raw: StudyFile, task: TaskSpec, found: _Found) -> Cells | None:
-    """The ``cells:`` table (None without one); and whether replicas are possible at all."""
+    """The ``cells:`` table (None without one); whether replicas are possible at all, and whether
+    the task gives the labels the study names."""
     cells: Cells | None = None
     if raw.cells is not None:
         cells, problems = parse_cells(
@@ -162,6 +163,13 @@ def _cells(raw: StudyFile, task: TaskSpec, found: _Found) -> Cells | None:
         found.problems.extend(problems)
     if raw.robustness.replicas and task.perturb is None:
         found.add("robustness.replicas", no_perturbation(task))
+    if task.labels is not None:
+        for key, names in (
+            ("adaptive.labels", raw.adaptive.labels),
+            ("robustness.labels", raw.robustness.labels),
+        ):
+            for problem in unknown_labels(task, key, names, task.labels):
+                found.add(problem.path, problem.message)
     return cells
 
 

@@ -9,7 +9,8 @@ import pandas as pd
 from matplotlib.axes import Axes
 from matplotlib.figure import Figure
 
-from somo_sweep.sweep.robustness import ROBUST, fold, label_names
+from somo_sweep.sweep.folder import planned_replicas
+from somo_sweep.sweep.robustness import AWAITED, ROBUST, fold, label_names
 from somo_sweep.sweep.schema import FIXED, unit_of
 
 __all__ = [
@@ -36,7 +37,7 @@ def metric_columns(df: pd.DataFrame) -> list[str]:
         for c in df.columns
         if c not in FIXED
         and not c.startswith(("task_", "model_", "label_"))
-        and c != "replicas"
+        and c not in ("replicas", AWAITED)
         and pd.api.types.is_numeric_dtype(df[c])
         and not pd.api.types.is_bool_dtype(df[c])
     ]
@@ -85,6 +86,7 @@ def plot_labels(ax: Axes, df: pd.DataFrame, x: str | None, label: str) -> None:
         ok[ROBUST].eq(False).fillna(False).astype(bool) if ROBUST in ok else pd.Series(False, index=ok.index)
     )
     n_uncertain = int(uncertain.sum())
+    n_awaiting = int((ok[AWAITED] > 0).sum()) if AWAITED in ok else 0
     index = pd.Index(["all"]) if x is None else pd.Index(sorted(ok[x].unique()))
     order = sorted(set(values))
     names = [str(v) for v in index]
@@ -110,6 +112,8 @@ def plot_labels(ax: Axes, df: pd.DataFrame, x: str | None, label: str) -> None:
     notes = [f"{n_inferred} inferred"] if n_inferred else []
     if n_uncertain:
         notes.append(f"{n_uncertain} not robust, hatched")
+    if n_awaiting:
+        notes.append(f"{n_awaiting} await replicas")
     ax.set_title(label.removeprefix("label_") + (f" ({', '.join(notes)})" if notes else ""))
     if len(counts.columns):
         ax.legend(fontsize="small")
@@ -174,7 +178,7 @@ def label_maps(df: pd.DataFrame, manifest: dict[str, Any]) -> list[tuple[str, Fi
     label of more than :data:`MAX_MAP_LABELS` values."""
     from somo_sweep.sweep.label_maps import folded_cells, label_map_figure
 
-    folded = fold(df)
+    folded = fold(df, planned=planned_replicas(manifest))
     short = {c: k.rsplit(".", 1)[-1] for k, c in manifest.get("axes", {}).items()}
     axes = [c for c in short if c in folded.columns]
     if not axes or folded.empty:
@@ -197,7 +201,7 @@ def summary_figure(df: pd.DataFrame, manifest: dict[str, Any]) -> Figure:
     folded into their cells (:func:`~somo_sweep.sweep.robustness.fold`): metrics are the cells' own
     trials', labels their majority.
     """
-    df = fold(df)
+    df = fold(df, planned=planned_replicas(manifest))
     short = {c: k.rsplit(".", 1)[-1] for k, c in manifest.get("axes", {}).items()}
     axes = [c for c in short if c in df.columns]
     numeric = [c for c in axes if pd.api.types.is_numeric_dtype(df[c])]

@@ -158,7 +158,9 @@ class Resolver:
             if not path.startswith("model."):
                 continue
             try:
-                set_path(data, parse_key_path(path)[1], value)
+                parts = parse_key_path(path)[1]
+                _check_section(data, parts, model_path)
+                set_path(data, parts, value)
             except ValueError as exc:
                 problems.append(Problem(path, str(exc)))
         if problems:
@@ -211,6 +213,23 @@ class Resolver:
             except SomoError as exc:
                 raise DescriptionError(self.inputs.source, [Problem(f"task.{name}", str(exc))]) from None
         return params.model_copy(update=update) if update else params
+
+
+#: The sections of a model file: one of them describes the model.
+_SECTIONS = ("manipulator", "assembly")
+
+
+def _check_section(data: Mapping[str, Any], parts: list[str | int], model_path: Path) -> None:
+    """Refuse an override of the section the model file does not have (``model.manipulator.name``
+    on an assembly would add a second, empty model and be refused for what that one lacks)."""
+    first = parts[0] if parts else None
+    if first in _SECTIONS and first not in data:
+        has = next((k for k in _SECTIONS if k in data), None)
+        kind = f"{'an' if has == 'assembly' else 'a'} {has} file" if has else "a model file"
+        raise ValueError(
+            f"{model_path.name} is {kind}, with no '{first}' section; allowed: key paths under "
+            f"model.{has or first}"
+        )
 
 
 @cache

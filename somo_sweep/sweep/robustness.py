@@ -12,6 +12,14 @@ of the runs that give it) and ``robust`` (every run of the cell gives the same o
 label; missing for cells without replicas). A run that did not finish ``ok`` counts as the
 outcome of its status.
 
+A cell is robust only when all its planned replicas ran. The planned count is the one the
+folder's latest run that ran replicas asked for (its manifest entry's ``replicas``,
+:func:`~somo_sweep.sweep.folder.planned_replicas`); a run cut short leaves cells with fewer:
+they *await replicas* (``replicas_awaited`` > 0) and are not robust until a resumed run adds
+the rest (``robust`` stays missing, or False if the runs stored already disagree). Replicas
+numbered above the planned count (stored by an earlier run that asked for more) are left out,
+so the readers fold what the latest run reported.
+
 Which cells (``where``): ``all`` replicates every simulated cell. ``boundary`` (default)
 replicates the cells whose outcome differs from a grid neighbour's (along any axis, same
 repeat), plus a seeded random audit of ``audit_fraction`` of the other simulated cells; then,
@@ -32,15 +40,18 @@ import numpy as np
 import pandas as pd
 
 from somo_sweep.sweep.adaptive import UNKNOWN
+from somo_sweep.sweep.folder import REPLICAS_PLANNED
 from somo_sweep.sweep.job import Job, replica_jobs
 from somo_sweep.sweep.jobs import JobTable
 from somo_sweep.sweep.loaded import Study
 from somo_sweep.sweep.sampling import Batch, Known
 
-__all__ = ["ROBUST", "ReplicaPlan", "boundary_mask", "fold", "label_names"]
+__all__ = ["AWAITED", "ROBUST", "ReplicaPlan", "boundary_mask", "fold", "label_names"]
 
 #: The column of :func:`fold` that says whether every run of a cell agrees.
 ROBUST = "robust"
+#: The column of :func:`fold` that counts the planned replicas a cell still lacks.
+AWAITED = "replicas_awaited"
 #: Rounds of "neighbours of a cell whose majority moved" before the plan stops (a guard).
 MAX_ROUNDS = 20
 
@@ -200,7 +211,9 @@ def label_names(table: pd.DataFrame) -> list[str]:
     ]
 
 
-def fold(table: pd.DataFrame, labels: Sequence[str] | None = None) -> pd.DataFrame:
+def fold(
+    table: pd.DataFrame, labels: Sequence[str] | None = None, planned: int | None = None
+) -> pd.DataFrame:
     """One row per cell: its own trial's row plus, for every label, the majority, the agreement
     and the number of runs, and ``robust`` (module docstring).
 
@@ -208,11 +221,16 @@ def fold(table: pd.DataFrame, labels: Sequence[str] | None = None) -> pd.DataFra
         table: A results table (:func:`~somo_sweep.sweep.folder.read_results`); rows without a
             ``replica`` column or value are a cell's own trials.
         labels: Label columns to fold (default: every ``label_*`` column).
+        planned: Replicas planned per replicated cell; default: the table's
+            ``attrs[REPLICAS_PLANNED]`` (set by ``read_results`` from the manifest), else the
+            most replicas stored for one cell.
 
     Returns:
-        The cells' own rows, in grid order, with ``replicas`` (replica runs stored),
-        ``label_L_majority``, ``label_L_agreement`` for each label L, and ``robust``
-        (True / False, missing where no replica ran).
+        The cells' own rows, in grid order, with ``replicas`` (replica runs stored and folded),
+        :data:`AWAITED` (planned replicas not stored yet), ``label_L_majority``,
+        ``label_L_agreement`` for each label L, and ``robust`` (True only when every planned
+        replica ran and all runs agree; False when the runs stored disagree; missing where no
+        replica ran or the cell awaits replicas).
     """
     names = list(labels) if labels is not None else label_names(table)
     replica = (
@@ -220,13 +238,30 @@ def fold(table: pd.DataFrame, labels: Sequence[str] | None = None) -> pd.DataFra
         if "replica" in table.columns
         else pd.Series(0, index=table.index)
     )
+    if planned is None:
+        planned = table.attrs.get(REPLICAS_PLANNED)
+    if planned is None:
+        planned = int(replica.max()) if len(replica) else 0
+    kept = replica <= planned
+    table, replica = table[kept], replica[kept]
     own = table[replica == 0].copy()
     extra = table[replica > 0]
     counts = extra.groupby("trial").size() if len(extra) else pd.Series(dtype=int)
     own["replicas"] = own["trial"].map(counts).fillna(0).astype(int).to_numpy()
+    own[AWAITED] = np.where(own["replicas"] > 0, (planned - own["replicas"]).clip(lower=0), 0)
     if not names:
         own[ROBUST] = pd.array([pd.NA] * len(own), dtype="boolean")
         return own.reset_index(drop=True)
+    all_agree = _agreement(own, table, replica, names)
+    robust = pd.array(all_agree.to_numpy(), dtype="boolean")
+    unchecked = (own["replicas"].to_numpy() == 0) | ((own[AWAITED].to_numpy() > 0) & all_agree.to_numpy())
+    robust[unchecked] = pd.NA
+    own[ROBUST] = robust
+    return own.reset_index(drop=True)
+
+
+def _agreement(own: pd.DataFrame, table: pd.DataFrame, replica: pd.Series, names: Sequence[str]) -> pd.Series:
+    """Add each label's majority and agreement to ``own``; whether every run agrees on every label."""
     status = table["status"].astype(str)
     all_agree = pd.Series(True, index=own.index)
     for name in names:
@@ -243,7 +278,4 @@ def fold(table: pd.DataFrame, labels: Sequence[str] | None = None) -> pd.DataFra
         own[f"{name}_majority"] = own["trial"].map(majority).to_numpy()
         own[f"{name}_agreement"] = own["trial"].map(share).astype(float).to_numpy()
         all_agree &= own[f"{name}_agreement"] >= 1.0
-    robust = pd.array(all_agree.to_numpy(), dtype="boolean")
-    robust[own["replicas"].to_numpy() == 0] = pd.NA
-    own[ROBUST] = robust
-    return own.reset_index(drop=True)
+    return all_agree

@@ -21,6 +21,7 @@ import numpy as np
 
 from somo_sweep.errors import DescriptionError, Problem
 from somo_sweep.sweep.adaptive import UNKNOWN, AdaptiveGrid, Cell, infer, next_cells
+from somo_sweep.sweep.checks import unknown_labels
 from somo_sweep.sweep.job import Job
 from somo_sweep.sweep.jobs import JobTable
 from somo_sweep.sweep.loaded import Study
@@ -160,19 +161,9 @@ class AdaptivePlan:
                 f"task {self.study.task.name} gives no labels: refinement followed the trials' status "
                 "only, and inferred cells have a status and no metrics"
             )
-        unknown = [n for n in self.labels if n not in seen]
+        unknown = unknown_labels(self.study.task, "adaptive.labels", self.labels, seen, "its trials give")
         if unknown:
-            raise DescriptionError(
-                self.study.source,
-                [
-                    Problem(
-                        "adaptive.labels",
-                        f"'{n}' is not a label of task {self.study.task.name}; its trials give: "
-                        + (", ".join(sorted(seen)) or "none"),
-                    )
-                    for n in unknown
-                ],
-            )
+            raise DescriptionError(self.study.source, unknown)
 
     def _merge_stored(self, known: Known) -> bool:
         """Give the plan the keys of cells stored in the folder that it never asked for.

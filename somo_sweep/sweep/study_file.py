@@ -45,12 +45,18 @@ folder (``--out``) may be anywhere.
 from __future__ import annotations
 
 from pathlib import Path
-from typing import Annotated, Any, Literal
+from typing import Annotated, Any, ClassVar, Literal
 
-from pydantic import Field, model_validator
+from pydantic import Field, field_validator, model_validator
 
 from somo_sweep.model.description import Spec
-from somo_sweep.sim.settings import MUJOCO_DEFAULT_STEP_S, MUJOCO_ONLY, PYBULLET_ONLY, WorldSettings
+from somo_sweep.sim.settings import (
+    MUJOCO_DEFAULT_STEP_S,
+    MUJOCO_ONLY,
+    PYBULLET_ONLY,
+    WorldSettings,
+    step_problem,
+)
 from somo_sweep.sweep.schema import MAX_REPLICAS
 
 __all__ = ["MAX_REPLICAS", "MAX_TRIALS", "RESULTS_ROOT", "Adaptive", "Robustness", "Simulation", "StudyFile"]
@@ -83,6 +89,8 @@ class Simulation(Spec):
     ``body_per_manipulator`` and ``friction_rows_every`` are PyBullet's).
     """
 
+    text_numbers: ClassVar[bool] = False
+
     time_step_s: float | None = Field(None, gt=0)
     scale: float = Field(20.0, gt=0)
     solver_iterations: int = Field(50, ge=1)
@@ -94,6 +102,14 @@ class Simulation(Spec):
     contact_time_constant_s: float = Field(WorldSettings.contact_time_constant_s, gt=0, le=1.0)
     impratio: float = Field(WorldSettings.impratio, gt=0, le=1e4)
     noslip_iterations: int = Field(WorldSettings.noslip_iterations, ge=0, le=1000)
+
+    @field_validator("time_step_s")
+    @classmethod
+    def _a_stable_step(cls, value: float | None) -> float | None:
+        """A step beyond any model's stability (1e9 s: every trial ends in error) is refused."""
+        if value is not None and (why := step_problem(value)) is not None:
+            raise ValueError(why)
+        return value
 
     @model_validator(mode="after")
     def _options_of_the_engine(self) -> Simulation:
@@ -144,6 +160,8 @@ class Adaptive(Spec):
             largest power of two ≤ (values − 1) / 2 of each axis).
     """
 
+    text_numbers: ClassVar[bool] = False
+
     labels: list[Annotated[str, Field(pattern=r"^[A-Za-z0-9_]+$")]] = Field(default_factory=list)
     coarse_step: int | None = Field(None, ge=1)
 
@@ -167,6 +185,8 @@ class Robustness(Spec):
         labels: Labels that decide boundaries and robustness (default: every label).
     """
 
+    text_numbers: ClassVar[bool] = False
+
     replicas: int = Field(0, ge=0, le=MAX_REPLICAS)
     where: Literal["boundary", "all"] = "boundary"
     audit_fraction: float = Field(0.1, ge=0.0, le=1.0)
@@ -175,6 +195,8 @@ class Robustness(Spec):
 
 class StudyFile(Spec):
     """The raw schema of a study file (see the module docstring)."""
+
+    text_numbers: ClassVar[bool] = False
 
     name: str | None = Field(None, pattern=r"^[A-Za-z0-9_.-]+$", max_length=100)
     task: str

@@ -86,6 +86,10 @@ class TaskSpec:
         perturbation: One line saying what ``perturb`` changes (for ``--help`` and the docs).
         summary_metrics: The metrics a designer reads first (``plot`` draws these before any
             other); empty: every metric in the order the task returns them.
+        labels: The names of the labels the task's trials can give (each trial some or all of
+            them), so that a study naming another one (``adaptive.labels``,
+            ``robustness.labels``) is refused when it loads; None: not declared, and only the
+            trials' own labels are checked, once they ran.
     """
 
     name: str
@@ -101,6 +105,7 @@ class TaskSpec:
     perturb: Callable[[Any, Any], Any] | None = None
     perturbation: str = ""
     summary_metrics: tuple[str, ...] = ()
+    labels: tuple[str, ...] | None = None
 
     @property
     def run(self) -> TaskFn:

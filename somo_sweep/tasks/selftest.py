@@ -172,5 +172,6 @@ for _name, _fn, _text in (
             METRICS,
             perturb=perturb,
             perturbation="x moved by up to ±jitter",
+            labels=("sign", "step", "dt", "region"),
         )
     )

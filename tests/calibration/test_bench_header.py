@@ -134,10 +134,23 @@ def test_a_bad_bench_line_exits_2_naming_the_line_and_writes_nothing(
         assert not (tmp_path / "m.yaml").exists() and not (tmp_path / "o").exists()
 
 
-def test_the_bench_line_is_read_only_above_the_column_header(tmp_path: Path) -> None:
+def test_a_bench_line_after_the_column_header_is_refused_naming_its_line(tmp_path: Path) -> None:
+    """It was ignored without a word: the stop stayed at the default."""
     csv = _csv(tmp_path, FINGER)
-    csv.write_text(csv.read_text() + "# bench: {stop_z_mm: -9}\n")
-    assert read_bench_header(csv).stop_z_mm is None
+    lines = csv.read_text().splitlines()
+    header = next(i for i, ln in enumerate(lines, start=1) if not ln.startswith("#"))
+    lines.insert(header + 2, "# bench: {stop_z_mm: -9}")
+    csv.write_text("\n".join(lines) + "\n")
+    message = (
+        f"line {header + 3}: the bench header is after the column header (line {header}), where it is "
+        "not read; allowed: one '# bench:' line above the header"
+    )
+    with pytest.raises(MeasurementError) as info:
+        read_bench_header(csv)
+    assert str(csv) in str(info.value) and message in str(info.value)
+    res = runner.invoke(app, ["calibrate", str(csv), "-o", str(tmp_path / "m.yaml")])
+    assert res.exit_code == 2, res.output
+    assert message in " ".join(res.output.split()), res.output
     with pytest.raises(MeasurementError, match="bench header is given twice"):
         read_bench_header(_csv(tmp_path, "bench: {stop_z_mm: -9}\nBENCH: {stop_z_mm: -9}", "twice.csv"))
 

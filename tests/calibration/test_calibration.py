@@ -591,3 +591,15 @@ def test_a_row_repeated_thousands_of_times_is_named_in_one_short_line() -> None:
         f"5000 row(s) repeat an earlier row exactly (lines {lines}, … repeat line 2; … 4980 more"
     )
     assert len(text) < 600
+
+
+def test_problem_description_of_a_long_file_stays_short(tmp_path: Path) -> None:
+    """``calibrate -q`` on 4999 rows printed 4976 line numbers."""
+    text = SYNTHETIC.read_text().splitlines()
+    header = next(i for i, ln in enumerate(text) if not ln.startswith("#"))
+    free = [ln for ln in text[header + 1 :] if ln.startswith("free_bending")]
+    long = tmp_path / "long.csv"
+    long.write_text("\n".join([*text, *free * 300]) + "\n")
+    said = build_problem(read_measurements(long), _example_base(), str(long)).describe()
+    assert "validation rows: free_bending (3913: lines 29, 30" in said and "… (3901 more)" in said
+    assert len(said) < 600

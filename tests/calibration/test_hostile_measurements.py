@@ -600,3 +600,17 @@ def test_calibrate_marks_its_json_report_and_replaces_it_and_an_older_unmarked_o
     res = CliRunner().invoke(app, args)
     assert res.exit_code == 0, res.output
     assert json.loads((report / "calibration.json").read_text())["written_by"] == "somo-sweep calibrate"
+
+
+def test_a_huge_field_on_a_row_with_an_extra_field_names_its_line(tmp_path: Path) -> None:
+    """pandas' own message counted records, not file lines ("line 2" for line 3), or none at all."""
+    path = tmp_path / "m.csv"
+    path.write_text("# a comment\n" + HEADER + 'tip_load,0,0.01,0.5,,,,,grasp,"' + "x" * 2_000_000 + '"\n')
+    text = _error(path)
+    assert "line 3: a field is longer than 131072 characters" in text and len(text) < 1000
+
+
+def test_an_unknown_column_names_the_header_line(tmp_path: Path) -> None:
+    path = tmp_path / "m.csv"
+    path.write_text("# a comment\n" + HEADER.rstrip("\n") + ",z" + "x" * 1_000_000 + "\n")
+    assert "line 2: unknown column 'zxxx" in _error(path)

@@ -54,6 +54,7 @@ def test_the_headline_counts_only_robust_pinches_and_says_what_every_cell_would_
         "cells_replicated": 8,
         "robust": 7,
         "not_robust": 1,
+        "awaiting_replicas": 0,
         "smallest_all_width_pinch_dsr_every_cell": 0.1,
     }
     assert "smallest all-width pinch DSR: 0.20 (robust cells); 0.10 counting every cell" in out.lines
@@ -126,3 +127,21 @@ def test_fig6_and_classify_commands_report_robustness(tmp_path: Path) -> None:
     assert "robustness: 1 cell(s) with replicas, 1 robust under rule contacts, 0 not" in res.output
     labels = pd.read_csv(folder / "grasp_labels_contacts.csv")
     assert labels["replicas"].tolist() == [0, 1, 0] and labels["robust"].tolist()[1] is True
+
+
+def test_a_cell_awaiting_some_of_its_planned_replicas_is_not_counted_in_the_headline(tmp_path: Path) -> None:
+    folder = results_folder(tmp_path)
+    trials = pd.read_parquet(folder / "trials").assign(replica=0)
+    partial = trials[trials["trial"] == 0].loc[[0, 0]].assign(replica=[1, 2], job_id=["r1", "r2"])
+    pd.concat([trials, partial]).to_parquet(folder / "trials" / "part-0.parquet")
+    # The run that planned 4 replicas per cell was killed after 2 of the pinch cell's.
+    manifest = {"study_hash": "h", "runs": [{"status": "running", "replicas": 4}]}
+    (folder / "manifest.json").write_text(json.dumps(manifest))
+    res = CliRunner().invoke(app, ["paper", "fig6", str(folder), "--out", str(tmp_path / "fig")])
+    assert res.exit_code == 0, res.output
+    assert "no DSR pinch-grasps every width (robust cells)" in res.output
+    assert "1 cell(s) await replicas" in res.output
+    info = json.loads((tmp_path / "fig" / "fig6_contacts.json").read_text())
+    assert info["robustness"]["robust"] == 0 and info["robustness"]["awaiting_replicas"] == 1
+    res = CliRunner().invoke(app, ["classify", str(folder)])
+    assert "1 cell(s) with replicas, 0 robust under rule contacts, 0 not, 1 await replicas" in res.output

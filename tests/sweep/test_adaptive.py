@@ -222,10 +222,22 @@ def test_only_the_labels_the_study_names_are_refined(tmp_path: Path) -> None:
 def test_a_label_the_task_does_not_give_names_the_key_and_the_labels_it_does(tmp_path: Path) -> None:
     path = study_2d(tmp_path, extra="adaptive: {labels: [regoin]}")
     with pytest.raises(DescriptionError) as info:
-        run_sweep(load_study(path, tmp_path / "out"), RunOptions(n_jobs=1))
+        load_study(path, tmp_path / "out")
     assert str(path) in str(info.value)
     assert (
-        "adaptive.labels: 'regoin' is not a label of task selftest_sleep; its trials give: region, sign"
+        "adaptive.labels: 'regoin' is not a label of task selftest_sleep; allowed: dt, region, sign, step"
+        in str(info.value)
+    )
+    assert not (tmp_path / "out").exists()
+
+
+def test_a_declared_label_these_trials_do_not_give_is_refused_once_they_ran(tmp_path: Path) -> None:
+    """``step`` is a label of selftest_sleep, given only with ``coarse_above_s`` set."""
+    path = study_2d(tmp_path, extra="adaptive: {labels: [step]}")
+    with pytest.raises(DescriptionError) as info:
+        run_sweep(load_study(path, tmp_path / "out"), RunOptions(n_jobs=1))
+    assert (
+        "adaptive.labels: 'step' is not a label of task selftest_sleep; its trials give: region, sign"
         in str(info.value)
     )
 
@@ -303,8 +315,8 @@ def test_a_named_label_is_refused_when_the_task_gives_none(tmp_path: Path) -> No
     cells were inferred from the trials' status without a word."""
     text = bundled_path("finger_pressure_sweep.yaml").read_text() + "sampling: adaptive\n"
     bad = make_study(tmp_path, text + "adaptive: {labels: [grasp]}\n", name="bad.yaml")
-    with pytest.raises(DescriptionError, match="'grasp' is not a label of task bench; its trials give: none"):
-        run_sweep(load_study(bad, tmp_path / "bad"), RunOptions(n_jobs=2))
+    with pytest.raises(DescriptionError, match="'grasp' is not a label of task bench; allowed: none"):
+        load_study(bad, tmp_path / "bad")
     summary = run_sweep(
         load_study(make_study(tmp_path, text, name="ok.yaml"), tmp_path / "ok"), RunOptions(n_jobs=2)
     )

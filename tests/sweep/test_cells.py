@@ -192,3 +192,34 @@ def test_a_list_of_cells_gets_robustness_replicas_too(tmp_path: Path) -> None:
     summary = run_sweep(study, RunOptions(n_jobs=1))
     assert (summary.run, summary.replicas_run) == (3, 6)
     assert sorted(read_results(tmp_path / "out")["replica"]) == [0, 0, 0, 1, 1, 1, 2, 2, 2]
+
+
+def _refused(path: Path) -> str:
+    with pytest.raises(DescriptionError) as info:
+        load_study(path, path.parent / "out")
+    return str(info.value)
+
+
+def test_a_broken_model_file_of_a_row_is_blamed_on_that_row(tmp_path: Path) -> None:
+    """It was reported as ``sweep.model``, with no row named."""
+    body = (
+        "name: b\ntask: selftest_sleep\nmodel: models/ihm_finger.yaml\ncells:\n"
+        "  - {task.x: 1, model: models/ihm_finger.yaml}\n  - {task.x: 2, model: models/bad.yaml}\n"
+        "  - {task.x: 3, model: models/bad.yaml}\n"
+    )
+    path = make_study(tmp_path, body)
+    good = (tmp_path / "models" / "ihm_finger.yaml").read_text()
+    (tmp_path / "models" / "bad.yaml").write_text(good.replace("length_m: 0.", "length_m: -0.", 1))
+    text = _refused(path)
+    assert "line 6: cells[1].model: " in text and "bad.yaml: line 10: manipulator" in text
+    assert "sweep.model" not in text and "cells[2]" not in text  # blamed once, on its first row
+
+
+def test_an_unknown_key_in_an_inline_row_does_not_hide_the_rows_other_problems(tmp_path: Path) -> None:
+    body = (
+        "name: e\ntask: selftest_sleep\nmodel: models/ihm_finger.yaml\ncells:\n"
+        "  - {task.x: 1, bogus: 3, task.sleep_s: -5}\n  - {task.x: 2, bogus: 3, task.sleep_s: 0}\n"
+    )
+    text = _refused(make_study(tmp_path, body))
+    assert "line 5: cells[0].bogus: key path 'bogus' must start with 'model.' or 'task.'" in text
+    assert "line 5: cells[0].task.sleep_s: Input should be greater than or equal to 0, got -5" in text

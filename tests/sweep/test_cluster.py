@@ -192,3 +192,31 @@ def test_a_worker_killed_mid_study_costs_no_finished_trial(tmp_path: Path, clust
     assert len(df) == n and df["job_id"].is_unique and set(df["status"]) == {"ok"}
     assert sorted(df["task_x"]) == [float(x) for x in range(1, n + 1)]
     assert read_manifest(out)["runs"][-1]["status"] == "completed"
+
+
+def test_a_scheduler_killed_mid_study_is_one_line_without_dasks_tracebacks(tmp_path: Path) -> None:
+    """The clean "lost the Dask scheduler" line came after some 40 lines of Dask's own tracebacks."""
+    (tmp_path / "own").mkdir()
+    own = Cluster(tmp_path / "own", workers=1)
+    fifo = tmp_path / "finished"
+    os.mkfifo(fifo)
+    path = selftest_study(tmp_path, extra=f"set: {{task.sleep_s: 0.3, task.notify_fifo: '{fifo}'}}", n=30)
+    try:
+        with FinishedTrials(fifo) as finished:
+            proc = subprocess.Popen(
+                [
+                    *(str(CLI), "run", str(path), "--backend", "dask", "--scheduler", own.address),
+                    *("--no-plots", "--out", str(tmp_path / "out")),
+                ],
+                stdout=subprocess.PIPE,
+                stderr=subprocess.PIPE,
+                text=True,
+            )
+            finished.wait(3)
+            own.procs[0].send_signal(signal.SIGKILL)  # the scheduler
+            _, stderr = proc.communicate(timeout=120)
+    finally:
+        own.close()
+    assert proc.returncode != 0
+    assert "error: lost the Dask scheduler" in stderr
+    assert "Traceback" not in stderr and "distributed." not in stderr, stderr

@@ -7,6 +7,13 @@ which is not the scheduler being gone. Here each case is made to happen every ti
 
 from __future__ import annotations
 
+import contextlib
+import re
+import socket
+import subprocess
+import sys
+import threading
+import time
 from collections import deque
 from collections.abc import Iterator
 from pathlib import Path
@@ -116,3 +123,57 @@ def test_a_cancelled_trial_says_whether_the_scheduler_is_gone(
             got.append(job.trial)
     assert got == [0] and "finished trials are kept" in str(err.value)
     assert stopped == [len(client.cancelled)] and client.cancelled  # the rest taken off the cluster
+
+
+def _quietly_refused(scheduler: str, says: str) -> None:
+    """``dask_client`` refuses ``scheduler`` with ``says`` in a process of its own, and the client it
+    began leaves nothing: no 30-s close at exit, no "Exception ignored in: Client.__del__" traceback."""
+    code = (
+        "from somo_sweep.errors import SomoError\n"
+        "from somo_sweep.sweep.dask_backend import dask_client\n"
+        "try:\n"
+        f"    dask_client({scheduler!r}, timeout_s=1.0)\n"
+        "except SomoError as exc:\n"
+        "    print(exc)\n"
+    )
+    start = time.monotonic()
+    done = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=120)
+    assert time.monotonic() - start < 15.0, done.stderr
+    assert re.search(says, done.stdout), done.stdout + done.stderr
+    assert "Exception ignored" not in done.stderr and "Traceback" not in done.stderr, done.stderr
+
+
+def test_an_address_that_is_not_one_is_a_line_without_a_wait_or_a_traceback() -> None:
+    """``--scheduler notanaddress`` said so, then waited 30 s and printed Client.__del__'s traceback."""
+    _quietly_refused("notanaddress", "--scheduler notanaddress is not a Dask address")
+
+
+def test_a_port_where_nothing_listens_is_a_line_without_a_wait_or_a_traceback() -> None:
+    with socket.socket() as s:  # a free port, closed again: nothing listens there
+        s.bind(("127.0.0.1", 0))
+        port = s.getsockname()[1]
+    _quietly_refused(f"tcp://127.0.0.1:{port}", "cannot connect to the Dask scheduler at tcp://127.0.0.1:")
+
+
+def test_a_server_that_is_no_dask_scheduler_is_named_so() -> None:
+    """Its reply, read as Dask's framing, asked for exabytes: the message said only "MemoryError"."""
+
+    server = socket.socket()
+    server.bind(("127.0.0.1", 0))
+    server.listen()
+
+    def answer() -> None:
+        with contextlib.suppress(OSError):
+            conn, _ = server.accept()
+            with conn:
+                conn.sendall(b"HTTP/1.1 400 Bad Request\r\n\r\n" * 4)
+                time.sleep(2)
+
+    threading.Thread(target=answer, daemon=True).start()
+    try:
+        _quietly_refused(
+            f"tcp://127.0.0.1:{server.getsockname()[1]}",
+            "did not answer as a Dask scheduler \\(its reply is not Dask's protocol",
+        )
+    finally:
+        server.close()

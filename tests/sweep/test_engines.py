@@ -13,7 +13,7 @@ from conftest import MODELS
 from typer.testing import CliRunner
 
 from somo_sweep.cli.app import app
-from somo_sweep.errors import DescriptionError, SimulationError
+from somo_sweep.errors import DescriptionError, SimulationError, SomoError
 from somo_sweep.sim.world import WorldSettings
 from somo_sweep.sim.worlds import open_world
 from somo_sweep.sweep.engines import compare, on_engine
@@ -262,3 +262,26 @@ def test_compare_folds_robustness_replicas_into_their_cells() -> None:
     assert grasp["cells"] == 3 and grasp["agree"] == 1
     assert grasp["robust_cells"] == 1 and grasp["robust_agree"] == 1  # cell 0: replicas agree
     assert list(result.cells["robust_grasp"]) == [True, False, False]  # cell 2: no replicas
+
+
+@pytest.mark.parametrize("engine", ["pybullet", "mujoco"])
+def test_a_step_beyond_any_models_stability_is_refused_at_load_with_the_range(
+    tmp_path: Path, engine: str
+) -> None:
+    """``time_step_s: 1.0e9`` passed --dry-run, and every trial was stored as error (KeyError: 0)."""
+    path = _study(tmp_path, f"{{engine: {engine}, time_step_s: 1.0e9}}")
+    with pytest.raises(DescriptionError) as info:
+        load_study(path, tmp_path / "out")
+    assert "simulation.time_step_s: the time step must be > 0 and at most 20 ms" in str(info.value)
+    assert load_study(_study(tmp_path, f"{{engine: {engine}, time_step_s: 0.02}}"), tmp_path / "ok")
+
+
+def test_compare_engines_refuses_a_step_beyond_any_models_stability(tmp_path: Path) -> None:
+    path = _study(tmp_path, "{time_step_s: 4.0e-3}", extra="sweep:\n  task.object_width_m: [0.01]\n")
+    out = tmp_path / "out"
+    res = CliRunner().invoke(app, ["compare-engines", str(path), "--mujoco-step", "1e9", "--out", str(out)])
+    assert res.exit_code == 2, res.output
+    assert "--mujoco-step: the time step must be > 0 and at most 20 ms" in " ".join(res.output.split())
+    assert not out.exists()
+    with pytest.raises(SomoError, match="mujoco: the time step must be > 0 and at most 20 ms"):
+        on_engine(load_study(path, out), "mujoco", out, 1e9)

@@ -19,7 +19,7 @@ from somo_sweep.errors import DescriptionError
 from somo_sweep.sweep.adaptive import UNKNOWN
 from somo_sweep.sweep.jobs import build_jobs, replica_jobs
 from somo_sweep.sweep.robustness import ReplicaPlan, boundary_mask, fold
-from somo_sweep.sweep.runner import RunOptions, run_sweep
+from somo_sweep.sweep.runner import RunEvents, RunOptions, run_sweep
 from somo_sweep.sweep.store import read_manifest, read_results
 from somo_sweep.sweep.study import load_study, with_replicas
 
@@ -93,6 +93,18 @@ def test_a_task_without_a_perturbation_cannot_ask_for_replicas(tmp_path: Path) -
     plain = load_study(make_study(tmp_path, body.replace("robustness: {replicas: 2}\n", ""), "b.yaml"))
     with pytest.raises(DescriptionError, match="defines no perturbation"):
         with_replicas(plain, 3)
+
+
+def test_a_robustness_label_the_task_does_not_give_is_refused_at_load(tmp_path: Path) -> None:
+    """``labels: [nope]`` ran, with 0 boundary cells and not a word."""
+    path = sign_study(tmp_path, extra="robustness: {replicas: 4, labels: [nope, label_sign]}")
+    with pytest.raises(DescriptionError) as info:
+        load_study(path, tmp_path / "out")
+    text = str(info.value)
+    assert str(path) in text
+    allowed = "allowed: dt, region, sign, step"
+    assert f"robustness.labels: 'nope' is not a label of task selftest_sleep; {allowed}" in text
+    assert "label_sign" not in text  # a label the task gives passes, with or without its prefix
 
 
 def test_boundary_replicas_find_exactly_the_cells_a_perturbation_can_flip(tmp_path: Path) -> None:
@@ -178,7 +190,7 @@ def test_cli_run_robust_then_show_lists_the_cells_that_are_not_robust(tmp_path: 
 def test_cli_robust_out_of_range_is_refused_by_name(tmp_path: Path) -> None:
     res = CliRunner().invoke(app, ["run", str(sign_study(tmp_path)), "--robust", "99", "--dry-run"])
     assert res.exit_code == 2
-    assert "--robust must be 0 … 16, got 99" in res.output
+    assert "Invalid value for '--robust'" in res.output and "16" in res.output
 
 
 def test_with_adaptive_sampling_replicas_go_to_simulated_boundary_cells_never_to_inferred_ones(
@@ -214,3 +226,109 @@ def test_recheck_reruns_replicas_as_well_as_trials(tmp_path: Path) -> None:
     assert (stored["replica"] > 0).sum() == 24
     report = recheck(study, n_trials=len(stored))
     assert report.mismatches == [] and sorted(set(report.trials)) == [0, 1, 2, 3, 4, 5]
+
+
+def test_fold_counts_a_cell_robust_only_when_every_planned_replica_ran() -> None:
+    runs = pd.DataFrame(
+        {
+            "trial": [0, 0, 0, 1, 1, 1, 1, 1, 2, 2, 2],
+            "replica": [0, 1, 2, 0, 1, 2, 3, 4, 0, 1, 2],
+            "status": ["ok"] * 11,
+            "label_sign": ["a", "a", "a", "b", "b", "b", "b", "b", "a", "b", "a"],
+        }
+    )
+    cells = fold(runs, planned=4)
+    assert cells["replicas"].tolist() == [2, 4, 2]
+    assert cells["replicas_awaited"].tolist() == [2, 0, 2]
+    # Two of four agreeing is not robust yet; two of four disagreeing already is not robust.
+    assert cells["robust"].tolist() == [pd.NA, True, False]
+    # Replicas numbered above the planned count (an earlier run asked for more) are left out.
+    fewer = fold(runs, planned=2)
+    assert fewer["replicas"].tolist() == [2, 2, 2] and fewer["robust"].tolist() == [True, True, False]
+
+
+def _interrupted_in_the_replica_phase(tmp_path: Path) -> Path:
+    """Six cells, two on the sign boundary to get 4 replicas each, stopped after 2 replicas."""
+    path = sign_study(tmp_path, "robustness: {replicas: 4, audit_fraction: 0}", jitter=0.0001)
+    seen: list[object] = []
+
+    def stop_after_8(outcome: object) -> None:
+        seen.append(outcome)
+        if len(seen) == 8:
+            raise KeyboardInterrupt
+
+    first = run_sweep(
+        load_study(path, tmp_path / "out"), RunOptions(n_jobs=1), RunEvents(outcome=stop_after_8)
+    )
+    assert first.interrupted is not None and first.replicas_run == 2
+    return path
+
+
+def test_a_cell_with_part_of_its_replicas_is_not_robust_and_show_says_it_awaits_them(tmp_path: Path) -> None:
+    path = _interrupted_in_the_replica_phase(tmp_path)
+    cells = fold(read_results(tmp_path / "out"))
+    partial = cells[cells["replicas"] > 0]
+    assert partial["replicas"].tolist() == [2] and partial["replicas_awaited"].tolist() == [2]
+    assert partial["robust"].isna().all()
+    shown = CliRunner().invoke(app, ["show", str(tmp_path / "out")], terminal_width=200)
+    assert shown.exit_code == 0, shown.output
+    text = " ".join(shown.output.split())  # rich wraps long lines
+    assert "is robust" not in text
+    assert "1 cell(s) await replicas (fewer than the 4 planned stored" in text
+    run_sweep(load_study(path, tmp_path / "out"), RunOptions(n_jobs=1))  # the resume adds the rest
+    cells = fold(read_results(tmp_path / "out"))
+    assert cells.loc[cells["replicas"] > 0, "replicas"].tolist() == [4, 4]
+    assert cells.loc[cells["replicas"] > 0, "robust"].tolist() == [True, True]
+
+
+def test_after_robust_4_then_robust_2_the_run_and_the_readers_agree_on_2(tmp_path: Path) -> None:
+    path = sign_study(tmp_path, jitter=0.0001)
+    run_sweep(with_replicas(load_study(path, tmp_path / "out"), 4), RunOptions(n_jobs=1))
+    res = CliRunner().invoke(
+        app, ["run", str(path), "--out", str(tmp_path / "out"), "--robust", "2", "-j", "1", "--no-plots"]
+    )
+    assert res.exit_code == 0, res.output
+    assert "cell(s) replicated x 2" in res.output
+    cells = fold(read_results(tmp_path / "out"))
+    assert set(cells.loc[cells["replicas"] > 0, "replicas"]) == {2}
+    shown = CliRunner().invoke(app, ["show", str(tmp_path / "out")], terminal_width=200)
+    text = " ".join(shown.output.split())  # rich wraps long lines
+    assert "6 of 6 trials stored, and 6 robustness replica run(s) (6 more stored beyond the 2" in text
+
+
+def test_an_interrupted_run_counts_the_replicas_it_kept(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """After SIGINT it said "24 finished trial(s) kept" while 30 rows were kept (6 replicas)."""
+    import io
+
+    import typer
+    from rich.console import Console
+
+    from somo_sweep.cli import sweep as cli_sweep
+    from somo_sweep.sweep.options import RunSummary
+
+    said = io.StringIO()
+    monkeypatch.setattr(cli_sweep, "_err", Console(file=said, width=200))
+    monkeypatch.setattr(cli_sweep, "_out", Console(file=io.StringIO(), width=200))
+    summary = RunSummary(folder=tmp_path, total=48, skipped=0, run=24, interrupted=2, replicas_run=6)
+    with pytest.raises(typer.Exit):
+        cli_sweep._report(summary, plots=False, allow_errors=False)
+    assert "interrupted: 24 finished trial(s) and 6 robustness replica run(s) kept" in said.getvalue()
+
+
+def test_an_empty_robust_names_its_range(
+    capsys: pytest.CaptureFixture[str], monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """``--robust ''`` said any non-empty value was allowed; it takes 0 … 16."""
+    from somo_sweep.cli.app import main
+
+    monkeypatch.setattr("sys.argv", ["somo-sweep", "run", "s.yaml", "--robust", ""])
+    with pytest.raises(SystemExit) as exit_:
+        main()
+    assert exit_.value.code == 2
+    err = capsys.readouterr().err
+    assert (
+        "--robust was given an empty value (an unset shell variable?); allowed: an integer from 0 to 16"
+        in err
+    )

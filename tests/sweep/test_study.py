@@ -177,7 +177,7 @@ def test_empty_range_and_wrong_types(tmp_path: Path) -> None:
         + "  task.tip_load_n: {start: a, stop: 1, step: 0.5}\n",
     )
     text = problems_of(path)
-    assert "line 4: repeats: Input should be a valid integer" in text
+    assert "line 4: repeats: expected an integer >= 1, not text, got 'two'" in text
     path.write_text(path.read_text().replace("repeats: two\n", ""))
     text = problems_of(path)
     assert "sweep.task.pressure_kpa.stop: must be >= start (10) for an inclusive range, got 0" in text
@@ -280,3 +280,18 @@ def test_an_engine_option_no_study_needs_is_not_taken(tmp_path: Path) -> None:
     text = problems_of(path)
     assert "line 4: simulation.solver_residual_threshold:" in text
     assert "friction_rows_every" in text
+
+
+def test_an_override_of_a_section_the_model_file_lacks_names_the_section_it_has(tmp_path: Path) -> None:
+    """``model.manipulator.name`` on an assembly said "model.manipulator.actuators: Field required"."""
+    body = (
+        "task: pinch_grasp\nmodel: models/pinch_gripper.yaml\nset:\n  model.manipulator.name: foo\n"
+        "sweep:\n  task.object_width_m: [0.03, 0.04]\n"
+    )
+    with pytest.raises(DescriptionError) as info:
+        load_study(write_study(tmp_path, body), tmp_path / "out")
+    assert (
+        "line 4: set.model.manipulator.name: pinch_gripper.yaml is an assembly file, with no 'manipulator' "
+        "section; allowed: key paths under model.assembly"
+    ) in str(info.value)
+    assert "Field required" not in str(info.value)

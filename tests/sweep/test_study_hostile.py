@@ -246,3 +246,32 @@ def test_a_long_name_is_cut_with_its_own_length_said(tmp_path: Path) -> None:
     path = make_study(tmp_path, f"name: {'a' * 300}\n" + HEAD)
     text = _problems(path)
     assert f"name: String should have at most 100 characters, got '{'a' * 60}…' (300 characters)" in text
+
+
+@pytest.mark.parametrize(
+    ("line", "message"),
+    [
+        (
+            'simulation: {engine: mujoco, noslip_iterations: "5"}',
+            "line 3: simulation.noslip_iterations: expected an integer from 0 to 1000, not text "
+            "(unquote it), got '5'",
+        ),
+        (
+            'simulation: {time_step_s: "1e-3"}',
+            "line 3: simulation.time_step_s: expected a number > 0, not text (unquote it), got '1e-3'",
+        ),
+        ('repeats: "2"', "line 3: repeats: expected an integer >= 1, not text (unquote it), got '2'"),
+        (
+            'robustness: {replicas: "4"}',
+            "line 3: robustness.replicas: expected an integer from 0 to 16, not text (unquote it)",
+        ),
+    ],
+    ids=["noslip", "step", "repeats", "replicas"],
+)
+def test_a_quoted_number_in_the_study_settings_stays_text_and_is_refused(
+    tmp_path: Path, line: str, message: str
+) -> None:
+    """Quoting keeps a value text: ``noslip_iterations: "5"`` was taken as 5."""
+    path = make_study(tmp_path, HEAD + line + "\nsweep:\n  task.x: [1, 2]\n")
+    text = _problems(path)
+    assert str(path) in text and message in text

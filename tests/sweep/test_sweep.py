@@ -318,7 +318,7 @@ def test_dask_backend_needs_a_scheduler(tmp_path: Path) -> None:
         ),
         (
             "task: bench\nmodel: models/ihm_finger.yaml\nseed: abc\n",
-            "line 3: seed: Input should be a valid integer",
+            "line 3: seed: expected an integer >= 0, not text, got 'abc'",
         ),
     ],
     ids=[

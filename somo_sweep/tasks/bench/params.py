@@ -57,5 +57,6 @@ register(
             "blocked_force_n": "double",
         },
         check_model=check_manipulator,
+        labels=(),
     )
 )

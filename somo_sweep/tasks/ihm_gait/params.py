@@ -86,5 +86,6 @@ register(
         tags=("paper", "fig5", "manipulation"),
         metrics=METRICS,
         check_model=check_hand,
+        labels=("outcome",),
     )
 )

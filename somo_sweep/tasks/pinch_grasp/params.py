@@ -486,5 +486,6 @@ register(
             "hold_force_fraction_proximal",
             "lift_slip_m",
         ),
+        labels=("grasp", "grasp_paper"),
     )
 )

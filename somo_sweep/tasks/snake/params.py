@@ -56,5 +56,6 @@ register(
         metrics=METRICS,
         check_model=check_manipulator,
         prepare_path="somo_sweep.tasks.snake.body:simulated_snake",
+        labels=("locomotion",),
     )
 )

@@ -107,5 +107,6 @@ register(
         metrics=METRICS,
         check_model=check_manipulator,
         check_params=check_torque_table,
+        labels=("outcome",),
     )
 )
