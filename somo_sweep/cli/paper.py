@@ -149,8 +149,8 @@ def _engine_audit(folder: Path, rule: str) -> dict[str, object]:
     from somo_sweep.paper.grasp_trials import read_results
 
     try:
-        tables = [read_results(folder / engine) for engine in ENGINES]
-        info = engine_audit(*tables, rule=rule)
+        pybullet, mujoco = (read_results(folder / engine) for engine in ENGINES)
+        info = engine_audit(pybullet, mujoco, rule=rule)
     except SomoError as exc:
         fail(SomoError(f"--audit {folder}: {exc}"))
     return {"folder": str(folder), **info}

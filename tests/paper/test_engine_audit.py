@@ -8,7 +8,6 @@ from pathlib import Path
 
 import pandas as pd
 import pytest
-
 from typer.testing import CliRunner
 
 from somo_sweep.cli.app import app
@@ -72,8 +71,8 @@ def test_agreement_is_counted_on_cells_robust_on_both_engines() -> None:
     )
     paper = engine_audit(pybullet, mujoco, "paper")
     assert (
-        "final mean contact position 0.85 (PyBullet) vs 0.85 (MuJoCo) of the finger; pinch above 1 − DSR = 0.80"
-        in (paper["disagreements"][0]["decided_by"])
+        "final mean contact position 0.85 (PyBullet) vs 0.85 (MuJoCo) of the finger; "
+        "pinch above 1 − DSR = 0.80" in (paper["disagreements"][0]["decided_by"])
     )
 
 
@@ -99,7 +98,7 @@ def test_fig6_with_an_audit_prints_it_and_stores_it_in_its_json(tmp_path: Path) 
     cells = [(0.2, 0.04, 0.1, ["pinch"] * 3, 0.1), (0.2, 0.04, 0.105, ["power"] * 3, 0.4)]
     for engine, table in (
         ("pybullet", _run(cells)),
-        ("mujoco", _run(cells[:1] + [(0.2, 0.04, 0.105, ["pinch"] * 3, 0.1)])),
+        ("mujoco", _run([*cells[:1], (0.2, 0.04, 0.105, ["pinch"] * 3, 0.1)])),
     ):
         (audit / engine / "trials").mkdir(parents=True)
         (audit / engine / "manifest.json").write_text(json.dumps({"study_hash": "h"}))
