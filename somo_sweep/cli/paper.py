@@ -97,6 +97,13 @@ def fig6(
             "in the results folder)."
         ),
     ] = None,
+    audit: Annotated[
+        Path | None,
+        typer.Option(
+            help="A compare-engines folder of audit cells (pybullet/ and mujoco/): the engines' "
+            "agreement on cells robust on both goes into the JSON and is printed."
+        ),
+    ] = None,
 ) -> None:
     """Fig. 6: pinch / power / no grasp over centering and width per DSR; the smallest all-width pinch DSR."""
     from somo_sweep.paper.fig6 import build, grasp_table
@@ -113,6 +120,11 @@ def fig6(
         artifacts = build(grasp_table(trials, rule), stem=stem, max_dsr=max_dsr)
     except SomoError as exc:
         fail(SomoError(f"{results}: {exc}"))
+    if audit is not None:
+        info = _engine_audit(audit, rule)
+        artifacts.json[f"{stem}.json"]["engine_audit"] = info
+        for line in _audit_lines(info):
+            typer.echo(line)
     if isinstance(expected, int) and len(trials) < expected:
         typer.echo(
             f"note: {len(trials)} of the study's {expected} trials are stored (a run unfinished or "
@@ -129,6 +141,36 @@ def fig6(
     _finish(artifacts, target)
     if target.resolve() != results.resolve():
         write_atomic(results / f"{stem}.json", headline)
+
+
+def _engine_audit(folder: Path, rule: str) -> dict[str, object]:
+    """The engine audit of ``folder`` (a compare-engines output) under ``rule``; exits on bad input."""
+    from somo_sweep.paper.engine_audit import ENGINES, engine_audit
+    from somo_sweep.paper.grasp_trials import read_results
+
+    try:
+        pybullet, mujoco = (read_results(folder / engine) for engine in ENGINES)
+        info = engine_audit(pybullet, mujoco, rule=rule)
+    except SomoError as exc:
+        fail(SomoError(f"--audit {folder}: {exc}"))
+    return {"folder": str(folder), **info}
+
+
+def _audit_lines(info: dict[str, object]) -> list[str]:
+    """The audit in a few lines: the agreement, then each disagreement and what decides it."""
+    share = info["agreement"]
+    shown = f"{share:.1%}" if isinstance(share, float) else "no cell"
+    lines = [
+        f"engine audit ({info['rule']} rule): PyBullet and MuJoCo agree on {info['agree']} of the "
+        f"{info['robust_on_both']} cells robust on both ({shown}; {info['cells']} cells audited)"
+    ]
+    for d in info["disagreements"]:  # type: ignore[attr-defined]
+        lines.append(
+            f"  DSR {d['distal_segment_ratio']:g}, width {d['object_width_m'] * 1e3:g} mm, c "
+            f"{d['centering_position_m'] * 1e3:g} mm: PyBullet {d['pybullet']}, MuJoCo {d['mujoco']}; "
+            f"{d['decided_by']}"
+        )
+    return lines
 
 
 @app.command("fig6-ablation")
