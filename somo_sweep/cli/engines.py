@@ -87,6 +87,13 @@ def compare_engines(
             typer.echo(f"{engine}: {st.output}", err=True)
             summary = run_sweep(st, RunOptions(n_jobs=jobs, adaptive=adaptive))
             typer.echo(f"{engine}: {summary.run} trial(s) run, {summary.skipped} already stored", err=True)
+            if summary.interrupted is not None:  # a stop asked for is the whole command's, not one engine's
+                typer.echo(
+                    f"interrupted during the {engine} run: its finished trials are kept; nothing was "
+                    "compared; run the same command again to go on where it stopped",
+                    err=True,
+                )
+                raise typer.Exit(128 + summary.interrupted)
         result = compare_runs(base, runs)
         _write(folder, study, runs, result)
     except SomoError as exc:

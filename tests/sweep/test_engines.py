@@ -285,3 +285,32 @@ def test_compare_engines_refuses_a_step_beyond_any_models_stability(tmp_path: Pa
     assert not out.exists()
     with pytest.raises(SomoError, match="mujoco: the time step must be > 0 and at most 20 ms"):
         on_engine(load_study(path, out), "mujoco", out, 1e9)
+
+
+def test_compare_engines_stopped_during_the_first_engine_does_not_run_the_second(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """SIGTERM (or Ctrl-C) during PyBullet's half stops the command, as it stops `run`."""
+    import signal
+
+    from somo_sweep.sweep import runner
+    from somo_sweep.sweep.options import RunSummary
+
+    pytest.importorskip("mujoco")
+    ran: list[str] = []
+
+    def stopped(study, options):  # type: ignore[no-untyped-def]
+        ran.append(study.simulation.engine)
+        return RunSummary(folder=study.output, total=1, skipped=0, run=1, interrupted=signal.SIGTERM)
+
+    monkeypatch.setattr(runner, "run_sweep", stopped)
+    path = _study(tmp_path, "{time_step_s: 4.0e-3}", extra="sweep:\n  task.object_width_m: [0.01]\n")
+    out = tmp_path / "both"
+    res = CliRunner().invoke(app, ["compare-engines", str(path), "--out", str(out), "--jobs", "1"])
+    assert res.exit_code == 128 + signal.SIGTERM
+    assert ran == ["pybullet"]
+    assert (
+        "interrupted during the pybullet run: its finished trials are kept; nothing was compared"
+        in res.output
+    )
+    assert not (out / "engines.json").exists()
