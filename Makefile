@@ -5,7 +5,7 @@ BIN    := $(VENV)/bin
 STAMP  := $(VENV)/.installed-stamp
 
 .DEFAULT_GOAL := help
-.PHONY: help install demo test test-slow lint format bench bench-statics bench-scaling bench-scale bench-engines bench-mujoco bench-robust bench-numerics bench-auto-numerics bench-zero-kpa bench-original fig6 fig6-fast fig6-quick fig6-original fig6-ablation fig6-ablation-quick fig3 fig5 fig5-quick palm palm-quick fig7 fig7-quick fig8 fig8-quick diagnose-demo sweep-demo example-gripper example-gripper-pybullet figures clean
+.PHONY: help install demo test test-slow lint format bench bench-statics bench-scaling bench-scale bench-engines bench-mujoco bench-robust bench-numerics bench-auto-numerics bench-zero-kpa bench-original fig6 fig6-fast fig6-audit fig6-quick fig6-original fig6-ablation fig6-ablation-quick fig3 fig5 fig5-quick palm palm-quick fig7 fig7-quick fig8 fig8-quick diagnose-demo sweep-demo example-gripper example-gripper-pybullet figures clean
 
 help: ## List the targets
 	@grep -E '^[a-zA-Z0-9_-]+:.*?## ' $(MAKEFILE_LIST) | awk 'BEGIN {FS = ":.*?## "}; {printf "  make %-20s %s\n", $$1, $$2}'
@@ -83,6 +83,11 @@ fig6-fast: $(STAMP) ## Fig. 6 on MuJoCo (4 ms) with robust labels: 2310 cells, 4
 	$(BIN)/somo-sweep run studies/pinch_grasp_dsr_mujoco.yaml --exhaustive --robust 4
 	$(BIN)/somo-sweep paper fig6 results/pinch_grasp_dsr_mujoco --out results/figures/mujoco
 	$(BIN)/somo-sweep paper fig6 results/pinch_grasp_dsr_mujoco --out results/figures/mujoco --rule paper
+
+fig6-audit: $(STAMP) ## Fig. 6's engine audit: 150 stratified cells on PyBullet and MuJoCo, 4 replicas each (resumable; hours on PyBullet), then the fast figure with the agreement
+	$(BIN)/somo-sweep compare-engines studies/pinch_grasp_audit.yaml --out results/fig6_audit
+	$(BIN)/somo-sweep paper fig6 results/pinch_grasp_dsr_mujoco --out results/figures/mujoco --audit results/fig6_audit
+	$(BIN)/somo-sweep paper fig6 results/pinch_grasp_dsr_mujoco --out results/figures/mujoco --audit results/fig6_audit --rule paper
 
 fig6-quick: $(STAMP) ## Fig. 6 on a 192-trial subset (a few minutes on 2 cores), into results/figures/quick
 	$(BIN)/somo-sweep run studies/pinch_grasp_quick.yaml
