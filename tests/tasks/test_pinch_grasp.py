@@ -142,7 +142,7 @@ def test_fingers_out_of_reach_leave_a_narrow_box_on_the_ground() -> None:
     result = run(0.2, 0.010, 0.030)  # bases 170 mm from the box: beyond the fingertips' ~121 mm
     assert result.labels == {"grasp": "no_grasp", "grasp_paper": "no_grasp"}
     assert abs(result.metrics["lift_height_m"]) < 0.002
-    assert result.metrics["hold_contact_count_tip"] == 0
+    assert result.metrics["hold_contact_count_finger"] == 0
 
 
 @pytest.mark.slow
