@@ -16,6 +16,7 @@ ROOT = Path(__file__).resolve().parents[1]
 
 
 @pytest.mark.slow
+@pytest.mark.timeout(1200)  # a wheel built, 24 trials and five figures: 7.5 min on a loaded machine
 def test_a_wheel_install_runs_the_bundled_example_and_figures_from_an_empty_folder(tmp_path: Path) -> None:
     wheels, target, empty = tmp_path / "wheels", tmp_path / "site", tmp_path / "empty"
     empty.mkdir()
@@ -26,7 +27,7 @@ def test_a_wheel_install_runs_the_bundled_example_and_figures_from_an_empty_fold
     (wheel,) = wheels.glob("somo_sweep-*.whl")
     with zipfile.ZipFile(wheel) as archive:
         tops = {name.split("/")[0] for name in archive.namelist()}
-    assert "benchmarks" not in tops and "tests" not in tops  # the lab is not installed
+    assert not {"benchmarks", "tests", "examples"} & tops  # the lab and the examples are not installed
     assert "somo_sweep" in tops
     subprocess.run([*pip, "install", "--no-deps", "--target", str(target), str(wheel)], check=True)
     env = {**os.environ, "PYTHONPATH": str(target)}
@@ -53,6 +54,13 @@ def test_a_wheel_install_runs_the_bundled_example_and_figures_from_an_empty_fold
     cli("calibrate", "studies/tables/planar_finger_synthetic.csv", "-o", "results/planar_finger.yaml", "-q")
     assert (empty / "results" / "planar_finger.yaml").is_file()
     assert "smallest all-width pinch DSR" in cli("paper", "fig6", "results/pinch_grasp_demo", "--out", "figs")
+    cli("new", "grasp-study", "mine")  # the starter's templates are package data
+    assert sorted(p.name for p in (empty / "mine").iterdir()) == [
+        "bench.csv",
+        "finger.yaml",
+        "gripper.yaml",
+        "study.yaml",
+    ]
     cli("paper", "fig8", "--quick", "--out", "figs")
     cli("paper", "fig3", "--out", "figs")
     cli("paper", "fig7", "--quick", "--out", "figs")
