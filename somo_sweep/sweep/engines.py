@@ -177,6 +177,7 @@ def compare(
         SomoError: The tables share no trial.
     """
     a, b = engines
+    raw = (first, second)
     first, second = _cells(first), _cells(second)
     keep = [c for c in axes if c in first.columns]
     left = first[~_inferred(first)].set_index("trial")
@@ -195,7 +196,7 @@ def compare(
         cells[f"{label}_{a}"], cells[f"{label}_{b}"] = la, lb
         cells[f"agree_{label}"] = la == lb
         entry: dict[str, Any] = {"cells": len(trials), "agree": int((la == lb).sum())}
-        robust = _robust(left.loc[trials], right.loc[trials], label)
+        robust = _robust([_label_robust(table, column) for table in raw], trials)
         if robust is not None:
             cells[f"robust_{label}"] = robust
             cells[f"robust_across_engines_{label}"] = robust & (la == lb)
@@ -247,21 +248,33 @@ def _cells(table: pd.DataFrame) -> pd.DataFrame:
     return fold(table)
 
 
-def _robust(left: pd.DataFrame, right: pd.DataFrame, label: str) -> pd.Series | None:
+def _label_robust(table: pd.DataFrame, column: str) -> pd.Series | None:
+    """Per trial, whether the label ``column`` is robust on this engine: every planned replica ran
+    and gave the label of the cell's own trial (the other labels' agreement does not count, as in
+    ``paper fig6 --audit``). None: the table carries no robustness replicas."""
+    if column not in table.columns:
+        return None
+    replica = pd.to_numeric(table["replica"], errors="coerce") if "replica" in table.columns else None
+    if replica is not None and (replica > 0).any():
+        folded = fold(table, [column])
+    elif "robust" in table.columns and table["robust"].notna().any():
+        folded = table  # already one row per cell
+    else:
+        return None
+    return folded.set_index("trial")["robust"].astype("boolean").fillna(False).astype(bool)
+
+
+def _robust(marks: list[pd.Series | None], trials: pd.Index) -> pd.Series | None:
     """Cells robust on every engine whose results carry robustness replicas (None: neither does).
 
     An engine run without replicas (MuJoCo's cheap run beside PyBullet's robust one) leaves the
     other engine's robust cells to be the test.
     """
-    marks = []
-    for table in (left, right):
-        column = f"robust_{label}" if f"robust_{label}" in table.columns else "robust"
-        if column in table.columns and table[column].notna().any():
-            marks.append(table[column].astype("boolean").fillna(False).astype(bool))
-    if not marks:
+    present = [m.reindex(trials, fill_value=False).astype(bool) for m in marks if m is not None]
+    if not present:
         return None
-    out = marks[0]
-    for mark in marks[1:]:
+    out = present[0]
+    for mark in present[1:]:
         out = out & mark
     return out
 

@@ -264,6 +264,28 @@ def test_compare_folds_robustness_replicas_into_their_cells() -> None:
     assert list(result.cells["robust_grasp"]) == [True, False, False]  # cell 2: no replicas
 
 
+def test_a_cell_is_robust_per_rule_whatever_the_other_rule_does() -> None:
+    """A cell whose replicas agree under the contacts rule but not under the paper rule is robust
+    under the contacts rule (the count ``paper fig6 --audit`` gives), not under the paper rule."""
+
+    def run(paper_replica: str) -> pd.DataFrame:
+        return pd.DataFrame(
+            {
+                "trial": [0, 0, 0],
+                "replica": [0, 1, 2],
+                "task_object_width_m": [0.01] * 3,
+                "status": ["ok"] * 3,
+                "label_grasp": ["pinch"] * 3,
+                "label_grasp_paper": ["pinch", "pinch", paper_replica],
+            }
+        )
+
+    result = compare(run("power"), run("pinch"), ("pybullet", "mujoco"), ("task_object_width_m",))
+    assert result.labels["grasp"]["robust_cells"] == 1 and result.labels["grasp"]["robust_agree"] == 1
+    assert result.labels["grasp_paper"]["robust_cells"] == 0
+    assert list(result.cells["robust_grasp"]) == [True]
+
+
 @pytest.mark.parametrize("engine", ["pybullet", "mujoco"])
 def test_a_step_beyond_any_models_stability_is_refused_at_load_with_the_range(
     tmp_path: Path, engine: str
