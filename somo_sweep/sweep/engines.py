@@ -256,12 +256,15 @@ def _label_robust(table: pd.DataFrame, column: str) -> pd.Series | None:
         return None
     replica = pd.to_numeric(table["replica"], errors="coerce") if "replica" in table.columns else None
     if replica is not None and (replica > 0).any():
-        folded = fold(table, [column])
-    elif "robust" in table.columns and table["robust"].notna().any():
-        folded = table  # already one row per cell
-    else:
-        return None
-    return folded.set_index("trial")["robust"].astype("boolean").fillna(False).astype(bool)
+        folded, flag = fold(table, [column]), "robust"
+    else:  # already one row per cell, with its flag per label or for every label
+        folded = table
+        flag = next(
+            (f for f in (f"robust_{column.removeprefix('label_')}", "robust") if f in table.columns), ""
+        )
+        if not flag or not table[flag].notna().any():
+            return None
+    return folded.set_index("trial")[flag].astype("boolean").fillna(False).astype(bool)
 
 
 def _robust(marks: list[pd.Series | None], trials: pd.Index) -> pd.Series | None:
