@@ -124,6 +124,25 @@ def patch_restitution(value: float | None) -> None:
     p.changeDynamics = change_dynamics
 
 
+def patch_body_damping(value: float | None) -> None:
+    """Give every body ``loadURDF`` loads the linear and angular damping ``value`` (None: leave
+    PyBullet's default, 0.04, as the original does). An experiment: how much the original's labels
+    move with a setting that only adds a small drag."""
+    if value is None:
+        return
+    import pybullet as p
+
+    load = p.loadURDF
+
+    def load_urdf(*args, **kwargs):
+        body = load(*args, **kwargs)
+        client = {"physicsClientId": kwargs["physicsClientId"]} if "physicsClientId" in kwargs else {}
+        p.changeDynamics(body, -1, linearDamping=value, angularDamping=value, **client)
+        return body
+
+    p.loadURDF = load_urdf
+
+
 class Tracer:
     """Samples the state every ``every`` steps by wrapping ``pybullet.stepSimulation``.
 
@@ -332,6 +351,11 @@ def main(argv: list[str] | None = None) -> None:
         type=float,
         help="the original's time step in s (default: its sweep file's 0.0005); the trial stays 4 s long",
     )
+    ap.add_argument(
+        "--body-damping",
+        type=float,
+        help="every body's linear and angular damping (default: PyBullet's 0.04, as the original)",
+    )
     ap.add_argument("--list", action="store_true", help="print the cells and stop")
     args = ap.parse_args(argv)
     cells = choose_cells(args)
@@ -356,6 +380,7 @@ def main(argv: list[str] | None = None) -> None:
     print(f"{len(cells)} cells, {len(done & set(cells))} already in {out}, {len(todo)} to run", flush=True)
     patch_environment(somo)
     patch_restitution(restitution)
+    patch_body_damping(args.body_damping)
     work = Path(tempfile.mkdtemp(prefix="somo_orig_"))
     signal.signal(signal.SIGTERM, lambda *_: sys.exit(143))  # a killed run still removes `work`
     try:

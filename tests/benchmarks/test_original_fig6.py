@@ -46,3 +46,32 @@ def test_without_the_originals_checkout_it_says_how_to_set_it_up(
     assert f"{tmp_path} is not a checkout of GrauleM/somo at 755978b" in err
     assert "no Python interpreter for the original there" in err
     assert "python3.11 -m venv venv_orig" in err and "make bench-original ORIGINAL_SOMO=" in err
+
+
+def _coast_speed_m_s(damping: float | None, monkeypatch: pytest.MonkeyPatch) -> float:
+    """Speed of a free cube loaded through ``loadURDF`` after 0.5 s of coasting without gravity
+    from 1 m/s, with the runner's damping experiment applied."""
+    import pybullet as p
+    import pybullet_data
+
+    from benchmarks.original_fig6.run_original_cells import patch_body_damping
+
+    monkeypatch.setattr(p, "loadURDF", p.loadURDF)  # restored when the test ends
+    patch_body_damping(damping)
+    client = p.connect(p.DIRECT)
+    try:
+        cube = p.loadURDF(str(Path(pybullet_data.getDataPath()) / "cube_small.urdf"), physicsClientId=client)
+        p.setGravity(0, 0, 0, physicsClientId=client)
+        p.resetBaseVelocity(cube, [1.0, 0.0, 0.0], physicsClientId=client)
+        for _ in range(240):
+            p.stepSimulation(physicsClientId=client)
+        return float(p.getBaseVelocity(cube, physicsClientId=client)[0][0])
+    finally:
+        p.disconnect(client)
+
+
+def test_the_damping_experiment_removes_the_drag_pybullet_gives_every_body(
+    monkeypatch: pytest.MonkeyPatch,
+) -> None:
+    assert _coast_speed_m_s(None, monkeypatch) < 0.99  # PyBullet's default 0.04, as the original
+    assert _coast_speed_m_s(0.0, monkeypatch) == pytest.approx(1.0, abs=1e-9)
