@@ -12,7 +12,9 @@ result. Standard library only: it runs in either environment, from the repositor
 (the original's own robustness check). ``report``: given the original's rows (from
 ``run_original_cells.py``) and ours at c (from ``compare_cells.py``), prints per half the cells
 complete (all three of the original's runs stored), those where the original's label survives
-the ±0.1-mm move (its robust cells), ours' agreement there, and every disagreement.
+the ±0.1-mm move (its robust cells), ours' agreement there, and every disagreement; with
+``--changed``, also how many of those labels the original itself keeps under a change (its runs
+at another step, or without PyBullet's body damping).
 """
 
 from __future__ import annotations
@@ -119,6 +121,39 @@ def report(
     return lines
 
 
+def stability(
+    sample: list[tuple[Cell, str, int]],
+    original: dict[Cell, dict[str, str]],
+    changed: dict[Cell, dict[str, str]],
+) -> list[str]:
+    """Per half: on the original's robust cells that also ran under a change (another step, no
+    body damping: ``changed``, rows at c), how many keep the original's label. The same measure
+    as ours' agreement, with the original's own run under the change in place of ours."""
+    lines = []
+    for half in ("tuning", "check"):
+        cells = [c for c, h, _ in sample if h == half]
+        robust = [
+            c
+            for c in cells
+            if all(s in original for s in shifted(c))
+            and len({original[s]["orig_label"] for s in shifted(c)}) == 1
+            and c in changed
+        ]
+        kept = [c for c in robust if changed[c]["orig_label"] == original[c]["orig_label"]]
+        share = f"{100 * len(kept) / len(robust):.1f} %" if robust else "-"
+        lines.append(
+            f"{half}: the original under the change keeps its label on {len(kept)} of the "
+            f"{len(robust)} robust cells run ({share})"
+        )
+        for c in robust:
+            if c not in kept:
+                lines.append(
+                    f"  DSR {c[0]:.2f} width {c[1]} mm c {c[2]:g} mm: {original[c]['orig_label']} -> "
+                    f"{changed[c]['orig_label']}"
+                )
+    return lines
+
+
 def main(argv: list[str] | None = None) -> None:
     ap = argparse.ArgumentParser(
         prog="python -m benchmarks.original_fig6.held_out", description=__doc__.split("\n\n")[0]
@@ -134,6 +169,13 @@ def main(argv: list[str] | None = None) -> None:
     p.add_argument("sample", type=Path)
     p.add_argument("--original", type=Path, nargs="+", required=True, help="run_original_cells.py's CSVs")
     p.add_argument("--ours", type=Path, nargs="+", required=True, help="compare_cells.py's CSVs")
+    p.add_argument(
+        "--changed",
+        type=Path,
+        nargs="+",
+        help="the original's runs at c under a change (run_original_cells.py's CSVs): how many of its "
+        "robust labels it keeps",
+    )
     args = ap.parse_args(argv)
     if args.command == "draw":
         rows = draw(tuned_cells(args.tuned))
@@ -148,7 +190,10 @@ def main(argv: list[str] | None = None) -> None:
                 for d, w, c in shifted(cell):
                     print(f"--cell {d},{w},{c:g}")
     else:
-        print("\n".join(report(read_sample(args.sample), _rows(args.original), _rows(args.ours))))
+        sample, original = read_sample(args.sample), _rows(args.original)
+        print("\n".join(report(sample, original, _rows(args.ours))))
+        if args.changed:
+            print("\n".join(stability(sample, original, _rows(args.changed))))
 
 
 if __name__ == "__main__":

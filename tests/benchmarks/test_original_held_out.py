@@ -79,3 +79,60 @@ def test_cells_prints_each_cell_at_c_and_a_tenth_of_a_millimetre_either_side(
     held_out.main(["cells", str(out), "--half", half])
     printed = capsys.readouterr().out.split()
     assert len(printed) == 2 * 3 * held_out.SAMPLE_CELLS // 2 and printed[0] == "--cell"
+
+
+def test_stability_counts_the_originals_robust_labels_it_keeps_under_a_change(tmp_path: Path) -> None:
+    sample = [
+        ((0.2, 40, 100.0), "tuning", 0),
+        ((0.3, 60, 120.0), "tuning", 1),
+        ((0.4, 80, 90.0), "tuning", 2),
+    ]
+    labels = {(0.2, 40): ["pinch"] * 3, (0.3, 60): ["power"] * 3, (0.4, 80): ["pinch", "pinch", "no_grasp"]}
+    changed_label = {(0.2, 40): "pinch", (0.3, 60): "no_grasp", (0.4, 80): "pinch"}
+    original, changed = [], []
+    for (d, w, c), _, _ in sample:
+        for (_, _, cc), label in zip(held_out.shifted((d, w, c)), labels[(d, w)], strict=True):
+            original.append({"dsr": d, "width_mm": w, "c_mm": cc, "orig_label": label})
+        changed.append({"dsr": d, "width_mm": w, "c_mm": c, "orig_label": changed_label[(d, w)]})
+    lines = held_out.stability(
+        sample,
+        held_out._rows([_write(tmp_path / "o.csv", original)]),
+        held_out._rows([_write(tmp_path / "c.csv", changed)]),
+    )
+    assert (
+        lines[0]
+        == "tuning: the original under the change keeps its label on 1 of the 2 robust cells run (50.0 %)"
+    )
+    assert lines[1].strip() == "DSR 0.30 width 60 mm c 120 mm: power -> no_grasp"
+    assert lines[2].startswith("check: the original under the change keeps its label on 0 of the 0")
+
+
+STORED = Path(held_out.REPO, "results/reference/original_held_out")
+
+
+def test_the_stored_sample_is_the_draw() -> None:
+    assert held_out.read_sample(STORED / "sample.csv") == held_out.draw(held_out.tuned_cells(TUNED))
+
+
+# (step, half): (the original's robust cells, ours = the original there, share), as the docs quote them
+QUOTED = {
+    ("0p5ms", "tuning"): (33, 27, "81.8 %"),
+    ("0p5ms", "check"): (30, 25, "83.3 %"),
+    ("0p25ms", "tuning"): (39, 34, "87.2 %"),
+    ("0p25ms", "check"): (35, 31, "88.6 %"),
+}
+
+
+@pytest.mark.parametrize("step", sorted({step for step, _ in QUOTED}))
+def test_the_stored_runs_give_the_agreements_the_docs_quote(step: str) -> None:
+    lines = held_out.report(
+        held_out.read_sample(STORED / "sample.csv"),
+        held_out._rows([STORED / f"original_{step}.csv"]),
+        held_out._rows([STORED / f"ours_{step}.csv"]),
+    )
+    docs = Path(held_out.REPO, "docs/paper_figures.md").read_text()
+    for half in ("tuning", "check"):
+        robust, same, share = QUOTED[(step, half)]
+        line = next(line for line in lines if line.startswith(f"{half}:"))
+        assert f"the original robust on {robust}, ours = original there on {same} ({share})" in line
+        assert f"{same} of {robust} ({share})" in docs
