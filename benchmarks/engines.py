@@ -28,9 +28,9 @@ from somo_sweep.errors import SomoError
 from somo_sweep.model.tables import bundled_path
 from somo_sweep.paper.artifacts import Artifacts
 from somo_sweep.sim.settings import MUJOCO_DEFAULT_STEP_S
-from somo_sweep.sweep.engines import on_engine
-from somo_sweep.sweep.jobs import Job, build_jobs
+from somo_sweep.sweep.jobs.table import Job, build_jobs
 from somo_sweep.sweep.study import load_study
+from somo_sweep.sweep.views.compare_engines import on_engine
 from somo_sweep.tasks.registry import get_task
 
 __all__ = ["build", "convergence", "main", "timed_trials"]

@@ -34,7 +34,7 @@ from benchmarks.engines import _jobs
 from somo_sweep.errors import SomoError
 from somo_sweep.paper.artifacts import Artifacts
 from somo_sweep.sim.settings import MUJOCO_DEFAULT_STEP_S
-from somo_sweep.sweep.jobs import Job
+from somo_sweep.sweep.jobs.table import Job
 from somo_sweep.tasks.registry import get_task
 
 __all__ = ["build", "main", "timed_cells"]

@@ -109,8 +109,8 @@ def study_for(study_path: Path, setup: Setup, folder: Path, replicas: int) -> St
 
 
 def _run(study_path: Path, setup: Setup, folder: Path, replicas: int, n_jobs: int, name: str) -> StudyCost:
-    from somo_sweep.sweep.runner import RunOptions, run_sweep
-    from somo_sweep.sweep.store import read_results
+    from somo_sweep.sweep.run.runner import RunOptions, run_sweep
+    from somo_sweep.sweep.store.result_store import read_results
 
     study = study_for(study_path, setup, folder, replicas)
     load = _load()

@@ -31,7 +31,7 @@ from benchmarks._cli import echo, jobs_option, user_errors
 from somo_sweep.cli.output import write_atomic
 from somo_sweep.errors import SomoError
 from somo_sweep.model.tables import bundled_path
-from somo_sweep.sweep.folder import JOURNAL_GLOB, PART_GLOB
+from somo_sweep.sweep.store.folder import JOURNAL_GLOB, PART_GLOB
 
 __all__ = [
     "TRIALS_PER_MASS",

@@ -1,10 +1,10 @@
 """How a sweep scales over workers: ``--jobs 1`` vs ``--jobs 2``, and Dask against joblib, in turn.
 
-The same study runs through the sweep engine (:func:`somo_sweep.sweep.runner.run_sweep`), each
+The same study runs through the sweep engine (:func:`somo_sweep.sweep.run.runner.run_sweep`), each
 run into its own results folder under the folder the caller names. The demo study runs once
 with one local worker and in turn at two workers, joblib's loky backend against a two-worker
 Dask ``LocalCluster`` (one thread per worker, the settings of a somo-sweep cluster,
-:data:`~somo_sweep.sweep.dask_backend.DASK_WORKER_CONFIG`), in the order joblib, Dask, Dask,
+:data:`~somo_sweep.sweep.run.dask_backend.DASK_WORKER_CONFIG`), in the order joblib, Dask, Dask,
 joblib, so that a load drifting in time weighs on both alike. Before each timed run both
 backends get fresh worker processes, started and warmed by the study's first two trials (task
 modules imported, PyBullet client ready), so the timer sees the trials and their dispatch, not
@@ -31,7 +31,7 @@ import pandas as pd
 
 from benchmarks._cli import echo
 from somo_sweep.model.tables import bundled_path
-from somo_sweep.sweep.dask_backend import DASK_WORKER_CONFIG
+from somo_sweep.sweep.run.dask_backend import DASK_WORKER_CONFIG
 
 __all__ = [
     "DEMO_STUDY",
@@ -98,7 +98,7 @@ def quick_note() -> str:
 
 
 def _labels(folder: Path) -> tuple[pd.DataFrame, float]:
-    from somo_sweep.sweep.store import read_results
+    from somo_sweep.sweep.store.result_store import read_results
 
     table = read_results(folder)
     cols = ["job_id", "status", *sorted(c for c in table.columns if str(c).startswith("label_"))]
@@ -131,9 +131,9 @@ def _backend(kind: str, n_workers: int) -> Iterator[dict[str, Any]]:
 
 
 def _timed(name: str, study_path: Path, out: Path, kind: str, n_workers: int) -> ScalingRun:
-    from somo_sweep.sweep.execution import run_jobs
-    from somo_sweep.sweep.jobs import first_jobs
-    from somo_sweep.sweep.runner import RunOptions, run_sweep
+    from somo_sweep.sweep.jobs.table import first_jobs
+    from somo_sweep.sweep.run.execution import run_jobs
+    from somo_sweep.sweep.run.runner import RunOptions, run_sweep
     from somo_sweep.sweep.study import load_study
 
     study = load_study(study_path, out)

@@ -63,12 +63,43 @@ def test_every_import_points_down_the_stages(path: Path) -> None:
     assert upward == [], f"{here} imports a stage at or above its own: {upward}"
 
 
+#: The rooms of ``sweep/``, each by the data it handles, lowest first: a room may import the rooms
+#: ranked below it (and itself), never above.
+SWEEP_ROOMS = {"store": 0, "study": 1, "jobs": 2, "run": 3, "views": 4}
+
+
+def test_sweep_holds_only_its_rooms() -> None:
+    sweep = PACKAGE / "sweep"
+    assert sorted(p.name for p in sweep.glob("*.py")) == ["__init__.py"]
+    assert sorted(p.name for p in sweep.iterdir() if p.is_dir() and p.name != "__pycache__") == sorted(
+        SWEEP_ROOMS
+    )
+
+
+@pytest.mark.parametrize(
+    "path", sorted((PACKAGE / "sweep").rglob("*.py")), ids=lambda p: str(p.relative_to(PACKAGE))
+)
+def test_every_import_inside_sweep_points_down_its_rooms(path: Path) -> None:
+    parts = path.relative_to(PACKAGE / "sweep").parts
+    if len(parts) < 2:
+        return
+    room = parts[0]
+    upward = [
+        m
+        for m in _imports(path)
+        if m.startswith("somo_sweep.sweep.")
+        and m.split(".")[2] != room
+        and SWEEP_ROOMS[m.split(".")[2]] >= SWEEP_ROOMS[room]
+    ]
+    assert upward == [], f"sweep/{'/'.join(parts)} imports a room at or above its own: {upward}"
+
+
 def test_loading_and_expanding_a_study_does_not_import_pybullet() -> None:
     code = (
         "import sys\n"
         "from somo_sweep.model.tables import bundled_path\n"
         "from somo_sweep.sweep.study import load_study\n"
-        "from somo_sweep.sweep.jobs import build_jobs\n"
+        "from somo_sweep.sweep.jobs.table import build_jobs\n"
         "for name in ('pinch_grasp_quick.yaml', 'palm_design_quick.yaml', 'finger_pressure_sweep.yaml'):\n"
         "    table = build_jobs(load_study(bundled_path(name)))\n"
         "    assert table.jobs\n"
@@ -140,7 +171,7 @@ def test_loading_a_mujoco_study_imports_neither_engine(tmp_path: Path) -> None:
     code = (
         "import sys\n"
         "from somo_sweep.sweep.study import load_study\n"
-        "from somo_sweep.sweep.jobs import build_jobs\n"
+        "from somo_sweep.sweep.jobs.table import build_jobs\n"
         f"assert build_jobs(load_study({str(study)!r})).jobs\n"
         "print(sorted(m for m in sys.modules if m.split('.')[0] in ('pybullet', 'mujoco')))\n"
     )
@@ -222,3 +253,70 @@ def test_no_module_or_function_outgrows_its_limit() -> None:
                 if lines > MAX_FUNCTION_LINES:
                     too_long.append(f"{where}:{node.lineno} {node.name}: {lines} lines")
     assert too_long == []
+
+
+#: The only places that write, move or delete files: the command line (every file a user asks
+#: for), the results store (part files, manifest, lock) and the URDF cache. A module elsewhere
+#: computes and returns; its caller decides where things go.
+WRITERS = ("cli/", "sweep/store/", "sim/urdf_cache.py")
+#: A test task writes marker files a test waits for (`tasks/selftest.py`, hidden from users).
+WRITER_EXCEPTIONS = {"tasks/selftest.py": {"touch"}}
+_WRITE_METHODS = {
+    "write_text", "write_bytes", "savefig", "write_table", "mkdir", "unlink", "rmtree", "touch",
+    "imsave", "rmdir", "symlink_to", "hardlink_to", "to_parquet", "to_csv", "to_json",
+}  # fmt: skip
+_OS_CALLS = {"replace", "rename", "remove", "unlink", "makedirs", "mkdir", "rmdir", "link", "symlink"}
+
+
+def _file_writes(path: Path) -> list[tuple[int, str]]:
+    """Calls in a module that write, move or delete a file (``to_csv()`` with no path returns text)."""
+    found = []
+    for node in ast.walk(ast.parse(path.read_text(encoding="utf-8"))):
+        if not isinstance(node, ast.Call):
+            continue
+        func, hit = node.func, None
+        if isinstance(func, ast.Attribute):
+            to_text = func.attr.startswith("to_") and not node.args
+            to_text = to_text and not {k.arg for k in node.keywords} & {"path", "path_or_buf", "where"}
+            if isinstance(func.value, ast.Name) and func.value.id == "shutil":
+                hit = f"shutil.{func.attr}"
+            elif func.attr in _WRITE_METHODS and not to_text:
+                hit = func.attr
+            elif isinstance(func.value, ast.Name) and func.value.id == "os" and func.attr in _OS_CALLS:
+                hit = f"os.{func.attr}"
+            elif isinstance(func.value, ast.Name) and func.value.id == "os" and func.attr == "open":
+                hit = "os.open" if "O_CREAT" in ast.unparse(node) else None
+        elif isinstance(func, ast.Name) and func.id == "open":
+            mode = node.args[1] if len(node.args) > 1 else None
+            mode = next((k.value for k in node.keywords if k.arg == "mode"), mode)
+            if isinstance(mode, ast.Constant) and set(str(mode.value)) & set("wax+"):
+                hit = "open"
+        if hit:
+            found.append((node.lineno, hit))
+    return found
+
+
+def test_only_the_cli_the_store_and_the_urdf_cache_write_files() -> None:
+    offenders = []
+    for path in sorted(PACKAGE.rglob("*.py")):
+        where = str(path.relative_to(PACKAGE))
+        if where.startswith(WRITERS):
+            continue
+        allowed = WRITER_EXCEPTIONS.get(where, set())
+        offenders += [f"{where}:{line} {call}" for line, call in _file_writes(path) if call not in allowed]
+    assert offenders == []
+
+
+def test_the_writer_check_sees_a_write(tmp_path: Path) -> None:
+    """The check above can fail: each kind of write is found."""
+    module = tmp_path / "m.py"
+    module.write_text(
+        "import os, shutil\n"
+        "def f(p, df):\n"
+        "    p.write_text('x'); df.to_parquet(p); open(p, 'a'); os.replace(p, p)\n"
+        "    shutil.rmtree(p); os.open(p, os.O_CREAT)\n"
+        "    text = df.to_csv(); open(p)\n"
+    )
+    assert sorted(call for _, call in _file_writes(module)) == sorted(
+        ["write_text", "to_parquet", "open", "os.replace", "shutil.rmtree", "os.open"]
+    )

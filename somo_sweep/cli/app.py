@@ -155,7 +155,7 @@ _python_format = warnings.formatwarning
 def _one_line_for_ours(
     message: Warning | str, category: type[Warning], filename: str, lineno: int, line: str | None = None
 ) -> str:
-    """A skipped part file (:class:`~somo_sweep.sweep.folder.DamagedPartWarning`) as one line,
+    """A skipped part file (:class:`~somo_sweep.sweep.store.folder.DamagedPartWarning`) as one line,
     without Python's source line; every other warning as Python shows it."""
     if category.__name__ == "DamagedPartWarning":
         return f"warning: {message}\n"

@@ -14,8 +14,8 @@ from somo_sweep.errors import SomoError, StorageError
 from somo_sweep.sim.settings import step_problem
 
 if TYPE_CHECKING:
-    from somo_sweep.sweep.engines import EngineComparison
     from somo_sweep.sweep.study import Study
+    from somo_sweep.sweep.views.compare_engines import EngineComparison
 
 __all__ = ["compare_engines"]
 
@@ -65,9 +65,9 @@ def compare_engines(
     and OUT/engines.json (the summary). A task without labels (the bench) is compared metric by
     metric, as a share of each metric's range.
     """
-    from somo_sweep.sweep.engines import compare_runs, on_engines
-    from somo_sweep.sweep.runner import RunOptions, run_sweep
+    from somo_sweep.sweep.run.runner import RunOptions, run_sweep
     from somo_sweep.sweep.study import RESULTS_ROOT, load_study
+    from somo_sweep.sweep.views.compare_engines import compare_runs, on_engines
 
     for name, step in (("--mujoco-step", mujoco_step), ("--pybullet-step", pybullet_step)):
         if step is not None and (why := step_problem(step)) is not None:

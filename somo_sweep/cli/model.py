@@ -108,7 +108,7 @@ def _is_study(path: Path) -> bool:
 def _check_study(path: Path, allow_outside: bool, jobs: int) -> None:
     """Load a study and print its automatic step, chosen as run chooses it."""
     from somo_sweep.cli.sweep import step_events
-    from somo_sweep.sweep.runner import RunOptions, choose_auto_step
+    from somo_sweep.sweep.run.runner import RunOptions, choose_auto_step
     from somo_sweep.sweep.study import load_study
 
     try:

@@ -26,7 +26,7 @@ from somo_sweep.cli.files import (
     write_outputs,
 )
 from somo_sweep.errors import StorageError
-from somo_sweep.sweep.options import MAX_JOBS_PER_CPU
+from somo_sweep.sweep.run.options import MAX_JOBS_PER_CPU
 
 __all__ = [
     "JSON_MARKER",
@@ -53,13 +53,13 @@ state: dict[str, Any] = {"debug": False, "verbosity": 1}
 
 
 def checked_jobs(jobs: int, allow_default: bool = False) -> int:
-    """``--jobs`` as given (:func:`~somo_sweep.sweep.options.checked_workers`): refused below 1 (0
+    """``--jobs`` as given (:func:`~somo_sweep.sweep.run.options.checked_workers`): refused below 1 (0
     allowed as "every CPU" with ``allow_default``) or above :data:`MAX_JOBS_PER_CPU` per CPU.
 
     Raises:
         SomoError: Naming the allowed range.
     """
-    from somo_sweep.sweep.options import checked_workers
+    from somo_sweep.sweep.run.options import checked_workers
 
     return checked_workers(jobs, allow_default)
 

@@ -108,7 +108,7 @@ def fig6(
     """Fig. 6: pinch / power / no grasp over centering and width per DSR; the smallest all-width pinch DSR."""
     from somo_sweep.paper.fig6 import build, grasp_table
     from somo_sweep.paper.grasp_trials import read_results
-    from somo_sweep.sweep.folder import read_manifest
+    from somo_sweep.sweep.store.folder import read_manifest
 
     stem = f"fig6_{rule}"
     try:
@@ -324,7 +324,7 @@ def palm(
 ) -> None:
     """Palm design study (Sec. V-B): rotation per cycle and drop rate over palm height x diameter."""
     from somo_sweep.paper.palm import build
-    from somo_sweep.sweep.store import read_results
+    from somo_sweep.sweep.store.result_store import read_results
 
     try:
         table = read_results(results)

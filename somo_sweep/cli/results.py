@@ -20,12 +20,12 @@ from somo_sweep.cli.output import (
 from somo_sweep.errors import SomoError
 
 if TYPE_CHECKING:
-    from somo_sweep.sweep.parts import Damage
+    from somo_sweep.sweep.store.parts import Damage
 
 __all__ = ["ALLOW_OUTSIDE", "MAX_TRIALS", "plot", "recheck", "save_plots", "show"]
 
 _out = Console()
-#: Default of ``--max-trials`` (the library's :data:`somo_sweep.sweep.study_file.MAX_TRIALS`).
+#: Default of ``--max-trials`` (the library's :data:`somo_sweep.sweep.study.file.MAX_TRIALS`).
 MAX_TRIALS = 1_000_000
 #: Keys of every ``recheck --report`` file (earlier versions wrote it without the JSON mark).
 RECHECK_KEYS = frozenset({"trials", "columns_compared", "identical", "mismatches"})
@@ -40,7 +40,7 @@ ALLOW_OUTSIDE = Annotated[
 
 def _damaged(path: Path, reason: Damage) -> None:
     """Warn of a file of a results folder that a reader left out (or whose rows it counted once)."""
-    from somo_sweep.sweep.folder import INFERRED
+    from somo_sweep.sweep.store.folder import INFERRED
 
     if reason.kind == "unreadable":
         typer.echo(
@@ -63,9 +63,9 @@ def _damaged(path: Path, reason: Damage) -> None:
 
 def save_plots(folder: Path) -> None:
     """The summary figure and, for a study with labels, a label map per label column."""
-    from somo_sweep.sweep.folder import read_manifest, read_results
-    from somo_sweep.sweep.manifest import record_files
-    from somo_sweep.sweep.plots import label_maps, summary_figure
+    from somo_sweep.sweep.store.folder import read_manifest, read_results
+    from somo_sweep.sweep.store.manifest import record_files
+    from somo_sweep.sweep.views.plots import label_maps, summary_figure
 
     df, manifest = read_results(folder, _damaged), read_manifest(folder)
     target = folder / "plots"
@@ -89,8 +89,8 @@ def save_plots(folder: Path) -> None:
 def show(results: Annotated[Path, typer.Argument(help="Results folder, e.g. results/<study>.")]) -> None:
     """Print a results folder's summary: counts by status and label, per-axis breakdown."""
     from somo_sweep.cli.summary import print_results
-    from somo_sweep.sweep.folder import pending_journal_rows, read_manifest, read_results
-    from somo_sweep.sweep.lock import holder_now
+    from somo_sweep.sweep.store.folder import pending_journal_rows, read_manifest, read_results
+    from somo_sweep.sweep.store.lock import holder_now
 
     try:
         df, manifest = read_results(results, _damaged), read_manifest(results)
@@ -132,8 +132,8 @@ def recheck(
     """Re-run random stored trials in this process; exit 1 unless every cell is identical."""
     import json
 
-    from somo_sweep.sweep.recheck import recheck as run_recheck
     from somo_sweep.sweep.study import load_study
+    from somo_sweep.sweep.views.recheck import recheck as run_recheck
 
     if max_trials < 1:
         fail(SomoError(f"--max-trials must be >= 1, got {max_trials}"))

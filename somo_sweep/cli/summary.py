@@ -10,9 +10,9 @@ from rich.markup import escape
 from rich.table import Table
 
 from somo_sweep.errors import printable, shown
-from somo_sweep.sweep.folder import MANIFEST, planned_replicas
-from somo_sweep.sweep.options import RunSummary
-from somo_sweep.sweep.robustness import AWAITED, ROBUST, fold, label_names
+from somo_sweep.sweep.run.options import RunSummary
+from somo_sweep.sweep.run.robustness import AWAITED, ROBUST, fold, label_names
+from somo_sweep.sweep.store.folder import MANIFEST, planned_replicas
 
 __all__ = ["breakdown", "inferred_mask", "label_columns", "print_results", "print_run_summary"]
 
@@ -200,11 +200,11 @@ def print_results(
 
     Args:
         console: Where to print.
-        df: The folder's trials (:func:`~somo_sweep.sweep.folder.read_results`).
+        df: The folder's trials (:func:`~somo_sweep.sweep.store.folder.read_results`).
         manifest: Its manifest.
         holder: Who holds the folder's lock now (a run in progress), or None.
         pending: Finished trials waiting in the journals of killed runs, by run id
-            (:func:`~somo_sweep.sweep.folder.pending_journal_rows`).
+            (:func:`~somo_sweep.sweep.store.folder.pending_journal_rows`).
     """
     pending = pending or {}
     replica_runs = beyond = 0

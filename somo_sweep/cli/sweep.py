@@ -1,4 +1,4 @@
-"""``somo-sweep run`` and ``tasks``: run a study (:func:`~somo_sweep.sweep.runner.run_sweep`) and
+"""``somo-sweep run`` and ``tasks``: run a study (:func:`~somo_sweep.sweep.run.runner.run_sweep`) and
 show what it does; list the tasks a study may name."""
 
 from __future__ import annotations
@@ -23,10 +23,10 @@ from somo_sweep.cli.results import ALLOW_OUTSIDE, MAX_TRIALS, save_plots
 from somo_sweep.errors import Interrupted, SomoError
 
 if TYPE_CHECKING:  # the heavy modules are imported when a command runs
-    from somo_sweep.sweep.convergence import StepChoice, StepEvents
-    from somo_sweep.sweep.execution import Backend
-    from somo_sweep.sweep.options import RunEvents, RunOptions, RunSummary
-    from somo_sweep.sweep.sampling import Batch
+    from somo_sweep.sweep.run.convergence import StepChoice, StepEvents
+    from somo_sweep.sweep.run.execution import Backend
+    from somo_sweep.sweep.run.options import RunEvents, RunOptions, RunSummary
+    from somo_sweep.sweep.run.sampling import Batch
     from somo_sweep.sweep.study import Study
 
 __all__ = ["JOBS", "MAX_TRIALS", "run", "step_events", "tasks"]
@@ -69,7 +69,7 @@ _ADAPTIVE = Annotated[
         "stored as inferred (default: the study's sampling:, else exhaustive).",
     ),
 ]
-#: Most replicas ``--robust`` takes (the library's :data:`somo_sweep.sweep.schema.MAX_REPLICAS`;
+#: Most replicas ``--robust`` takes (the library's :data:`somo_sweep.sweep.store.schema.MAX_REPLICAS`;
 #: named here so that the command line imports no Arrow).
 MAX_REPLICAS = 16
 _ROBUST = Annotated[
@@ -109,7 +109,7 @@ def run(
 
     Exits 1 if a trial of the study ended in error (see --allow-errors, --retry-errors).
     """
-    from somo_sweep.sweep.options import RunOptions
+    from somo_sweep.sweep.run.options import RunOptions
 
     chosen = cast("Backend", backend)  # RunOptions.check refuses any other
     options = RunOptions(
@@ -132,7 +132,7 @@ def _loaded(
     path: Path, out: Path | None, max_trials: int, allow_outside: bool, dry_run: RunOptions | None
 ) -> Study | None:
     """The study, or None once its dry run (with these options) is printed."""
-    from somo_sweep.sweep.runner import apply_options
+    from somo_sweep.sweep.run.runner import apply_options
     from somo_sweep.sweep.study import load_study
 
     try:
@@ -149,7 +149,7 @@ def _loaded(
 
 def _run(st: Study, options: RunOptions) -> RunSummary:
     """Run the study with a progress bar per round; an error or an interrupt ends the command."""
-    from somo_sweep.sweep.runner import run_sweep
+    from somo_sweep.sweep.run.runner import run_sweep
 
     view = _RunView(st)
     try:
@@ -190,7 +190,7 @@ def _interrupted(stage: str, signum: int) -> NoReturn:
 
 def step_events(say: Callable[[str], None], folder: Path) -> StepEvents:
     """How the choice of a study's automatic step is told (``say`` one line at a time)."""
-    from somo_sweep.sweep.convergence import StepEvents
+    from somo_sweep.sweep.run.convergence import StepEvents
 
     def reused(choice: StepChoice) -> None:
         say(f"automatic step {choice.step_s * 1e3:g} ms (chosen earlier, from {folder})")
@@ -219,7 +219,7 @@ class _RunView:
         self.live: list[Progress] = []  # the progress bar, once the results folder is open
 
     def events(self) -> RunEvents:
-        from somo_sweep.sweep.options import RunEvents
+        from somo_sweep.sweep.run.options import RunEvents
 
         step = step_events(lambda text: typer.echo(text, err=True), self.study.output)
         return RunEvents(step, self.started, self.new_round, self.advanced)
@@ -307,8 +307,8 @@ def _progress() -> Progress:
 
 def _print_dry_run(st: Study) -> None:
     """Count, then the first rows, without building the other jobs."""
-    from somo_sweep.sweep.jobs import first_jobs, jobs_frame
-    from somo_sweep.sweep.sampling import describe
+    from somo_sweep.sweep.jobs.table import first_jobs, jobs_frame
+    from somo_sweep.sweep.run.sampling import describe
 
     typer.echo(
         f"{st.name}: task {st.task.name}, {st.n_trials} trials "
@@ -318,7 +318,7 @@ def _print_dry_run(st: Study) -> None:
         typer.echo(describe(st))
     jobs = first_jobs(st, DRY_ROWS)
     if st.simulation is None:
-        from somo_sweep.sweep.convergence import ladder
+        from somo_sweep.sweep.run.convergence import ladder
 
         steps, why = ladder(st)
         typer.echo(

@@ -41,9 +41,9 @@ from somo_sweep.paper.fig6 import grasp_table
 from somo_sweep.paper.fig6_ablation import ConfigResult
 from somo_sweep.paper.fig6_compare import Side
 from somo_sweep.paper.grasp_trials import read_results
-from somo_sweep.sweep.execution import Outcome
-from somo_sweep.sweep.jobs import JobTable, build_jobs
-from somo_sweep.sweep.runner import RunEvents, RunOptions, RunSummary, run_sweep
+from somo_sweep.sweep.jobs.table import JobTable, build_jobs
+from somo_sweep.sweep.run.execution import Outcome
+from somo_sweep.sweep.run.runner import RunEvents, RunOptions, RunSummary, run_sweep
 from somo_sweep.sweep.study import Study, derive_study, load_study
 
 __all__ = [
@@ -222,7 +222,7 @@ def run_configurations(
 ) -> list[RunSummary]:
     """Run the trials missing from every configuration's folder (each shared folder once).
 
-    Resumable: each run is :func:`somo_sweep.sweep.runner.run_sweep`, the function behind
+    Resumable: each run is :func:`somo_sweep.sweep.run.runner.run_sweep`, the function behind
     ``somo-sweep run``. Stops after a run that was interrupted (SIGINT / SIGTERM).
 
     Args:

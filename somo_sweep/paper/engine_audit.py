@@ -17,7 +17,7 @@ from typing import Any
 import pandas as pd
 
 from somo_sweep.errors import SomoError
-from somo_sweep.sweep.robustness import fold
+from somo_sweep.sweep.run.robustness import fold
 from somo_sweep.tasks.pinch_grasp.classify import (
     MAX_PROXIMAL_FRACTION,
     MIN_HELD_FRACTION,

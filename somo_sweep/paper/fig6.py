@@ -5,7 +5,7 @@ Works on a tidy table with one row per cell and the columns ``distal_segment_rat
 ``inferred`` and the robustness columns ``replicas``, ``agreement``, ``robust`` and (optional)
 ``replicas_awaited``; :func:`grasp_table` makes it from a results table (any column prefix),
 relabelling every run with a chosen rule and folding a cell's robustness replicas into its
-majority label (:mod:`somo_sweep.sweep.robustness`). Cells an adaptive run inferred keep their
+majority label (:mod:`somo_sweep.sweep.run.robustness`). Cells an adaptive run inferred keep their
 stored label and are drawn hatched; cells whose replicas disagree are cross-hatched, and the
 headline counts only robust cells (:func:`counted_cells`): a cell that awaits some of its
 planned replicas (a run cut short) is not robust yet. The x axis is c, as in the paper; a
@@ -25,8 +25,8 @@ import pandas as pd
 from somo_sweep.errors import SomoError
 from somo_sweep.paper.artifacts import Artifacts
 from somo_sweep.paper.grasp_trials import grasp_labels, inferred_rows
-from somo_sweep.sweep.folder import REPLICAS_PLANNED
-from somo_sweep.sweep.robustness import AWAITED, fold
+from somo_sweep.sweep.run.robustness import AWAITED, fold
+from somo_sweep.sweep.store.folder import REPLICAS_PLANNED
 from somo_sweep.tasks.pinch_grasp.classify import LABELS, find_column
 from somo_sweep.tasks.pinch_grasp.params import BASE_DISTANCE_AT_ZERO_CENTERING_M
 

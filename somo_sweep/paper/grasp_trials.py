@@ -25,12 +25,12 @@ STORED_LABEL = {"contacts": "label_grasp", "paper": "label_grasp_paper"}
 
 
 def read_results(folder: str | Path) -> pd.DataFrame:
-    """The trials table of a results folder (:func:`somo_sweep.sweep.store.read_results`).
+    """The trials table of a results folder (:func:`somo_sweep.sweep.store.result_store.read_results`).
 
     Raises:
         SomoError: Not a results folder, or no trials in it yet.
     """
-    from somo_sweep.sweep.store import read_results as read_trials
+    from somo_sweep.sweep.store.result_store import read_results as read_trials
 
     folder = Path(folder)
     if folder.is_file():
@@ -104,7 +104,7 @@ def relabel(
         the three sweep parameters, ``grasp_<rule>`` (the cell's own trial), and where replicas
         ran ``grasp_<rule>_majority``, ``grasp_<rule>_agreement``, ``replicas``,
         ``replicas_awaited`` and ``robust``
-        (:func:`somo_sweep.sweep.robustness.fold`); an old folder's ``centering_m``, the bases'
+        (:func:`somo_sweep.sweep.run.robustness.fold`); an old folder's ``centering_m``, the bases'
         distance before the paper's centering position, is kept under its own name.
     """
     folder = Path(folder)
@@ -114,7 +114,7 @@ def relabel(
     except SomoError as exc:
         if "lacks the columns needed to classify grasps" not in str(exc):
             raise
-        from somo_sweep.sweep.store import read_manifest
+        from somo_sweep.sweep.store.result_store import read_manifest
 
         study = read_manifest(folder).get("study")
         task = study.get("task") if isinstance(study, dict) else None
@@ -122,7 +122,7 @@ def relabel(
             f"{folder} holds trials of task '{shown(str(task))}', not pinch_grasp: there are no grasps to "
             "classify; allowed: a results folder of a pinch_grasp study"
         ) from None
-    from somo_sweep.sweep.robustness import fold
+    from somo_sweep.sweep.run.robustness import fold
 
     cols = [str(c) for c in table.columns]
     names = ("job_id", "distal_segment_ratio", "object_width_m", "centering_position_m", "centering_m")
@@ -132,7 +132,7 @@ def relabel(
     runs["status"] = "ok"  # a run that is not ok carries its status as its label already
     runs[name] = labels
     runs["inferred"] = inferred_rows(table)
-    from somo_sweep.sweep.folder import REPLICAS_PLANNED
+    from somo_sweep.sweep.store.folder import REPLICAS_PLANNED
 
     cells = fold(runs, [name], planned=table.attrs.get(REPLICAS_PLANNED))
     out = cells[[*keep, name, "inferred"]].copy()
@@ -228,15 +228,15 @@ def render_trial(
         trial: Its job id, or its 0-based index in the study's grid.
         times_s: Snapshot times, s.
         engine: Run the trial on this engine (``pybullet`` or ``mujoco``) with its numerics
-            (:func:`~somo_sweep.sweep.engines.on_engine`); None: the study's own.
+            (:func:`~somo_sweep.sweep.views.compare_engines.on_engine`); None: the study's own.
 
     Returns:
         The images (one PNG each) and the trial's label.
     """
     from somo_sweep.sim.render import Camera, snapshot
     from somo_sweep.sim.world import World
-    from somo_sweep.sweep.convergence import with_stored_step
-    from somo_sweep.sweep.jobs import build_jobs
+    from somo_sweep.sweep.jobs.table import build_jobs
+    from somo_sweep.sweep.run.convergence import with_stored_step
     from somo_sweep.sweep.study import load_study
     from somo_sweep.tasks.pinch_grasp.params import PinchGraspParams
     from somo_sweep.tasks.pinch_grasp.task import run_pinch_grasp
@@ -245,7 +245,7 @@ def render_trial(
     if study.task.name != "pinch_grasp":
         raise SomoError(f"{study_path}: render needs a pinch_grasp study, this one runs '{study.task.name}'")
     if engine is not None:
-        from somo_sweep.sweep.engines import on_engine
+        from somo_sweep.sweep.views.compare_engines import on_engine
 
         study = on_engine(study, engine, study.output)
     job = find_trial(build_jobs(study).jobs, trial)

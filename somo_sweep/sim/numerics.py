@@ -287,7 +287,7 @@ def numerics_for_step(model: Model, step_s: float) -> ChosenNumerics:
     """The least inertia shaping that makes ``step_s`` stable for every chain of ``model``.
 
     No lowest-mode budget: how much shaping a step may take is judged by the labels it gives,
-    against half the step (:mod:`somo_sweep.sweep.convergence`), not by the modes. A chain that is
+    against half the step (:mod:`somo_sweep.sweep.run.convergence`), not by the modes. A chain that is
     stable at ``step_s`` as it is gets none.
     """
     chains: dict[str, ChainChoice] = {}

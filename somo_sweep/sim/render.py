@@ -1,4 +1,4 @@
-"""Headless snapshots of a world, on either engine (no display), and PNG files of them.
+"""Headless snapshots of a world, on either engine (no display).
 
 A :class:`~somo_sweep.sim.camera.Camera` (re-exported here) says where to look from; each engine
 renders it its own way (PyBullet: TinyRenderer, software; MuJoCo: its OpenGL renderer on an
@@ -7,26 +7,14 @@ offscreen EGL or OSMesa context) and both look at the same point from the same p
 
 from __future__ import annotations
 
-from pathlib import Path
-
 import numpy as np
 
 from somo_sweep.sim.camera import Camera
 from somo_sweep.sim.world import World
 
-__all__ = ["Camera", "snapshot", "write_png"]
+__all__ = ["Camera", "snapshot"]
 
 
 def snapshot(world: World, camera: Camera) -> np.ndarray:
     """Render the world; returns an RGB image, shape (height, width, 3), uint8."""
     return world.render(camera)
-
-
-def write_png(image: np.ndarray, path: str | Path) -> Path:
-    """Write an RGB image to a PNG file (folders created); returns the path."""
-    import matplotlib.image
-
-    path = Path(path)
-    path.parent.mkdir(parents=True, exist_ok=True)
-    matplotlib.image.imsave(path, image)
-    return path

@@ -1,6 +1,6 @@
 """Caches a trial fills in its own forked process, handed back to the worker that forked it.
 
-A sweep runs every trial in a process forked from its worker (:mod:`somo_sweep.sweep.trial`), so
+A sweep runs every trial in a process forked from its worker (:mod:`somo_sweep.sweep.run.trial`), so
 what the trial caches would die with it. A cache registered here gives what it learned since the
 fork (:func:`learned`, sent back with the trial's result) and the worker adopts it
 (:func:`adopt`): the trials it forks next inherit it. A cache must hand back only entries that

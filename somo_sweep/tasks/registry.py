@@ -80,7 +80,7 @@ class TaskSpec:
             task's parameters module imports nothing of its trial. Loading a study checks that
             its engine can express the prepared model.
         perturb: A small physical perturbation of a trial's parameters, for robustness replicas
-            (:mod:`somo_sweep.sweep.robustness`): ``perturb(params, rng)`` returns new
+            (:mod:`somo_sweep.sweep.run.robustness`): ``perturb(params, rng)`` returns new
             parameters drawn with the NumPy generator ``rng`` (e.g. the object moved by a fraction
             of a millimetre). None: the task has none, and its studies cannot ask for replicas.
         perturbation: One line saying what ``perturb`` changes (for ``--help`` and the docs).

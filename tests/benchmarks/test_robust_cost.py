@@ -16,7 +16,7 @@ from benchmarks.robust_cost import (
     study_for,
 )
 from benchmarks.setups import BEFORE, CHOSEN, QUICK_STUDY
-from somo_sweep.sweep.jobs import first_jobs
+from somo_sweep.sweep.jobs.table import first_jobs
 from somo_sweep.sweep.study import Simulation, derive_study, load_study
 
 

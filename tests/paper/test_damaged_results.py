@@ -14,7 +14,7 @@ from typer.testing import CliRunner
 
 from somo_sweep.cli.app import app
 from somo_sweep.errors import SomoError
-from somo_sweep.sweep.folder import read_manifest, read_results
+from somo_sweep.sweep.store.folder import read_manifest, read_results
 
 
 def _invoke(*args: str) -> tuple[int, str]:

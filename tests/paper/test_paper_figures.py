@@ -19,7 +19,7 @@ from conftest import MODELS
 from typer.testing import CliRunner
 
 from somo_sweep.cli import app
-from somo_sweep.sweep.runner import RunOptions, run_sweep
+from somo_sweep.sweep.run.runner import RunOptions, run_sweep
 from somo_sweep.sweep.study import load_study
 from somo_sweep.tasks.ihm_gait.task import UNBUILDABLE
 

@@ -20,11 +20,11 @@ from typer.testing import CliRunner
 from somo_sweep.cli.app import app
 from somo_sweep.errors import DescriptionError, SomoError
 from somo_sweep.model.tables import bundled_path
-from somo_sweep.sweep.adaptive import UNKNOWN, AdaptiveGrid, default_stride, infer, next_cells
-from somo_sweep.sweep.jobs import build_jobs
-from somo_sweep.sweep.runner import RunEvents, RunOptions, run_sweep
-from somo_sweep.sweep.sampling import AdaptivePlan, grid_of
-from somo_sweep.sweep.store import read_manifest, read_results
+from somo_sweep.sweep.jobs.table import build_jobs
+from somo_sweep.sweep.run.adaptive import UNKNOWN, AdaptiveGrid, default_stride, infer, next_cells
+from somo_sweep.sweep.run.runner import RunEvents, RunOptions, run_sweep
+from somo_sweep.sweep.run.sampling import AdaptivePlan, grid_of
+from somo_sweep.sweep.store.result_store import read_manifest, read_results
 from somo_sweep.sweep.study import load_study
 
 

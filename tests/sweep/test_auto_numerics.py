@@ -13,9 +13,9 @@ from typer.testing import CliRunner
 from somo_sweep.cli.app import app
 from somo_sweep.model.load import load_model
 from somo_sweep.sim.numerics import choose_numerics
-from somo_sweep.sweep.jobs import build_jobs
-from somo_sweep.sweep.runner import RunOptions, run_sweep
-from somo_sweep.sweep.store import read_manifest, read_results
+from somo_sweep.sweep.jobs.table import build_jobs
+from somo_sweep.sweep.run.runner import RunOptions, run_sweep
+from somo_sweep.sweep.store.result_store import read_manifest, read_results
 from somo_sweep.sweep.study import load_study
 
 SIMULATION = "simulation: {time_step_s: 1.0e-3}"

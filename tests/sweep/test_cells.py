@@ -13,10 +13,10 @@ import pytest
 from test_sweep import make_study
 
 from somo_sweep.errors import DescriptionError
-from somo_sweep.sweep.jobs import build_jobs
-from somo_sweep.sweep.runner import RunOptions, run_sweep
-from somo_sweep.sweep.sampling import describe
-from somo_sweep.sweep.store import read_results
+from somo_sweep.sweep.jobs.table import build_jobs
+from somo_sweep.sweep.run.runner import RunOptions, run_sweep
+from somo_sweep.sweep.run.sampling import describe
+from somo_sweep.sweep.store.result_store import read_results
 from somo_sweep.sweep.study import load_study
 
 HEAD = "task: selftest_sleep\nmodel: models/ihm_finger.yaml\n"

@@ -15,9 +15,9 @@ from typer.testing import CliRunner
 
 from somo_sweep.cli.app import app
 from somo_sweep.errors import SomoError
-from somo_sweep.sweep.execution import dask_client
-from somo_sweep.sweep.runner import RunOptions, run_sweep
-from somo_sweep.sweep.store import read_manifest
+from somo_sweep.sweep.run.execution import dask_client
+from somo_sweep.sweep.run.runner import RunOptions, run_sweep
+from somo_sweep.sweep.store.result_store import read_manifest
 from somo_sweep.sweep.study import load_study
 
 CRASHING = "set: {task.crash_x: [2.0, 5.0], task.how: raise}"
@@ -173,7 +173,7 @@ def test_jobs_beyond_what_the_machine_can_hold_are_refused_before_any_process(
 def test_a_study_smaller_than_jobs_starts_no_idle_worker(
     tmp_path: Path, monkeypatch: pytest.MonkeyPatch
 ) -> None:
-    from somo_sweep.sweep import execution
+    from somo_sweep.sweep.run import execution
 
     asked: list[int] = []
     real = execution._parallel

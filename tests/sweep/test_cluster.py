@@ -22,10 +22,10 @@ from test_sweep import make_study, results_only, selftest_study
 from test_sweep_processes import BENCH_STUDY, FinishedTrials, _all_gone, _descendants
 
 from somo_sweep.errors import SomoError
-from somo_sweep.sweep import dask_backend
-from somo_sweep.sweep.execution import dask_environment
-from somo_sweep.sweep.runner import RunOptions, run_sweep
-from somo_sweep.sweep.store import read_manifest, read_results
+from somo_sweep.sweep.run import dask_backend
+from somo_sweep.sweep.run.execution import dask_environment
+from somo_sweep.sweep.run.runner import RunOptions, run_sweep
+from somo_sweep.sweep.store.result_store import read_manifest, read_results
 from somo_sweep.sweep.study import load_study
 
 BIN = Path(sys.executable).parent

@@ -21,10 +21,10 @@ from somo_sweep.cli.app import app
 from somo_sweep.model.load import load_model
 from somo_sweep.model.tables import bundled_path
 from somo_sweep.sim.numerics import numerics_for_step, step_ladder
-from somo_sweep.sweep.convergence import choose_step, outcomes_of, stored_choice
-from somo_sweep.sweep.execution import execute
-from somo_sweep.sweep.jobs import build_jobs
-from somo_sweep.sweep.store import read_manifest
+from somo_sweep.sweep.jobs.table import build_jobs
+from somo_sweep.sweep.run.convergence import choose_step, outcomes_of, stored_choice
+from somo_sweep.sweep.run.execution import execute
+from somo_sweep.sweep.store.result_store import read_manifest
 from somo_sweep.sweep.study import load_study
 
 LADDER = [4e-3, 2e-3, 1.5e-3]

@@ -24,10 +24,10 @@ import pytest
 from test_sweep import selftest_study
 
 from somo_sweep.errors import SomoError
-from somo_sweep.sweep import dask_backend
-from somo_sweep.sweep.dask_backend import ALLOWED_FAILURES, run_on_dask
-from somo_sweep.sweep.execution import Outcome
-from somo_sweep.sweep.jobs import Job, build_jobs
+from somo_sweep.sweep.jobs.table import Job, build_jobs
+from somo_sweep.sweep.run import dask_backend
+from somo_sweep.sweep.run.dask_backend import ALLOWED_FAILURES, run_on_dask
+from somo_sweep.sweep.run.execution import Outcome
 from somo_sweep.sweep.study import load_study
 
 
@@ -130,7 +130,7 @@ def _quietly_refused(scheduler: str, says: str) -> None:
     began leaves nothing: no 30-s close at exit, no "Exception ignored in: Client.__del__" traceback."""
     code = (
         "from somo_sweep.errors import SomoError\n"
-        "from somo_sweep.sweep.dask_backend import dask_client\n"
+        "from somo_sweep.sweep.run.dask_backend import dask_client\n"
         "try:\n"
         f"    dask_client({scheduler!r}, timeout_s=1.0)\n"
         "except SomoError as exc:\n"

@@ -5,7 +5,7 @@ from __future__ import annotations
 import re
 from pathlib import Path
 
-from somo_sweep.sweep.execution import DASK_WORKER_CONFIG, dask_environment
+from somo_sweep.sweep.run.execution import DASK_WORKER_CONFIG, dask_environment
 
 
 def test_the_worker_settings_read_as_the_environment_dask_reads() -> None:

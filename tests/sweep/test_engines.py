@@ -16,9 +16,9 @@ from somo_sweep.cli.app import app
 from somo_sweep.errors import DescriptionError, SimulationError, SomoError
 from somo_sweep.sim.world import WorldSettings
 from somo_sweep.sim.worlds import open_world
-from somo_sweep.sweep.engines import compare, on_engine
-from somo_sweep.sweep.jobs import build_jobs
+from somo_sweep.sweep.jobs.table import build_jobs
 from somo_sweep.sweep.study import load_study
+from somo_sweep.sweep.views.compare_engines import compare, on_engine
 
 
 def _study(folder: Path, simulation: str, task: str = "pinch_grasp", extra: str = "") -> Path:
@@ -56,7 +56,7 @@ def test_engines_give_their_jobs_different_ids_and_pybullet_ids_ignore_mujoco_se
 def test_a_jobs_id_is_the_hash_of_its_identity_on_either_engine(tmp_path: Path, engine: str) -> None:
     """The job table writes a PyBullet id from parts made once per model and parameter set; it
     must be the hash of the same identity a MuJoCo job (and every replica) is hashed from."""
-    from somo_sweep.sweep.job import _hash, _identity
+    from somo_sweep.sweep.jobs.job import _hash, _identity
 
     sweep = "sweep:\n  task.object_width_m: [0.01, 0.04]\n"
     study = load_study(_study(tmp_path, f"{{time_step_s: 4.0e-3, engine: {engine}}}", extra=sweep))
@@ -315,8 +315,8 @@ def test_compare_engines_stopped_during_the_first_engine_does_not_run_the_second
     """SIGTERM (or Ctrl-C) during PyBullet's half stops the command, as it stops `run`."""
     import signal
 
-    from somo_sweep.sweep import runner
-    from somo_sweep.sweep.options import RunSummary
+    from somo_sweep.sweep.run import runner
+    from somo_sweep.sweep.run.options import RunSummary
 
     pytest.importorskip("mujoco")
     ran: list[str] = []

@@ -22,8 +22,8 @@ import pandas as pd
 import pyarrow.parquet as pq
 from test_sweep import results_only, selftest_study
 
-from somo_sweep.sweep.runner import RunOptions, run_sweep
-from somo_sweep.sweep.store import read_manifest, read_results
+from somo_sweep.sweep.run.runner import RunOptions, run_sweep
+from somo_sweep.sweep.store.result_store import read_manifest, read_results
 from somo_sweep.sweep.study import load_study
 
 CLI = Path(sys.executable).parent / "somo-sweep"

@@ -12,14 +12,14 @@ import numpy as np
 import pandas as pd
 import pytest
 
-from somo_sweep.sweep.label_maps import (
+from somo_sweep.sweep.views.label_maps import (
     INFERRED_HATCH,
     MAX_PANELS,
     NOT_ROBUST_HATCH,
     label_map_figure,
     map_axes,
 )
-from somo_sweep.sweep.plots import label_maps, summary_metrics
+from somo_sweep.sweep.views.plots import label_maps, summary_metrics
 
 
 def _cells(shape: dict[str, list[float]], robust: bool | None = True) -> pd.DataFrame:

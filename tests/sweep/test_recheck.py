@@ -13,9 +13,9 @@ from typer.testing import CliRunner
 
 from somo_sweep.cli.app import app
 from somo_sweep.errors import SomoError
-from somo_sweep.sweep.recheck import recheck
-from somo_sweep.sweep.runner import RunOptions, run_sweep
+from somo_sweep.sweep.run.runner import RunOptions, run_sweep
 from somo_sweep.sweep.study import load_study
+from somo_sweep.sweep.views.recheck import recheck
 
 runner = CliRunner()
 

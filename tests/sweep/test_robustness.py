@@ -16,11 +16,11 @@ from typer.testing import CliRunner
 
 from somo_sweep.cli.app import app
 from somo_sweep.errors import DescriptionError
-from somo_sweep.sweep.adaptive import UNKNOWN
-from somo_sweep.sweep.jobs import build_jobs, replica_jobs
-from somo_sweep.sweep.robustness import ReplicaPlan, boundary_mask, fold
-from somo_sweep.sweep.runner import RunEvents, RunOptions, run_sweep
-from somo_sweep.sweep.store import read_manifest, read_results
+from somo_sweep.sweep.jobs.table import build_jobs, replica_jobs
+from somo_sweep.sweep.run.adaptive import UNKNOWN
+from somo_sweep.sweep.run.robustness import ReplicaPlan, boundary_mask, fold
+from somo_sweep.sweep.run.runner import RunEvents, RunOptions, run_sweep
+from somo_sweep.sweep.store.result_store import read_manifest, read_results
 from somo_sweep.sweep.study import load_study, with_replicas
 
 
@@ -217,7 +217,7 @@ def test_with_adaptive_sampling_replicas_go_to_simulated_boundary_cells_never_to
 
 
 def test_recheck_reruns_replicas_as_well_as_trials(tmp_path: Path) -> None:
-    from somo_sweep.sweep.recheck import recheck
+    from somo_sweep.sweep.views.recheck import recheck
 
     path = sign_study(tmp_path, jitter=1.0, xs="[-3, -2, -0.01, 0.01, 2, 3]")
     study = with_replicas(load_study(path, tmp_path / "out"), 8)
@@ -306,7 +306,7 @@ def test_an_interrupted_run_counts_the_replicas_it_kept(
     from rich.console import Console
 
     from somo_sweep.cli import sweep as cli_sweep
-    from somo_sweep.sweep.options import RunSummary
+    from somo_sweep.sweep.run.options import RunSummary
 
     said = io.StringIO()
     monkeypatch.setattr(cli_sweep, "_err", Console(file=said, width=200))

@@ -16,7 +16,7 @@ from pathlib import Path
 import numpy as np
 from test_sweep import make_study
 
-from somo_sweep.sweep.jobs import build_jobs
+from somo_sweep.sweep.jobs.table import build_jobs
 from somo_sweep.sweep.study import load_study
 
 

@@ -5,7 +5,7 @@ from __future__ import annotations
 import pyarrow as pa
 import pytest
 
-from somo_sweep.sweep.schema import COLUMNS, arrow_type, merge_types, unit_of
+from somo_sweep.sweep.store.schema import COLUMNS, arrow_type, merge_types, unit_of
 
 
 @pytest.mark.parametrize(

@@ -18,12 +18,12 @@ from typer.testing import CliRunner
 
 from somo_sweep.cli.app import app
 from somo_sweep.errors import SomoError, StorageError
-from somo_sweep.sweep import job as job_module
-from somo_sweep.sweep import jobs as jobs_module
-from somo_sweep.sweep import store as store_module
-from somo_sweep.sweep.jobs import build_jobs
-from somo_sweep.sweep.runner import RunEvents, RunOptions, run_sweep
-from somo_sweep.sweep.store import ResultStore, read_manifest, read_results
+from somo_sweep.sweep.jobs import job as job_module
+from somo_sweep.sweep.jobs import table as jobs_module
+from somo_sweep.sweep.jobs.table import build_jobs
+from somo_sweep.sweep.run.runner import RunEvents, RunOptions, run_sweep
+from somo_sweep.sweep.store import result_store as store_module
+from somo_sweep.sweep.store.result_store import ResultStore, read_manifest, read_results
 from somo_sweep.sweep.study import load_study
 
 
@@ -131,7 +131,7 @@ def test_a_truncated_manifest_is_a_clear_error_for_show_and_is_rebuilt_by_run(tm
 
 
 def test_an_oversized_manifest_is_damaged_not_read(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
-    from somo_sweep.sweep import folder as folder_module
+    from somo_sweep.sweep.store import folder as folder_module
 
     _, out = _finished(tmp_path)
     manifest = out / "manifest.json"
@@ -384,7 +384,7 @@ def test_a_run_that_opened_the_lock_file_as_it_was_removed_locks_the_new_one(
 ) -> None:
     """Removing the lock file when a run ends must not let two runs hold the folder: one that
     opened the old file, then locked it after the end, would hold a lock no one else sees."""
-    from somo_sweep.sweep import lock as lock_module
+    from somo_sweep.sweep.store import lock as lock_module
 
     path = tmp_path / ".lock"
     first = lock_module.acquire(path)
@@ -424,7 +424,7 @@ def test_a_start_that_cannot_write_names_the_lock_the_cause_and_fitting_advice(
 ) -> None:
     """A full disk at the start said "error: No space left on device" (no path) and left a 0-byte
     .lock; a read-only one was told to free space."""
-    from somo_sweep.sweep import lock as lock_module
+    from somo_sweep.sweep.store import lock as lock_module
 
     path = selftest_study(tmp_path)
     out = tmp_path / "out"
@@ -834,7 +834,7 @@ def test_a_fifo_among_the_parts_is_skipped_not_waited_on(tmp_path: Path) -> None
 
 def test_a_stop_record_with_a_long_cause_still_reads_back(tmp_path: Path) -> None:
     """A long file name in the cause must not cut the record's JSON (the next run would say killed)."""
-    from somo_sweep.sweep.lock import LOCK_BYTES, acquire
+    from somo_sweep.sweep.store.lock import LOCK_BYTES, acquire
 
     path = tmp_path / ".lock"
     lock = acquire(path)

@@ -15,8 +15,8 @@ from typer.testing import CliRunner
 
 from somo_sweep.cli.app import app
 from somo_sweep.errors import DescriptionError
-from somo_sweep.sweep.axes import expand_axis, parse_key_path
 from somo_sweep.sweep.study import load_study
+from somo_sweep.sweep.study.axes import expand_axis, parse_key_path
 from somo_sweep.tasks import TaskSpec, all_tasks, registry
 
 STIFFNESS = "model.manipulator.actuators[0].joints[0].stiffness_n_m_per_rad"

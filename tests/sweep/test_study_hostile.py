@@ -11,7 +11,7 @@ from typer.testing import CliRunner
 
 from somo_sweep.cli.app import app
 from somo_sweep.errors import DescriptionError
-from somo_sweep.sweep import jobs as jobs_module
+from somo_sweep.sweep.jobs import table as jobs_module
 from somo_sweep.sweep.study import load_study
 
 HEAD = "task: selftest_sleep\nmodel: models/ihm_finger.yaml\n"

@@ -22,12 +22,12 @@ from typer.testing import CliRunner
 
 from somo_sweep.cli.app import app
 from somo_sweep.errors import SomoError
-from somo_sweep.sweep.execution import dask_client
-from somo_sweep.sweep.jobs import build_jobs, trial_modules
-from somo_sweep.sweep.plots import summary_figure
-from somo_sweep.sweep.runner import RunOptions, run_sweep
-from somo_sweep.sweep.store import ResultStore, read_manifest, read_results
+from somo_sweep.sweep.jobs.table import build_jobs, trial_modules
+from somo_sweep.sweep.run.execution import dask_client
+from somo_sweep.sweep.run.runner import RunOptions, run_sweep
+from somo_sweep.sweep.store.result_store import ResultStore, read_manifest, read_results
 from somo_sweep.sweep.study import load_study
+from somo_sweep.sweep.views.plots import summary_figure
 
 #: Columns that legitimately differ between runs of the same study.
 RUN_COLUMNS = ["wall_time_s", "host"]
@@ -107,8 +107,8 @@ def test_a_worker_imports_what_a_trial_imports_before_forking_it() -> None:
     code = (
         "import sys\n"
         "from somo_sweep.model.tables import bundled_path\n"
-        "from somo_sweep.sweep.execution import run_isolated\n"
-        "from somo_sweep.sweep.jobs import first_jobs\n"
+        "from somo_sweep.sweep.run.execution import run_isolated\n"
+        "from somo_sweep.sweep.jobs.table import first_jobs\n"
         "from somo_sweep.sweep.study import load_study\n"
         "job = first_jobs(load_study(bundled_path('finger_pressure_sweep.yaml')), 1)[0]\n"
         "before = 'somo_sweep.sim.statics' in sys.modules\n"
@@ -129,9 +129,9 @@ def test_code_version_covers_the_code_a_trial_runs_and_nothing_else() -> None:
     } <= set(bench)
     assert not {
         "somo_sweep.cli.app",
-        "somo_sweep.sweep.runner",
-        "somo_sweep.sweep.store",
-        "somo_sweep.sweep.plots",
+        "somo_sweep.sweep.run.runner",
+        "somo_sweep.sweep.store.result_store",
+        "somo_sweep.sweep.views.plots",
     } & set(bench)
     assert "somo_sweep.sim.world" not in trial_modules("somo_sweep.tasks.selftest")
 

@@ -20,8 +20,8 @@ import pytest
 from conftest import signals_as_in_a_shell
 from test_sweep import make_study, results_only, selftest_study
 
-from somo_sweep.sweep.runner import RunOptions, run_sweep
-from somo_sweep.sweep.store import read_manifest, read_results
+from somo_sweep.sweep.run.runner import RunOptions, run_sweep
+from somo_sweep.sweep.store.result_store import read_manifest, read_results
 from somo_sweep.sweep.study import load_study
 
 CLI = Path(sys.executable).parent / "somo-sweep"

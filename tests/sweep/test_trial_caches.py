@@ -5,10 +5,10 @@ from __future__ import annotations
 import pytest
 
 from somo_sweep.model.tables import bundled_path
-from somo_sweep.sweep.engines import on_engine
-from somo_sweep.sweep.jobs import build_jobs
+from somo_sweep.sweep.jobs.table import build_jobs
+from somo_sweep.sweep.run.trial import run_isolated
 from somo_sweep.sweep.study import load_study
-from somo_sweep.sweep.trial import run_isolated
+from somo_sweep.sweep.views.compare_engines import on_engine
 
 pytest.importorskip("mujoco")
 from somo_sweep.sim.mujoco.scene_cache import SCENES

@@ -14,9 +14,9 @@ import pandas as pd
 import pytest
 
 from somo_sweep.model.tables import bundled_path
-from somo_sweep.sweep.jobs import build_jobs
+from somo_sweep.sweep.jobs.table import build_jobs
+from somo_sweep.sweep.run.trial import run_job
 from somo_sweep.sweep.study import load_study
-from somo_sweep.sweep.trial import run_job
 
 LABELS = Path(__file__).parent / "data" / "pinch_grasp_quick_mujoco_labels.csv"
 

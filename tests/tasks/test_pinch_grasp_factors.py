@@ -19,7 +19,7 @@ from somo_sweep.model.tables import bundled_path
 from somo_sweep.sim.settings import WorldSettings
 from somo_sweep.sim.urdf import plan_rigid_body
 from somo_sweep.sim.worlds import open_world
-from somo_sweep.sweep.jobs import build_jobs
+from somo_sweep.sweep.jobs.table import build_jobs
 from somo_sweep.sweep.study import derive_study, load_study
 from somo_sweep.tasks.pinch_grasp.gripper import gripper, object_body
 from somo_sweep.tasks.pinch_grasp.params import PinchGraspParams

@@ -235,7 +235,7 @@ class Numerics(BaseModel):
         added_inertia_kg_m2: Inertia shaping added to each finger link's principal moments
             (lowers the chain's highest mode so a larger explicit step is stable). ``None`` (the
             default) keeps the model's: none in the bundled finger, or what a study without
-            ``simulation:`` chose for its step (:mod:`somo_sweep.sweep.convergence`). Shaping
+            ``simulation:`` chose for its step (:mod:`somo_sweep.sweep.run.convergence`). Shaping
             moves labels (docs/physics.md, "Numerics"), so the bundled studies use none.
         damping_n_m_s_per_rad: Viscous damping of every finger joint (``None`` keeps the file's).
         motor_limit_n_m: Coulomb motor limit of every finger joint (``None`` keeps the file's).

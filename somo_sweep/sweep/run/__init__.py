@@ -1,0 +1,1 @@
+"""Running a study: workers, rounds, sampling, replicas, numerics, finished rows."""

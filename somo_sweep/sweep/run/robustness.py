@@ -1,0 +1,281 @@
+"""Robustness replicas: which cells to replicate, and each cell's majority label and agreement.
+
+A label printed for one trial is a fact only if a small change of the trial keeps it. A study
+with ``robustness: {replicas: K}`` (or ``somo-sweep run --robust K``) runs K replicas of the
+cells that matter (:class:`ReplicaPlan`): each replica is the task's own small perturbation of
+the trial (:attr:`~somo_sweep.tasks.registry.TaskSpec.perturb`), the odd-numbered ones at half
+the time step (:func:`~somo_sweep.sweep.jobs.table.replica_jobs`). Replicas are stored as trials of
+their own (``replica`` 1 … K, the cell's ``trial`` and grid values); :func:`fold` turns a
+results table into one row per cell with, for every label L, ``label_L_majority`` (the most
+common outcome of the cell's runs, its own trial's on a tie), ``label_L_agreement`` (the share
+of the runs that give it) and ``robust`` (every run of the cell gives the same outcome on every
+label; missing for cells without replicas). A run that did not finish ``ok`` counts as the
+outcome of its status.
+
+A cell is robust only when all its planned replicas ran. The planned count is the one the
+folder's latest run that ran replicas asked for (its manifest entry's ``replicas``,
+:func:`~somo_sweep.sweep.store.folder.planned_replicas`); a run cut short leaves cells with fewer:
+they *await replicas* (``replicas_awaited`` > 0) and are not robust until a resumed run adds
+the rest (``robust`` stays missing, or False if the runs stored already disagree). Replicas
+numbered above the planned count (stored by an earlier run that asked for more) are left out,
+so the readers fold what the latest run reported.
+
+Which cells (``where``): ``all`` replicates every simulated cell. ``boundary`` (default)
+replicates the cells whose outcome differs from a grid neighbour's (along any axis, same
+repeat), plus a seeded random audit of ``audit_fraction`` of the other simulated cells; then,
+as long as a replicated cell's majority differs from its own trial's outcome, the neighbours
+that this makes boundary cells are replicated too. The choice depends only on stored outcomes,
+so a resumed run replays it without rerunning anything.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+from collections import Counter
+from collections.abc import Iterator, Sequence
+from typing import Any
+
+import numpy as np
+import pandas as pd
+
+from somo_sweep.sweep.jobs.job import Job, replica_jobs
+from somo_sweep.sweep.jobs.table import JobTable
+from somo_sweep.sweep.run.adaptive import UNKNOWN
+from somo_sweep.sweep.run.sampling import Batch, Known
+from somo_sweep.sweep.store.folder import REPLICAS_PLANNED
+from somo_sweep.sweep.study.loaded import Study
+
+__all__ = ["AWAITED", "ROBUST", "ReplicaPlan", "boundary_mask", "fold", "label_names"]
+
+#: The column of :func:`fold` that says whether every run of a cell agrees.
+ROBUST = "robust"
+#: The column of :func:`fold` that counts the planned replicas a cell still lacks.
+AWAITED = "replicas_awaited"
+#: Rounds of "neighbours of a cell whose majority moved" before the plan stops (a guard).
+MAX_ROUNDS = 20
+
+
+def boundary_mask(keys: np.ndarray, dims: int) -> np.ndarray:
+    """Cells whose key differs from a neighbour's along one of the first ``dims`` axes.
+
+    Args:
+        keys: Integer keys, :data:`~somo_sweep.sweep.run.adaptive.UNKNOWN` where not known; the axes
+            after the first ``dims`` (repeats) are not neighbours.
+        dims: Number of grid axes.
+    """
+    out = np.zeros(keys.shape, dtype=bool)
+    for axis in range(dims):
+        if keys.shape[axis] < 2:
+            continue
+        lo = [slice(None)] * keys.ndim
+        hi = [slice(None)] * keys.ndim
+        lo[axis], hi[axis] = slice(None, -1), slice(1, None)
+        a, b = keys[tuple(lo)], keys[tuple(hi)]
+        differ = (a != b) & (a != UNKNOWN) & (b != UNKNOWN)
+        out[tuple(lo)] |= differ
+        out[tuple(hi)] |= differ
+    return out
+
+
+class ReplicaPlan:
+    """The replica rounds of one study.
+
+    Args:
+        study: The study (its ``robustness`` gives K and the policy).
+        table: Its job table (grid order, repeats innermost).
+    """
+
+    def __init__(self, study: Study, table: JobTable):
+        spec = study.robustness
+        self.study = study
+        self.jobs = table.jobs
+        self.ids = [i.decode() for i in table.ids]  # trial number -> job id (jobs built when needed)
+        self.k = spec.replicas
+        self.where = spec.where
+        self.audit_fraction = spec.audit_fraction
+        self.labels = [n.removeprefix("label_") for n in (spec.labels or study.adaptive.labels)]
+        # One dimension per axis group (a cells: table is one, its rows in order).
+        values = {a.key: a.values for a in study.axes}
+        shape = tuple(len(values[g[0]]) for g in study.groups)
+        self.dims = len(shape)
+        self.shape = (*shape, study.repeats)
+        self._replicas: dict[int, list[Job]] = {}
+        self._codes: dict[str, int] = {}
+        #: Trials replicated, and how they were chosen (for the summary and the manifest).
+        self.replicated: set[int] = set()
+        self.boundary = 0
+        self.audited = 0
+        self.moved = 0
+
+    def replicas(self, trial: int) -> list[Job]:
+        """The replica jobs of one trial (built once)."""
+        if trial not in self._replicas:
+            perturb = self.study.task.perturb
+            assert perturb is not None  # refused when the study loads
+            self._replicas[trial] = replica_jobs(self.jobs[trial], self.k, perturb)
+        return self._replicas[trial]
+
+    def _code(self, status: str, labels: dict[str, str]) -> int:
+        names = self.labels or sorted(labels)
+        text = status if status != "ok" else json.dumps([[n, labels.get(n)] for n in names])
+        return self._codes.setdefault(text, len(self._codes))
+
+    def _keys(
+        self, known: Known, inferred: dict[int, tuple[str, dict[str, str]]], majority: bool
+    ) -> np.ndarray:
+        keys = np.full(int(np.prod(self.shape)), UNKNOWN, dtype=np.int64)
+        for trial, job_id in enumerate(self.ids):
+            out = known.get(job_id) or inferred.get(trial)
+            if out is None:
+                continue
+            code = self._code(*out)
+            if majority and trial in self.replicated:
+                runs = [code] + [
+                    self._code(*known[r.job_id]) for r in self.replicas(trial) if r.job_id in known
+                ]
+                code = _majority(runs)
+            keys[trial] = code
+        return keys.reshape(self.shape)
+
+    def rounds(
+        self, known: Known, inferred: dict[int, tuple[str, dict[str, str]]] | None = None
+    ) -> Iterator[Batch]:
+        """The replica rounds still to run (stored replicas are not rerun).
+
+        Args:
+            known: (status, labels) of every stored or finished trial, by job id; the caller adds
+                each outcome before asking for the next round.
+            inferred: (status, labels) of the cells an adaptive run did not simulate, by trial.
+        """
+        if self.k <= 0:
+            return
+        inferred = inferred or {}
+        simulated = np.zeros(self.shape, dtype=bool).reshape(-1)
+        for trial, job_id in enumerate(self.ids):
+            simulated[trial] = job_id in known
+        simulated = simulated.reshape(self.shape)
+        if self.where == "all":
+            chosen = set(np.flatnonzero(simulated).tolist())
+        else:
+            edge = boundary_mask(self._keys(known, inferred, False), self.dims) & simulated
+            chosen = set(np.flatnonzero(edge).tolist())
+            self.boundary = len(chosen)
+            rest = np.flatnonzero(simulated & ~edge)
+            n_audit = math.ceil(self.audit_fraction * len(rest)) if len(rest) else 0
+            if n_audit:
+                rng = np.random.default_rng([self.study.seed, 0x524F42])
+                audit = rng.choice(rest, size=n_audit, replace=False)
+                chosen |= set(int(t) for t in audit)
+                self.audited = n_audit
+        number = 0
+        while chosen and number < MAX_ROUNDS:
+            todo = [r for t in sorted(chosen) for r in self.replicas(t) if r.job_id not in known]
+            if todo:
+                yield Batch(number, len(chosen), todo, kind="replicas", replicas=self.k)
+            self.replicated |= chosen
+            before = self._keys(known, inferred, False)
+            after = self._keys(known, inferred, True)
+            self.moved = int((before != after).sum())
+            edge = boundary_mask(after, self.dims) & simulated
+            chosen = set(np.flatnonzero(edge).tolist()) - self.replicated
+            number += 1
+
+    def summary(self) -> dict[str, Any]:
+        """What the plan did (for the manifest)."""
+        return {
+            "replicas": self.k,
+            "where": self.where,
+            "cells_replicated": len(self.replicated),
+            "boundary_cells": self.boundary,
+            "audited_cells": self.audited,
+            "cells_whose_majority_moved": self.moved,
+        }
+
+
+def _majority(runs: Sequence[Any]) -> Any:
+    """The most common value of ``runs``; on a tie the first run's if tied, else the first tied seen."""
+    counts = Counter(runs)
+    top = max(counts.values())
+    if counts[runs[0]] == top:
+        return runs[0]
+    return next(r for r in runs if counts[r] == top)
+
+
+def label_names(table: pd.DataFrame) -> list[str]:
+    """The label columns of a results table (``label_*``, the robustness columns left out)."""
+    return [
+        c
+        for c in table.columns
+        if str(c).startswith("label_") and not str(c).endswith(("_majority", "_agreement"))
+    ]
+
+
+def fold(
+    table: pd.DataFrame, labels: Sequence[str] | None = None, planned: int | None = None
+) -> pd.DataFrame:
+    """One row per cell: its own trial's row plus, for every label, the majority, the agreement
+    and the number of runs, and ``robust`` (module docstring).
+
+    Args:
+        table: A results table (:func:`~somo_sweep.sweep.store.folder.read_results`); rows without a
+            ``replica`` column or value are a cell's own trials.
+        labels: Label columns to fold (default: every ``label_*`` column).
+        planned: Replicas planned per replicated cell; default: the table's
+            ``attrs[REPLICAS_PLANNED]`` (set by ``read_results`` from the manifest), else the
+            most replicas stored for one cell.
+
+    Returns:
+        The cells' own rows, in grid order, with ``replicas`` (replica runs stored and folded),
+        :data:`AWAITED` (planned replicas not stored yet), ``label_L_majority``,
+        ``label_L_agreement`` for each label L, and ``robust`` (True only when every planned
+        replica ran and all runs agree; False when the runs stored disagree; missing where no
+        replica ran or the cell awaits replicas).
+    """
+    names = list(labels) if labels is not None else label_names(table)
+    replica = (
+        pd.to_numeric(table["replica"], errors="coerce").fillna(0).astype(int)
+        if "replica" in table.columns
+        else pd.Series(0, index=table.index)
+    )
+    if planned is None:
+        planned = table.attrs.get(REPLICAS_PLANNED)
+    if planned is None:
+        planned = int(replica.max()) if len(replica) else 0
+    kept = replica <= planned
+    table, replica = table[kept], replica[kept]
+    own = table[replica == 0].copy()
+    extra = table[replica > 0]
+    counts = extra.groupby("trial").size() if len(extra) else pd.Series(dtype=int)
+    own["replicas"] = own["trial"].map(counts).fillna(0).astype(int).to_numpy()
+    own[AWAITED] = np.where(own["replicas"] > 0, (planned - own["replicas"]).clip(lower=0), 0)
+    if not names:
+        own[ROBUST] = pd.array([pd.NA] * len(own), dtype="boolean")
+        return own.reset_index(drop=True)
+    all_agree = _agreement(own, table, replica, names)
+    robust = pd.array(all_agree.to_numpy(), dtype="boolean")
+    unchecked = (own["replicas"].to_numpy() == 0) | ((own[AWAITED].to_numpy() > 0) & all_agree.to_numpy())
+    robust[unchecked] = pd.NA
+    own[ROBUST] = robust
+    return own.reset_index(drop=True)
+
+
+def _agreement(own: pd.DataFrame, table: pd.DataFrame, replica: pd.Series, names: Sequence[str]) -> pd.Series:
+    """Add each label's majority and agreement to ``own``; whether every run agrees on every label."""
+    status = table["status"].astype(str)
+    all_agree = pd.Series(True, index=own.index)
+    for name in names:
+        values = table[name].astype(object).where(table[name].notna(), None)
+        outcome = values.where(status == "ok", status)
+        runs: dict[Any, list[Any]] = {}
+        # Each cell's own trial first, so a tie keeps its outcome.
+        for trial, _replica, value in sorted(
+            zip(table["trial"], replica, outcome, strict=True), key=lambda t: (t[0], t[1])
+        ):
+            runs.setdefault(trial, []).append(value)
+        majority = {t: _majority(v) for t, v in runs.items()}
+        share = {t: sum(x == majority[t] for x in v) / len(v) for t, v in runs.items()}
+        own[f"{name}_majority"] = own["trial"].map(majority).to_numpy()
+        own[f"{name}_agreement"] = own["trial"].map(share).astype(float).to_numpy()
+        all_agree &= own[f"{name}_agreement"] >= 1.0
+    return all_agree

@@ -1,0 +1,134 @@
+"""Run a study end to end: options → time step → job table → rounds of trials → results folder.
+
+:func:`run_sweep` is the one call that runs a sweep (``somo-sweep run`` calls it): it applies the
+run's options to the study (sampling, replicas), chooses the time step of a study without
+``simulation:`` (:func:`~somo_sweep.sweep.run.convergence.auto_step`), builds the job table, and runs
+the trials missing from the results folder in rounds (:mod:`somo_sweep.sweep.run.session`), on local
+worker processes or a Dask cluster. It is resumable, and reports what it does through
+:class:`~somo_sweep.sweep.run.options.RunEvents`; it prints nothing.
+"""
+
+from __future__ import annotations
+
+import signal
+from collections.abc import Iterator
+
+from somo_sweep.errors import Interrupted
+from somo_sweep.sweep.jobs.job import Job
+from somo_sweep.sweep.jobs.table import JobTable, build_jobs
+from somo_sweep.sweep.run.convergence import StepEvents, auto_step, outcomes_of
+from somo_sweep.sweep.run.execution import execute, start_workers, stop_workers
+from somo_sweep.sweep.run.options import RoundSummary, RunEvents, RunOptions, RunSummary
+from somo_sweep.sweep.run.rows import outcome_row
+from somo_sweep.sweep.run.session import run_rounds
+from somo_sweep.sweep.run.signals import term_as_interrupt
+from somo_sweep.sweep.study.derive import with_replicas, with_sampling
+from somo_sweep.sweep.study.loaded import Study
+
+__all__ = [
+    "RoundSummary",
+    "RunEvents",
+    "RunOptions",
+    "RunSummary",
+    "apply_options",
+    "choose_auto_step",
+    "outcome_row",
+    "run_sweep",
+]
+
+
+def apply_options(study: Study, options: RunOptions) -> Study:
+    """``study`` as ``options`` run it: their sampling and replica count, where they give one.
+
+    Raises:
+        DescriptionError: The replica count is out of range, or the task cannot be replicated.
+    """
+    if options.adaptive is not None:
+        study = with_sampling(study, options.adaptive)
+    if options.replicas is not None:
+        study = with_replicas(study, options.replicas)
+    return study
+
+
+def choose_auto_step(study: Study, options: RunOptions, events: StepEvents | None = None) -> Study:
+    """``study`` with its automatic step (:func:`~somo_sweep.sweep.run.convergence.auto_step`), its
+    sample trials run as ``options`` say.
+
+    Raises:
+        SomoError: The results folder's name is one no folder can have; the sample could not run.
+    """
+
+    def run_jobs(batch: list[Job]) -> Iterator[tuple[str, str, dict[str, str]]]:
+        runs = execute(batch, options.backend, options.workers, options.scheduler, options.timeout_s)
+        return outcomes_of(runs)
+
+    return auto_step(study, run_jobs, events)
+
+
+def run_sweep(
+    study: Study,
+    options: RunOptions | None = None,
+    events: RunEvents | None = None,
+    table: JobTable | None = None,
+) -> RunSummary:
+    """Run the trials of ``study`` missing from its results folder, and say what the run did.
+
+    Args:
+        study: The loaded study (its ``output`` is the results folder).
+        options: How to run it (default: every CPU of this machine, the study's own sampling
+            and replicas).
+        events: What to report as it goes (default: nothing).
+        table: The job table of ``study`` as ``options`` run it, if already built (then the study's
+            step is taken as it is: a study without ``simulation:`` runs its modal numerics
+            unless its ``auto_step_s`` says otherwise).
+
+    Returns:
+        What the run did; ``interrupted`` is set when SIGINT / SIGTERM stopped it (every finished
+        trial is kept).
+
+    Raises:
+        Interrupted: SIGINT (or SIGTERM while the step is chosen) before the first trial ran: its
+            ``stage`` says what it stopped (nothing of the study was written).
+        StorageError: The results could not be written (e.g. disk full); the run stopped, what
+            it wrote is intact and the manifest counts only rows in part files.
+        SomoError: Bad options, folder locked, different study in the folder, Dask unreachable,
+            the engine (MuJoCo) not installed.
+        DescriptionError: The replica count does not fit the study, two trials are identical, or
+            ``adaptive.labels`` names a label the task does not give.
+    """
+    options = options or RunOptions()
+    events = events or RunEvents()
+    options.check()
+    study = apply_options(study, options)
+    if options.backend == "loky":  # the workers start and import while the jobs are built
+        start_workers(min(options.workers, study.n_trials), study.task.name)
+    try:
+        if table is None:
+            study = _with_step(study, options, events.step)
+            table = _table(study)
+        try:
+            return run_rounds(study, table, options, events)
+        except Interrupted:
+            raise
+        except KeyboardInterrupt:  # while the results folder was opened, before the rounds' guard
+            raise Interrupted("folder", signal.SIGINT) from None
+    finally:
+        stop_workers()  # started, but the run ended before its first trial (nothing to do, an error)
+
+
+def _with_step(study: Study, options: RunOptions, events: StepEvents | None) -> Study:
+    """``study`` with its automatic step, when it has no ``simulation:`` and no step yet."""
+    if study.simulation is not None or study.auto_step_s is not None:
+        return study
+    with term_as_interrupt() as caught:
+        try:
+            return choose_auto_step(study, options, events)
+        except KeyboardInterrupt:
+            raise Interrupted("step", caught[0] if caught else signal.SIGINT) from None
+
+
+def _table(study: Study) -> JobTable:
+    try:
+        return build_jobs(study)
+    except KeyboardInterrupt:
+        raise Interrupted("jobs", signal.SIGINT) from None

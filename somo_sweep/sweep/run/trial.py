@@ -1,0 +1,289 @@
+"""One trial in a process of its own: its outcome whatever happens to it.
+
+Every trial runs in its own process forked from the worker (POSIX), so a trial that
+dies (segfault, ``os._exit``, killed, out of memory) costs only that trial, which is
+marked ``error``; the worker, the sweep and every other trial go on. A trial that
+blows up (``unstable``) is run once more at half the time step, same everything else; the
+outcome says so (``retried_half_step``, ``time_step_used_s``) and stays ``unstable`` only if
+the retry blows up too. The forked child ignores SIGINT (Ctrl-C stops the sweep from the
+parent, which keeps every finished trial) and is killed if its worker dies.
+
+Both backends run trials through :func:`run_isolated` (:mod:`somo_sweep.sweep.run.execution` on
+this machine, :mod:`somo_sweep.sweep.run.dask_backend` on a cluster).
+"""
+
+from __future__ import annotations
+
+import contextlib
+import ctypes
+import importlib
+import os
+import pickle
+import select
+import signal
+import socket
+import sys
+import threading
+import time
+from dataclasses import dataclass, field, replace
+from typing import Any
+
+from somo_sweep.errors import UnstableSimulation
+from somo_sweep.sim import shared_caches
+from somo_sweep.sweep.jobs.code import trial_modules
+from somo_sweep.sweep.jobs.job import Job
+from somo_sweep.tasks.registry import TaskResult, get_task
+
+__all__ = ["Attempt", "Outcome", "outcome_of", "run_isolated", "run_job", "start_local_worker", "warm_up"]
+
+_PR_SET_PDEATHSIG = 1
+
+
+@dataclass(frozen=True)
+class Outcome:
+    """What came back from one trial.
+
+    Attributes:
+        job_id: The job's id.
+        status: ``ok``, ``unstable`` or ``error``.
+        message: Why the status is not ``ok`` (empty otherwise).
+        metrics: The task's metrics.
+        labels: The task's labels.
+        wall_time_s: Wall time of the trial, s.
+        host: Host name of the worker.
+        retried_half_step: The first run blew up and the trial was run again at half the step.
+        time_step_used_s: Time step of the run reported, s (NaN if the trial never ran).
+    """
+
+    job_id: str
+    status: str
+    message: str = ""
+    metrics: dict[str, Any] = field(default_factory=dict)
+    labels: dict[str, str] = field(default_factory=dict)
+    wall_time_s: float = 0.0
+    host: str = ""
+    retried_half_step: bool = False
+    time_step_used_s: float = float("nan")
+
+
+@dataclass(frozen=True)
+class Attempt:
+    """A trial's result and how it was obtained.
+
+    Attributes:
+        result: What the task returned (for the retry, if there was one).
+        retried_half_step: The first run was ``unstable`` and this is the half-step rerun.
+        time_step_used_s: Time step of ``result``'s run, s.
+        learned: What the trial's process cached that its worker may keep
+            (:mod:`somo_sweep.sim.shared_caches`).
+    """
+
+    result: TaskResult
+    retried_half_step: bool
+    time_step_used_s: float
+    learned: dict[str, Any] = field(default_factory=dict)
+
+
+def _die_with_parent() -> None:
+    try:
+        libc = ctypes.CDLL(None, use_errno=True)
+        libc.prctl(_PR_SET_PDEATHSIG, signal.SIGKILL)
+    except (OSError, AttributeError):  # not Linux: the child still ends when its trial does
+        pass
+
+
+_watching: list[int] = []
+
+
+def _watch_owner(owner_pid: int) -> None:
+    """In a local worker process, exit as soon as the process that started the sweep is gone.
+
+    A killed ``somo-sweep run`` (SIGKILL, OOM) then leaves no idle workers behind; their
+    trial processes follow through their parent-death signal. Not done in the sweep's own
+    process (``--jobs 1``) nor on remote (Dask) workers, which are not its children.
+    """
+    if _watching or os.getpid() == owner_pid or os.getppid() != owner_pid:
+        return
+    _watching.append(owner_pid)
+
+    def watch() -> None:
+        while os.getppid() == owner_pid:
+            time.sleep(1.0)
+        os._exit(1)
+
+    threading.Thread(target=watch, name="somo-sweep-owner-watch", daemon=True).start()
+
+
+def start_local_worker(owner_pid: int) -> None:
+    """Initializer of a local (loky) worker, which the sweep's process started: exit at once if
+    that process is already gone (killed while this worker was still importing), else watch it."""
+    if os.getppid() != owner_pid:
+        os._exit(1)
+    _watch_owner(owner_pid)
+
+
+_warmed: set[tuple[str, str]] = set()
+
+
+def warm_up(task: str, engine: str = "pybullet") -> None:
+    """Once per worker process and task, before the first fork: import every module a trial may
+    import, and connect the spare PyBullet client its children inherit.
+
+    A module a trial imports itself (inside a function) is otherwise imported again in every
+    forked child and lost with it: the bench task's statics (SciPy) cost about 0.13 s of CPU per
+    trial that way, ten times the trial itself. An import error is the trial's, reported by the child.
+    """
+    if (task, engine) in _warmed:
+        return
+    _warmed.add((task, engine))
+    with contextlib.suppress(Exception):
+        spec = get_task(task)
+        _ = spec.run
+        for name in trial_modules(spec.run_path.partition(":")[0], engine):
+            with contextlib.suppress(Exception):
+                importlib.import_module(name)
+        if "somo_sweep.sim.world" in sys.modules:  # a simulating task: import its engine once
+            _prepare_engine(engine)
+
+
+def _call(job: Job, time_step_s: float) -> TaskResult:
+    spec = get_task(job.task)
+    try:
+        return spec.run(job.model, job.params, replace(job.settings, time_step_s=time_step_s), job.seed)
+    except UnstableSimulation as exc:
+        return TaskResult(status="unstable", message=str(exc))
+    except Exception as exc:
+        return TaskResult(status="error", message=f"{type(exc).__name__}: {exc}")
+
+
+def run_job(job: Job) -> Attempt:
+    """Run one job in this process; a blow-up is retried once at half the step (never raises)."""
+    step = job.settings.time_step_s
+    first = _call(job, step)
+    if first.status != "unstable":
+        return Attempt(first, False, step)
+    retry = _call(job, step / 2)
+    note = f"first run at {step:g} s blew up ({first.message}); retried at {step / 2:g} s"
+    message = note if retry.status == "ok" else f"{note}: {retry.message}"
+    return Attempt(replace(retry, message=message), True, step / 2)
+
+
+def _exit_text(status: int) -> str:
+    if os.WIFSIGNALED(status):
+        sig = os.WTERMSIG(status)
+        return f"killed by signal {sig} ({signal.Signals(sig).name})"
+    return f"exit code {os.waitstatus_to_exitcode(status)}"
+
+
+def _prepare_engine(engine: str) -> None:
+    """Import an engine before forking (once per worker); PyBullet's children also inherit a
+    connected client (:func:`~somo_sweep.sim.pybullet.world.keep_spare_client`)."""
+    if engine == "mujoco":
+        import somo_sweep.sim.mujoco.world  # noqa: F401  (its import, not the trial's, pays)
+
+        return
+    from somo_sweep.sim.pybullet.world import keep_spare_client
+
+    keep_spare_client()
+
+
+def run_isolated(job: Job, timeout_s: float | None = None, owner_pid: int | None = None) -> Outcome:
+    """Run one job in a forked child process and return its outcome (never raises for the trial).
+
+    Args:
+        job: The job.
+        timeout_s: Kill the trial after this wall time, s (None: no limit).
+        owner_pid: Process id of the sweep; a local worker exits when that process is gone.
+    """
+    if owner_pid is not None:
+        _watch_owner(owner_pid)
+    warm_up(job.task, job.settings.engine)
+    start = time.perf_counter()
+    host = socket.gethostname()
+    read_fd, write_fd = os.pipe()
+    pid = os.fork()
+    if pid == 0:
+        os.close(read_fd)
+        _child(job, write_fd)
+    os.close(write_fd)
+    data, timed_out, status = _collect(pid, read_fd, None if timeout_s is None else start + timeout_s)
+    wall = time.perf_counter() - start
+    if timed_out:
+        return Outcome(job.job_id, "error", f"timed out after {timeout_s} s", wall_time_s=wall, host=host)
+    try:
+        attempt: Attempt = pickle.loads(data)
+    except Exception:
+        msg = f"the process running this trial died ({_exit_text(status)})"
+        return Outcome(job.job_id, "error", msg, wall_time_s=wall, host=host)
+    with contextlib.suppress(Exception):  # a cache is a saving, never a trial's failure
+        shared_caches.adopt(attempt.learned)
+    return outcome_of(job, attempt, wall, host)
+
+
+def _child(job: Job, write_fd: int) -> None:
+    """In the forked child: run the job, send the pickled result, leave without cleanup handlers."""
+    signal.signal(signal.SIGINT, signal.SIG_IGN)
+    signal.signal(signal.SIGTERM, signal.SIG_DFL)
+    _die_with_parent()
+    code = 1
+    try:
+        try:
+            shared_caches.mark()
+            attempt = run_job(job)
+            data = pickle.dumps(attempt)
+            with contextlib.suppress(Exception):  # what the worker may keep, when it pickles
+                data = pickle.dumps(replace(attempt, learned=shared_caches.learned()))
+        except BaseException as exc:  # SystemExit in a task, or metrics that cannot be pickled
+            failed = TaskResult(status="error", message=f"{type(exc).__name__}: {exc}")
+            data = pickle.dumps(Attempt(failed, False, job.settings.time_step_s))
+        with os.fdopen(write_fd, "wb") as fh:
+            fh.write(data)
+        code = 0
+    finally:
+        os._exit(code)
+
+
+def _collect(pid: int, read_fd: int, deadline: float | None) -> tuple[bytes, bool, int]:
+    """What the child ``pid`` sent before it ended or the deadline passed (then it is killed).
+
+    Returns:
+        (the bytes it sent, whether it timed out, its wait status).
+    """
+    chunks: list[bytes] = []
+    timed_out = finished = False
+    try:
+        with os.fdopen(read_fd, "rb", buffering=0) as fh:
+            while True:
+                wait = None if deadline is None else max(0.0, deadline - time.perf_counter())
+                if not select.select([fh], [], [], wait)[0]:
+                    timed_out = True
+                    break
+                chunk = fh.read(1 << 16)
+                if not chunk:
+                    break
+                chunks.append(chunk)
+        finished = True
+    finally:
+        if timed_out or not finished:  # over time, or interrupted while waiting: end the child
+            with contextlib.suppress(ProcessLookupError):
+                os.kill(pid, signal.SIGKILL)
+        if not finished:
+            os.waitpid(pid, 0)
+    _, status = os.waitpid(pid, 0)
+    return b"".join(chunks), timed_out, status
+
+
+def outcome_of(job: Job, attempt: Attempt, wall_time_s: float = 0.0, host: str = "") -> Outcome:
+    """The :class:`Outcome` of a job's :class:`Attempt`."""
+    r = attempt.result
+    return Outcome(
+        job.job_id,
+        r.status,
+        r.message,
+        dict(r.metrics),
+        dict(r.labels),
+        wall_time_s,
+        host,
+        attempt.retried_half_step,
+        attempt.time_step_used_s,
+    )

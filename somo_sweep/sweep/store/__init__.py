@@ -1,0 +1,1 @@
+"""The results folder: its part files, manifest and lock, read and written."""

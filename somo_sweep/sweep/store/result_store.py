@@ -1,0 +1,477 @@
+"""The results folder of a study: a Parquet dataset of trials, a manifest, and a lock.
+
+Layout of ``results/<study>/``::
+
+    trials/part-*.parquet   one row per finished trial; read with pd.read_parquet(".../trials")
+    trials/.journal-*.jsonl the rows of a run as its trials finish (one line each), until
+                            they are in a part file; a killed run's rows are recovered from it
+    trials/quarantine/      damaged part files, set aside (their trials run again)
+    inferred.parquet        adaptive runs: the cells never simulated (``inferred`` true), rewritten
+                            at the end of each completed adaptive run and removed when a run starts
+    manifest.json           study hash, resolved study, runs (each with its versions), hosts,
+                            columns with units, and every file the tool wrote here
+    study.yaml              copy of the study file as last run
+    plots/                  summary plots (PNG and SVG)
+    .lock                   held (flock) while a run writes here, removed when it ends
+                            (:mod:`somo_sweep.sweep.store.lock`)
+
+Part files are written atomically (temporary name starting with ``.``, which readers
+skip, then renamed), so an interrupted run, or a full disk, never leaves a half-written
+file in the dataset. Column types come from the fixed columns, the task's declared
+metrics and the study's parameters; other metrics are typed from their values (a
+column with no value yet stays untyped) and earlier parts are rewritten when a type
+widens. ``--overwrite`` deletes only files the tool wrote, and a folder that is not
+a results folder is never written into.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import json
+import os
+import sys
+import uuid
+from datetime import UTC, datetime
+from pathlib import Path
+from typing import IO, Any
+
+import numpy as np
+import pyarrow as pa
+import pyarrow.compute as pc
+import pyarrow.parquet as pq
+
+from somo_sweep.errors import SomoError, StorageError, os_cause, os_error_for, shown
+from somo_sweep.sweep.store.folder import (
+    INFERRED,
+    JOURNAL_GLOB,
+    MANIFEST,
+    journal_rows,
+    read_manifest,
+    read_results,
+)
+from somo_sweep.sweep.store.lock import LOCK_NAME, FolderLock, acquire
+from somo_sweep.sweep.store.manifest import now_utc, record_files, versions, write_atomically, write_json
+from somo_sweep.sweep.store.opening import (
+    NAME_ERRORS,
+    OWN,
+    check_target,
+    credit,
+    mark_aborted,
+    open_manifest,
+    quarantine,
+)
+from somo_sweep.sweep.store.parts import stored_ids, stored_labels, stored_statuses
+from somo_sweep.sweep.store.schema import COLUMNS, FIXED, arrow_type, merge_types, unit_of
+
+__all__ = ["ResultStore", "read_manifest", "read_results", "record_files"]
+
+
+class ResultStore:
+    """Write access to a results folder for one run: lock, resume, parts, journal, manifest.
+
+    Opening it sets the folder in order (:mod:`somo_sweep.sweep.store.opening`): a folder that is not a
+    results folder is refused, damaged parts are set aside, the manifest is continued or rebuilt,
+    killed runs are marked and their journalled rows recovered.
+
+    Args:
+        folder: The results folder (created if missing).
+        study_hash: Hash of the study being run.
+        resolved: The resolved study (stored; used to say what changed).
+        axes: Axis key path → column name.
+        param_types: Column name → example values (to fix parameter column types up front).
+        overwrite: Delete results of a different study instead of refusing.
+        column_types: Column name → Arrow type alias, declared up front (the task's metrics).
+
+    Attributes:
+        notes: What the store found and did on opening (damaged parts moved, manifest
+            rebuilt, rows recovered, runs marked aborted), for the user.
+        rows_written: Rows this run put into part files.
+
+    Raises:
+        SomoError: Another run holds the folder (:class:`~somo_sweep.errors.FolderInUse`), it holds
+            rows of a different study (:class:`~somo_sweep.errors.StudyChanged`), or it is a file
+            or a folder that is not a results folder.
+        StorageError: The folder could not be created or set in order (a full or read-only disk).
+    """
+
+    def __init__(
+        self,
+        folder: str | Path,
+        study_hash: str,
+        resolved: dict[str, Any],
+        axes: dict[str, str],
+        param_types: dict[str, list[Any]],
+        overwrite: bool = False,
+        column_types: dict[str, str] | None = None,
+    ):
+        self.folder = Path(folder)
+        self.trials = self.folder / "trials"
+        self.notes: list[str] = []
+        self.rows_written = 0
+        self._journal: IO[str] | None = None
+        self._schemas: dict[Path, pa.Schema] = {}  # of the part files, read once on opening
+        self._keep_lock_file = False
+        created = not os.path.lexists(self.folder)
+        self._create()
+        try:
+            self._lock: FolderLock | None = acquire(self.folder / LOCK_NAME)
+        except BaseException:
+            if created:  # leave no empty folder behind a start that failed
+                with contextlib.suppress(OSError):
+                    self.folder.rmdir()
+            raise
+        try:
+            self._set_in_order(study_hash, resolved, axes, overwrite)
+            self._init_types(param_types, column_types or {})
+            # Unique per run, so that a resumed run never overwrites an earlier part file.
+            self.run_id = f"{datetime.now(UTC):%Y%m%dT%H%M%S}-{uuid.uuid4().hex[:8]}"
+            self.seq = 0
+            mark_aborted(self.manifest, self._lock, self.notes)
+            self._heal_schemas()
+            self._recover(study_hash)
+            self._write_manifest()
+        except BaseException as exc:
+            self._abandon(exc, created)
+            raise
+
+    # -- opening ---------------------------------------------------------------------------
+
+    def _create(self) -> None:
+        """Create the folder (after checking what is there).
+
+        Raises:
+            SomoError: A name no folder can have (bad input, exit 2), or what is there is refused.
+            StorageError: A full or read-only disk (a failed run, exit 1).
+        """
+        try:
+            check_target(self.folder)
+            self.folder.mkdir(parents=True, exist_ok=True)
+        except OSError as exc:  # a name too long, no permission, a file in the way, ...
+            where = shown(str(self.folder), 200)
+            cause, advice = os_cause(exc)
+            kind = SomoError if exc.errno in NAME_ERRORS else StorageError
+            raise kind(
+                f"cannot create the results folder {where}: {cause}; nothing was written: {advice}, "
+                "then run the same command again"
+            ) from None
+
+    def _set_in_order(
+        self, study_hash: str, resolved: dict[str, Any], axes: dict[str, str], overwrite: bool
+    ) -> None:
+        """Remove a killed run's temporary files, set damaged parts aside, open the manifest."""
+        self.trials.mkdir(exist_ok=True)
+        for tmp in self.trials.glob(".*.tmp"):
+            tmp.unlink()
+        for tmp in self.folder.glob(".*.tmp"):  # a killed run's manifest or study copy
+            if OWN.fullmatch(tmp.name):
+                tmp.unlink()
+        quarantine(self.folder, self._schemas, self.notes)
+        self.manifest = open_manifest(self.folder, study_hash, resolved, axes, overwrite, self.notes)
+
+    def _abandon(self, exc: BaseException, created: bool) -> None:
+        """Release the folder after an opening that failed; a full disk becomes a StorageError.
+
+        Raises:
+            StorageError: ``exc`` was an operating-system error (what the folder holds is intact).
+        """
+        stop = self._lock.stop_record if self._lock is not None else None
+        if stop is not None and self._lock is not None:  # not yet in the manifest: keep it for the next run
+            self._keep_lock_file = self._lock.record_stop(stop)
+        self.close()
+        if created:  # a start that failed on a new folder leaves no empty folder behind
+            with contextlib.suppress(OSError):
+                self.trials.rmdir()
+                self.folder.rmdir()
+        if isinstance(exc, OSError):  # a full disk while setting the folder in order
+            cause, advice = os_cause(exc)
+            where = f"cannot write {exc.filename}" if exc.filename else "cannot write in it"
+            raise StorageError(
+                f"cannot open the results folder {self.folder}: {where}: {cause}; what it holds is "
+                f"intact (finished trials of a killed run stay in its journal): {advice}, then run "
+                "the same command again"
+            ) from None
+
+    def _init_types(self, param_types: dict[str, list[Any]], declared: dict[str, str]) -> None:
+        self.types: dict[str, pa.DataType] = {
+            name: pa.type_for_alias(info["type"]) for name, info in self.manifest["columns"].items()
+        }
+        for c in COLUMNS:
+            self.types.setdefault(c.name, pa.type_for_alias(c.type))
+        for name, alias in declared.items():
+            self.types[name] = merge_types(self.types.get(name, pa.null()), pa.type_for_alias(alias))
+        for name, values in param_types.items():
+            self.types[name] = merge_types(self.types.get(name, pa.null()), arrow_type(values))
+
+    def _heal_schemas(self) -> None:
+        """Give every part the current schema (a rewrite cut short by a full disk leaves mixed ones)."""
+        parts = self._parts()
+        schema = self._schema()
+        read = [self._schemas.get(p) or pq.read_schema(p) for p in parts]
+        if any(s.remove_metadata() != schema.remove_metadata() for s in read):
+            for part in parts:
+                self._atomic(pq.read_table(part), part, schema)
+
+    def _recover(self, study_hash: str) -> None:
+        """Rows of killed runs, kept in their journals, go into a part file (once each)."""
+        journals = sorted(self.trials.glob(JOURNAL_GLOB))
+        if not journals:
+            return
+        done = self.done_ids()
+        rows: dict[str, dict[str, Any]] = {}
+        by_run: dict[str, int] = {}
+        for journal in journals:
+            run_id = journal.name.removeprefix(".journal-").removesuffix(".jsonl")
+            for row in journal_rows(journal):
+                if (
+                    row.get("study_hash") == study_hash
+                    and row["job_id"] not in done
+                    and row["job_id"] not in rows
+                ):
+                    rows[row["job_id"]] = row
+                    by_run[run_id] = by_run.get(run_id, 0) + 1
+        if rows:
+            self.write(list(rows.values()))
+            self.rows_written = 0  # written now, but finished by the killed run
+            whose = credit(self.manifest, by_run)
+            source = "their journals" if len(by_run) > 1 else "its journal"
+            self.notes.append(f"recovered {len(rows)} finished trial(s) of {whose} from {source}")
+        for journal in journals:
+            journal.unlink()
+
+    # -- reading -----------------------------------------------------------------------------
+
+    def _parts(self) -> list[Path]:
+        return sorted(self.trials.glob("*.parquet"))
+
+    def done_ids(self) -> set[str]:
+        """Ids of the trials already stored."""
+        return set(stored_statuses(self._parts()))
+
+    def stored_labels(self) -> dict[str, tuple[str, dict[str, str]]]:
+        """Status and labels (names without ``label_``) of every trial already stored, by job id."""
+        return stored_labels(self._parts(), [n for n in self._schema().names if n.startswith("label_")])
+
+    def stored_ids(self) -> tuple[np.ndarray, np.ndarray]:
+        """(ids of the trials stored, ids of those stored as ``error``), as NumPy ``S16`` arrays."""
+        return stored_ids(self._parts())
+
+    # -- writing -----------------------------------------------------------------------------
+
+    def drop_errors(self) -> int:
+        """Remove the rows of ``error`` trials (each part rewritten atomically); returns how many."""
+        dropped = 0
+        for part in self._parts():
+            table = pq.read_table(part)
+            keep = pc.not_equal(table.column("status"), "error")
+            n = table.num_rows - pc.sum(keep.cast(pa.int64())).as_py()
+            if not n:
+                continue
+            dropped += n
+            if n == table.num_rows:
+                part.unlink()
+                self._forget(part)
+            else:
+                self._atomic(table.filter(keep), part, self._schema())
+        return dropped
+
+    def copy_study(self, source: Path) -> None:
+        """Keep a copy of the study file (``study.yaml`` / ``study.json``)."""
+        target = self.folder / f"study{source.suffix}"
+        text = source.read_bytes()
+        write_atomically(target, lambda tmp: tmp.write_bytes(text))
+        self._record(target)
+
+    def start_run(self, info: dict[str, Any]) -> None:
+        """Record the start of a run (backend, workers, trials to run, versions) in the manifest."""
+        now = versions()
+        self.manifest["runs"].append(
+            {
+                "start_utc": now_utc(),
+                "end_utc": None,
+                "status": "running",
+                "run_id": self.run_id,
+                **info,
+                "versions": now,
+            }
+        )
+        self.manifest["versions"] = now
+        self._write_manifest()
+
+    def end_run(self, status: str, n_done: int, extra: dict[str, Any] | None = None) -> None:
+        """Record the end of the current run (``completed``, ``interrupted`` or ``failed``).
+
+        Args:
+            status: How the run ended.
+            n_done: Trials that finished in this run (``trials_written`` counts only those
+                whose rows are in part files).
+            extra: More to record with the run (e.g. the adaptive rounds, a failure's cause).
+        """
+        run = self.manifest["runs"][-1]
+        run.update(end_utc=now_utc(), status=status, trials_finished=n_done, trials_written=self.rows_written)
+        run.update(extra or {})
+        self._write_manifest()
+        self._keep_lock_file = False
+        if status != "failed":  # every finished row is in a part file: the journal is not needed
+            self._close_journal(delete=True)
+
+    def record_stop(self, cause: str, n_done: int) -> None:
+        """Say in the lock file, in place, that the current run stopped itself (it could not write,
+        not even the manifest): the next run then reports it as stopped, not killed."""
+        if self._lock is None or not self.manifest["runs"]:
+            return
+        record = {
+            "stopped": self.manifest["runs"][-1].get("start_utc"),
+            "at": now_utc(),
+            "cause": cause,
+            "trials_finished": n_done,
+            "trials_written": self.rows_written,
+        }
+        self._keep_lock_file = self._lock.record_stop(record)
+
+    def journal(self, row: dict[str, Any]) -> None:
+        """Append one finished row to this run's journal (flushed: a killed run keeps it)."""
+        path = self.trials / f".journal-{self.run_id}.jsonl"
+        try:
+            if self._journal is None:
+                self._journal = path.open("a", encoding="utf-8")
+            self._journal.write(json.dumps(row, default=str) + "\n")
+            self._journal.flush()
+        except OSError as exc:
+            raise os_error_for(exc, path) from None
+
+    def write(self, rows: list[dict[str, Any]], journalled: bool = False) -> None:
+        """Append rows as one new part file (atomically); widen the schema if needed.
+
+        Args:
+            rows: The rows.
+            journalled: ``rows`` are exactly the rows of this run's journal since it was last
+                emptied: once they are in the part file the journal is deleted (the next row
+                starts a new one), so a journal never holds more than one part's rows.
+
+        Raises:
+            OSError: The part file could not be written (e.g. the disk is full); nothing
+                of it is left in the dataset and the manifest is unchanged.
+        """
+        if not rows:
+            return
+        names = list(dict.fromkeys(k for r in rows for k in r))
+        types = dict(self.types)
+        for name in names:
+            types[name] = merge_types(types.get(name, pa.null()), arrow_type([r.get(name) for r in rows]))
+        widened = types != self.types
+        schema = self._schema(types)
+        if widened:
+            for part in self._parts():
+                self._atomic(pq.read_table(part), part, schema)
+        self.types = types
+        table = pa.table({n: _column([r.get(n) for r in rows], schema.field(n).type) for n in schema.names})
+        path = self.trials / f"part-{self.run_id}-{self.seq:05d}.parquet"
+        self._atomic(table, path, schema)
+        self.seq += 1
+        self.rows_written += len(rows)
+        self._record(path)
+        hosts = sorted({*self.manifest["hosts"], *(str(r.get("host", "")) for r in rows)} - {""})
+        self.manifest["hosts"] = hosts
+        self._write_manifest()
+        if journalled:
+            self._close_journal(delete=True)
+
+    def check_inferred(self) -> None:
+        """Raise if something other than our file (or a link) sits where the inferred cells go.
+
+        Raises:
+            StorageError: A folder or another non-file there, which the run will not delete.
+        """
+        path = self.folder / INFERRED
+        if (path.exists() or path.is_symlink()) and not (path.is_symlink() or path.is_file()):
+            raise StorageError(
+                f"{path} is not a file (a folder?); adaptive runs write their inferred cells there. "
+                "Move it away and run the same command again"
+            )
+
+    def clear_inferred(self) -> None:
+        """Remove the inferred cells of an earlier run (an adaptive run then writes its own).
+
+        A link there is removed, never what it points to.
+        """
+        self.check_inferred()
+        path = self.folder / INFERRED
+        if path.exists() or path.is_symlink():
+            path.unlink()
+        self._forget(path)
+        self._write_manifest()
+
+    def write_inferred(self, rows: list[dict[str, Any]]) -> None:
+        """Write the inferred cells (``inferred`` true) as ``inferred.parquet``, atomically.
+
+        They never go into ``trials/``: resume reads only the part files, so an inferred cell
+        is never taken for a simulated one.
+        """
+        if not rows:
+            return
+        schema = self._schema().append(pa.field("inferred", pa.bool_()))
+        names = [n for n in schema.names if any(n in r for r in rows)]
+        table = pa.table({n: _column([r.get(n) for r in rows], schema.field(n).type) for n in names})
+        path = self.folder / INFERRED
+        self._atomic(table, path, schema)
+        self._record(path)
+        self._write_manifest()
+
+    def _record(self, path: Path) -> None:
+        rel = path.relative_to(self.folder).as_posix()
+        if rel not in self.manifest["files"]:
+            self.manifest["files"].append(rel)
+
+    def _forget(self, path: Path) -> None:
+        rel = path.relative_to(self.folder).as_posix()
+        self.manifest["files"] = [f for f in self.manifest["files"] if f != rel]
+
+    def _schema(self, types: dict[str, pa.DataType] | None = None) -> pa.Schema:
+        types = self.types if types is None else types
+        order = [c.name for c in COLUMNS] + sorted(n for n in types if n not in FIXED)
+        return pa.schema([pa.field(n, types[n], metadata={"unit": unit_of(n)}) for n in order])
+
+    def _atomic(self, table: pa.Table, path: Path, schema: pa.Schema) -> None:
+        """Write ``table`` as ``path`` (in ``schema``) through a temporary file; an error names ``path``."""
+        for name in schema.names:
+            if name not in table.column_names:
+                table = table.append_column(name, pa.nulls(len(table), schema.field(name).type))
+        table = table.select(schema.names).cast(schema)
+        write_atomically(path, lambda tmp: pq.write_table(table, tmp))
+
+    def _write_manifest(self) -> None:
+        schema = self._schema() if hasattr(self, "types") else pa.schema([])
+        self.manifest["columns"] = {f.name: {"type": str(f.type), "unit": unit_of(f.name)} for f in schema}
+        self.manifest["python"] = sys.version.split()[0]
+        self.manifest["files"] = sorted(set(self.manifest["files"]))
+        try:
+            write_json(self.folder / MANIFEST, self.manifest)
+        except OSError as exc:
+            raise os_error_for(exc, self.folder / MANIFEST) from None
+
+    def _close_journal(self, delete: bool) -> None:
+        if self._journal is not None:
+            path = Path(self._journal.name)
+            with contextlib.suppress(OSError):
+                self._journal.close()
+            self._journal = None
+            if delete:
+                path.unlink(missing_ok=True)
+
+    def close(self) -> None:
+        """Release the lock and remove its file (safe to call twice); the journal is kept unless
+        the run ended, and the lock file if it holds a stop record (:meth:`record_stop`)."""
+        self._close_journal(delete=False)
+        if self._lock is not None:
+            self._lock.release(remove=not self._keep_lock_file)
+            self._lock = None
+
+
+def _column(values: list[Any], kind: pa.DataType) -> pa.Array:
+    """An Arrow column of ``kind``; values of an older text column that are not text become text."""
+    try:
+        return pa.array(values, type=kind)
+    except (pa.ArrowTypeError, pa.ArrowInvalid):
+        if kind != pa.string():
+            raise
+        return pa.array([None if v is None else str(v) for v in values], type=kind)

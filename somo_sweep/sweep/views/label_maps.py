@@ -1,0 +1,187 @@
+"""Label maps of a study: each cell's label drawn over the axes it swept, non-robust cells hatched.
+
+Whatever a study swept, its cells lie on a grid. The axis with the most values runs along x, the
+one with the next most along y, and every combination of the remaining axes gets a panel of its
+own (the paper's Fig. 6 is this map for DSR × width × centering position). A cell is coloured by
+its majority label; hatched in black where its replicas disagree (not robust) and in grey where
+an adaptive run inferred it instead of simulating it. Every helper draws on a given ``ax`` or
+returns a figure; the command line saves it.
+"""
+
+from __future__ import annotations
+
+import itertools
+import math
+from collections.abc import Sequence
+from typing import Any
+
+import numpy as np
+import pandas as pd
+from matplotlib.axes import Axes
+from matplotlib.figure import Figure
+
+from somo_sweep.sweep.run.robustness import ROBUST
+from somo_sweep.sweep.store.schema import unit_of
+
+__all__ = ["MAX_PANELS", "draw_label_panel", "folded_cells", "label_colours", "label_map_figure", "map_axes"]
+
+#: At most this many panels in one map (combinations of the axes beyond the first two).
+MAX_PANELS = 24
+#: Colours of labels every study may show (a trial's status stands in for its label).
+FIXED_COLOURS = {
+    "pinch": "#1b9e77",
+    "power": "#d95f02",
+    "no_grasp": "#bdbdbd",
+    "unstable": "#e6ab02",
+    "error": "#e7298a",
+    "-": "white",
+}
+NOT_ROBUST_HATCH, INFERRED_HATCH = "xxx", "///"
+
+
+def label_colours(values: Sequence[Any]) -> dict[str, str]:
+    """A colour per label value: the fixed ones above, then matplotlib's cycle in sorted order."""
+    free = itertools.cycle(["C0", "C2", "C3", "C4", "C5", "C6", "C8", "C9"])
+    return {v: FIXED_COLOURS.get(v) or next(free) for v in sorted({str(v) for v in values})}
+
+
+def map_axes(cells: pd.DataFrame, axes: Sequence[str]) -> tuple[str, str | None, list[str]]:
+    """The x axis (most values), the y axis (next most; None for a one-axis study) and the
+    panel axes (the rest, in the study's order), among the columns ``axes`` of ``cells``."""
+    present = [a for a in axes if a in cells.columns]
+    if not present:
+        raise ValueError("no swept axis in the table: a label map needs at least one")
+    by_size = sorted(present, key=lambda a: (-cells[a].nunique(dropna=False), present.index(a)))
+    x = by_size[0]
+    y = by_size[1] if len(by_size) > 1 else None
+    return x, y, [a for a in present if a not in (x, y)]
+
+
+def _ticks(values: np.ndarray, column: str) -> list[str]:
+    unit = unit_of(column)
+    if unit == "m" and np.issubdtype(values.dtype, np.number):
+        return [f"{v * 1e3:g}" for v in values]
+    return [f"{v:.4g}" if isinstance(v, float) else str(v) for v in values]
+
+
+def _axis_title(column: str, short: dict[str, str]) -> str:
+    name = short.get(column, column)
+    return f"{name.removesuffix('_m')} (mm)" if unit_of(column) == "m" else name
+
+
+def draw_label_panel(
+    ax: Axes, cells: pd.DataFrame, label: str, x: str, y: str | None, colours: dict[str, str]
+) -> None:
+    """One panel: a square per cell at its (x, y) grid index, coloured by ``label``; hatched where
+    the column ``robust`` is False, grey-hatched where ``inferred`` is True."""
+    from matplotlib.patches import Rectangle
+
+    xs = np.sort(cells[x].unique())
+    ys = np.sort(cells[y].unique()) if y else np.array([0])
+    for _, cell in cells.iterrows():
+        i = int(np.searchsorted(xs, cell[x]))
+        j = int(np.searchsorted(ys, cell[y])) if y else 0
+        value = "-" if pd.isna(cell[label]) else str(cell[label])
+        not_robust = cell.get(ROBUST) is False or cell.get(ROBUST) is np.False_
+        flag = cell.get("inferred", False)
+        inferred = bool(flag) if pd.notna(flag) else False  # numpy's True too, not only Python's
+        ax.add_patch(
+            Rectangle(
+                (i - 0.5, j - 0.5),
+                1.0,
+                1.0,
+                facecolor=colours.get(value, "white"),
+                edgecolor="black" if not_robust else "0.5" if inferred else "white",
+                linewidth=0.5,
+                hatch=NOT_ROBUST_HATCH if not_robust else INFERRED_HATCH if inferred else None,
+            )
+        )
+    ax.set_xlim(-0.5, len(xs) - 0.5)
+    ax.set_ylim(-0.5, len(ys) - 0.5)
+    step = max(1, math.ceil(len(xs) / 12))
+    ax.set_xticks(range(0, len(xs), step), _ticks(xs, x)[::step], rotation=45, fontsize="small")
+    if y:
+        step = max(1, math.ceil(len(ys) / 12))
+        ax.set_yticks(range(0, len(ys), step), _ticks(ys, y)[::step], fontsize="small")
+    else:
+        ax.set_yticks([])
+
+
+def folded_cells(folded: pd.DataFrame, label: str) -> pd.DataFrame:
+    """The cells of a :func:`~somo_sweep.sweep.run.robustness.fold`-ed table with column ``label``
+    holding each cell's majority over its runs, and a run that is not ``ok`` its status."""
+    cells = folded.copy()
+    majority = f"{label}_majority"
+    own = cells[label].astype(object).where(cells["status"] == "ok", cells["status"])
+    cells[label] = cells[majority].astype(object) if majority in cells else own
+    return cells
+
+
+def _legend(cells: pd.DataFrame, colours: dict[str, str]) -> list[Any]:
+    """Legend entries: each label's colour, then the not-robust and inferred hatches with counts."""
+    from matplotlib.patches import Patch
+
+    handles = [Patch(facecolor=c, edgecolor="0.5", label=v) for v, c in colours.items()]
+    not_robust = int(cells[ROBUST].eq(False).fillna(False).astype(bool).sum()) if ROBUST in cells else 0
+    if not_robust:
+        handles.append(
+            Patch(
+                facecolor="white",
+                edgecolor="black",
+                hatch=NOT_ROBUST_HATCH,
+                label=f"not robust ({not_robust}: replicas disagree; majority drawn)",
+            )
+        )
+    inferred = int(cells["inferred"].fillna(False).astype(bool).sum()) if "inferred" in cells else 0
+    if inferred:
+        handles.append(
+            Patch(
+                facecolor="white",
+                edgecolor="0.5",
+                hatch=INFERRED_HATCH,
+                label=f"inferred ({inferred}: not simulated)",
+            )
+        )
+    return handles
+
+
+def label_map_figure(
+    cells: pd.DataFrame, label: str, axes: Sequence[str], short: dict[str, str], title: str
+) -> Figure:
+    """The map of label column ``label`` of a folded table (one row per cell; its majority label
+    in ``label``) over the swept ``axes``, one panel per combination of the axes beyond x and y
+    (at most :data:`MAX_PANELS`; the title says how many are left out), with a legend."""
+    import matplotlib.pyplot as plt
+
+    x, y, rest = map_axes(cells, axes)
+    groups = list(cells.groupby(rest, sort=True)) if rest else [((), cells)]
+    shown = groups[:MAX_PANELS]
+    cols = min(len(shown), 4)
+    rows = math.ceil(len(shown) / cols)
+    fig, grid = plt.subplots(
+        rows, cols, figsize=(3.4 * cols, 2.9 * rows + 1.2), squeeze=False, layout="constrained"
+    )
+    colours = label_colours(cells[label].fillna("-").astype(str))
+    for ax, (key, part) in zip(grid.ravel(), shown, strict=False):
+        draw_label_panel(ax, part, label, x, y, colours)
+        values = key if isinstance(key, tuple) else (key,)
+        ax.set_title(
+            ", ".join(
+                f"{_axis_title(a, short).removesuffix(' (mm)')} {_ticks(np.array([v]), a)[0]}"
+                + (" mm" if unit_of(a) == "m" else "")
+                for a, v in zip(rest, values, strict=True)
+            ),
+            fontsize="small",
+        )
+    for ax in grid.ravel()[len(shown) :]:
+        ax.set_visible(False)
+    for ax in grid[-1]:
+        ax.set_xlabel(_axis_title(x, short))
+    for ax in grid[:, 0]:
+        ax.set_ylabel(_axis_title(y, short) if y else "")
+    handles = _legend(cells, colours)
+    fig.legend(handles=handles, loc="outside lower center", ncol=min(len(handles), 4), fontsize="small")
+    left_out = len(groups) - len(shown)
+    more = f"; {left_out} more panels left out" if left_out else ""
+    fig.suptitle(f"{title}: {label.removeprefix('label_')} ({len(cells)} cells{more})")
+    return fig
