@@ -160,8 +160,8 @@ def test_a_cells_value_that_is_no_table_is_refused(tmp_path: Path, cells: str, m
 def test_a_key_given_in_cells_and_swept_is_refused(tmp_path: Path) -> None:
     path = make_study(tmp_path, HEAD + "cells:\n  - {task.x: 1}\n  - {task.x: 2}\nsweep:\n  task.x: [3, 4]\n")
     assert _problems(path) == [
-        "line 3: cells: key 'task.x' is also a sweep axis; allowed: a key is swept, set or given in cells, "
-        "once"
+        "line 7: sweep.task.x: overlaps cells column 'task.x' (line 4): both set task.x, and only one of "
+        "the values would reach each trial; allowed: each field in one place: params, set, sweep or cells"
     ]
 
 

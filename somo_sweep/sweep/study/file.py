@@ -33,6 +33,8 @@ or ``task.`` (a task parameter, nested with dots). The axis ``model`` (no path) 
 over model files. An axis is a list, ``{values: [...]}``, ``{start, stop, step}``
 (inclusive) or ``{start, stop, num}`` (evenly spaced, inclusive). ``cells:`` gives rows of
 values instead (:mod:`somo_sweep.sweep.study.cells`): the rows are one dimension, their keys zipped.
+A field takes its value from one key: two keys of ``params``, ``set``, ``sweep`` or ``cells`` that
+can reach the same field are refused (:mod:`somo_sweep.sweep.study.overlaps`).
 
 Every trial's model and task parameters are validated when the study is loaded,
 so a bad value fails before anything runs, naming the file, line and key path. The

@@ -24,6 +24,7 @@ from somo_sweep.sweep.study.cells import Cells, cells_key, parse_cells
 from somo_sweep.sweep.study.checks import check_points, no_model, no_perturbation, read_bases, unknown_labels
 from somo_sweep.sweep.study.file import MAX_TRIALS, RESULTS_ROOT, StudyFile
 from somo_sweep.sweep.study.loaded import Study
+from somo_sweep.sweep.study.overlaps import overlaps, study_inputs
 from somo_sweep.tasks.registry import TaskSpec, get_task
 
 __all__ = ["load_study"]
@@ -97,6 +98,7 @@ def load_study(
     out = _results_folder(raw, raw.name or path.stem, output, found)
     fixed = _fixed(raw, found)
     read = _axes(raw, cells, path.parent, found)
+    found.problems.extend(overlaps(study_inputs(raw.params, raw.set, raw.sweep, cells, lines)))
     study = _new_study(raw, path, task, cells, model_path, fixed, read, out, allow_outside)
     bases, bases_ok = read_bases(model_path, study.axes, allow_outside, lines, found.problems, cells)
     study = replace(study, bases=bases)
@@ -307,13 +309,9 @@ def _check_combinations(link: list[list[str]], axes: list[Axis], bad: set[str], 
 
 
 def _cell_axes(cells: Cells, raw: StudyFile, folder: Path, found: _Found) -> list[Axis]:
-    """One axis per key of the ``cells:`` table (a ``model`` column names files beside the study)."""
+    """One axis per key of the ``cells:`` table (a ``model`` column names files beside the study;
+    a column that is also a sweep axis or a ``set:`` key is refused by :mod:`.overlaps`)."""
     at = found.lines.get("cells")
-    for key in cells.keys:
-        for other, what in ((raw.sweep, "a sweep axis"), (raw.set, "set in set:")):
-            if key in other:
-                msg = f"key '{key}' is also {what}; allowed: a key is swept, set or given in cells, once"
-                found.add("cells", msg, at)
     axes = []
     for key in cells.keys:
         values = cells.column(key)
