@@ -54,18 +54,56 @@ class Spec(BaseModel):
     @field_validator("*", mode="before")
     @classmethod
     def _no_boolean_numbers(cls, value: Any, info: ValidationInfo) -> Any:
-        """``n_segments: true`` is not 1: a boolean where a number belongs is refused."""
-        text = isinstance(value, str) and not cls.text_numbers
-        if (isinstance(value, bool) or text) and info.field_name is not None:
+        """``n_segments: true`` is not 1, nor ``actuated: 1`` true: a boolean where a number belongs
+        is refused, and a number or text where a boolean belongs, in lists and tuples too."""
+        if info.field_name is not None:
             field = cls.model_fields[info.field_name]
-            kinds = _kinds(field.annotation)
-            if bool not in kinds and str not in kinds and kinds & {int, float}:
-                if not text:
-                    raise ValueError("expected a number, not a boolean")
-                kind = "an integer" if float not in kinds else "a number"
-                hint = " (unquote it)" if _spells_number(value) else ""
-                raise ValueError(f"expected {kind}{_range(field.metadata)}, not text{hint}")
+            why = _mistyped(value, field.annotation, field.metadata, cls.text_numbers)
+            if why is not None:
+                raise ValueError(why)
         return value
+
+
+def _mistyped(value: Any, annotation: Any, metadata: list[Any], text_numbers: bool) -> str | None:
+    """Why ``value`` is not of ``annotation``'s plain kind (number or boolean), or None."""
+    kinds = _kinds(annotation)
+    if isinstance(value, bool):
+        if bool not in kinds and str not in kinds and kinds & {int, float}:
+            return "expected a number, not a boolean"
+        return None
+    if isinstance(value, int | float | str) and bool in kinds and not kinds - {bool, type(None)}:
+        what = "text" if isinstance(value, str) else "a number"
+        return f"expected true or false, not {what} ({value!r})"
+    if isinstance(value, str) and not text_numbers:
+        if bool not in kinds and str not in kinds and kinds & {int, float}:
+            kind = "an integer" if float not in kinds else "a number"
+            hint = " (unquote it)" if _spells_number(value) else ""
+            return f"expected {kind}{_range(metadata)}, not text{hint}"
+        return None
+    if isinstance(value, list | tuple):
+        for i, (item, inner) in enumerate(zip(value, _items(annotation, len(value)), strict=False)):
+            why = _mistyped(item, inner, [], text_numbers)
+            if why is not None:  # item [0][1]: ... for an item of an item
+                return (
+                    f"item [{i}]{why.removeprefix('item ')}"
+                    if why.startswith("item [")
+                    else f"item [{i}]: {why}"
+                )
+    return None
+
+
+def _items(annotation: Any, n: int) -> list[Any]:
+    """The annotation of each of ``n`` items of a list or tuple ``annotation`` (through Optional)."""
+    for arg in (annotation, *get_args(annotation)):
+        origin = get_origin(arg)
+        args = get_args(arg)
+        if origin is Annotated:
+            return _items(args[0], n)
+        if origin in (list, tuple) and args:
+            if origin is list or (len(args) == 2 and args[1] is Ellipsis):
+                return [args[0]] * n
+            return list(args)
+    return []
 
 
 def _range(metadata: list[Any]) -> str:

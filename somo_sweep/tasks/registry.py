@@ -14,17 +14,28 @@ import pkgutil
 from collections.abc import Callable, Mapping
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any, Literal
+from typing import Any, ClassVar, Literal
 
 from pydantic import BaseModel
 
 from somo_sweep.errors import SomoError, did_you_mean, shown
 from somo_sweep.model.load import Model
+from somo_sweep.model.spec import Spec
 from somo_sweep.sim.settings import WorldSettings
 
-__all__ = ["TaskResult", "TaskSpec", "all_tasks", "get_task", "register"]
+__all__ = ["TaskParams", "TaskResult", "TaskSpec", "all_tasks", "get_task", "register"]
 
 Status = Literal["ok", "unstable", "error"]
+
+
+class TaskParams(Spec):
+    """The base of every task's parameters (and of the groups nested in them), typed as strictly as
+    a model's fields: unknown keys, NaN and infinity are refused; so are a boolean where a number
+    belongs (``pressure_kpa: true`` is not 1 kPa), a number or text where a boolean belongs, and
+    text where a number belongs (quoting keeps a value text: ``"0.1"`` is refused, naming the range).
+    """
+
+    text_numbers: ClassVar[bool] = False
 
 
 @dataclass(frozen=True)
@@ -57,7 +68,8 @@ class TaskSpec:
         run_path: ``"package.module:function"`` of ``run(model, params, settings, seed) ->
             TaskResult``; ``params`` is an instance of ``params_model``. Must be pure:
             same inputs, same result.
-        params_model: Pydantic model of the task's parameters (defaults included).
+        params_model: The task's parameters (defaults included): a :class:`TaskParams`, and so is
+            every group of parameters nested in it.
         description: One line for listings.
         tags: Free-form tags (``bench``, ``grasp``, ``paper``...; ``selftest`` tasks are hidden).
         metrics: Arrow type of each metric the task returns (``double``, ``int64``, ``bool`` or
@@ -133,7 +145,15 @@ _loaded = False
 
 
 def register(spec: TaskSpec) -> TaskSpec:
-    """Register a task (re-registering the same name replaces it)."""
+    """Register a task (re-registering the same name replaces it).
+
+    Raises:
+        TypeError: Its parameters are not a :class:`TaskParams` (they would take ``true`` for 1).
+    """
+    if not issubclass(spec.params_model, TaskParams):
+        raise TypeError(
+            f"task {spec.name}: params_model {spec.params_model.__name__} must derive from TaskParams"
+        )
     _TASKS[spec.name] = spec
     return spec
 

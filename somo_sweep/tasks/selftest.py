@@ -26,10 +26,10 @@ from pathlib import Path
 from typing import TYPE_CHECKING, Literal
 
 import numpy as np
-from pydantic import BaseModel, ConfigDict, Field
+from pydantic import Field
 
 from somo_sweep.errors import UnstableSimulation
-from somo_sweep.tasks.registry import TaskResult, TaskSpec, register
+from somo_sweep.tasks.registry import TaskParams, TaskResult, TaskSpec, register
 
 if TYPE_CHECKING:  # annotations only: these tasks run no simulation
     from somo_sweep.model.load import Model
@@ -41,7 +41,7 @@ __all__ = ["METRICS", "SelftestParams"]
 METRICS = {"y": "double", "noise": "double", "time_s": "double"}
 
 
-class SelftestParams(BaseModel):
+class SelftestParams(TaskParams):
     """Parameters of the selftest tasks.
 
     Attributes:
@@ -66,8 +66,6 @@ class SelftestParams(BaseModel):
             else ``fine``: a label that converges only below a known step.
         label_the_step: Label ``dt`` with the time step itself: a label that never converges.
     """
-
-    model_config = ConfigDict(extra="forbid", frozen=True)
 
     x: float = 0.0
     u: float = 0.0

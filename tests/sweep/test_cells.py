@@ -123,7 +123,7 @@ def test_a_cells_csv_refuses_a_repeated_row_an_unknown_key_and_a_bad_value_at_on
         "line 3: cells: cells.csv line 2, column 'task.uu': unknown key 'uu' (did you mean 'u'?)"
     )
     assert found[2].startswith(
-        "line 3: cells: cells.csv line 4, column 'task.x': Input should be a valid number"
+        "line 3: cells: cells.csv line 4, column 'task.x': expected a number, not text, got 'abc'"
     )
 
 
@@ -137,10 +137,7 @@ def test_inline_cells_name_the_row_and_key_and_suggest_the_key_path(tmp_path: Pa
         "line 5: cells[1]: misses 'x'; every row gives the keys of the first: x, task.u",
     ]
     bad = make_study(tmp_path, HEAD + "cells:\n  - {task.x: 1}\n  - {task.x: two}\n", "bad.yaml")
-    assert _problems(bad) == [
-        "line 5: cells[1].task.x: Input should be a valid number, unable to parse string as a number, "
-        "got 'two'"
-    ]
+    assert _problems(bad) == ["line 5: cells[1].task.x: expected a number, not text, got 'two'"]
 
 
 @pytest.mark.parametrize(

@@ -52,8 +52,9 @@ def selftest_study(
     """
     if not auto and "simulation" not in extra:
         extra = f"{extra}\nsimulation: {{time_step_s: 1.0e-3}}"
+    params = "" if "task.sleep_s" in extra else "params: {sleep_s: 0.0}\n"  # one key per field
     body = (
-        f"name: st\ntask: {task}\nmodel: models/ihm_finger.yaml\nparams: {{sleep_s: 0.0}}\n"
+        f"name: st\ntask: {task}\nmodel: models/ihm_finger.yaml\n{params}"
         f"sweep:\n  task.x: {{start: 1, stop: {n}, step: 1}}\n{extra}\n"
     )
     return make_study(folder, body)

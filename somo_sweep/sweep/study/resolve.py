@@ -17,7 +17,6 @@ import json
 from collections import OrderedDict
 from collections.abc import Mapping
 from dataclasses import dataclass, field
-from functools import cache
 from pathlib import Path
 from typing import Any
 
@@ -194,10 +193,6 @@ class Resolver:
                 set_path(data, parse_key_path(path)[1], value)
             except ValueError as exc:
                 raise DescriptionError(source, [Problem(path, str(exc))]) from None
-        strict = _strict(task.params_model)
-        if strict is not task.params_model:
-            # Unknown keys fail even if the task's own model would let them through.
-            validate(strict, data, str(source), prefix="task")
         params = self._tables(validate(task.params_model, data, str(source), prefix="task"))
         if keep:
             self._params[key] = params
@@ -230,15 +225,6 @@ def _check_section(data: Mapping[str, Any], parts: list[str | int], model_path: 
             f"{model_path.name} is {kind}, with no '{first}' section; allowed: key paths under "
             f"model.{has or first}"
         )
-
-
-@cache
-def _strict(model: type[BaseModel]) -> type[BaseModel]:
-    """``model`` with unknown keys forbidden (used to check, never to build parameters)."""
-    if model.model_config.get("extra") == "forbid":
-        return model
-    config = {**model.model_config, "extra": "forbid"}
-    return type(model.__name__, (model,), {"model_config": config, "__module__": model.__module__})
 
 
 #: Key paths of one axis group, and its rows of values (one per grid index, zipped).

@@ -4,15 +4,15 @@ from __future__ import annotations
 
 from typing import Literal
 
-from pydantic import BaseModel, ConfigDict, Field
+from pydantic import Field
 
 from somo_sweep.model.load import Model
-from somo_sweep.tasks.registry import TaskSpec, register
+from somo_sweep.tasks.registry import TaskParams, TaskSpec, register
 
 __all__ = ["BenchParams"]
 
 
-class BenchParams(BaseModel):
+class BenchParams(TaskParams):
     """Parameters of task ``bench``.
 
     Attributes:
@@ -22,8 +22,6 @@ class BenchParams(BaseModel):
         statics: ``solve`` (equilibrium solved directly) or ``dynamic`` (relaxation at the
             study's time step); see :class:`~somo_sweep.sim.bench.BenchSettings`.
     """
-
-    model_config = ConfigDict(extra="forbid", frozen=True)
 
     test: Literal["tip_load", "blocked_force", "free_bending"] = "free_bending"
     pressure_kpa: float = 0.0

@@ -6,9 +6,8 @@ from typing import ClassVar
 
 from pydantic import Field
 
-from somo_sweep.model.description import Spec
 from somo_sweep.model.load import Model
-from somo_sweep.tasks.registry import TaskSpec, register
+from somo_sweep.tasks.registry import TaskParams, TaskSpec, register
 
 __all__ = ["GaitParams"]
 
@@ -16,7 +15,7 @@ __all__ = ["GaitParams"]
 DEFAULT_TABLE = "ihm_gait_setpoints_psi.csv"
 
 
-class GaitParams(Spec):
+class GaitParams(TaskParams):
     """Parameters of the gait task (SI unless named otherwise)."""
 
     #: Fields naming a table: resolved (and content-hashed) when a study is expanded.

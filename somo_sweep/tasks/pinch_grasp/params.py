@@ -18,11 +18,11 @@ from itertools import pairwise
 from typing import Any, Literal
 
 import numpy as np
-from pydantic import BaseModel, ConfigDict, Field, field_validator, model_validator
+from pydantic import Field, field_validator, model_validator
 
 from somo_sweep.model.description import MAX_LENGTH_M, MIN_LENGTH_M
 from somo_sweep.model.load import Model
-from somo_sweep.tasks.registry import TaskSpec, register
+from somo_sweep.tasks.registry import TaskParams, TaskSpec, register
 
 __all__ = [
     "BASE_DISTANCE_AT_ZERO_CENTERING_M",
@@ -228,7 +228,7 @@ def original_hull_size_m(width_m: float) -> tuple[float, float, float] | None:
     return None
 
 
-class Numerics(BaseModel):
+class Numerics(TaskParams):
     """Numerical regularisation applied on top of the model file (not physics).
 
     Attributes:
@@ -241,14 +241,12 @@ class Numerics(BaseModel):
         motor_limit_n_m: Coulomb motor limit of every finger joint (``None`` keeps the file's).
     """
 
-    model_config = ConfigDict(extra="forbid", frozen=True)
-
     added_inertia_kg_m2: float | None = Field(None, ge=0)
     damping_n_m_s_per_rad: float | None = Field(None, ge=0)
     motor_limit_n_m: float | None = Field(None, ge=0)
 
 
-class PinchGraspParams(BaseModel):
+class PinchGraspParams(TaskParams):
     """Parameters of one pinch-grasp trial (SI).
 
     Attributes:
@@ -306,8 +304,6 @@ class PinchGraspParams(BaseModel):
     The last three are the Fig. 6 ablation's physical factors (docs/pinch_grasp.md,
     :mod:`somo_sweep.paper.fig6_ablation`); their defaults are our physical model.
     """
-
-    model_config = ConfigDict(extra="forbid", frozen=True)
 
     distal_segment_ratio: float | None = Field(0.2, ge=0, le=1)
     object_width_m: float = Field(0.040, ge=MIN_LENGTH_M, le=MAX_LENGTH_M)

@@ -7,14 +7,13 @@ from typing import Literal
 import numpy as np
 from pydantic import Field
 
-from somo_sweep.model.description import Spec
 from somo_sweep.model.load import Model
-from somo_sweep.tasks.registry import TaskSpec, register
+from somo_sweep.tasks.registry import TaskParams, TaskSpec, register
 
 __all__ = ["SnakeParams"]
 
 
-class SnakeParams(Spec):
+class SnakeParams(TaskParams):
     """Parameters of the snake task (SI)."""
 
     friction: Literal["anisotropic", "isotropic"] = "anisotropic"

@@ -6,9 +6,8 @@ from typing import ClassVar
 
 from pydantic import Field
 
-from somo_sweep.model.description import Spec
 from somo_sweep.model.load import Model
-from somo_sweep.tasks.registry import TaskSpec, register
+from somo_sweep.tasks.registry import TaskParams, TaskSpec, register
 
 __all__ = ["WholeArmParams", "check_torque_table", "torque_columns"]
 
@@ -16,7 +15,7 @@ __all__ = ["WholeArmParams", "check_torque_table", "torque_columns"]
 DEFAULT_TABLE = "whole_arm_torques_n_m.csv"
 
 
-class WholeArmParams(Spec):
+class WholeArmParams(TaskParams):
     """Parameters of the whole-arm task (SI).
 
     The default ball is a scaled, light basketball: radius 45 mm, 50 g, a thin shell
