@@ -17,7 +17,7 @@ import re
 from dataclasses import dataclass
 from typing import Any
 
-from somo_sweep.errors import Problem, did_you_mean
+from somo_sweep.errors import Problem, did_you_mean, shown
 
 __all__ = [
     "RANGE_DIGITS",
@@ -70,36 +70,71 @@ def parse_key_path(key: str) -> tuple[str, list[str | int]]:
     return str(parts[0]), parts[1:]
 
 
-def set_path(data: Any, parts: list[str | int], value: Any) -> None:
+def set_path(data: Any, parts: list[str | int], value: Any, root: str = "") -> None:
     """Set ``data[parts...] = value`` in nested dicts / lists; missing dict keys are created.
 
     A part ``[*]`` sets the rest of the path in every item of the list there (both fingers of a
-    gripper: ``model.assembly.manipulators[*].manipulator.actuators[0].n_segments``).
+    gripper: ``model.assembly.manipulators[*].manipulator.actuators[0].n_segments``). ``root``
+    (``model``, ``task``) starts the paths that messages name.
+
+    Raises:
+        ValueError: The path does not fit ``data``, naming where (``model.assembly.bodies``).
     """
-    node = data
+    node, created = data, False
     for i, part in enumerate(parts):
         last = i == len(parts) - 1
+        here = _joined(root, parts[:i])
         if part == EVERY:
-            if not isinstance(node, list) or not node:
-                raise ValueError(f"[*] stands for every item of a list, but the value there is {node!r}")
-            for item in node:
-                if last:
-                    raise ValueError("[*] must be followed by a field, e.g. manipulators[*].manipulator")
-                set_path(item, parts[i + 1 :], value)
+            _every_problem(node, here, created, last)
+            for n, item in enumerate(node):
+                set_path(item, parts[i + 1 :], value, f"{here}[{n}]")
             return
         if isinstance(part, int):
             if not isinstance(node, list):
-                raise ValueError(f"[{part}] indexes a list, but the value there is {type(node).__name__}")
+                raise ValueError(f"[{part}] indexes a list, but {here} is {_kind(node)}")
             if part >= len(node):
-                raise ValueError(f"index [{part}] is out of range (the list has {len(node)} item(s))")
+                raise ValueError(f"index [{part}] is out of range ({here} has {len(node)} item(s))")
         elif not isinstance(node, dict):
-            raise ValueError(f"'{part}' is a key, but the value there is {node!r}")
+            raise ValueError(f"'{part}' is a key, but {here} is {_kind(node)}")
         if last:
             node[part] = copy.deepcopy(value)
         else:
-            if isinstance(node, dict) and node.get(part) is None:
-                node[part] = {} if isinstance(parts[i + 1], str) else []
+            created = isinstance(node, dict) and node.get(part) is None
+            if created:
+                node[part] = {} if isinstance(parts[i + 1], str) and parts[i + 1] != EVERY else []
             node = node[part]
+
+
+def _every_problem(node: Any, here: str, created: bool, last: bool) -> None:
+    """Refuse a ``[*]`` that stands for no item: not a list, an absent list or an empty one."""
+    if last:
+        raise ValueError(f"[*] must be followed by a field, e.g. {here}[*].name")
+    if not isinstance(node, list):
+        raise ValueError(f"[*] stands for every item of a list, but {here} is {_kind(node)}")
+    if not node:
+        state = "absent (the file gives none)" if created else "an empty list"
+        raise ValueError(
+            f"[*] stands for every item of a list, but {here} is {state}, so it would set nothing; "
+            "allowed: [*] on a list with items"
+        )
+
+
+def _joined(root: str, parts: list[str | int]) -> str:
+    """A key path as messages print it: ``model.assembly.manipulators[0]``."""
+    text = root
+    for part in parts:
+        text += f"[{part}]" if isinstance(part, int) or part == EVERY else (f".{part}" if text else str(part))
+    return text or "the top level"
+
+
+def _kind(node: Any) -> str:
+    """What a value is, for a message: ``a mapping (keys: a, b)``, ``a list``, ``0.3``."""
+    if isinstance(node, dict):
+        keys = ", ".join(map(str, list(node)[:6]))
+        return f"a mapping (keys: {keys}{', …' if len(node) > 6 else ''})" if node else "an empty mapping"
+    if isinstance(node, list):
+        return f"a list of {len(node)} item(s)"
+    return f"{type(node).__name__} {shown(repr(node), 60)}"
 
 
 def _clean(v: float) -> float:

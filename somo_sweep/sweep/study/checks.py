@@ -11,6 +11,8 @@ once (:func:`check_points`); each problem is reported once, against the study ke
 from __future__ import annotations
 
 import itertools
+import json
+import re
 from collections.abc import Callable, Iterable, Iterator, Mapping, Sequence
 from pathlib import Path
 from typing import Any
@@ -19,7 +21,7 @@ from somo_sweep.errors import DescriptionError, Problem, shown
 from somo_sweep.model.files import is_file, missing_or_special
 from somo_sweep.model.load import Model
 from somo_sweep.sweep.study.axes import Axis
-from somo_sweep.sweep.study.cells import Cells
+from somo_sweep.sweep.study.cells import Cells, cells_key
 from somo_sweep.sweep.study.loaded import Study
 from somo_sweep.sweep.study.resolve import Resolver, canonical, load_model_dict
 from somo_sweep.tasks.registry import TaskSpec
@@ -237,7 +239,58 @@ def _check_pairs(
         for need in check(model, params):
             if need not in seen:
                 seen.add(need)
-                problems.append(Problem(where, need, line_of(lines, where)))
+                name = _parameter(need) if where == "params" else None
+                if name is None:
+                    problems.append(Problem(where, need, line_of(lines, where)))
+                else:
+                    problems.append(_given_at(study, param_point, name, need, lines))
+
+
+#: A need about one task parameter starts with its key path: ``task.distal_segment_ratio: …``.
+_ABOUT = re.compile(r"task\.([A-Za-z_][A-Za-z0-9_]*)(: )?")
+
+
+def _parameter(need: str) -> str | None:
+    """The task parameter a need of ``check_params`` is about (it starts with ``task.NAME``), or None."""
+    about = _ABOUT.match(need)
+    return about.group(1) if about else None
+
+
+def _given_at(
+    study: Study, point: Mapping[str, Any], name: str, need: str, lines: Mapping[str, int]
+) -> Problem:
+    """A need about task parameter ``name``, blamed on the study key that gave the value checked (the
+    line of the value itself in a list axis, the row of a ``cells:`` table); a value the study does
+    not give is the task's default, and the message says so and where to set it."""
+    key = f"task.{name}"
+    about = _ABOUT.match(need)
+    said = need[about.end() :] if about and about.group(2) else need
+    if key in point:
+        if study.cells is not None and key in study.cells.keys:
+            return _row_problem(study.cells, study.cells.row_of(dict(point)) or 0, key, said, lines)
+        where = f"sweep.{key}"
+        return Problem(where, said, _value_line(study, key, point[key], lines))
+    for where in (f"set.{key}", f"params.{name}"):
+        if where in lines:
+            return Problem(where, said, lines[where])
+    default = study.task.params_model.model_fields[name].default
+    return Problem(
+        "task",
+        f"task.{name} is not set, so it is task {study.task.name}'s default, {json.dumps(default)}: {said}; "
+        f"set {name} in params: (or sweep task.{name})",
+        line_of(lines, "task"),
+    )
+
+
+def _value_line(study: Study, key: str, value: Any, lines: Mapping[str, int]) -> int | None:
+    """The line of ``value`` in the list of axis ``key`` (``[i]`` or ``values[i]``), else the axis's."""
+    where = f"sweep.{key}"
+    same = [i for i, v in enumerate(study.axis(key).values) if cells_key(v) == cells_key(value)]
+    for i in same[:1]:
+        for item in (f"{where}[{i}]", f"{where}.values[{i}]"):
+            if item in lines:
+                return lines[item]
+    return line_of(lines, where)
 
 
 def _check_grid(
@@ -288,12 +341,15 @@ def _check_model_fits(
 
 
 def _in_cells(study: Study, where: str, point: dict[str, Any], msg: str, lines: Mapping[str, int]) -> Problem:
-    """A problem blamed on ``where``; one in a ``cells:`` key names the first row giving the value."""
+    """A problem blamed on ``where``; one in a ``cells:`` key names the first row giving the value,
+    one in a sweep axis the line of the value."""
     key = where.removeprefix("sweep.")
     cells = study.cells
-    if cells is None or not where.startswith("sweep.") or key not in cells.keys:
-        return Problem(where, msg, line_of(lines, where))
-    return _row_problem(cells, cells.row_of(point) or 0, key, msg, lines)
+    if cells is not None and where.startswith("sweep.") and key in cells.keys:
+        return _row_problem(cells, cells.row_of(point) or 0, key, msg, lines)
+    if where.startswith("sweep.") and key in point:
+        return Problem(where, msg, _value_line(study, key, point[key], lines))
+    return Problem(where, msg, line_of(lines, where))
 
 
 def _row_problem(cells: Cells, row: int, key: str, msg: str, lines: Mapping[str, int]) -> Problem:

@@ -159,7 +159,7 @@ class Resolver:
             try:
                 parts = parse_key_path(path)[1]
                 _check_section(data, parts, model_path)
-                set_path(data, parts, value)
+                set_path(data, parts, value, "model")
             except ValueError as exc:
                 problems.append(Problem(path, str(exc)))
         if problems:
@@ -190,7 +190,7 @@ class Resolver:
             if not path.startswith("task."):
                 continue
             try:
-                set_path(data, parse_key_path(path)[1], value)
+                set_path(data, parse_key_path(path)[1], value, "task")
             except ValueError as exc:
                 raise DescriptionError(source, [Problem(path, str(exc))]) from None
         params = self._tables(validate(task.params_model, data, str(source), prefix="task"))

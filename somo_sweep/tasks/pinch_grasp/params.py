@@ -195,7 +195,7 @@ def check_trial(model: Model, params: PinchGraspParams) -> list[str]:
                 )
             why = distal_split_problem(dsr, n_links, link_m)
             if why is not None:
-                needs.append(f"task.distal_segment_ratio: {why}")
+                needs.append(f"task.distal_segment_ratio: {why}, or null (the fingers as written)")
         if params.pressure_kpa is not None and finger.actuation is None:
             needs.append(
                 f"task.pressure_kpa drives each finger through its actuation.pressure_gain_n_m_per_kpa, "
@@ -250,7 +250,7 @@ class PinchGraspParams(TaskParams):
     """Parameters of one pinch-grasp trial (SI).
 
     Attributes:
-        distal_segment_ratio: DSR in [0, 1], a length fraction: the last DSR·L of each finger's
+        distal_segment_ratio: DSR in [0, 1), a length fraction: the last DSR·L of each finger's
             chain (L its length) is a passive distal segment, the rest the driven proximal one;
             DSR·N must be a whole number of links (N links per finger; the study is refused
             otherwise, naming the nearest ratios). ``None``: the fingers are simulated as
@@ -305,7 +305,7 @@ class PinchGraspParams(TaskParams):
     :mod:`somo_sweep.paper.fig6_ablation`); their defaults are our physical model.
     """
 
-    distal_segment_ratio: float | None = Field(0.2, ge=0, le=1)
+    distal_segment_ratio: float | None = Field(0.2, ge=0, lt=1)
     object_width_m: float = Field(0.040, ge=MIN_LENGTH_M, le=MAX_LENGTH_M)
     centering_position_m: float = Field(0.100, gt=0, lt=BASE_DISTANCE_AT_ZERO_CENTERING_M)
     approach_m: float = Field(0.100, ge=-MAX_LENGTH_M, le=MAX_LENGTH_M)
@@ -328,6 +328,18 @@ class PinchGraspParams(TaskParams):
     clamp_speed_cap: bool = False
     object_offset_m: tuple[float, float] = (0.0, 0.0)
     object_friction_scale: float = Field(1.0, gt=0, le=10)
+
+    @field_validator("distal_segment_ratio", mode="before")
+    @classmethod
+    def _a_driven_part_left(cls, value: Any) -> Any:
+        """DSR 1 leaves no proximal link: nothing would close the finger (every trial would fail)."""
+        if isinstance(value, int | float) and not isinstance(value, bool) and value >= 1:
+            raise ValueError(
+                "at 1 or more the whole finger is its passive distal segment and no driven joint is "
+                "left to close it; allowed: from 0 up to, not including, 1 (a whole number of distal "
+                "links), or null (the fingers as written)"
+            )
+        return value
 
     @field_validator("lift_profile")
     @classmethod
