@@ -80,11 +80,13 @@ class TaskSpec:
             has and what is allowed), none for a model the task can run.
         check_params: What the task needs of a model and its parameters together (a torque table
             with one column per input of the model), checked when a study is loaded:
-            ``check_params(model, params)`` returns one sentence per unmet need.
+            ``check_params(model, params)`` returns one sentence per unmet need; one starting
+            ``task.NAME`` is about that parameter, and is blamed on the study key that gave it.
         check_grid: What a study's grid as a whole needs of a model, checked when a study is
             loaded: ``check_grid(model, param_sets)`` with every distinct parameter set of the
             study returns one sentence per unmet need (a gripper whose fingers reach the box in
-            none of the study's cells).
+            none of the study's cells); a sentence starting ``model: `` is about the model
+            whatever the cells (a finger that closes under none of them), and is blamed on it.
         prepare_path: ``"package.module:function"`` of ``prepare(model, params) -> Model``, the
             model a trial simulates from the study's model and the trial's parameters (the pinch
             task re-splits the fingers, the snake drops its anisotropic friction when asked);

@@ -4,6 +4,7 @@ once, and the starter folder that runs as written."""
 
 from __future__ import annotations
 
+import math
 from pathlib import Path
 
 import pytest
@@ -44,8 +45,15 @@ def _finger(
 
 
 def _gripper(fingers: list[dict], mode: str = "driven") -> dict:
-    mounts = [
-        {"name": f"f{i}", "manipulator": f, "pose": {"position_m": [-0.015, 0.03 * (i - 0.5), 0.0]}}
+    mounts = [  # each finger turned so that its grasp axis [1, 0, 0] bends it toward y = 0
+        {
+            "name": f"f{i}",
+            "manipulator": f,
+            "pose": {
+                "position_m": [-0.015, 0.03 * (i - 0.5), 0.0],
+                "rpy_rad": [0.0, 0.0, math.pi * (i == 0)],
+            },
+        }
         for i, f in enumerate(fingers)
     ]
     box = {"shape": "box", "size_m": [0.02, 0.09, 0.032], "mass_kg": 0.2}

@@ -42,6 +42,9 @@ __all__ = [
 CHECK_PAIRS = 32
 #: Most distinct parameter sets a task's ``check_grid`` sees (a larger grid is not checked whole).
 MAX_GRID_CHECK = 20_000
+#: A need of a task's ``check_grid`` starting with this is about the model, whatever the cells
+#: (a finger that closes on the box under none of the study's drives).
+OF_THE_MODEL = "model: "
 #: Problems after which the checks stop (the message counts those found).
 MAX_CHECK_PROBLEMS = 20
 
@@ -308,10 +311,15 @@ def _check_grid(
     param_sets = [resolver.params(p, False) for p in param_points]
     seen: set[str] = set()
     for model_point in itertools.islice(_distinct(study, True), CHECK_PAIRS):
-        _, model = resolver.model(model_point, False)
+        model_path, model = resolver.model(model_point, False)
         for need in check(model, param_sets):
-            if need not in seen:
-                seen.add(need)
+            if need in seen:
+                continue
+            seen.add(need)
+            if need.startswith(OF_THE_MODEL):  # about the model itself, whatever the cells
+                where, msg = _model_said(study, model_point, model_path, need.removeprefix(OF_THE_MODEL))
+                problems.append(Problem(where, msg, line_of(lines, where)))
+            else:
                 problems.append(Problem("sweep", need, line_of(lines, "sweep")))
 
 
@@ -326,6 +334,15 @@ def _check_model_fits(
 ) -> None:
     """Report what the study's task needs and the model (file plus overrides) does not have."""
     model_path, model = resolved
+    for need in check(model):
+        where, msg = _model_said(study, point, model_path, need)
+        if (where, msg) not in seen:
+            seen.add((where, msg))
+            problems.append(Problem(where, msg, line_of(lines, where)))
+
+
+def _model_said(study: Study, point: Mapping[str, Any], model_path: Path, need: str) -> tuple[str, str]:
+    """The study key a need of the model is blamed on, and the need naming the file and overrides."""
     where = "sweep.model" if "model" in point else "model"
     if study.cells is not None and "model" in study.cells.keys:
         where = "cells"
@@ -333,11 +350,7 @@ def _check_model_fits(
     with_overrides = (
         f" with {', '.join(overrides[:3])}{', …' if len(overrides) > 3 else ''}" if overrides else ""
     )
-    for need in check(model):
-        msg = f"{shown(_as_given(model_path, study.source), 200)}{with_overrides}: {need}"
-        if (where, msg) not in seen:
-            seen.add((where, msg))
-            problems.append(Problem(where, msg, line_of(lines, where)))
+    return where, f"{shown(_as_given(model_path, study.source), 200)}{with_overrides}: {need}"
 
 
 def _in_cells(study: Study, where: str, point: dict[str, Any], msg: str, lines: Mapping[str, int]) -> Problem:

@@ -22,6 +22,7 @@ from pydantic import Field, field_validator, model_validator
 
 from somo_sweep.model.description import MAX_LENGTH_M, MIN_LENGTH_M
 from somo_sweep.model.load import Model
+from somo_sweep.tasks.pinch_grasp.closing import closing_problems, dsr_leaves_a_driven_part
 from somo_sweep.tasks.registry import TaskParams, TaskSpec, register
 
 __all__ = [
@@ -32,6 +33,7 @@ __all__ = [
     "PAPER_TORQUE_N_M",
     "Numerics",
     "PinchGraspParams",
+    "check_grid",
     "check_gripper",
     "check_reach",
     "check_trial",
@@ -149,6 +151,13 @@ def finger_reach_m(finger: Any) -> float:
     upper bound: the straight finger, as if it pointed at the box)."""
     base = finger.base.link.half_extent_m(2) * 2 if finger.base.link is not None else 0.0
     return base + finger.length_m + sum(tip.half_extent_m(2) * 2 for tip in finger.tip_links)
+
+
+def check_grid(model: Model, param_sets: list[PinchGraspParams]) -> list[str]:
+    """What the study's cells together need of the gripper: fingers that close on the box under
+    some cell's drive (:mod:`.closing`) and reach it in some cell."""
+    drives = {(p.torque_n_m if p.pressure_kpa is None else None, p.pressure_kpa) for p in param_sets}
+    return closing_problems(model, drives) + check_reach(model, param_sets)
 
 
 def check_reach(model: Model, param_sets: list[PinchGraspParams]) -> list[str]:
@@ -329,17 +338,7 @@ class PinchGraspParams(TaskParams):
     object_offset_m: tuple[float, float] = (0.0, 0.0)
     object_friction_scale: float = Field(1.0, gt=0, le=10)
 
-    @field_validator("distal_segment_ratio", mode="before")
-    @classmethod
-    def _a_driven_part_left(cls, value: Any) -> Any:
-        """DSR 1 leaves no proximal link: nothing would close the finger (every trial would fail)."""
-        if isinstance(value, int | float) and not isinstance(value, bool) and value >= 1:
-            raise ValueError(
-                "at 1 or more the whole finger is its passive distal segment and no driven joint is "
-                "left to close it; allowed: from 0 up to, not including, 1 (a whole number of distal "
-                "links), or null (the fingers as written)"
-            )
-        return value
+    _a_driven_part_left = field_validator("distal_segment_ratio", mode="before")(dsr_leaves_a_driven_part)
 
     @field_validator("lift_profile")
     @classmethod
@@ -479,7 +478,7 @@ register(
         metrics=METRICS,
         check_model=check_gripper,
         check_params=check_trial,
-        check_grid=check_reach,
+        check_grid=check_grid,
         prepare_path="somo_sweep.tasks.pinch_grasp.gripper:gripper",
         perturb=perturb,
         perturbation=(
