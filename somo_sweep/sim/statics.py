@@ -60,6 +60,7 @@ from somo_sweep.model.load import Model
 from somo_sweep.sim.bench_bodies import close_bench_bodies
 from somo_sweep.sim.bench_rig import TESTS, BenchSettings, bench_manipulator
 from somo_sweep.sim.static_chain import MAX_ITERATIONS_TOTAL, RowSolution, SolveStatus, StaticChain
+from somo_sweep.sim.urdf_cache import CacheUnwritable
 
 __all__ = [
     "MAX_ITERATIONS_TOTAL",
@@ -139,5 +140,7 @@ def solve_row(
         manip = bench_manipulator(model)
         chain = static_chain(manip, st.scale, st.added_inertia_kg_m2, st.stop_z_m, st.engine, st.stop)
         return chain.solve(test, pressure_kpa, tip_load_n, direction, st.gravity_m_s2)
+    except CacheUnwritable:  # no row of any model can load: not this row's failure
+        raise
     except Exception as exc:  # a row's failure is data, not an abort
         return RowSolution(nan, SolveStatus(False, 0, math.nan, f"{type(exc).__name__}: {exc}"))

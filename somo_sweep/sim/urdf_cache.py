@@ -21,7 +21,22 @@ import tempfile
 import time
 from pathlib import Path
 
-__all__ = ["KEEP_RECENT_S", "MAX_CACHE_BYTES", "PRUNE_TO", "cache_dir", "prune_cache", "write_urdf"]
+from somo_sweep.errors import SomoError
+
+__all__ = [
+    "CACHE_VARIABLE",
+    "KEEP_RECENT_S",
+    "MAX_CACHE_BYTES",
+    "PRUNE_TO",
+    "CacheUnwritable",
+    "cache_dir",
+    "check_cache",
+    "prune_cache",
+    "write_urdf",
+]
+
+#: The environment variable that moves the cache (its folder gets ``urdf/`` inside).
+CACHE_VARIABLE = "SOMO_SWEEP_CACHE"
 
 #: Most bytes the URDF cache holds (a finger's URDF is 10-100 kB: thousands of bodies).
 MAX_CACHE_BYTES = 200_000_000
@@ -31,13 +46,55 @@ PRUNE_TO = 0.8
 KEEP_RECENT_S = 3600.0
 
 
+class CacheUnwritable(SomoError):
+    """The URDF cache folder cannot be created or written: no PyBullet body can load. Not a
+    failure of one trial or row, so callers that keep failures as data let it through."""
+
+
 def cache_dir() -> Path:
     """Folder holding generated URDF files (see the module docstring for the variables read)."""
-    root = os.environ.get("SOMO_SWEEP_CACHE")
+    root = os.environ.get(CACHE_VARIABLE)
     if root:
         return Path(root) / "urdf"
     base = os.environ.get("XDG_CACHE_HOME") or str(Path.home() / ".cache")
     return Path(base) / "somo-sweep" / "urdf"
+
+
+def check_cache() -> Path:
+    """The cache folder, created if needed and proved writable (a run checks it once, before its
+    first PyBullet trial, rather than have every trial fail on it).
+
+    Raises:
+        CacheUnwritable: In one line: the variable that chose the folder and its value, the
+            folder, why it cannot be written, and what is needed.
+    """
+    folder = cache_dir()
+    try:
+        folder.mkdir(parents=True, exist_ok=True)
+        fd, tmp = tempfile.mkstemp(dir=folder, suffix=".tmp")
+        os.close(fd)
+        os.remove(tmp)
+    except OSError as exc:
+        raise _unwritable(folder, exc) from None
+    return folder
+
+
+def _unwritable(folder: Path, exc: OSError) -> CacheUnwritable:
+    """The one-line error of a cache folder that cannot be written."""
+    cause = exc.strerror or str(exc)  # the system's words: a missing /proc entry is no removed folder
+    if os.environ.get(CACHE_VARIABLE):
+        chosen = f"{CACHE_VARIABLE}={os.environ[CACHE_VARIABLE]}"
+        fix = f"point {CACHE_VARIABLE} at a folder you can create and write, or unset it"
+    elif os.environ.get("XDG_CACHE_HOME"):
+        chosen = f"XDG_CACHE_HOME={os.environ['XDG_CACHE_HOME']}"
+        fix = f"set {CACHE_VARIABLE} to a folder you can create and write"
+    else:
+        chosen = f"the default cache under HOME={os.environ.get('HOME', '~')}"
+        fix = f"set {CACHE_VARIABLE} to a folder you can create and write"
+    return CacheUnwritable(
+        f"{chosen}: the URDF cache folder {folder} cannot be created or written ({cause}); "
+        f"PyBullet loads every body from a file there; needed: {fix}"
+    )
 
 
 def write_urdf(text: str) -> Path:
@@ -45,20 +102,26 @@ def write_urdf(text: str) -> Path:
 
     A file already there is marked used (its modification time renewed); a new one may prune the
     cache (:func:`prune_cache`).
+
+    Raises:
+        CacheUnwritable: The cache folder cannot be created or written.
     """
     digest = hashlib.sha256(text.encode()).hexdigest()[:24]
     folder = cache_dir()
-    folder.mkdir(parents=True, exist_ok=True)
-    path = folder / f"{digest}.urdf"
-    if path.exists():
-        with contextlib.suppress(OSError):  # pruned meanwhile: written again below
-            os.utime(path)
-    if not path.exists():
-        fd, tmp = tempfile.mkstemp(dir=folder, suffix=".tmp")
-        with os.fdopen(fd, "w") as fh:
-            fh.write(text)
-        os.replace(tmp, path)
-        prune_cache(folder)
+    try:
+        folder.mkdir(parents=True, exist_ok=True)
+        path = folder / f"{digest}.urdf"
+        if path.exists():
+            with contextlib.suppress(OSError):  # pruned meanwhile: written again below
+                os.utime(path)
+        if not path.exists():
+            fd, tmp = tempfile.mkstemp(dir=folder, suffix=".tmp")
+            with os.fdopen(fd, "w") as fh:
+                fh.write(text)
+            os.replace(tmp, path)
+            prune_cache(folder)
+    except OSError as exc:
+        raise _unwritable(folder, exc) from None
     return path
 
 

@@ -72,3 +72,59 @@ def test_the_docs_give_the_cache_its_place_bound_and_variable() -> None:
     text = (ROOT / "docs" / "outputs.md").read_text()
     assert "~/.cache/somo-sweep/urdf" in text and "SOMO_SWEEP_CACHE" in text
     assert f"at most {MAX_CACHE_BYTES // 1_000_000} MB" in text
+
+
+def _unwritable(folder: str) -> str:
+    return (
+        f"SOMO_SWEEP_CACHE={folder}: the URDF cache folder {folder}/urdf cannot be created or written "
+        "(Not a directory); PyBullet loads every body from a file there; needed: point SOMO_SWEEP_CACHE "
+        "at a folder you can create and write, or unset it"
+    )
+
+
+def test_a_cache_variable_naming_a_file_is_one_error_naming_it(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    a_file = tmp_path / "a_file"
+    a_file.write_text("")
+    monkeypatch.setenv("SOMO_SWEEP_CACHE", str(a_file))
+    with pytest.raises(urdf_cache.CacheUnwritable) as checked:
+        urdf_cache.check_cache()
+    assert str(checked.value) == _unwritable(str(a_file))
+    with pytest.raises(urdf_cache.CacheUnwritable) as written:
+        write_urdf("<robot name='a'/>")
+    assert str(written.value) == str(checked.value)
+
+
+def test_a_bench_row_lets_an_unwritable_cache_through_instead_of_storing_a_failed_row(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    from somo_sweep.model.load import load_model
+    from somo_sweep.sim.statics import clear_cache, solve_row
+
+    (tmp_path / "a_file").write_text("")
+    monkeypatch.setenv("SOMO_SWEEP_CACHE", str(tmp_path / "a_file"))
+    clear_cache()  # a body loaded before (another test) would not need the cache
+    model = load_model(ROOT / "somo_sweep" / "data" / "models" / "ihm_finger.yaml")
+    with pytest.raises(urdf_cache.CacheUnwritable, match="SOMO_SWEEP_CACHE="):
+        solve_row(model, "free_bending", 50.0, 0.0)
+
+
+def test_a_pybullet_study_with_an_unwritable_cache_stops_before_any_trial(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    from typer.testing import CliRunner
+
+    from somo_sweep.cli.app import app
+
+    (tmp_path / "a_file").write_text("")
+    monkeypatch.setenv("SOMO_SWEEP_CACHE", str(tmp_path / "a_file"))
+    study = tmp_path / "study.yaml"
+    study.write_text(
+        f"task: bench\nmodel: {ROOT / 'somo_sweep' / 'data' / 'models' / 'ihm_finger.yaml'}\n"
+        "sweep:\n  task.pressure_kpa: [0, 50]\nsimulation: {time_step_s: 5.0e-4}\n"
+    )
+    result = CliRunner().invoke(app, ["run", str(study), "--out", str(tmp_path / "out"), "--jobs", "1"])
+    assert result.exit_code == 2, result.output
+    assert " ".join(result.output.split()) == f"error: {_unwritable(str(tmp_path / 'a_file'))}"
+    assert not (tmp_path / "out").exists()

@@ -14,6 +14,7 @@ import signal
 from collections.abc import Iterator
 
 from somo_sweep.errors import Interrupted
+from somo_sweep.sim.urdf_cache import check_cache
 from somo_sweep.sweep.jobs.job import Job
 from somo_sweep.sweep.jobs.table import JobTable, build_jobs
 from somo_sweep.sweep.run.convergence import StepEvents, auto_step, outcomes_of
@@ -92,7 +93,8 @@ def run_sweep(
         StorageError: The results could not be written (e.g. disk full); the run stopped, what
             it wrote is intact and the manifest counts only rows in part files.
         SomoError: Bad options, folder locked, different study in the folder, Dask unreachable,
-            the engine (MuJoCo) not installed.
+            the engine (MuJoCo) not installed, the URDF cache folder of a PyBullet study cannot be
+            written (:func:`~somo_sweep.sim.urdf_cache.check_cache`).
         DescriptionError: The replica count does not fit the study, two trials are identical, or
             ``adaptive.labels`` names a label the task does not give.
     """
@@ -100,6 +102,8 @@ def run_sweep(
     events = events or RunEvents()
     options.check()
     study = apply_options(study, options)
+    if options.backend == "loky" and (study.simulation is None or study.simulation.engine == "pybullet"):
+        check_cache()  # every PyBullet trial loads its bodies from there: one error, not one per trial
     if options.backend == "loky":  # the workers start and import while the jobs are built
         start_workers(min(options.workers, study.n_trials), study.task.name)
     try:
