@@ -39,15 +39,17 @@ def bundled_path(*parts: str) -> Path:
     return Path(str(resources.files("somo_sweep.data").joinpath(*parts)))
 
 
-def bundled_if_missing(path: str | Path, folder: str = "", suffix: str = ".yaml") -> Path:
+def bundled_if_missing(
+    path: str | Path, folder: str = "", suffix: str = ".yaml", base: Path | None = None
+) -> Path:
     """``path`` itself, or the bundled file it spells when ``path`` does not exist.
 
     The README spells bundled files ``studies/[FOLDER/]NAME``: in a source checkout
     ``studies`` links to the package's data, but an installed package has no such folder
     in the user's working directory. So a relative path that does not exist and reads
-    ``NAME``, ``studies/NAME`` or ``studies/FOLDER/NAME`` (``suffix`` may be left off NAME)
-    names the bundled ``somo_sweep/data/[FOLDER/]NAME`` when that file exists. Any other
-    missing path (absolute, or in another folder) is returned unchanged, so a user's own
+    ``NAME``, ``FOLDER/NAME``, ``studies/NAME`` or ``studies/FOLDER/NAME`` (``suffix`` may be left
+    off NAME) names the bundled ``somo_sweep/data/[FOLDER/]NAME`` when that file exists. Any
+    other missing path (absolute, or in another folder) is returned unchanged, so a user's own
     missing file is reported missing, never silently replaced by a bundled one.
 
     Args:
@@ -55,23 +57,27 @@ def bundled_if_missing(path: str | Path, folder: str = "", suffix: str = ".yaml"
         folder: The bundled subfolder of this kind of file (``models``, ``tables``; ``""``
             for studies).
         suffix: The suffix added to a NAME typed without one.
+        base: The folder a relative ``path`` is relative to (a study's folder for its model);
+            default: the current directory. The path returned is ``base / path`` when it is not
+            a bundled file.
     """
     path = Path(path)
+    given = path if base is None else base / path
     try:
-        if path.is_absolute() or os.path.lexists(path):
-            return path
+        if path.is_absolute() or os.path.lexists(given):
+            return given
     except (OSError, ValueError):  # a name no file can have: reported by the reader
-        return path
+        return given
     parts = path.parts
     if parts[:1] == ("studies",):
         parts = parts[1:]
-        if folder and parts[:1] == (folder,):
-            parts = parts[1:]
+    if folder and parts[:1] == (folder,):
+        parts = parts[1:]
     if len(parts) != 1 or parts[0] in (".", ".."):
-        return path
+        return given
     name = parts[0] if Path(parts[0]).suffix else parts[0] + suffix
     candidate = bundled_path(folder, name) if folder else bundled_path(name)
-    return candidate if is_file(candidate) else path
+    return candidate if is_file(candidate) else given
 
 
 def bundled_names(folder: str = "", suffix: str = ".yaml") -> list[str]:
@@ -82,7 +88,7 @@ def bundled_names(folder: str = "", suffix: str = ".yaml") -> list[str]:
 
 def not_found(path: Path, folder: str = "", suffix: str = ".yaml") -> str:
     """ "file not found", with the bundled files a user may have meant."""
-    spelled = f"studies/{folder}/NAME" if folder else "studies/NAME"
+    spelled = f"{folder}/NAME, studies/{folder}/NAME" if folder else "studies/NAME"
     return (
         f"file not found; bundled files (by NAME or as {spelled}): {', '.join(bundled_names(folder, suffix))}"
     )

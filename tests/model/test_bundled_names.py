@@ -31,6 +31,12 @@ def empty(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> Path:
         ("ihm_finger.yaml", "models", ".yaml", ("models", "ihm_finger.yaml")),
         ("ihm_finger", "models", ".yaml", ("models", "ihm_finger.yaml")),
         (
+            "models/ihm_finger.yaml",
+            "models",
+            ".yaml",
+            ("models", "ihm_finger.yaml"),
+        ),  # a bundled study's layout
+        (
             "studies/tables/planar_finger_bench_2.csv",
             "tables",
             ".csv",
@@ -51,9 +57,10 @@ def test_a_missing_path_spelling_a_bundled_file_finds_it(
 @pytest.mark.parametrize(
     "typed",
     [
-        "models/ihm_finger.yaml",  # the user's own folder layout: their file is missing
+        "my/models/ihm_finger.yaml",  # the user's own folder layout: their file is missing
         "my/studies/models/ihm_finger.yaml",
         "studies/tables/ihm_finger.yaml",  # a model under the tables' folder
+        "tables/ihm_finger.yaml",
         "studies/models/nope.yaml",
         "studies/models/../models/ihm_finger.yaml",
         "..",
@@ -194,3 +201,38 @@ def test_a_path_that_is_not_utf8_is_named_not_a_traceback(
     err = capsys.readouterr().err
     assert "r\\xe9sultats' holds bytes that are not UTF-8 text; allowed: UTF-8 names" in err
     assert "Traceback" not in err
+
+
+@pytest.mark.parametrize(
+    "typed",
+    ["pinch_gripper.yaml", "pinch_gripper", "models/pinch_gripper.yaml", "studies/models/pinch_gripper.yaml"],
+)
+def test_a_study_s_model_spelling_a_bundled_one_finds_it_when_its_folder_has_none(
+    empty: Path, typed: str
+) -> None:
+    from somo_sweep.sweep.study import load_study
+
+    (empty / "elsewhere").mkdir()
+    study = empty / "elsewhere" / "study.yaml"
+    study.write_text(f"task: pinch_grasp\nmodel: {typed}\nsimulation: {{engine: mujoco}}\n")
+    assert load_study(study).model_path == bundled_path("models", "pinch_gripper.yaml")
+
+
+def test_a_study_s_own_model_wins_and_a_missing_one_lists_the_bundled_names(empty: Path) -> None:
+    from somo_sweep.sweep.study import load_study
+
+    (empty / "models").mkdir()
+    (empty / "models" / "pinch_gripper.yaml").write_text("manipulator: {name: mine}\n")
+    study = empty / "study.yaml"
+    study.write_text("task: pinch_grasp\nmodel: models/pinch_gripper.yaml\n")
+    with pytest.raises(DescriptionError, match=r"models/pinch_gripper\.yaml: line 1: manipulator\.actuators"):
+        load_study(study)
+    study.write_text("task: pinch_grasp\nmodel: models/my_gripper.yaml\n")
+    with pytest.raises(DescriptionError) as info:
+        load_study(study)
+    assert [p.render() for p in info.value.problems] == [
+        f"line 2: model: model file not found: {empty / 'models' / 'my_gripper.yaml'}; bundled files "
+        "(by NAME or as models/NAME, studies/models/NAME): arm_with_fingers.yaml, ihm_finger.yaml, "
+        "ihm_hand.yaml, pinch_finger.yaml, pinch_finger_original.yaml, pinch_gripper.yaml, "
+        "pinch_gripper_original.yaml, snake.yaml, whole_arm.yaml"
+    ]

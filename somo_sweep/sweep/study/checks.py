@@ -20,6 +20,7 @@ from typing import Any
 from somo_sweep.errors import DescriptionError, Problem, shown
 from somo_sweep.model.files import is_file, missing_or_special
 from somo_sweep.model.load import Model
+from somo_sweep.model.tables import not_found
 from somo_sweep.sweep.study.axes import Axis
 from somo_sweep.sweep.study.cells import Cells, cells_key
 from somo_sweep.sweep.study.loaded import Study
@@ -63,7 +64,9 @@ def line_of(lines: Mapping[str, int], where: str) -> int | None:
 def no_model(path: Path) -> str:
     """Why a study's model file cannot be read: missing, or a link loop, a folder, …"""
     why = missing_or_special(path)
-    return f"model file not found: {path}" if why == "file not found" else f"model file {path}: {why}"
+    if why == "file not found":
+        return f"model file not found: {path}; {not_found(path, 'models').removeprefix('file not found; ')}"
+    return f"model file {path}: {why}"
 
 
 def nested(path: Path, exc: DescriptionError) -> str:

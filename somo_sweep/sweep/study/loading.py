@@ -92,7 +92,7 @@ def load_study(
     task = _task(raw, found)
     cells = _cells(raw, task, found)
     _count(raw, cells, max_trials, found)
-    model_path = path.parent / raw.model
+    model_path = model_file(path.parent, raw.model)
     if not is_file(model_path):
         found.add("model", no_model(model_path))
     out = _results_folder(raw, raw.name or path.stem, output, found)
@@ -142,6 +142,12 @@ def _new_study(
         cells=cells,
         robustness=raw.robustness,
     )
+
+
+def model_file(folder: Path, given: str) -> Path:
+    """A model file a study names, relative to its folder; where that folder has no such file, a
+    bundled model's name (``pinch_gripper``, ``models/pinch_gripper.yaml``) names the bundled one."""
+    return bundled_if_missing(given, "models", base=folder)
 
 
 def _task(raw: StudyFile, found: _Found) -> TaskSpec:
@@ -259,7 +265,7 @@ def _axis(key: str, spec: Any, distinct: bool, folder: Path, found: _Found) -> A
     for p in problems:
         found.add(p.path, p.message, found.lines.get(p.path) or found.lines.get(where))
     if key == "model":
-        values = [str(folder / str(v)) for v in values]
+        values = [str(model_file(folder, str(v))) for v in values]
         for v in values:
             if not is_file(Path(v)):
                 found.add(where, no_model(Path(v)))
@@ -316,7 +322,7 @@ def _cell_axes(cells: Cells, raw: StudyFile, folder: Path, found: _Found) -> lis
     for key in cells.keys:
         values = cells.column(key)
         if key == "model":
-            values = tuple(str(folder / str(v)) for v in values)
+            values = tuple(str(model_file(folder, str(v))) for v in values)
             for where, v in zip(cells.where, values, strict=True):
                 if not is_file(Path(v)):
                     found.add("cells", f"{where}: model file not found: {v}", at)
