@@ -28,8 +28,10 @@ def read_results(folder: str | Path) -> pd.DataFrame:
     """The trials table of a results folder (:func:`somo_sweep.sweep.store.result_store.read_results`).
 
     Raises:
-        SomoError: Not a results folder, or no trials in it yet.
+        SomoError: Not a results folder, or no trials stored in it yet (saying what a killed run's
+            journal holds).
     """
+    from somo_sweep.sweep.store.folder import nothing_stored
     from somo_sweep.sweep.store.result_store import read_results as read_trials
 
     folder = Path(folder)
@@ -39,7 +41,7 @@ def read_results(folder: str | Path) -> pd.DataFrame:
         raise SomoError(f"{folder}: no such results folder (run `somo-sweep run STUDY.yaml` first)")
     table = read_trials(folder)
     if table.empty:
-        raise SomoError(f"{folder}: no finished trials yet")
+        raise SomoError(nothing_stored(folder))
     cols = [str(c) for c in table.columns]
     simulated = ~inferred_rows(table)
     for name in ("distal_segment_ratio", "object_width_m", "centering_position_m", "centering_m"):

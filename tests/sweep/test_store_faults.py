@@ -858,3 +858,33 @@ def test_a_fifo_where_the_lock_goes_is_named_and_never_waited_on(tmp_path: Path)
     assert res.exit_code == 0 and "8 of 8 trials stored" in res.output, res.output
     res = _run(path, out)
     assert res.exit_code == 2 and f"{out / '.lock'} is not a regular file (a FIFO" in res.output, res.output
+
+
+def test_readers_of_a_folder_with_only_a_killed_run_s_journal_say_what_waits_there(tmp_path: Path) -> None:
+    """``classify`` said "no finished trials yet" with 37 trials in the journal."""
+    from somo_sweep.paper.grasp_trials import read_results as read_grasp_trials
+
+    path = selftest_study(tmp_path)
+    out = tmp_path / "out"
+    _killed_after(path, out, 5)
+    said = (
+        f"{out}: no trials stored yet, but 5 finished trial(s) wait in the journal of a run that was "
+        "killed before storing them; run the study into this folder again (somo-sweep run STUDY.yaml, "
+        "with the same --out if it had one): it stores them before anything else runs"
+    )
+    with pytest.raises(SomoError) as grasp:
+        read_grasp_trials(out)
+    assert str(grasp.value) == said
+    res = CliRunner().invoke(app, ["recheck", str(path), "--out", str(out)], env={"COLUMNS": "400"})
+    assert res.exit_code == 2 and " ".join(res.output.split()) == f"error: {said}"
+
+
+def test_readers_of_a_folder_with_nothing_finished_say_how_many_trials_the_study_has(tmp_path: Path) -> None:
+    from somo_sweep.sweep.store.folder import nothing_stored
+
+    study = load_study(selftest_study(tmp_path), tmp_path / "out")
+    table = build_jobs(study)
+    holder = ResultStore(study.output, table.study_hash, table.resolved, table.axes, {})
+    holder.start_run({"backend": "loky"})
+    said = nothing_stored(study.output)
+    assert said == f"{study.output}: no finished trials stored yet (of 8 in the study)"

@@ -50,6 +50,7 @@ __all__ = [
     "declared_types",
     "journal_rows",
     "max_part_rows",
+    "nothing_stored",
     "part_files",
     "pending_journal_rows",
     "planned_replicas",
@@ -402,3 +403,20 @@ def pending_journal_rows(folder: str | Path, study_hash: str, stored: Collection
                         seen.add(row["job_id"])
                         counts[run_id] = counts.get(run_id, 0) + 1
     return counts
+
+
+def nothing_stored(folder: str | Path) -> str:
+    """What a reader says of a results folder with no stored trial: the finished trials waiting in a
+    killed run's journal, if any, and how to store them (the next run of the study does, first)."""
+    try:
+        manifest = read_manifest(folder)
+    except SomoError:
+        return f"{folder}: no finished trials stored yet"
+    pending = sum(pending_journal_rows(folder, manifest["study_hash"], ()).values())
+    if not pending:
+        return f"{folder}: no finished trials stored yet (of {manifest.get('n_trials', '?')} in the study)"
+    return (
+        f"{folder}: no trials stored yet, but {pending} finished trial(s) wait in the journal of a run "
+        "that was killed before storing them; run the study into this folder again (somo-sweep run "
+        "STUDY.yaml, with the same --out if it had one): it stores them before anything else runs"
+    )

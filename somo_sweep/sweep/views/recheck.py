@@ -23,7 +23,7 @@ from somo_sweep.sweep.jobs.table import build_jobs
 from somo_sweep.sweep.run.convergence import with_stored_step
 from somo_sweep.sweep.run.rows import outcome_row
 from somo_sweep.sweep.run.trial import outcome_of, run_job
-from somo_sweep.sweep.store.folder import read_manifest, read_results
+from somo_sweep.sweep.store.folder import nothing_stored, read_manifest, read_results
 from somo_sweep.sweep.store.parts import OnDamaged
 from somo_sweep.sweep.study.loaded import Study
 
@@ -108,9 +108,10 @@ def recheck(
             f"the study now gives {table.study_hash}): run it again before rechecking"
         )
     stored = read_results(folder, on_damaged)
-    stored = stored[~stored["inferred"]].drop(columns="inferred")  # inferred cells have nothing to rerun
+    if not stored.empty:  # inferred cells have nothing to rerun
+        stored = stored[~stored["inferred"].astype(bool)].drop(columns="inferred")
     if stored.empty:
-        raise SomoError(f"{folder} holds no finished trials yet")
+        raise SomoError(nothing_stored(folder))
     if n_trials < 1:
         raise SomoError(f"the number of trials to recheck must be >= 1, got {n_trials}")
     rng = np.random.default_rng(seed)
