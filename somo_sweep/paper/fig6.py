@@ -59,6 +59,10 @@ OTHER_COLOR = "#7f7f7f"
 #: How a cell whose robustness replicas disagree is drawn: cross-hatched, dark edge.
 UNCERTAIN_HATCH = "xxx"
 UNCERTAIN_EDGE = "#d62728"
+#: Cells of ``distal_segment_ratio: null`` (the fingers as written) have no DSR to place them on.
+AS_WRITTEN = "of distal_segment_ratio null (the fingers simulated as written), with no DSR to place them on"
+#: Where they are read instead.
+ELSEWHERE = "`somo-sweep classify` labels them and `somo-sweep plot` draws their map"
 #: DSR values are grouped after rounding to this many decimals.
 DSR_DECIMALS = 6
 #: Axis labels: the paper's centering position c, and the bases' distance d = 200 mm − c.
@@ -417,7 +421,12 @@ def _lines(info: dict[str, Any], headline: str) -> list[str]:
 
 
 def build(table: pd.DataFrame, stem: str = "fig6", max_dsr: float = 0.5) -> Artifacts:
-    """The figure, the summary table (CSV) and the headline (JSON, also in ``lines``)."""
+    """The figure, the summary table (CSV) and the headline (JSON, also in ``lines``); cells
+    :data:`AS_WRITTEN` are left out, and counted (all of them: refused)."""
+    as_written = int(table["distal_segment_ratio"].isna().sum())
+    if as_written == len(table):
+        raise SomoError(f"every cell is {AS_WRITTEN}; {ELSEWHERE}")
+    table = table[table["distal_segment_ratio"].notna()].reset_index(drop=True)
     check_max_dsr(max_dsr, table["distal_segment_ratio"])
     fig = _figure(table, max_dsr)
     checked = "replicas" in table.columns and bool((table["replicas"] > 0).any())
@@ -432,10 +441,14 @@ def build(table: pd.DataFrame, stem: str = "fig6", max_dsr: float = 0.5) -> Arti
     )
     summary = label_summary(table)
     info = _info(table, best, best_all, checked)
+    lines = _lines(info, headline)
+    if as_written:
+        info["cells_as_written"] = as_written
+        lines.insert(1, f"{as_written} cell(s) left out, {AS_WRITTEN}: {ELSEWHERE}")
     return Artifacts(
         figures={stem: fig},
         dpi=150,
         json={f"{stem}.json": info},
         tables={f"{stem}_summary.csv": summary},
-        lines=_lines(info, headline),
+        lines=lines,
     )

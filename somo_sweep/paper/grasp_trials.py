@@ -49,7 +49,10 @@ def read_results(folder: str | Path) -> pd.DataFrame:
         if column is None:
             continue
         values = pd.to_numeric(table[column], errors="coerce")
-        bad = table.loc[~np.isfinite(values.to_numpy(dtype=float)), "trial"]
+        finite = np.isfinite(values.to_numpy(dtype=float))
+        if name == "distal_segment_ratio" and _gives_null(folder, name):  # the fingers as written
+            finite |= table[column].isna().to_numpy()
+        bad = table.loc[~finite, "trial"]
         if len(bad):
             raise SomoError(f"{folder}: {_trials(bad)} no finite {column}: damaged rows; {_REDO}")
     bad = table.loc[simulated & table["status"].isna(), "trial"]
@@ -59,6 +62,24 @@ def read_results(folder: str | Path) -> pd.DataFrame:
 
 
 _REDO = "move the part file(s) holding them away and run the study again to replace them"
+
+
+def _gives_null(folder: Path, name: str) -> bool:
+    """Whether the study of ``folder`` gives task parameter ``name`` as null anywhere (``params``,
+    ``set``, a sweep axis, or a ``cells:`` table, whose values the manifest does not keep)."""
+    from somo_sweep.sweep.store.folder import read_manifest
+
+    study = read_manifest(folder).get("study")
+    if not isinstance(study, dict):
+        return False
+    key = f"task.{name}"
+    params, fixed, sweep, cells = (study.get(k) or {} for k in ("params", "set", "sweep", "cells"))
+    return (
+        (name in params and params[name] is None)
+        or (key in fixed and fixed[key] is None)
+        or None in (sweep.get(key) or [])
+        or key in (cells.get("keys") or [])
+    )
 
 
 def _trials(numbers: pd.Series) -> str:

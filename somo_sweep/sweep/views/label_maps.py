@@ -58,10 +58,33 @@ def map_axes(cells: pd.DataFrame, axes: Sequence[str]) -> tuple[str, str | None,
 
 
 def _ticks(values: np.ndarray, column: str) -> list[str]:
+    """Tick labels: lengths in mm, a parameter given as null (``distal_segment_ratio: null``) "null"."""
     unit = unit_of(column)
-    if unit == "m" and np.issubdtype(values.dtype, np.number):
-        return [f"{v * 1e3:g}" for v in values]
-    return [f"{v:.4g}" if isinstance(v, float) else str(v) for v in values]
+    number = (float, int, np.number)
+    return [
+        "null"
+        if v is None or (isinstance(v, float) and math.isnan(v))
+        else f"{v * 1e3:g}"
+        if unit == "m" and isinstance(v, number) and not isinstance(v, bool)
+        else f"{v:.4g}"
+        if isinstance(v, float)
+        else str(v)
+        for v in values
+    ]
+
+
+def _axis_values(column: pd.Series) -> np.ndarray:
+    """An axis's distinct values in order; a null (a parameter given as null) first, its own column."""
+    known = np.sort(column.dropna().unique())
+    return np.array([None, *known], dtype=object) if column.isna().any() else known
+
+
+def _at(values: np.ndarray, value: Any) -> int:
+    """The grid index of ``value`` among :func:`_axis_values`."""
+    null = len(values) > 0 and values[0] is None
+    if pd.isna(value):
+        return 0
+    return int(null) + int(np.searchsorted(values[int(null) :].tolist(), value))
 
 
 def _axis_title(column: str, short: dict[str, str]) -> str:
@@ -76,11 +99,11 @@ def draw_label_panel(
     the column ``robust`` is False, grey-hatched where ``inferred`` is True."""
     from matplotlib.patches import Rectangle
 
-    xs = np.sort(cells[x].unique())
-    ys = np.sort(cells[y].unique()) if y else np.array([0])
+    xs = _axis_values(cells[x])
+    ys = _axis_values(cells[y]) if y else np.array([0])
     for _, cell in cells.iterrows():
-        i = int(np.searchsorted(xs, cell[x]))
-        j = int(np.searchsorted(ys, cell[y])) if y else 0
+        i = _at(xs, cell[x])
+        j = _at(ys, cell[y]) if y else 0
         value = "-" if pd.isna(cell[label]) else str(cell[label])
         not_robust = cell.get(ROBUST) is False or cell.get(ROBUST) is np.False_
         flag = cell.get("inferred", False)
@@ -154,7 +177,7 @@ def label_map_figure(
     import matplotlib.pyplot as plt
 
     x, y, rest = map_axes(cells, axes)
-    groups = list(cells.groupby(rest, sort=True)) if rest else [((), cells)]
+    groups = list(cells.groupby(rest, sort=True, dropna=False)) if rest else [((), cells)]
     shown = groups[:MAX_PANELS]
     cols = min(len(shown), 4)
     rows = math.ceil(len(shown) / cols)
