@@ -100,6 +100,11 @@ class TaskSpec:
         perturbation: One line saying what ``perturb`` changes (for ``--help`` and the docs).
         summary_metrics: The metrics a designer reads first (``plot`` draws these before any
             other); empty: every metric in the order the task returns them.
+        replaces: Model fields a trial's parameters overwrite in the simulated model when they are
+            not null: parameter path (``numerics.damping_n_m_s_per_rad``) → key-path patterns of the
+            fields it replaces (``model.assembly.manipulators[*]…joints[*].damping_n_m_s_per_rad``).
+            A study giving both is refused (:func:`~somo_sweep.sweep.study.overlaps.replaced`):
+            the field's column would not be what was simulated.
         labels: The names of the labels the task's trials can give (each trial some or all of
             them), so that a study naming another one (``adaptive.labels``,
             ``robustness.labels``) is refused when it loads; None: not declared, and only the
@@ -120,6 +125,7 @@ class TaskSpec:
     perturbation: str = ""
     summary_metrics: tuple[str, ...] = ()
     labels: tuple[str, ...] | None = None
+    replaces: Mapping[str, tuple[str, ...]] = field(default_factory=dict)
 
     @property
     def run(self) -> TaskFn:

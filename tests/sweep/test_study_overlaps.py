@@ -152,3 +152,66 @@ def test_keys_that_reach_different_fields_combine_and_every_column_is_what_was_s
         assert job.params.numerics.damping_n_m_s_per_rad == 0.01
         assert job.columns["task_numerics_damping_n_m_s_per_rad"] == 0.01
         assert job.columns["task_numerics_motor_limit_n_m"] == job.params.numerics.motor_limit_n_m
+
+
+DAMPING = "model.assembly.manipulators[*].manipulator.actuators[0].joints[0].damping_n_m_s_per_rad"
+
+
+def test_a_model_field_the_task_replaces_is_refused_beside_the_parameter_that_replaces_it(
+    tmp_path: Path,
+) -> None:
+    body = (
+        GRIPPER
+        + f"params:\n  numerics: {{damping_n_m_s_per_rad: 0.01}}\nsweep:\n  {DAMPING}: [0.001, 0.002]\n"
+    )
+    assert _problems(make_study(tmp_path, body)) == [
+        f"line 7: sweep.{DAMPING}: sets {DAMPING}, which task.numerics.damping_n_m_s_per_rad, given by "
+        "params.numerics.damping_n_m_s_per_rad on line 5, replaces in the simulated model when it is not "
+        "null; allowed: one of them (task.numerics.damping_n_m_s_per_rad null keeps the model's value)"
+    ]
+
+
+def test_the_replaced_field_s_column_would_not_be_what_was_simulated(tmp_path: Path) -> None:
+    """Why the refusal above: the trial simulates the task's damping, not the swept one."""
+    body = GRIPPER + f"sweep:\n  {DAMPING}: [0.001, 0.002]\n"
+    study = load_study(make_study(tmp_path, body))
+    job = next(iter(build_jobs(study).jobs))
+    params = type(job.params).model_validate(
+        {**job.params.model_dump(), "numerics": {"damping_n_m_s_per_rad": 0.01}}
+    )
+    prepare = study.task.prepare
+    assert prepare is not None
+    simulated = prepare(job.model, params)
+    finger = simulated.as_assembly().manipulators[0].manipulator
+    assert finger.actuators[0].joints[0].damping_n_m_s_per_rad == 0.01
+    assert _value(job.model, DAMPING.replace("[*]", "[0]")) == 0.001
+
+
+def test_a_mapping_set_whole_that_holds_a_replaced_field_is_refused(tmp_path: Path) -> None:
+    link = "model.assembly.manipulators[0].manipulator.actuators[0].link"
+    body = GRIPPER + (
+        f"set:\n  {link}: {{shape: box, size_m: [0.023, 0.017], mass_kg: 0.0025, restitution: 0.3}}\n"
+        "sweep:\n  task.restitution: [null, 0.5]\n"
+    )
+    (problem,) = _problems(make_study(tmp_path, body))
+    assert problem.startswith(
+        f"line 5: set.{link}: sets {link}.restitution, which task.restitution, given by "
+        "sweep.task.restitution on line 7, replaces"
+    )
+
+
+def test_a_model_field_whose_replacing_parameter_stays_null_is_accepted(tmp_path: Path) -> None:
+    tip = "model.assembly.manipulators[1].manipulator.tip_links[0].friction.spinning"
+    body = GRIPPER + f"params: {{restitution: null}}\nsweep:\n  {tip}: [0.001, 0.002]\n"
+    assert load_study(make_study(tmp_path, body)).n_trials == 2
+
+
+def test_a_replacing_parameter_not_null_by_default_counts() -> None:
+    from somo_sweep.sweep.study.overlaps import Given, replaced
+
+    model_key = Given("sweep.model.a.b", "model.a.b", ("model", "a", "b"), 4, (1.0, 2.0))
+    assert replaced([model_key], {"x": ("model.a.b",)}, {"x": None}) == []
+    (problem,) = replaced([model_key], {"x": ("model.a.b",)}, {"x": 0.5})
+    assert "which task.x, by default 0.5, replaces" in problem.message
+    null = Given("params.x", "x", ("task", "x"), 3, (None,))
+    assert replaced([null, model_key], {"x": ("model.a.b",)}, {"x": 0.5}) == []

@@ -24,7 +24,7 @@ from somo_sweep.sweep.study.cells import Cells, cells_key, parse_cells
 from somo_sweep.sweep.study.checks import check_points, no_model, no_perturbation, read_bases, unknown_labels
 from somo_sweep.sweep.study.file import MAX_TRIALS, RESULTS_ROOT, StudyFile
 from somo_sweep.sweep.study.loaded import Study
-from somo_sweep.sweep.study.overlaps import overlaps, study_inputs
+from somo_sweep.sweep.study.overlaps import default_of, overlaps, replaced, study_inputs
 from somo_sweep.tasks.registry import TaskSpec, get_task
 
 __all__ = ["load_study"]
@@ -98,7 +98,9 @@ def load_study(
     out = _results_folder(raw, raw.name or path.stem, output, found)
     fixed = _fixed(raw, found)
     read = _axes(raw, cells, path.parent, found)
-    found.problems.extend(overlaps(study_inputs(raw.params, raw.set, raw.sweep, cells, lines)))
+    given = study_inputs(raw.params, raw.set, raw.sweep, cells, lines)
+    defaults = {name: default_of(task.params_model, name) for name in task.replaces}
+    found.problems.extend(overlaps(given) + replaced(given, task.replaces, defaults))
     study = _new_study(raw, path, task, cells, model_path, fixed, read, out, allow_outside)
     bases, bases_ok = read_bases(model_path, study.axes, allow_outside, lines, found.problems, cells)
     study = replace(study, bases=bases)

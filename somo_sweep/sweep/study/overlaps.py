@@ -15,11 +15,13 @@ from collections.abc import Iterator, Mapping
 from dataclasses import dataclass
 from typing import Any
 
+from pydantic import BaseModel
+
 from somo_sweep.errors import Problem
 from somo_sweep.sweep.study.axes import EVERY, parse_key_path
 from somo_sweep.sweep.study.cells import Cells
 
-__all__ = ["Given", "overlaps", "study_inputs"]
+__all__ = ["Given", "default_of", "overlaps", "replaced", "study_inputs"]
 
 #: Overlapping pairs reported at once (a study pasting one path under many spellings).
 MAX_OVERLAPS = 10
@@ -35,12 +37,14 @@ class Given:
         key: The key path as written (``task.x``; ``numerics.damping…`` for ``params:``).
         parts: The key path's root (``model`` / ``task``) then its parts (``[*]`` as ``"*"``).
         line: Its line in the study file, when known.
+        values: The values it gives (an axis's list; a range as its spec).
     """
 
     where: str
     key: str
     parts: tuple[str | int, ...]
     line: int | None
+    values: tuple[Any, ...] = ()
 
 
 def study_inputs(
@@ -56,22 +60,30 @@ def study_inputs(
     (model files, not a field).
     """
     found = [
-        Given(f"params.{path}", path, ("task", *parts), lines.get(f"params.{path}"))
-        for path, parts in _leaves(params)
+        Given(f"params.{path}", path, ("task", *parts), lines.get(f"params.{path}"), (value,))
+        for path, parts, value in _leaves(params)
     ]
     for section, keys in (("set", fixed), ("sweep", sweep)):
-        for key in keys:
+        for key, spec in keys.items():
             parts = _parsed(key)
             if parts is not None:
                 where = f"{section}.{key}"
-                found.append(Given(where, key, parts, lines.get(where)))
+                given = (spec,) if section == "set" else _axis_values(spec)
+                found.append(Given(where, key, parts, lines.get(where), given))
     if cells is not None:
         for key in cells.keys:
             parts = _parsed(key)
             if parts is not None:
                 line = lines.get(f"cells[0].{key}", lines.get("cells"))
-                found.append(Given("cells", key, parts, line))
+                found.append(Given("cells", key, parts, line, cells.column(key)))
     return found
+
+
+def _axis_values(spec: Any) -> tuple[Any, ...]:
+    """The values of an axis spec as given (a range stands for numbers: itself)."""
+    if isinstance(spec, dict) and set(spec) == {"values"}:
+        spec = spec["values"]
+    return tuple(spec) if isinstance(spec, list) else (spec,)
 
 
 def overlaps(inputs: list[Given]) -> list[Problem]:
@@ -98,6 +110,76 @@ def overlaps(inputs: list[Given]) -> list[Problem]:
     return problems
 
 
+def replaced(
+    inputs: list[Given], replaces: Mapping[str, tuple[str, ...]], defaults: Mapping[str, Any]
+) -> list[Problem]:
+    """A problem for each model field a study gives that a task parameter, not null in some cell
+    (given so, or by default when no key gives it), replaces in the simulated model
+    (``TaskSpec.replaces``): the field's column would not be what was simulated."""
+    problems: list[Problem] = []
+    for name, patterns in replaces.items():
+        path = ("task", *name.split("."))
+        setters = [g for g in inputs if _gives(g, path)]
+        if not setters and defaults.get(name) is not None and not any(_gives(g, path, True) for g in inputs):
+            setters = [Given("task", name, path, None, (defaults[name],))]
+        for pattern in (p for text in patterns if (p := _parsed(text)) is not None):
+            for given in inputs:
+                if given.parts[0] != "model" or not setters or not _reaches(given, pattern):
+                    continue
+                by = setters[0]
+                at = f" on line {by.line}" if by.line is not None else ""
+                said = f"given by {_label(by)}{at}" if by.where != "task" else f"by default {by.values[0]!r}"
+                problems.append(
+                    Problem(
+                        given.where,
+                        f"{_own(given)}sets {_render(_common(given.parts, pattern) or pattern)}, which "
+                        f"task.{name}, {said}, replaces in the simulated model when it is not null; "
+                        f"allowed: one of them (task.{name} null keeps the model's value)",
+                        given.line,
+                    )
+                )
+    return sorted(problems, key=lambda p: p.line if p.line is not None else 1 << 62)[:MAX_OVERLAPS]
+
+
+def _gives(given: Given, path: tuple[str | int, ...], null_too: bool = False) -> bool:
+    """Whether an input gives the field at ``path`` a value that is not null in some cell (or any
+    value, null too)."""
+    if given.parts[: len(path)] == path[: len(given.parts)] and len(given.parts) <= len(path):
+        rest = path[len(given.parts) :]
+        return any(null_too or v is not None for value in given.values for v in _at(value, rest))
+    return False
+
+
+def _reaches(given: Given, pattern: tuple[str | int, ...]) -> bool:
+    """Whether a model key reaches a field ``pattern`` stands for: at it or inside it, or holding it
+    in a mapping it sets whole."""
+    common = _common(given.parts, pattern)
+    if common is None:
+        return False
+    if len(given.parts) >= len(pattern):
+        return True
+    rest = pattern[len(given.parts) :]
+    return any(_holds(value, rest) for value in given.values)
+
+
+def _holds(value: Any, rest: tuple[str | int, ...]) -> bool:
+    """Whether ``value`` (a mapping or list a key sets whole) has a field at ``rest``."""
+    return bool(_at(value, rest))
+
+
+def _at(value: Any, rest: tuple[str | int, ...]) -> list[Any]:
+    """The values at ``rest`` inside ``value`` (``[*]`` every item), none where it has no such field."""
+    if not rest:
+        return [value]
+    part, more = rest[0], rest[1:]
+    items = value if isinstance(value, list) else []
+    if isinstance(part, int):
+        return [v for item in items[part : part + 1] for v in _at(item, more)]
+    if part == EVERY:
+        return [v for item in items for v in _at(item, more)]
+    return _at(value[part], more) if isinstance(value, dict) and part in value else []
+
+
 def _label(given: Given) -> str:
     """How a message names an input: its study key, or the column of ``cells:``."""
     return f"cells column '{given.key}'" if given.where == "cells" else given.where
@@ -118,8 +200,10 @@ def _parsed(key: Any) -> tuple[str | int, ...] | None:
     return (root, *parts)
 
 
-def _leaves(data: Mapping[str, Any], prefix: tuple[str, ...] = ()) -> Iterator[tuple[str, tuple[str, ...]]]:
-    """(dotted path, parts) of every leaf of ``params:``; a mapping is a branch, anything else a leaf."""
+def _leaves(
+    data: Mapping[str, Any], prefix: tuple[str, ...] = ()
+) -> Iterator[tuple[str, tuple[str, ...], Any]]:
+    """(dotted path, parts, value) of every leaf of ``params:``; a mapping is a branch."""
     for key, value in data.items():
         if not isinstance(key, str):
             continue
@@ -127,7 +211,7 @@ def _leaves(data: Mapping[str, Any], prefix: tuple[str, ...] = ()) -> Iterator[t
         if isinstance(value, dict) and value:
             yield from _leaves(value, parts)
         else:
-            yield ".".join(parts), parts
+            yield ".".join(parts), parts, value
 
 
 def _common(a: tuple[str | int, ...], b: tuple[str | int, ...]) -> tuple[str | int, ...] | None:
@@ -163,3 +247,16 @@ def _hint(a: tuple[str | int, ...], b: tuple[str | int, ...]) -> str:
     if len(a) != len(b):
         return "a field or the value holding it, not both (set the whole value, or only fields inside it)"
     return "each field in one place: params, set, sweep or cells"
+
+
+def default_of(model: type[BaseModel], name: str) -> Any:
+    """The default of task parameter ``name`` (dotted through nested groups), or None."""
+    *groups, last = name.split(".")
+    for group in groups:
+        field = model.model_fields.get(group)
+        kind = field.annotation if field is not None else None
+        if not (isinstance(kind, type) and issubclass(kind, BaseModel)):
+            return None
+        model = kind
+    field = model.model_fields.get(last)
+    return None if field is None else field.get_default(call_default_factory=True)

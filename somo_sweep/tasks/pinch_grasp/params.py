@@ -23,6 +23,7 @@ from pydantic import Field, field_validator, model_validator
 from somo_sweep.model.description import MAX_LENGTH_M, MIN_LENGTH_M
 from somo_sweep.model.load import Model
 from somo_sweep.tasks.pinch_grasp.closing import closing_problems, dsr_leaves_a_driven_part
+from somo_sweep.tasks.pinch_grasp.overrides import REPLACED
 from somo_sweep.tasks.registry import TaskParams, TaskSpec, register
 
 __all__ = [
@@ -154,8 +155,7 @@ def finger_reach_m(finger: Any) -> float:
 
 
 def check_grid(model: Model, param_sets: list[PinchGraspParams]) -> list[str]:
-    """What the study's cells together need of the gripper: fingers that close on the box under
-    some cell's drive (:mod:`.closing`) and reach it in some cell."""
+    """Fingers that close on the box under some cell's drive (:mod:`.closing`) and reach it in some cell."""
     drives = {(p.torque_n_m if p.pressure_kpa is None else None, p.pressure_kpa) for p in param_sets}
     return closing_problems(model, drives) + check_reach(model, param_sets)
 
@@ -494,5 +494,6 @@ register(
             "lift_slip_m",
         ),
         labels=("grasp", "grasp_paper"),
+        replaces=REPLACED,
     )
 )
