@@ -43,14 +43,16 @@ def _by_sampling(values: pd.Series, inferred: pd.Series) -> pd.DataFrame:
 
 def breakdown(df: pd.DataFrame, column: str, label: str | None = None) -> pd.DataFrame:
     """Trials per value of ``column``: counts by status and inferred, then (with ``label``) by each
-    value of that label column. One label per table keeps a table within 80 columns."""
-    parts = [pd.crosstab(df[column], df["status"])]
+    value of that label column. One label per table keeps a table within 80 columns. A parameter
+    given as null (``distal_segment_ratio: null``) is a row of its own, ``null``."""
+    values = df[column].astype(object).where(df[column].notna(), "null")
+    parts = [pd.crosstab(values, df["status"])]
     inferred = inferred_mask(df)
     if inferred.any():
-        parts.append(pd.crosstab(df[column], inferred).reindex(columns=[True], fill_value=0))
+        parts.append(pd.crosstab(values, inferred).reindex(columns=[True], fill_value=0))
         parts[-1].columns = ["inferred"]
     if label is not None:
-        parts.append(pd.crosstab(df[column], df[label].fillna("-")))
+        parts.append(pd.crosstab(values, df[label].fillna("-")))
     return pd.concat(parts, axis=1).fillna(0).astype(int)
 
 

@@ -84,3 +84,10 @@ def test_fig6_leaves_the_null_cells_out_and_says_so(folder: Path) -> None:
     assert art.json["fig6.json"]["cells_as_written"] == 2 and art.json["fig6.json"]["trials"] == 2
     with pytest.raises(SomoError, match=r"^every cell is of distal_segment_ratio null \(the fingers"):
         build(table[table["distal_segment_ratio"].isna()])
+
+
+def test_show_counts_the_null_cells_in_a_row_of_their_own(folder: Path) -> None:
+    res = CliRunner().invoke(app, ["show", str(folder)], env={"COLUMNS": "200"})
+    assert res.exit_code == 0, res.output
+    rows = [line.split("│") for line in res.output.splitlines() if line.startswith("│ null")]
+    assert rows and all(int(row[2]) == 2 for row in rows), res.output  # 2 ok trials of DSR null
