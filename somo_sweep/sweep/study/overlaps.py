@@ -7,6 +7,11 @@ they can reach the same field: the same path (``task.pressure_kpa`` in ``params:
 ``manipulators[*]…``), or one path inside the other (``actuators[0]`` and
 ``actuators[0].n_segments``). A trial would then simulate one of the values while the study's
 columns stored both, so :func:`overlaps` refuses every such pair instead of choosing an order.
+
+A task parameter may overwrite model fields in the model a trial simulates (``TaskSpec.replaces``:
+the pinch task's ``numerics.damping_n_m_s_per_rad`` sets every finger joint's damping). A model
+key reaching such a field, while the parameter is not null in some cell, would store a column the
+trial never simulated: :func:`replaced` refuses it, naming the parameter's key.
 """
 
 from __future__ import annotations
