@@ -139,10 +139,7 @@ def _timed(name: str, study_path: Path, out: Path, kind: str, n_workers: int) ->
     study = load_study(study_path, out)
     with _backend(kind, n_workers) as how:
         warm = first_jobs(study, n_workers)
-        if kind == "joblib":
-            list(run_jobs(warm, "loky", n_workers))
-        else:
-            list(run_jobs(warm, "dask", scheduler=how["scheduler"]))
+        list(run_jobs(warm, RunOptions(**how)))
         start = perf_counter()
         summary = run_sweep(study, RunOptions(**how))
         wall_s = perf_counter() - start

@@ -26,12 +26,13 @@ from dataclasses import dataclass, replace
 from pathlib import Path
 from typing import Any
 
-from somo_sweep.calibration.finger import read_header_mapping
+from somo_sweep.calibration.bench_file import BenchFile, read_bench_file
+from somo_sweep.calibration.finger import header_mapping
 from somo_sweep.errors import MeasurementError, SimulationError
 from somo_sweep.model.description import MAX_LENGTH_M, Manipulator
 from somo_sweep.sim.bench_rig import STOPS, BenchSettings, check_stop, finger_underside_m
 
-__all__ = ["BENCH_KEYS", "BenchHeader", "read_bench_header"]
+__all__ = ["BENCH_KEYS", "BenchHeader", "bench_header", "read_bench_header"]
 
 #: Header keys with their meaning.
 BENCH_KEYS = {
@@ -98,14 +99,20 @@ class BenchHeader:
 
 
 def read_bench_header(path: str | Path) -> BenchHeader:
-    """The ``# bench:`` line of a CSV, validated (the default bench when there is none).
+    """The ``# bench:`` line of a CSV file, validated (:func:`bench_header` of the file read)."""
+    return bench_header(read_bench_file(path))
+
+
+def bench_header(file: BenchFile) -> BenchHeader:
+    """The ``# bench:`` line of a bench file, validated (the default bench when there is none).
 
     Raises:
         MeasurementError: Given twice, not a mapping, an unknown key, a ``stop_z_mm`` that is no
             finite number of at most ±100 m or a ``stop`` not in :data:`~somo_sweep.sim.bench_rig.STOPS`
             (the message names the line and the key).
     """
-    found = read_header_mapping(path, _PREFIX, "bench header", "{stop_z_mm: -9}")
+    path = file.path
+    found = header_mapping(file, _PREFIX, "bench header", "{stop_z_mm: -9}")
     source = str(path)
     if found is None:
         return BenchHeader(source=source)

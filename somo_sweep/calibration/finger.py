@@ -15,13 +15,14 @@ import math
 from pathlib import Path
 from typing import Any
 
+from somo_sweep.calibration.bench_file import BenchFile, read_bench_file
 from somo_sweep.errors import MeasurementError
 from somo_sweep.model.builders import DEFAULT_THICKNESS_M, DEFAULT_WIDTH_M, planar_finger
 from somo_sweep.model.description import MAX_LENGTH_M, MAX_MASS_KG
 from somo_sweep.model.files import parse_yaml_value
 from somo_sweep.model.load import Model
 
-__all__ = ["FINGER_KEYS", "finger_from_header", "read_finger_header", "read_header_mapping"]
+__all__ = ["FINGER_KEYS", "finger_from_header", "finger_header", "header_mapping", "read_finger_header"]
 
 #: Header keys with their meaning; the first three are required.
 FINGER_KEYS = {
@@ -36,29 +37,31 @@ REQUIRED = ("length_mm", "segments", "mass_g")
 #: Most segments of the planar finger: with its base and tip link, PyBullet's 128 links of a body.
 MAX_FINGER_SEGMENTS = 126
 _PREFIX = "# finger:"
-#: Bytes of a CSV searched for header lines: those of the largest measurement file read
-#: (:data:`~somo_sweep.calibration.measurements.MAX_FILE_BYTES`), so a huge file costs no more.
-_SEARCH_BYTES = 8 * 1024 * 1024
-#: Longest header line read, in bytes (a longer one is cut and then refused).
+#: Longest header line read, in bytes of UTF-8 (a longer one is refused).
 _MAX_LINE_BYTES = 4096
 
 
 def read_finger_header(path: str | Path) -> dict[str, Any] | None:
-    """The ``# finger:`` mapping of a CSV, validated; None when the file has no such line.
+    """The ``# finger:`` mapping of a CSV file, validated (:func:`finger_header` of the file read)."""
+    return finger_header(read_bench_file(path))
+
+
+def finger_header(file: BenchFile) -> dict[str, Any] | None:
+    """The ``# finger:`` mapping of a bench file, validated; None when it has no such line.
 
     Raises:
         MeasurementError: A header line that is not a mapping, an unknown key, a missing
             required key or a value out of range (the message names the line and the key).
     """
-    found = read_header_mapping(path, _PREFIX, "finger header", "{length_mm: 100, segments: 20, mass_g: 20}")
+    found = header_mapping(file, _PREFIX, "finger header", "{length_mm: 100, segments: 20, mass_g: 20}")
     if found is None:
         return None
     number, data = found
-    return _validate(Path(path), f"line {number}, finger header", data)
+    return _validate(file.path, f"line {number}, finger header", data)
 
 
-def read_header_mapping(
-    path: str | Path, prefix: str, what: str, example: str
+def header_mapping(
+    file: BenchFile, prefix: str, what: str, example: str
 ) -> tuple[int, dict[Any, Any]] | None:
     """The YAML mapping of a ``# <key>:`` comment line above a CSV's header, with its line number.
 
@@ -69,21 +72,18 @@ def read_header_mapping(
         MeasurementError: The line given twice, too long, not a mapping, or placed after the
             column header, where it would not be read (naming the line).
     """
-    path = Path(path)
-    with path.open("rb") as fh:
-        # Split like the CSV reader: \n, \r\n or a lone \r (old Mac exports) end a line.
-        head = fh.read(_SEARCH_BYTES).splitlines(keepends=True)
-    found: list[tuple[int, bytes, str]] = []
+    path = file.path
+    found: list[tuple[int, str]] = []
     header = 0  # the column header's line
-    for number, raw in enumerate(head, start=1):
-        if header and not raw.lstrip().startswith(b"#"):
+    for number, raw in enumerate(file.lines, start=1):
+        line = raw.strip()
+        if header and not line.startswith("#"):
             continue  # a data row (only the comments after the header are looked at)
-        line = raw.decode("utf-8", errors="replace").lstrip("\ufeff").strip()  # Excel's "CSV UTF-8" BOM
         if line and not line.startswith("#") and not header:
             header = number
         elif line.lower().startswith(prefix):
-            found.append((number, raw, line))
-    late = [n for n, _, _ in found if header and n > header]
+            found.append((number, line))
+    late = [n for n, _ in found if header and n > header]
     if late:
         raise MeasurementError(
             path,
@@ -93,14 +93,14 @@ def read_header_mapping(
             ],
         )
     if len(found) > 1:
-        lines = " and ".join(str(n) for n, _, _ in found[:2])
+        lines = " and ".join(str(n) for n, _ in found[:2])
         raise MeasurementError(
             path, [f"lines {lines}: the {what} is given twice; allowed: one '{prefix}' line"]
         )
-    for number, raw, line in found:
+    for number, line in found:
         where = f"line {number}, {what}"
         hint = f"write a mapping, e.g. {example}"
-        if len(raw) > _MAX_LINE_BYTES:
+        if len(line.encode("utf-8")) > _MAX_LINE_BYTES:
             raise MeasurementError(
                 path, [f"{where}: longer than {_MAX_LINE_BYTES} bytes; allowed: one short line; {hint}"]
             )

@@ -18,20 +18,22 @@ from pathlib import Path
 
 import pandas as pd
 
+from somo_sweep.calibration.bench_file import MAX_FILE_BYTES, MAX_ROWS, BenchFile, read_bench_file
 from somo_sweep.calibration.csv_rows import CsvRows, line_of, split_rows
 from somo_sweep.errors import MeasurementError, did_you_mean, shown
-from somo_sweep.model.files import decode_utf8, is_file, missing_or_special
 from somo_sweep.model.load import Model
-from somo_sweep.model.tables import bundled_if_missing, not_found
 from somo_sweep.sim.bench import TESTS, BenchSettings, run_bench
 
 __all__ = [
     "COLUMNS",
     "INPUT_COLUMNS",
+    "MAX_FILE_BYTES",
+    "MAX_ROWS",
     "MEASURED_COLUMNS",
     "OPTIONAL_MEASURED",
     "RANGES",
     "measurements_csv",
+    "parse_measurements",
     "read_measurements",
     "simulate_measurements",
 ]
@@ -73,22 +75,30 @@ RANGES: dict[str, tuple[float, float, str]] = {
     "tip_angle_deg": (-720.0, 720.0, "deg"),
 }
 
-
-#: Most data rows a measurement file may have (a bench session has tens to hundreds).
-MAX_ROWS = 5000
-#: Largest measurement file read, in bytes (5000 rows of a bench file take well under 1 MiB).
-MAX_FILE_BYTES = 8 * 1024 * 1024
 #: A number as a measurement CSV writes it (ASCII digits, optional sign, point and exponent; inf).
 _NUMBER = re.compile(r"[+-]?(\d+\.?\d*|\.\d+)([eE][+-]?\d+)?|[+-]?inf(inity)?", re.IGNORECASE | re.ASCII)
 
 
 def read_measurements(path: str | Path, require_measured: bool = True) -> pd.DataFrame:
-    """Read and validate a measurement CSV.
+    """Read and validate a measurement CSV (:func:`read_bench_file`, then :func:`parse_measurements`).
 
     Args:
         path: CSV file. A relative path that does not exist but spells a bundled table
             (``planar_finger_bench_2.csv`` or ``studies/tables/planar_finger_bench_2.csv``) reads
             the bundled one (:func:`~somo_sweep.model.tables.bundled_if_missing`).
+        require_measured: Whether each row must carry its test's measured columns.
+
+    Raises:
+        MeasurementError: Naming every bad row and column at once.
+    """
+    return parse_measurements(read_bench_file(path), require_measured)
+
+
+def parse_measurements(file: BenchFile, require_measured: bool = True) -> pd.DataFrame:
+    """The rows of a bench file, validated.
+
+    Args:
+        file: The file's text (:func:`~somo_sweep.calibration.bench_file.read_bench_file`).
         require_measured: Whether each row must carry its test's measured columns.
 
     Returns:
@@ -99,8 +109,8 @@ def read_measurements(path: str | Path, require_measured: bool = True) -> pd.Dat
     Raises:
         MeasurementError: Naming every bad row and column at once.
     """
-    path = bundled_if_missing(path, "tables", ".csv")
-    rows = split_rows(path, _read_text(path))
+    path = file.path
+    rows = split_rows(path, file.text)
     raw = _parse_table(path, rows)
     _check_columns(path, raw, rows.header_line)
     problems: list[str] = []
@@ -116,27 +126,6 @@ def read_measurements(path: str | Path, require_measured: bool = True) -> pd.Dat
     if problems:
         raise MeasurementError(path, problems)
     return out.reset_index(drop=True)
-
-
-def _read_text(path: Path) -> str:
-    """The text of a measurement file that exists, is not too large and is UTF-8.
-
-    Raises:
-        MeasurementError: Not found (naming the bundled tables), a special file, too large, not UTF-8.
-    """
-    if not is_file(path):
-        why = missing_or_special(path)
-        raise MeasurementError(path, [not_found(path, "tables", ".csv") if why == "file not found" else why])
-    size = path.stat().st_size
-    if size > MAX_FILE_BYTES:
-        limit = f"{MAX_FILE_BYTES // (1024 * 1024)} MiB"
-        raise MeasurementError(
-            path, [f"file is {size} bytes; allowed: at most {limit} (at most {MAX_ROWS} data rows)"]
-        )
-    try:
-        return decode_utf8(path.read_bytes())
-    except ValueError as exc:
-        raise MeasurementError(path, [str(exc)]) from None
 
 
 def _parse_table(path: Path, rows: CsvRows) -> pd.DataFrame:

@@ -17,9 +17,10 @@ from pathlib import Path
 
 import pandas as pd
 
-from somo_sweep.calibration.bench_header import BenchHeader, read_bench_header
-from somo_sweep.calibration.finger import FINGER_KEYS, finger_from_header, read_finger_header
-from somo_sweep.calibration.measurements import read_measurements
+from somo_sweep.calibration.bench_file import BenchFile, read_bench_file
+from somo_sweep.calibration.bench_header import bench_header
+from somo_sweep.calibration.finger import FINGER_KEYS, finger_from_header, finger_header
+from somo_sweep.calibration.measurements import parse_measurements
 from somo_sweep.calibration.repeats import describe_repeats, drop_repeats, find_repeats
 from somo_sweep.calibration.solve import (
     CALIBRATION_SETTINGS,
@@ -131,7 +132,7 @@ def counted_rows(rows: pd.DataFrame, measurements: Path, keep_duplicates: bool) 
 
 
 def base_model(
-    measurements: Path, model: Path | None, finger: FingerSize, allow_outside: bool = False
+    measurements: BenchFile, model: Path | None, finger: FingerSize, allow_outside: bool = False
 ) -> Model:
     """The model to calibrate: ``model``, else the CSV's ``# finger:`` line with ``finger`` over it.
 
@@ -141,27 +142,33 @@ def base_model(
     if model is not None:
         return load_model(model, allow_outside)
     flags = {"length_mm": finger.length_mm, "segments": finger.segments, "mass_g": finger.mass_g}
-    header = read_finger_header(measurements) if measurements.is_file() else None
+    header = finger_header(measurements)
     missing = [k for k, v in flags.items() if v is None and k not in (header or {})]
     if missing:
         flags_missing = ", ".join("--" + k.replace("_", "-") for k in missing)
         raise SomoError(
-            f"{measurements}: no finger to calibrate; give --model BASE.yaml, or add a line "
+            f"{measurements.path}: no finger to calibrate; give --model BASE.yaml, or add a line "
             f"'# finger: {{length_mm: 100, segments: 20, mass_g: 20}}' above the CSV header "
             f"(keys: {', '.join(FINGER_KEYS)}), or pass {flags_missing}"
         )
     return finger_from_header(
-        header or {}, str(measurements), **flags, width_mm=finger.width_mm, thickness_mm=finger.thickness_mm
+        header or {},
+        str(measurements.path),
+        **flags,
+        width_mm=finger.width_mm,
+        thickness_mm=finger.thickness_mm,
     )
 
 
-def bench_settings(measurements: Path, base: Model, settings: BenchSettings) -> tuple[BenchSettings, str]:
+def bench_settings(
+    measurements: BenchFile, base: Model, settings: BenchSettings
+) -> tuple[BenchSettings, str]:
     """``settings`` with the CSV's ``# bench:`` stop, checked against the finger, and the line saying so.
 
     Raises:
         MeasurementError: A bad ``# bench:`` line, or a stop this finger would start inside or never reach.
     """
-    header = read_bench_header(measurements) if measurements.is_file() else BenchHeader()
+    header = bench_header(measurements)
     if base.manipulator is None:  # an assembly: build_problem refuses it with its own message
         return settings, ""
     return header.settings(settings, base.manipulator), header.describe(base.manipulator)
@@ -188,12 +195,13 @@ def calibrate_csv(
     reporter = reporter or Reporter()
     if options.method not in METHODS:
         raise SomoError(f"--method '{options.method}' is not known; allowed: {', '.join(METHODS)}")
-    rows, warning = counted_rows(read_measurements(measurements), measurements, options.keep_duplicates)
+    bench = read_bench_file(measurements)
+    rows, warning = counted_rows(parse_measurements(bench), measurements, options.keep_duplicates)
     if warning:
         reporter.warn(warning)
-    base = base_model(measurements, options.model, options.finger, options.allow_outside)
+    base = base_model(bench, options.model, options.finger, options.allow_outside)
     gravity = replace(CALIBRATION_SETTINGS, gravity_m_s2=options.gravity_m_s2)
-    settings, bench_line = bench_settings(measurements, base, gravity)
+    settings, bench_line = bench_settings(bench, base, gravity)
     reporter.say(bench_line)
     min_rows = 2 if options.method == "fit" else 1
     problem = build_problem(rows, base, str(measurements), settings, min_rows_per_parameter=min_rows)

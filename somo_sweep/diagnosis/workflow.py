@@ -15,7 +15,8 @@ from typing import Any
 
 import pandas as pd
 
-from somo_sweep.calibration.measurements import read_measurements
+from somo_sweep.calibration.bench_file import BenchFile, read_bench_file
+from somo_sweep.calibration.measurements import parse_measurements
 from somo_sweep.calibration.solve import CALIBRATION_SETTINGS, CalibrationResult, build_problem, solve_fit
 from somo_sweep.calibration.workflow import FingerSize, Reporter, base_model, bench_settings, counted_rows
 from somo_sweep.diagnosis.diagnose import DiagnosisResult, build_diagnosis, diagnose
@@ -127,16 +128,17 @@ def diagnose_csv(
         SomoError: Bad rows, no finger, a bad model file or an effect these rows cannot reveal.
     """
     reporter = reporter or Reporter()
-    rows, warning = counted_rows(read_measurements(measurements), measurements, options.keep_duplicates)
+    bench = read_bench_file(measurements)
+    rows, warning = counted_rows(parse_measurements(bench), measurements, options.keep_duplicates)
     if warning:
         reporter.warn(warning)
     settings = replace(CALIBRATION_SETTINGS, gravity_m_s2=options.gravity_m_s2)
     if options.model is not None:
         base = load_model(options.model, options.allow_outside)
-        settings, bench_line = bench_settings(measurements, base, settings)
+        settings, bench_line = bench_settings(bench, base, settings)
         reporter.say(bench_line)
     else:
-        base, settings = _calibrated_first(rows, measurements, settings, options.n_jobs, reporter)
+        base, settings = _calibrated_first(rows, bench, measurements, settings, options.n_jobs, reporter)
     names = list(options.effects) if options.effects is not None else None
     with reporter.working("simulating the model as given"):
         problem = build_diagnosis(
@@ -150,15 +152,20 @@ def diagnose_csv(
 
 
 def _calibrated_first(
-    rows: pd.DataFrame, measurements: Path, settings: BenchSettings, n_jobs: int, reporter: Reporter
+    rows: pd.DataFrame,
+    bench: BenchFile,
+    measurements: Path,
+    settings: BenchSettings,
+    n_jobs: int,
+    reporter: Reporter,
 ) -> tuple[Model, BenchSettings]:
     """The CSV's finger calibrated from the rows (as ``somo-sweep calibrate``), and its bench.
 
     Raises:
         FingerNotCalibrated: The calibration fitted nothing.
     """
-    finger = base_model(measurements, None, FingerSize())
-    settings, bench_line = bench_settings(measurements, finger, settings)
+    finger = base_model(bench, None, FingerSize())
+    settings, bench_line = bench_settings(bench, finger, settings)
     reporter.say(bench_line)
     with reporter.working("calibrating the CSV's finger first"):
         first = solve_fit(build_problem(rows, finger, str(measurements), settings), n_jobs=n_jobs)

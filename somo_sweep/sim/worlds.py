@@ -13,7 +13,7 @@ from somo_sweep.errors import SimulationError
 from somo_sweep.sim.settings import WorldSettings
 from somo_sweep.sim.world import World
 
-__all__ = ["open_world"]
+__all__ = ["open_world", "prepare_engine"]
 
 
 def open_world(settings: WorldSettings | None = None) -> World:
@@ -37,3 +37,22 @@ def open_world(settings: WorldSettings | None = None) -> World:
     from somo_sweep.sim.pybullet.world import PyBulletWorld
 
     return PyBulletWorld(settings)
+
+
+def prepare_engine(engine: str) -> None:
+    """Import an engine now, in a process about to fork trials (once per process is enough).
+
+    A forked trial then finds the engine imported instead of importing it again (and losing it
+    with its process); PyBullet's children also inherit a connected spare client
+    (:func:`~somo_sweep.sim.pybullet.clients.keep_spare_client`).
+
+    Raises:
+        ImportError: The engine is not installed.
+    """
+    if engine == "mujoco":
+        import somo_sweep.sim.mujoco.world  # noqa: F401  (its import, not each trial's, pays)
+
+        return
+    from somo_sweep.sim.pybullet.clients import keep_spare_client
+
+    keep_spare_client()

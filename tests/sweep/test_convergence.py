@@ -24,6 +24,7 @@ from somo_sweep.sim.numerics import numerics_for_step, step_ladder
 from somo_sweep.sweep.jobs.table import build_jobs
 from somo_sweep.sweep.run.convergence import choose_step, outcomes_of, stored_choice
 from somo_sweep.sweep.run.execution import execute
+from somo_sweep.sweep.run.options import RunOptions
 from somo_sweep.sweep.store.result_store import read_manifest
 from somo_sweep.sweep.study import load_study
 
@@ -39,7 +40,7 @@ def study_file(folder: Path, params: str, task: str = "selftest_sleep") -> Path:
 
 
 def run_here(jobs: list) -> object:  # type: ignore[type-arg]
-    return outcomes_of(execute(jobs, "loky", 1))
+    return outcomes_of(execute(jobs, RunOptions(n_jobs=1)))
 
 
 def test_the_ladder_starts_at_the_modal_guess_and_ends_where_no_shaping_is_needed() -> None:

@@ -13,6 +13,7 @@ import signal
 import subprocess
 import sys
 import time
+from collections.abc import Iterator
 from pathlib import Path
 
 import pandas as pd
@@ -20,6 +21,7 @@ import pytest
 from conftest import signals_as_in_a_shell
 from test_sweep import make_study, results_only, selftest_study
 
+from somo_sweep.sweep.jobs.job import Job
 from somo_sweep.sweep.run.runner import RunOptions, run_sweep
 from somo_sweep.sweep.store.result_store import read_manifest, read_results
 from somo_sweep.sweep.study import load_study
@@ -306,3 +308,45 @@ def _cmdline(pid: int) -> str:
         return Path(f"/proc/{pid}/cmdline").read_bytes().replace(b"\0", b" ").decode(errors="replace")
     except OSError:
         return ""
+
+
+def test_a_stopped_run_counts_as_cut_short_exactly_the_trials_handed_out_and_not_yielded(
+    tmp_path: Path,
+) -> None:
+    """The count comes from the jobs in flight, not from joblib's warning (whose words it used to
+    parse), and joblib's warning is not shown."""
+    import warnings
+
+    from somo_sweep.sweep.jobs.table import build_jobs
+    from somo_sweep.sweep.run.execution import run_jobs
+    from somo_sweep.sweep.run.options import RunOptions
+
+    study = load_study(selftest_study(tmp_path, extra="set: {task.sleep_s: 0.5}", n=12), tmp_path / "out")
+    jobs = build_jobs(study).jobs
+    pulled: list[str] = []
+
+    def source() -> Iterator[Job]:
+        for job in jobs:
+            pulled.append(job.job_id)
+            yield job
+
+    stopped: list[int] = []
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        outcomes = run_jobs(source(), RunOptions(n_jobs=2), on_stop=stopped.append)
+        got = [next(outcomes)[1].job_id for _ in range(3)]
+        outcomes.close()
+    assert len(pulled) < len(jobs)  # stopped before every job was handed out
+    assert stopped == [len(pulled) - len(got)] and stopped[0] >= 1
+    assert not [w for w in caught if "tasks" in str(w.message)], [str(w.message) for w in caught]
+
+
+def test_a_run_to_its_end_cuts_nothing_short(tmp_path: Path) -> None:
+    from somo_sweep.sweep.jobs.table import build_jobs
+    from somo_sweep.sweep.run.execution import run_jobs
+    from somo_sweep.sweep.run.options import RunOptions
+
+    study = load_study(selftest_study(tmp_path, n=4), tmp_path / "out")
+    stopped: list[int] = []
+    assert len(list(run_jobs(build_jobs(study).jobs, RunOptions(n_jobs=2), on_stop=stopped.append))) == 4
+    assert stopped == []

@@ -10,11 +10,11 @@ from __future__ import annotations
 
 import contextlib
 import os
-import re
 import signal
 import threading
 import warnings
 from collections.abc import Callable, Generator, Iterable, Iterator, Sized
+from dataclasses import dataclass
 from typing import Any
 
 from joblib import Parallel, delayed, parallel_config
@@ -29,7 +29,7 @@ from somo_sweep.sweep.run.dask_backend import (
     quiet_dask,
     run_on_dask,
 )
-from somo_sweep.sweep.run.options import Backend
+from somo_sweep.sweep.run.options import Backend, RunOptions
 from somo_sweep.sweep.run.trial import (
     Attempt,
     Outcome,
@@ -45,6 +45,7 @@ __all__ = [
     "Attempt",
     "Backend",
     "Outcome",
+    "WarmWorkers",
     "dask_client",
     "dask_environment",
     "execute",
@@ -53,7 +54,6 @@ __all__ = [
     "run_job",
     "run_jobs",
     "start_workers",
-    "stop_workers",
 ]
 
 #: How often a worker restart is tried when a whole worker process (not a trial) dies.
@@ -88,114 +88,115 @@ def _parallel(n_jobs: int) -> Parallel:
     return Parallel(n_jobs=n_jobs, return_as="generator_unordered", batch_size=1, pre_dispatch="2*n_jobs")
 
 
-#: joblib's warning when its output generator is closed early, and the counts it names.
-_CUT_SHORT = re.compile(
-    r"(\d+) tasks have been successfully executed|(\d+) tasks which were still being processed"
-)
+def _close(outcomes: Iterator[Outcome], cut_short: int, on_stop: Callable[[int], None] | None) -> None:
+    """Close joblib's output generator; the ``cut_short`` trials it cancels go to ``on_stop``.
 
-
-def _close(outcomes: Iterator[Outcome], on_stop: Callable[[int], None] | None) -> None:
-    """Close joblib's output generator; its warning about the trials cut short becomes ``on_stop``."""
+    joblib warns about the trials it cancels; the run says it in its own words instead, so the
+    warning is not shown (any other warning is).
+    """
     close = getattr(outcomes, "close", None)
     if close is None:
         return
-    with warnings.catch_warnings(record=True) as caught:
-        warnings.simplefilter("always")
+    with warnings.catch_warnings():
+        warnings.filterwarnings("ignore", category=UserWarning, module=r"joblib\.")
         close()
-    cut = 0
-    for warning in caught:
-        found = _CUT_SHORT.findall(str(warning.message))
-        if not found:  # not joblib's note about the trials cut short: shown as it came
-            warnings.warn_explicit(warning.message, warning.category, warning.filename, warning.lineno)
-            continue
-        cut += sum(int(a or b) for a, b in found)
-    if cut and on_stop is not None:
-        on_stop(cut)
+    if cut_short and on_stop is not None:
+        on_stop(cut_short)
 
 
 def run_jobs(
     jobs: Iterable[Job],
-    backend: Backend = "loky",
-    n_jobs: int = 1,
-    scheduler: str | None = None,
-    timeout_s: float | None = None,
+    options: RunOptions,
     client: Any = None,
     on_stop: Callable[[int], None] | None = None,
+    warm: WarmWorkers | None = None,
 ) -> Generator[tuple[Job, Outcome], None, None]:
     """Run jobs and yield each with its outcome as it finishes (in completion order).
 
     ``jobs`` is read as the workers take them, and only the jobs in flight are held (a few per
     worker), so a study of any size runs in the same memory.
 
-    Closing the iterator early (the caller stopped) cancels the trials still running; joblib's
-    warning about them is not shown: ``on_stop`` gets how many there were (trials running, or
-    returned but not yet handed out), so that the caller can say it in its own words.
+    Closing the iterator early (the caller stopped) cancels the trials still running: ``on_stop``
+    gets how many there were (trials handed to the workers whose outcome was not yet yielded), so
+    that the caller can say it in its own words.
 
     Args:
         jobs: The jobs to run.
-        backend: ``loky`` (processes on this machine) or ``dask`` (a cluster,
-            :func:`~somo_sweep.sweep.run.dask_backend.run_on_dask`).
-        n_jobs: Worker processes for ``loky`` (1 runs in this process; trials are still forked).
-        scheduler: Dask scheduler address, e.g. ``tcp://10.0.0.5:8786`` (``dask`` only).
-        timeout_s: Per-trial wall-time limit, s.
-        client: A connected Dask client (``dask`` only; default: connect to ``scheduler``).
+        options: Where and how: ``backend`` (``loky``: processes on this machine; ``dask``: a
+            cluster, :func:`~somo_sweep.sweep.run.dask_backend.run_on_dask`), the worker count,
+            the Dask ``scheduler`` and the per-trial ``timeout_s``.
+        client: A connected Dask client (``dask`` only; default: connect to ``options.scheduler``).
         on_stop: Called with the number of trials cut short when the iterator is closed early.
+        warm: Local workers :func:`start_workers` started ahead for this run (``loky`` only).
 
     Raises:
         SomoError: The Dask scheduler cannot be reached or is lost, or workers keep dying.
     """
-    if backend == "dask":
+    if options.backend == "dask":
         own = client is None
-        client = dask_client(scheduler) if own else client
+        client = dask_client(options.scheduler) if own else client
         try:
             with quiet_dask():
-                yield from run_on_dask(jobs, client, timeout_s, on_stop)
+                yield from run_on_dask(jobs, client, options.timeout_s, on_stop)
         finally:
             if own:
                 discard_client(client)
         return
-    yield from _run_local(jobs, n_jobs, timeout_s, on_stop)
+    if warm is not None:
+        warm.ready()
+    yield from _run_local(jobs, options.workers, options.timeout_s, on_stop)
 
 
-#: Warm-up calls of the workers :func:`start_workers` started, drained before the first trial.
-_starting: list[Iterator[Any]] = []
+@dataclass
+class WarmWorkers:
+    """Local workers started ahead of a run (:func:`start_workers`), importing what its trials import.
+
+    joblib keeps its pool for the same settings, so the run that follows uses these processes.
+    :meth:`ready` waits for their warm-up before the first trial; :meth:`close` ends them if no
+    run took them (it stopped before its first trial). Both are safe to call twice.
+    """
+
+    _warm_up: Iterator[Any] | None
+
+    def ready(self) -> None:
+        """Let the warm-up finish (a failure there shows again in the trials, which report it)."""
+        started, self._warm_up = self._warm_up, None
+        if started is not None:
+            with contextlib.suppress(Exception):
+                for _ in started:
+                    pass
+
+    def close(self) -> None:
+        """End the warm-up (and the workers with it) if no run took them."""
+        started, self._warm_up = self._warm_up, None
+        if started is not None:
+            with warnings.catch_warnings(), contextlib.suppress(Exception):
+                warnings.simplefilter("ignore")  # joblib's note that the warm-up results went unused
+                started.close()  # type: ignore[attr-defined]
 
 
-def start_workers(n_jobs: int, task: str) -> None:
+def start_workers(n_jobs: int, task: str) -> WarmWorkers | None:
     """Start the local workers now, each importing what a trial of ``task`` imports, and return.
 
     ``somo-sweep run`` calls this before it builds the job table and opens the results folder,
     so that the workers start and import while it does: on two cores, the seconds a resumed
     20 000-trial study took to its first trial were half worker start-up. The run then uses
-    these workers (joblib keeps its pool for the same settings). Nothing starts for one worker.
+    these workers (pass them to :func:`run_jobs`). Nothing starts for one worker (None).
     """
     if n_jobs <= 1:
-        return
+        return None
     owner = os.getpid()
     with (
         parallel_config(backend="loky", initializer=start_local_worker, initargs=(owner,)),
         _deaf_to_ctrl_c(True),
     ):
-        _starting.append(_parallel(n_jobs)(delayed(warm_up)(task) for _ in range(n_jobs)))
-
-
-def stop_workers() -> None:
-    """End the workers :func:`start_workers` started if no run took them (it stopped before any trial)."""
-    while _starting:
-        started = _starting.pop()
-        with warnings.catch_warnings(), contextlib.suppress(Exception):
-            warnings.simplefilter("ignore")  # joblib's note that the warm-up results went unused
-            started.close()  # type: ignore[attr-defined]
+        return WarmWorkers(_parallel(n_jobs)(delayed(warm_up)(task) for _ in range(n_jobs)))
 
 
 def _run_local(
     jobs: Iterable[Job], n_jobs: int, timeout_s: float | None, on_stop: Callable[[int], None] | None
 ) -> Iterator[tuple[Job, Outcome]]:
     """The loky backend: worker processes on this machine, restarted if one of them dies."""
-    while _starting:  # workers started ahead: let their warm-up finish (a failure shows below)
-        with contextlib.suppress(Exception):
-            for _ in _starting.pop():
-                pass
     source = iter(jobs)
     in_flight: dict[str, Job] = {}  # handed to the workers, outcome not back yet
     again: list[Job] = []  # in flight when a worker process died: run first after the restart
@@ -224,8 +225,11 @@ def _run_local(
                 try:
                     for out in outcomes:
                         yield in_flight.pop(out.job_id), out
+                except (GeneratorExit, KeyboardInterrupt):  # the caller stopped: these are cut short
+                    _close(outcomes, len(in_flight), on_stop)
+                    raise
                 finally:
-                    _close(outcomes, on_stop)
+                    _close(outcomes, 0, None)  # done, or a worker died (its trials run again below)
             if not in_flight:
                 return
             again.extend(in_flight.values())  # dispatched by a pool that died as it was replaced
@@ -242,16 +246,8 @@ def _run_local(
             in_flight.clear()
 
 
-def execute(
-    jobs: Iterable[Job],
-    backend: Backend = "loky",
-    n_jobs: int = 1,
-    scheduler: str | None = None,
-    timeout_s: float | None = None,
-    client: Any = None,
-    on_stop: Callable[[int], None] | None = None,
-) -> Generator[Outcome, None, None]:
+def execute(jobs: Iterable[Job], options: RunOptions) -> Generator[Outcome, None, None]:
     """Run jobs and yield their outcomes as they finish (:func:`run_jobs` without the jobs)."""
-    with contextlib.closing(run_jobs(jobs, backend, n_jobs, scheduler, timeout_s, client, on_stop)) as pairs:
+    with contextlib.closing(run_jobs(jobs, options)) as pairs:
         for _, out in pairs:
             yield out

@@ -18,7 +18,7 @@ from somo_sweep.sim.urdf_cache import check_cache
 from somo_sweep.sweep.jobs.job import Job
 from somo_sweep.sweep.jobs.table import JobTable, build_jobs
 from somo_sweep.sweep.run.convergence import StepEvents, auto_step, outcomes_of
-from somo_sweep.sweep.run.execution import execute, start_workers, stop_workers
+from somo_sweep.sweep.run.execution import execute, start_workers
 from somo_sweep.sweep.run.options import RoundSummary, RunEvents, RunOptions, RunSummary
 from somo_sweep.sweep.run.rows import outcome_row
 from somo_sweep.sweep.run.session import run_rounds
@@ -60,8 +60,7 @@ def choose_auto_step(study: Study, options: RunOptions, events: StepEvents | Non
     """
 
     def run_jobs(batch: list[Job]) -> Iterator[tuple[str, str, dict[str, str]]]:
-        runs = execute(batch, options.backend, options.workers, options.scheduler, options.timeout_s)
-        return outcomes_of(runs)
+        return outcomes_of(execute(batch, options))
 
     return auto_step(study, run_jobs, events)
 
@@ -104,20 +103,22 @@ def run_sweep(
     study = apply_options(study, options)
     if options.backend == "loky" and (study.simulation is None or study.simulation.engine == "pybullet"):
         check_cache()  # every PyBullet trial loads its bodies from there: one error, not one per trial
+    warm = None
     if options.backend == "loky":  # the workers start and import while the jobs are built
-        start_workers(min(options.workers, study.n_trials), study.task.name)
+        warm = start_workers(min(options.workers, study.n_trials), study.task.name)
     try:
         if table is None:
             study = _with_step(study, options, events.step)
             table = _table(study)
         try:
-            return run_rounds(study, table, options, events)
+            return run_rounds(study, table, options, events, warm)
         except Interrupted:
             raise
         except KeyboardInterrupt:  # while the results folder was opened, before the rounds' guard
             raise Interrupted("folder", signal.SIGINT) from None
     finally:
-        stop_workers()  # started, but the run ended before its first trial (nothing to do, an error)
+        if warm is not None:  # started, but the run ended before its first trial (nothing to do, an error)
+            warm.close()
 
 
 def _with_step(study: Study, options: RunOptions, events: StepEvents | None) -> Study:

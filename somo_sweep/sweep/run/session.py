@@ -24,7 +24,7 @@ from somo_sweep.errors import SomoError, StorageError, os_cause
 from somo_sweep.sweep.jobs.job import Job
 from somo_sweep.sweep.jobs.table import JobTable
 from somo_sweep.sweep.run.dask_backend import threads
-from somo_sweep.sweep.run.execution import dask_client, run_jobs
+from somo_sweep.sweep.run.execution import WarmWorkers, dask_client, run_jobs
 from somo_sweep.sweep.run.options import RoundSummary, RunEvents, RunOptions, RunSummary
 from somo_sweep.sweep.run.robustness import ReplicaPlan
 from somo_sweep.sweep.run.rows import outcome_row
@@ -38,8 +38,13 @@ from somo_sweep.sweep.study.loaded import Study
 __all__ = ["run_rounds"]
 
 
-def run_rounds(study: Study, table: JobTable, options: RunOptions, events: RunEvents) -> RunSummary:
+def run_rounds(
+    study: Study, table: JobTable, options: RunOptions, events: RunEvents, warm: WarmWorkers | None = None
+) -> RunSummary:
     """Run the trials of ``table`` missing from the results folder of ``study``.
+
+    ``warm``: local workers started ahead for this run
+    (:func:`~somo_sweep.sweep.run.execution.start_workers`).
 
     Raises:
         StorageError: The results could not be written (e.g. disk full); the run stopped, what
@@ -65,7 +70,7 @@ def run_rounds(study: Study, table: JobTable, options: RunOptions, events: RunEv
         if client is not None:
             client.close()
         raise
-    run = _Session(study, table, options, events, store, client, plan)
+    run = _Session(study, table, options, events, store, client, plan, warm)
     try:
         run.begin()
         with SignalGuard() as guard:
@@ -110,9 +115,10 @@ class _Session:
         store: ResultStore,
         client: Any,
         plan: AdaptivePlan | None,
+        warm: WarmWorkers | None = None,
     ):
         self.study, self.table, self.options, self.events = study, table, options, events
-        self.store, self.client, self.plan = store, client, plan
+        self.store, self.client, self.plan, self.warm = store, client, plan, warm
         self.start = time.perf_counter()
         self.summary = RunSummary(study.output, len(table.ids), 0, notes=list(store.notes))
         self.summary.sampling = "adaptive" if plan else "grid"
@@ -182,15 +188,7 @@ class _Session:
                     summary.rounds.append(RoundSummary(batch.number, batch.cells, kind=batch.kind))
                 if self.events.round:
                     self.events.round(batch)
-                outcomes = run_jobs(
-                    batch.jobs,
-                    options.backend,
-                    options.workers,
-                    options.scheduler,
-                    options.timeout_s,
-                    self.client,
-                    on_stop=self.cut_short.append,
-                )
+                outcomes = run_jobs(batch.jobs, options, self.client, self.cut_short.append, self.warm)
                 for job, out in outcomes:
                     with guard.protect():
                         self._record(job, out, batch.kind == "replicas")

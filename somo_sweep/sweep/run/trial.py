@@ -22,7 +22,6 @@ import pickle
 import select
 import signal
 import socket
-import sys
 import threading
 import time
 from dataclasses import dataclass, field, replace
@@ -30,6 +29,7 @@ from typing import Any
 
 from somo_sweep.errors import UnstableSimulation
 from somo_sweep.sim import shared_caches
+from somo_sweep.sim.worlds import prepare_engine
 from somo_sweep.sweep.jobs.code import trial_modules
 from somo_sweep.sweep.jobs.job import Job
 from somo_sweep.tasks.registry import TaskResult, get_task
@@ -139,11 +139,12 @@ def warm_up(task: str, engine: str = "pybullet") -> None:
     with contextlib.suppress(Exception):
         spec = get_task(task)
         _ = spec.run
-        for name in trial_modules(spec.run_path.partition(":")[0], engine):
+        modules = trial_modules(spec.run_path.partition(":")[0], engine)
+        for name in modules:
             with contextlib.suppress(Exception):
                 importlib.import_module(name)
-        if "somo_sweep.sim.world" in sys.modules:  # a simulating task: import its engine once
-            _prepare_engine(engine)
+        if "somo_sweep.sim.world" in modules:  # a simulating task: import its engine once
+            prepare_engine(engine)
 
 
 def _call(job: Job, time_step_s: float) -> TaskResult:
@@ -173,18 +174,6 @@ def _exit_text(status: int) -> str:
         sig = os.WTERMSIG(status)
         return f"killed by signal {sig} ({signal.Signals(sig).name})"
     return f"exit code {os.waitstatus_to_exitcode(status)}"
-
-
-def _prepare_engine(engine: str) -> None:
-    """Import an engine before forking (once per worker); PyBullet's children also inherit a
-    connected client (:func:`~somo_sweep.sim.pybullet.world.keep_spare_client`)."""
-    if engine == "mujoco":
-        import somo_sweep.sim.mujoco.world  # noqa: F401  (its import, not the trial's, pays)
-
-        return
-    from somo_sweep.sim.pybullet.world import keep_spare_client
-
-    keep_spare_client()
 
 
 def run_isolated(job: Job, timeout_s: float | None = None, owner_pid: int | None = None) -> Outcome:

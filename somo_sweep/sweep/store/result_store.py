@@ -120,12 +120,12 @@ class ResultStore:
                 with contextlib.suppress(OSError):
                     self.folder.rmdir()
             raise
+        # Unique per run, so that a resumed run never overwrites an earlier part file.
+        self.run_id = f"{datetime.now(UTC):%Y%m%dT%H%M%S}-{uuid.uuid4().hex[:8]}"
+        self.seq = 0
         try:
-            self._set_in_order(study_hash, resolved, axes, overwrite)
-            self._init_types(param_types, column_types or {})
-            # Unique per run, so that a resumed run never overwrites an earlier part file.
-            self.run_id = f"{datetime.now(UTC):%Y%m%dT%H%M%S}-{uuid.uuid4().hex[:8]}"
-            self.seq = 0
+            self.manifest = self._set_in_order(study_hash, resolved, axes, overwrite)
+            self.types = self._column_types(param_types, column_types or {})
             mark_aborted(self.manifest, self._lock, self.notes)
             self._heal_schemas()
             self._recover(study_hash)
@@ -157,8 +157,8 @@ class ResultStore:
 
     def _set_in_order(
         self, study_hash: str, resolved: dict[str, Any], axes: dict[str, str], overwrite: bool
-    ) -> None:
-        """Remove a killed run's temporary files, set damaged parts aside, open the manifest."""
+    ) -> dict[str, Any]:
+        """Remove a killed run's temporary files, set damaged parts aside; the manifest, opened."""
         self.trials.mkdir(exist_ok=True)
         for tmp in self.trials.glob(".*.tmp"):
             tmp.unlink()
@@ -166,7 +166,7 @@ class ResultStore:
             if OWN.fullmatch(tmp.name):
                 tmp.unlink()
         quarantine(self.folder, self._schemas, self.notes)
-        self.manifest = open_manifest(self.folder, study_hash, resolved, axes, overwrite, self.notes)
+        return open_manifest(self.folder, study_hash, resolved, axes, overwrite, self.notes)
 
     def _abandon(self, exc: BaseException, created: bool) -> None:
         """Release the folder after an opening that failed; a full disk becomes a StorageError.
@@ -191,16 +191,19 @@ class ResultStore:
                 "the same command again"
             ) from None
 
-    def _init_types(self, param_types: dict[str, list[Any]], declared: dict[str, str]) -> None:
-        self.types: dict[str, pa.DataType] = {
-            name: pa.type_for_alias(info["type"]) for name, info in self.manifest["columns"].items()
-        }
+    def _column_types(
+        self, param_types: dict[str, list[Any]], declared: dict[str, str]
+    ) -> dict[str, pa.DataType]:
+        """Every column's type: the manifest's, the fixed columns', the task's declared metrics'
+        and the study's parameters' (widened where they differ)."""
+        types = {name: pa.type_for_alias(info["type"]) for name, info in self.manifest["columns"].items()}
         for c in COLUMNS:
-            self.types.setdefault(c.name, pa.type_for_alias(c.type))
+            types.setdefault(c.name, pa.type_for_alias(c.type))
         for name, alias in declared.items():
-            self.types[name] = merge_types(self.types.get(name, pa.null()), pa.type_for_alias(alias))
+            types[name] = merge_types(types.get(name, pa.null()), pa.type_for_alias(alias))
         for name, values in param_types.items():
-            self.types[name] = merge_types(self.types.get(name, pa.null()), arrow_type(values))
+            types[name] = merge_types(types.get(name, pa.null()), arrow_type(values))
+        return types
 
     def _heal_schemas(self) -> None:
         """Give every part the current schema (a rewrite cut short by a full disk leaves mixed ones)."""
@@ -440,7 +443,7 @@ class ResultStore:
         write_atomically(path, lambda tmp: pq.write_table(table, tmp))
 
     def _write_manifest(self) -> None:
-        schema = self._schema() if hasattr(self, "types") else pa.schema([])
+        schema = self._schema()
         self.manifest["columns"] = {f.name: {"type": str(f.type), "unit": unit_of(f.name)} for f in schema}
         self.manifest["python"] = sys.version.split()[0]
         self.manifest["files"] = sorted(set(self.manifest["files"]))
