@@ -21,7 +21,7 @@ from __future__ import annotations
 import math
 from collections.abc import Sequence
 from dataclasses import dataclass
-from typing import Any
+from typing import Any, NamedTuple
 
 import numpy as np
 
@@ -147,39 +147,46 @@ def _fingers(model: Model) -> list[tuple[str, Any, Any]]:
     return [(m.name, m.manipulator, m.pose) for m in model.as_assembly().manipulators]
 
 
-def _boxes(finger: Any) -> list[tuple[float, float, float, float, float]]:
-    """The straight finger as boxes along its own +z: (half x, half y, z from, z to, tip?) in m,
-    base box (centred at the finger's origin), then each actuator's links, then the tip links."""
-    boxes = []
+class _Box(NamedTuple):
+    """A piece of a straight finger along its own +z, m: half extents across, and where it spans."""
+
+    half_x_m: float
+    half_y_m: float
+    z_from_m: float
+    z_to_m: float
+
+
+def _boxes(finger: Any) -> tuple[list[_Box], list[_Box]]:
+    """The straight finger as boxes along its own +z: its base box (centred at the finger's origin)
+    and each actuator's links, and its tip links."""
+    chain, tips = [], []
     z = 0.0
     if finger.base.link is not None:
         link = finger.base.link
         z = link.half_extent_m(2)
-        boxes.append((link.half_extent_m(0), link.half_extent_m(1), -z, z, 0.0))
+        chain.append(_Box(link.half_extent_m(0), link.half_extent_m(1), -z, z))
     for act in finger.actuators:
         end = z + act.segments * act.segment_m
-        boxes.append((act.link.half_extent_m(0), act.link.half_extent_m(1), z, end, 0.0))
+        chain.append(_Box(act.link.half_extent_m(0), act.link.half_extent_m(1), z, end))
         z = end
     for tip in finger.tip_links:
         end = z + 2 * tip.half_extent_m(2)
-        boxes.append((tip.half_extent_m(0), tip.half_extent_m(1), z, end, 1.0))
+        tips.append(_Box(tip.half_extent_m(0), tip.half_extent_m(1), z, end))
         z = end
-    return boxes
+    return chain, tips
 
 
 def _corners_m(finger: Any, pose: Any, tips_only: bool = False) -> np.ndarray:
     """Corners of the straight finger's boxes in the palm's frame (rows x, y, z), m; ``tips_only``:
-    the far face of the chain and the tip links (the fingertip)."""
+    the fingertip, the chain's far face and the tip links."""
     rotation = matrix_from_quat(quat_from_rpy(pose.rpy_rad))
-    boxes = _boxes(finger)
-    if tips_only:
-        chain_end = max(b[3] for b in boxes if not b[4])
-        chain = [b for b in boxes if not b[4] and b[3] == chain_end][-1]
-        boxes = [(chain[0], chain[1], chain_end, chain_end, 0.0)] + [b for b in boxes if b[4]]
+    chain, tips = _boxes(finger)
+    last = chain[-1]
+    boxes = [last._replace(z_from_m=last.z_to_m), *tips] if tips_only else [*chain, *tips]
     local = [
-        (sx * hx, sy * hy, z)
-        for hx, hy, z0, z1, _ in boxes
-        for z in (z0, z1)
+        (sx * box.half_x_m, sy * box.half_y_m, z)
+        for box in boxes
+        for z in (box.z_from_m, box.z_to_m)
         for sx in (-1, 1)
         for sy in (-1, 1)
     ]

@@ -153,7 +153,9 @@ def check_gripper(model: Model) -> list[str]:
 
 def check_trial(model: Model, params: PinchGraspParams) -> list[str]:
     """What a trial's parameters need of the gripper: a DSR its fingers can express (one or two
-    actuators each), and, under ``pressure_kpa``, a pressure gain in every finger."""
+    actuators each), under ``pressure_kpa`` a pressure gain in every finger, and an open hand clear
+    of the ground whose fingertips the box passes between
+    (:mod:`~somo_sweep.tasks.pinch_grasp.geometry`)."""
     needs: list[str] = []
     dsr = params.distal_segment_ratio
     for name, finger in _fingers(model):
