@@ -142,7 +142,7 @@ sweep-demo: $(STAMP) ## Run the example study (27 trials) and print its summary
 	$(BIN)/somo-sweep show results/finger_pressure_sweep
 
 EXAMPLE := results/own_gripper
-example-gripper: $(STAMP) ## Your own gripper end to end: bench CSV -> calibrate -> gripper -> robust grasp map (MuJoCo, ~2 min)
+example-gripper: $(STAMP) ## Your own gripper end to end: bench CSV -> calibrate -> gripper -> robust grasp map over DSR and stiffness (MuJoCo, ~7 min)
 	test -f $(EXAMPLE)/study.yaml || $(BIN)/somo-sweep new grasp-study $(EXAMPLE) --finger examples/own_gripper/finger.yaml
 	$(BIN)/somo-sweep calibrate examples/own_gripper/finger_bench.csv --model examples/own_gripper/finger.yaml -o $(EXAMPLE)/finger.yaml --report $(EXAMPLE)/calibration
 	$(BIN)/somo-sweep run $(EXAMPLE)/study.yaml --out $(EXAMPLE)/grasp_map --jobs 2

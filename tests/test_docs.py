@@ -52,3 +52,21 @@ def test_the_manual_holds_no_measurement_history(page: Path) -> None:
     """Dates and issue numbers belong beside the benchmark that produced them."""
     text = page.read_text(encoding="utf-8")
     assert re.findall(r"\b20\d\d-\d\d-\d\d\b|issue #\d+|\bload average", text) == []
+
+
+def test_the_top_help_names_both_engines() -> None:
+    """`somo-sweep --help` said "in PyBullet" after MuJoCo became an engine."""
+    from typer.testing import CliRunner
+
+    from somo_sweep.cli.app import app
+
+    text = " ".join(CliRunner().invoke(app, ["--help"]).output.split())
+    assert "in PyBullet or MuJoCo" in text
+
+
+@pytest.mark.parametrize("page", PAGES, ids=lambda p: str(p.relative_to(ROOT)))
+def test_no_page_says_the_grasp_task_needs_the_bundled_fingers_shape(page: Path) -> None:
+    """The grasp task takes two or more fingers of any equal-link count (docs/tasks.md)."""
+    text = " ".join(page.read_text(encoding="utf-8").split())
+    stale = r"(two-finger gripper of 20 equal links|a finger of another shape is refused)"
+    assert re.findall(stale, text) == []

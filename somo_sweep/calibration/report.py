@@ -85,9 +85,63 @@ def summary(result: CalibrationResult, source: str | Path | None = None) -> dict
     return record
 
 
-def with_provenance(result: CalibrationResult, source: str | Path | None = None) -> Model:
-    """The calibrated model with ``provenance: {calibration: ...}`` recorded in it."""
-    return result.model.model_copy(update={"provenance": {"calibration": summary(result, source)}})
+#: What a calibration record keeps of the one it replaces (a model calibrated again).
+_PREVIOUS_KEYS = ("method", "measurements", "measurements_sha256", "created_utc")
+
+
+def with_provenance(
+    result: CalibrationResult, source: str | Path | None = None, base: str | Path | None = None
+) -> Model:
+    """The calibrated model with ``provenance: {calibration: ...}`` recorded in it.
+
+    The base model's other provenance entries are kept. ``calibration.replaced`` holds every
+    field calibration changed with the value the base had (by key path, e.g.
+    ``manipulator.actuation.pressure_gain_n_m_per_kpa``), so the design stays readable in the
+    calibrated file; ``calibration.model`` names the base file and its SHA-256. A base calibrated
+    before (a model calibrated again, in place or not) keeps that calibration's source, date
+    and fitted values under ``calibration.previous``.
+
+    Args:
+        result: The solved calibration.
+        source: Measurement file.
+        base: The base model file (``--model``), or None for a finger from the CSV's finger line.
+    """
+    record = summary(result, source)
+    record["replaced"] = _replaced(result.problem.base, result.model)
+    if base is not None:
+        record["model"] = str(base)
+        if Path(base).is_file():
+            record["model_sha256"] = hashlib.sha256(Path(base).read_bytes()).hexdigest()
+    earlier = dict(result.model.provenance or {})
+    old = earlier.get("calibration")
+    if isinstance(old, dict):
+        previous = {k: old[k] for k in _PREVIOUS_KEYS if k in old}
+        params = old.get("parameters")
+        if isinstance(params, dict):
+            previous["values"] = {
+                name: p["value"] for name, p in params.items() if isinstance(p, dict) and "value" in p
+            }
+        record["previous"] = previous
+    return result.model.model_copy(update={"provenance": {**earlier, "calibration": record}})
+
+
+def _replaced(before: Model, after: Model) -> dict[str, Any]:
+    """Every field whose value differs between two models, by key path, with its value in ``before``."""
+    out: dict[str, Any] = {}
+
+    def walk(a: Any, b: Any, path: str) -> None:
+        if isinstance(a, dict) and isinstance(b, dict):
+            for key in a.keys() | b.keys():
+                walk(a.get(key), b.get(key), f"{path}.{key}" if path else str(key))
+        elif isinstance(a, list) and isinstance(b, list) and len(a) == len(b):
+            for i, (x, y) in enumerate(zip(a, b, strict=True)):
+                walk(x, y, f"{path}[{i}]")
+        elif a != b:
+            out[path] = a
+
+    ours = {"provenance"}
+    walk(before.model_dump(mode="json", exclude=ours), after.model_dump(mode="json", exclude=ours), "")
+    return dict(sorted(out.items()))
 
 
 def model_yaml(model: Model, header: str = "") -> str:

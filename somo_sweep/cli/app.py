@@ -24,7 +24,7 @@ __all__ = ["app", "main"]
 
 app = typer.Typer(
     no_args_is_help=True,
-    help="Simulate soft continuum robots in PyBullet: describe, measure, calibrate, sweep.",
+    help="Simulate soft continuum robots in PyBullet or MuJoCo: describe, measure, calibrate, sweep.",
     rich_markup_mode="rich",
     cls=HelpGroup,
     add_completion=True,  # --install-completion / --show-completion for bash, zsh, fish

@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import hashlib
+import os
 from pathlib import Path
 from typing import TYPE_CHECKING, Annotated
 
@@ -139,16 +141,45 @@ def calibrate(
         # the README's studies/tables/NAME.csv also from an installed package (no studies/ here)
         measurements = bundled_if_missing(measurements, "tables", ".csv")
         target = _checked_targets(measurements, output, model, report)
+        in_place = model is not None and _same_file(target, model)
+        base_digest = _digest(model) if in_place and model is not None else ""
         result = calibrate_csv(measurements, options, _reporter(console))
     except SomoError as exc:
         fail(exc)
     _print_result(console, result, measurements)
-    outputs = _outputs(result, measurements, method, target, report)
+    outputs = _outputs(result, measurements, method, target, report, model)
     try:
-        write_outputs(outputs, [measurements, model])
+        if in_place and model is not None and _digest(model) != base_digest:
+            raise SomoError(
+                f"{model} changed while it was being calibrated; nothing was written: run the same "
+                "command again to calibrate what it holds now"
+            )
+        # In place (-o the --model file): the model is replaced atomically, never the measurements.
+        write_outputs(outputs, [measurements] if in_place else [measurements, model])
     except SomoError as exc:
         fail(exc)
     console.print(f"wrote {', '.join(str(p) for p, _ in outputs)}")
+    if in_place:
+        console.print(
+            f"{target} calibrated in place: what calibration does not fit is kept, and the values it "
+            "replaced are under provenance.calibration.replaced"
+        )
+
+
+def _same_file(a: Path, b: Path) -> bool:
+    """Whether two paths name one existing file."""
+    try:
+        return a.exists() and b.exists() and os.path.samefile(a, b)
+    except OSError:
+        return False
+
+
+def _digest(path: Path) -> str:
+    """SHA-256 of a file's bytes (empty when it cannot be read: the write then refuses)."""
+    try:
+        return hashlib.sha256(path.read_bytes()).hexdigest()
+    except OSError:
+        return ""
 
 
 def _reporter(console: Console) -> Reporter:
@@ -169,7 +200,17 @@ def _checked_targets(measurements: Path, output: str | None, model: Path | None,
         SomoError: A file that exists and is not ours, or a model named like a report file.
     """
     target = file_target(output, "model.yaml") or default_output(measurements, "calibration") / "model.yaml"
-    check_replaceable(target, [measurements, model])
+    if model is not None and _same_file(plain(target), model):
+        # Calibrating in place: allowed on a model somo-sweep wrote (`new`'s finger, a calibrated one).
+        try:
+            check_replaceable(target, [measurements])
+        except SomoError as exc:
+            raise SomoError(
+                f"{exc}; -o the --model file calibrates it in place, which replaces only a model "
+                "somo-sweep wrote (`somo-sweep new grasp-study`'s finger.yaml, or one calibrated before)"
+            ) from None
+    else:
+        check_replaceable(target, [measurements, model])
     if report is not None:
         check_replaceable(
             report / "calibration.json", [measurements, model], kind="json", older_keys=CALIBRATION_KEYS
@@ -203,14 +244,21 @@ def _print_result(console: Console, result: CalibrationResult, measurements: Pat
 
 
 def _outputs(
-    result: CalibrationResult, measurements: Path, method: str, target: Path, report: Path | None
+    result: CalibrationResult,
+    measurements: Path,
+    method: str,
+    target: Path,
+    report: Path | None,
+    model: Path | None,
 ) -> list[tuple[Path, str | bytes]]:
     """The calibrated model's YAML, and with ``report`` its JSON summary and one figure per metric."""
     from somo_sweep.calibration.report import model_yaml, summary, with_provenance
 
     header = f"calibrated by somo-sweep calibrate --method {method} from {measurements}"
+    if model is not None:
+        header += f"\nbase model: {model} (the values calibration replaced: provenance.calibration.replaced)"
     outputs: list[tuple[Path, str | bytes]] = [
-        (target, model_yaml(with_provenance(result, measurements), header))
+        (target, model_yaml(with_provenance(result, measurements, model), header))
     ]
     if report is not None:
         outputs.append((report / "calibration.json", json_report(summary(result, measurements), "calibrate")))

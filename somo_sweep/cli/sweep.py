@@ -384,5 +384,5 @@ def _describe_task(name: str) -> None:
             typer.echo(f"      {line}")
     if spec.metrics:
         typer.echo("metrics (one column each; docs/outputs.md says what each means):")
-        for line in textwrap.wrap(", ".join(spec.metrics), 76):
+        for line in textwrap.wrap(", ".join([*spec.metrics, *spec.numbered_metrics]), 76):
             typer.echo(f"  {line}")

@@ -25,6 +25,7 @@ from somo_sweep.tasks.pinch_grasp.classify import (
     PAPER_MIN_Z_M,
     find_column,
 )
+from somo_sweep.tasks.pinch_grasp.legacy import upgrade_table
 
 __all__ = ["AXES", "ENGINES", "engine_audit"]
 
@@ -44,7 +45,7 @@ def _cells(table: pd.DataFrame, label: str, engine: str) -> pd.DataFrame:
     """One row per cell of one engine's run: its axes, majority label, robust flag and metrics."""
     if label not in table.columns:
         raise SomoError(f"the {engine} run has no {label} column: is it a pinch_grasp study?")
-    folded = fold(table, [label])
+    folded = fold(upgrade_table(table), [label])
     cols = [str(c) for c in folded.columns]
     out = pd.DataFrame(index=folded.index)
     for axis in AXES:
@@ -67,7 +68,7 @@ def _cells(table: pd.DataFrame, label: str, engine: str) -> pd.DataFrame:
 _METRICS = (
     "lift_height_m",
     "hold_ground_contact_fraction",
-    "hold_contact_fraction_both_fingers",
+    "hold_contact_fraction_all_fingers",
     "hold_force_fraction_proximal",
     "object_z_m",
     "final_mean_position_paper",
@@ -87,7 +88,7 @@ def _decided_by(row: pd.Series, rule: str) -> str:
                 f"held or not: lift {_pair(row, 'lift_height_m')} m (held needs ≥ {MIN_LIFT_M:g}), share "
                 f"of hold samples on the ground {_pair(row, 'hold_ground_contact_fraction')} (≤ "
                 f"{1 - MIN_HELD_FRACTION:.1f}), touched by every finger "
-                f"{_pair(row, 'hold_contact_fraction_both_fingers')} (≥ {MIN_HELD_FRACTION:g})"
+                f"{_pair(row, 'hold_contact_fraction_all_fingers')} (≥ {MIN_HELD_FRACTION:g})"
             )
         return (
             f"proximal share of the hold force {_pair(row, 'hold_force_fraction_proximal')}; "

@@ -211,6 +211,12 @@ def find_trial(jobs: Sequence[Any], trial: str) -> Any:
 
 #: Most snapshots one ``render`` call takes (each is a PNG of the scene).
 MAX_SNAPSHOTS = 100
+#: Size of a rendered snapshot (width, height), px: twice the camera's default, so that the
+#: fingers and their links read (TinyRenderer takes about 0.3 s more per snapshot).
+RENDER_SIZE_PX = (960, 800)
+#: The camera's distance from the point between the object and the finger mounts it looks at, m
+#: (its view is 0.29 m tall there: the fingers and the lifted object fill the frame).
+RENDER_DISTANCE_M = 0.40
 
 
 def _check_times(times_s: list[float], duration_s: float) -> None:
@@ -261,6 +267,7 @@ def render_trial(
     from somo_sweep.sweep.jobs.table import build_jobs
     from somo_sweep.sweep.run.convergence import with_stored_step
     from somo_sweep.sweep.study import load_study
+    from somo_sweep.tasks.pinch_grasp.gripper import fingers_colored
     from somo_sweep.tasks.pinch_grasp.params import PinchGraspParams
     from somo_sweep.tasks.pinch_grasp.task import run_pinch_grasp
 
@@ -276,12 +283,19 @@ def render_trial(
     assert isinstance(params, PinchGraspParams)
     _check_times(times_s, params.approach_s + params.ramp_s + params.lift_s + params.hold_s)
     images: dict[float, Any] = {}
-    camera = Camera(target_m=(params.base_distance_m * 0.5, 0.0, params.hand_height_m))
+    camera = Camera(
+        target_m=(params.base_distance_m * 0.5, 0.0, params.hand_height_m),
+        distance_m=RENDER_DISTANCE_M,
+        width_px=RENDER_SIZE_PX[0],
+        height_px=RENDER_SIZE_PX[1],
+    )
 
     def observe(world: World, time_s: float) -> None:
         images[time_s] = snapshot(world, camera)
 
-    result = run_pinch_grasp(job.model, params, job.settings, job.seed, observe=observe, observe_at_s=times_s)
+    # Each finger in its own colour (no physics changes: the label is the trial's).
+    model = fingers_colored(job.model)
+    result = run_pinch_grasp(model, params, job.settings, job.seed, observe=observe, observe_at_s=times_s)
     name = (
         f"{study.name}_dsr{params.distal_segment_ratio:.2f}_w{params.object_width_m * 1e3:g}mm"
         f"_c{params.centering_position_m * 1e3:g}mm"

@@ -11,6 +11,7 @@ from __future__ import annotations
 
 import importlib
 import pkgutil
+import re
 from collections.abc import Callable, Mapping
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -75,6 +76,10 @@ class TaskSpec:
         metrics: Arrow type of each metric the task returns (``double``, ``int64``, ``bool`` or
             ``string``). The results table's columns for them have these types from the first
             row on; a metric not declared here is typed from its values.
+        numbered_metrics: Metrics numbered 1, 2, … (one per finger of a gripper), each a name with
+            ``{k}`` where the number goes (``hold_normal_force_finger{k}_n``) and its Arrow type;
+            how many a trial returns depends on its model, so their columns are typed from their
+            values (:meth:`declares`).
         check_model: What the task needs of a model, checked when a study is loaded, before any
             trial runs: ``check_model(model)`` returns one sentence per unmet need (what the model
             has and what is allowed), none for a model the task can run.
@@ -117,6 +122,7 @@ class TaskSpec:
     description: str = ""
     tags: tuple[str, ...] = ()
     metrics: Mapping[str, str] = field(default_factory=dict)
+    numbered_metrics: Mapping[str, str] = field(default_factory=dict)
     check_model: Callable[[Model], list[str]] | None = None
     check_params: Callable[[Model, Any], list[str]] | None = None
     check_grid: Callable[[Model, list[Any]], list[str]] | None = None
@@ -126,6 +132,15 @@ class TaskSpec:
     summary_metrics: tuple[str, ...] = ()
     labels: tuple[str, ...] | None = None
     replaces: Mapping[str, tuple[str, ...]] = field(default_factory=dict)
+
+    def declares(self, metric: str) -> bool:
+        """Whether ``metric`` is one the task declares: in ``metrics``, or a numbered one."""
+        if metric in self.metrics:
+            return True
+        return any(
+            re.fullmatch(re.escape(name).replace(r"\{k\}", "[1-9][0-9]*"), metric)
+            for name in self.numbered_metrics
+        )
 
     @property
     def run(self) -> TaskFn:

@@ -22,6 +22,7 @@ COMMANDS = (
     "numerics",
     "auto_numerics",
     "zero_kpa",
+    "link_count",
     "original_fig6.__main__",
     "original_fig6.run_original_cells",
     "original_fig6.compare_cells",

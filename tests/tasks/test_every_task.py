@@ -71,9 +71,14 @@ def _assert_metrics_match_declaration(name: str, result: TaskResult) -> None:
     The declaration fixes the Parquet schema from the first row on; an undeclared metric
     would be typed from its values (text when empty in every row of the first part).
     """
-    declared = dict(all_tasks()[name].metrics)
+    spec = all_tasks()[name]
+    declared = dict(spec.metrics)
+    for numbered, kind in spec.numbered_metrics.items():  # one per finger: k = 1 … N
+        names = [numbered.format(k=k) for k in range(1, 100)]
+        declared.update({name: kind for name in names if name in result.metrics})
     returned = {k: ARROW_TYPE[type(v)] for k, v in result.metrics.items() if v is not None}
     assert set(result.metrics) <= set(declared), (
         f"{name}: undeclared {sorted(set(result.metrics) - set(declared))}"
     )
+    assert all(spec.declares(k) for k in result.metrics)
     assert {k: declared[k] for k in returned} == returned

@@ -14,7 +14,7 @@ import pytest
 
 from somo_sweep.errors import SomoError
 from somo_sweep.tasks.pinch_grasp.classify import GraspEvidence, classify, reclassify
-from somo_sweep.tasks.pinch_grasp.legacy import legacy_columns
+from somo_sweep.tasks.pinch_grasp.legacy import legacy_columns, upgrade_table
 from somo_sweep.tasks.pinch_grasp.params import distal_link_count
 from somo_sweep.tasks.pinch_grasp.positions import contact_position, paper_mean_link, zone_force_fractions
 
@@ -246,7 +246,7 @@ def test_new_rows_relabel_from_their_scalars_alone() -> None:
         "object_z_m": 0.1,
         "lift_height_m": 0.07,
         "hold_force_fraction_proximal": 0.3,
-        "hold_contact_fraction_both_fingers": 1.0,
+        "hold_contact_fraction_all_fingers": 1.0,
         "hold_ground_contact_fraction": 0.0,
         "final_mean_contact_link": 9.0,
         "final_contact_count_base": 0,
@@ -256,6 +256,31 @@ def test_new_rows_relabel_from_their_scalars_alone() -> None:
     table = pd.DataFrame([row, {**row, "final_mean_link_paper": 9.5, "hold_force_fraction_proximal": 0.1}])
     assert reclassify(table, "paper").tolist() == ["power", "pinch"]  # 8.5 / 12 < 0.75 < 9.5 / 12
     assert reclassify(table, "contacts").tolist() == ["power", "pinch"]
+
+
+def test_a_table_stored_under_the_two_finger_name_relabels_as_today() -> None:
+    """``hold_contact_fraction_both_fingers`` is read as ``hold_contact_fraction_all_fingers``."""
+    row = {
+        "task_distal_segment_ratio": 0.25,
+        "status": "ok",
+        "object_x_m": 0.0,
+        "object_y_m": 0.0,
+        "object_z_m": 0.1,
+        "lift_height_m": 0.07,
+        "hold_force_fraction_proximal": 0.1,
+        "hold_ground_contact_fraction": 0.0,
+        "final_mean_contact_link": 9.0,
+        "n_finger_links": 12,
+    }
+    name = "hold_contact_fraction_both_fingers"
+    old = pd.DataFrame([{**row, name: 1.0}, {**row, name: 0.5}])  # every finger touches: 100 %, 50 %
+    today = old.rename(columns={"hold_contact_fraction_both_fingers": "hold_contact_fraction_all_fingers"})
+    assert reclassify(old).tolist() == reclassify(today).tolist() == ["pinch", "no_grasp"]
+    upgraded = upgrade_table(old.add_prefix("metrics."))
+    assert "metrics.hold_contact_fraction_all_fingers" in upgraded.columns
+    assert "metrics.hold_contact_fraction_both_fingers" not in upgraded.columns
+    both = today.assign(hold_contact_fraction_both_fingers=0.0)  # today's wins where both are stored
+    assert upgrade_table(both)["hold_contact_fraction_all_fingers"].tolist() == [1.0, 0.5]
 
 
 def test_unknown_rule_or_option_is_a_clear_error() -> None:

@@ -142,7 +142,7 @@ def test_the_starter_folder_loads_refuses_to_overwrite_and_names_its_finger(tmp_
     assert result.exit_code == 0, result.output
     assert sorted(p.name for p in out.iterdir()) == sorted(STARTER_FILES)
     study = load_study(out / "study.yaml")  # every cell's finger, ratio and pressure pass the checks
-    assert study.n_trials == 60
+    assert study.n_trials == 180  # 3 ratios × 3 stiffness scales × 4 widths × 5 centering positions
     bench = (out / "bench.csv").read_text().splitlines()
     assert "# finger: {length_mm: 70, segments: 12, mass_g: 12, width_mm: 20, thickness_mm: 15}" in bench
     header = next(line for line in bench if not line.startswith("#"))

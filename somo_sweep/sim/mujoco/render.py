@@ -19,6 +19,9 @@ from somo_sweep.sim.camera import Camera
 
 __all__ = ["mujoco_image"]
 
+#: The headlight's ambient and diffuse light (of 1 each; MuJoCo's defaults 0.1 and 0.4, with highlights).
+HEADLIGHT_AMBIENT, HEADLIGHT_DIFFUSE = 0.25, 0.25
+
 
 def _headless_context() -> None:
     """Use EGL when MUJOCO_GL asks for it but MuJoCo was imported before it was set (it then took
@@ -41,6 +44,11 @@ def mujoco_image(model: Any, data: Any, camera: Camera) -> np.ndarray:
         camera: Where to look from.
     """
     model.vis.global_.fovy = camera.fov_deg
+    # A dim headlight without highlights: with the light from above, colours read as given (the
+    # default headlight washed a blue and a green finger into two pale blues).
+    model.vis.headlight.ambient[:] = HEADLIGHT_AMBIENT
+    model.vis.headlight.diffuse[:] = HEADLIGHT_DIFFUSE
+    model.vis.headlight.specular[:] = 0.0
     extent = max(float(model.stat.extent), 1e-3)
     model.vis.map.znear = 0.01 / extent  # MuJoCo's clipping planes are in units of the extent
     model.vis.map.zfar = 5.0 / extent

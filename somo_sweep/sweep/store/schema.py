@@ -30,8 +30,9 @@ class Column:
 
 
 #: The fixed columns of every trials table. Besides them: ``task_*`` (task parameters),
-#: ``model_*`` (model overrides), the task's metrics under their own names, and
-#: ``label_*`` (the task's labels); their units come from their name suffix (:func:`unit_of`).
+#: ``model_*`` (model overrides), the task's metrics under their own names (numbered ones per
+#: finger of a gripper: ``hold_normal_force_finger1_n`` …, as many as the gripper has fingers),
+#: and ``label_*`` (the task's labels); their units come from their name suffix (:func:`unit_of`).
 COLUMNS: tuple[Column, ...] = (
     Column(
         "job_id", "string", "", "stable id: hash of task, parameters, model content, settings, seed, code"

@@ -24,7 +24,7 @@ can be relabelled without rerunning it):
 ``contacts`` (default)
     Uses where the contact *force* sits over the whole hold phase, not one step.
     Grasped if the object was held: off the ground in at least 90 % of the hold
-    samples, touched by both fingers in at least 90 % of them, and higher at the
+    samples, touched by every finger in at least 90 % of them, and higher at the
     end than at the start by at least ``MIN_LIFT_M`` (10 mm). An object that swings
     in the fingertips but stays off the ground is held; one left on the ground is not.
     The finger's distal zone is the links past the driven segment (its last
@@ -90,7 +90,7 @@ class GraspEvidence:
         commanded_lift_m: How far the hand lifted, m.
         hold_force_fraction_proximal: Share of the hold-phase normal force on the proximal zone
             (proximal links, base boxes and palm; NaN: no contact force at all).
-        hold_contact_fraction_both_fingers: Share of hold samples with both fingers touching.
+        hold_contact_fraction_all_fingers: Share of hold samples with every finger touching.
         final_mean_contact_link: Mean link number of the final step's contacts (fingertip N + 1,
             base boxes and palm left out; NaN: none).
         hold_ground_contact_fraction: Share of hold samples with the object on the ground.
@@ -106,7 +106,7 @@ class GraspEvidence:
     lift_height_m: float
     commanded_lift_m: float
     hold_force_fraction_proximal: float
-    hold_contact_fraction_both_fingers: float
+    hold_contact_fraction_all_fingers: float
     final_mean_contact_link: float
     hold_ground_contact_fraction: float = 0.0
     final_mean_link_paper: float | None = None
@@ -133,7 +133,7 @@ class GraspEvidence:
             lift_height_m=float(metrics["lift_height_m"]),
             commanded_lift_m=float(commanded_lift_m),
             hold_force_fraction_proximal=float(metrics["hold_force_fraction_proximal"]),
-            hold_contact_fraction_both_fingers=float(metrics["hold_contact_fraction_both_fingers"]),
+            hold_contact_fraction_all_fingers=float(metrics["hold_contact_fraction_all_fingers"]),
             final_mean_contact_link=float(metrics["final_mean_contact_link"]),
             hold_ground_contact_fraction=float(metrics["hold_ground_contact_fraction"]),
             final_mean_link_paper=mean_paper,
@@ -198,10 +198,10 @@ def _paper(ev: GraspEvidence) -> Label:
 
 
 def is_held(ev: GraspEvidence) -> bool:
-    """Held through the hold phase: off the ground, in both fingers, and lifted (see the module doc)."""
+    """Held through the hold phase: off the ground, in every finger, and lifted (see the module doc)."""
     return (
         ev.lift_height_m >= MIN_LIFT_M
-        and ev.hold_contact_fraction_both_fingers >= MIN_HELD_FRACTION
+        and ev.hold_contact_fraction_all_fingers >= MIN_HELD_FRACTION
         and 1.0 - ev.hold_ground_contact_fraction >= MIN_HELD_FRACTION
     )
 
@@ -280,7 +280,7 @@ def reclassify(table: Any, rule: str = "contacts", **options: float) -> Any:
         "object_z_m",
         "lift_height_m",
         "hold_force_fraction_proximal",
-        "hold_contact_fraction_both_fingers",
+        "hold_contact_fraction_all_fingers",
         "hold_ground_contact_fraction",
         "final_mean_contact_link",
     ]

@@ -85,8 +85,10 @@ class HoldProbe:
         self.palm_count = 0
         self.palm_force_sum_n = 0.0
         self.finger_force_sums_n = np.zeros(len(self.fingers))
+        # Per finger and link number (rows: fingers in the gripper's order), N summed over samples.
+        self.finger_link_force_sums_n = np.zeros((len(self.fingers), n + 1))
         self.samples = 0
-        self.both_touching = 0
+        self.all_touching = 0
         self.last_links: list[int] = []
         self.last_counts = np.zeros(n + 3, int)
 
@@ -136,8 +138,9 @@ class HoldProbe:
                 self.counts[number - 1] += 1
                 self.force_sums_n[number - 1] += force
                 self.finger_force_sums_n[finger] += force
+                self.finger_link_force_sums_n[finger, number - 1] += force
         self.samples += 1
-        self.both_touching += int(touched.all())
+        self.all_touching += int(touched.all())
         self.on_ground += int(self.on_ground_now())
         self.last_links = links
         self.last_counts = slots
@@ -147,6 +150,11 @@ class HoldProbe:
         all fingers added), N."""
         return self.force_sums_n / max(self.samples, 1)
 
+    def finger_hold_forces_n(self) -> np.ndarray:
+        """Mean normal force per finger (rows, the gripper's order) and link number (links 1 … N,
+        then the fingertip) over the samples, N."""
+        return self.finger_link_force_sums_n / max(self.samples, 1)
+
     def final_counts(self) -> np.ndarray:
         """The final step's contact points per part: base boxes, links 1 … N, fingertip (no palm)."""
         return self.last_counts[:-1]
@@ -155,7 +163,7 @@ class HoldProbe:
         """Summary metrics over the samples taken (means per sample)."""
         n = max(self.samples, 1)
         out: dict[str, float | int] = {"hold_samples": self.samples}
-        out["hold_contact_fraction_both_fingers"] = self.both_touching / n
+        out["hold_contact_fraction_all_fingers"] = self.all_touching / n
         out["hold_ground_contact_fraction"] = self.on_ground / n
         out["hold_contact_count_finger"] = int(self.counts.sum())
         out["hold_contact_count_palm"] = self.palm_count
@@ -164,6 +172,8 @@ class HoldProbe:
         per_finger = self.finger_force_sums_n / n
         out["hold_normal_force_n_finger_min"] = float(per_finger.min())
         out["hold_normal_force_n_finger_max"] = float(per_finger.max())
+        for k, force in enumerate(per_finger, start=1):
+            out[f"hold_normal_force_finger{k}_n"] = float(force)
         last = np.asarray(self.last_links, float)
         out["final_contact_count"] = len(last)
         out["final_mean_contact_link"] = float(last.mean()) if len(last) else float("nan")

@@ -10,6 +10,7 @@ from __future__ import annotations
 from somo_sweep.errors import SomoError
 from somo_sweep.model.description import Actuator, Joint, Link, Manipulator, Pose, RigidBody
 from somo_sweep.model.load import Model
+from somo_sweep.tasks.pinch_grasp.geometry import OBJECT_HEIGHT_M, SPAWN_GAP_M
 from somo_sweep.tasks.pinch_grasp.params import (
     Numerics,
     PinchGraspParams,
@@ -18,26 +19,35 @@ from somo_sweep.tasks.pinch_grasp.params import (
 )
 
 __all__ = [
+    "FINGER_COLORS_RGBA",
     "GROUND_FRICTION",
-    "OBJECT_DEPTH_M",
     "OBJECT_HEIGHT_M",
     "OBJECT_MASS_KG",
     "distal_zone_links",
     "finger_length_m",
+    "fingers_colored",
     "gripper",
     "object_body",
     "split_finger",
 ]
 
-#: Box object: height (z) and extent across the fingers (y), in m; mass in kg.
-OBJECT_HEIGHT_M = 0.060
-OBJECT_DEPTH_M = 0.060
+#: Box object's mass, kg (its height is OBJECT_HEIGHT_M; its extent across the fingers, y, is the
+#: task's ``object_span_m``, along the approach ``object_width_m``).
 OBJECT_MASS_KG = 0.020
 OBJECT_FRICTION = 2.0
 GROUND_FRICTION = 1.0
 OBJECT_COLOR_RGBA = (0.95, 0.55, 0.15, 1.0)
-#: Gap between the object and the ground at spawn, m.
-SPAWN_GAP_M = 0.0005
+#: Each finger's colour in a render, in the gripper's order (then again from the first): blue,
+#: bluish green, reddish purple, sky blue, yellow, black (Okabe and Ito's colour-blind-safe set,
+#: without its orange, the object's).
+FINGER_COLORS_RGBA = (
+    (0.0, 0.45, 0.70, 1.0),
+    (0.0, 0.62, 0.45, 1.0),
+    (0.80, 0.47, 0.65, 1.0),
+    (0.34, 0.71, 0.91, 1.0),
+    (0.94, 0.89, 0.26, 1.0),
+    (0.15, 0.15, 0.15, 1.0),
+)
 
 
 def split_finger(
@@ -190,7 +200,7 @@ def finger_length_m(model: Model) -> float:
 
 def object_body(params: PinchGraspParams) -> RigidBody:
     """The box to grasp, resting just above the ground at x = y = 0 (plus ``object_offset_m``)."""
-    size = (params.object_width_m, OBJECT_DEPTH_M, OBJECT_HEIGHT_M)
+    size = (params.object_width_m, params.object_span_m, OBJECT_HEIGHT_M)
     if params.object_shape == "original_hull":
         size = original_hull_size_m(params.object_width_m) or size
     return RigidBody(
@@ -205,3 +215,25 @@ def object_body(params: PinchGraspParams) -> RigidBody:
         ),
         pose=Pose(position_m=(*params.object_offset_m, size[2] / 2 + SPAWN_GAP_M)),
     )
+
+
+def fingers_colored(model: Model) -> Model:
+    """The gripper with each finger (base box, links, tip links) in its own colour of
+    :data:`FINGER_COLORS_RGBA`, so a render tells the fingers apart (colours change no physics)."""
+    assembly = model.as_assembly()
+    mounts = []
+    for k, mount in enumerate(assembly.manipulators):
+        rgba = FINGER_COLORS_RGBA[k % len(FINGER_COLORS_RGBA)]
+        finger = mount.manipulator
+
+        def paint(link: Link, rgba: tuple[float, float, float, float] = rgba) -> Link:
+            return link.model_copy(update={"color_rgba": rgba})
+
+        base = finger.base
+        if base.link is not None:
+            base = base.model_copy(update={"link": paint(base.link)})
+        actuators = [a.model_copy(update={"link": paint(a.link)}) for a in finger.actuators]
+        tips = [paint(t) for t in finger.tip_links]
+        painted = finger.model_copy(update={"base": base, "actuators": actuators, "tip_links": tips})
+        mounts.append(mount.model_copy(update={"manipulator": painted}))
+    return Model(assembly=assembly.model_copy(update={"manipulators": mounts}))

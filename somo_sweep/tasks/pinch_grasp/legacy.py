@@ -16,10 +16,13 @@ import numpy as np
 from somo_sweep.tasks.pinch_grasp.params import distal_link_count
 from somo_sweep.tasks.pinch_grasp.positions import paper_mean_link, zone_force_fractions
 
-__all__ = ["LEGACY_LINKS", "legacy_columns", "upgrade_table"]
+__all__ = ["LEGACY_LINKS", "RENAMED", "legacy_columns", "upgrade_table"]
 
 #: Links per finger of every table stored with per-link columns (the bundled finger).
 LEGACY_LINKS = 20
+#: Metrics stored under an earlier name → today's (same values): the share of hold samples in
+#: which every finger touches the object was named for a two-finger gripper.
+RENAMED = {"hold_contact_fraction_both_fingers": "hold_contact_fraction_all_fingers"}
 
 
 def legacy_columns(prefix: str) -> list[str]:
@@ -49,10 +52,11 @@ def upgrade_table(table: Any) -> Any:
     extremes ``hold_normal_force_n_finger_min`` / ``_max``. Adds ``n_finger_links`` (20), the
     zone shares ``hold_force_fraction_distal``, ``_tip``, ``_proximal``, ``_palm`` (from the
     per-link forces and the row's DSR, as the trial computes them), ``final_mean_link_paper`` and
-    ``final_mean_position_paper`` where missing, then drops the per-link columns. A table
-    without them is returned unchanged.
+    ``final_mean_position_paper`` where missing, then drops the per-link columns. Columns stored
+    under an earlier name (:data:`RENAMED`) get today's. A table without any of them is returned
+    unchanged.
     """
-    table = _per_finger_extremes(table)
+    table = _per_finger_extremes(_renamed(table))
     cols = [str(c) for c in table.columns]
     force_cols = [_column(cols, n) for n in legacy_columns("hold_normal_force_n")]
     if any(c is None for c in force_cols):
@@ -78,6 +82,18 @@ def upgrade_table(table: Any) -> Any:
     prefixes = ("hold_normal_force_n", "hold_contact_count", "final_contact_count")
     drop = [c for p in prefixes for n in legacy_columns(p) if (c := _column(cols, n)) is not None]
     return out.drop(columns=drop)
+
+
+def _renamed(table: Any) -> Any:
+    """``table`` with each column of an earlier name (:data:`RENAMED`, prefixed or not) under
+    today's, unless today's is there too (unchanged without any)."""
+    cols = [str(c) for c in table.columns]
+    renames = {}
+    for old, new in RENAMED.items():
+        found = _column(cols, old)
+        if found is not None and _column(cols, new) is None:
+            renames[found] = found[: len(found) - len(old)] + new
+    return table.rename(columns=renames) if renames else table
 
 
 def _per_finger_extremes(table: Any) -> Any:

@@ -23,6 +23,14 @@ from pydantic import Field, field_validator, model_validator
 from somo_sweep.model.description import MAX_LENGTH_M, MIN_LENGTH_M
 from somo_sweep.model.load import Model
 from somo_sweep.tasks.pinch_grasp.closing import closing_problems, dsr_leaves_a_driven_part
+from somo_sweep.tasks.pinch_grasp.geometry import (
+    BASE_DISTANCE_AT_ZERO_CENTERING_M,
+    check_reach,
+    finger_reach_m,
+    ground_problem,
+    span_problem,
+)
+from somo_sweep.tasks.pinch_grasp.metrics import FINGER_METRICS, METRICS
 from somo_sweep.tasks.pinch_grasp.overrides import REPLACED
 from somo_sweep.tasks.registry import TaskParams, TaskSpec, register
 
@@ -31,6 +39,7 @@ __all__ = [
     "MIN_FINGER_LINKS",
     "N_FINGER_LINKS",
     "ORIGINAL_HULL_SIZE_M",
+    "PAPER_OBJECT_SPAN_M",
     "PAPER_TORQUE_N_M",
     "Numerics",
     "PinchGraspParams",
@@ -48,10 +57,6 @@ __all__ = [
 
 #: Link numbers stored per trial: 20 segments and the fingertip.
 N_FINGER_LINKS = 21
-#: c + d in the original study, m: the centering position c is 200 mm minus the finger bases'
-#: distance d from the object's centre (its hand offset h in scaled units gives d = 100 + 50·h
-#: and c = 100 − 50·h, in mm).
-BASE_DISTANCE_AT_ZERO_CENTERING_M = 0.200
 #: Robustness replicas (:func:`perturb`): the object starts up to this far off its spot in x and
 #: in y, m, and its friction coefficient is scaled by up to ± this fraction.
 JITTER_M = 0.5e-3
@@ -64,6 +69,8 @@ MIN_FINGER_LINKS = 2
 MAX_PRESSURE_KPA = 1e4
 #: The paper's final actuation torque, N·m (used when a study sets neither torque nor pressure).
 PAPER_TORQUE_N_M = 0.15
+#: The paper's objects across the fingers, m (every object of its grid: 60 mm).
+PAPER_OBJECT_SPAN_M = 0.060
 
 
 def distal_link_count(distal_segment_ratio: float, n_links: int = N_FINGER_LINKS - 1) -> int:
@@ -147,43 +154,17 @@ def check_gripper(model: Model) -> list[str]:
     return needs
 
 
-def finger_reach_m(finger: Any) -> float:
-    """How far a finger can reach from its mount, m: base box, chain and tip links end to end (an
-    upper bound: the straight finger, as if it pointed at the box)."""
-    base = finger.base.link.half_extent_m(2) * 2 if finger.base.link is not None else 0.0
-    return base + finger.length_m + sum(tip.half_extent_m(2) * 2 for tip in finger.tip_links)
-
-
 def check_grid(model: Model, param_sets: list[PinchGraspParams]) -> list[str]:
     """Fingers that close on the box under some cell's drive (:mod:`.closing`) and reach it in some cell."""
     drives = {(p.torque_n_m if p.pressure_kpa is None else None, p.pressure_kpa) for p in param_sets}
     return closing_problems(model, drives) + check_reach(model, param_sets)
 
 
-def check_reach(model: Model, param_sets: list[PinchGraspParams]) -> list[str]:
-    """A gripper whose fingers reach the box in none of the study's cells: the straight fingers
-    end short of the box's near face (d − width/2 from the mounts) everywhere. A cell out of reach
-    is a valid result (no grasp, as in the paper's grid); a study of only such cells is not."""
-    if not param_sets:
-        return []
-    reach = max(finger_reach_m(f) for _, f in _fingers(model))
-    gaps = [(p.base_distance_m - p.object_width_m / 2 - reach, p) for p in param_sets]
-    gap, nearest = min(gaps, key=lambda g: g[0])
-    if gap <= 0:
-        return []
-    least_c = BASE_DISTANCE_AT_ZERO_CENTERING_M - reach - nearest.object_width_m / 2
-    return [
-        f"the fingers reach at most {reach * 1e3:.1f} mm from their mounts (base box, chain and tips "
-        f"straight), and no cell brings the box that close: the nearest, centering_position_m "
-        f"{nearest.centering_position_m:g} with object_width_m {nearest.object_width_m:g}, leaves its near "
-        f"face {gap * 1e3:.1f} mm beyond the fingertips; allowed: centering_position_m of at least "
-        f"{least_c:.3f} for that width, or longer fingers"
-    ]
-
-
 def check_trial(model: Model, params: PinchGraspParams) -> list[str]:
     """What a trial's parameters need of the gripper: a DSR its fingers can express (one or two
-    actuators each), and, under ``pressure_kpa``, a pressure gain in every finger."""
+    actuators each), under ``pressure_kpa`` a pressure gain in every finger, and an open hand clear
+    of the ground whose fingertips the box passes between
+    (:mod:`~somo_sweep.tasks.pinch_grasp.geometry`)."""
     needs: list[str] = []
     dsr = params.distal_segment_ratio
     for name, finger in _fingers(model):
@@ -211,7 +192,16 @@ def check_trial(model: Model, params: PinchGraspParams) -> list[str]:
                 f"and finger '{name}' has none; allowed: a finger with an actuation block (what "
                 "`somo-sweep calibrate` writes), or task.torque_n_m"
             )
+    needs += [why for why in _open_hand_problems(model, params) if why is not None]
     return sorted(set(needs), key=needs.index)
+
+
+def _open_hand_problems(model: Model, params: PinchGraspParams) -> list[str | None]:
+    """The open hand in the ground, or a box too wide to pass between its open fingertips."""
+    if len(model.as_assembly().manipulators) < 2:
+        return []  # the gripper check says what is missing
+    ground = ground_problem(model, params.hand_height_m)
+    return [ground] if ground else [span_problem(model, params.object_span_m, params.hand_height_m)]
 
 
 #: The original study's object collision shapes (its cube_60mm set: a V-HACD convex hull of each
@@ -265,7 +255,10 @@ class PinchGraspParams(TaskParams):
             otherwise, naming the nearest ratios). ``None``: the fingers are simulated as
             written, every actuated joint driven; the labels' distal zone is then a finger's last
             actuator when it has two or more, else none.
-        object_width_m: Box extent along x (the approach direction), m.
+        object_width_m: Box extent along x (the approach direction), m: its depth.
+        object_span_m: Box extent along y, across the fingers, m: what the fingers close on
+            (0.060, the paper's; the box is 60 mm tall). A box that cannot pass between the open
+            fingertips is refused, naming the widest that can.
         centering_position_m: The paper's centering position c, m: the finger bases end the
             approach ``base_distance_m`` = 0.200 m − c from the object's centre along x (see
             the module docstring; 0.070 … 0.175 m in the paper's grid).
@@ -316,6 +309,7 @@ class PinchGraspParams(TaskParams):
 
     distal_segment_ratio: float | None = Field(0.2, ge=0, lt=1)
     object_width_m: float = Field(0.040, ge=MIN_LENGTH_M, le=MAX_LENGTH_M)
+    object_span_m: float = Field(PAPER_OBJECT_SPAN_M, ge=MIN_LENGTH_M, le=MAX_LENGTH_M)
     centering_position_m: float = Field(0.100, gt=0, lt=BASE_DISTANCE_AT_ZERO_CENTERING_M)
     approach_m: float = Field(0.100, ge=-MAX_LENGTH_M, le=MAX_LENGTH_M)
     torque_n_m: float | None = Field(None, ge=-1e3, le=1e3)
@@ -366,6 +360,12 @@ class PinchGraspParams(TaskParams):
 
     @model_validator(mode="after")
     def _hull_exists(self) -> PinchGraspParams:
+        if self.object_shape == "original_hull" and self.object_span_m != PAPER_OBJECT_SPAN_M:
+            raise ValueError(
+                f"object_shape 'original_hull' is the original's objects, {PAPER_OBJECT_SPAN_M:g} m across "
+                f"the fingers; got object_span_m {self.object_span_m:g}; allowed: {PAPER_OBJECT_SPAN_M:g}, "
+                "or object_shape 'box'"
+            )
         if self.object_shape == "original_hull" and original_hull_size_m(self.object_width_m) is None:
             widths = ", ".join(f"{w:g}" for w in ORIGINAL_HULL_SIZE_M)
             raise ValueError(
@@ -416,44 +416,6 @@ class PinchGraspParams(TaskParams):
         return self.approach_s + self.ramp_s + self.lift_s + self.hold_s
 
 
-#: Arrow type of every metric a trial returns (the results table's schema).
-METRICS: dict[str, str] = {
-    "n_distal_links": "int64",
-    "n_finger_links": "int64",
-    "finger_length_m": "double",
-    **{name: "double" for name in ("object_x_m", "object_y_m", "object_z_m")},
-    **{name: "double" for name in ("object_roll_rad", "object_pitch_rad", "object_yaw_rad")},
-    "lift_height_m": "double",
-    "lift_slip_m": "double",
-    "hold_slip_m": "double",
-    "hold_samples": "int64",
-    "hold_contact_fraction_both_fingers": "double",
-    "hold_ground_contact_fraction": "double",
-    "hold_contact_count_finger": "int64",
-    "hold_contact_count_palm": "int64",
-    "hold_normal_force_n": "double",
-    "hold_normal_force_n_palm": "double",
-    "hold_normal_force_n_finger_min": "double",
-    "hold_normal_force_n_finger_max": "double",
-    "final_contact_count": "int64",
-    "final_mean_contact_link": "double",
-    "final_contact_count_base": "int64",
-    "final_contact_count_palm": "int64",
-    "final_mean_link_paper": "double",
-    "final_mean_position_paper": "double",
-    "hold_force_fraction_distal": "double",
-    "hold_force_fraction_tip": "double",
-    "hold_force_fraction_proximal": "double",
-    "hold_force_fraction_palm": "double",
-    "hold_mean_contact_position": "double",
-    "held": "bool",
-    "base_distance_m": "double",
-    "squeeze_end_hand_contact": "bool",
-    "ended_early_s": "double",
-    "ended_early_reason": "string",
-}
-
-
 def perturb(params: PinchGraspParams, rng: np.random.Generator) -> PinchGraspParams:
     """A robustness replica of a trial: the object moved by up to ±0.5 mm in x and in y, and its
     friction coefficient scaled by a factor within ±5 % (uniform draws from ``rng``)."""
@@ -476,6 +438,7 @@ register(
         description="Grasp of a box by a gripper of 2+ fingers (SoMo Fig. 6): approach, close, lift, hold.",
         tags=("grasp", "paper", "fig6"),
         metrics=METRICS,
+        numbered_metrics=FINGER_METRICS,
         check_model=check_gripper,
         check_params=check_trial,
         check_grid=check_grid,

@@ -14,7 +14,7 @@ from collections.abc import Sequence
 
 import numpy as np
 
-__all__ = ["contact_position", "paper_mean_link", "zone_force_fractions"]
+__all__ = ["contact_position", "finger_proximal_fractions", "paper_mean_link", "zone_force_fractions"]
 
 
 def paper_mean_link(counts: Sequence[int] | np.ndarray) -> float:
@@ -53,6 +53,25 @@ def zone_force_fractions(forces_n: np.ndarray, palm_force_n: float, n_distal: in
     distal = float(f[n_seg - n_distal : n_seg].sum()) / total
     tip = float(f[n_seg]) / total
     return {"distal": distal, "tip": tip, "proximal": 1.0 - distal - tip, "palm": palm_force_n / total}
+
+
+def finger_proximal_fractions(finger_forces_n: np.ndarray, palm_force_n: float, n_distal: int) -> list[float]:
+    """Each finger's share of the hold-phase normal force carried by its own proximal links (links
+    1 … N − ``n_distal``): the proximal zone's share (:func:`zone_force_fractions`) split by finger,
+    so that these shares and the palm's add up to it. NaN shares without any contact force.
+
+    Args:
+        finger_forces_n: Mean normal force per finger (rows) and link number (links 1 … N, then
+            the fingertip), N.
+        palm_force_n: Mean normal force on the palm and base boxes, N.
+        n_distal: Links past the driven segment (the distal zone without the fingertip).
+    """
+    f = np.asarray(finger_forces_n, float)
+    total = float(f.sum(axis=0).sum()) + palm_force_n
+    n_proximal = f.shape[1] - 1 - n_distal
+    if total <= 0:
+        return [float("nan")] * len(f)
+    return [float(row[:n_proximal].sum()) / total for row in f]
 
 
 def contact_position(forces_n: np.ndarray) -> float:

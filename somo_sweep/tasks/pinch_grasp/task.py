@@ -43,7 +43,12 @@ from somo_sweep.tasks.pinch_grasp.gripper import (
     object_body,
 )
 from somo_sweep.tasks.pinch_grasp.params import PAPER_TORQUE_N_M, PinchGraspParams
-from somo_sweep.tasks.pinch_grasp.positions import contact_position, paper_mean_link, zone_force_fractions
+from somo_sweep.tasks.pinch_grasp.positions import (
+    contact_position,
+    finger_proximal_fractions,
+    paper_mean_link,
+    zone_force_fractions,
+)
 from somo_sweep.tasks.pinch_grasp.settled import Snapshot, settled_reason
 from somo_sweep.tasks.registry import TaskResult
 
@@ -292,6 +297,9 @@ def _collect_metrics(
         forces, float(metrics["hold_normal_force_n_palm"]), int(metrics["n_distal_links"])
     )
     metrics.update({f"hold_force_fraction_{zone}": share for zone, share in shares.items()})
+    palm_n, n_distal = float(metrics["hold_normal_force_n_palm"]), int(metrics["n_distal_links"])
+    per_finger = finger_proximal_fractions(probe.finger_hold_forces_n(), palm_n, n_distal)
+    metrics.update({f"hold_force_fraction_proximal_finger{k}": v for k, v in enumerate(per_finger, start=1)})
     metrics["hold_mean_contact_position"] = contact_position(forces)
 
 
