@@ -29,6 +29,7 @@ from somo_sweep.sweep.run import dask_backend
 from somo_sweep.sweep.run.dask_backend import ALLOWED_FAILURES, run_on_dask
 from somo_sweep.sweep.run.execution import Outcome
 from somo_sweep.sweep.study import load_study
+from somo_sweep.tasks.registry import TaskResult
 
 
 class ScriptedFuture:
@@ -38,7 +39,7 @@ class ScriptedFuture:
     def result(self) -> Outcome:
         assert self.status == "finished"
         rerun = self.key.rpartition("-again")[2] if "-again" in self.key else "0"
-        return Outcome(self.job.job_id, "ok", "", {"rerun": float(rerun)}, {})
+        return Outcome(self.job.job_id, TaskResult(status="ok", metrics={"rerun": float(rerun)}))
 
     def exception(self) -> BaseException | None:
         return None

@@ -292,16 +292,14 @@ class _DaskRun:
             out: Outcome = future.result()
             return out
         if status == "lost":
-            return Outcome(
+            return Outcome.failed(
                 job.job_id,
-                "error",
                 f"the Dask workers holding this trial's result died {ALLOWED_FAILURES + 1} times "
                 "before it was read; run with --retry-errors to try again",
             )
         if status == "error" and isinstance(future.exception(), KilledWorker):
-            return Outcome(
+            return Outcome.failed(
                 job.job_id,
-                "error",
                 f"the Dask workers running this trial died {ALLOWED_FAILURES} times "
                 "(KilledWorker); run with --retry-errors to try again",
             )

@@ -31,9 +31,7 @@ from somo_sweep.sweep.run.dask_backend import (
 )
 from somo_sweep.sweep.run.options import Backend, RunOptions
 from somo_sweep.sweep.run.trial import (
-    Attempt,
     Outcome,
-    outcome_of,
     run_isolated,
     run_job,
     start_local_worker,
@@ -42,14 +40,12 @@ from somo_sweep.sweep.run.trial import (
 
 __all__ = [
     "DASK_WORKER_CONFIG",
-    "Attempt",
     "Backend",
     "Outcome",
     "WarmWorkers",
     "dask_client",
     "dask_environment",
     "execute",
-    "outcome_of",
     "run_isolated",
     "run_job",
     "run_jobs",

@@ -24,6 +24,7 @@ import signal
 import socket
 import threading
 import time
+from collections.abc import Mapping
 from dataclasses import dataclass, field, replace
 from typing import Any
 
@@ -34,54 +35,62 @@ from somo_sweep.sweep.jobs.code import trial_modules
 from somo_sweep.sweep.jobs.job import Job
 from somo_sweep.tasks.registry import TaskResult, get_task
 
-__all__ = ["Attempt", "Outcome", "outcome_of", "run_isolated", "run_job", "start_local_worker", "warm_up"]
+__all__ = ["Outcome", "run_isolated", "run_job", "start_local_worker", "warm_up"]
 
 _PR_SET_PDEATHSIG = 1
 
 
 @dataclass(frozen=True)
 class Outcome:
-    """What came back from one trial.
+    """One trial's result as the task returned it, and how it ran.
+
+    The task's :class:`~somo_sweep.tasks.registry.TaskResult` is held whole, not copied field by
+    field; its status, message, metrics and labels are read through it.
 
     Attributes:
         job_id: The job's id.
-        status: ``ok``, ``unstable`` or ``error``.
-        message: Why the status is not ``ok`` (empty otherwise).
-        metrics: The task's metrics.
-        labels: The task's labels.
-        wall_time_s: Wall time of the trial, s.
-        host: Host name of the worker.
+        result: What the task returned (for the half-step retry, if there was one), or an
+            ``error`` result when the trial never returned (killed, timed out, lost).
         retried_half_step: The first run blew up and the trial was run again at half the step.
         time_step_used_s: Time step of the run reported, s (NaN if the trial never ran).
+        wall_time_s: Wall time of the trial, s.
+        host: Host name of the worker.
+        learned: What the trial's process cached that its worker may keep
+            (:mod:`somo_sweep.sim.shared_caches`); emptied once the worker took it.
     """
 
     job_id: str
-    status: str
-    message: str = ""
-    metrics: dict[str, Any] = field(default_factory=dict)
-    labels: dict[str, str] = field(default_factory=dict)
-    wall_time_s: float = 0.0
-    host: str = ""
+    result: TaskResult
     retried_half_step: bool = False
     time_step_used_s: float = float("nan")
+    wall_time_s: float = 0.0
+    host: str = ""
+    learned: dict[str, Any] = field(default_factory=dict, repr=False, compare=False)
 
+    @classmethod
+    def failed(cls, job_id: str, message: str, wall_time_s: float = 0.0, host: str = "") -> Outcome:
+        """The outcome of a trial that never returned a result (status ``error``)."""
+        return cls(job_id, TaskResult(status="error", message=message), wall_time_s=wall_time_s, host=host)
 
-@dataclass(frozen=True)
-class Attempt:
-    """A trial's result and how it was obtained.
+    @property
+    def status(self) -> str:
+        """``ok``, ``unstable`` or ``error``."""
+        return self.result.status
 
-    Attributes:
-        result: What the task returned (for the retry, if there was one).
-        retried_half_step: The first run was ``unstable`` and this is the half-step rerun.
-        time_step_used_s: Time step of ``result``'s run, s.
-        learned: What the trial's process cached that its worker may keep
-            (:mod:`somo_sweep.sim.shared_caches`).
-    """
+    @property
+    def message(self) -> str:
+        """Why the status is not ``ok`` (empty otherwise)."""
+        return self.result.message
 
-    result: TaskResult
-    retried_half_step: bool
-    time_step_used_s: float
-    learned: dict[str, Any] = field(default_factory=dict)
+    @property
+    def metrics(self) -> Mapping[str, Any]:
+        """The task's metrics."""
+        return self.result.metrics
+
+    @property
+    def labels(self) -> Mapping[str, str]:
+        """The task's labels."""
+        return self.result.labels
 
 
 def _die_with_parent() -> None:
@@ -157,16 +166,16 @@ def _call(job: Job, time_step_s: float) -> TaskResult:
         return TaskResult(status="error", message=f"{type(exc).__name__}: {exc}")
 
 
-def run_job(job: Job) -> Attempt:
+def run_job(job: Job) -> Outcome:
     """Run one job in this process; a blow-up is retried once at half the step (never raises)."""
     step = job.settings.time_step_s
     first = _call(job, step)
     if first.status != "unstable":
-        return Attempt(first, False, step)
+        return Outcome(job.job_id, first, False, step)
     retry = _call(job, step / 2)
     note = f"first run at {step:g} s blew up ({first.message}); retried at {step / 2:g} s"
     message = note if retry.status == "ok" else f"{note}: {retry.message}"
-    return Attempt(replace(retry, message=message), True, step / 2)
+    return Outcome(job.job_id, replace(retry, message=message), True, step / 2)
 
 
 def _exit_text(status: int) -> str:
@@ -198,15 +207,16 @@ def run_isolated(job: Job, timeout_s: float | None = None, owner_pid: int | None
     data, timed_out, status = _collect(pid, read_fd, None if timeout_s is None else start + timeout_s)
     wall = time.perf_counter() - start
     if timed_out:
-        return Outcome(job.job_id, "error", f"timed out after {timeout_s} s", wall_time_s=wall, host=host)
+        return Outcome.failed(job.job_id, f"timed out after {timeout_s} s", wall, host)
     try:
-        attempt: Attempt = pickle.loads(data)
+        out: Outcome = pickle.loads(data)
     except Exception:
-        msg = f"the process running this trial died ({_exit_text(status)})"
-        return Outcome(job.job_id, "error", msg, wall_time_s=wall, host=host)
+        return Outcome.failed(
+            job.job_id, f"the process running this trial died ({_exit_text(status)})", wall, host
+        )
     with contextlib.suppress(Exception):  # a cache is a saving, never a trial's failure
-        shared_caches.adopt(attempt.learned)
-    return outcome_of(job, attempt, wall, host)
+        shared_caches.adopt(out.learned)
+    return replace(out, wall_time_s=wall, host=host, learned={})
 
 
 def _child(job: Job, write_fd: int) -> None:
@@ -218,13 +228,13 @@ def _child(job: Job, write_fd: int) -> None:
     try:
         try:
             shared_caches.mark()
-            attempt = run_job(job)
-            data = pickle.dumps(attempt)
+            out = run_job(job)
+            data = pickle.dumps(out)
             with contextlib.suppress(Exception):  # what the worker may keep, when it pickles
-                data = pickle.dumps(replace(attempt, learned=shared_caches.learned()))
+                data = pickle.dumps(replace(out, learned=shared_caches.learned()))
         except BaseException as exc:  # SystemExit in a task, or metrics that cannot be pickled
             failed = TaskResult(status="error", message=f"{type(exc).__name__}: {exc}")
-            data = pickle.dumps(Attempt(failed, False, job.settings.time_step_s))
+            data = pickle.dumps(Outcome(job.job_id, failed, False, job.settings.time_step_s))
         with os.fdopen(write_fd, "wb") as fh:
             fh.write(data)
         code = 0
@@ -260,19 +270,3 @@ def _collect(pid: int, read_fd: int, deadline: float | None) -> tuple[bytes, boo
             os.waitpid(pid, 0)
     _, status = os.waitpid(pid, 0)
     return b"".join(chunks), timed_out, status
-
-
-def outcome_of(job: Job, attempt: Attempt, wall_time_s: float = 0.0, host: str = "") -> Outcome:
-    """The :class:`Outcome` of a job's :class:`Attempt`."""
-    r = attempt.result
-    return Outcome(
-        job.job_id,
-        r.status,
-        r.message,
-        dict(r.metrics),
-        dict(r.labels),
-        wall_time_s,
-        host,
-        attempt.retried_half_step,
-        attempt.time_step_used_s,
-    )

@@ -22,7 +22,7 @@ from somo_sweep.sweep.jobs.job import Job, replica_jobs
 from somo_sweep.sweep.jobs.table import build_jobs
 from somo_sweep.sweep.run.convergence import with_stored_step
 from somo_sweep.sweep.run.rows import outcome_row
-from somo_sweep.sweep.run.trial import outcome_of, run_job
+from somo_sweep.sweep.run.trial import run_job
 from somo_sweep.sweep.store.folder import nothing_stored, read_manifest, read_results
 from somo_sweep.sweep.store.parts import OnDamaged
 from somo_sweep.sweep.study.loaded import Study
@@ -121,7 +121,7 @@ def recheck(
     for index, trial in zip(picks, trials, strict=True):
         row = stored.iloc[int(index)]
         job = table.jobs[int(trial)] if trial >= 0 else _replica_job(study, table.jobs, row)
-        out = outcome_of(job, run_job(job))
+        out = run_job(job)
         fresh = outcome_row(job, out, table.study_hash)
         report.trials.append(job.trial)
         _compare(report, job.trial, row, fresh)
