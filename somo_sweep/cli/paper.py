@@ -108,6 +108,7 @@ def fig6(
     """Fig. 6: pinch / power / no grasp over centering and width per DSR; the smallest all-width pinch DSR."""
     from somo_sweep.paper.fig6 import build, grasp_table
     from somo_sweep.paper.grasp_trials import read_results
+    from somo_sweep.sweep.run.replica_state import replica_state
     from somo_sweep.sweep.store.folder import read_manifest
 
     stem = f"fig6_{rule}"
@@ -117,7 +118,10 @@ def fig6(
     except SomoError as exc:
         fail(exc)
     try:
-        artifacts = build(grasp_table(trials, rule), stem=stem, max_dsr=max_dsr)
+        state = replica_state(trials)
+        table = grasp_table(trials, rule, state)
+        n_trials = expected if isinstance(expected, int) else None
+        artifacts = build(table, stem=stem, max_dsr=max_dsr, state=state, expected=n_trials)
     except SomoError as exc:
         fail(SomoError(f"{results}: {exc}"))
     if audit is not None:
@@ -125,9 +129,9 @@ def fig6(
         artifacts.json[f"{stem}.json"]["engine_audit"] = info
         for line in _audit_lines(info):
             typer.echo(line)
-    if isinstance(expected, int) and len(trials) < expected:
+    if isinstance(expected, int) and len(table) < expected:
         typer.echo(
-            f"note: {len(trials)} of the study's {expected} trials are stored (a run unfinished or "
+            f"note: {len(table)} of the study's {expected} trials are stored (a run unfinished or "
             "still going): the figure and its headline are of those only"
         )
     target = out or results

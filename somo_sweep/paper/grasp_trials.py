@@ -132,11 +132,14 @@ def relabel(
     runs["status"] = "ok"  # a run that is not ok carries its status as its label already
     runs[name] = labels
     runs["inferred"] = inferred_rows(table)
+    from somo_sweep.sweep.run.replica_state import replica_state, unfinished
     from somo_sweep.sweep.store.folder import REPLICAS_PLANNED
 
-    cells = fold(runs, [name], planned=table.attrs.get(REPLICAS_PLANNED))
+    state = replica_state(table)
+    cells = fold(runs, [name], planned=table.attrs.get(REPLICAS_PLANNED), chosen=state.chosen)
     out = cells[[*keep, name, "inferred"]].copy()
-    if (cells["replicas"] > 0).any():
+    out.attrs["replicas_unfinished"] = unfinished(state, cells)
+    if ((cells["replicas"] > 0) | (cells["replicas_awaited"] > 0)).any():
         out[f"{name}_majority"] = cells[f"{name}_majority"]
         out[f"{name}_agreement"] = cells[f"{name}_agreement"].where(cells["replicas"] > 0)
         out["replicas"] = cells["replicas"]
@@ -145,9 +148,23 @@ def relabel(
         counted = out[f"{name}_majority"]
     else:
         counted = out[name]
+    stored, expected = len(out), _expected_trials(folder)
+    if expected is not None and stored < expected:
+        out.attrs["trials_missing"] = (
+            f"{stored} of the study's {expected} trials are stored (a run unfinished or still going): the "
+            "labels are of those only"
+        )
     if rule == "paper":
         out.attrs["rows_without_final_counts"] = rows_without_final_counts(table)
     return dict(sorted(Counter(str(v) for v in counted).items())), out
+
+
+def _expected_trials(folder: Path) -> int | None:
+    """The study's trial count, as its manifest records it (None if it does not)."""
+    from somo_sweep.sweep.store.folder import read_manifest
+
+    n = read_manifest(folder).get("n_trials")
+    return n if isinstance(n, int) and not isinstance(n, bool) else None
 
 
 def rows_without_final_counts(table: pd.DataFrame) -> int:

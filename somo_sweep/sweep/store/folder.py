@@ -44,6 +44,9 @@ __all__ = [
     "QUARANTINE",
     "REPEATS",
     "REPLICAS_PLANNED",
+    "REPLICA_RUN",
+    "STUDY_TRIALS",
+    "SWEPT_AXES",
     "UNREADABLE",
     "Damage",
     "DamagedPartWarning",
@@ -55,6 +58,7 @@ __all__ = [
     "planned_replicas",
     "read_manifest",
     "read_results",
+    "replica_run",
     "split_parts",
 ]
 
@@ -73,6 +77,13 @@ QUARANTINE = "quarantine"
 #: ``DataFrame.attrs`` key of :func:`read_results`'s table: the robustness replicas per replicated
 #: cell that the folder's latest run with replicas planned (:func:`planned_replicas`).
 REPLICAS_PLANNED = "replicas_planned"
+#: ``DataFrame.attrs`` key of :func:`read_results`'s table: the study's trial count (its manifest's).
+STUDY_TRIALS = "n_trials"
+#: ``DataFrame.attrs`` key of :func:`read_results`'s table: the study's swept axes, key path → column.
+SWEPT_AXES = "swept_axes"
+#: ``DataFrame.attrs`` key of :func:`read_results`'s table: the latest run with replicas as its
+#: manifest entry records it (:func:`replica_run`), for the readers to replay its choice of cells.
+REPLICA_RUN = "replica_run"
 
 
 #: The type of each manifest key the commands read (:func:`~somo_sweep.sweep.store.manifest.new_manifest`).
@@ -192,9 +203,14 @@ def read_results(folder: str | Path, on_damaged: OnDamaged | None = None) -> pd.
     missing = {c.name: None for c in COLUMNS if c.name not in df.columns}  # parts from an older version
     df = df.drop(columns=[PART_COLUMN]).assign(**missing)
     df = df.sort_values("trial", kind="stable").reset_index(drop=True)
+    axes = manifest.get("axes", {})
+    if isinstance(manifest.get("n_trials"), int):
+        df.attrs[STUDY_TRIALS] = manifest["n_trials"]
+    df.attrs[SWEPT_AXES] = {str(k): v for k, v in axes.items() if isinstance(v, str)}
     planned = planned_replicas(manifest)
     if planned is not None:
         df.attrs[REPLICAS_PLANNED] = planned
+        df.attrs[REPLICA_RUN] = replica_run(manifest)
     return df
 
 
@@ -208,6 +224,25 @@ def planned_replicas(manifest: dict[str, Any]) -> int | None:
         k = run.get("replicas") if isinstance(run, dict) else None
         if isinstance(k, int) and not isinstance(k, bool) and k > 0:
             return k
+    return None
+
+
+def replica_run(manifest: dict[str, Any]) -> dict[str, Any] | None:
+    """The latest run with replicas, as the readers need it: ``replicas`` (K), ``plan`` (how it
+    chooses its cells, :meth:`~somo_sweep.sweep.run.robustness.ReplicaChoice.record`; None when
+    an older version ran it), ``status`` (``completed``, ``interrupted``, ``running``: killed or
+    still going, ...), ``start_utc`` and the study's ``n_trials``; None when no run had replicas."""
+    for run in reversed(manifest.get("runs", [])):
+        k = run.get("replicas") if isinstance(run, dict) else None
+        if isinstance(k, int) and not isinstance(k, bool) and k > 0:
+            plan = run.get("replica_plan")
+            return {
+                "replicas": k,
+                "plan": plan if isinstance(plan, dict) else None,
+                "status": str(run.get("status")),
+                "start_utc": str(run.get("start_utc")),
+                "n_trials": manifest.get("n_trials"),
+            }
     return None
 
 

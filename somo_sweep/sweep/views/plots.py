@@ -9,8 +9,8 @@ import pandas as pd
 from matplotlib.axes import Axes
 from matplotlib.figure import Figure
 
-from somo_sweep.sweep.run.robustness import AWAITED, ROBUST, fold, label_names
-from somo_sweep.sweep.store.folder import planned_replicas
+from somo_sweep.sweep.run.replica_state import fold_cells
+from somo_sweep.sweep.run.robustness import AWAITED, ROBUST, label_names
 from somo_sweep.sweep.store.schema import FIXED, unit_of
 
 __all__ = [
@@ -178,7 +178,7 @@ def label_maps(df: pd.DataFrame, manifest: dict[str, Any]) -> list[tuple[str, Fi
     label of more than :data:`MAX_MAP_LABELS` values."""
     from somo_sweep.sweep.views.label_maps import folded_cells, label_map_figure
 
-    folded = fold(df, planned=planned_replicas(manifest))
+    folded = fold_cells(df)
     short = {c: k.rsplit(".", 1)[-1] for k, c in manifest.get("axes", {}).items()}
     axes = [c for c in short if c in folded.columns]
     if not axes or folded.empty:
@@ -201,7 +201,7 @@ def summary_figure(df: pd.DataFrame, manifest: dict[str, Any]) -> Figure:
     folded into their cells (:func:`~somo_sweep.sweep.run.robustness.fold`): metrics are the cells' own
     trials', labels their majority.
     """
-    df = fold(df, planned=planned_replicas(manifest))
+    df = fold_cells(df)
     short = {c: k.rsplit(".", 1)[-1] for k, c in manifest.get("axes", {}).items()}
     axes = [c for c in short if c in df.columns]
     numeric = [c for c in axes if pd.api.types.is_numeric_dtype(df[c])]
