@@ -147,7 +147,7 @@ class Answer:
         lines = [asked + (", robust cells only" if checked else ", unchecked: no robustness replicas ran")]
         for _, row in self.table.iterrows():
             where = ", ".join(axis_text(a, row[a]) for a in q.per)
-            text = f"{where}: " if where else ""
+            text = f"{where}: " if where else "answer: "
             text += _value(q.axis, row["answer"])
             if checked and not _same(row["answer_every_cell"], row["answer"]):
                 text += f" ({_value(q.axis, row['answer_every_cell'])} counting every cell)"
