@@ -67,8 +67,8 @@ def test_only_robust_cells_count_and_a_cell_awaiting_replicas_makes_the_answer_p
     assert not row["complete"] and row["awaiting"] == 1 and row["not_robust"] == 0
     text = answer(table, QUESTION, state).lines()[1]
     assert (
-        text
-        == "stiffness 1: 0.3 (0.1 counting every cell); provisional: 1 cell(s) await replicas (0.1 if they hold)"
+        text == "stiffness 1: 0.3 (0.1 counting every cell); "
+        "provisional: 1 cell(s) await replicas (0.1 if they hold)"
     )
 
 
