@@ -487,5 +487,6 @@ register(
             "lift_slip_m",
         ),
         labels=("grasp", "grasp_paper"),
+        guides_path="somo_sweep.tasks.pinch_grasp.guides:METRIC_GUIDES",
     )
 )
