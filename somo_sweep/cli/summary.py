@@ -20,6 +20,8 @@ __all__ = ["breakdown", "inferred_mask", "label_columns", "print_results", "prin
 
 #: Runs ``show`` lists, the latest.
 SHOWN_RUNS = 10
+#: An axis key path longer than this is named by its last field in table titles (``[*]`` paths).
+LONG_KEY = 48
 
 
 def label_columns(df: pd.DataFrame) -> list[str]:
@@ -235,10 +237,14 @@ def print_results(
     for key, column in manifest.get("axes", {}).items():
         if isinstance(column, str) and column in df.columns:  # a hand-edited manifest may hold anything
             name = str(key).rsplit(".", 1)[-1]
+            shown_key = str(key)
+            if len(shown_key) > LONG_KEY:  # a table title that long wraps: named once, in full, unwrapped
+                console.print(f"{_text(name)}: the axis {_text(shown_key, 2000)}", soft_wrap=True)
+                shown_key = name
             rules: list[str | None] = [*label_columns(df)] or [None]
             for by in rules:
                 rule = f": {by.removeprefix('label_')}" if by else ""
-                console.print(_table(f"by {key}{rule}", breakdown(df, column, by), name))
+                console.print(_table(f"by {shown_key}{rule}", breakdown(df, column, by), name))
     _print_robustness(console, df, manifest, state)
     _print_reasons(console, df[~inferred])
 
