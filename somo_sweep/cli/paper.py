@@ -23,6 +23,8 @@ from somo_sweep.cli.output import (
 from somo_sweep.errors import SomoError
 
 if TYPE_CHECKING:
+    import pandas as pd
+
     from somo_sweep.paper.ablation import AblationFile, Configuration
     from somo_sweep.paper.artifacts import Artifacts
 
@@ -125,7 +127,7 @@ def fig6(
     except SomoError as exc:
         fail(SomoError(f"{results}: {exc}"))
     if audit is not None:
-        info = _engine_audit(audit, rule)
+        info = _engine_audit(audit, rule, trials)
         artifacts.json[f"{stem}.json"]["engine_audit"] = info
         for line in _audit_lines(info):
             typer.echo(line)
@@ -147,13 +149,17 @@ def fig6(
         write_atomic(results / f"{stem}.json", headline)
 
 
-def _engine_audit(folder: Path, rule: str) -> dict[str, object]:
-    """The engine audit of ``folder`` (a compare-engines output) under ``rule``; exits on bad input."""
-    from somo_sweep.paper.engine_audit import ENGINES, engine_audit
+def _engine_audit(folder: Path, rule: str, results: pd.DataFrame) -> dict[str, object]:
+    """The engine audit of ``folder`` (a compare-engines output) under ``rule``, refused unless its
+    cells are cells of ``results``; exits on bad input."""
+    from somo_sweep.paper.engine_audit import ENGINES, audit_mismatch, engine_audit
     from somo_sweep.paper.grasp_trials import read_results
 
     try:
         pybullet, mujoco = (read_results(folder / engine) for engine in ENGINES)
+        for engine, table in (("PyBullet", pybullet), ("MuJoCo", mujoco)):
+            if (why := audit_mismatch(results, table, engine)) is not None:
+                raise SomoError(why)
         info = engine_audit(pybullet, mujoco, rule=rule)
     except SomoError as exc:
         fail(SomoError(f"--audit {folder}: {exc}"))
