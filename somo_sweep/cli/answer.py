@@ -8,7 +8,7 @@ from typing import Annotated
 
 import typer
 
-from somo_sweep.cli.output import fail, file_target, write_outputs
+from somo_sweep.cli.output import fail, file_target, record_in_results, write_outputs
 from somo_sweep.errors import SomoError
 
 __all__ = ["answer"]
@@ -66,6 +66,7 @@ def answer(
         result = ask(trials, question)
         if target is not None:
             (path,) = write_outputs([(target, result.table.to_csv(index=False))], inputs=[results])
+            record_in_results([path])
     except SomoError as exc:
         fail(exc)
     for line in result.lines():

@@ -7,7 +7,7 @@ from typing import Annotated
 
 import typer
 
-from somo_sweep.cli.output import fail, write_artifacts, write_outputs
+from somo_sweep.cli.output import fail, record_in_results, write_artifacts, write_outputs
 from somo_sweep.errors import SomoError, printable, shown
 
 __all__ = ["classify", "render"]
@@ -36,6 +36,7 @@ def classify(
         (path,) = write_outputs([(results / f"grasp_labels_{rule}.csv", table.to_csv(index=False))])
     except SomoError as exc:
         fail(exc)
+    record_in_results([path])
     for label, n in counts.items():
         typer.echo(f"{printable(shown(str(label), 200)):>10s}  {n}")  # a status is stored text
     if "robust" in table.columns:

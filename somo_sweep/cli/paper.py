@@ -17,6 +17,7 @@ from somo_sweep.cli.output import (
     check_output,
     checked_jobs,
     fail,
+    record_in_results,
     write_artifacts,
     write_atomic,
 )
@@ -50,6 +51,7 @@ def _finish(artifacts: Artifacts, out: Path) -> None:
         written = write_artifacts(artifacts, out)
     except SomoError as exc:
         fail(exc)
+    record_in_results(written)
     for path in written:
         typer.echo(f"wrote {path}")
 
@@ -146,7 +148,7 @@ def fig6(
             fail(exc)
     _finish(artifacts, target)
     if target.resolve() != results.resolve():
-        write_atomic(results / f"{stem}.json", headline)
+        record_in_results([write_atomic(results / f"{stem}.json", headline)])
 
 
 def _engine_audit(folder: Path, rule: str, results: pd.DataFrame) -> dict[str, object]:

@@ -22,17 +22,19 @@ from somo_sweep.sweep.views.answers import Question, grid_keys
 __all__ = ["label_of", "question_for", "swept_axes"]
 
 
-def swept_axes(trials: pd.DataFrame) -> dict[str, str]:
-    """The swept axes of a results table with more than one value, name → column: the study's
-    key paths (its manifest's, in ``attrs``; else every varying ``task_*`` column), and ``repeat``
-    when the study repeats trials."""
+def swept_axes(trials: pd.DataFrame, varying: bool = True) -> dict[str, str]:
+    """The swept axes of a results table, name → column: the study's key paths (its manifest's,
+    in ``attrs``; else every ``task_*`` column), and ``repeat`` when trials repeat; with
+    ``varying``, only those with more than one value (float noise aside)."""
     named = trials.attrs.get(SWEPT_AXES)
     if isinstance(named, dict):
         axes = {str(k): v for k, v in named.items() if isinstance(v, str) and v in trials.columns}
     else:
         axes = {str(c): str(c) for c in trials.columns if str(c).startswith("task_")}
-    if "repeat" in trials.columns:
+    if "repeat" in trials.columns and trials["repeat"].nunique() > 1:
         axes["repeat"] = "repeat"
+    if not varying:
+        return axes
     return {k: c for k, c in axes.items() if grid_keys(trials, [c])[c].nunique() > 1}
 
 
@@ -97,7 +99,7 @@ def question_for(
     Raises:
         SomoError: An unknown or repeated axis, no object axis, or an unknown label.
     """
-    axes = swept_axes(trials)
+    axes = swept_axes(trials, varying=False)
     option = "--largest" if largest else "--smallest"
     asked = _column(axis, axes, option)
     if not every:
@@ -112,5 +114,5 @@ def question_for(
     if twice is not None:
         raise SomoError(f"axis {twice} is named twice; give each axis one role")
     column, value = label_of(trials, label)
-    per = tuple(c for c in axes.values() if c not in named)
+    per = tuple(c for c in swept_axes(trials).values() if c not in named)
     return Question(asked, column, value, objects, chosen, per, largest)
