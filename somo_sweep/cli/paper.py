@@ -113,7 +113,7 @@ def fig6(
     from somo_sweep.paper.fig6 import build, grasp_table
     from somo_sweep.paper.grasp_trials import read_results
     from somo_sweep.sweep.run.replica_state import replica_state
-    from somo_sweep.sweep.store.folder import read_manifest
+    from somo_sweep.sweep.store.folder import missing_trials, read_manifest
 
     stem = f"fig6_{rule}"
     try:
@@ -133,11 +133,8 @@ def fig6(
         artifacts.json[f"{stem}.json"]["engine_audit"] = info
         for line in _audit_lines(info):
             typer.echo(line)
-    if isinstance(expected, int) and len(table) < expected:
-        typer.echo(
-            f"note: {len(table)} of the study's {expected} trials are stored (a run unfinished or "
-            "still going): the figure and its headline are of those only"
-        )
+    if (missing := missing_trials(trials, len(table))) is not None:
+        typer.echo(f"note: {missing}: the figure and its headlines are of those only")
     target = out or results
     if target.resolve() != results.resolve():
         # The headline is stored with the results too, wherever the figure goes.

@@ -63,11 +63,17 @@ def damaged(path: Path, reason: Damage) -> None:
 
 def save_plots(folder: Path) -> None:
     """The summary figure and, for a study with labels, a label map per label column."""
-    from somo_sweep.sweep.store.folder import read_manifest, read_results
+    from somo_sweep.sweep.store.folder import SKIPPED, read_manifest, read_results
     from somo_sweep.sweep.store.manifest import record_files
     from somo_sweep.sweep.views.plots import label_maps, summary_figure
 
     df, manifest = read_results(folder, damaged), read_manifest(folder)
+    if df.empty:
+        left_out = int(df.attrs.get(SKIPPED, 0))
+        why = f": {left_out} damaged file(s) were left out (the warnings above name them)" if left_out else ""
+        raise SomoError(
+            f"{folder}: no trial stored that can be read{why}; nothing to plot, nothing was written"
+        )
     target = folder / "plots"
     if target.is_symlink():
         raise SomoError(f"{target} is a symbolic link; the plots go in the results folder itself: remove it")

@@ -133,7 +133,7 @@ def relabel(
     runs[name] = labels
     runs["inferred"] = inferred_rows(table)
     from somo_sweep.sweep.run.replica_state import replica_state, unfinished
-    from somo_sweep.sweep.store.folder import REPLICAS_PLANNED
+    from somo_sweep.sweep.store.folder import REPLICAS_PLANNED, missing_trials
 
     state = replica_state(table)
     cells = fold(runs, [name], planned=table.attrs.get(REPLICAS_PLANNED), chosen=state.chosen)
@@ -148,23 +148,11 @@ def relabel(
         counted = out[f"{name}_majority"]
     else:
         counted = out[name]
-    stored, expected = len(out), _expected_trials(folder)
-    if expected is not None and stored < expected:
-        out.attrs["trials_missing"] = (
-            f"{stored} of the study's {expected} trials are stored (a run unfinished or still going): the "
-            "labels are of those only"
-        )
+    if (missing := missing_trials(table, len(out))) is not None:
+        out.attrs["trials_missing"] = f"{missing}: the labels are of those only"
     if rule == "paper":
         out.attrs["rows_without_final_counts"] = rows_without_final_counts(table)
     return dict(sorted(Counter(str(v) for v in counted).items())), out
-
-
-def _expected_trials(folder: Path) -> int | None:
-    """The study's trial count, as its manifest records it (None if it does not)."""
-    from somo_sweep.sweep.store.folder import read_manifest
-
-    n = read_manifest(folder).get("n_trials")
-    return n if isinstance(n, int) and not isinstance(n, bool) else None
 
 
 def rows_without_final_counts(table: pd.DataFrame) -> int:

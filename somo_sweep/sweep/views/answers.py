@@ -24,7 +24,7 @@ from __future__ import annotations
 import math
 import re
 from collections.abc import Sequence
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import Any
 
@@ -34,7 +34,7 @@ import pandas as pd
 from somo_sweep.errors import SomoError
 from somo_sweep.sweep.run.replica_state import ReplicaState, fold_cells, replica_state, unfinished
 from somo_sweep.sweep.run.robustness import AWAITED, ROBUST, label_names
-from somo_sweep.sweep.store.folder import STUDY_TRIALS
+from somo_sweep.sweep.store.folder import STUDY_TRIALS, missing_trials
 from somo_sweep.sweep.store.schema import split_unit, unit_of
 
 __all__ = [
@@ -339,9 +339,12 @@ def ask(trials: pd.DataFrame, question: Question) -> Answer:
     """Answer ``question`` on a results table (:func:`cell_labels`, :func:`answer`)."""
     state = replica_state(trials)
     expected = trials.attrs.get(STUDY_TRIALS)
-    return answer(
-        cell_labels(trials, state), question, state, expected if isinstance(expected, int) else None
-    )
+    cells = cell_labels(trials, state)
+    result = answer(cells, question, state, expected if isinstance(expected, int) else None)
+    missing = missing_trials(trials, len(cells))
+    if missing is None:
+        return result
+    return replace(result, note="; ".join(n for n in (result.note, missing) if n))
 
 
 def ask_folder(folder: str | Path, question: Question) -> Answer:
