@@ -169,3 +169,15 @@ def test_a_headline_from_a_run_cut_short_in_the_replica_phase_is_provisional(tmp
     run_sweep(load_study(path, tmp_path / "out"), RunOptions(n_jobs=1))  # the resume completes them
     output = _fig6(tmp_path / "out", tmp_path / "fig")
     assert "provisional" not in output and "await" not in output
+
+
+def test_a_side_by_side_of_folders_with_an_extra_axis_is_refused_naming_it(
+    robust_folder: Path, tmp_path: Path
+) -> None:
+    args = ["paper", "fig6-compare", str(robust_folder), str(robust_folder), "--out", str(tmp_path)]
+    result = CliRunner().invoke(app, args)
+    assert result.exit_code == 2
+    assert "ours also sweeps task_pressure_kpa: a side-by-side panel holds one value" in " ".join(
+        result.output.split()
+    )
+    assert not list(tmp_path.iterdir())
