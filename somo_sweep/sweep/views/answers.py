@@ -17,6 +17,18 @@ replica ran, every cell counts and the answer says it is unchecked. A cell that 
 its replicas (a run cut short, :mod:`somo_sweep.sweep.run.replica_state`) does not count yet and
 is never called not robust: the answer says it is provisional and what it would be if those cells
 held. Nothing here reads or writes files but :func:`ask_folder`, which reads a results folder.
+
+From Python (a design search calls it the same way)::
+
+    from somo_sweep.sweep.store.folder import read_results
+    from somo_sweep.sweep.views.answers import ask
+    from somo_sweep.sweep.views.questions import question_for
+
+    trials = read_results("results/my_grasp")
+    question = question_for(trials, "distal_segment_ratio", every=["object_width_m"],
+                            some=["centering_position_m"], label="grasp=pinch")
+    table = ask(trials, question).table   # one row per value of the other axes:
+    # their values, answer (NaN: none), complete, checked, answer_every_cell, ...
 """
 
 from __future__ import annotations

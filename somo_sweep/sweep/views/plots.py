@@ -21,7 +21,7 @@ from matplotlib.figure import Figure
 
 from somo_sweep.sweep.run.replica_state import fold_cells
 from somo_sweep.sweep.run.robustness import AWAITED, ROBUST, label_names
-from somo_sweep.sweep.store.schema import FIXED, unit_of
+from somo_sweep.sweep.store.schema import FIXED, split_unit, unit_of
 from somo_sweep.sweep.views.answers import axis_name, grid_keys
 from somo_sweep.tasks.registry import MetricGuide
 
@@ -68,7 +68,9 @@ def _scale(column: str) -> float:
 def _label(column: str, guides: Mapping[str, MetricGuide] | None = None, short: str | None = None) -> str:
     """An axis title: the name, and its unit (lengths in mm) or its scale in words."""
     guide = (guides or {}).get(column)
-    name = short or (axis_name(column)[0] if column.startswith(("task_", "model_")) else column)
+    name = short or (
+        axis_name(column)[0] if column.startswith(("task_", "model_")) else split_unit(column)[0]
+    )
     unit = "mm" if unit_of(column) == "m" else unit_of(column)
     if guide is not None and guide.unit:
         return f"{name}\n({guide.unit})"
