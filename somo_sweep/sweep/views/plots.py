@@ -19,7 +19,7 @@ import pandas as pd
 from matplotlib.axes import Axes
 from matplotlib.figure import Figure
 
-from somo_sweep.sweep.run.replica_state import fold_cells
+from somo_sweep.sweep.run.replica_state import fold_cells, replica_state, unfinished
 from somo_sweep.sweep.run.robustness import AWAITED, ROBUST, label_names
 from somo_sweep.sweep.store.schema import FIXED, split_unit, unit_of
 from somo_sweep.sweep.views.answers import axis_name, grid_keys
@@ -281,7 +281,9 @@ def summary_figure(df: pd.DataFrame, manifest: dict[str, Any]) -> Figure:
     (:func:`~somo_sweep.sweep.run.robustness.fold`): metrics are the cells' own trials', labels
     their majority.
     """
-    df = fold_cells(df)
+    state = replica_state(df)
+    df = fold_cells(df, state=state)
+    lacking = unfinished(state, df)
     short = _swept(df, manifest)
     axes = list(short)
     numeric = [c for c in axes if pd.api.types.is_numeric_dtype(df[c])]
@@ -312,7 +314,10 @@ def summary_figure(df: pd.DataFrame, manifest: dict[str, Any]) -> Figure:
         ax.set_visible(False)
     n_inferred = int(_inferred(df).sum())
     extra = f", {n_inferred} of them inferred" if n_inferred else ""
-    fig.suptitle(f"{manifest.get('study_name')} ({len(df)} cells{extra})")
+    title = f"{manifest.get('study_name')} ({len(df)} cells{extra})"
+    if lacking:
+        title += "\n" + textwrap.fill(lacking, 40 * cols)
+    fig.suptitle(title)
     fig.tight_layout()
     return fig
 
