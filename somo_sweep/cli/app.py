@@ -15,7 +15,7 @@ from typing import Annotated, Any
 
 import typer
 
-from somo_sweep.cli import calibrate, diagnose, engines, grasp, model, new, paper, results, sweep
+from somo_sweep.cli import answer, calibrate, diagnose, engines, grasp, model, new, paper, results, sweep
 from somo_sweep.cli.help import HelpGroup, plain_help
 from somo_sweep.cli.output import state
 from somo_sweep.errors import SHOWN_CHARS, os_cause, printable, shown
@@ -61,6 +61,7 @@ app.command()(model.measure)
 app.command()(sweep.run)
 app.command()(results.show)
 app.command()(results.plot)
+app.command()(answer.answer)
 app.command()(sweep.tasks)
 app.command()(results.recheck)
 app.command()(engines.compare_engines)
@@ -178,6 +179,23 @@ def _quiet_resource_tracker() -> None:
         os.environ["PYTHONWARNINGS"] = f"{given},{_TRACKER_NOTE}" if given else _TRACKER_NOTE
 
 
+def _matplotlib_cache() -> None:
+    """Matplotlib's font cache in somo-sweep's cache folder (``<cache>/matplotlib``, beside the URDF
+    cache), not a folder of its own in the home directory, unless the user chose one
+    (``MPLCONFIGDIR``) or that folder cannot be made (Matplotlib then uses its default)."""
+    if os.environ.get("MPLCONFIGDIR"):
+        return
+    from somo_sweep.sim.urdf_cache import cache_dir
+
+    folder = cache_dir().parent / "matplotlib"
+    try:
+        folder.mkdir(parents=True, exist_ok=True)
+    except OSError:
+        return
+    if os.access(folder, os.W_OK | os.X_OK):
+        os.environ["MPLCONFIGDIR"] = str(folder)
+
+
 def main() -> None:
     """Console-script entry point (figures drawn off-screen).
 
@@ -186,6 +204,7 @@ def main() -> None:
     (``--debug`` shows it); what was already written stays, as for any other error.
     """
     os.environ.setdefault("MPLBACKEND", "Agg")
+    _matplotlib_cache()
     _quiet_resource_tracker()
     warnings.formatwarning = _one_line_for_ours
     args = global_flags_first(sys.argv[1:])

@@ -8,7 +8,14 @@ from typing import TYPE_CHECKING, Annotated
 
 import typer
 
-from somo_sweep.cli.output import checked_jobs, fail, write_atomic
+from somo_sweep.cli.output import (
+    check_output,
+    check_replaceable,
+    checked_jobs,
+    fail,
+    json_report,
+    write_outputs,
+)
 from somo_sweep.cli.sweep import JOBS
 from somo_sweep.errors import SomoError, StorageError
 from somo_sweep.sim.settings import step_problem
@@ -80,8 +87,7 @@ def compare_engines(
         checked_jobs(jobs, allow_default=True)
         base = load_study(study, None, allow_outside=allow_outside)
         folder = out if out is not None else RESULTS_ROOT / f"{base.name}_engines"
-        if folder.exists() and not folder.is_dir():
-            raise SomoError(f"--out {folder} is a file, not a folder")
+        _check_outputs(folder, study)
         runs = on_engines(base, folder, {"pybullet": pybullet_step, "mujoco": mujoco_step})
         for engine, st in runs.items():
             typer.echo(f"{engine}: {st.output}", err=True)
@@ -105,11 +111,30 @@ def compare_engines(
     typer.echo(f"wrote {folder / 'engines.csv'} and {folder / 'engines.json'}")
 
 
+#: The first column of engines.csv: an existing file that starts otherwise is not ours.
+_CSV_HEAD = "trial,"
+#: Keys of every engines.json (as an earlier version wrote it, with its own mark).
+_JSON_KEYS = frozenset({"study", "engines", "labels", "metrics"})
+
+
+def _check_outputs(folder: Path, study: Path) -> None:
+    """Refuse, before any trial runs, a folder ``run --out`` would not take and a user's own
+    engines.csv or engines.json (:func:`~somo_sweep.sweep.views.compare_engines.check_comparison_folder`).
+
+    Raises:
+        SomoError: Naming what is in the way; nothing was written.
+    """
+    from somo_sweep.sweep.views.compare_engines import check_comparison_folder
+
+    check_comparison_folder(folder)
+    check_output(folder / "engines.csv", _CSV_HEAD, inputs=[study])
+    check_replaceable(folder / "engines.json", [study], kind="json", older_keys=_JSON_KEYS)
+
+
 def _write(folder: Path, study: Path, runs: dict[str, Study], result: EngineComparison) -> None:
-    """The comparison as OUT/engines.csv (cell by cell) and OUT/engines.json (the summary)."""
-    write_atomic(folder / "engines.csv", result.cells.to_csv(index=False))
+    """The comparison as OUT/engines.csv (cell by cell) and OUT/engines.json (the summary), each
+    replacing only an earlier copy of itself."""
     report = {
-        "written_by": "somo-sweep compare-engines",
         "study": str(study),
         "engines": {
             e: st.simulation.model_dump(mode="json") if st.simulation else "auto" for e, st in runs.items()
@@ -117,4 +142,12 @@ def _write(folder: Path, study: Path, runs: dict[str, Study], result: EngineComp
         "labels": result.labels,
         "metrics": result.metrics,
     }
-    write_atomic(folder / "engines.json", json.dumps(report, indent=1) + "\n")
+    check_replaceable(folder / "engines.json", [study], kind="json", older_keys=_JSON_KEYS)
+    outputs: list[tuple[Path, str | bytes]] = [
+        (folder / "engines.csv", result.cells.to_csv(index=False)),
+        (
+            folder / "engines.json",
+            json_report(json.loads(json.dumps(report, default=str)), "compare-engines"),
+        ),
+    ]
+    write_outputs(outputs, inputs=[study])

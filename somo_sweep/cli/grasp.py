@@ -7,7 +7,7 @@ from typing import Annotated
 
 import typer
 
-from somo_sweep.cli.output import fail, write_artifacts, write_outputs
+from somo_sweep.cli.output import fail, record_in_results, write_artifacts, write_outputs
 from somo_sweep.errors import SomoError, printable, shown
 
 __all__ = ["classify", "render"]
@@ -36,19 +36,24 @@ def classify(
         (path,) = write_outputs([(results / f"grasp_labels_{rule}.csv", table.to_csv(index=False))])
     except SomoError as exc:
         fail(exc)
+    record_in_results([path])
     for label, n in counts.items():
         typer.echo(f"{printable(shown(str(label), 200)):>10s}  {n}")  # a status is stored text
     if "robust" in table.columns:
         checked = table[table["replicas"] > 0]
-        shaky = checked[checked["robust"].eq(False).fillna(False).astype(bool)]
+        shaky = int(checked["robust"].eq(False).fillna(False).astype(bool).sum())
         sure = int(checked["robust"].eq(True).fillna(False).astype(bool).sum())
-        awaiting = len(checked) - sure - len(shaky)
-        waits = f", {awaiting} await replicas (a run cut short)" if awaiting else ""
+        awaiting = int((table["replicas_awaited"] > 0).sum())
+        waits = f", {awaiting} await replicas (not counted as robust or not yet)" if awaiting else ""
         typer.echo(
             f"robustness: {len(checked)} cell(s) with replicas, {sure} robust under rule {rule}, "
-            f"{len(shaky)} not{waits} (counts above are majorities; per cell: grasp_{rule}_majority, "
-            f"grasp_{rule}_agreement, robust)"
+            f"{shaky} not{waits} (counts above are majorities; per cell: grasp_{rule}_majority, "
+            f"grasp_{rule}_agreement, replicas_awaited, robust)"
         )
+    if table.attrs.get("replicas_unfinished"):
+        typer.echo(f"note: {table.attrs['replicas_unfinished']}")
+    if table.attrs.get("trials_missing"):
+        typer.echo(f"note: {table.attrs['trials_missing']}")
     legacy = table.attrs.get("rows_without_final_counts", 0)
     if legacy:
         typer.echo(

@@ -7,6 +7,7 @@ from __future__ import annotations
 
 from collections.abc import Iterator
 from contextlib import contextmanager
+from pathlib import Path
 from typing import Any, NoReturn
 
 import typer
@@ -40,6 +41,7 @@ __all__ = [
     "file_target",
     "json_report",
     "plain",
+    "record_in_results",
     "state",
     "working",
     "write_artifacts",
@@ -50,6 +52,23 @@ __all__ = [
 
 #: Options of the top-level callback (``--debug``, verbosity) that every command reads.
 state: dict[str, Any] = {"debug": False, "verbosity": 1}
+
+
+def record_in_results(paths: list[Path]) -> None:
+    """List the files just written into a results folder (a figure, a label table, a headline) in
+    its manifest, so that ``run --overwrite`` with another study deletes them with the folder's
+    other outputs (:func:`~somo_sweep.sweep.store.manifest.record_files`); files elsewhere are left
+    out of any manifest."""
+    from somo_sweep.sweep.store.folder import MANIFEST
+    from somo_sweep.sweep.store.manifest import record_files
+
+    by_folder: dict[Path, list[Path]] = {}
+    for path in paths:
+        folder = next((p for p in path.parents[:2] if (p / MANIFEST).is_file()), None)
+        if folder is not None:
+            by_folder.setdefault(folder, []).append(path)
+    for folder, inside in by_folder.items():
+        record_files(folder, inside)
 
 
 def checked_jobs(jobs: int, allow_default: bool = False) -> int:

@@ -17,12 +17,15 @@ from somo_sweep.cli.output import (
     check_output,
     checked_jobs,
     fail,
+    record_in_results,
     write_artifacts,
     write_atomic,
 )
 from somo_sweep.errors import SomoError
 
 if TYPE_CHECKING:
+    import pandas as pd
+
     from somo_sweep.paper.ablation import AblationFile, Configuration
     from somo_sweep.paper.artifacts import Artifacts
 
@@ -48,6 +51,7 @@ def _finish(artifacts: Artifacts, out: Path) -> None:
         written = write_artifacts(artifacts, out)
     except SomoError as exc:
         fail(exc)
+    record_in_results(written)
     for path in written:
         typer.echo(f"wrote {path}")
 
@@ -108,7 +112,8 @@ def fig6(
     """Fig. 6: pinch / power / no grasp over centering and width per DSR; the smallest all-width pinch DSR."""
     from somo_sweep.paper.fig6 import build, grasp_table
     from somo_sweep.paper.grasp_trials import read_results
-    from somo_sweep.sweep.store.folder import read_manifest
+    from somo_sweep.sweep.run.replica_state import replica_state
+    from somo_sweep.sweep.store.folder import missing_trials, read_manifest
 
     stem = f"fig6_{rule}"
     try:
@@ -117,19 +122,19 @@ def fig6(
     except SomoError as exc:
         fail(exc)
     try:
-        artifacts = build(grasp_table(trials, rule), stem=stem, max_dsr=max_dsr)
+        state = replica_state(trials)
+        table = grasp_table(trials, rule, state)
+        n_trials = expected if isinstance(expected, int) else None
+        artifacts = build(table, stem=stem, max_dsr=max_dsr, state=state, expected=n_trials)
     except SomoError as exc:
         fail(SomoError(f"{results}: {exc}"))
     if audit is not None:
-        info = _engine_audit(audit, rule)
+        info = _engine_audit(audit, rule, trials)
         artifacts.json[f"{stem}.json"]["engine_audit"] = info
         for line in _audit_lines(info):
             typer.echo(line)
-    if isinstance(expected, int) and len(trials) < expected:
-        typer.echo(
-            f"note: {len(trials)} of the study's {expected} trials are stored (a run unfinished or "
-            "still going): the figure and its headline are of those only"
-        )
+    if (missing := missing_trials(trials, len(table))) is not None:
+        typer.echo(f"note: {missing}: the figure and its headlines are of those only")
     target = out or results
     if target.resolve() != results.resolve():
         # The headline is stored with the results too, wherever the figure goes.
@@ -140,16 +145,20 @@ def fig6(
             fail(exc)
     _finish(artifacts, target)
     if target.resolve() != results.resolve():
-        write_atomic(results / f"{stem}.json", headline)
+        record_in_results([write_atomic(results / f"{stem}.json", headline)])
 
 
-def _engine_audit(folder: Path, rule: str) -> dict[str, object]:
-    """The engine audit of ``folder`` (a compare-engines output) under ``rule``; exits on bad input."""
-    from somo_sweep.paper.engine_audit import ENGINES, engine_audit
+def _engine_audit(folder: Path, rule: str, results: pd.DataFrame) -> dict[str, object]:
+    """The engine audit of ``folder`` (a compare-engines output) under ``rule``, refused unless its
+    cells are cells of ``results``; exits on bad input."""
+    from somo_sweep.paper.engine_audit import ENGINES, audit_mismatch, engine_audit
     from somo_sweep.paper.grasp_trials import read_results
 
     try:
         pybullet, mujoco = (read_results(folder / engine) for engine in ENGINES)
+        for engine, table in (("PyBullet", pybullet), ("MuJoCo", mujoco)):
+            if (why := audit_mismatch(results, table, engine)) is not None:
+                raise SomoError(why)
         info = engine_audit(pybullet, mujoco, rule=rule)
     except SomoError as exc:
         fail(SomoError(f"--audit {folder}: {exc}"))

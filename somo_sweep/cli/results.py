@@ -22,7 +22,7 @@ from somo_sweep.errors import SomoError
 if TYPE_CHECKING:
     from somo_sweep.sweep.store.parts import Damage
 
-__all__ = ["ALLOW_OUTSIDE", "MAX_TRIALS", "plot", "recheck", "save_plots", "show"]
+__all__ = ["ALLOW_OUTSIDE", "MAX_TRIALS", "damaged", "plot", "recheck", "save_plots", "show"]
 
 _out = Console()
 #: Default of ``--max-trials`` (the library's :data:`somo_sweep.sweep.study.file.MAX_TRIALS`).
@@ -38,7 +38,7 @@ ALLOW_OUTSIDE = Annotated[
 ]
 
 
-def _damaged(path: Path, reason: Damage) -> None:
+def damaged(path: Path, reason: Damage) -> None:
     """Warn of a file of a results folder that a reader left out (or whose rows it counted once)."""
     from somo_sweep.sweep.store.folder import INFERRED
 
@@ -63,11 +63,17 @@ def _damaged(path: Path, reason: Damage) -> None:
 
 def save_plots(folder: Path) -> None:
     """The summary figure and, for a study with labels, a label map per label column."""
-    from somo_sweep.sweep.store.folder import read_manifest, read_results
+    from somo_sweep.sweep.store.folder import SKIPPED, read_manifest, read_results
     from somo_sweep.sweep.store.manifest import record_files
     from somo_sweep.sweep.views.plots import label_maps, summary_figure
 
-    df, manifest = read_results(folder, _damaged), read_manifest(folder)
+    df, manifest = read_results(folder, damaged), read_manifest(folder)
+    if df.empty:
+        left_out = int(df.attrs.get(SKIPPED, 0))
+        why = f": {left_out} damaged file(s) were left out (the warnings above name them)" if left_out else ""
+        raise SomoError(
+            f"{folder}: no trial stored that can be read{why}; nothing to plot, nothing was written"
+        )
     target = folder / "plots"
     if target.is_symlink():
         raise SomoError(f"{target} is a symbolic link; the plots go in the results folder itself: remove it")
@@ -93,7 +99,7 @@ def show(results: Annotated[Path, typer.Argument(help="Results folder, e.g. resu
     from somo_sweep.sweep.store.lock import holder_now
 
     try:
-        df, manifest = read_results(results, _damaged), read_manifest(results)
+        df, manifest = read_results(results, damaged), read_manifest(results)
         pending = pending_journal_rows(results, manifest["study_hash"], set(df["job_id"]))
         print_results(_out, df, manifest, holder_now(results), pending)
     except SomoError as exc:
@@ -143,7 +149,7 @@ def recheck(
     try:
         if target is not None:
             check_replaceable(target, [study], kind="json", older_keys=RECHECK_KEYS)
-        result = run_recheck(load_study(study, out, max_trials, allow_outside), trials, seed, _damaged)
+        result = run_recheck(load_study(study, out, max_trials, allow_outside), trials, seed, damaged)
     except SomoError as exc:
         fail(exc)
     if target is not None:

@@ -11,7 +11,8 @@ from rich.table import Table
 
 from somo_sweep.errors import printable, shown
 from somo_sweep.sweep.run.options import RunSummary
-from somo_sweep.sweep.run.robustness import AWAITED, ROBUST, fold, label_names
+from somo_sweep.sweep.run.replica_state import ReplicaState, fold_cells, replica_state, unfinished
+from somo_sweep.sweep.run.robustness import AWAITED, ROBUST, label_names
 from somo_sweep.sweep.store.folder import MANIFEST, planned_replicas
 
 __all__ = ["breakdown", "inferred_mask", "label_columns", "print_results", "print_run_summary"]
@@ -19,6 +20,8 @@ __all__ = ["breakdown", "inferred_mask", "label_columns", "print_results", "prin
 
 #: Runs ``show`` lists, the latest.
 SHOWN_RUNS = 10
+#: An axis key path longer than this is named by its last field in table titles (``[*]`` paths).
+LONG_KEY = 48
 
 
 def label_columns(df: pd.DataFrame) -> list[str]:
@@ -60,11 +63,16 @@ def breakdown(df: pd.DataFrame, column: str, label: str | None = None) -> pd.Dat
 SHOWN_UNCERTAIN = 15
 
 
-def _print_robustness(console: Console, cells: pd.DataFrame, manifest: dict[str, Any]) -> None:
-    """Per label: cells replicated, robust, mean agreement; the cells awaiting replicas; then the
+def _print_robustness(
+    console: Console, cells: pd.DataFrame, manifest: dict[str, Any], state: ReplicaState
+) -> None:
+    """Per label: cells replicated, robust, mean agreement; what the replicas still lack; then the
     first uncertain cells."""
+    lacking = unfinished(state, cells)
     checked = cells[cells["replicas"] > 0]
     if checked.empty:
+        if lacking:
+            console.print(_text(lacking, 2000))
         return
     complete = checked[AWAITED] == 0
     table = Table(title="robustness (cells with replicas)", title_justify="left")
@@ -81,16 +89,18 @@ def _print_robustness(console: Console, cells: pd.DataFrame, manifest: dict[str,
             str(int(moved)),
         )
     console.print(table)
-    awaiting = int((~complete).sum())
-    if awaiting:
-        planned = int((checked["replicas"] + checked[AWAITED]).max())
+    awaiting = int((cells[AWAITED] > 0).sum())
+    if lacking:
+        console.print(_text(lacking, 2000))
+    elif awaiting:  # a run of an older version, which did not record its plan
+        planned = int((cells["replicas"] + cells[AWAITED]).max())
         console.print(
             f"{awaiting} cell(s) await replicas (fewer than the {planned} planned stored; a run cut "
             "short): not robust until the same run command, run again, adds them"
         )
     uncertain = checked[checked[ROBUST].eq(False).fillna(False).astype(bool)]
     if uncertain.empty:
-        if not awaiting:
+        if not awaiting and state.settled:
             console.print(f"every one of the {len(checked)} replicated cell(s) is robust")
         return
     axes = [c for c in manifest.get("axes", {}).values() if isinstance(c, str) and c in cells.columns]
@@ -210,9 +220,10 @@ def print_results(
     """
     pending = pending or {}
     replica_runs = beyond = 0
+    state = replica_state(df)
     if not df.empty:
         n_rows = len(df)
-        df = fold(df, planned=planned_replicas(manifest))
+        df = fold_cells(df, state=state)
         replica_runs = int(df["replicas"].sum())
         beyond = n_rows - len(df) - replica_runs
     inferred = inferred_mask(df)
@@ -228,11 +239,15 @@ def print_results(
     for key, column in manifest.get("axes", {}).items():
         if isinstance(column, str) and column in df.columns:  # a hand-edited manifest may hold anything
             name = str(key).rsplit(".", 1)[-1]
+            shown_key = str(key)
+            if len(shown_key) > LONG_KEY:  # a table title that long wraps: named once, in full, unwrapped
+                console.print(f"{_text(name)}: the axis {_text(shown_key, 2000)}", soft_wrap=True)
+                shown_key = name
             rules: list[str | None] = [*label_columns(df)] or [None]
             for by in rules:
                 rule = f": {by.removeprefix('label_')}" if by else ""
-                console.print(_table(f"by {key}{rule}", breakdown(df, column, by), name))
-    _print_robustness(console, df, manifest)
+                console.print(_table(f"by {shown_key}{rule}", breakdown(df, column, by), name))
+    _print_robustness(console, df, manifest, state)
     _print_reasons(console, df[~inferred])
 
 

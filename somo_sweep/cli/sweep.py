@@ -42,7 +42,22 @@ JOBS = Annotated[
     int,
     typer.Option("--jobs", "-j", help="Worker processes (loky); default: the CPUs this process may use."),
 ]
-_DRY_RUN = Annotated[bool, typer.Option("--dry-run", help="Print the job table; simulate nothing.")]
+_DRY_RUN = Annotated[
+    bool,
+    typer.Option(
+        "--dry-run",
+        help="Print the job table, the runs (replicas counted) and the time they take, from one trial "
+        "of the study timed; write nothing.",
+    ),
+]
+_ESTIMATE = Annotated[
+    bool,
+    typer.Option(
+        "--estimate/--no-estimate",
+        help="With --dry-run: time trial 0 of the study to estimate the run's wall time (default); "
+        "--no-estimate counts the runs only.",
+    ),
+]
 _BACKEND = Annotated[str, typer.Option(help="loky (this machine) or dask (a cluster).")]
 _SCHEDULER = Annotated[str | None, typer.Option(help="Dask scheduler address, tcp://HOST:8786.")]
 _OUT = Annotated[
@@ -91,6 +106,7 @@ def run(
     study: Annotated[Path, typer.Argument(help="Study file (YAML or JSON).")],
     jobs: JOBS = 0,
     dry_run: _DRY_RUN = False,
+    estimate: _ESTIMATE = True,
     backend: _BACKEND = "loky",
     scheduler: _SCHEDULER = None,
     out: _OUT = None,
@@ -121,7 +137,7 @@ def run(
             raise SomoError(f"--out {out} is a file, not a folder")
     except SomoError as exc:
         fail(exc)
-    st = _loaded(study, out, max_trials, allow_outside, options if dry_run else None)
+    st = _loaded(study, out, max_trials, allow_outside, options if dry_run else None, estimate)
     if st is None:  # a dry run: printed
         return
     summary = _run(st, options)
@@ -129,7 +145,12 @@ def run(
 
 
 def _loaded(
-    path: Path, out: Path | None, max_trials: int, allow_outside: bool, dry_run: RunOptions | None
+    path: Path,
+    out: Path | None,
+    max_trials: int,
+    allow_outside: bool,
+    dry_run: RunOptions | None,
+    estimate: bool = True,
 ) -> Study | None:
     """The study, or None once its dry run (with these options) is printed."""
     from somo_sweep.sweep.run.runner import apply_options
@@ -138,7 +159,7 @@ def _loaded(
     try:
         study = load_study(path, out, max_trials, allow_outside)
         if dry_run is not None:
-            _print_dry_run(apply_options(study, dry_run))
+            _print_dry_run(apply_options(study, dry_run), dry_run.workers, estimate)
             return None
         return study
     except SomoError as exc:
@@ -305,15 +326,25 @@ def _progress() -> Progress:
     )
 
 
-def _print_dry_run(st: Study) -> None:
-    """Count, then the first rows, without building the other jobs."""
+def _print_dry_run(st: Study, workers: int, estimate: bool = True) -> None:
+    """Count, then the first rows, without building the other jobs; then the runs and (with
+    ``estimate``) their time, from one trial timed."""
     from somo_sweep.sweep.jobs.table import first_jobs, jobs_frame
+    from somo_sweep.sweep.run.estimate import estimate_run
     from somo_sweep.sweep.run.sampling import describe
 
     typer.echo(
         f"{st.name}: task {st.task.name}, {st.n_trials} trials "
         f"({st.n_points} grid points x {st.repeats} repeat(s)), output {st.output}"
     )
+    if st.robustness.replicas:
+        spec = st.robustness
+        chosen = (
+            "every simulated cell"
+            if spec.where == "all"
+            else (f"the cells on a label boundary, and an audit of {spec.audit_fraction:.0%} of the others")
+        )
+        typer.echo(f"robustness: {spec.replicas} replicas of {chosen}")
     if st.sampling == "adaptive":
         typer.echo(describe(st))
     jobs = first_jobs(st, DRY_ROWS)
@@ -341,6 +372,10 @@ def _print_dry_run(st: Study) -> None:
     typer.echo(frame.to_string(index=False))
     if st.n_trials > DRY_ROWS:
         typer.echo(f"... {st.n_trials - DRY_ROWS} more")
+    if estimate:
+        typer.echo("timing trial 0 of the study (no result is written) ...", err=True)
+    for line in estimate_run(st, workers, estimate).lines():
+        typer.echo(line)
 
 
 def tasks(

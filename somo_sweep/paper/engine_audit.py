@@ -27,7 +27,7 @@ from somo_sweep.tasks.pinch_grasp.classify import (
 )
 from somo_sweep.tasks.pinch_grasp.legacy import upgrade_table
 
-__all__ = ["AXES", "ENGINES", "engine_audit"]
+__all__ = ["AXES", "ENGINES", "audit_mismatch", "engine_audit"]
 
 #: The engines compared, the reference first.
 ENGINES = ("pybullet", "mujoco")
@@ -53,6 +53,7 @@ def _cells(table: pd.DataFrame, label: str, engine: str) -> pd.DataFrame:
         if col is None:
             raise SomoError(f"the {engine} run has no {axis} column: is it a pinch_grasp study?")
         out[axis] = folded[col].astype(float).round(DECIMALS)
+    out["trial"] = folded["trial"].to_numpy() if "trial" in folded else range(len(folded))
     out["label"] = folded[f"{label}_majority"]
     out["robust"] = folded["robust"].fillna(False).astype(bool)
     for name in _METRICS:
@@ -124,7 +125,7 @@ def engine_audit(pybullet: pd.DataFrame, mujoco: pd.DataFrame, rule: str = "cont
     if rule not in LABEL:
         raise SomoError(f"unknown grasp rule '{rule}'; allowed: {', '.join(LABEL)}")
     a, b = (_cells(t, LABEL[rule], e) for t, e in ((pybullet, "pybullet"), (mujoco, "mujoco")))
-    both = a.merge(b, on=list(AXES), suffixes=("_pybullet", "_mujoco"))
+    both = a.merge(b, on=[*AXES, "trial"], suffixes=("_pybullet", "_mujoco"))  # the same grid: one trial
     robust = both[both["robust_pybullet"] & both["robust_mujoco"]]
     same = robust["label_pybullet"] == robust["label_mujoco"]
     differ = robust[~same].sort_values(list(AXES))
@@ -147,3 +148,61 @@ def engine_audit(pybullet: pd.DataFrame, mujoco: pd.DataFrame, rule: str = "cont
             for _, r in differ.iterrows()
         ],
     }
+
+
+#: Parameter columns an engine's own numerics set: they differ between the engines by design.
+ENGINE_OWN = ("task_numerics_",)
+
+
+def _cell_keys(table: pd.DataFrame, columns: list[str]) -> pd.DataFrame:
+    """The cells of a results table (own trials) as text keys: floats to 9 significant digits."""
+    own = table
+    if "replica" in own.columns:
+        own = own[pd.to_numeric(own["replica"], errors="coerce").fillna(0) == 0]
+    if "inferred" in own.columns:
+        own = own[~own["inferred"].fillna(False).astype(bool)]
+    keys = pd.DataFrame(index=own.index)
+    for c in columns:
+        values = own[c]
+        keys[c] = values.map(lambda v: f"{v:.9g}" if isinstance(v, float) else str(v))
+    return keys
+
+
+def audit_mismatch(results: pd.DataFrame, audit: pd.DataFrame, engine: str) -> str | None:
+    """Why ``audit`` (one engine's run of an audit) is not an audit of ``results``, or None.
+
+    Every audit cell must be a cell of the results: the same model (``model_hash``) and the same
+    task parameters (the engines' own numerics aside), at a DSR, width and centering the results
+    hold.
+    """
+    cols = [str(c) for c in results.columns]
+    shared = [
+        c
+        for c in cols
+        if c in audit.columns
+        and (c == "model_hash" or c.startswith("task_"))
+        and not c.startswith(ENGINE_OWN)
+    ]
+    mine, theirs = _cell_keys(results, shared), _cell_keys(audit, shared)
+    known = set(mine.itertuples(index=False, name=None))
+    rows = zip(theirs.index, theirs.itertuples(index=False, name=None), strict=True)
+    missing = [i for i, key in rows if key not in known]
+    if not missing:
+        return None
+    first = theirs.loc[missing[0]]
+    axes = [find_column(cols, a) for a in AXES]
+    where = ", ".join(f"{a} {first[c]}" for a, c in zip(AXES, axes, strict=True) if c in first)
+    same = mine
+    for c in axes:
+        if c is not None and c in mine:
+            same = same[same[c] == first[c]]
+    if same.empty:
+        why = "the results have no cell there"
+    else:
+        other = same.iloc[0]
+        differ = [c for c in shared if other[c] != first[c]]
+        why = "; ".join(f"{c} {first[c]} (the results: {other[c]})" for c in differ[:3])
+    return (
+        f"{len(missing)} of its {len(theirs)} {engine} cells are not cells of these results (the same "
+        f"model and task parameters): at {where}, {why}; give the audit of this study's cells"
+    )

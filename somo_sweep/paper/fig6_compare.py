@@ -16,6 +16,7 @@ from typing import Any
 import numpy as np
 import pandas as pd
 
+from somo_sweep.errors import SomoError
 from somo_sweep.paper.artifacts import Artifacts
 from somo_sweep.paper.fig6 import (
     BASE_DISTANCE_LABEL,
@@ -24,6 +25,7 @@ from somo_sweep.paper.fig6 import (
     DSR_DECIMALS,
     check_max_dsr,
     draw_dsr_panel,
+    extra_axes,
     smallest_all_width_pinch_dsr,
 )
 
@@ -64,7 +66,18 @@ def build(sides: list[Side], max_dsr: float = 0.5, paper_style: bool = False) ->
     """The side-by-side figure (``fig6_compare``) and each side's headline.
 
     Every panel shares the x range (c, mm) and the width rows of the union of the sides' grids.
+
+    Raises:
+        SomoError: A side sweeps an axis besides DSR, width and c (its panels would draw two
+            trials in one cell), naming it; or a bad ``max_dsr``.
     """
+    for side in sides:
+        extras = extra_axes(side.table)
+        if extras:
+            raise SomoError(
+                f"{side.name} also sweeps {', '.join(extras)}: a side-by-side panel holds one value of "
+                "each; compare folders of one value (somo-sweep paper fig6 draws a row per value)"
+            )
     import matplotlib.pyplot as plt
     from matplotlib.patches import Patch
 

@@ -155,11 +155,14 @@ def relabel(
     runs["status"] = "ok"  # a run that is not ok carries its status as its label already
     runs[name] = labels
     runs["inferred"] = inferred_rows(table)
-    from somo_sweep.sweep.store.folder import REPLICAS_PLANNED
+    from somo_sweep.sweep.run.replica_state import replica_state, unfinished
+    from somo_sweep.sweep.store.folder import REPLICAS_PLANNED, missing_trials
 
-    cells = fold(runs, [name], planned=table.attrs.get(REPLICAS_PLANNED))
+    state = replica_state(table)
+    cells = fold(runs, [name], planned=table.attrs.get(REPLICAS_PLANNED), chosen=state.chosen)
     out = cells[[*keep, name, "inferred"]].copy()
-    if (cells["replicas"] > 0).any():
+    out.attrs["replicas_unfinished"] = unfinished(state, cells)
+    if ((cells["replicas"] > 0) | (cells["replicas_awaited"] > 0)).any():
         out[f"{name}_majority"] = cells[f"{name}_majority"]
         out[f"{name}_agreement"] = cells[f"{name}_agreement"].where(cells["replicas"] > 0)
         out["replicas"] = cells["replicas"]
@@ -168,6 +171,8 @@ def relabel(
         counted = out[f"{name}_majority"]
     else:
         counted = out[name]
+    if (missing := missing_trials(table, len(out))) is not None:
+        out.attrs["trials_missing"] = f"{missing}: the labels are of those only"
     if rule == "paper":
         out.attrs["rows_without_final_counts"] = rows_without_final_counts(table)
     return dict(sorted(Counter(str(v) for v in counted).items())), out

@@ -24,7 +24,7 @@ from somo_sweep.model.load import Model
 from somo_sweep.model.spec import Spec
 from somo_sweep.sim.settings import WorldSettings
 
-__all__ = ["TaskParams", "TaskResult", "TaskSpec", "all_tasks", "get_task", "register"]
+__all__ = ["MetricGuide", "TaskParams", "TaskResult", "TaskSpec", "all_tasks", "get_task", "register"]
 
 Status = Literal["ok", "unstable", "error"]
 
@@ -58,6 +58,19 @@ class TaskResult:
 
 
 TaskFn = Callable[[Model, Any, WorldSettings, int], TaskResult]
+
+
+@dataclass(frozen=True)
+class MetricGuide:
+    """How to read a metric whose name does not say it all (the summary plots write it on the axis).
+
+    Attributes:
+        unit: Its unit or scale in words, e.g. ``share of the hold force (0-1)``.
+        lines: Thresholds worth a line on its plot: (value, what the line separates).
+    """
+
+    unit: str = ""
+    lines: tuple[tuple[float, str], ...] = ()
 
 
 @dataclass(frozen=True)
@@ -114,6 +127,9 @@ class TaskSpec:
             them), so that a study naming another one (``adaptive.labels``,
             ``robustness.labels``) is refused when it loads; None: not declared, and only the
             trials' own labels are checked, once they ran.
+        guides_path: ``"package.module:attribute"`` of a mapping metric → :class:`MetricGuide`:
+            how to read the metrics whose names do not say it all (imported on first use, as the
+            thresholds it draws belong to the task's labelling code); empty: none.
     """
 
     name: str
@@ -132,6 +148,7 @@ class TaskSpec:
     summary_metrics: tuple[str, ...] = ()
     labels: tuple[str, ...] | None = None
     replaces: Mapping[str, tuple[str, ...]] = field(default_factory=dict)
+    guides_path: str = ""
 
     def declares(self, metric: str) -> bool:
         """Whether ``metric`` is one the task declares: in ``metrics``, or a numbered one."""
@@ -141,6 +158,14 @@ class TaskSpec:
             re.fullmatch(re.escape(name).replace(r"\{k\}", "[1-9][0-9]*"), metric)
             for name in self.numbered_metrics
         )
+
+    @property
+    def metric_guides(self) -> Mapping[str, MetricGuide]:
+        """How to read the task's metrics (see ``guides_path``), imported on first use."""
+        if not self.guides_path:
+            return {}
+        guides: Mapping[str, MetricGuide] = _imported(self.guides_path)
+        return guides
 
     @property
     def run(self) -> TaskFn:

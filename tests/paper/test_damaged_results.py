@@ -271,3 +271,34 @@ def test_a_manifest_nested_too_deeply_is_named_damaged(tmp_path: Path) -> None:
         read_manifest(folder)
     code, out = _invoke("show", str(folder))
     assert code == 2 and "nested too deeply" in out
+
+
+def test_trials_missing_because_a_part_file_is_damaged_are_not_blamed_on_a_run_cut_short(
+    tmp_path: Path,
+) -> None:
+    """fig6 and classify said "(a run unfinished or still going)" of a folder whose runs completed."""
+    folder = results_folder(tmp_path)
+    runs = [{"status": "completed", "start_utc": "t"}]
+    (folder / "manifest.json").write_text(json.dumps({"study_hash": "h", "n_trials": 6, "runs": runs}))
+    (folder / "trials" / "part-1.parquet").write_bytes(b"PAR1 half a file")
+    for command in (["paper", "fig6", str(folder), "--out", str(tmp_path / "f")], ["classify", str(folder)]):
+        code, out = _invoke(*command)
+        text = " ".join(out.split())
+        assert code == 0, out
+        assert "note: 3 of the study's 6 trials are readable: 1 damaged file(s) were left out" in text
+        assert "unfinished" not in text and "cut short" not in text
+    (folder / "trials" / "part-1.parquet").unlink()
+    runs[0]["status"] = "aborted"
+    (folder / "manifest.json").write_text(json.dumps({"study_hash": "h", "n_trials": 6, "runs": runs}))
+    code, out = _invoke("classify", str(folder))
+    assert "3 of the study's 6 trials are stored (the last run was killed)" in " ".join(out.split())
+
+
+def test_plot_of_a_folder_without_a_readable_trial_says_so_and_writes_nothing(tmp_path: Path) -> None:
+    """It wrote an empty plot and exited 0."""
+    folder = results_folder(tmp_path)
+    (folder / "trials" / "part-0.parquet").write_bytes(b"PAR1 half a file")
+    code, out = _invoke("plot", str(folder))
+    assert code == 2
+    assert "no trial stored that can be read: 1 damaged file(s) were left out" in " ".join(out.split())
+    assert not (folder / "plots").exists()

@@ -116,3 +116,35 @@ def test_fig6_with_an_audit_prints_it_and_stores_it_in_its_json(tmp_path: Path) 
     assert (stored["robust_on_both"], stored["agree"], len(stored["disagreements"])) == (2, 1, 1)
     missing = CliRunner().invoke(app, [*args[:-1], str(tmp_path / "nowhere")])
     assert missing.exit_code == 2 and "--audit" in missing.output
+
+
+def test_an_audit_of_other_cells_or_another_gripper_is_refused(tmp_path: Path) -> None:
+    """An audit of another study ("agree on 2 of 2 … 100 %") was accepted and stored."""
+    from test_fig6 import results_folder
+
+    folder = results_folder(tmp_path)
+    trials = pd.read_parquet(folder / "trials").assign(model_hash="gripper-a")
+    trials.to_parquet(folder / "trials" / "part-0.parquet")
+
+    def audit_of(name: str, cells: list[tuple[float, float, float, list[str], float]], model: str) -> Path:
+        audit = tmp_path / name
+        for engine in ("pybullet", "mujoco"):
+            (audit / engine / "trials").mkdir(parents=True)
+            (audit / engine / "manifest.json").write_text(json.dumps({"study_hash": "h"}))
+            _run(cells).assign(model_hash=model).to_parquet(audit / engine / "trials" / "part-0.parquet")
+        return audit
+
+    def fig6(audit: Path) -> tuple[int, str]:
+        args = ["paper", "fig6", str(folder), "--out", str(tmp_path / "fig"), "--audit", str(audit)]
+        result = CliRunner().invoke(app, args)
+        return result.exit_code, " ".join(result.output.split())
+
+    here = [(0.2, 0.04, 0.1, ["pinch"] * 3, 0.1), (0.2, 0.04, 0.105, ["power"] * 3, 0.4)]
+    elsewhere = [(0.3, 0.08, 0.15, ["pinch"] * 3, 0.1), (0.3, 0.08, 0.16, ["pinch"] * 3, 0.1)]
+    code, text = fig6(audit_of("other_cells", elsewhere, "gripper-a"))
+    assert code == 2 and "2 of its 2 PyBullet cells are not cells of these results" in text
+    assert "the results have no cell there" in text and not (folder / "fig6_contacts.json").exists()
+    code, text = fig6(audit_of("other_gripper", here, "gripper-b"))
+    assert code == 2 and "model_hash gripper-b (the results: gripper-a)" in text
+    code, text = fig6(audit_of("this_one", here, "gripper-a"))
+    assert code == 0 and "agree on 2 of the 2 cells robust on both" in text

@@ -145,3 +145,22 @@ def test_a_cell_awaiting_some_of_its_planned_replicas_is_not_counted_in_the_head
     assert info["robustness"]["robust"] == 0 and info["robustness"]["awaiting_replicas"] == 1
     res = CliRunner().invoke(app, ["classify", str(folder)])
     assert "1 cell(s) with replicas, 0 robust under rule contacts, 0 not, 1 await replicas" in res.output
+
+
+def test_cells_without_replicas_and_awaiting_them_are_drawn_apart_from_robust_ones() -> None:
+    """An unreplicated cell looked like a robust one."""
+    import matplotlib.pyplot as plt
+
+    from somo_sweep.paper.fig6 import AWAITING_HATCH, UNCHECKED_ALPHA
+
+    table = with_robustness(tidy({(0.1, 0.01): ["pinch", "pinch", "power"]}), set())
+    table["replicas"] = [4, 0, 0]
+    table["replicas_awaited"] = [0, 0, 4]
+    table["robust"] = pd.array([True, pd.NA, pd.NA], dtype="boolean")
+    fig, ax = plt.subplots()
+    draw_dsr_panel(ax, table, 0.1)
+    robust, bare, waiting = ax.patches
+    plt.close(fig)
+    assert robust.get_alpha() in (None, 1.0) and robust.get_hatch() is None
+    assert bare.get_alpha() == UNCHECKED_ALPHA and bare.get_hatch() is None
+    assert waiting.get_hatch() == AWAITING_HATCH

@@ -336,3 +336,53 @@ def test_compare_engines_stopped_during_the_first_engine_does_not_run_the_second
         in res.output
     )
     assert not (out / "engines.json").exists()
+
+
+def test_a_metric_no_trial_has_on_both_engines_is_said_so_not_nan() -> None:
+    """It printed "nan (nan% of its range nan)"."""
+    nan = float("nan")
+    base = {"trial": [0, 1], "task_pressure_kpa": [0.0, 100.0], "status": ["ok"] * 2}
+    first = pd.DataFrame({**base, "blocked_force_n": [nan, 1.0], "tip_x_mm": [0.0, 1.0]})
+    second = pd.DataFrame({**base, "blocked_force_n": [nan, nan], "tip_x_mm": [0.0, 1.0]})
+    result = compare(first, second, ("pybullet", "mujoco"), ("task_pressure_kpa",))
+    lines = result.lines()
+    assert (
+        "blocked_force_n: no trial has a value on both engines (trials with one: pybullet 1, mujoco 0)"
+        in lines
+    )
+    assert not any("nan" in line for line in lines)
+
+
+def _compare_into(tmp_path: Path, out: Path) -> tuple[int, str]:
+    path = _study(tmp_path, "{time_step_s: 4.0e-3}", extra="sweep:\n  task.object_width_m: [0.01]\n")
+    res = CliRunner().invoke(app, ["compare-engines", str(path), "--out", str(out), "--jobs", "1"])
+    return res.exit_code, " ".join(res.output.split())
+
+
+def test_compare_engines_refuses_a_folder_run_would_refuse_before_running_anything(tmp_path: Path) -> None:
+    """It wrote into a starter folder and into another study's results folder."""
+    pytest.importorskip("mujoco")
+    starter = tmp_path / "mine"
+    starter.mkdir()
+    (starter / "finger.yaml").write_text("# my finger\n")
+    code, text = _compare_into(tmp_path, starter)
+    assert code == 2 and "is not empty (finger.yaml) and is not a compare-engines folder" in text
+    assert sorted(p.name for p in starter.iterdir()) == ["finger.yaml"]
+    results = tmp_path / "results"
+    (results / "trials").mkdir(parents=True)
+    (results / "manifest.json").write_text(json.dumps({"study_hash": "h"}))
+    code, text = _compare_into(tmp_path, results)
+    assert code == 2 and "is a results folder of a study" in text
+    assert sorted(p.name for p in results.iterdir()) == ["manifest.json", "trials"]
+
+
+def test_compare_engines_never_replaces_a_users_engines_csv_or_json(tmp_path: Path) -> None:
+    """``--out DIR`` overwrote a user's engines.csv / engines.json."""
+    pytest.importorskip("mujoco")
+    for name, text in (("engines.csv", "cell,mine\n1,2\n"), ("engines.json", '{"mine": 1}\n')):
+        out = tmp_path / name.replace(".", "_")
+        out.mkdir()
+        (out / name).write_text(text)
+        code, said = _compare_into(tmp_path, out)
+        assert code == 2 and f"{out / name} exists and" in said and "nothing was written" in said
+        assert (out / name).read_text() == text and not (out / "pybullet").exists()

@@ -274,7 +274,8 @@ def test_a_cell_with_part_of_its_replicas_is_not_robust_and_show_says_it_awaits_
     assert shown.exit_code == 0, shown.output
     text = " ".join(shown.output.split())  # rich wraps long lines
     assert "is robust" not in text
-    assert "1 cell(s) await replicas (fewer than the 4 planned stored" in text
+    # both boundary cells await: the one with 2 of its 4, and the one with none stored yet
+    assert "2 cell(s) await some of their 4 replicas (1 with none stored yet)" in text
     run_sweep(load_study(path, tmp_path / "out"), RunOptions(n_jobs=1))  # the resume adds the rest
     cells = fold(read_results(tmp_path / "out"))
     assert cells.loc[cells["replicas"] > 0, "replicas"].tolist() == [4, 4]

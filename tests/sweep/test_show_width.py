@@ -42,3 +42,27 @@ def test_a_two_rule_grasp_study_is_shown_in_80_columns_with_every_header_whole()
     assert "…" not in text
     assert "by task.distal_segment_ratio: grasp_paper" in text
     assert "no_grasp" in text and "distal_segment_ratio" in text
+
+
+def test_a_long_star_key_path_is_named_once_whole_and_no_title_wraps() -> None:
+    """A ``[*]`` stiffness axis's title "by model.assembly.manipulators[*]…" wrapped over 3 lines."""
+    key = "model.assembly.manipulators[*].manipulator.actuators[0].joints[0].stiffness_n_m_per_rad"
+    column = "model_assembly_manipulators_all_manipulator_actuators_0_joints_0_stiffness_n_m_per_rad"
+    df = pd.DataFrame(
+        {
+            "trial": range(4),
+            "status": "ok",
+            "replica": 0,
+            "wall_time_s": 1.0,
+            "message": "",
+            column: [0.4, 0.4, 0.6, 0.6],
+            "label_grasp": ["pinch", "power"] * 2,
+        }
+    )
+    manifest = {"study_name": "g", "study_hash": "0" * 16, "n_trials": 4, "runs": [], "axes": {key: column}}
+    out = io.StringIO()
+    print_results(Console(file=out, width=80), df, manifest)
+    lines = out.getvalue().splitlines()
+    assert f"stiffness_n_m_per_rad: the axis {key}" in lines  # once, whole, on one line
+    assert any(line.strip() == "by stiffness_n_m_per_rad: grasp" for line in lines)
+    assert max(len(line) for line in lines if key not in line) <= 80

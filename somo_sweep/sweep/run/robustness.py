@@ -14,9 +14,11 @@ outcome of its status.
 
 A cell is robust only when all its planned replicas ran. The planned count is the one the
 folder's latest run that ran replicas asked for (its manifest entry's ``replicas``,
-:func:`~somo_sweep.sweep.store.folder.planned_replicas`); a run cut short leaves cells with fewer:
-they *await replicas* (``replicas_awaited`` > 0) and are not robust until a resumed run adds
-the rest (``robust`` stays missing, or False if the runs stored already disagree). Replicas
+:func:`~somo_sweep.sweep.store.folder.planned_replicas`); a run cut short leaves cells with fewer,
+or none yet: they *await replicas* (``replicas_awaited`` > 0) and are not robust until a resumed
+run adds the rest (``robust`` stays missing, or False if the runs stored already disagree).
+Which cells the plan chose is replayed from the stored outcomes (:class:`ReplicaChoice`, which
+the run records in its manifest entry; :mod:`somo_sweep.sweep.run.replica_state`). Replicas
 numbered above the planned count (stored by an earlier run that asked for more) are left out,
 so the readers fold what the latest run reported.
 
@@ -33,7 +35,7 @@ from __future__ import annotations
 import json
 import math
 from collections import Counter
-from collections.abc import Iterator, Sequence
+from collections.abc import Callable, Collection, Iterator, Sequence
 from typing import Any
 
 import numpy as np
@@ -46,7 +48,16 @@ from somo_sweep.sweep.run.sampling import Batch, Known
 from somo_sweep.sweep.store.folder import REPLICAS_PLANNED
 from somo_sweep.sweep.study.loaded import Study
 
-__all__ = ["AWAITED", "ROBUST", "ReplicaPlan", "boundary_mask", "fold", "label_names"]
+__all__ = [
+    "AWAITED",
+    "ROBUST",
+    "Outcome",
+    "ReplicaChoice",
+    "ReplicaPlan",
+    "boundary_mask",
+    "fold",
+    "label_names",
+]
 
 #: The column of :func:`fold` that says whether every run of a cell agrees.
 ROBUST = "robust"
@@ -78,6 +89,120 @@ def boundary_mask(keys: np.ndarray, dims: int) -> np.ndarray:
     return out
 
 
+#: (status, labels) of one run: what a replica plan decides from.
+Outcome = tuple[str, dict[str, str]]
+
+
+class ReplicaChoice:
+    """Which cells a replica plan chooses, round after round, from the outcomes of their runs.
+
+    Pure: it sees a cell only through ``own(trial)`` (its own trial's outcome, None when not
+    stored) and ``replicas(trial)`` (its replicas' outcomes stored so far), so the run and the
+    readers (:mod:`somo_sweep.sweep.run.replica_state`) replay the same choice.
+
+    Args:
+        shape: The grid's shape: one dimension per axis group, then the repeats.
+        replicas: Replicas per chosen cell (K).
+        where: ``boundary`` or ``all``.
+        audit_fraction: Share of the other simulated cells audited.
+        seed: The study's seed (of the audit's draw).
+        labels: Label names (without ``label_``) that decide; empty: every label.
+    """
+
+    def __init__(
+        self,
+        shape: tuple[int, ...],
+        replicas: int,
+        where: str,
+        audit_fraction: float,
+        seed: int,
+        labels: Sequence[str] = (),
+    ):
+        self.shape, self.k, self.where = tuple(shape), replicas, where
+        self.audit_fraction, self.seed, self.labels = audit_fraction, seed, list(labels)
+        self.dims = len(self.shape) - 1
+        self._codes: dict[str, int] = {}
+        #: Trials replicated, and how they were chosen (for the summary and the manifest).
+        self.replicated: set[int] = set()
+        self.boundary = 0
+        self.audited = 0
+        self.moved = 0
+
+    def _code(self, status: str, labels: dict[str, str]) -> int:
+        names = self.labels or sorted(labels)
+        text = status if status != "ok" else json.dumps([[n, labels.get(n)] for n in names])
+        return self._codes.setdefault(text, len(self._codes))
+
+    def _keys(
+        self, own: OwnOutcome, replicas: ReplicaOutcomes, inferred: dict[int, Outcome], majority: bool
+    ) -> np.ndarray:
+        keys = np.full(int(np.prod(self.shape)), UNKNOWN, dtype=np.int64)
+        for trial in range(keys.size):
+            out = own(trial) or inferred.get(trial)
+            if out is None:
+                continue
+            code = self._code(*out)
+            if majority and trial in self.replicated:
+                code = _majority([code] + [self._code(*r) for r in replicas(trial)])
+            keys[trial] = code
+        return keys.reshape(self.shape)
+
+    def rounds(
+        self, own: OwnOutcome, replicas: ReplicaOutcomes, inferred: dict[int, Outcome] | None = None
+    ) -> Iterator[set[int]]:
+        """The cells (trial numbers) each round chooses; the next round is chosen, when asked
+        for, from the outcomes ``own`` and ``replicas`` give then.
+
+        Args:
+            own: A trial's own outcome, None where it is not stored (not simulated).
+            replicas: The outcomes of a trial's replicas stored so far (numbers 1 … K).
+            inferred: The outcomes of the cells an adaptive run did not simulate, by trial.
+        """
+        if self.k <= 0:
+            return
+        inferred = inferred or {}
+        size = int(np.prod(self.shape))
+        simulated = np.array([own(t) is not None for t in range(size)], dtype=bool).reshape(self.shape)
+        if self.where == "all":
+            chosen = set(np.flatnonzero(simulated).tolist())
+        else:
+            edge = boundary_mask(self._keys(own, replicas, inferred, False), self.dims) & simulated
+            chosen = set(np.flatnonzero(edge).tolist())
+            self.boundary = len(chosen)
+            rest = np.flatnonzero(simulated & ~edge)
+            n_audit = math.ceil(self.audit_fraction * len(rest)) if len(rest) else 0
+            if n_audit:
+                rng = np.random.default_rng([self.seed, 0x524F42])
+                audit = rng.choice(rest, size=n_audit, replace=False)
+                chosen |= set(int(t) for t in audit)
+                self.audited = n_audit
+        number = 0
+        while chosen and number < MAX_ROUNDS:
+            yield chosen
+            self.replicated |= chosen
+            before = self._keys(own, replicas, inferred, False)
+            after = self._keys(own, replicas, inferred, True)
+            self.moved = int((before != after).sum())
+            edge = boundary_mask(after, self.dims) & simulated
+            chosen = set(np.flatnonzero(edge).tolist()) - self.replicated
+            number += 1
+
+    def record(self) -> dict[str, Any]:
+        """What a reader needs to replay the choice (the run's manifest entry keeps it)."""
+        return {
+            "shape": list(self.shape),
+            "where": self.where,
+            "audit_fraction": self.audit_fraction,
+            "seed": self.seed,
+            "labels": self.labels,
+        }
+
+
+#: A trial's own outcome (None: not stored); the outcomes of its replicas stored so far.
+OwnOutcome = Callable[[int], Outcome | None]
+ReplicaOutcomes = Callable[[int], list[Outcome]]
+
+
 class ReplicaPlan:
     """The replica rounds of one study.
 
@@ -92,21 +217,14 @@ class ReplicaPlan:
         self.jobs = table.jobs
         self.ids = [i.decode() for i in table.ids]  # trial number -> job id (jobs built when needed)
         self.k = spec.replicas
-        self.where = spec.where
-        self.audit_fraction = spec.audit_fraction
-        self.labels = [n.removeprefix("label_") for n in (spec.labels or study.adaptive.labels)]
         # One dimension per axis group (a cells: table is one, its rows in order).
         values = {a.key: a.values for a in study.axes}
         shape = tuple(len(values[g[0]]) for g in study.groups)
-        self.dims = len(shape)
-        self.shape = (*shape, study.repeats)
+        labels = [n.removeprefix("label_") for n in (spec.labels or study.adaptive.labels)]
+        self.choice = ReplicaChoice(
+            (*shape, study.repeats), spec.replicas, spec.where, spec.audit_fraction, study.seed, labels
+        )
         self._replicas: dict[int, list[Job]] = {}
-        self._codes: dict[str, int] = {}
-        #: Trials replicated, and how they were chosen (for the summary and the manifest).
-        self.replicated: set[int] = set()
-        self.boundary = 0
-        self.audited = 0
-        self.moved = 0
 
     def replicas(self, trial: int) -> list[Job]:
         """The replica jobs of one trial (built once)."""
@@ -116,27 +234,10 @@ class ReplicaPlan:
             self._replicas[trial] = replica_jobs(self.jobs[trial], self.k, perturb)
         return self._replicas[trial]
 
-    def _code(self, status: str, labels: dict[str, str]) -> int:
-        names = self.labels or sorted(labels)
-        text = status if status != "ok" else json.dumps([[n, labels.get(n)] for n in names])
-        return self._codes.setdefault(text, len(self._codes))
-
-    def _keys(
-        self, known: Known, inferred: dict[int, tuple[str, dict[str, str]]], majority: bool
-    ) -> np.ndarray:
-        keys = np.full(int(np.prod(self.shape)), UNKNOWN, dtype=np.int64)
-        for trial, job_id in enumerate(self.ids):
-            out = known.get(job_id) or inferred.get(trial)
-            if out is None:
-                continue
-            code = self._code(*out)
-            if majority and trial in self.replicated:
-                runs = [code] + [
-                    self._code(*known[r.job_id]) for r in self.replicas(trial) if r.job_id in known
-                ]
-                code = _majority(runs)
-            keys[trial] = code
-        return keys.reshape(self.shape)
+    @property
+    def replicated(self) -> set[int]:
+        """Trials replicated so far."""
+        return self.choice.replicated
 
     def rounds(
         self, known: Known, inferred: dict[int, tuple[str, dict[str, str]]] | None = None
@@ -148,48 +249,28 @@ class ReplicaPlan:
                 each outcome before asking for the next round.
             inferred: (status, labels) of the cells an adaptive run did not simulate, by trial.
         """
-        if self.k <= 0:
-            return
-        inferred = inferred or {}
-        simulated = np.zeros(self.shape, dtype=bool).reshape(-1)
-        for trial, job_id in enumerate(self.ids):
-            simulated[trial] = job_id in known
-        simulated = simulated.reshape(self.shape)
-        if self.where == "all":
-            chosen = set(np.flatnonzero(simulated).tolist())
-        else:
-            edge = boundary_mask(self._keys(known, inferred, False), self.dims) & simulated
-            chosen = set(np.flatnonzero(edge).tolist())
-            self.boundary = len(chosen)
-            rest = np.flatnonzero(simulated & ~edge)
-            n_audit = math.ceil(self.audit_fraction * len(rest)) if len(rest) else 0
-            if n_audit:
-                rng = np.random.default_rng([self.study.seed, 0x524F42])
-                audit = rng.choice(rest, size=n_audit, replace=False)
-                chosen |= set(int(t) for t in audit)
-                self.audited = n_audit
-        number = 0
-        while chosen and number < MAX_ROUNDS:
+
+        def own(trial: int) -> Outcome | None:
+            return known.get(self.ids[trial])
+
+        def replicas(trial: int) -> list[Outcome]:
+            return [known[r.job_id] for r in self.replicas(trial) if r.job_id in known]
+
+        for number, chosen in enumerate(self.choice.rounds(own, replicas, inferred)):
             todo = [r for t in sorted(chosen) for r in self.replicas(t) if r.job_id not in known]
             if todo:
                 yield Batch(number, len(chosen), todo, kind="replicas", replicas=self.k)
-            self.replicated |= chosen
-            before = self._keys(known, inferred, False)
-            after = self._keys(known, inferred, True)
-            self.moved = int((before != after).sum())
-            edge = boundary_mask(after, self.dims) & simulated
-            chosen = set(np.flatnonzero(edge).tolist()) - self.replicated
-            number += 1
 
     def summary(self) -> dict[str, Any]:
         """What the plan did (for the manifest)."""
+        choice = self.choice
         return {
             "replicas": self.k,
-            "where": self.where,
-            "cells_replicated": len(self.replicated),
-            "boundary_cells": self.boundary,
-            "audited_cells": self.audited,
-            "cells_whose_majority_moved": self.moved,
+            "where": choice.where,
+            "cells_replicated": len(choice.replicated),
+            "boundary_cells": choice.boundary,
+            "audited_cells": choice.audited,
+            "cells_whose_majority_moved": choice.moved,
         }
 
 
@@ -212,7 +293,10 @@ def label_names(table: pd.DataFrame) -> list[str]:
 
 
 def fold(
-    table: pd.DataFrame, labels: Sequence[str] | None = None, planned: int | None = None
+    table: pd.DataFrame,
+    labels: Sequence[str] | None = None,
+    planned: int | None = None,
+    chosen: Collection[int] | None = None,
 ) -> pd.DataFrame:
     """One row per cell: its own trial's row plus, for every label, the majority, the agreement
     and the number of runs, and ``robust`` (module docstring).
@@ -224,6 +308,10 @@ def fold(
         planned: Replicas planned per replicated cell; default: the table's
             ``attrs[REPLICAS_PLANNED]`` (set by ``read_results`` from the manifest), else the
             most replicas stored for one cell.
+        chosen: The cells (trial numbers) the plan chose for replicas
+            (:func:`~somo_sweep.sweep.run.replica_state.replica_state`): one of them with fewer
+            replicas stored than planned awaits the rest, even with none stored yet. None: only
+            the cells with some replicas stored are known to be chosen.
 
     Returns:
         The cells' own rows, in grid order, with ``replicas`` (replica runs stored and folded),
@@ -248,7 +336,10 @@ def fold(
     extra = table[replica > 0]
     counts = extra.groupby("trial").size() if len(extra) else pd.Series(dtype=int)
     own["replicas"] = own["trial"].map(counts).fillna(0).astype(int).to_numpy()
-    own[AWAITED] = np.where(own["replicas"] > 0, (planned - own["replicas"]).clip(lower=0), 0)
+    picked = own["replicas"] > 0
+    if chosen is not None:
+        picked |= own["trial"].isin(list(chosen))
+    own[AWAITED] = np.where(picked, (planned - own["replicas"]).clip(lower=0), 0)
     if not names:
         own[ROBUST] = pd.array([pd.NA] * len(own), dtype="boolean")
         return own.reset_index(drop=True)

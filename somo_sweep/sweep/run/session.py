@@ -157,7 +157,11 @@ class _Session:
                 "n_jobs": self.options.workers if backend == "loky" else None,
                 **planned,
                 "sampling": summary.sampling,
-                **({"replicas": self.study.robustness.replicas} if self.replicas else {}),
+                **(
+                    {"replicas": self.replicas.k, "replica_plan": self.replicas.choice.record()}
+                    if self.replicas
+                    else {}
+                ),
             }
         )
         self.started = True

@@ -35,27 +35,46 @@ from somo_sweep.sweep.store.parts import (
     split_parts,
 )
 from somo_sweep.sweep.store.schema import COLUMNS
+from somo_sweep.sweep.store.table_record import (
+    LATEST_RUN,
+    REPLICA_RUN,
+    REPLICAS_PLANNED,
+    SKIPPED,
+    STUDY_TRIALS,
+    SWEPT_AXES,
+    missing_trials,
+    planned_replicas,
+    replica_run,
+    with_record,
+)
 
 __all__ = [
     "INFERRED",
     "JOURNAL_GLOB",
+    "LATEST_RUN",
     "MANIFEST",
     "PART_GLOB",
     "QUARANTINE",
     "REPEATS",
     "REPLICAS_PLANNED",
+    "REPLICA_RUN",
+    "SKIPPED",
+    "STUDY_TRIALS",
+    "SWEPT_AXES",
     "UNREADABLE",
     "Damage",
     "DamagedPartWarning",
     "declared_types",
     "journal_rows",
     "max_part_rows",
+    "missing_trials",
     "nothing_stored",
     "part_files",
     "pending_journal_rows",
     "planned_replicas",
     "read_manifest",
     "read_results",
+    "replica_run",
     "split_parts",
 ]
 
@@ -71,9 +90,6 @@ JOURNAL_GLOB = ".journal-*.jsonl"
 #: Where damaged part files go, inside ``trials/``; their names get a ``_`` prefix so that
 #: ``pd.read_parquet("…/trials")`` (which reads sub-folders) skips them.
 QUARANTINE = "quarantine"
-#: ``DataFrame.attrs`` key of :func:`read_results`'s table: the robustness replicas per replicated
-#: cell that the folder's latest run with replicas planned (:func:`planned_replicas`).
-REPLICAS_PLANNED = "replicas_planned"
 
 
 #: The type of each manifest key the commands read (:func:`~somo_sweep.sweep.store.manifest.new_manifest`).
@@ -172,7 +188,14 @@ def read_results(folder: str | Path, on_damaged: OnDamaged | None = None) -> pd.
     """
     folder = Path(folder)
     manifest = read_manifest(folder)
-    report = on_damaged or _warn
+    told = on_damaged or _warn
+    skipped: list[Path] = []
+
+    def report(path: Path, reason: Damage) -> None:
+        if reason.kind != "repeats":  # its rows are left out, not counted once
+            skipped.append(path)
+        told(path, reason)
+
     # The parts the manifest lists as written by a run first: a row repeated in a copy is the copy's.
     good, bad = split_parts(
         folder, {str(f) for f in manifest.get("files", [])}, declared_types(manifest), max_part_rows(manifest)
@@ -184,7 +207,8 @@ def read_results(folder: str | Path, on_damaged: OnDamaged | None = None) -> pd.
     if inferred is not None:
         inferred = _inferred_cells(inferred, tables, manifest, folder / INFERRED, report)
     if not tables and inferred is None:
-        return pd.DataFrame(columns=[*(c.name for c in COLUMNS), "inferred"])
+        empty = pd.DataFrame(columns=[*(c.name for c in COLUMNS), "inferred"])
+        return with_record(empty, manifest, skipped)
     df = _together(folder, tables, inferred, report)
     if PART_COLUMN not in df.columns:
         df[PART_COLUMN] = pd.Series(pd.NA, index=df.index, dtype="Int64")
@@ -193,23 +217,7 @@ def read_results(folder: str | Path, on_damaged: OnDamaged | None = None) -> pd.
     missing = {c.name: None for c in COLUMNS if c.name not in df.columns}  # parts from an older version
     df = df.drop(columns=[PART_COLUMN]).assign(**missing)
     df = df.sort_values("trial", kind="stable").reset_index(drop=True)
-    planned = planned_replicas(manifest)
-    if planned is not None:
-        df.attrs[REPLICAS_PLANNED] = planned
-    return df
-
-
-def planned_replicas(manifest: dict[str, Any]) -> int | None:
-    """Robustness replicas per replicated cell that the folder's latest run with replicas planned
-    (its manifest entry's ``replicas``: ``--robust K`` or the study's ``robustness.replicas``), or
-    None when no run recorded any. A cell with fewer awaits replicas; replicas numbered above it,
-    stored by an earlier run that planned more, are not folded
-    (:func:`~somo_sweep.sweep.run.robustness.fold`)."""
-    for run in reversed(manifest.get("runs", [])):
-        k = run.get("replicas") if isinstance(run, dict) else None
-        if isinstance(k, int) and not isinstance(k, bool) and k > 0:
-            return k
-    return None
+    return with_record(df, manifest, skipped)
 
 
 def _part_tables(parts: list[Path], report: OnDamaged) -> tuple[list[pa.Table], list[Path]]:

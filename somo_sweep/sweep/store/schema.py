@@ -13,7 +13,7 @@ from typing import Any
 
 import pyarrow as pa
 
-__all__ = ["COLUMNS", "FIXED", "MAX_REPLICAS", "Column", "arrow_type", "merge_types", "unit_of"]
+__all__ = ["COLUMNS", "FIXED", "MAX_REPLICAS", "Column", "arrow_type", "merge_types", "split_unit", "unit_of"]
 
 #: Most robustness replicas a trial may have (each one is a full trial; ``robustness.replicas``).
 MAX_REPLICAS = 16
@@ -83,6 +83,14 @@ def unit_of(name: str) -> str:
         if name.endswith(f"_{suffix}"):
             return _UNITS[suffix]
     return ""
+
+
+def split_unit(name: str) -> tuple[str, str]:
+    """A column name without its unit suffix, and the unit (``pressure_kpa`` → ``pressure``, ``kPa``)."""
+    for suffix in sorted(_UNITS, key=len, reverse=True):
+        if name.endswith(f"_{suffix}"):
+            return name.removesuffix(f"_{suffix}"), _UNITS[suffix]
+    return name, ""
 
 
 def arrow_type(values: list[Any]) -> pa.DataType:

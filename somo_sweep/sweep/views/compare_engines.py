@@ -27,7 +27,15 @@ from somo_sweep.sweep.run.robustness import fold, label_names
 from somo_sweep.sweep.study.file import Simulation
 from somo_sweep.sweep.study.loaded import Study
 
-__all__ = ["EngineComparison", "compare", "compare_runs", "on_engine", "on_engines"]
+__all__ = [
+    "COMPARISON_FILES",
+    "EngineComparison",
+    "check_comparison_folder",
+    "compare",
+    "compare_runs",
+    "on_engine",
+    "on_engines",
+]
 
 #: Columns that are bookkeeping, not results, in a metrics comparison.
 _NOT_METRICS = {"trial", "repeat", "seed", "wall_time_s", "time_step_used_s", "retried_half_step"}
@@ -74,6 +82,48 @@ def on_engines(study: Study, folder: Path, steps: dict[str, float | None]) -> di
     return {engine: on_engine(study, engine, folder / engine, step) for engine, step in steps.items()}
 
 
+#: What a compare-engines folder holds besides temporary files: each engine's results, the comparison.
+COMPARISON_FILES = (*ENGINES, "engines.csv", "engines.json")
+
+
+def check_comparison_folder(folder: Path) -> None:
+    """Refuse to compare into a folder that is not new, empty or a comparison's own (as ``run --out``
+    refuses a folder that is not a results folder): a results folder, a study's or a starter's
+    folder, a file.
+
+    Raises:
+        SomoError: What is in the way, and that nothing was written.
+    """
+    from somo_sweep.sweep.store.folder import MANIFEST
+    from somo_sweep.sweep.store.opening import OWN
+
+    if folder.exists() and not folder.is_dir():
+        raise SomoError(f"--out {folder} is a file, not a folder; nothing was written")
+    if not folder.is_dir():
+        return
+    if (folder / MANIFEST).exists() or (folder / "trials").is_dir():
+        raise SomoError(
+            f"--out {folder} is a results folder of a study; compare-engines keeps both engines' results "
+            "and their comparison in a folder of its own: give --out a new folder; nothing was written"
+        )
+    linked = [name for name in ENGINES if (folder / name).is_symlink()]
+    if linked:
+        raise SomoError(
+            f"{folder / linked[0]} is a symbolic link; the engines' results folders must be in --out "
+            "itself; nothing was written"
+        )
+    others = sorted(
+        p.name for p in folder.iterdir() if p.name not in COMPARISON_FILES and not OWN.fullmatch(p.name)
+    )
+    others = [n for n in others if not (n.startswith(".engines.") and n.endswith(".tmp"))]
+    if others:
+        shown = ", ".join(others[:3]) + (", …" if len(others) > 3 else "")
+        raise SomoError(
+            f"--out {folder} is not empty ({shown}) and is not a compare-engines folder (only "
+            f"{', '.join(COMPARISON_FILES)} in it); nothing was written: give --out a new folder"
+        )
+
+
 def compare_runs(study: Study, runs: dict[str, Study]) -> EngineComparison:
     """Compare the results folders of the two engines' runs of ``study`` (:func:`compare`).
 
@@ -108,7 +158,7 @@ class EngineComparison:
     engines: tuple[str, str]
     cells: pd.DataFrame
     labels: dict[str, dict[str, Any]]
-    metrics: dict[str, dict[str, float]]
+    metrics: dict[str, dict[str, Any]]
     axes: tuple[str, ...] = ()
 
     def lines(self, disagreements: int = 40) -> list[str]:
@@ -137,14 +187,23 @@ class EngineComparison:
             if len(bad) > disagreements:
                 out.append(f"  … and {len(bad) - disagreements} more")
         for name, m in self.metrics.items():
+            if "max_abs_diff" not in m:
+                counts = ", ".join(f"{e} {n}" for e, n in m["trials_with_values"].items())
+                out.append(f"{name}: no trial has a value on both engines (trials with one: {counts})")
+                continue
             worst = self.cells[self.cells["trial"] == m.get("worst_trial", -1)]
             where = ""
             if len(worst) and axes:
                 row = worst.iloc[0]
                 where = " at " + ", ".join(f"{c.removeprefix('task_')}={row[c]}" for c in axes)
+            some = (
+                f", over the {m['trials_compared']} trials with a value on both"
+                if m.get("trials_compared", len(self.cells)) < len(self.cells)
+                else ""
+            )
             out.append(
                 f"{name}: largest difference {m['max_abs_diff']:.4g} ({m['share_of_range']:.3%} of its range "
-                f"{m['range']:.4g}){where}"
+                f"{m['range']:.4g}){where}{some}"
             )
         return out
 
@@ -214,28 +273,32 @@ def _metrics(
     right: pd.DataFrame,
     cells: pd.DataFrame,
     engines: tuple[str, str],
-) -> dict[str, dict[str, float]]:
+) -> dict[str, dict[str, Any]]:
     """Per numeric metric (a task without labels): the largest difference between the engines and
     its share of the metric's range; each engine's values and the share go into ``cells``."""
     a, b = engines
-    metrics: dict[str, dict[str, float]] = {}
+    metrics: dict[str, dict[str, Any]] = {}
     for column in first.columns:
         if column in _NOT_METRICS or column.startswith(("task_", "model_", "label_")):
             continue
         if column not in second.columns or not pd.api.types.is_float_dtype(first[column]):
             continue
         va, vb = left[column].astype(float), right[column].astype(float)
+        cells[f"{column}_{a}"], cells[f"{column}_{b}"] = va, vb
+        gap = (va - vb).abs()
+        if not gap.notna().any():  # no trial has this metric on both engines: nothing to compare
+            metrics[column] = {"trials_with_values": {a: int(va.notna().sum()), b: int(vb.notna().sum())}}
+            continue
         both = pd.concat([va, vb])
         span = float(both.max() - both.min())
-        gap = (va - vb).abs()
         diff = float(gap.max())
-        cells[f"{column}_{a}"], cells[f"{column}_{b}"] = va, vb
         cells[f"share_{column}"] = gap / span if span else 0.0
         metrics[column] = {
             "max_abs_diff": diff,
             "range": span,
             "share_of_range": diff / span if span else 0.0,
-            "worst_trial": int(gap.idxmax()) if gap.notna().any() else -1,
+            "worst_trial": int(gap.idxmax()),
+            "trials_compared": int(gap.notna().sum()),
         }
     return metrics
 

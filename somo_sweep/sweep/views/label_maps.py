@@ -20,8 +20,8 @@ import pandas as pd
 from matplotlib.axes import Axes
 from matplotlib.figure import Figure
 
-from somo_sweep.sweep.run.robustness import ROBUST
-from somo_sweep.sweep.store.schema import unit_of
+from somo_sweep.sweep.run.robustness import AWAITED, ROBUST
+from somo_sweep.sweep.store.schema import split_unit, unit_of
 
 __all__ = ["MAX_PANELS", "draw_label_panel", "folded_cells", "label_colours", "label_map_figure", "map_axes"]
 
@@ -36,7 +36,9 @@ FIXED_COLOURS = {
     "error": "#e7298a",
     "-": "white",
 }
-NOT_ROBUST_HATCH, INFERRED_HATCH = "xxx", "///"
+NOT_ROBUST_HATCH, INFERRED_HATCH, AWAITING_HATCH = "xxx", "///", "..."
+#: Opacity of a cell left without replicas where replicas ran elsewhere (robust cells are opaque).
+UNCHECKED_ALPHA = 0.45
 
 
 def label_colours(values: Sequence[Any]) -> dict[str, str]:
@@ -88,8 +90,17 @@ def _at(values: np.ndarray, value: Any) -> int:
 
 
 def _axis_title(column: str, short: dict[str, str]) -> str:
-    name = short.get(column, column)
-    return f"{name.removesuffix('_m')} (mm)" if unit_of(column) == "m" else name
+    """An axis's name and unit (lengths in mm): ``pressure (kPa)``."""
+    name, unit = split_unit(short.get(column, column))
+    shown = "mm" if unit_of(column) == "m" else unit
+    return f"{name} ({shown})" if shown else name
+
+
+def _panel_value(column: str, value: Any, short: dict[str, str]) -> str:
+    """One value of a panel axis with its unit: ``pressure 40 kPa``, ``object_width 20 mm``."""
+    name, unit = split_unit(short.get(column, column))
+    shown = "mm" if unit_of(column) == "m" else unit
+    return f"{name} {_ticks(np.array([value]), column)[0]}{' ' + shown if shown else ''}"
 
 
 def draw_label_panel(
@@ -101,6 +112,7 @@ def draw_label_panel(
 
     xs = _axis_values(cells[x])
     ys = _axis_values(cells[y]) if y else np.array([0])
+    ran = bool(_replicated(cells).any() or _awaiting(cells).any())
     for _, cell in cells.iterrows():
         i = _at(xs, cell[x])
         j = _at(ys, cell[y]) if y else 0
@@ -108,15 +120,19 @@ def draw_label_panel(
         not_robust = cell.get(ROBUST) is False or cell.get(ROBUST) is np.False_
         flag = cell.get("inferred", False)
         inferred = bool(flag) if pd.notna(flag) else False  # numpy's True too, not only Python's
+        waiting = float(cell.get(AWAITED, 0) or 0) > 0 and not not_robust
+        bare = ran and not (waiting or not_robust or inferred) and int(cell.get("replicas", 0) or 0) == 0
+        hatch = NOT_ROBUST_HATCH if not_robust else AWAITING_HATCH if waiting else None
         ax.add_patch(
             Rectangle(
                 (i - 0.5, j - 0.5),
                 1.0,
                 1.0,
                 facecolor=colours.get(value, "white"),
-                edgecolor="black" if not_robust else "0.5" if inferred else "white",
+                edgecolor="black" if not_robust else "0.5" if inferred or waiting else "white",
                 linewidth=0.5,
-                hatch=NOT_ROBUST_HATCH if not_robust else INFERRED_HATCH if inferred else None,
+                alpha=UNCHECKED_ALPHA if bare else 1.0,
+                hatch=hatch or (INFERRED_HATCH if inferred else None),
             )
         )
     ax.set_xlim(-0.5, len(xs) - 0.5)
@@ -130,6 +146,14 @@ def draw_label_panel(
         ax.set_yticks([])
 
 
+def _replicated(cells: pd.DataFrame) -> pd.Series:
+    return cells["replicas"] > 0 if "replicas" in cells else pd.Series(False, index=cells.index)
+
+
+def _awaiting(cells: pd.DataFrame) -> pd.Series:
+    return cells[AWAITED].fillna(0) > 0 if AWAITED in cells else pd.Series(False, index=cells.index)
+
+
 def folded_cells(folded: pd.DataFrame, label: str) -> pd.DataFrame:
     """The cells of a :func:`~somo_sweep.sweep.run.robustness.fold`-ed table with column ``label``
     holding each cell's majority over its runs, and a run that is not ``ok`` its status."""
@@ -141,30 +165,27 @@ def folded_cells(folded: pd.DataFrame, label: str) -> pd.DataFrame:
 
 
 def _legend(cells: pd.DataFrame, colours: dict[str, str]) -> list[Any]:
-    """Legend entries: each label's colour, then the not-robust and inferred hatches with counts."""
+    """Legend entries: each label's colour, then each way a cell is drawn, with counts."""
     from matplotlib.patches import Patch
 
     handles = [Patch(facecolor=c, edgecolor="0.5", label=v) for v, c in colours.items()]
-    not_robust = int(cells[ROBUST].eq(False).fillna(False).astype(bool).sum()) if ROBUST in cells else 0
-    if not_robust:
-        handles.append(
-            Patch(
-                facecolor="white",
-                edgecolor="black",
-                hatch=NOT_ROBUST_HATCH,
-                label=f"not robust ({not_robust}: replicas disagree; majority drawn)",
-            )
-        )
-    inferred = int(cells["inferred"].fillna(False).astype(bool).sum()) if "inferred" in cells else 0
-    if inferred:
-        handles.append(
-            Patch(
-                facecolor="white",
-                edgecolor="0.5",
-                hatch=INFERRED_HATCH,
-                label=f"inferred ({inferred}: not simulated)",
-            )
-        )
+    robust = cells[ROBUST] if ROBUST in cells else pd.Series(pd.NA, index=cells.index)
+    shaky = robust.eq(False).fillna(False).astype(bool)
+    inferred = cells["inferred"].fillna(False).astype(bool) if "inferred" in cells else shaky & False
+    waiting = _awaiting(cells) & ~shaky
+    bare = ~_replicated(cells) & ~_awaiting(cells) & ~inferred
+    ran = bool(_replicated(cells).any() or waiting.any())
+    ways = [
+        (shaky, "black", NOT_ROBUST_HATCH, 1.0, "not robust ({}: replicas disagree; majority drawn)"),
+        (waiting, "0.5", AWAITING_HATCH, 1.0, "awaiting replicas ({}: a run cut short; not counted yet)"),
+        (bare if ran else bare & False, "0.5", None, UNCHECKED_ALPHA, "no replicas ({})"),
+        (inferred, "0.5", INFERRED_HATCH, 1.0, "inferred ({}: not simulated)"),
+    ]
+    for mask, edge, hatch, alpha, text in ways:
+        if mask.any():
+            face = "0.3" if hatch is None else "white"
+            label = text.format(int(mask.sum()))
+            handles.append(Patch(facecolor=face, edgecolor=edge, hatch=hatch, alpha=alpha, label=label))
     return handles
 
 
@@ -189,11 +210,7 @@ def label_map_figure(
         draw_label_panel(ax, part, label, x, y, colours)
         values = key if isinstance(key, tuple) else (key,)
         ax.set_title(
-            ", ".join(
-                f"{_axis_title(a, short).removesuffix(' (mm)')} {_ticks(np.array([v]), a)[0]}"
-                + (" mm" if unit_of(a) == "m" else "")
-                for a, v in zip(rest, values, strict=True)
-            ),
+            ", ".join(_panel_value(a, v, short) for a, v in zip(rest, values, strict=True)),
             fontsize="small",
         )
     for ax in grid.ravel()[len(shown) :]:

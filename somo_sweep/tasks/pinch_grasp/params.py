@@ -458,5 +458,6 @@ register(
         ),
         labels=("grasp", "grasp_paper"),
         replaces=REPLACED,
+        guides_path="somo_sweep.tasks.pinch_grasp.guides:METRIC_GUIDES",
     )
 )
