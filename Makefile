@@ -22,11 +22,11 @@ demo: $(STAMP) ## Install, then the main job on a bundled example: 24 grasp tria
 	$(BIN)/somo-sweep run studies/pinch_grasp_demo.yaml
 	$(BIN)/somo-sweep paper fig6 results/pinch_grasp_demo --out results/pinch_grasp_demo/figures
 
-test: $(STAMP) ## Install, then run the default test suite
-	$(BIN)/python -m pytest
+test: $(STAMP) ## Install, then run the default test suite (one worker per core)
+	$(BIN)/python -m pytest -n auto --dist worksteal
 
-test-slow: $(STAMP) ## Run the long physics tests too
-	$(BIN)/python -m pytest -m "slow or not slow"
+test-slow: $(STAMP) ## Run the long physics tests too (one worker per core)
+	$(BIN)/python -m pytest -n auto --dist worksteal -m "slow or not slow"
 
 lint: $(STAMP) ## ruff (lint + format check) and mypy
 	$(BIN)/ruff check somo_sweep tests benchmarks

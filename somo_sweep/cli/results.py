@@ -24,7 +24,13 @@ if TYPE_CHECKING:
 
 __all__ = ["ALLOW_OUTSIDE", "MAX_TRIALS", "damaged", "plot", "recheck", "save_plots", "show"]
 
-_out = Console()
+
+def _out() -> Console:
+    """The standard output's console, made at each use: its width follows the terminal (or
+    ``COLUMNS``) as it is now, not as it was when this module was imported."""
+    return Console()
+
+
 #: Default of ``--max-trials`` (the library's :data:`somo_sweep.sweep.study.file.MAX_TRIALS`).
 MAX_TRIALS = 1_000_000
 #: Keys of every ``recheck --report`` file (earlier versions wrote it without the JSON mark).
@@ -88,8 +94,8 @@ def save_plots(folder: Path) -> None:
     record_files(folder, written)
     maps = [path.name for path, _ in files[2:]]
     if maps:
-        _out.print(f"label maps: {', '.join(maps)} in {target}")
-    _out.print(f"plots: {target / 'summary.png'} (and .svg)")
+        _out().print(f"label maps: {', '.join(maps)} in {target}")
+    _out().print(f"plots: {target / 'summary.png'} (and .svg)")
 
 
 def show(results: Annotated[Path, typer.Argument(help="Results folder, e.g. results/<study>.")]) -> None:
@@ -101,7 +107,7 @@ def show(results: Annotated[Path, typer.Argument(help="Results folder, e.g. resu
     try:
         df, manifest = read_results(results, damaged), read_manifest(results)
         pending = pending_journal_rows(results, manifest["study_hash"], set(df["job_id"]))
-        print_results(_out, df, manifest, holder_now(results), pending)
+        print_results(_out(), df, manifest, holder_now(results), pending)
     except SomoError as exc:
         fail(exc)
 

@@ -31,8 +31,18 @@ if TYPE_CHECKING:  # the heavy modules are imported when a command runs
 
 __all__ = ["JOBS", "MAX_TRIALS", "run", "step_events", "tasks"]
 
-_err = Console(stderr=True)
-_out = Console()
+
+def _err() -> Console:
+    """The standard error's console, made at each use (see :func:`_out`)."""
+    return Console(stderr=True)
+
+
+def _out() -> Console:
+    """The standard output's console, made at each use: its width follows the terminal (or
+    ``COLUMNS``) as it is now, not as it was when this module was imported."""
+    return Console()
+
+
 #: Rows a dry run prints.
 DRY_ROWS = 10
 
@@ -191,7 +201,7 @@ def _run(st: Study, options: RunOptions) -> RunSummary:
 def _interrupted(stage: str, signum: int) -> NoReturn:
     """Say what an interrupt before the first trial stopped, and exit with the signal's code."""
     if stage == "step":
-        _err.print(
+        _err().print(
             "interrupted while choosing the time step: no trial of the study ran yet; run the "
             "same command again to start over"
         )
@@ -286,10 +296,10 @@ def _report(summary: RunSummary, plots: bool, allow_errors: bool) -> None:
     """The run's summary, its plots; exit 128 + signal if it was stopped, 1 if trials ended in error."""
     from somo_sweep.cli.summary import print_run_summary
 
-    print_run_summary(_out, summary)
+    print_run_summary(_out(), summary)
     if summary.interrupted is not None:
         replicas = f" and {summary.replicas_run} robustness replica run(s)" if summary.replicas_run else ""
-        _err.print(
+        _err().print(
             f"interrupted: {summary.run} finished trial(s){replicas} kept; run the same command again to "
             "resume"
         )
@@ -298,7 +308,9 @@ def _report(summary: RunSummary, plots: bool, allow_errors: bool) -> None:
         try:
             save_plots(summary.folder)
         except Exception as exc:  # the results are safe; a plot problem must not fail the run
-            _err.print(f"warning: summary plots not drawn ({type(exc).__name__}: {exc}); try somo-sweep plot")
+            _err().print(
+                f"warning: summary plots not drawn ({type(exc).__name__}: {exc}); try somo-sweep plot"
+            )
     if summary.errors and not allow_errors:
         between = (
             f", and {summary.inferred_errors} inferred cell(s) between them are marked error without running"
@@ -322,7 +334,7 @@ def _progress() -> Progress:
         TimeElapsedColumn(),
         TextColumn("ETA"),
         TimeRemainingColumn(),
-        console=_err,
+        console=_err(),
     )
 
 

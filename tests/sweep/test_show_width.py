@@ -5,6 +5,7 @@ from __future__ import annotations
 import io
 
 import pandas as pd
+import pytest
 from rich.console import Console
 
 from somo_sweep.cli.summary import print_results
@@ -66,3 +67,13 @@ def test_a_long_star_key_path_is_named_once_whole_and_no_title_wraps() -> None:
     assert f"stiffness_n_m_per_rad: the axis {key}" in lines  # once, whole, on one line
     assert any(line.strip() == "by stiffness_n_m_per_rad: grasp" for line in lines)
     assert max(len(line) for line in lines if key not in line) <= 80
+
+
+def test_the_command_lines_consoles_take_the_width_of_now(monkeypatch: pytest.MonkeyPatch) -> None:
+    """The consoles are made when used: one made at import kept the COLUMNS of that moment (80 when
+    another test had set it), and ``show`` wrapped at 80 a table asked for at 300."""
+    from somo_sweep.cli import results, sweep
+
+    for columns in ("300", "77"):
+        monkeypatch.setenv("COLUMNS", columns)
+        assert results._out().width == sweep._out().width == sweep._err().width == int(columns)
