@@ -21,9 +21,8 @@ from somo_sweep.design.optimiser import optuna_version
 from somo_sweep.design.search import DesignSearch, Progress
 from somo_sweep.design.study import DesignStudy
 from somo_sweep.errors import Interrupted
-from somo_sweep.sim.settings import engine_version
 from somo_sweep.sweep.jobs.code import code_version, pybullet_version
-from somo_sweep.sweep.jobs.job import JobMaker, param_column
+from somo_sweep.sweep.jobs.job import JobMaker, engine_version, param_column
 from somo_sweep.sweep.jobs.table import JobTable
 from somo_sweep.sweep.run.execution import start_workers, stop_workers
 from somo_sweep.sweep.run.options import RunEvents, RunOptions, RunSummary
