@@ -40,13 +40,14 @@ def check_block(
         problems.append(Problem(where, message, lines.get(where)))
 
     problems += _check_objects(base, block, variables, lines)
+    blamed = {p.path for p in problems}
     for v in variables:
         where = f"design.variables.{v.key}"
         if v.key in block.objects:
             add(where, "is also an object axis (design.objects); allowed: a key is a variable or an object")
         elif v.key in base.fixed:
             add(where, "is also set in set:; allowed: a key is a design variable or set, not both")
-        else:
+        elif where not in blamed:
             why = _probe(base, v)
             if why is not None:
                 add(where, why)
