@@ -13,6 +13,7 @@ from pathlib import Path
 
 import pandas as pd
 import pytest
+from conftest import signals_as_in_a_shell
 from design_studies import FinishedTrials, ball_study
 
 from somo_sweep.design import load_design, rank_designs, run_design
@@ -142,3 +143,55 @@ def test_a_search_killed_mid_way_resumes_without_losing_or_repeating_a_simulatio
     # Nothing stored or journalled ran again: the resumed run ran exactly the rest.
     assert done.summary.run + done.summary.replicas_run == len(reference) - len(stored) - recovered
     pd.testing.assert_frame_equal(rank_designs(final, study), ref_ranking)
+
+
+def test_the_same_ranking_on_a_dask_cluster(
+    ball: tuple[Path, pd.DataFrame, pd.DataFrame], tmp_path: Path
+) -> None:
+    from dask.distributed import LocalCluster
+
+    path, table, ranking = ball
+    out = tmp_path / "dask"
+    with LocalCluster(
+        n_workers=2, threads_per_worker=1, processes=True, host="127.0.0.1", dashboard_address=None
+    ) as cluster:
+        study = load_design(path, out)
+        run_design(study, RunOptions(backend="dask", scheduler=cluster.scheduler_address))
+    pd.testing.assert_frame_equal(rank_designs(read_results(out), study), ranking)
+    assert set(read_results(out)["job_id"]) == set(table["job_id"])
+    assert read_manifest(out)["runs"][-1]["backend"] == "dask"
+
+
+def test_ctrl_c_keeps_every_finished_trial_ranks_what_is_there_and_resume_completes(
+    ball: tuple[Path, pd.DataFrame, pd.DataFrame], tmp_path: Path
+) -> None:
+    fifo = tmp_path / "finished"
+    os.mkfifo(fifo)
+    edit = f"params: {{sleep_s: 0.0,=>params: {{sleep_s: 0.05, notify_fifo: '{fifo}',"
+    path = ball_study(tmp_path, budget=150, edit=edit)
+    out = tmp_path / "stopped"
+    with FinishedTrials(fifo) as finished:
+        proc = subprocess.Popen(
+            [str(CLI), "design", str(path), "--jobs", "2", "--out", str(out)],
+            stdout=subprocess.PIPE,
+            stderr=subprocess.PIPE,
+            text=True,
+            start_new_session=True,
+            preexec_fn=signals_as_in_a_shell,
+        )
+        try:
+            finished.wait(30)
+            os.killpg(proc.pid, signal.SIGINT)  # as Ctrl-C: the search and its workers
+            stdout, stderr = proc.communicate(timeout=60)
+        finally:
+            if proc.poll() is None:
+                os.killpg(proc.pid, signal.SIGKILL)
+    assert proc.returncode == 130, stderr
+    assert "Traceback" not in stderr and "interrupted:" in stderr, stderr
+    partial = pd.read_csv(out / "design" / "ranking.csv")  # what the folder holds, ranked
+    assert not partial["complete"].all()
+    kept = read_results(out)
+    study = load_design(path, out)
+    done = run_design(study, RunOptions(n_jobs=2))
+    assert done.summary.run + done.summary.replicas_run == done.search.spent - len(kept)
+    assert read_results(out)["job_id"].is_unique
