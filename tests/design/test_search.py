@@ -182,7 +182,7 @@ def test_ctrl_c_keeps_every_finished_trial_ranks_what_is_there_and_resume_comple
         try:
             finished.wait(30)
             os.killpg(proc.pid, signal.SIGINT)  # as Ctrl-C: the search and its workers
-            stdout, stderr = proc.communicate(timeout=60)
+            _, stderr = proc.communicate(timeout=60)
         finally:
             if proc.poll() is None:
                 os.killpg(proc.pid, signal.SIGKILL)
