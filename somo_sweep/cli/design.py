@@ -28,7 +28,7 @@ if TYPE_CHECKING:
     from somo_sweep.design import DesignRun, DesignStudy
     from somo_sweep.design.search import Progress as SearchProgress
     from somo_sweep.sweep.run.execution import Backend
-    from somo_sweep.sweep.run.options import RunEvents
+    from somo_sweep.sweep.run.options import RunEvents, RunOptions
     from somo_sweep.sweep.run.sampling import Batch
 
 __all__ = ["design"]
@@ -84,13 +84,13 @@ def design(
     _answer(loaded, done)
 
 
-def _search(study: DesignStudy, options: object) -> DesignRun:
+def _search(study: DesignStudy, options: RunOptions) -> DesignRun:
     """Run the search with a progress line per round; an error or an interrupt ends the command."""
     from somo_sweep.design import run_design
 
     view = _View(study)
     try:
-        return run_design(study, options, view.events(), view.progress)  # type: ignore[arg-type]
+        return run_design(study, options, view.events(), view.progress)
     except SomoError as exc:
         view.stop()
         fail(exc)

@@ -37,6 +37,8 @@ __all__ = ["MAX_STALE", "DesignSearch", "Progress", "metric_column"]
 
 #: Batches in a row that ask only designs already judged before the search stops.
 MAX_STALE = 3
+#: Infeasible designs the record lists (the others are counted).
+MAX_LISTED = 100
 Values = dict[str, dict[str, Any]]
 
 
@@ -242,9 +244,23 @@ class DesignSearch:
             )
         yield Batch(self.batch_number, n_designs, todo, kind=kind, replicas=self.study.replicas)
 
+    def _label_note(self) -> list[str]:
+        """A note when no trial the search ran gave the objective's label value (a misspelt value?)."""
+        objective = self.study.objective
+        seen = {
+            out[1].get(objective.label)
+            for job_id in self.requested
+            if (out := self.known.get(job_id)) is not None and out[0] == "ok"
+        }
+        if not seen or objective.value in seen:
+            return []
+        given = ", ".join(sorted(str(v) for v in seen if v is not None)) or "none"
+        return [f"no trial gave {objective.label} = {objective.value}; its trials gave: {given}"]
+
     def record(self) -> dict[str, Any]:
         """What the manifest records of the search at the end of a run."""
         best = self.best()
+        infeasible = [{"values": d.asked, "why": d.why} for d in self.designs.infeasible[:MAX_LISTED]]
         return {
             "simulations": self.spent,
             "budget": self.study.budget,
@@ -255,7 +271,8 @@ class DesignSearch:
             "best": None
             if best is None
             else {"design": best[0].number, "values": best[0].values, "robust": best[1].robust},
-            "notes": list(self.notes),
+            "infeasible": infeasible,
+            "notes": [*self.notes, *self._label_note()],
         }
 
 

@@ -195,3 +195,10 @@ def test_ctrl_c_keeps_every_finished_trial_ranks_what_is_there_and_resume_comple
     done = run_design(study, RunOptions(n_jobs=2))
     assert done.summary.run + done.summary.replicas_run == done.search.spent - len(kept)
     assert read_results(out)["job_id"].is_unique
+
+
+def test_a_label_value_no_trial_gives_is_said(tmp_path: Path) -> None:
+    path = ball_study(tmp_path, budget=24, edit="value: inside=>value: insde")
+    done = run_design(load_design(path, tmp_path / "out"), RunOptions(n_jobs=1))
+    notes = done.search.record()["notes"]
+    assert "no trial gave region = insde; its trials gave: inside, outside" in notes
