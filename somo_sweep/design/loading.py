@@ -12,20 +12,21 @@ cannot express) are not problems of the file: the search handles them per design
 
 from __future__ import annotations
 
+import math
 from dataclasses import replace
 from pathlib import Path
 from typing import Any
 
 from somo_sweep.design.checks import check_block, infeasible_everywhere
 from somo_sweep.design.objects import object_order, rung_sizes
-from somo_sweep.design.study import GRID_KEYS, DesignBlock, DesignStudy
+from somo_sweep.design.study import GRID_KEYS, MAX_BUDGET, DesignBlock, DesignStudy
 from somo_sweep.design.variables import Variable, parse_variable
 from somo_sweep.errors import DescriptionError, Problem
 from somo_sweep.model.description import Spec
 from somo_sweep.model.files import load_mapping
 from somo_sweep.model.validation import validate
 from somo_sweep.sweep.study import Study
-from somo_sweep.sweep.study.axes import parse_key_path
+from somo_sweep.sweep.study.axes import axis_length, parse_key_path
 from somo_sweep.sweep.study.loading import study_from_mapping
 
 __all__ = ["load_design"]
@@ -103,6 +104,12 @@ def _base(
     problems: list[Problem],
 ) -> Study | None:
     """The grid part of the file with the objects as its axes (None when it has problems)."""
+    sizes = [axis_length(spec) for spec in block.objects.values()]
+    if all(size is not None for size in sizes) and math.prod(s for s in sizes if s) > MAX_BUDGET:
+        n = math.prod(s for s in sizes if s)
+        msg = f"{n} objects; allowed: at most {MAX_BUDGET} (a design is judged on every one)"
+        problems.append(Problem(OBJECTS, msg, lines.get(OBJECTS)))
+        return None
     grid = {k: v for k, v in data.items() if k != "design" and k not in GRID_KEYS}
     grid["sweep"] = block.objects
     moved = dict(lines)

@@ -127,6 +127,16 @@ BAD = {
         120,
         "design.search.stratify: 'task.w' is not an object axis (did you mean 'task.x'?)",
     ),
+    "too many objects": (
+        "task.x: [-0.6, -0.3, 0.0, 0.3, 0.6, 0.9]=>task.x: {start: 0, stop: 1, step: 1.0e-7}",
+        120,
+        "line 11: design.objects: 20000002 objects; allowed: at most 1000000",
+    ),
+    "a choice that is a list": (
+        f"{U}=>task.u: {{choices: [[1, 2], 3]}}",
+        120,
+        "design.variables.task.u.choices[0]: a choice is a number, text, true/false or null; got [1, 2]",
+    ),
     "a bad object axis": (
         "task.v: [0.0, 0.4]=>task.v: [0.0, 0.0]",
         120,
