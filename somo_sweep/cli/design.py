@@ -13,6 +13,7 @@ from pathlib import Path
 from typing import TYPE_CHECKING, Annotated, cast
 
 import typer
+from rich import box
 from rich.console import Console
 from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeElapsedColumn
 from rich.table import Table
@@ -212,30 +213,36 @@ def _write(
 def _print_answer(study: DesignStudy, ranking: pd.DataFrame, done: DesignRun, written: list[Path]) -> None:
     """The best designs as a table, the best one in words, the files written."""
     n = study.n_objects
-    table = Table(
-        title=f"designs, best first ({len(ranking)} judged; all in design/ranking.csv)", title_justify="left"
-    )
-    for name in (
-        "rank",
-        "design",
-        *(k.rsplit(".", 1)[-1] for k in study.keys),
-        "robust",
-        "95 %",
-        "sims",
-        "complete",
-    ):
-        table.add_column(name, justify="right")
+    rows = []
     for _, row in ranking.head(SHOWN).iterrows():
         judged = n if row["complete"] else int(row["objects_judged"])
-        table.add_row(
-            str(row["rank"]),
-            str(row["design"]),
-            *(_short(row[k]) for k in study.keys),
-            f"{int(row['robust_objects'])}/{judged}",
-            f"{row['share_low_95']:.2f}-{row['share_high_95']:.2f}",
-            str(row["simulations"]),
-            "yes" if row["complete"] else "no",
+        rows.append(
+            [
+                str(row["rank"]),
+                str(row["design"]),
+                *(_short(row[k]) for k in study.keys),
+                f"{int(row['robust_objects'])}/{judged}",
+                f"{row['share_low_95']:.2f}-{row['share_high_95']:.2f}",
+                str(row["simulations"]),
+                "yes" if row["complete"] else "no",
+            ]
         )
+    # A key path's last part names the variable: its words wrap in the header, the values do not.
+    names = ["rank", "design", *(k.rsplit(".", 1)[-1].replace("_", " ") for k in study.keys)]
+    names += ["robust", "95 %", "sims", "done"]
+    table = Table(
+        title=f"designs, best first ({len(ranking)} judged, all in design/ranking.csv; done: judged on "
+        "every object)",
+        title_justify="left",
+        box=box.SIMPLE_HEAD,
+        pad_edge=False,
+        collapse_padding=True,
+    )
+    for i, name in enumerate(names):
+        width = max([len(w) for w in name.split()] + [len(r[i]) for r in rows])
+        table.add_column(name, justify="right", width=width)
+    for cells in rows:
+        table.add_row(*cells)
     _out.print(table)
     record = done.search.record()
     for note in record["notes"]:

@@ -86,10 +86,9 @@ def label_map(table: pd.DataFrame, row: Any, study: DesignStudy) -> Figure:
     cells = folded_cells(folded, label)
     axes = [param_column(k) for k in study.objects]
     short = {param_column(k): k.rsplit(".", 1)[-1] for k in study.objects}
-    title = (
-        f"design {int(row['design'])} ({_described(row, study)}): {int(row['robust_objects'])}/{n} "
-        f"robust {study.objective.value}"
-    )
+    values = "\n".join(f"{k.rsplit('.', 1)[-1]} {_short(row[k])}" for k in study.keys)
+    robust = f"{int(row['robust_objects'])}/{n} robust {study.objective.value}"
+    title = f"design {int(row['design'])}: {robust}\n{values}\n"
     return label_map_figure(cells, label, axes, short, title)
 
 
