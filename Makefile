@@ -68,7 +68,7 @@ bench-auto-numerics: $(STAMP) ## The automatic numerics on a family of pinch fin
 bench-zero-kpa: $(STAMP) ## The 0-kPa blocked-force row on both engines over a step ladder, and with the plate moved (2-3 min)
 	$(BIN)/python -m benchmarks.zero_kpa
 
-bench-design: $(STAMP) ## Does the design search pay? The worked example's exhaustive robust grid (7200 MuJoCo runs, ~20 min on 2 cores, resumable) against design and random search over 10 seeds -> results/reference/design_bench.json
+bench-design: $(STAMP) ## Does the design search pay? The worked example's exhaustive robust grid (7200 MuJoCo runs, about 40 min on 2 shared cores, resumable) against design and random search over 10 seeds -> results/reference/design_bench.json
 	nice -n 10 $(BIN)/python -m benchmarks.design_search --jobs 2 --out results/reference
 
 # The original SoMo code's checkout and the Python of its own environment (benchmarks/original_fig6/README.md).

@@ -33,7 +33,7 @@ from somo_sweep.design.study import DesignStudy
 from somo_sweep.design.variables import as_asked
 from somo_sweep.sweep.jobs.job import Job, param_column
 
-__all__ = ["Curve", "Oracle", "design_curve", "export_cells", "grid_curve", "random_curve"]
+__all__ = ["Curve", "Oracle", "design_curve", "export_cells", "grid_curve", "random_curve", "replay"]
 
 #: Decimals a value keeps in the oracle's keys (the stored values are the simulated ones).
 DIGITS = 9
@@ -106,9 +106,9 @@ class Oracle:
         return robust, cost
 
 
-def design_curve(study: DesignStudy, oracle: Oracle) -> Curve:
-    """The search's curve: after each of its rounds, the simulations spent and the best robust share
-    of a design judged on every object."""
+def replay(study: DesignStudy, oracle: Oracle) -> tuple[DesignSearch, Curve]:
+    """The search answered by the oracle, and its curve: after each of its rounds, the simulations
+    spent and the best robust share of a design judged on every object."""
     search = DesignSearch(study)
     known: dict[str, tuple[str, dict[str, str]]] = {}
     curve: Curve = []
@@ -116,8 +116,14 @@ def design_curve(study: DesignStudy, oracle: Oracle) -> Curve:
         for job in batch.jobs:
             known[job.job_id] = oracle.outcome(job)
         best = search.best()
-        curve.append((search.spent, 0.0 if best is None else best[1].robust / study.n_objects))
-    return curve
+        if best is not None:  # no design judged on every object yet: nothing found
+            curve.append((search.spent, best[1].robust / study.n_objects))
+    return search, curve
+
+
+def design_curve(study: DesignStudy, oracle: Oracle) -> Curve:
+    """The search's curve against the oracle (:func:`replay`)."""
+    return replay(study, oracle)[1]
 
 
 def _judge_all(study: DesignStudy, oracle: Oracle, asked: Iterator[dict[str, Any]], budget: int) -> Curve:

@@ -6,8 +6,9 @@ values) and closing pressure (4) make the gripper pinch boxes of 20-60 mm robust
 positions? 120 designs x 12 objects, a cell robust when its trial and its 4 replicas agree.
 
 1. The exhaustive robust grid (``grid.yaml``: every cell with every replica, 7200 MuJoCo runs,
-   about 20 min on 2 idle cores) runs into ``--grid-folder`` (resumable), and its runs are stored
-   in ``results/reference/design_bench/grid_cells.csv``. ``--stored`` skips this step.
+   about 40 min on 2 cores shared with other work) runs into ``--grid-folder`` (resumable), and
+   its runs are stored in ``results/reference/design_bench/grid_cells.csv``. ``--stored`` skips
+   this step.
 2. From that table alone (:mod:`benchmarks.design_oracle`): the grid's best robust share and what
    the grid costs when each cell's replicas stop at the first that disagrees (the search's own
    policy); then ``somo-sweep design``'s search, answered by the table, over ``--seeds`` seeds
@@ -80,6 +81,13 @@ def evaluate(cells: pd.DataFrame, seeds: int = 10) -> dict[str, Any]:
                 }
             )
     reaching = sum(abs(r["best_share"] - best) < 1e-12 for r in methods["design"])
+    checkpoints = [budget // 4, budget // 2, budget]
+    never = cost + 1  # later than any checkpoint
+    by = {
+        name: {str(c): sum((r["simulations_to_grid_best"] or never) <= c for r in rows) for c in checkpoints}
+        for name, rows in methods.items()
+    }
+    by["grid"] = {str(c): int((_reached(grid, best) or never) <= c) for c in checkpoints}
     return {
         "question": "robust pinch share of a design over 12 boxes (3 widths x 4 centering positions)",
         "designs": len(cells[oracle.columns[: len(base.keys)]].drop_duplicates()),
@@ -94,6 +102,7 @@ def evaluate(cells: pd.DataFrame, seeds: int = 10) -> dict[str, Any]:
             "curve": [list(p) for p in grid],
         },
         "budget": budget,
+        "seeds_reaching_grid_best_by": by,
         **methods,
         "target": {
             "seeds": seeds,
@@ -122,6 +131,10 @@ def lines(report: dict[str, Any]) -> list[str]:
             f"{name}: the grid's best in {len(hit)} of {len(rows)} seeds{med}; best share found: "
             + ", ".join(f"{s:.3f}" for s in shares)
         )
+    by = report["seeds_reaching_grid_best_by"]
+    for name in ("design", "random"):
+        marks = ", ".join(f"{n} by {c}" for c, n in by[name].items())
+        out.append(f"{name}: seeds at the grid's best {marks} simulations")
     target = report["target"]
     out.append(
         f"target (the grid's best in >= {target['required']} of {target['seeds']} seeds within the budget): "
