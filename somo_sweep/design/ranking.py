@@ -31,6 +31,19 @@ __all__ = ["Z_95", "pareto_front", "rank_designs", "trade_column", "wilson"]
 Z_95 = 1.959963984540054
 
 
+#: The ranking's columns after the design's values.
+_NUMBERS = (
+    "robust_share",
+    "share_low_95",
+    "share_high_95",
+    "robust_objects",
+    "objects_judged",
+    "objects",
+    "simulations",
+    "complete",
+)
+
+
 def wilson(successes: int, n: int, z: float = Z_95) -> tuple[float, float]:
     """The Wilson score interval of a share ``successes / n`` (0 … 1; (0, 1) for n = 0)."""
     if n <= 0:
@@ -95,7 +108,9 @@ def rank_designs(table: pd.DataFrame, study: DesignStudy) -> pd.DataFrame:
     """
     n = study.n_objects
     if table.empty:
-        return pd.DataFrame(columns=["rank", "design", *study.keys])
+        columns = ["rank", "design", *study.keys, *_NUMBERS]
+        extra = [] if study.trade_off is None else [trade_column(study), "pareto"]
+        return pd.DataFrame(columns=[*columns, *extra]).astype({"complete": bool})
     table = table.assign(
         replica=pd.to_numeric(table.get("replica", 0), errors="coerce").fillna(0).astype(int)
     )

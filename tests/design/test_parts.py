@@ -131,3 +131,15 @@ def test_the_pareto_front_holds_the_complete_designs_no_other_beats_on_both() ->
         }
     )
     assert pareto_front(frame, study).tolist() == [True, True, False, True, False]  # type: ignore[arg-type]
+
+
+def test_a_folder_without_trials_ranks_no_design_with_every_column(tmp_path) -> None:  # type: ignore[no-untyped-def]
+    from design_studies import ball_study
+
+    from somo_sweep.design import load_design, rank_designs
+    from somo_sweep.design.report import finalists
+
+    study = load_design(ball_study(tmp_path), tmp_path / "out")
+    ranking = rank_designs(pd.DataFrame(columns=["job_id", "trial", "replica", "status"]), study)
+    assert ranking.empty and {"robust_share", "complete", "task.u"} <= set(ranking.columns)
+    assert finalists(ranking, study).empty
