@@ -164,6 +164,14 @@ def test_a_bad_budget_or_seed_option_is_refused(tmp_path: Path) -> None:
     assert res.exit_code == 2 and "design.budget: 3 simulation(s) cannot judge one design" in res.output
     res = CliRunner().invoke(app, ["design", str(path), "--seed", "-1", "--dry-run"])
     assert res.exit_code == 2 and "--seed" in res.output
+    for option, said in (
+        (["--jobs", "1000000"], "--jobs must be from 1 to"),
+        (["--timeout", "nan"], "--timeout must be a number of seconds > 0"),
+        (["--backend", "dask"], "--backend dask needs --scheduler"),
+    ):
+        res = CliRunner().invoke(app, ["design", str(path), "--out", str(tmp_path / "out"), *option])
+        assert res.exit_code == 2 and said in res.output, res.output
+    assert not (tmp_path / "out").exists()
 
 
 def test_run_refuses_a_design_study_and_design_a_grid_study(tmp_path: Path) -> None:
