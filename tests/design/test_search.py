@@ -202,3 +202,18 @@ def test_a_label_value_no_trial_gives_is_said(tmp_path: Path) -> None:
     done = run_design(load_design(path, tmp_path / "out"), RunOptions(n_jobs=1))
     notes = done.search.record()["notes"]
     assert "no trial gave region = insde; its trials gave: inside, outside" in notes
+
+
+def test_a_metric_trade_off_replays_from_stored_values(tmp_path: Path) -> None:
+    """NSGA-II is told each design's metric (``y``, reduced over the cells that count); a search
+    resumed with a larger budget reads the stored trials' metric as the first run did."""
+    objective = "objective: {label: region, value: inside}"
+    edit = f"{objective}=>{objective}\n  trade_off: {{metric: y, direction: minimize, reduce: max}}"
+    path = ball_study(tmp_path, budget=120, edit=edit)
+    _, straight = _search(path, tmp_path / "straight")
+    _search(path, tmp_path / "grown", budget=60)
+    _, grown = _search(path, tmp_path / "grown", budget=120)
+    pd.testing.assert_frame_equal(grown, straight)
+    assert "max_y" in straight.columns and straight["pareto"].any()
+    done = straight[straight["complete"]]
+    assert (done["max_y"].dropna() <= 0.81 + 1e-12).all()  # y = x², x at most 0.9
