@@ -1,6 +1,6 @@
 """A design search builds thousands of MuJoCo job ids (trials and replicas): each id names the
-engine's version, read once per process, not once per id (it cost 26 ms an id: the package
-metadata parsed again each time, 20 s of a 120-design search's 25)."""
+engine's version, read once per process, not once per id (the package metadata parsed again
+each time: the 1440 ids of a MuJoCo grid took 3.6 s instead of 0.3 s)."""
 
 from __future__ import annotations
 
