@@ -5,7 +5,7 @@ BIN    := $(VENV)/bin
 STAMP  := $(VENV)/.installed-stamp
 
 .DEFAULT_GOAL := help
-.PHONY: help install demo test test-slow lint format bench bench-statics bench-scaling bench-scale bench-engines bench-mujoco bench-robust bench-numerics bench-auto-numerics bench-zero-kpa bench-original fig6 fig6-fast fig6-audit fig6-quick fig6-original fig6-ablation fig6-ablation-quick fig3 fig5 fig5-quick palm palm-quick fig7 fig7-quick fig8 fig8-quick diagnose-demo sweep-demo example-gripper example-gripper-pybullet figures clean
+.PHONY: help install demo test test-slow lint format bench bench-statics bench-scaling bench-scale bench-engines bench-mujoco bench-robust bench-numerics bench-auto-numerics bench-zero-kpa bench-design bench-original fig6 fig6-fast fig6-audit fig6-quick fig6-original fig6-ablation fig6-ablation-quick fig3 fig5 fig5-quick palm palm-quick fig7 fig7-quick fig8 fig8-quick diagnose-demo sweep-demo example-gripper example-gripper-pybullet example-design figures clean
 
 help: ## List the targets
 	@grep -E '^[a-zA-Z0-9_-]+:.*?## ' $(MAKEFILE_LIST) | awk 'BEGIN {FS = ":.*?## "}; {printf "  make %-20s %s\n", $$1, $$2}'
@@ -67,6 +67,9 @@ bench-auto-numerics: $(STAMP) ## The automatic numerics on a family of pinch fin
 
 bench-zero-kpa: $(STAMP) ## The 0-kPa blocked-force row on both engines over a step ladder, and with the plate moved (2-3 min)
 	$(BIN)/python -m benchmarks.zero_kpa
+
+bench-design: $(STAMP) ## Does the design search pay? The worked example's exhaustive robust grid (7200 MuJoCo runs, about 40 min on 2 shared cores, resumable) against design and random search over 10 seeds -> results/reference/design_bench.json
+	nice -n 10 $(BIN)/python -m benchmarks.design_search --jobs 2 --out results/reference
 
 # The original SoMo code's checkout and the Python of its own environment (benchmarks/original_fig6/README.md).
 ORIGINAL_SOMO   ?= ../somo_orig
@@ -154,6 +157,10 @@ example-gripper-pybullet: example-gripper ## The same grasp map on PyBullet: 0.2
 	    -e 's/^simulation: .*/simulation: {engine: pybullet, time_step_s: 2.5e-4}/' $(EXAMPLE)/study.yaml > $(EXAMPLE)/study_pybullet.yaml
 	$(BIN)/somo-sweep run $(EXAMPLE)/study_pybullet.yaml --out $(EXAMPLE)/grasp_map_pybullet --jobs 2
 	$(BIN)/somo-sweep show $(EXAMPLE)/grasp_map_pybullet
+
+example-design: example-gripper ## Which finger to build: the worked example's distal segment ratio, stiffness and pressure searched for a robust pinch of 20-60 mm boxes (MuJoCo, a few minutes)
+	test -f $(EXAMPLE)/design.yaml || cp examples/own_gripper/design.yaml $(EXAMPLE)/design.yaml
+	$(BIN)/somo-sweep design $(EXAMPLE)/design.yaml --jobs 2
 
 figures: fig3 fig5 fig6 fig7 fig8 ## Every paper figure (Figs. 3, 5, 6, 7, 8) into results/figures
 

@@ -19,6 +19,7 @@ RANK = {
     "sweep": 4,
     "calibration": 4,
     "diagnosis": 5,
+    "design": 5,
     "paper": 6,
     "cli": 7,
     "data": 1,

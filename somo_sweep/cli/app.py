@@ -15,7 +15,19 @@ from typing import Annotated, Any
 
 import typer
 
-from somo_sweep.cli import answer, calibrate, diagnose, engines, grasp, model, new, paper, results, sweep
+from somo_sweep.cli import (
+    answer,
+    calibrate,
+    design,
+    diagnose,
+    engines,
+    grasp,
+    model,
+    new,
+    paper,
+    results,
+    sweep,
+)
 from somo_sweep.cli.help import HelpGroup, plain_help
 from somo_sweep.cli.output import state
 from somo_sweep.errors import SHOWN_CHARS, os_cause, printable, shown
@@ -59,6 +71,7 @@ def _main(
 app.command()(model.check)
 app.command()(model.measure)
 app.command()(sweep.run)
+app.command()(design.design)
 app.command()(results.show)
 app.command()(results.plot)
 app.command()(answer.answer)

@@ -20,6 +20,7 @@ import json
 import os
 from collections.abc import Iterable
 from dataclasses import asdict, dataclass, replace
+from functools import cache
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
@@ -27,14 +28,22 @@ import numpy as np
 from pydantic import BaseModel
 
 from somo_sweep.model.load import Model
-from somo_sweep.sim.settings import MUJOCO_ONLY, WorldSettings, engine_version
+from somo_sweep.sim.settings import MUJOCO_ONLY, WorldSettings
+from somo_sweep.sim.settings import engine_version as _read_engine_version
 from somo_sweep.sweep.jobs.code import code_version, pybullet_version
 from somo_sweep.sweep.study.resolve import MODEL_CACHE, PARAMS_CACHE, RecentCache, TrialPlan
 
 if TYPE_CHECKING:
     from somo_sweep.sim.numerics import ChosenNumerics
 
-__all__ = ["Job", "JobMaker", "auto_numerics", "param_column", "replica_jobs"]
+__all__ = ["Job", "JobMaker", "auto_numerics", "engine_version", "param_column", "replica_jobs"]
+
+
+@cache
+def engine_version(engine: str) -> str:
+    """The installed version of an engine's package, read once per process (every MuJoCo job id
+    names it; reading the package metadata each time made a MuJoCo job table 12 times slower)."""
+    return _read_engine_version(engine)
 
 
 def _hash(obj: Any, n: int = 16) -> str:

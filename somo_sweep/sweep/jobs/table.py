@@ -19,9 +19,8 @@ from typing import TYPE_CHECKING, Any, overload
 import numpy as np
 
 from somo_sweep.errors import DescriptionError, Problem
-from somo_sweep.sim.settings import engine_version
 from somo_sweep.sweep.jobs.code import code_version, pybullet_version, trial_modules
-from somo_sweep.sweep.jobs.job import Job, JobMaker, auto_numerics, param_column, replica_jobs
+from somo_sweep.sweep.jobs.job import Job, JobMaker, auto_numerics, engine_version, param_column, replica_jobs
 from somo_sweep.sweep.study.loaded import Study
 from somo_sweep.sweep.study.resolve import TrialPlan
 

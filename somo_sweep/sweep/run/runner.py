@@ -111,7 +111,7 @@ def run_sweep(
             study = _with_step(study, options, events.step)
             table = _table(study)
         try:
-            return run_rounds(study, table, options, events, warm)
+            return run_rounds(study, table, options, events, warm=warm)
         except Interrupted:
             raise
         except KeyboardInterrupt:  # while the results folder was opened, before the rounds' guard

@@ -16,7 +16,7 @@ import contextlib
 import signal
 import time
 from collections.abc import Generator, Iterator
-from typing import Any
+from typing import Any, Protocol
 
 import numpy as np
 
@@ -35,13 +35,44 @@ from somo_sweep.sweep.store.result_store import ResultStore
 from somo_sweep.sweep.store.schema import FIXED
 from somo_sweep.sweep.study.loaded import Study
 
-__all__ = ["run_rounds"]
+__all__ = ["BatchSource", "Values", "run_rounds"]
+
+#: Stored values of the columns a :class:`BatchSource` reads (e.g. a metric), by job id.
+Values = dict[str, dict[str, Any]]
+
+
+class BatchSource(Protocol):
+    """Batches chosen as a run goes, instead of the study's grid (a design search,
+    :mod:`somo_sweep.design.search`): each chosen from the outcomes of the ones before.
+
+    Attributes:
+        columns: Result columns (metrics) the source reads besides each trial's status and labels.
+        run_info: What the manifest records of the run at its start (``sampling``, ``replicas``).
+    """
+
+    columns: tuple[str, ...]
+    run_info: dict[str, Any]
+
+    def rounds(self, known: Known, values: Values) -> Iterator[Batch]:
+        """The batches still to run; the caller runs each and adds every outcome to ``known``
+        (and its :attr:`columns` to ``values``) before asking for the next."""
+        ...
+
+    def record(self) -> dict[str, Any]:
+        """What the manifest records of the run at its end."""
+        ...
 
 
 def run_rounds(
-    study: Study, table: JobTable, options: RunOptions, events: RunEvents, warm: WarmWorkers | None = None
+    study: Study,
+    table: JobTable,
+    options: RunOptions,
+    events: RunEvents,
+    source: BatchSource | None = None,
+    warm: WarmWorkers | None = None,
 ) -> RunSummary:
-    """Run the trials of ``table`` missing from the results folder of ``study``.
+    """Run the trials of ``table`` missing from the results folder of ``study``; with a ``source``,
+    the batches it chooses instead (``table`` then names the folder's study: its hash and record).
 
     ``warm``: local workers started ahead for this run
     (:func:`~somo_sweep.sweep.run.execution.start_workers`).
@@ -70,7 +101,7 @@ def run_rounds(
         if client is not None:
             client.close()
         raise
-    run = _Session(study, table, options, events, store, client, plan, warm)
+    run = _Session(study, table, options, events, store, client, plan, source, warm)
     try:
         run.begin()
         with SignalGuard() as guard:
@@ -115,16 +146,18 @@ class _Session:
         store: ResultStore,
         client: Any,
         plan: AdaptivePlan | None,
+        source: BatchSource | None = None,
         warm: WarmWorkers | None = None,
     ):
         self.study, self.table, self.options, self.events = study, table, options, events
-        self.store, self.client, self.plan, self.warm = store, client, plan, warm
+        self.store, self.client, self.plan, self.source, self.warm = store, client, plan, source, warm
         self.start = time.perf_counter()
         self.summary = RunSummary(study.output, len(table.ids), 0, notes=list(store.notes))
         self.summary.sampling = "adaptive" if plan else "grid"
         self.replicas = ReplicaPlan(study, table) if study.robustness.replicas > 0 else None
         self.buffer: list[dict[str, Any]] = []
         self.known: Known = {}
+        self.values: Values = {}
         self.status = "completed"
         self.failure: OSError | None = None
         self.cut_short: list[int] = []  # trials running (or returned, not yet received) when it stopped
@@ -143,13 +176,18 @@ class _Session:
         self.todo = table.select(np.flatnonzero(~table.among(stored)))
         summary.skipped = len(table.ids) - len(self.todo)
         summary.stored_errors = int(table.among(errors).sum())
-        self.known = store.stored_labels() if self.plan or self.replicas else {}
+        self.known = store.stored_labels() if self.plan or self.replicas or self.source else {}
+        if self.source is not None:
+            self.values = store.stored_values(self.source.columns)
+            summary.sampling = str(self.source.run_info.get("sampling", summary.sampling))
         if self.client is not None and not threads(self.client):
             summary.notes.append("the Dask scheduler has no worker yet: the trials wait for workers to join")
         store.check_inferred()  # refuse a folder in its place now, not after the trials
         # A grid run simulates every cell not stored; an adaptive run only those its rounds pick,
         # which are not known yet: it records how many it could pick, and its rounds at the end.
         planned = {"cells_not_stored": len(self.todo)} if self.plan else {"to_run": len(self.todo)}
+        if self.source is not None:
+            planned = dict(self.source.run_info)
         backend = self.options.backend
         store.start_run(
             {
@@ -172,6 +210,9 @@ class _Session:
     def _batches(self) -> Iterator[Batch]:
         """The study's own batches, then (once they are all done) the replica rounds."""
         plan, known = self.plan, self.known
+        if self.source is not None:
+            yield from self.source.rounds(known, self.values)
+            return
         yield from plan.rounds(known) if plan else iter([Batch(None, len(self.todo), self.todo)])
         if self.replicas is None:
             return
@@ -216,8 +257,10 @@ class _Session:
             summary.run += 1
             summary.by_status[out.status] += 1
             summary.by_label.update(f"{k}={v}" for k, v in out.labels.items())
-        if self.plan or self.replicas:  # what the rounds to come are chosen from
+        if self.plan or self.replicas or self.source:  # what the rounds to come are chosen from
             self.known[out.job_id] = (out.status, dict(out.labels))
+        if self.source is not None and self.source.columns:
+            self.values[out.job_id] = {c: row.get(c) for c in self.source.columns}
         self.store.journal(row)
         self.buffer.append(row)
         if self.events.outcome:
@@ -275,6 +318,8 @@ class _Session:
             if plan
             else {}
         )
+        if self.source is not None:
+            extra[summary.sampling] = self.source.record()
         if self.replicas is not None:
             summary.robustness = {**self.replicas.summary(), "replicas_run": summary.replicas_run}
             extra["robustness"] = summary.robustness

@@ -39,6 +39,7 @@ __all__ = [
     "stored_ids",
     "stored_labels",
     "stored_statuses",
+    "stored_values",
     "study_hashes",
 ]
 
@@ -304,6 +305,21 @@ def stored_labels(parts: list[Path], names: list[str]) -> dict[str, tuple[str, d
         r["job_id"]: (r["status"], {n.removeprefix("label_"): r[n] for n in names if r[n] is not None})
         for r in table
     }
+
+
+def stored_values(parts: list[Path], names: list[str]) -> dict[str, dict[str, Any]]:
+    """Values of the columns ``names`` of every trial stored in ``parts``, by job id (None where a
+    part has no such column)."""
+    if not parts or not names:
+        return {}
+    out: dict[str, dict[str, Any]] = {}
+    for part in parts:
+        file = pq.ParquetFile(part)
+        have = [n for n in names if n in file.schema_arrow.names]
+        rows = file.read(columns=["job_id", *have], use_threads=False).to_pylist()
+        for row in rows:
+            out[row["job_id"]] = {n: row.get(n) for n in names}
+    return out
 
 
 def stored_ids(parts: list[Path]) -> tuple[np.ndarray, np.ndarray]:

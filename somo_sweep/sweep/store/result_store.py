@@ -31,6 +31,7 @@ import json
 import os
 import sys
 import uuid
+from collections.abc import Sequence
 from datetime import UTC, datetime
 from pathlib import Path
 from typing import IO, Any
@@ -60,7 +61,7 @@ from somo_sweep.sweep.store.opening import (
     open_manifest,
     quarantine,
 )
-from somo_sweep.sweep.store.parts import stored_ids, stored_labels, stored_statuses
+from somo_sweep.sweep.store.parts import stored_ids, stored_labels, stored_statuses, stored_values
 from somo_sweep.sweep.store.schema import COLUMNS, FIXED, arrow_type, merge_types, unit_of
 
 __all__ = ["ResultStore", "read_manifest", "read_results", "record_files"]
@@ -253,6 +254,11 @@ class ResultStore:
     def stored_labels(self) -> dict[str, tuple[str, dict[str, str]]]:
         """Status and labels (names without ``label_``) of every trial already stored, by job id."""
         return stored_labels(self._parts(), [n for n in self._schema().names if n.startswith("label_")])
+
+    def stored_values(self, columns: Sequence[str]) -> dict[str, dict[str, Any]]:
+        """Values of ``columns`` (a column no part holds reads as None) of every trial already
+        stored, by job id."""
+        return stored_values(self._parts(), list(columns))
 
     def stored_ids(self) -> tuple[np.ndarray, np.ndarray]:
         """(ids of the trials stored, ids of those stored as ``error``), as NumPy ``S16`` arrays."""

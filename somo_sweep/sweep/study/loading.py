@@ -27,7 +27,13 @@ from somo_sweep.sweep.study.loaded import Study
 from somo_sweep.sweep.study.overlaps import default_of, overlaps, replaced, study_inputs
 from somo_sweep.tasks.registry import TaskSpec, get_task
 
-__all__ = ["load_study"]
+__all__ = ["DESIGN_STUDY", "load_study", "study_from_mapping"]
+
+#: Why ``run`` refuses a study file with a ``design:`` block.
+DESIGN_STUDY = (
+    "this is a design study (it searches designs instead of running a grid); run it with "
+    "`somo-sweep design FILE`; allowed in a grid study: no design: block"
+)
 
 
 @dataclass
@@ -87,6 +93,29 @@ def load_study(
     """
     path = bundled_if_missing(path)
     data, lines = load_mapping(path)
+    if "design" in data:
+        raise DescriptionError(str(path), [Problem("design", DESIGN_STUDY, lines.get("design"))])
+    return study_from_mapping(path, data, lines, output, max_trials, allow_outside)
+
+
+def study_from_mapping(
+    path: Path,
+    data: dict[str, Any],
+    lines: dict[str, int],
+    output: str | Path | None = None,
+    max_trials: int = MAX_TRIALS,
+    allow_outside: bool = False,
+    check_trials: bool = True,
+) -> Study:
+    """:func:`load_study` of a study file already read (``data`` and its ``lines``, as
+    :func:`~somo_sweep.model.files.load_mapping` gives them): a design study's grid part.
+
+    With ``check_trials=False`` the trials' models and parameters are not checked (a design
+    search checks each design's, :mod:`somo_sweep.design.designs`).
+
+    Raises:
+        DescriptionError: Every problem of the study at once, with lines and key paths.
+    """
     raw = validate(StudyFile, data, str(path), lines)
     found = _Found(path, lines)
     task = _task(raw, found)
@@ -104,6 +133,9 @@ def load_study(
     study = _new_study(raw, path, task, cells, model_path, fixed, read, out, allow_outside)
     bases, bases_ok = read_bases(model_path, study.axes, allow_outside, lines, found.problems, cells)
     study = replace(study, bases=bases)
+    if not check_trials:
+        found.refuse()
+        return study
     if found.problems and bases_ok:
         # Check the trials of the good axes too, so that every problem is reported at once.
         check_points(_good_part(study, read), lines, found.problems)
