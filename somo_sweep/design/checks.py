@@ -2,7 +2,8 @@
 
 Each variable's key path must name a field of the model or a task parameter, every end of its range
 (every choice) must give a model and parameters the task can take (its ``check_model``), and it
-must be neither an object axis nor set in ``set:``. The objective's label must be one the task
+must be neither an object axis nor given in ``params:`` or ``set:`` (nor reach a field another
+variable does). The objective's label must be one the task
 gives, the trade-off a metric it writes or a variable of the design, and the budget must cover one
 design's objects. Every problem names its key path.
 """
@@ -18,7 +19,9 @@ from somo_sweep.design.study import MAX_BUDGET, DesignBlock, DesignStudy
 from somo_sweep.design.variables import Variable
 from somo_sweep.errors import DescriptionError, Problem, did_you_mean, shown
 from somo_sweep.sweep.study import Study
+from somo_sweep.sweep.study.axes import parse_key_path
 from somo_sweep.sweep.study.checks import no_perturbation, unknown_labels
+from somo_sweep.sweep.study.overlaps import Given, overlaps, study_inputs
 
 __all__ = ["MAX_PROBES", "check_block", "infeasible_everywhere"]
 
@@ -40,13 +43,12 @@ def check_block(
         problems.append(Problem(where, message, lines.get(where)))
 
     problems += _check_objects(base, block, variables, lines)
+    problems += _given_twice(base, variables, block, lines)
     blamed = {p.path for p in problems}
     for v in variables:
         where = f"design.variables.{v.key}"
         if v.key in block.objects:
             add(where, "is also an object axis (design.objects); allowed: a key is a variable or an object")
-        elif v.key in base.fixed:
-            add(where, "is also set in set:; allowed: a key is a design variable or set, not both")
         elif where not in blamed:
             why = _probe(base, v)
             if why is not None:
@@ -76,6 +78,25 @@ def check_block(
             else f"{block.budget} simulations; allowed: at most {MAX_BUDGET}",
         )
     return problems
+
+
+def _given_twice(
+    base: Study, variables: Sequence[Variable], block: DesignBlock, lines: dict[str, int]
+) -> list[Problem]:
+    """Variables that reach a field ``params:`` or ``set:`` gives too, or another variable does
+    (the same path, ``[*]`` and an index, a field inside another): a design's column would say
+    one value while the trial simulated the other (:mod:`~somo_sweep.sweep.study.overlaps`)."""
+    given = study_inputs(base.params, base.fixed, {}, None, lines)
+    for v in variables:
+        if v.key in block.objects:
+            continue  # said as an object axis
+        where = f"design.variables.{v.key}"
+        try:
+            root, parts = parse_key_path(v.key)
+        except ValueError:
+            continue  # said where the key is read
+        given.append(Given(where, v.key, (root, *parts), lines.get(where)))
+    return overlaps(given)
 
 
 def _probe(base: Study, variable: Variable) -> str | None:

@@ -46,7 +46,6 @@ GRIPPER_DESIGN = """\
 name: grip_design
 task: pinch_grasp
 model: gripper.yaml
-params: {pressure_kpa: 150}
 seed: 0
 simulation: {engine: mujoco, time_step_s: 4.0e-3}
 design:

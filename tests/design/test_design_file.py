@@ -47,7 +47,12 @@ BAD = {
     "variable also set": (
         "seed: 3=>seed: 3\nset: {task.u: 0.5}",
         120,
-        "design.variables.task.u: is also set in set:",
+        "design.variables.task.u: overlaps set.task.u (line 6): both set task.u",
+    ),
+    "variable also in params": (
+        "sleep_s: 0.0,=>sleep_s: 0.0, u: 0.5,",
+        120,
+        "design.variables.task.u: overlaps params.u (line 4): both set task.u",
     ),
     "non-finite bound": (
         f"{U}=>task.u: {{low: -.inf, high: 1.0}}",
