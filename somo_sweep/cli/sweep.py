@@ -413,7 +413,11 @@ def _describe_task(name: str) -> None:
     spec = known[name]
     typer.echo("\n".join(textwrap.wrap(f"{name}: {spec.description}", 80)))
     typer.echo("parameters (task.<key>: default; set them in params: or sweep them):")
+    section = ""
     for p in parameters(spec):
+        if p.section != section:
+            section = p.section
+            typer.echo("\n" + "\n".join(textwrap.wrap(f"task.{section.replace('``', '')}", 80)))
         typer.echo(f"  {p.key}: {p.default}")
         for line in textwrap.wrap(p.meaning.replace("``", ""), 74):
             typer.echo(f"      {line}")
