@@ -18,7 +18,7 @@ from rich.progress import (
     TimeRemainingColumn,
 )
 
-from somo_sweep.cli.output import fail
+from somo_sweep.cli.output import fail, say_notes
 from somo_sweep.cli.results import ALLOW_OUTSIDE, MAX_TRIALS, save_plots
 from somo_sweep.errors import Interrupted, SomoError
 
@@ -158,6 +158,7 @@ def _loaded(
 
     try:
         study = load_study(path, out, max_trials, allow_outside)
+        say_notes(study.notices)
         if dry_run is not None:
             _print_dry_run(apply_options(study, dry_run), dry_run.workers, estimate)
             return None
