@@ -7,6 +7,8 @@ Light (no engine import): a study's loading calls :func:`gripper` through the ta
 
 from __future__ import annotations
 
+from functools import partial
+
 from somo_sweep.errors import SomoError
 from somo_sweep.model.description import Actuator, Joint, Link, Manipulator, Pose, RigidBody
 from somo_sweep.model.load import Model
@@ -79,25 +81,13 @@ def split_finger(
     Raises:
         SomoError: A re-split finger with more than two actuators (the task's check refuses it first).
     """
-
-    def tuned(act: Actuator, n: int | None, actuated: bool | None) -> Actuator:
-        seg_m = act.segment_m
-        link = _surface(act.link.with_length_z(seg_m), spinning_friction_m, restitution)
-        if numerics is not None and numerics.added_inertia_kg_m2 is not None:
-            link = link.model_copy(update={"added_inertia_kg_m2": numerics.added_inertia_kg_m2})
-        joints = _tuned_joints(list(act.joints), numerics, spring_scale, actuated)
-        n = act.segments if n is None else n
-        return act.model_copy(
-            update={
-                "length_m": n * seg_m,
-                "n_segments": n,
-                "segment_length_m": None,
-                "link": link,
-                "joints": joints,
-                "stiffness_profile": None,
-            }
-        )
-
+    tuned = partial(
+        _tuned_actuator,
+        numerics=numerics,
+        spring_scale=spring_scale,
+        spinning_friction_m=spinning_friction_m,
+        restitution=restitution,
+    )
     tips = [_surface(t, spinning_friction_m, restitution) for t in finger.tip_links]
     if n_distal is None:
         actuators = [tuned(a, None, None) for a in finger.actuators]
@@ -114,6 +104,36 @@ def split_finger(
     else:
         actuators = [tuned(proximal, n_links - n_distal, True), tuned(distal, n_distal, False)]
     return finger.model_copy(update={"actuators": actuators, "tip_links": tips})
+
+
+def _tuned_actuator(
+    act: Actuator,
+    n: int | None,
+    actuated: bool | None,
+    *,
+    numerics: Numerics | None,
+    spring_scale: float,
+    spinning_friction_m: float | None,
+    restitution: float | None,
+) -> Actuator:
+    """``act`` as ``n`` links (None: its own count) with the trial's surfaces, numerics and spring
+    scale, its joints driven as ``actuated`` says (:func:`_tuned_joints`)."""
+    seg_m = act.segment_m
+    link = _surface(act.link.with_length_z(seg_m), spinning_friction_m, restitution)
+    if numerics is not None and numerics.added_inertia_kg_m2 is not None:
+        link = link.model_copy(update={"added_inertia_kg_m2": numerics.added_inertia_kg_m2})
+    joints = _tuned_joints(list(act.joints), numerics, spring_scale, actuated)
+    n = act.segments if n is None else n
+    return act.model_copy(
+        update={
+            "length_m": n * seg_m,
+            "n_segments": n,
+            "segment_length_m": None,
+            "link": link,
+            "joints": joints,
+            "stiffness_profile": None,
+        }
+    )
 
 
 def distal_zone_links(finger: Manipulator, distal_segment_ratio: float | None) -> int:
