@@ -35,7 +35,13 @@ if TYPE_CHECKING:
 __all__ = ["design"]
 
 _err = Console(stderr=True)
-_out = Console()
+
+
+def _out() -> Console:
+    """The standard output's console, made at each use (its width is the terminal's now)."""
+    return Console()
+
+
 #: Designs the command prints (the ranking file holds them all).
 SHOWN = 8
 
@@ -243,27 +249,27 @@ def _print_answer(study: DesignStudy, ranking: pd.DataFrame, done: DesignRun, wr
         table.add_column(name, justify="right", width=width)
     for cells in rows:
         table.add_row(*cells)
-    _out.print(table)
+    _out().print(table)
     record = done.search.record()
     for note in record["notes"]:
-        _out.print(f"note: {note}")
+        _out().print(f"note: {note}")
     if done.search.designs.infeasible:
         first = done.search.designs.infeasible[0]
-        _out.print(
+        _out().print(
             f"{len(done.search.designs.infeasible)} design(s) asked were infeasible, e.g.: {first.why}"
         )
     complete = ranking[ranking["complete"].astype(bool)]
     if len(complete):
         row = complete.iloc[0]
         values = ", ".join(f"{k} = {_short(row[k])}" for k in study.keys)
-        _out.print(
+        _out().print(
             f"best design: {values}: robust {study.objective.label} = {study.objective.value} on "
             f"{int(row['robust_objects'])} of {n} objects (95 % interval {row['share_low_95']:.2f}-"
             f"{row['share_high_95']:.2f}), {row['simulations']} simulations"
         )
     else:
-        _out.print("no design was judged on every object yet: raise --budget, or run again to go on")
-    _out.print(
+        _out().print("no design was judged on every object yet: raise --budget, or run again to go on")
+    _out().print(
         f"{record['simulations']} of {study.budget} simulations spent; written: "
         + ", ".join(str(p) for p in written)
     )

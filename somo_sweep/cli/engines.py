@@ -14,6 +14,7 @@ from somo_sweep.cli.output import (
     checked_jobs,
     fail,
     json_report,
+    say_notes,
     write_outputs,
 )
 from somo_sweep.cli.sweep import JOBS
@@ -86,6 +87,7 @@ def compare_engines(
             raise SomoError(why)
         checked_jobs(jobs, allow_default=True)
         base = load_study(study, None, allow_outside=allow_outside)
+        say_notes(base.notices)
         folder = out if out is not None else RESULTS_ROOT / f"{base.name}_engines"
         _check_outputs(folder, study)
         runs = on_engines(base, folder, {"pybullet": pybullet_step, "mujoco": mujoco_step})

@@ -7,7 +7,7 @@ from typing import Annotated
 
 import typer
 
-from somo_sweep.cli.output import fail, record_in_results, write_artifacts, write_outputs
+from somo_sweep.cli.output import fail, record_in_results, say_notes, write_artifacts, write_outputs
 from somo_sweep.errors import SomoError, printable, shown
 
 __all__ = ["classify", "render"]
@@ -87,7 +87,7 @@ def render(
     if out.exists() and not out.is_dir():  # before the trial is simulated
         fail(SomoError(f"--out {out} is a file, not a folder"))
     try:
-        images, label = render_trial(study, trial, times, engine)
+        images, label = render_trial(study, trial, times, engine, say_notes)
         paths = write_artifacts(images, out)
     except SomoError as exc:
         fail(exc)

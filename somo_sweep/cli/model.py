@@ -10,7 +10,7 @@ from typing import Annotated
 import pandas as pd
 import typer
 
-from somo_sweep.cli.output import check_replaceable, checked_jobs, fail, file_target, write_atomic
+from somo_sweep.cli.output import check_replaceable, checked_jobs, fail, file_target, say_notes, write_atomic
 from somo_sweep.errors import SomoError
 
 __all__ = ["check", "measure"]
@@ -116,6 +116,7 @@ def _check_study(path: Path, allow_outside: bool, jobs: int) -> None:
         study = load_study(path, allow_outside=allow_outside)
     except SomoError as exc:
         fail(exc)
+    say_notes(study.notices)
     typer.echo(f"{study.name}: task {study.task.name}, {study.n_trials} trials")
     if study.simulation is not None:
         typer.echo(f"simulation: time step {study.simulation.step_s * 1e3:g} ms, from the study file")

@@ -5,7 +5,7 @@ makes outside a sweep's result store.
 
 from __future__ import annotations
 
-from collections.abc import Iterator
+from collections.abc import Iterable, Iterator
 from contextlib import contextmanager
 from pathlib import Path
 from typing import Any, NoReturn
@@ -81,6 +81,12 @@ def checked_jobs(jobs: int, allow_default: bool = False) -> int:
     from somo_sweep.sweep.run.options import checked_workers
 
     return checked_workers(jobs, allow_default)
+
+
+def say_notes(notes: Iterable[str]) -> None:
+    """Print each note once on stderr (what loading a study has to tell without refusing it)."""
+    for note in dict.fromkeys(notes):
+        typer.echo(f"note: {note}", err=True)
 
 
 def fail(exc: BaseException, code: int | None = None) -> NoReturn:

@@ -18,6 +18,7 @@ from somo_sweep.cli.output import (
     checked_jobs,
     fail,
     record_in_results,
+    say_notes,
     write_artifacts,
     write_atomic,
 )
@@ -220,6 +221,7 @@ def fig6_ablation(
     try:
         spec, folder = load_ablation(ablation or ABLATION_FILE)
         configs = configurations(spec, folder, grid, results_root)
+        say_notes([*spec.notices, *(note for c in configs for note in c.study.notices)])
         if run:
             stopped = _run_ablation(configs, _jobs(jobs, allow_default=True), adaptive)
             if stopped is not None:

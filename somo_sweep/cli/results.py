@@ -2,8 +2,9 @@
 
 from __future__ import annotations
 
+from collections.abc import Iterable
 from pathlib import Path
-from typing import TYPE_CHECKING, Annotated
+from typing import TYPE_CHECKING, Annotated, Any
 
 import typer
 from rich.console import Console
@@ -14,6 +15,7 @@ from somo_sweep.cli.output import (
     figure_bytes,
     file_target,
     json_report,
+    say_notes,
     write_atomic,
     write_outputs,
 )
@@ -107,9 +109,20 @@ def show(results: Annotated[Path, typer.Argument(help="Results folder, e.g. resu
     try:
         df, manifest = read_results(results, damaged), read_manifest(results)
         pending = pending_journal_rows(results, manifest["study_hash"], set(df["job_id"]))
+        say_notes(_old_columns(results, df.columns, manifest))
         print_results(_out(), df, manifest, holder_now(results), pending)
     except SomoError as exc:
         fail(exc)
+
+
+def _old_columns(folder: Path, columns: Iterable[object], manifest: dict[str, Any]) -> list[str]:
+    """The note on a folder whose columns name parameters that have moved since (none: none)."""
+    from somo_sweep.sweep.study.moved import old_columns_notice
+    from somo_sweep.tasks.registry import all_tasks
+
+    spec = all_tasks().get(str(manifest.get("study", {}).get("task")))
+    said = old_columns_notice(folder, map(str, columns), spec.moved) if spec is not None else None
+    return [said] if said else []
 
 
 def plot(results: Annotated[Path, typer.Argument(help="Results folder, e.g. results/<study>.")]) -> None:
@@ -155,7 +168,9 @@ def recheck(
     try:
         if target is not None:
             check_replaceable(target, [study], kind="json", older_keys=RECHECK_KEYS)
-        result = run_recheck(load_study(study, out, max_trials, allow_outside), trials, seed, damaged)
+        loaded = load_study(study, out, max_trials, allow_outside)
+        say_notes(loaded.notices)
+        result = run_recheck(loaded, trials, seed, damaged)
     except SomoError as exc:
         fail(exc)
     if target is not None:

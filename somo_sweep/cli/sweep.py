@@ -18,7 +18,7 @@ from rich.progress import (
     TimeRemainingColumn,
 )
 
-from somo_sweep.cli.output import fail
+from somo_sweep.cli.output import fail, say_notes
 from somo_sweep.cli.results import ALLOW_OUTSIDE, MAX_TRIALS, save_plots
 from somo_sweep.errors import Interrupted, SomoError
 
@@ -168,6 +168,7 @@ def _loaded(
 
     try:
         study = load_study(path, out, max_trials, allow_outside)
+        say_notes(study.notices)
         if dry_run is not None:
             _print_dry_run(apply_options(study, dry_run), dry_run.workers, estimate)
             return None
@@ -425,7 +426,11 @@ def _describe_task(name: str) -> None:
     spec = known[name]
     typer.echo("\n".join(textwrap.wrap(f"{name}: {spec.description}", 80)))
     typer.echo("parameters (task.<key>: default; set them in params: or sweep them):")
+    section = ""
     for p in parameters(spec):
+        if p.section != section:
+            section = p.section
+            typer.echo("\n" + "\n".join(textwrap.wrap(f"task.{section.replace('``', '')}", 80)))
         typer.echo(f"  {p.key}: {p.default}")
         for line in textwrap.wrap(p.meaning.replace("``", ""), 74):
             typer.echo(f"      {line}")

@@ -14,13 +14,19 @@ study overrides (``task.…`` / ``model.…`` key paths) with its value in ours 
         description: every finger joint's stiffness doubled
         ours: {task.spring_scale: 1.0}
         original: {task.spring_scale: 2.0}
+      point_contacts:
+        description: no spinning friction on the finger links and tips
+        ours: {task.original.finger_spinning_friction_m: null}
+        original: {task.original.finger_spinning_friction_m: 0.0}
 
 :func:`configurations` makes ``ours``, ``original``, ``ours+<f>`` and ``original-<f>`` for
 every factor, each a study derived from ``ours`` (so a configuration is exactly ours plus
 overrides), checks that ``original`` derived this way is the original study (the same trials),
 and groups configurations that come out the same so they share one results folder. The rule is
 a factor too, but a free one: both labels are stored, so every configuration is evaluated
-under both rules (:mod:`somo_sweep.paper.fig6_ablation`).
+under both rules (:mod:`somo_sweep.paper.fig6_ablation`). A factor key that names a pinch-grasp
+parameter by the name it had before it moved (``task.finger_spinning_friction_m``) is read at its
+new place (``task.original.finger_spinning_friction_m``), with a notice (:attr:`AblationFile.notices`).
 """
 
 from __future__ import annotations
@@ -30,7 +36,7 @@ from dataclasses import dataclass, replace
 from pathlib import Path
 from typing import Any, Literal
 
-from pydantic import Field
+from pydantic import Field, PrivateAttr
 
 from somo_sweep.errors import DescriptionError, Problem, SomoError
 from somo_sweep.model.description import Spec
@@ -45,6 +51,8 @@ from somo_sweep.sweep.jobs.table import JobTable, build_jobs
 from somo_sweep.sweep.run.execution import Outcome
 from somo_sweep.sweep.run.runner import RunEvents, RunOptions, RunSummary, run_sweep
 from somo_sweep.sweep.study import Study, derive_study, load_study
+from somo_sweep.sweep.study.moved import Renamed, moved_key, notice
+from somo_sweep.tasks.registry import get_task
 
 __all__ = [
     "ABLATION_FILE",
@@ -92,6 +100,13 @@ class AblationFile(Spec):
     grids: dict[str, Grid] = Field(min_length=1)
     rules: Rules = Rules()
     factors: dict[str, Factor] = Field(min_length=1)
+    _notices: tuple[str, ...] = PrivateAttr(default=())
+
+    @property
+    def notices(self) -> tuple[str, ...]:
+        """What loading the file has to tell without refusing it (factor keys given by the name a
+        parameter had before it moved), one line each."""
+        return self._notices
 
 
 @dataclass
@@ -130,8 +145,7 @@ def load_ablation(path: str | Path = ABLATION_FILE) -> tuple[AblationFile, Path]
     """
     path = Path(path)
     data, lines = load_mapping(path)
-    spec = validate(AblationFile, data, str(path), lines)
-    problems = []
+    spec, problems = _moved_factors(validate(AblationFile, data, str(path), lines), path, lines)
     for name, factor in spec.factors.items():
         if set(factor.ours) != set(factor.original):
             problems.append(
@@ -145,6 +159,42 @@ def load_ablation(path: str | Path = ABLATION_FILE) -> tuple[AblationFile, Path]
     if problems:
         raise DescriptionError(path, problems)
     return spec, path.parent
+
+
+def _moved_factors(
+    spec: AblationFile, path: Path, lines: dict[str, int]
+) -> tuple[AblationFile, list[Problem]]:
+    """``spec`` with every factor key that names a pinch-grasp parameter by its old name renamed,
+    and a notice naming each (with its line); a field given by both names is a problem."""
+    moved = get_task("pinch_grasp").moved
+    renamed: list[Renamed] = []
+    problems: list[Problem] = []
+    factors = {}
+    for name, factor in spec.factors.items():
+        ends: dict[str, dict[str, Any]] = {}
+        for end in ("ours", "original"):
+            given: dict[str, Any] = getattr(factor, end)
+            ends[end] = {}
+            for key, value in given.items():
+                new = moved_key(key, moved)
+                where = f"factors.{name}.{end}.{key}"
+                if new is not None and new in given:
+                    problems.append(
+                        Problem(
+                            where,
+                            f"gives {new} by the name it had before it moved, and "
+                            f"factors.{name}.{end}.{new} gives it too; allowed: {new} alone",
+                            lines.get(where),
+                        )
+                    )
+                    continue
+                if new is not None:
+                    renamed.append(Renamed(where, new, lines.get(where)))
+                ends[end][new or key] = value
+        factors[name] = factor.model_copy(update=ends)
+    out = spec.model_copy(update={"factors": factors})
+    out._notices = tuple(n for n in [notice(path, renamed)] if n is not None)
+    return out, problems
 
 
 def _values(spec: AblationFile, ends: dict[str, str]) -> dict[str, Any]:
@@ -199,6 +249,9 @@ def configurations(spec: AblationFile, folder: Path, grid: str, results_root: Pa
         by_hash.setdefault(table.study_hash, config)
         out.append(config)
     _check_original(out[1], original)
+    # What loading the two end studies had to say (the derived ones carry ours's).
+    notices = tuple(dict.fromkeys((*out[1].study.notices, *original.notices)))
+    out[1].study = replace(out[1].study, notices=notices)
     return out
 
 

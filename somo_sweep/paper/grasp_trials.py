@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import math
 from collections import Counter
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
@@ -253,7 +253,11 @@ def _trial_label(result: TaskResult, step_s: float, step_chosen: bool, times_s: 
 
 
 def render_trial(
-    study_path: str | Path, trial: str, times_s: list[float], engine: str | None = None
+    study_path: str | Path,
+    trial: str,
+    times_s: list[float],
+    engine: str | None = None,
+    notes: Callable[[Sequence[str]], None] | None = None,
 ) -> tuple[Artifacts, str]:
     """Rerun one trial of a pinch_grasp study with a top-view snapshot at each time.
 
@@ -263,6 +267,7 @@ def render_trial(
         times_s: Snapshot times, s.
         engine: Run the trial on this engine (``pybullet`` or ``mujoco``) with its numerics
             (:func:`~somo_sweep.sweep.views.compare_engines.on_engine`); None: the study's own.
+        notes: Given the study's notices once it loads (before the trial runs).
 
     Returns:
         The images (one PNG each) and the trial's label.
@@ -277,6 +282,8 @@ def render_trial(
     from somo_sweep.tasks.pinch_grasp.task import run_pinch_grasp
 
     study = with_stored_step(load_study(study_path))
+    if notes is not None:
+        notes(study.notices)
     if study.task.name != "pinch_grasp":
         raise SomoError(f"{study_path}: render needs a pinch_grasp study, this one runs '{study.task.name}'")
     if engine is not None:

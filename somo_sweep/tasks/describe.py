@@ -1,5 +1,7 @@
 """What a task takes and writes, for ``somo-sweep tasks NAME``: its parameters with their defaults
-and meanings (from the parameter model's ``Attributes:`` docstring section) and its metrics."""
+and meanings (from the parameter model's ``Attributes:`` docstring section) and its metrics. A
+group of parameters ``listed_apart`` (:class:`~somo_sweep.tasks.registry.TaskParams`) comes after
+the task's own, under its own heading."""
 
 from __future__ import annotations
 
@@ -18,11 +20,13 @@ _ATTRIBUTE = re.compile(r"^(?P<names>[a-z_][a-z0-9_, ]*):\s*(?P<text>.*)$")
 
 @dataclass(frozen=True)
 class Parameter:
-    """One task parameter: its key path under ``task.``, its default as a study writes it, its meaning."""
+    """One task parameter: its key path under ``task.``, its default as a study writes it, its meaning,
+    and the heading of the group it is listed apart in (empty: one of the task's own)."""
 
     key: str
     default: str
     meaning: str
+    section: str = ""
 
 
 def _attributes(model: type[BaseModel]) -> dict[str, str]:
@@ -64,17 +68,20 @@ def _shown(value: object) -> str:
 
 
 def parameters(spec: TaskSpec) -> list[Parameter]:
-    """Every parameter of a task, nested ones (``numerics.…``) by their dotted key."""
+    """Every parameter of a task, nested ones (``numerics.…``) by their dotted key: the task's own
+    first, then each group listed apart (its heading: ``key: meaning`` of the group)."""
     rows: list[Parameter] = []
 
-    def walk(model: type[BaseModel], prefix: str) -> None:
+    def walk(model: type[BaseModel], prefix: str, section: str) -> None:
         meanings = _attributes(model)
         for name, field in model.model_fields.items():
             default = field.default
             if isinstance(default, BaseModel):
-                walk(type(default), f"{prefix}{name}.")
+                apart = getattr(type(default), "listed_apart", False)
+                heading = f"{prefix}{name}: {meanings.get(name, '')}".rstrip(": ") if apart else section
+                walk(type(default), f"{prefix}{name}.", heading)
                 continue
-            rows.append(Parameter(f"{prefix}{name}", _shown(default), meanings.get(name, "")))
+            rows.append(Parameter(f"{prefix}{name}", _shown(default), meanings.get(name, ""), section))
 
-    walk(spec.params_model, "")
-    return rows
+    walk(spec.params_model, "", "")
+    return sorted(rows, key=lambda p: p.section != "")

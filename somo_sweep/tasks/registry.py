@@ -37,6 +37,9 @@ class TaskParams(Spec):
     """
 
     text_numbers: ClassVar[bool] = False
+    #: A group of parameters listed apart from the task's own (``somo-sweep tasks NAME``): the
+    #: pinch task's ``original`` block, kept to reproduce the original code, not to design with.
+    listed_apart: ClassVar[bool] = False
 
 
 @dataclass(frozen=True)
@@ -127,6 +130,10 @@ class TaskSpec:
             them), so that a study naming another one (``adaptive.labels``,
             ``robustness.labels``) is refused when it loads; None: not declared, and only the
             trials' own labels are checked, once they ran.
+        moved: Parameters that moved: old parameter path (``restitution``) → its path today
+            (``original.restitution``). A study giving one by its old name (``task.restitution``,
+            ``params: {restitution: …}``, a ``cells:`` column) is read at its new place, with a
+            notice (:mod:`~somo_sweep.sweep.study.moved`); its results columns are the new ones.
         guides_path: ``"package.module:attribute"`` of a mapping metric → :class:`MetricGuide`:
             how to read the metrics whose names do not say it all (imported on first use, as the
             thresholds it draws belong to the task's labelling code); empty: none.
@@ -148,6 +155,7 @@ class TaskSpec:
     summary_metrics: tuple[str, ...] = ()
     labels: tuple[str, ...] | None = None
     replaces: Mapping[str, tuple[str, ...]] = field(default_factory=dict)
+    moved: Mapping[str, str] = field(default_factory=dict)
     guides_path: str = ""
 
     def declares(self, metric: str) -> bool:

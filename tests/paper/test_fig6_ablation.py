@@ -141,6 +141,74 @@ def test_bundled_ablation_makes_every_configuration_and_shares_coinciding_ones(t
     assert all(len(c.table.jobs) == 192 for c in configs.values())
 
 
+def test_the_bundled_configurations_simulate_each_factor_at_its_end(tmp_path: Path) -> None:
+    # Springs x2 is the designer's spring_scale; point contacts the original block's spinning friction.
+    spec, folder = load_ablation(ABLATION_FILE)
+    expected = {
+        "ours": (1.0, None),
+        "original": (2.0, 0.0),
+        "ours+springs_x2": (2.0, None),
+        "ours+point_contacts": (1.0, 0.0),
+        "original-springs_x2": (1.0, 0.0),
+        "original-point_contacts": (2.0, None),
+    }
+    for config in configurations(spec, folder, "quick", tmp_path):
+        seen = {
+            (j.params.spring_scale, j.params.original.finger_spinning_friction_m) for j in config.table.jobs
+        }
+        assert seen == {expected[config.name]}, config.name
+        assert config.study.notices == ()
+    assert spec.notices == ()
+
+
+def test_an_ablation_file_with_the_old_names_makes_the_same_configurations_with_a_notice(
+    tmp_path: Path,
+) -> None:
+    text = ABLATION_FILE.read_text()
+    old = tmp_path / "ablation.yaml"
+    old.write_text(
+        text.replace("task.original.finger_spinning_friction_m", "task.finger_spinning_friction_m")
+    )
+    for name in ("pinch_grasp_quick_ablation_ours.yaml", "pinch_grasp_quick_original.yaml"):
+        study = (ABLATION_FILE.parent / name).read_text().replace("models/", f"{MODELS}/")
+        (tmp_path / name).write_text(
+            study.replace("original: {finger_spinning_friction_m: 0.0}", "finger_spinning_friction_m: 0.0")
+        )
+    spec, folder = load_ablation(old)
+    hashes = {c.name: c.table.study_hash for c in configurations(spec, folder, "quick", tmp_path)}
+    bundled, bundled_folder = load_ablation(ABLATION_FILE)
+    assert hashes == {
+        c.name: c.table.study_hash for c in configurations(bundled, bundled_folder, "quick", tmp_path)
+    }
+    (notice,) = spec.notices
+    line = next(n for n, s in enumerate(text.splitlines(), 1) if "ours: {task.original.finger" in s)
+    new = "task.original.finger_spinning_friction_m"
+    assert notice == (
+        f"{old}: old parameter names read at their new place: "
+        f"factors.point_contacts.ours.task.finger_spinning_friction_m (line {line}) → {new}; "
+        f"factors.point_contacts.original.task.finger_spinning_friction_m (line {line + 1}) → {new}; "
+        "write the new key paths to silence this note"
+    )
+    original = next(c for c in configurations(spec, folder, "quick", tmp_path) if c.name == "original")
+    assert any("params.finger_spinning_friction_m" in n for n in original.study.notices)
+
+
+def test_a_factor_giving_a_parameter_by_both_names_is_refused(tmp_path: Path) -> None:
+    path = tmp_path / "ablation.yaml"
+    path.write_text(
+        "name: a\ngrids: {g: {ours: a.yaml, original: b.yaml}}\nfactors:\n  f:\n"
+        "    ours: {task.restitution: 0.0, task.original.restitution: 0.0}\n"
+        "    original: {task.original.restitution: 0.5}\n"
+    )
+    with pytest.raises(DescriptionError) as info:
+        load_ablation(path)
+    assert info.value.problems[0].render() == (
+        "line 5: factors.f.ours.task.restitution: gives task.original.restitution by the name it had "
+        "before it moved, and factors.f.ours.task.original.restitution gives it too; allowed: "
+        "task.original.restitution alone"
+    )
+
+
 def test_an_original_study_that_is_not_ours_plus_the_factors_is_refused(tmp_path: Path) -> None:
     for name in ("pinch_grasp_quick_ablation_ours.yaml", "pinch_grasp_quick_original.yaml"):
         text = (ABLATION_FILE.parent / name).read_text().replace("models/", f"{MODELS}/")
@@ -155,7 +223,7 @@ def test_a_factor_must_set_the_same_keys_at_both_ends(tmp_path: Path) -> None:
     path = tmp_path / "ablation.yaml"
     path.write_text(
         "name: a\ngrids: {g: {ours: a.yaml, original: b.yaml}}\n"
-        "factors:\n  f: {ours: {task.spring_scale: 1.0}, original: {task.restitution: 0.5}}\n"
+        "factors:\n  f: {ours: {task.spring_scale: 1.0}, original: {task.original.restitution: 0.5}}\n"
     )
     with pytest.raises(DescriptionError, match=r"factors\.f.*the same key paths"):
         load_ablation(path)

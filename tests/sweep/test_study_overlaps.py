@@ -191,18 +191,18 @@ def test_a_mapping_set_whole_that_holds_a_replaced_field_is_refused(tmp_path: Pa
     link = "model.assembly.manipulators[0].manipulator.actuators[0].link"
     body = GRIPPER + (
         f"set:\n  {link}: {{shape: box, size_m: [0.023, 0.017], mass_kg: 0.0025, restitution: 0.3}}\n"
-        "sweep:\n  task.restitution: [null, 0.5]\n"
+        "sweep:\n  task.original.restitution: [null, 0.5]\n"
     )
     (problem,) = _problems(make_study(tmp_path, body))
     assert problem.startswith(
-        f"line 5: set.{link}: sets {link}.restitution, which task.restitution, given by "
-        "sweep.task.restitution on line 7, replaces"
+        f"line 5: set.{link}: sets {link}.restitution, which task.original.restitution, given by "
+        "sweep.task.original.restitution on line 7, replaces"
     )
 
 
 def test_a_model_field_whose_replacing_parameter_stays_null_is_accepted(tmp_path: Path) -> None:
     tip = "model.assembly.manipulators[1].manipulator.tip_links[0].friction.spinning"
-    body = GRIPPER + f"params: {{restitution: null}}\nsweep:\n  {tip}: [0.001, 0.002]\n"
+    body = GRIPPER + f"params: {{original: {{restitution: null}}}}\nsweep:\n  {tip}: [0.001, 0.002]\n"
     assert load_study(make_study(tmp_path, body)).n_trials == 2
 
 

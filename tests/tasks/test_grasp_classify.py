@@ -15,7 +15,7 @@ import pytest
 from somo_sweep.errors import SomoError
 from somo_sweep.tasks.pinch_grasp.classify import GraspEvidence, classify, reclassify
 from somo_sweep.tasks.pinch_grasp.legacy import legacy_columns, upgrade_table
-from somo_sweep.tasks.pinch_grasp.params import distal_link_count
+from somo_sweep.tasks.pinch_grasp.links import distal_link_count
 from somo_sweep.tasks.pinch_grasp.positions import contact_position, paper_mean_link, zone_force_fractions
 
 #: The old tables' final per-part count columns: base boxes, links 1 … 20, fingertip, palm.

@@ -21,7 +21,7 @@ from somo_sweep.sim.worlds import open_world
 from somo_sweep.sweep.study import load_study
 from somo_sweep.tasks.ihm_gait.params import GaitParams
 from somo_sweep.tasks.ihm_gait.task import simulate_gait
-from somo_sweep.tasks.pinch_grasp.params import check_gripper
+from somo_sweep.tasks.pinch_grasp.checks import check_gripper
 
 FITS = {
     "bench": {"ihm_finger", "pinch_finger", "pinch_finger_original", "snake", "whole_arm"},

@@ -84,6 +84,8 @@ def test_a_box_wider_than_the_open_fingertips_is_refused_naming_the_widest(tmp_p
 
 def test_the_originals_hull_is_60_mm_across_and_refuses_another_span(tmp_path: Path) -> None:
     with pytest.raises(DescriptionError) as info:
-        load_study(_study(tmp_path, {"task.object_span_m": [0.05]}, {"object_shape": "original_hull"}))
+        load_study(
+            _study(tmp_path, {"task.object_span_m": [0.05]}, {"original": {"object_shape": "original_hull"}})
+        )
     text = " ".join(str(info.value).split())
     assert "object_shape 'original_hull' is the original's objects, 0.06 m across the fingers; got" in text

@@ -5,6 +5,7 @@ once, and the starter folder that runs as written."""
 from __future__ import annotations
 
 import math
+import re
 from pathlib import Path
 
 import pytest
@@ -15,7 +16,9 @@ from somo_sweep.cli.app import app
 from somo_sweep.errors import DescriptionError
 from somo_sweep.model.load import model_from_dict
 from somo_sweep.sweep.study import load_study
-from somo_sweep.tasks.pinch_grasp.params import PinchGraspParams, check_gripper, distal_split_problem
+from somo_sweep.tasks.pinch_grasp.checks import check_gripper
+from somo_sweep.tasks.pinch_grasp.links import distal_split_problem
+from somo_sweep.tasks.pinch_grasp.params import PinchGraspParams
 from somo_sweep.tasks.pinch_grasp.starter import STARTER_FILES, grasp_study_files
 from somo_sweep.tasks.pinch_grasp.task import drive_n_m
 
@@ -185,6 +188,24 @@ def test_tasks_name_lists_every_parameter_with_its_default_and_meaning() -> None
     assert max(len(line) for line in lines) <= 80
     wrong = CliRunner().invoke(app, ["tasks", "pinch_grap"])
     assert wrong.exit_code == 2 and "did you mean 'pinch_grasp'" in wrong.output
+
+
+def test_tasks_name_lists_the_designers_parameters_first_and_the_original_block_apart() -> None:
+    lines = CliRunner().invoke(app, ["tasks", "pinch_grasp"]).output.splitlines()
+    lines = lines[: next(n for n, line in enumerate(lines) if line.startswith("metrics"))]
+    keys = [line.split(":")[0].strip() for line in lines if re.fullmatch(r"  [a-z_.]+: .*", line)]
+    moved = [
+        "original.finger_spinning_friction_m",
+        "original.restitution",
+        "original.lift_profile",
+        "original.object_shape",
+        "original.clamp_speed_cap",
+    ]
+    assert keys[-5:] == moved and "spring_scale" in keys[:-5] and not any("original" in k for k in keys[:-5])
+    heading = next(n for n, line in enumerate(lines) if line.startswith("task.original: "))
+    assert lines[heading - 1] == ""
+    assert "kept to reproduce its study, not to design with" in " ".join(lines[heading : heading + 2])
+    assert lines.index("  original.finger_spinning_friction_m: null") > heading
 
 
 def test_a_study_whose_fingers_reach_the_box_in_no_cell_is_refused(tmp_path: Path) -> None:

@@ -13,6 +13,7 @@ from somo_sweep.model.load import load_model
 from somo_sweep.sim.settings import WorldSettings
 from somo_sweep.tasks import get_task
 from somo_sweep.tasks.pinch_grasp.gripper import distal_zone_links, split_finger
+from somo_sweep.tasks.pinch_grasp.original import Original
 from somo_sweep.tasks.pinch_grasp.params import Numerics, PinchGraspParams
 from somo_sweep.tasks.pinch_grasp.task import run_pinch_grasp
 
@@ -129,7 +130,7 @@ def test_pad_torsional_friction_keeps_a_fingertip_pinched_box_from_pivoting(tmp_
     pads = run_pinch_grasp(load_model(GRIPPER), params, settings)
     # Once the box has dropped, the empty fingers snap shut at Bullet's speed cap: the trial goes on
     # there (clamp_speed_cap) instead of stopping as unstable, so that the drop is what is labelled.
-    clamped = params.model_copy(update={"clamp_speed_cap": True})
+    clamped = params.model_copy(update={"original": Original(clamp_speed_cap=True)})
     points = run_pinch_grasp(load_model(tmp_path / "pinch_gripper.yaml"), clamped, settings)
     assert pads.labels["grasp"] == "pinch" and pads.metrics["lift_height_m"] > 0.060
     assert abs(math.degrees(pads.metrics["object_pitch_rad"])) < 10

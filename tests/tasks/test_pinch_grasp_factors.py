@@ -1,7 +1,7 @@
 """The Fig. 6 ablation's physical switches: each changes what it says in the built simulation.
 
-``spring_scale``, ``finger_spinning_friction_m`` and ``restitution`` of the pinch_grasp task
-default to our physical model (the model file's values, restitution 0), and each is hashed
+``spring_scale`` and ``original.finger_spinning_friction_m`` and ``original.restitution`` of the
+pinch_grasp task default to our physical model (the model file's values, restitution 0), and each is hashed
 into the job id. Checked on the bodies as PyBullet holds them; nothing is stepped.
 """
 
@@ -22,6 +22,7 @@ from somo_sweep.sim.worlds import open_world
 from somo_sweep.sweep.jobs.table import build_jobs
 from somo_sweep.sweep.study import derive_study, load_study
 from somo_sweep.tasks.pinch_grasp.gripper import gripper, object_body
+from somo_sweep.tasks.pinch_grasp.original import Original
 from somo_sweep.tasks.pinch_grasp.params import PinchGraspParams
 
 SCALE = 20.0
@@ -41,8 +42,10 @@ class Built:
     object_spinning_m: float
 
 
-def build(**factors: float | None) -> Built:
-    params = PinchGraspParams(distal_segment_ratio=0.2, **factors)  # type: ignore[arg-type]
+def build(spring_scale: float = 1.0, **original: float | None) -> Built:
+    params = PinchGraspParams(
+        distal_segment_ratio=0.2, spring_scale=spring_scale, original=Original(**original)
+    )
     with open_world(WorldSettings(time_step_s=4e-3, scale=SCALE)) as world:
         hand = world.add_model(gripper(load_model(MODELS / "pinch_gripper.yaml"), params))
         box = world.load_plan(plan_rigid_body(object_body(params), world.scale))
@@ -105,10 +108,10 @@ def test_restitution_is_set_on_the_object_and_every_finger_link_and_tip(ours: Bu
     [
         ("task.spring_scale", 2.0, True),
         ("task.spring_scale", 1.0, False),
-        ("task.finger_spinning_friction_m", 0.0, True),
-        ("task.finger_spinning_friction_m", None, False),
-        ("task.restitution", 1.0, True),
-        ("task.restitution", None, False),
+        ("task.original.finger_spinning_friction_m", 0.0, True),
+        ("task.original.finger_spinning_friction_m", None, False),
+        ("task.original.restitution", 1.0, True),
+        ("task.original.restitution", None, False),
     ],
 )
 def test_each_switch_changes_the_job_ids_unless_it_keeps_the_default(

@@ -27,7 +27,8 @@ from somo_sweep.sim.world import World
 from somo_sweep.sim.worlds import open_world
 from somo_sweep.sweep.study import load_study
 from somo_sweep.tasks.pinch_grasp.gripper import gripper, object_body
-from somo_sweep.tasks.pinch_grasp.params import ORIGINAL_HULL_SIZE_M, Numerics, PinchGraspParams
+from somo_sweep.tasks.pinch_grasp.original import ORIGINAL_HULL_SIZE_M, Original
+from somo_sweep.tasks.pinch_grasp.params import Numerics, PinchGraspParams
 from somo_sweep.tasks.pinch_grasp.task import run_pinch_grasp
 
 STUDIES = MODELS.parent
@@ -112,7 +113,7 @@ def test_lift_profile_moves_the_hand_through_its_breakpoints() -> None:
     params = PinchGraspParams(
         object_width_m=0.010,
         centering_position_m=0.175,
-        lift_profile=profile,
+        original=Original(lift_profile=profile),
         early_stop=False,
         hold_s=0.05,
         numerics=Numerics(added_inertia_kg_m2=3e-5),  # the hand's path, not grasp physics: 4 ms is enough
@@ -142,17 +143,18 @@ def test_lift_profile_moves_the_hand_through_its_breakpoints() -> None:
 @pytest.mark.parametrize("profile", [((0.5, 0.2), (0.5, 0.4)), ((0.9, 0.5), (0.2, 0.6)), ((0.5, 1.2),)])
 def test_a_lift_profile_that_does_not_rise_is_refused(profile: tuple[tuple[float, float], ...]) -> None:
     with pytest.raises(ValueError, match="lift_profile"):
-        PinchGraspParams(lift_profile=profile)
+        Original(lift_profile=profile)
 
 
 def test_original_hull_objects_have_the_hulls_extents_and_rest_on_the_ground() -> None:
     for width, size in ORIGINAL_HULL_SIZE_M.items():
-        body = object_body(PinchGraspParams(object_width_m=width, object_shape="original_hull"))
+        params = PinchGraspParams(object_width_m=width, original=Original(object_shape="original_hull"))
+        body = object_body(params)
         assert body.link.size_m == size
         assert body.pose.position_m[2] == pytest.approx(size[2] / 2 + 0.0005)
     assert object_body(PinchGraspParams(object_width_m=0.010)).link.size_m == (0.010, 0.060, 0.060)
     with pytest.raises(ValueError, match=r"allowed: 0\.01, 0\.02, 0\.04"):
-        PinchGraspParams(object_width_m=0.030, object_shape="original_hull")
+        PinchGraspParams(object_width_m=0.030, original=Original(object_shape="original_hull"))
 
 
 def test_clamp_speed_cap_lets_a_body_run_on_at_bullets_cap() -> None:

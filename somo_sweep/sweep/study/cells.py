@@ -50,6 +50,7 @@ class Cells:
         where: How messages name each row: ``cells[3]`` (inline) or ``FILE line 5`` (CSV).
         lines: Line of each row: in the study file (inline) or in the CSV file.
         file: The CSV file, or None for an inline table.
+        header_line: The line of a CSV file's header (None for an inline table).
     """
 
     keys: tuple[str, ...]
@@ -57,6 +58,7 @@ class Cells:
     where: tuple[str, ...]
     lines: tuple[int | None, ...]
     file: Path | None = None
+    header_line: int | None = None
 
     def column(self, key: str) -> tuple[Any, ...]:
         """The values of one key, row by row."""
@@ -310,7 +312,7 @@ def _from_csv(
     if problems:
         return None, problems
     where = tuple(f"{name} line {n}" for n in row_lines)
-    cells = Cells(tuple(keys), tuple(rows), where, tuple(row_lines), path)
+    cells = Cells(tuple(keys), tuple(rows), where, tuple(row_lines), path, header_line)
     return cells, _repeats(cells, lambda i: Problem("cells", f"{where[i]}: ", at))
 
 

@@ -15,6 +15,7 @@ from somo_sweep.sweep.store.schema import MAX_REPLICAS
 from somo_sweep.sweep.study.axes import parse_key_path
 from somo_sweep.sweep.study.checks import check_points, no_perturbation
 from somo_sweep.sweep.study.loaded import Study
+from somo_sweep.sweep.study.moved import moved_key
 
 __all__ = ["derive_study", "with_auto_step", "with_replicas", "with_sampling"]
 
@@ -60,7 +61,8 @@ def derive_study(study: Study, overrides: dict[str, Any], name: str, output: str
         output: Its results folder.
 
     Raises:
-        DescriptionError: A key path is malformed, swept, or its value does not fit.
+        DescriptionError: A key path is malformed, swept, a parameter's name before it moved (a study
+            file's are read at their new place: :mod:`.moved`), or its value does not fit.
     """
     problems: list[Problem] = []
     swept = {a.key for a in study.axes}
@@ -72,6 +74,8 @@ def derive_study(study: Study, overrides: dict[str, Any], name: str, output: str
             continue
         if key in swept or key == "model":
             problems.append(Problem(f"set.{key}", "is a sweep axis of the study; allowed: a fixed key path"))
+        elif (new := moved_key(key, study.task.moved)) is not None:
+            problems.append(Problem(f"set.{key}", f"is the name {new} had before it moved; allowed: {new}"))
     if problems:
         raise DescriptionError(study.source, problems)
     # The model files are shared (their content as loaded); overrides are applied per trial.

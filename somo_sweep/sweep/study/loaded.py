@@ -58,6 +58,8 @@ class Study:
         convergence: The record of that choice (for the manifest), or None.
         bases: Model file → its content, as read when the study loaded (what every trial's
             model is built from).
+        notices: What loading has to tell the user without refusing the study, one line each
+            (parameters given by the names they had before they moved, :mod:`.moved`).
     """
 
     name: str
@@ -80,6 +82,7 @@ class Study:
     auto_step_s: float | None = None
     convergence: dict[str, Any] | None = None
     bases: Mapping[str, Mapping[str, Any]] = field(default_factory=dict, repr=False, compare=False)
+    notices: tuple[str, ...] = field(default=(), compare=False)
 
     @property
     def n_points(self) -> int:

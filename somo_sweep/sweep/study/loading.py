@@ -1,10 +1,12 @@
 """Loading a study file: read, validate, expand the axes and check every trial's inputs.
 
 :func:`load_study` reports every problem of the file at once, each with its line and key path,
-in the order the file gives them. The number of trials is counted from the axis specs before any
-axis is expanded, and a study above ``max_trials`` is refused. ``name`` and ``output`` may only
-place results inside :data:`~somo_sweep.sweep.study.file.RESULTS_ROOT`; an explicit output folder
-(``--out``) may be anywhere.
+in the order the file gives them. A task parameter given by the name it had before it moved is
+read at its new place (:mod:`.moved`), and the study carries a notice saying so. The number of
+trials is counted from the axis specs before any axis is expanded, and a study above
+``max_trials`` is refused. ``name`` and ``output`` may only place results inside
+:data:`~somo_sweep.sweep.study.file.RESULTS_ROOT`; an explicit output folder (``--out``) may be
+anywhere.
 """
 
 from __future__ import annotations
@@ -24,6 +26,7 @@ from somo_sweep.sweep.study.cells import Cells, cells_key, parse_cells
 from somo_sweep.sweep.study.checks import check_points, no_model, no_perturbation, read_bases, unknown_labels
 from somo_sweep.sweep.study.file import MAX_TRIALS, RESULTS_ROOT, StudyFile
 from somo_sweep.sweep.study.loaded import Study
+from somo_sweep.sweep.study.moved import Renamed, as_written, move_study, notice
 from somo_sweep.sweep.study.overlaps import default_of, overlaps, replaced, study_inputs
 from somo_sweep.tasks.registry import TaskSpec, get_task
 
@@ -43,6 +46,7 @@ class _Found:
     source: Path
     lines: dict[str, int]
     problems: list[Problem] = field(default_factory=list)
+    renamed: list[Renamed] = field(default_factory=list)
 
     def add(self, where: str, message: str, line: int | None = None) -> None:
         """A problem at key path ``where`` (at its own line unless ``line`` is given)."""
@@ -55,7 +59,7 @@ class _Found:
             DescriptionError: Naming the study file.
         """
         if self.problems or more:
-            raise DescriptionError(str(self.source), [*self.problems, *more])
+            raise DescriptionError(str(self.source), as_written([*self.problems, *more], self.renamed))
 
 
 @dataclass
@@ -120,6 +124,8 @@ def study_from_mapping(
     found = _Found(path, lines)
     task = _task(raw, found)
     cells = _cells(raw, task, found)
+    given = study_inputs(raw.params, raw.set, raw.sweep, cells, lines, task.moved)
+    raw, cells, found.renamed = move_study(raw, cells, task.moved, lines)
     _count(raw, cells, max_trials, found)
     model_path = model_file(path.parent, raw.model)
     if not is_file(model_path):
@@ -127,10 +133,10 @@ def study_from_mapping(
     out = _results_folder(raw, raw.name or path.stem, output, found)
     fixed = _fixed(raw, found)
     read = _axes(raw, cells, path.parent, found)
-    given = study_inputs(raw.params, raw.set, raw.sweep, cells, lines)
     defaults = {name: default_of(task.params_model, name) for name in task.replaces}
     found.problems.extend(overlaps(given) + replaced(given, task.replaces, defaults))
     study = _new_study(raw, path, task, cells, model_path, fixed, read, out, allow_outside)
+    study = replace(study, notices=tuple(n for n in [notice(path, found.renamed)] if n is not None))
     bases, bases_ok = read_bases(model_path, study.axes, allow_outside, lines, found.problems, cells)
     study = replace(study, bases=bases)
     if not check_trials:

@@ -12,6 +12,9 @@ A task parameter may overwrite model fields in the model a trial simulates (``Ta
 the pinch task's ``numerics.damping_n_m_s_per_rad`` sets every finger joint's damping). A model
 key reaching such a field, while the parameter is not null in some cell, would store a column the
 trial never simulated: :func:`replaced` refuses it, naming the parameter's key.
+
+A parameter given by the name it had before it moved (:mod:`.moved`) reaches the field it has
+today: given by both names, it is refused as any other pair, naming both keys as written.
 """
 
 from __future__ import annotations
@@ -25,6 +28,7 @@ from pydantic import BaseModel
 from somo_sweep.errors import Problem
 from somo_sweep.sweep.study.axes import EVERY, parse_key_path
 from somo_sweep.sweep.study.cells import Cells
+from somo_sweep.sweep.study.moved import moved_parts
 
 __all__ = ["Given", "default_of", "overlaps", "replaced", "study_inputs"]
 
@@ -43,6 +47,7 @@ class Given:
         parts: The key path's root (``model`` / ``task``) then its parts (``[*]`` as ``"*"``).
         line: Its line in the study file, when known.
         values: The values it gives (an axis's list; a range as its spec).
+        old_name: It gives a moved parameter by its old name (``parts`` are the new place's).
     """
 
     where: str
@@ -50,6 +55,7 @@ class Given:
     parts: tuple[str | int, ...]
     line: int | None
     values: tuple[Any, ...] = ()
+    old_name: bool = False
 
 
 def study_inputs(
@@ -58,14 +64,17 @@ def study_inputs(
     sweep: Mapping[str, Any],
     cells: Cells | None,
     lines: Mapping[str, int],
+    moved: Mapping[str, str] | None = None,
 ) -> list[Given]:
-    """Every key path the study gives, in the order ``params``, ``set``, ``sweep``, ``cells``.
+    """Every key path the study gives, in the order ``params``, ``set``, ``sweep``, ``cells``, each
+    named as written; one giving a parameter by the name it had before it ``moved`` reaches the
+    parameter's place today.
 
     A malformed key path is left out (it is reported where it is read); so is the ``model`` axis
     (model files, not a field).
     """
     found = [
-        Given(f"params.{path}", path, ("task", *parts), lines.get(f"params.{path}"), (value,))
+        _given(f"params.{path}", path, ("task", *parts), lines.get(f"params.{path}"), (value,), moved)
         for path, parts, value in _leaves(params)
     ]
     for section, keys in (("set", fixed), ("sweep", sweep)):
@@ -74,14 +83,29 @@ def study_inputs(
             if parts is not None:
                 where = f"{section}.{key}"
                 given = (spec,) if section == "set" else _axis_values(spec)
-                found.append(Given(where, key, parts, lines.get(where), given))
+                found.append(_given(where, key, parts, lines.get(where), given, moved))
     if cells is not None:
         for key in cells.keys:
             parts = _parsed(key)
             if parts is not None:
                 line = lines.get(f"cells[0].{key}", lines.get("cells"))
-                found.append(Given("cells", key, parts, line, cells.column(key)))
+                found.append(_given("cells", key, parts, line, cells.column(key), moved))
     return found
+
+
+def _given(
+    where: str,
+    key: str,
+    parts: tuple[str | int, ...],
+    line: int | None,
+    values: tuple[Any, ...],
+    moved: Mapping[str, str] | None,
+) -> Given:
+    """One input, at the place its parameter has today when it is given by an old name."""
+    new = moved_parts(parts[1:], moved) if moved and parts[0] == "task" else None
+    if new is None:
+        return Given(where, key, parts, line, values)
+    return Given(where, key, ("task", *new), line, values, old_name=True)
 
 
 def _axis_values(spec: Any) -> tuple[Any, ...]:
@@ -106,7 +130,7 @@ def overlaps(inputs: list[Given]) -> list[Problem]:
                 Problem(
                     later.where,
                     f"{_own(later)}overlaps {_label(earlier)}{at}: both set {_render(common)}, and only one "
-                    f"of the values would reach each trial; allowed: {_hint(earlier.parts, later.parts)}",
+                    f"of the values would reach each trial; allowed: {_hint(earlier, later, common)}",
                     later.line,
                 )
             )
@@ -240,8 +264,13 @@ def _render(parts: tuple[str | int, ...]) -> str:
     return text
 
 
-def _hint(a: tuple[str | int, ...], b: tuple[str | int, ...]) -> str:
-    """What to write instead: an index per item for ``[*]`` against an index, else one key per field."""
+def _hint(earlier: Given, later: Given, common: tuple[str | int, ...]) -> str:
+    """What to write instead: the new name alone for a field given by its old name too, an index
+    per item for ``[*]`` against an index, else one key per field."""
+    old = [g for g in (earlier, later) if g.old_name]
+    if old and len(old) < 2:
+        return f"{_render(common)} alone ({_label(old[0])} gives it by the name it had before it moved)"
+    a, b = earlier.parts, later.parts
     for k, (x, y) in enumerate(zip(a, b, strict=False)):
         if EVERY in (x, y) and x != y:
             name = a[k - 1]

@@ -32,6 +32,7 @@ __all__ = [
     "BASE_DISTANCE_AT_ZERO_CENTERING_M",
     "MOUNT_RADIUS_M",
     "OBJECT_HEIGHT_M",
+    "PAPER_OBJECT_SPAN_M",
     "SPAWN_GAP_M",
     "SPLAY_DEG",
     "Mount",
@@ -51,6 +52,8 @@ __all__ = [
 BASE_DISTANCE_AT_ZERO_CENTERING_M = 0.200
 #: The box's height (z), m, and its gap above the ground at spawn, m.
 OBJECT_HEIGHT_M = 0.060
+#: The paper's objects across the fingers, m (every object of its grid: 60 mm; its objects' hulls).
+PAPER_OBJECT_SPAN_M = 0.060
 SPAWN_GAP_M = 0.0005
 #: Centre of a finger's base box from the palm's axis, m (the mount, its back face, 25 mm from
 #: the axis; the box 10 mm thick, splayed), and the box centre's x, m.

@@ -7,16 +7,15 @@ Light (no engine import): a study's loading calls :func:`gripper` through the ta
 
 from __future__ import annotations
 
+from functools import partial
+
 from somo_sweep.errors import SomoError
 from somo_sweep.model.description import Actuator, Joint, Link, Manipulator, Pose, RigidBody
 from somo_sweep.model.load import Model
 from somo_sweep.tasks.pinch_grasp.geometry import OBJECT_HEIGHT_M, SPAWN_GAP_M
-from somo_sweep.tasks.pinch_grasp.params import (
-    Numerics,
-    PinchGraspParams,
-    distal_link_count,
-    original_hull_size_m,
-)
+from somo_sweep.tasks.pinch_grasp.links import distal_link_count
+from somo_sweep.tasks.pinch_grasp.original import original_hull_size_m
+from somo_sweep.tasks.pinch_grasp.params import Numerics, PinchGraspParams
 
 __all__ = [
     "FINGER_COLORS_RGBA",
@@ -73,32 +72,22 @@ def split_finger(
         finger: A finger of the gripper (one or two actuators when re-split).
         n_distal: Distal links, 0 … N, or None to keep the finger as written.
         numerics: Overrides of inertia shaping, damping and motor limit (None: the file's).
-        spring_scale: Multiplier of every joint's stiffness (2: the original's effective springs).
-        spinning_friction_m: Spinning friction of every link and fingertip, m (None: the file's).
-        restitution: Restitution of every link and fingertip (None: the file's).
+        spring_scale: Multiplier of every joint's stiffness (the task's ``spring_scale``).
+        spinning_friction_m: Spinning friction of every link and fingertip, m (None: the file's;
+            the task's ``original.finger_spinning_friction_m``).
+        restitution: Restitution of every link and fingertip (None: the file's; the task's
+            ``original.restitution``).
 
     Raises:
         SomoError: A re-split finger with more than two actuators (the task's check refuses it first).
     """
-
-    def tuned(act: Actuator, n: int | None, actuated: bool | None) -> Actuator:
-        seg_m = act.segment_m
-        link = _surface(act.link.with_length_z(seg_m), spinning_friction_m, restitution)
-        if numerics is not None and numerics.added_inertia_kg_m2 is not None:
-            link = link.model_copy(update={"added_inertia_kg_m2": numerics.added_inertia_kg_m2})
-        joints = _tuned_joints(list(act.joints), numerics, spring_scale, actuated)
-        n = act.segments if n is None else n
-        return act.model_copy(
-            update={
-                "length_m": n * seg_m,
-                "n_segments": n,
-                "segment_length_m": None,
-                "link": link,
-                "joints": joints,
-                "stiffness_profile": None,
-            }
-        )
-
+    tuned = partial(
+        _tuned_actuator,
+        numerics=numerics,
+        spring_scale=spring_scale,
+        spinning_friction_m=spinning_friction_m,
+        restitution=restitution,
+    )
     tips = [_surface(t, spinning_friction_m, restitution) for t in finger.tip_links]
     if n_distal is None:
         actuators = [tuned(a, None, None) for a in finger.actuators]
@@ -115,6 +104,36 @@ def split_finger(
     else:
         actuators = [tuned(proximal, n_links - n_distal, True), tuned(distal, n_distal, False)]
     return finger.model_copy(update={"actuators": actuators, "tip_links": tips})
+
+
+def _tuned_actuator(
+    act: Actuator,
+    n: int | None,
+    actuated: bool | None,
+    *,
+    numerics: Numerics | None,
+    spring_scale: float,
+    spinning_friction_m: float | None,
+    restitution: float | None,
+) -> Actuator:
+    """``act`` as ``n`` links (None: its own count) with the trial's surfaces, numerics and spring
+    scale, its joints driven as ``actuated`` says (:func:`_tuned_joints`)."""
+    seg_m = act.segment_m
+    link = _surface(act.link.with_length_z(seg_m), spinning_friction_m, restitution)
+    if numerics is not None and numerics.added_inertia_kg_m2 is not None:
+        link = link.model_copy(update={"added_inertia_kg_m2": numerics.added_inertia_kg_m2})
+    joints = _tuned_joints(list(act.joints), numerics, spring_scale, actuated)
+    n = act.segments if n is None else n
+    return act.model_copy(
+        update={
+            "length_m": n * seg_m,
+            "n_segments": n,
+            "segment_length_m": None,
+            "link": link,
+            "joints": joints,
+            "stiffness_profile": None,
+        }
+    )
 
 
 def distal_zone_links(finger: Manipulator, distal_segment_ratio: float | None) -> int:
@@ -169,8 +188,8 @@ def _scaled_spring(joint: Joint, factor: float) -> Joint:
 
 
 def gripper(model: Model, params: PinchGraspParams) -> Model:
-    """The trial's gripper: each finger re-split by DSR (or kept as written) with the numerics
-    and physical factors applied (the task's ``prepare``)."""
+    """The trial's gripper: each finger re-split by DSR (or kept as written) with the numerics,
+    the spring scale and the original block's surfaces applied (the task's ``prepare``)."""
     assembly = model.as_assembly()
     dsr = params.distal_segment_ratio
     mounts = [
@@ -181,8 +200,8 @@ def gripper(model: Model, params: PinchGraspParams) -> Model:
                     None if dsr is None else distal_zone_links(m.manipulator, dsr),
                     params.numerics,
                     spring_scale=params.spring_scale,
-                    spinning_friction_m=params.finger_spinning_friction_m,
-                    restitution=params.restitution,
+                    spinning_friction_m=params.original.finger_spinning_friction_m,
+                    restitution=params.original.restitution,
                 )
             }
         )
@@ -201,7 +220,7 @@ def finger_length_m(model: Model) -> float:
 def object_body(params: PinchGraspParams) -> RigidBody:
     """The box to grasp, resting just above the ground at x = y = 0 (plus ``object_offset_m``)."""
     size = (params.object_width_m, params.object_span_m, OBJECT_HEIGHT_M)
-    if params.object_shape == "original_hull":
+    if params.original.object_shape == "original_hull":
         size = original_hull_size_m(params.object_width_m) or size
     return RigidBody(
         name="object",
@@ -210,7 +229,7 @@ def object_body(params: PinchGraspParams) -> RigidBody:
             size_m=size,
             mass_kg=OBJECT_MASS_KG,
             friction={"lateral": OBJECT_FRICTION * params.object_friction_scale},
-            restitution=params.restitution or 0.0,
+            restitution=params.original.restitution or 0.0,
             color_rgba=OBJECT_COLOR_RGBA,
         ),
         pose=Pose(position_m=(*params.object_offset_m, size[2] / 2 + SPAWN_GAP_M)),

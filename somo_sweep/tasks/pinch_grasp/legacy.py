@@ -13,7 +13,7 @@ from typing import Any
 
 import numpy as np
 
-from somo_sweep.tasks.pinch_grasp.params import distal_link_count
+from somo_sweep.tasks.pinch_grasp.links import distal_link_count
 from somo_sweep.tasks.pinch_grasp.positions import paper_mean_link, zone_force_fractions
 
 __all__ = ["LEGACY_LINKS", "RENAMED", "legacy_columns", "upgrade_table"]

@@ -17,6 +17,6 @@ REPLACED: dict[str, tuple[str, ...]] = {
     "numerics.added_inertia_kg_m2": (f"{_LINKS}.added_inertia_kg_m2",),
     "numerics.damping_n_m_s_per_rad": (f"{_JOINTS}.damping_n_m_s_per_rad",),
     "numerics.motor_limit_n_m": (f"{_JOINTS}.motor_limit_n_m",),
-    "finger_spinning_friction_m": (f"{_LINKS}.friction.spinning", f"{_TIPS}.friction.spinning"),
-    "restitution": (f"{_LINKS}.restitution", f"{_TIPS}.restitution"),
+    "original.finger_spinning_friction_m": (f"{_LINKS}.friction.spinning", f"{_TIPS}.friction.spinning"),
+    "original.restitution": (f"{_LINKS}.restitution", f"{_TIPS}.restitution"),
 }

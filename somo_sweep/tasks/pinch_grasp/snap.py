@@ -2,7 +2,7 @@
 (:mod:`somo_sweep.tasks.snapping`).
 
 A design search may ask for any distal segment ratio of a range; the fingers re-split only on a
-link boundary (:func:`~somo_sweep.tasks.pinch_grasp.params.distal_link_count`), so the ratio is
+link boundary (:func:`~somo_sweep.tasks.pinch_grasp.links.distal_link_count`), so the ratio is
 moved there, and the trial run (and stored) is that one. Not imported by the trial itself.
 """
 
@@ -11,7 +11,8 @@ from __future__ import annotations
 from typing import Any
 
 from somo_sweep.model.load import Model
-from somo_sweep.tasks.pinch_grasp.params import PinchGraspParams, distal_link_count, finger_links
+from somo_sweep.tasks.pinch_grasp.links import distal_link_count, finger_links
+from somo_sweep.tasks.pinch_grasp.params import PinchGraspParams
 
 __all__ = ["snap"]
 

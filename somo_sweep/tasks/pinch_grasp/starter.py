@@ -35,6 +35,7 @@ from somo_sweep.errors import SomoError
 from somo_sweep.model.load import Model, load_model, model_from_dict
 from somo_sweep.model.manipulators import Manipulator
 from somo_sweep.model.tables import bundled_if_missing, bundled_path
+from somo_sweep.tasks.pinch_grasp.checks import check_gripper, check_trial
 from somo_sweep.tasks.pinch_grasp.geometry import (
     BASE_DISTANCE_AT_ZERO_CENTERING_M,
     finger_mounts,
@@ -44,12 +45,7 @@ from somo_sweep.tasks.pinch_grasp.geometry import (
     span_problem,
 )
 from somo_sweep.tasks.pinch_grasp.gripper import gripper
-from somo_sweep.tasks.pinch_grasp.params import (
-    PAPER_OBJECT_SPAN_M,
-    PinchGraspParams,
-    check_gripper,
-    check_trial,
-)
+from somo_sweep.tasks.pinch_grasp.params import PAPER_OBJECT_SPAN_M, PinchGraspParams
 
 __all__ = ["MAX_FINGERS", "STARTER_FILES", "grasp_study_files"]
 

@@ -80,7 +80,7 @@ def run_pinch_grasp(
     del seed
     hand_model = gripper(model, params)
     n_distal = distal_zone_links(model.as_assembly().manipulators[0].manipulator, params.distal_segment_ratio)
-    if params.clamp_speed_cap:
+    if params.original.clamp_speed_cap:
         settings = replace(settings, clamp_speed_cap=True)
     with open_world(settings) as world:
         scene = _build_scene(world, hand_model, params)
@@ -166,7 +166,7 @@ def _plan_path(scene: _Scene, p: PinchGraspParams, final_n_m: Sequence[float]) -
     world.drive_model(hand, start, (0.0, 0.0, 0.0))
     world.place_model(hand, start, (0.0, 0.0, 0.0))
     t1, t2, _, _ = _phase_ends_s(p)
-    lift = [(0.0, 0.0), *p.lift_profile, (1.0, 1.0)]
+    lift = [(0.0, 0.0), *p.original.lift_profile, (1.0, 1.0)]
     path = SetpointTable(
         [0.0, t1, *(t2 + f * p.lift_s for f, _ in lift)],
         [
