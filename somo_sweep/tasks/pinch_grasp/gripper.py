@@ -98,12 +98,35 @@ def split_finger(
             "segment ratio: 1 or 2"
         )
     proximal, distal = finger.actuators[0], finger.actuators[-1]
-    n_links = sum(a.segments for a in finger.actuators)
+    factors = [a.stiffness_factor(i) for a in finger.actuators for i in range(a.segments)]
+    n_links = len(factors)
     if n_distal <= 1:
-        actuators = [tuned(proximal, n_links, True)]
+        actuators = [_with_factors(tuned(proximal, n_links, True), factors)]
     else:
-        actuators = [tuned(proximal, n_links - n_distal, True), tuned(distal, n_distal, False)]
+        n_proximal = n_links - n_distal
+        actuators = [
+            _with_factors(tuned(proximal, n_proximal, True), factors[:n_proximal]),
+            _with_factors(tuned(distal, n_distal, False), factors[n_proximal:]),
+        ]
     return finger.model_copy(update={"actuators": actuators, "tip_links": tips})
+
+
+def _with_factors(act: Actuator, factors: list[float]) -> Actuator:
+    """``act`` whose joints have the stiffness factors ``factors`` (one per link, from the finger as
+    written: its profile, gradient and taper, each at the joint's place along the whole finger).
+
+    A re-split moves the actuators' starts and lengths, which the gradient and taper are measured
+    from; baked into a profile, every joint keeps the stiffness it has on the finger as written.
+    """
+    profile = None if all(f == 1.0 for f in factors) else list(factors)
+    return act.model_copy(
+        update={
+            "stiffness_profile": profile,
+            "stiffness_gradient_per_m": 0.0,
+            "stiffness_tip_ratio": 1.0,
+            "stiffness_taper_shape": 1.0,
+        }
+    )
 
 
 def _tuned_actuator(
@@ -117,7 +140,8 @@ def _tuned_actuator(
     restitution: float | None,
 ) -> Actuator:
     """``act`` as ``n`` links (None: its own count) with the trial's surfaces, numerics and spring
-    scale, its joints driven as ``actuated`` says (:func:`_tuned_joints`)."""
+    scale, its joints driven as ``actuated`` says (:func:`_tuned_joints`); its stiffness profile,
+    gradient and taper as written (a re-split replaces them: :func:`_with_factors`)."""
     seg_m = act.segment_m
     link = _surface(act.link.with_length_z(seg_m), spinning_friction_m, restitution)
     if numerics is not None and numerics.added_inertia_kg_m2 is not None:
@@ -131,7 +155,6 @@ def _tuned_actuator(
             "segment_length_m": None,
             "link": link,
             "joints": joints,
-            "stiffness_profile": None,
         }
     )
 
