@@ -1,7 +1,8 @@
 """The simulation stage: descriptions → body plans → worlds on either engine, and the bench.
 
-* plans: :mod:`~somo_sweep.sim.urdf` (with :mod:`~somo_sweep.sim.urdf_builder`) turns a model
-  into :class:`~somo_sweep.sim.plan.BodyPlan` objects (URDF text and metadata);
+* plans: :mod:`~somo_sweep.sim.planner` (with :mod:`~somo_sweep.sim.plan_builder`) turns a model
+  into :class:`~somo_sweep.sim.plan.BodyPlan` objects (the body tree in SI, as data), from which
+  each engine builds its own world (PyBullet a URDF in its scaled world, MuJoCo an ``MjSpec``);
 * worlds: :class:`~somo_sweep.sim.world.World` is the interface tasks use, in SI;
   :func:`~somo_sweep.sim.worlds.open_world` opens it on the engine its
   :class:`~somo_sweep.sim.settings.WorldSettings` name: :mod:`somo_sweep.sim.pybullet` (the

@@ -14,7 +14,7 @@ from collections import OrderedDict
 from somo_sweep.model.description import Manipulator
 from somo_sweep.sim.bench_rig import bench_frame
 from somo_sweep.sim.chain_kinematics import BenchBody
-from somo_sweep.sim.plan import BodyPlan
+from somo_sweep.sim.plan import BodyPlan, structure_key
 
 __all__ = ["BODY_CACHE", "bench_body_for", "close_bench_bodies", "open_bench_body"]
 
@@ -25,12 +25,12 @@ _BODIES: OrderedDict[tuple[str, float, tuple[float, ...], str], BenchBody] = Ord
 
 
 def open_bench_body(manip: Manipulator, plan: BodyPlan, scale: float, engine: str = "pybullet") -> BenchBody:
-    """The bench body of ``plan`` loaded on ``engine`` (plans are made at the engine's scale).
+    """The bench body of ``plan`` loaded on ``engine``.
 
     Args:
         manip: The manipulator the plan is of (its bench frame and tip).
-        plan: The clamped manipulator's plan, made at ``scale``.
-        scale: PyBullet's world scale (MuJoCo runs in SI: plans at 1).
+        plan: The clamped manipulator's plan.
+        scale: PyBullet's world scale (MuJoCo runs in SI).
         engine: ``pybullet`` or ``mujoco``.
     """
     if engine == "mujoco":
@@ -44,8 +44,8 @@ def open_bench_body(manip: Manipulator, plan: BodyPlan, scale: float, engine: st
 
 def bench_body_for(manip: Manipulator, plan: BodyPlan, scale: float, engine: str) -> BenchBody:
     """The loaded bench body of ``plan`` on ``engine``, opened on first use (cached)."""
-    # The URDF fixes links, joints, masses and the tip; the bench frame fixes gravity's direction.
-    key = (plan.urdf, float(scale), tuple(bench_frame(manip).rpy_rad), engine)
+    # The plan's structure fixes links, joints, masses and the tip; the bench frame fixes gravity's direction.
+    key = (structure_key(plan), float(scale), tuple(bench_frame(manip).rpy_rad), engine)
     body = _BODIES.get(key)
     if body is not None and body.is_open:
         _BODIES.move_to_end(key)

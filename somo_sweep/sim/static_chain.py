@@ -24,8 +24,8 @@ from somo_sweep.sim.bench_rig import bench_inputs, check_stop, static_rig
 from somo_sweep.sim.chain_energy import ChainEnergy
 from somo_sweep.sim.continuation import Load, follow_load
 from somo_sweep.sim.no_equilibrium import existence_proven, largest_moments_n_m, proof_of_no_equilibrium
+from somo_sweep.sim.planner import plan_manipulator
 from somo_sweep.sim.static_newton import DIVERGED_RAD, Equilibrium, newton
-from somo_sweep.sim.urdf import plan_manipulator
 
 __all__ = ["MAX_ITERATIONS", "MAX_ITERATIONS_TOTAL", "RowSolution", "SolveStatus", "StaticChain"]
 
@@ -101,7 +101,7 @@ class StaticChain:
     ):
         self.manip = manip
         scale = scale if engine == "pybullet" else 1.0  # MuJoCo runs in SI
-        plan = plan_manipulator(static_rig(manip, added_inertia_kg_m2), scale)
+        plan = plan_manipulator(static_rig(manip, added_inertia_kg_m2))
         self.body = bench_body_for(manip, plan, scale, engine)
         check_stop(manip, stop_z_m)
         self.plate = (

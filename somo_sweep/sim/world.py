@@ -25,8 +25,8 @@ from somo_sweep.model.setpoints import SetpointTable
 from somo_sweep.sim.camera import Camera
 from somo_sweep.sim.follow import Follow
 from somo_sweep.sim.plan import BodyPlan, SpringJoint
+from somo_sweep.sim.planner import plan_rigid_body
 from somo_sweep.sim.settings import WorldSettings
-from somo_sweep.sim.urdf import plan_rigid_body
 
 __all__ = ["Body", "Drive", "ModelHandle", "World", "WorldSettings"]
 
@@ -127,8 +127,8 @@ class World:
 
     Attributes:
         settings: The settings.
-        scale: The engine's internal length scale (PyBullet's Y; 1 for MuJoCo): plans for
-            :meth:`load_plan` are made at it.
+        scale: The engine's internal length scale (PyBullet's Y; 1 for MuJoCo); plans and every
+            method are in SI whatever it is.
         time_s: Simulated time, s.
         step_count: Steps taken.
         bodies: Bodies loaded, in order.
@@ -162,7 +162,7 @@ class World:
         raise NotImplementedError
 
     def load_plan(self, plan: BodyPlan, pose: Pose | None = None) -> Body:
-        """Load one planned body (made at :attr:`scale`) at ``pose`` (default: the plan's pose)."""
+        """Load one planned body at ``pose`` (default: the plan's pose)."""
         raise NotImplementedError
 
     def add_model(self, model: Model, pose: Pose | None = None) -> ModelHandle:
@@ -278,7 +278,7 @@ class World:
     # ------------------------------------------------------------ shared
     def add_rigid_body(self, body: RigidBody) -> Body:
         """Load a rigid body of a scene (a box to grasp, a fixture) at its pose."""
-        return self.load_plan(plan_rigid_body(body, self.scale))
+        return self.load_plan(plan_rigid_body(body))
 
     def point_on_link(self, body: Body, link: str, local_m: Sequence[float]) -> np.ndarray:
         """World position (m) of a point given in a link's frame (m)."""

@@ -18,7 +18,7 @@ from somo_sweep.sim.bench_rig import bench_frame
 from somo_sweep.sim.chain_kinematics import BenchBody, Kin
 from somo_sweep.sim.mujoco.world import MujocoWorld
 from somo_sweep.sim.plan import BodyPlan
-from somo_sweep.sim.settings import WorldSettings
+from somo_sweep.sim.settings import MujocoSettings, WorldSettings
 
 __all__ = ["MujocoBenchBody"]
 
@@ -31,7 +31,8 @@ class MujocoBenchBody(BenchBody):
     def __init__(self, manip: Manipulator, plan: BodyPlan):
         self.scale = 1.0
         # Gravity is the solver's business (any magnitude, per row); the world never steps.
-        self.world = MujocoWorld(WorldSettings(gravity_m_s2=(0.0, 0.0, 0.0), engine="mujoco"))
+        settings = WorldSettings(gravity_m_s2=(0.0, 0.0, 0.0), engine_settings=MujocoSettings())
+        self.world = MujocoWorld(settings)
         try:
             self._setup(manip, plan)
         except BaseException:

@@ -38,9 +38,9 @@ from somo_sweep.sim.mujoco.render import mujoco_image
 from somo_sweep.sim.mujoco.spec_scene import SpecScene
 from somo_sweep.sim.mujoco.surfaces import Surface
 from somo_sweep.sim.plan import BodyPlan
+from somo_sweep.sim.planner import plan_assembly
 from somo_sweep.sim.rotations import multiply_transforms, quat_from_rpy, rpy_from_quat, xyzw
-from somo_sweep.sim.settings import WorldSettings
-from somo_sweep.sim.urdf import plan_assembly
+from somo_sweep.sim.settings import MujocoSettings, WorldSettings
 from somo_sweep.sim.world import MAX_JOINT_SPEED_RAD_S, Body, ModelHandle, World
 
 __all__ = ["MujocoWorld"]
@@ -68,14 +68,15 @@ class MujocoWorld(World):
     Opened by :func:`~somo_sweep.sim.worlds.open_world` for ``settings.engine == "mujoco"``.
 
     Args:
-        settings: Time step, gravity, solver and contact settings (Bullet's scale is not read).
+        settings: Time step, gravity and solver settings, and MuJoCo's own (contacts, integrator).
     """
 
     def __init__(self, settings: WorldSettings | None = None):
-        self.settings = settings or WorldSettings(engine="mujoco")
+        self.settings = settings or WorldSettings(engine_settings=MujocoSettings())
         s = self.settings
         if s.time_step_s <= 0:
             raise SimulationError("time_step_s must be > 0")
+        self.options = s.mujoco  # another engine's settings are refused here
         self.scale = 1.0
         self.time_s = 0.0
         self.step_count = 0
@@ -123,7 +124,7 @@ class MujocoWorld(World):
 
     # ----------------------------------------------------------------- loading
     def load_plan(self, plan: BodyPlan, pose: Pose | None = None) -> Body:
-        """Load one planned body (made at scale 1) at ``pose`` (default: the plan's pose)."""
+        """Load one planned body at ``pose`` (default: the plan's pose)."""
         pose = pose or plan.pose
         return self._load(plan, np.asarray(pose.position_m, float), quat_from_rpy(pose.rpy_rad))
 
@@ -145,7 +146,7 @@ class MujocoWorld(World):
         root = pose or Pose()
         root_q = quat_from_rpy(root.rpy_rad)
         bodies: list[Body] = []
-        for plan in plan_assembly(assembly, 1.0):
+        for plan in plan_assembly(assembly):
             local_q = quat_from_rpy(plan.pose.rpy_rad)
             pos, quat = multiply_transforms(root.position_m, root_q, plan.pose.position_m, local_q)
             body = self._load(plan, pos, quat)

@@ -19,7 +19,7 @@ from somo_sweep.sim.chain_kinematics import BenchBody, Kin
 from somo_sweep.sim.plan import BodyPlan
 from somo_sweep.sim.pybullet.world import PyBulletWorld
 from somo_sweep.sim.rotations import matrices_from_quats
-from somo_sweep.sim.settings import WorldSettings
+from somo_sweep.sim.settings import PyBulletSettings, WorldSettings
 
 __all__ = ["PyBulletBenchBody"]
 
@@ -32,7 +32,8 @@ class PyBulletBenchBody(BenchBody):
     def __init__(self, manip: Manipulator, plan: BodyPlan, scale: float):
         self.scale = scale
         # Gravity is the solver's business (any magnitude, per row); the world never steps.
-        self.world = PyBulletWorld(WorldSettings(scale=scale, gravity_m_s2=(0.0, 0.0, 0.0)))
+        settings = WorldSettings(gravity_m_s2=(0.0, 0.0, 0.0), engine_settings=PyBulletSettings(scale=scale))
+        self.world = PyBulletWorld(settings)
         try:
             self._setup(manip, plan)
         except BaseException:

@@ -27,7 +27,7 @@ import numpy as np
 from pydantic import BaseModel
 
 from somo_sweep.model.load import Model
-from somo_sweep.sim.settings import MUJOCO_ONLY, WorldSettings, engine_version
+from somo_sweep.sim.settings import WorldSettings, engine_version
 from somo_sweep.sweep.jobs.code import code_version, pybullet_version
 from somo_sweep.sweep.study.resolve import MODEL_CACHE, PARAMS_CACHE, RecentCache, TrialPlan
 
@@ -245,12 +245,12 @@ def _identity(
 
 
 def _settings_fields(settings: WorldSettings) -> dict[str, Any]:
-    """The settings as a job id hashes them: PyBullet's without the engine's name and MuJoCo's
-    own fields, so a PyBullet job's id depends on nothing MuJoCo adds."""
+    """The settings as a job id hashes them, flat: the shared ones and the engine's own, and the
+    engine's name unless it is PyBullet (a PyBullet job's id depends on nothing MuJoCo adds)."""
     fields = asdict(settings)
-    if settings.engine == "pybullet":
-        for name in ("engine", *MUJOCO_ONLY):
-            fields.pop(name)
+    fields.update(fields.pop("engine_settings"))
+    if settings.engine != "pybullet":
+        fields["engine"] = settings.engine
     return fields
 
 

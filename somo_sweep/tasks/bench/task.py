@@ -26,7 +26,7 @@ def run_bench_task(model: Model, params: BenchParams, settings: WorldSettings, s
     """
     bench = BenchSettings(
         time_step_s=settings.time_step_s,
-        scale=settings.scale,
+        scale=settings.pybullet.scale if settings.engine == "pybullet" else BenchSettings.scale,
         gravity_m_s2=abs(settings.gravity_m_s2[2]),
         statics=params.statics,
         engine=settings.engine,
