@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import importlib.util
 import os
 import pickle
 from collections.abc import Callable
@@ -352,3 +353,24 @@ def test_a_body_at_bullets_speed_cap_is_named_with_the_cap_in_si() -> None:
         with pytest.raises(UnstableSimulation) as err:
             world.step(1000)
     assert "body 'ball' at Bullet's speed cap, 1 m/s" in str(err.value) and 0.09 <= world.time_s <= 0.12
+
+
+def test_the_world_interface_is_abstract_and_both_engines_implement_all_of_it() -> None:
+    """``World`` is an ABC: neither it nor an engine's world missing a method can be made."""
+    from somo_sweep.sim.pybullet.world import PyBulletWorld
+    from somo_sweep.sim.world import World
+
+    with pytest.raises(TypeError, match="abstract"):
+        World()  # type: ignore[abstract]
+
+    class Partial(World):
+        def close(self) -> None:
+            pass
+
+    with pytest.raises(TypeError, match="load_plan"):
+        Partial()  # type: ignore[abstract]
+    assert not PyBulletWorld.__abstractmethods__
+    if importlib.util.find_spec("mujoco") is not None:
+        from somo_sweep.sim.mujoco.world import MujocoWorld
+
+        assert not MujocoWorld.__abstractmethods__
