@@ -23,7 +23,7 @@ from somo_sweep.errors import MeasurementError, did_you_mean, shown
 from somo_sweep.model.files import decode_utf8, is_file, missing_or_special
 from somo_sweep.model.load import Model
 from somo_sweep.model.tables import bundled_if_missing, not_found
-from somo_sweep.sim.bench import TESTS, BenchSettings, run_bench
+from somo_sweep.statics.bench import TESTS, BenchSettings, run_bench
 
 __all__ = [
     "COLUMNS",

@@ -147,7 +147,7 @@ def measure(
     """Simulate bench protocols and print rows in the measurement CSV schema."""
     from somo_sweep.calibration.measurements import COLUMNS, RANGES, measurements_csv, simulate_measurements
     from somo_sweep.model.load import load_model
-    from somo_sweep.sim.bench import TESTS
+    from somo_sweep.statics.bench import TESTS
 
     if test not in TESTS:
         fail(SomoError(f"--test '{test}' is not a bench test; allowed: {', '.join(TESTS)}"))

@@ -15,10 +15,10 @@ import pybullet as p
 import pytest
 
 from somo_sweep.model.builders import planar_finger
-from somo_sweep.sim.bench_rig import bench_frame
 from somo_sweep.sim.planner import plan_manipulator
 from somo_sweep.sim.settings import WorldSettings
 from somo_sweep.sim.worlds import open_world
+from somo_sweep.statics.bench_rig import bench_frame
 
 LENGTH_M, PHI_RAD = 0.100, np.radians(100.0)
 

@@ -16,10 +16,10 @@ from somo_sweep.errors import SimulationError, UnstableSimulation
 from somo_sweep.model.description import Link, Pose, RigidBody
 from somo_sweep.model.load import load_model, model_from_dict
 from somo_sweep.model.tables import bundled_path
-from somo_sweep.sim.bench import BenchSettings, run_bench
 from somo_sweep.sim.rotations import matrix_from_quat, quat_from_rpy
 from somo_sweep.sim.settings import MujocoSettings, PyBulletSettings, WorldSettings
 from somo_sweep.sim.worlds import open_world
+from somo_sweep.statics.bench import BenchSettings, run_bench
 
 pytest.importorskip("mujoco")
 
@@ -296,7 +296,7 @@ def test_bench_rows_of_the_20_link_finger_agree_with_pybullet_within_half_a_perc
         assert result.status == "ok", result.message
         values.append(float(result.metrics[metric]))
     if test == "blocked_force":  # a row the rigid model decides (the finger on its tip)
-        from somo_sweep.sim.plate_force_range import plate_force_range
+        from somo_sweep.statics.plate_force_range import plate_force_range
 
         assert plate_force_range(finger, pressure_kpa).width_n < 1e-9
     assert abs(values[0] - values[1]) < 0.005 * range_, values
@@ -305,12 +305,12 @@ def test_bench_rows_of_the_20_link_finger_agree_with_pybullet_within_half_a_perc
 def test_the_flat_fingers_blocked_force_lies_where_the_rigid_model_leaves_it_on_both_engines() -> None:
     """At 0 kPa the pinch finger lies flat: its side joints pair the links into rigid bodies on three
     corner lines, and rigid statics admits any plate force in an interval 1.3 % of the bench study's
-    range wide (tests/sim/test_plate_force_range.py). Each engine's contacts pick a point: MuJoCo's
+    range wide (tests/statics/test_plate_force_range.py). Each engine's contacts pick a point: MuJoCo's
     soft constraints one inside it; Bullet one just below its least, the finger resting its contact
     slop (0.5 µm) into the plate so the stiff joints hang a little more on the clamp (0.8 % below
     at 0.5 ms, 1.2 % at 0.125 ms; docs/engines.md, "Agreement"). The two differ by 0.504 % of range,
     which is a difference of contact regularisation, not of the model."""
-    from somo_sweep.sim.plate_force_range import plate_force_range
+    from somo_sweep.statics.plate_force_range import plate_force_range
 
     finger = load_model(bundled_path("models", "pinch_finger.yaml"))
     open_ = plate_force_range(finger, 0.0)

@@ -11,10 +11,10 @@ from somo_sweep.calibration.formulas import chain_tip_stiffness
 from somo_sweep.errors import UnstableSimulation
 from somo_sweep.model.description import Link, Pose, RigidBody
 from somo_sweep.model.load import model_from_dict
-from somo_sweep.sim.bench import BenchSettings, run_bench
 from somo_sweep.sim.planner import plan_rigid_body
 from somo_sweep.sim.settings import PyBulletSettings, WorldSettings
 from somo_sweep.sim.worlds import open_world
+from somo_sweep.statics.bench import BenchSettings, run_bench
 
 K_GRASP = 0.2186  # N·m/rad, IHM finger grasp axis
 SEGMENT_M = 0.010

@@ -8,9 +8,10 @@ the same code and simulator always gives the same ids, which is what resume reli
 :class:`~somo_sweep.sweep.study.resolve.TrialPlan` alone.
 
 A study without a ``simulation:`` block gets its numerics from each model's modes
-(:func:`~somo_sweep.sim.numerics.choose_numerics`, which loads the chains in PyBullet): the
-job's model carries the chosen inertia shaping and its settings the chosen step, both
-before hashing, so the id is still a function of what the trial actually runs.
+(:func:`~somo_sweep.sim.numerics.choose_numerics`, which loads the chains in PyBullet, the
+engine such a study runs on): the job's model carries the chosen inertia shaping and its
+settings the chosen step, both before hashing, so the id is still a function of what the trial
+actually runs.
 """
 
 from __future__ import annotations
@@ -299,9 +300,14 @@ def _prepare(
     (the step chosen by convergence with the least shaping it needs, else the modal choice)."""
     if fixed is not None:
         return model, model.content_hash(), fixed, None
-    from somo_sweep.sim.numerics import choose_numerics, numerics_for_step  # loads PyBullet
+    from somo_sweep.sim.numerics import choose_numerics, numerics_for_step  # loads the engine
 
-    chosen = choose_numerics(model) if auto_step_s is None else numerics_for_step(model, auto_step_s)
+    # A study without simulation: runs on the default engine (PyBullet): its modes are that engine's.
+    engine = WorldSettings().engine
+    if auto_step_s is None:
+        chosen = choose_numerics(model, engine=engine)
+    else:
+        chosen = numerics_for_step(model, auto_step_s, engine)
     shaped = chosen.apply(model)
     return shaped, shaped.content_hash(), WorldSettings(time_step_s=chosen.time_step_s), chosen
 

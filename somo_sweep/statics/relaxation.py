@@ -1,7 +1,7 @@
 """Bench rows found by dynamic relaxation (``statics: dynamic``): the original protocol.
 
 Each row is its own simulation on the engine the settings name: the finger, clamped as the
-bench rig says (:mod:`somo_sweep.sim.bench_rig`), starts straight and unloaded, the load is
+bench rig says (:mod:`somo_sweep.statics.bench_rig`), starts straight and unloaded, the load is
 applied at once and the equilibrium is found by dynamic relaxation (kinetic damping: joint
 velocities are zeroed whenever the kinetic energy peaks). The rig's added link inertia (MuJoCo:
 joint armature) changes the path, not the equilibrium, which is all a static protocol reports.
@@ -13,7 +13,11 @@ import numpy as np
 
 from somo_sweep.errors import SimulationError, UnstableSimulation
 from somo_sweep.model.description import Manipulator
-from somo_sweep.sim.bench_rig import (
+from somo_sweep.sim.planner import plan_manipulator
+from somo_sweep.sim.settings import MujocoSettings, PyBulletSettings, WorldSettings
+from somo_sweep.sim.world import Body, World
+from somo_sweep.sim.worlds import open_world
+from somo_sweep.statics.bench_rig import (
     BenchResult,
     BenchSettings,
     bench_frame,
@@ -21,10 +25,6 @@ from somo_sweep.sim.bench_rig import (
     static_rig,
     stop_geometry,
 )
-from somo_sweep.sim.planner import plan_manipulator
-from somo_sweep.sim.settings import MujocoSettings, PyBulletSettings, WorldSettings
-from somo_sweep.sim.world import Body, World
-from somo_sweep.sim.worlds import open_world
 
 __all__ = ["BULLET_CONTACT_SLOP", "PLATE_RAISE", "RelaxationRig", "relaxed_row"]
 
@@ -156,7 +156,7 @@ def relaxed_row(
     settings: BenchSettings,
     direction: str | None = None,
 ) -> BenchResult:
-    """One bench row by dynamic relaxation, as :func:`somo_sweep.sim.bench.run_bench` defines it.
+    """One bench row by dynamic relaxation, as :func:`somo_sweep.statics.bench.run_bench` defines it.
 
     Args:
         manip: The manipulator (clamped whatever its base mode).
