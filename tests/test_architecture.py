@@ -164,6 +164,23 @@ def test_no_task_nor_the_statics_import_an_engine_or_an_engine_package(stage: st
     assert offenders == {}
 
 
+#: The bench statics' modules: a stage of their own above the engines, not part of ``sim``.
+STATICS_MODULES = {
+    "bench_rig", "bench", "relaxation", "bench_bodies", "chain_kinematics", "chain_energy", "active_set_qp",
+    "static_newton", "continuation", "no_equilibrium", "plate_force_range", "static_chain", "solve",
+}  # fmt: skip
+
+
+def test_the_bench_statics_are_a_stage_of_their_own_above_the_engines_kinematics() -> None:
+    statics = {p.stem for p in (PACKAGE / "statics").glob("*.py")} - {"__init__"}
+    assert statics == STATICS_MODULES
+    assert not {p.stem for p in (PACKAGE / "sim").glob("*.py")} & (STATICS_MODULES | {"statics"})
+    # Each engine's chain kinematics stays in sim, below the statics, and needs nothing of them.
+    for engine in ENGINE_PACKAGES:
+        kinematics = PACKAGE / "sim" / engine / "kinematics.py"
+        assert not {m for m in _imports(kinematics) if m.startswith("somo_sweep.statics")}
+
+
 def test_the_engine_free_check_sees_an_engine_package(tmp_path: Path) -> None:
     """The check above can fail: an engine package imported inside a function is found."""
     module = tmp_path / "m.py"
