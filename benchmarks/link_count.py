@@ -24,7 +24,7 @@ from benchmarks._cli import echo, int_in, user_errors
 from somo_sweep.model.load import model_from_dict
 from somo_sweep.model.tables import bundled_path
 from somo_sweep.sim.modes import chain_matrices
-from somo_sweep.sim.settings import WorldSettings
+from somo_sweep.sim.settings import MujocoSettings, WorldSettings
 from somo_sweep.tasks.pinch_grasp.geometry import finger_mounts, palm_size_m
 from somo_sweep.tasks.pinch_grasp.params import PinchGraspParams
 
@@ -63,7 +63,7 @@ def _row(n_links: int, repeats: int) -> str:
     gripper = {"name": "g", "base": {"mode": "driven", "link": palm}, "manipulators": mounts}
     hand = model_from_dict({"assembly": gripper})
     params = PinchGraspParams(**TRIAL, pressure_kpa=150, early_stop=False)
-    settings = WorldSettings(time_step_s=4e-3, engine="mujoco")
+    settings = WorldSettings(time_step_s=4e-3, engine_settings=MujocoSettings())
     cpu = []
     for _ in range(repeats + 1):
         t0 = time.process_time()

@@ -18,7 +18,7 @@ from typing import Any
 
 from somo_sweep.model.load import load_model
 from somo_sweep.model.tables import bundled_path
-from somo_sweep.sim.settings import WorldSettings
+from somo_sweep.sim.settings import PyBulletSettings, WorldSettings
 from somo_sweep.tasks.pinch_grasp.params import Numerics, PinchGraspParams
 from somo_sweep.tasks.pinch_grasp.task import run_pinch_grasp
 
@@ -66,8 +66,9 @@ class Setup:
         return WorldSettings(
             time_step_s=self.time_step_s,
             solver_iterations=self.solver_iterations,
-            body_per_manipulator=self.body_per_manipulator,
-            friction_rows_every=self.friction_rows_every,
+            engine_settings=PyBulletSettings(
+                body_per_manipulator=self.body_per_manipulator, friction_rows_every=self.friction_rows_every
+            ),
         )
 
     def describe(self) -> str:

@@ -30,8 +30,8 @@ from somo_sweep.model.description import Link, Pose, RigidBody
 from somo_sweep.model.load import load_model
 from somo_sweep.model.setpoints import SetpointTable
 from somo_sweep.model.tables import bundled_path
+from somo_sweep.sim.planner import plan_rigid_body
 from somo_sweep.sim.settings import WorldSettings
-from somo_sweep.sim.urdf import plan_rigid_body
 from somo_sweep.sim.worlds import open_world
 
 __all__ = ["convergence_lines", "gripper_step_timing", "main", "speed_lines", "time_step_convergence"]
@@ -51,7 +51,7 @@ def gripper_step_timing(
             link=Link(shape="box", size_m=(0.04, 0.06, 0.06), mass_kg=0.02, friction={"lateral": 2.0}),
             pose=Pose(position_m=(0.0, 0.0, 0.0301)),
         )
-        obj = world.load_plan(plan_rigid_body(box, world.scale))
+        obj = world.load_plan(plan_rigid_body(box))
         hand = world.add_model(model, Pose(position_m=(0.10, 0.0, 0.035)))
         torque = SetpointTable([0.0, 0.3, 1.3], [[0.0, 0.0], [0.0, 0.0], [0.15, 0.15]])
         start_pose, lifted = [0.10, 0.0, 0.035, 0.0, 0.0, 0.0], [0.10, 0.0, 0.11, 0.0, 0.0, 0.0]

@@ -26,7 +26,7 @@ from somo_sweep.diagnosis.diagnose import build_diagnosis, diagnose
 from somo_sweep.errors import SimulationError
 from somo_sweep.model.builders import planar_finger
 from somo_sweep.model.tables import bundled_path
-from somo_sweep.sim.bench import run_bench
+from somo_sweep.statics.bench import run_bench
 
 __all__ = ["main", "statics_lines"]
 

@@ -4,7 +4,7 @@ with the plate starting further from the clamp.
 At 0 kPa the bench's blocked-force protocol lays the unpressurised finger on a frictionless plate.
 The pinch finger's side joints pair its links into rigid bodies that rest on three corner lines
 each, so rigid statics leaves the split of the weight between clamp and plate open over an interval
-(printed with the solved value; :mod:`somo_sweep.sim.plate_force_range`), and each engine's
+(printed with the solved value; :mod:`somo_sweep.statics.plate_force_range`), and each engine's
 contact regularisation picks a point in or near it. This script prints
 ``run_bench(..., "blocked_force", p)`` on PyBullet and MuJoCo at 1, 0.5, 0.25 and 0.125 ms, and the
 solved statics, at 0 and 25 kPa: once with the bench's plate, then with the plate starting
@@ -28,14 +28,14 @@ from contextlib import contextmanager
 
 import numpy as np
 
-import somo_sweep.sim.chain_kinematics as chain_kinematics
-import somo_sweep.sim.relaxation as relaxation
-import somo_sweep.sim.statics as statics
+import somo_sweep.statics.chain_kinematics as chain_kinematics
+import somo_sweep.statics.relaxation as relaxation
+import somo_sweep.statics.solve as statics
 from somo_sweep.model.description import Manipulator
 from somo_sweep.model.load import load_model
 from somo_sweep.model.tables import bundled_path
-from somo_sweep.sim.bench import BenchSettings, run_bench
-from somo_sweep.sim.plate_force_range import plate_force_range
+from somo_sweep.statics.bench import BenchSettings, run_bench
+from somo_sweep.statics.plate_force_range import plate_force_range
 
 GRAVITY_M_S2 = 9.81
 

@@ -36,7 +36,8 @@ def _setup(study_path: str, setup: str | None) -> tuple[dict[str, Any], Any, str
     settings = study.simulation.world_settings()
     if setup:
         dt, inertia, *rest = setup.split(",")
-        settings = replace(settings, time_step_s=float(dt), friction_rows_every=int(rest[0]) if rest else 1)
+        own = replace(settings.pybullet, friction_rows_every=int(rest[0]) if rest else 1)
+        settings = replace(settings, time_step_s=float(dt), engine_settings=own)
         params["numerics"] = {**params.get("numerics", {}), "added_inertia_kg_m2": float(inertia)}
     return params, settings, str(study.model_path)
 

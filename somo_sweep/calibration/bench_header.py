@@ -30,7 +30,7 @@ from somo_sweep.calibration.bench_file import BenchFile, read_bench_file
 from somo_sweep.calibration.finger import header_mapping
 from somo_sweep.errors import MeasurementError, SimulationError
 from somo_sweep.model.description import MAX_LENGTH_M, Manipulator
-from somo_sweep.sim.bench_rig import STOPS, BenchSettings, check_stop, finger_underside_m
+from somo_sweep.statics.bench_rig import STOPS, BenchSettings, check_stop, finger_underside_m
 
 __all__ = ["BENCH_KEYS", "BenchHeader", "bench_header", "read_bench_header"]
 
@@ -48,7 +48,7 @@ class BenchHeader:
 
     Attributes:
         stop_z_mm: Stop height relative to the straight finger's centre line, mm; None: its underside.
-        stop: ``plate`` or ``fingertip`` (:data:`~somo_sweep.sim.bench_rig.STOPS`).
+        stop: ``plate`` or ``fingertip`` (:data:`~somo_sweep.statics.bench_rig.STOPS`).
         line: Line of the ``# bench:`` header in the file (None when there is none).
         source: The file, for messages.
     """
@@ -108,7 +108,7 @@ def bench_header(file: BenchFile) -> BenchHeader:
 
     Raises:
         MeasurementError: Given twice, not a mapping, an unknown key, a ``stop_z_mm`` that is no
-            finite number of at most ±100 m or a ``stop`` not in :data:`~somo_sweep.sim.bench_rig.STOPS`
+            finite number of at most ±100 m or a ``stop`` not in :data:`~somo_sweep.statics.bench_rig.STOPS`
             (the message names the line and the key).
     """
     path = file.path

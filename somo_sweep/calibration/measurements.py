@@ -22,7 +22,7 @@ from somo_sweep.calibration.bench_file import MAX_FILE_BYTES, MAX_ROWS, BenchFil
 from somo_sweep.calibration.csv_rows import CsvRows, line_of, split_rows
 from somo_sweep.errors import MeasurementError, did_you_mean, shown
 from somo_sweep.model.load import Model
-from somo_sweep.sim.bench import TESTS, BenchSettings, run_bench
+from somo_sweep.statics.bench import TESTS, BenchSettings, run_bench
 
 __all__ = [
     "COLUMNS",

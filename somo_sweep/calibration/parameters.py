@@ -21,8 +21,8 @@ from somo_sweep.calibration import meter
 from somo_sweep.calibration.metrics import WIDTH
 from somo_sweep.errors import SimulationError
 from somo_sweep.model.description import Actuation, Manipulator
-from somo_sweep.sim.bench import BenchSettings, run_bench
-from somo_sweep.sim.statics import solve_row
+from somo_sweep.statics.bench import BenchSettings, run_bench
+from somo_sweep.statics.solve import solve_row
 
 __all__ = [
     "AXES",

@@ -28,7 +28,7 @@ from somo_sweep.calibration.parameters import (
 from somo_sweep.errors import MeasurementError
 from somo_sweep.model.description import Manipulator
 from somo_sweep.model.load import Model
-from somo_sweep.sim.bench import BenchSettings
+from somo_sweep.statics.bench import BenchSettings
 
 __all__ = [
     "CALIBRATION_SETTINGS",

@@ -15,7 +15,7 @@ from somo_sweep.calibration.metrics import ANGLE
 from somo_sweep.calibration.parameters import simulate_rows
 from somo_sweep.model.builders import planar_finger
 from somo_sweep.model.load import Model
-from somo_sweep.sim.bench import BenchSettings
+from somo_sweep.statics.bench import BenchSettings
 
 __all__ = [
     "TRUE_GAIN_N_M_PER_KPA",

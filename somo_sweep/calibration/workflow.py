@@ -32,7 +32,7 @@ from somo_sweep.calibration.solve import (
 )
 from somo_sweep.errors import SomoError
 from somo_sweep.model.load import Model, load_model
-from somo_sweep.sim.bench import BenchSettings
+from somo_sweep.statics.bench import BenchSettings
 
 __all__ = [
     "METHODS",

@@ -48,7 +48,7 @@ def check(
     """
     from somo_sweep.model.load import load_model
     from somo_sweep.sim.numerics import choose_numerics, step_ladder
-    from somo_sweep.sim.urdf import plan_assembly
+    from somo_sweep.sim.planner import plan_assembly
 
     if _is_study(model):
         _check_study(model, allow_outside, jobs)
@@ -57,7 +57,7 @@ def check(
         m = load_model(model, allow_outside)
     except SomoError as exc:
         fail(exc)
-    for plan in plan_assembly(m.as_assembly(), 1.0):
+    for plan in plan_assembly(m.as_assembly()):
         typer.echo(
             f"{plan.name}: base {plan.mode}, {len(plan.links)} links, {len(plan.joints)} spring joints, "
             f"inputs: {', '.join(plan.inputs) or 'none'}"
@@ -148,7 +148,7 @@ def measure(
     """Simulate bench protocols and print rows in the measurement CSV schema."""
     from somo_sweep.calibration.measurements import COLUMNS, RANGES, measurements_csv, simulate_measurements
     from somo_sweep.model.load import load_model
-    from somo_sweep.sim.bench import TESTS
+    from somo_sweep.statics.bench import TESTS
 
     if test not in TESTS:
         fail(SomoError(f"--test '{test}' is not a bench test; allowed: {', '.join(TESTS)}"))

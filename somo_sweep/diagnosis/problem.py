@@ -31,7 +31,7 @@ from somo_sweep.diagnosis.noise import (
 from somo_sweep.errors import SomoError
 from somo_sweep.model.description import Manipulator
 from somo_sweep.model.load import Model
-from somo_sweep.sim.bench import BenchSettings
+from somo_sweep.statics.bench import BenchSettings
 
 __all__ = ["FAILED_RESIDUAL", "DiagnosisProblem", "build_diagnosis"]
 

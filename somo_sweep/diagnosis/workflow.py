@@ -23,7 +23,7 @@ from somo_sweep.diagnosis.diagnose import DiagnosisResult, build_diagnosis, diag
 from somo_sweep.diagnosis.effects import EFFECTS, get_effect
 from somo_sweep.errors import SomoError
 from somo_sweep.model.load import Model, load_model
-from somo_sweep.sim.bench import BenchSettings
+from somo_sweep.statics.bench import BenchSettings
 
 __all__ = [
     "CALIBRATED_FIRST",

@@ -64,7 +64,7 @@ class Model(Spec):
 
 
 def _chain_links(manip: Manipulator, extra_anchor: bool) -> int:
-    """Links :func:`somo_sweep.sim.urdf.plan_manipulator` makes for one manipulator's chain."""
+    """Links :func:`somo_sweep.sim.planner.plan_manipulator` makes for one manipulator's chain."""
     n = 1 if manip.base.link is not None or extra_anchor else 0
     for act in manip.actuators:
         n += act.segments + (1 if act.joint_placement == "midpoint" else 0)

@@ -20,7 +20,7 @@ from somo_sweep.calibration.solve import CalibrationResult, build_problem, solve
 from somo_sweep.model.load import load_model
 from somo_sweep.model.tables import bundled_path
 from somo_sweep.paper.artifacts import Artifacts
-from somo_sweep.sim.bench import BenchSettings
+from somo_sweep.statics.bench import BenchSettings
 
 __all__ = ["DATA", "MODEL", "build", "calibrate_both", "calibrate_fit", "plot_blocked_force"]
 

@@ -1,15 +1,16 @@
-"""The simulation stage: descriptions → body plans → worlds on either engine, and the bench.
+"""The simulation stage: descriptions → body plans → worlds and chain kinematics on either engine.
 
-* plans: :mod:`~somo_sweep.sim.urdf` (with :mod:`~somo_sweep.sim.urdf_builder`) turns a model
-  into :class:`~somo_sweep.sim.plan.BodyPlan` objects (URDF text and metadata);
+* plans: :mod:`~somo_sweep.sim.planner` (with :mod:`~somo_sweep.sim.plan_builder`) turns a model
+  into :class:`~somo_sweep.sim.plan.BodyPlan` objects (the body tree in SI, as data), from which
+  each engine builds its own world (PyBullet a URDF in its scaled world, MuJoCo an ``MjSpec``);
 * worlds: :class:`~somo_sweep.sim.world.World` is the interface tasks use, in SI;
   :func:`~somo_sweep.sim.worlds.open_world` opens it on the engine its
   :class:`~somo_sweep.sim.settings.WorldSettings` name: :mod:`somo_sweep.sim.pybullet` (the
   default, the paper's) or :mod:`somo_sweep.sim.mujoco` (optional extra), the only packages
   that import an engine; :mod:`~somo_sweep.sim.render` takes snapshots;
-* the bench: :func:`~somo_sweep.sim.bench.run_bench` runs a row of the bench protocols on the
-  rig of :mod:`~somo_sweep.sim.bench_rig`, solved statically (:mod:`~somo_sweep.sim.statics`)
-  or by dynamic relaxation (:mod:`~somo_sweep.sim.relaxation`);
+* kinematics: :class:`~somo_sweep.sim.kinematics.ChainKinematics`, a body's structure and
+  forward kinematics on its engine (:func:`~somo_sweep.sim.worlds.open_chain_kinematics`), on
+  which the bench statics of the stage above (:mod:`somo_sweep.statics`) build;
 * numerics: :mod:`~somo_sweep.sim.numerics` chooses PyBullet's step and inertia shaping from
   the chains' modes (:mod:`~somo_sweep.sim.modes`).
 

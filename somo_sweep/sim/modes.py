@@ -1,14 +1,17 @@
 """Modal estimate of a manipulator's chain: K v = ω² M v about the straight (neutral) pose.
 
-M is PyBullet's own joint-space mass matrix (``calculateMassMatrix``) of the chain loaded
-exactly as a trial loads it (URDF from :mod:`somo_sweep.sim.urdf`, file inertias), at world
-scale 1 so that every entry is SI (kg·m² for revolute, kg for prismatic joints). K is the
-diagonal of the spring joints' stiffness (N·m/rad or N/m). Gravity's geometric stiffness,
+M is the joint-space mass matrix of the chain's plan (:mod:`somo_sweep.sim.planner`) as the
+study's engine loads it, at the spring joints' neutral positions, in SI (kg·m² for revolute, kg
+for prismatic joints): PyBullet's ``calculateMassMatrix``
+(:mod:`somo_sweep.sim.pybullet.mass_matrix`) or MuJoCo's ``mj_fullM``
+(:mod:`somo_sweep.sim.mujoco.mass_matrix`). K is the diagonal of the spring joints' stiffness
+(N·m/rad or N/m). Gravity's geometric stiffness,
 the Coulomb motors, damping and contacts are left out: the estimate is the linear,
 undamped chain, which is what an explicit spring update has to resolve.
 
 Inertia shaping adds ``J`` (kg·m²) to every principal moment of every segment link; the mass
-matrix is linear in it, so two PyBullet evaluations give M(J) = M₀ + J·D for every J.
+matrix is linear in it, so two evaluations give M(J) = M₀ + J·D for every J (on MuJoCo, whose
+implicit springs need no shaping and whose scenes leave it out, D = 0).
 A mount clamped to a palm or a driven base is analysed with its base clamped; a free
 manipulator (no base link, ``base.mode: free``) with a floating base, whose six rigid-body
 modes are dropped.
@@ -23,9 +26,10 @@ import scipy.linalg
 
 from somo_sweep.model.description import Manipulator
 from somo_sweep.model.load import Model
-from somo_sweep.sim.pybullet.mass_matrix import neutral_mass_matrix
+from somo_sweep.sim.plan import BodyPlan
+from somo_sweep.sim.planner import plan_manipulator
 
-__all__ = ["ChainMatrices", "ChainModes", "chain_matrices", "model_chains", "shaped"]
+__all__ = ["ChainMatrices", "ChainModes", "chain_matrices", "model_chains", "neutral_mass_matrix", "shaped"]
 
 #: Inertia (kg·m²) used to measure dM/dJ; the matrix is linear in J, so any value works.
 _PROBE_KG_M2 = 1e-4
@@ -118,20 +122,36 @@ def model_chains(model: Model) -> list[tuple[Manipulator, bool]]:
     ]
 
 
-def chain_matrices(manip: Manipulator, floating: bool = False) -> ChainMatrices:
-    """Linearise one manipulator's chain about its neutral pose (two PyBullet evaluations).
+def neutral_mass_matrix(plan: BodyPlan, engine: str = "pybullet") -> np.ndarray:
+    """The mass matrix of ``plan`` at its neutral pose on ``engine`` (SI; a free base's six DoFs
+    first, then the spring joints in plan order). Imports that engine, and only that one."""
+    if engine == "mujoco":
+        from somo_sweep.sim.mujoco.mass_matrix import neutral_mass_matrix as mujoco_matrix
+
+        return mujoco_matrix(plan)
+    from somo_sweep.sim.pybullet.mass_matrix import neutral_mass_matrix as pybullet_matrix
+
+    return pybullet_matrix(plan)
+
+
+def chain_matrices(manip: Manipulator, floating: bool = False, engine: str = "pybullet") -> ChainMatrices:
+    """Linearise one manipulator's chain about its neutral pose (two mass matrices on ``engine``).
 
     Args:
         manip: The manipulator (its own ``added_inertia_kg_m2`` is part of the baseline).
         floating: Analyse with a floating base (six rigid-body modes dropped) instead of clamped.
+        engine: The engine whose mass matrix is read: ``pybullet`` or ``mujoco``.
     """
-    m0, names, k = neutral_mass_matrix(manip, floating)
-    m1, _, _ = neutral_mass_matrix(shaped(manip, _PROBE_KG_M2), floating)
+    mode = "free" if floating else "fixed"
+    plan = plan_manipulator(manip, mode=mode)
+    m0 = neutral_mass_matrix(plan, engine)
+    m1 = neutral_mass_matrix(plan_manipulator(shaped(manip, _PROBE_KG_M2), mode=mode), engine)
+    k = [sj.stiffness for sj in plan.joints]
     rigid = _BASE_DOFS if floating else 0
     stiffness = np.concatenate([np.zeros(m0.shape[0] - len(k)), np.asarray(k, dtype=float)])
     return ChainMatrices(
         chain=manip.name,
-        joints=tuple(names),
+        joints=tuple(sj.name for sj in plan.joints),
         mass=m0,
         inertia_gain=(m1 - m0) / _PROBE_KG_M2,
         stiffness=stiffness,

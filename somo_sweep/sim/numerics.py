@@ -243,7 +243,7 @@ def _step_limits(w: np.ndarray, max_step_s: float) -> dict[str, float]:
 
 
 def choose_numerics(
-    model: Model, max_step_s: float = MAX_STEP_S, max_shift: float = MAX_MODE_SHIFT
+    model: Model, max_step_s: float = MAX_STEP_S, max_shift: float = MAX_MODE_SHIFT, engine: str = "pybullet"
 ) -> ChosenNumerics:
     """Choose the time step and inertia shaping of ``model`` from its chains' modes.
 
@@ -251,6 +251,7 @@ def choose_numerics(
         model: The model (as the trial will load it).
         max_step_s: Largest step allowed, s.
         max_shift: Largest relative drop of each chain's kept lowest modes.
+        engine: The engine whose mass matrices give the modes (:func:`~somo_sweep.sim.modes.chain_matrices`).
 
     Returns:
         The step, the shaping per chain, the modes before and after, and which limit decided.
@@ -259,7 +260,7 @@ def choose_numerics(
     upper: dict[str, float] = {}
     best: dict[str, tuple[float, str]] = {}
     for manip, floating in model_chains(model):
-        m = chain_matrices(manip, floating)
+        m = chain_matrices(manip, floating, engine)
         if not m.joints or not len(elastic(m.frequencies_rad_s(0.0))):
             continue  # no spring to resolve: the chain sets no limit
         mats[manip.name] = m
@@ -283,16 +284,16 @@ def choose_numerics(
     return ChosenNumerics(step, chains, reason)
 
 
-def numerics_for_step(model: Model, step_s: float) -> ChosenNumerics:
+def numerics_for_step(model: Model, step_s: float, engine: str = "pybullet") -> ChosenNumerics:
     """The least inertia shaping that makes ``step_s`` stable for every chain of ``model``.
 
     No lowest-mode budget: how much shaping a step may take is judged by the labels it gives,
     against half the step (:mod:`somo_sweep.sweep.run.convergence`), not by the modes. A chain that is
-    stable at ``step_s`` as it is gets none.
+    stable at ``step_s`` as it is gets none. ``engine``: whose mass matrices give the modes.
     """
     chains: dict[str, ChainChoice] = {}
     for manip, floating in model_chains(model):
-        m = chain_matrices(manip, floating)
+        m = chain_matrices(manip, floating, engine)
         if not m.joints or not len(elastic(m.frequencies_rad_s(0.0))):
             continue
         kept = min(m.axes_per_joint_cycle, len(m.stiffness) - m.rigid_modes)
@@ -311,17 +312,20 @@ def _enough_inertia(mats: ChainMatrices, step_s: float) -> float:
     return j
 
 
-def step_ladder(model: Model, max_step_s: float = MAX_STEP_S) -> tuple[list[float], str]:
+def step_ladder(
+    model: Model, max_step_s: float = MAX_STEP_S, engine: str = "pybullet"
+) -> tuple[list[float], str]:
     """The steps an automatic choice tries, largest first, and what set the first one.
 
     The first is the model's largest step by its lowest modes (each chain's lowest mode resolved
     by ω_low·dt ≤ :data:`LOWEST_MODE_RAD`, at most ``max_step_s``): the modal starting guess. Each
     next one is half the last, down to the step at which every chain is stable with no shaping
-    at all (:data:`SAFETY` · 2/ω_max), which ends the ladder.
+    at all (:data:`SAFETY` · 2/ω_max), which ends the ladder. ``engine``: whose mass matrices
+    give the modes.
     """
     guess, floor, why = max_step_s, max_step_s, "the largest validated step"
     for manip, floating in model_chains(model):
-        m = chain_matrices(manip, floating)
+        m = chain_matrices(manip, floating, engine)
         w = elastic(m.frequencies_rad_s(0.0)) if m.joints else np.zeros(0)
         if not len(w):
             continue

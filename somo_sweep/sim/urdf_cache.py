@@ -1,6 +1,6 @@
 """The URDF files PyBullet loads: written once per content hash into a user cache, kept bounded.
 
-PyBullet reads a body from a file, so every planned body (:mod:`somo_sweep.sim.urdf`) is written
+PyBullet reads a body from a file, so every planned body (:mod:`somo_sweep.sim.pybullet.urdf`) is written
 as ``<hash>.urdf`` into the cache folder (:func:`cache_dir`): ``$SOMO_SWEEP_CACHE/urdf`` when that
 variable is set, else ``$XDG_CACHE_HOME/somo-sweep/urdf``, else ``~/.cache/somo-sweep/urdf``. Never
 into the user's folders. A file is the same whatever study wrote it, so studies share them.

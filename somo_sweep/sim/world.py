@@ -11,9 +11,10 @@ import an engine: ``tests/test_architecture.py`` checks it. This module imports 
 
 from __future__ import annotations
 
+from abc import ABC, abstractmethod
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
-from typing import Any, Protocol
+from typing import Protocol
 
 import numpy as np
 import numpy.typing as npt
@@ -25,8 +26,8 @@ from somo_sweep.model.setpoints import SetpointTable
 from somo_sweep.sim.camera import Camera
 from somo_sweep.sim.follow import Follow
 from somo_sweep.sim.plan import BodyPlan, SpringJoint
+from somo_sweep.sim.planner import plan_rigid_body
 from somo_sweep.sim.settings import WorldSettings
-from somo_sweep.sim.urdf import plan_rigid_body
 
 __all__ = ["Body", "Drive", "ModelHandle", "World", "WorldSettings"]
 
@@ -118,17 +119,18 @@ class ModelHandle:
         raise KeyError(f"no manipulator '{name}' in {self.name}")
 
 
-class World:
+class World(ABC):
     """A headless world in SI units; always :meth:`close` it (or use ``with``).
 
     Open one with :func:`somo_sweep.sim.worlds.open_world` (``with open_world(settings) as
     world:``), which returns the world of ``settings.engine``. The methods below are the whole
-    interface a task may use; each engine implements them.
+    interface a task may use; each engine implements the abstract ones (an engine's world that
+    leaves one out cannot be made, nor can a ``World`` itself).
 
     Attributes:
         settings: The settings.
-        scale: The engine's internal length scale (PyBullet's Y; 1 for MuJoCo): plans for
-            :meth:`load_plan` are made at it.
+        scale: The engine's internal length scale (PyBullet's Y; 1 for MuJoCo); plans and every
+            method are in SI whatever it is.
         time_s: Simulated time, s.
         step_count: Steps taken.
         bodies: Bodies loaded, in order.
@@ -142,14 +144,6 @@ class World:
     bodies: list[Body]
     pre_step: list[Callable[[World], None]]
 
-    def __new__(cls, *args: Any, **kwargs: Any) -> Any:
-        if cls is World:
-            raise TypeError(
-                "World is the interface every engine implements; open a world with "
-                "somo_sweep.sim.worlds.open_world(settings)"
-            )
-        return super().__new__(cls)
-
     def __enter__(self) -> World:
         return self
 
@@ -157,18 +151,19 @@ class World:
         self.close()
 
     # ------------------------------------------------------------ the engine's part
+    @abstractmethod
     def close(self) -> None:
         """Release the engine (safe to call twice)."""
-        raise NotImplementedError
 
+    @abstractmethod
     def load_plan(self, plan: BodyPlan, pose: Pose | None = None) -> Body:
-        """Load one planned body (made at :attr:`scale`) at ``pose`` (default: the plan's pose)."""
-        raise NotImplementedError
+        """Load one planned body at ``pose`` (default: the plan's pose)."""
 
+    @abstractmethod
     def add_model(self, model: Model, pose: Pose | None = None) -> ModelHandle:
         """Load a model (manipulator or assembly) at ``pose``; returns its handle."""
-        raise NotImplementedError
 
+    @abstractmethod
     def add_ground(
         self,
         friction: float = 1.0,
@@ -176,12 +171,12 @@ class World:
         anisotropic: tuple[float, float, float] | None = None,
     ) -> int:
         """Add a static ground plane at z = 0; returns its body id."""
-        raise NotImplementedError
 
+    @abstractmethod
     def add_static_box(self, centre_m: npt.ArrayLike, half_extents_m: npt.ArrayLike) -> int:
         """Add a static frictionless box (a bench's stop) centred at ``centre_m``; returns its id."""
-        raise NotImplementedError
 
+    @abstractmethod
     def drive_base(
         self,
         body: Body,
@@ -190,8 +185,8 @@ class World:
         max_force_n: float = 200.0,
     ) -> None:
         """Move a driven body's base target to a world pose (SI); the mount offset is kept."""
-        raise NotImplementedError
 
+    @abstractmethod
     def place_model(
         self,
         handle: ModelHandle,
@@ -199,31 +194,30 @@ class World:
         rpy_rad: Sequence[float] | np.ndarray,
     ) -> None:
         """Teleport every body of a model to the model pose (mount offsets kept), at rest."""
-        raise NotImplementedError
 
+    @abstractmethod
     def step(self, n: int = 1) -> None:
         """Advance ``n`` steps: pre-step hooks (setpoints, loads), springs, the engine.
 
         Raises:
             UnstableSimulation: Joint speeds at :data:`MAX_JOINT_SPEED_RAD_S`, NaN, or a body thrown.
         """
-        raise NotImplementedError
 
+    @abstractmethod
     def link_frame(self, body: Body, link: str) -> tuple[np.ndarray, np.ndarray]:
         """World position (m) and 3×3 rotation of a link's frame (its URDF frame)."""
-        raise NotImplementedError
 
+    @abstractmethod
     def link_rotations(self, body: Body) -> np.ndarray:
         """Rotations (n, 3, 3) of the base and every link of a body, in link-index order."""
-        raise NotImplementedError
 
+    @abstractmethod
     def stop_joints(self, body: Body) -> None:
         """Set every joint speed of a body to zero, keeping its pose (dynamic relaxation)."""
-        raise NotImplementedError
 
+    @abstractmethod
     def apply_force(self, body: Body, link: str, force_n: npt.ArrayLike, point_m: npt.ArrayLike) -> None:
         """Apply a world-frame force (N) at a world point (m) for the coming step only."""
-        raise NotImplementedError
 
     def set_joint_armature(self, body: Body, armature_kg_m2: float) -> None:
         """Give every spring joint of a body a rotor inertia (kg·m², or kg for prismatic joints).
@@ -233,21 +227,22 @@ class World:
         """
         raise SimulationError(f"engine {self.settings.engine} has no joint armature")
 
+    @abstractmethod
     def base_pose(self, body_id: int) -> tuple[np.ndarray, np.ndarray]:
         """Base position (m) and quaternion (x, y, z, w) of a body."""
-        raise NotImplementedError
 
+    @abstractmethod
     def base_velocity(self, body_id: int) -> tuple[np.ndarray, np.ndarray]:
         """Base linear velocity (m/s) and angular velocity (rad/s) of a body, world frame."""
-        raise NotImplementedError
 
+    @abstractmethod
     def closest_distance_m(self, body_a: int, body_b: int, within_m: float = 0.0) -> float:
         """Smallest gap between two bodies' collision shapes, m (negative: they overlap by that much).
 
         Only gaps up to ``within_m`` are searched; ``inf`` if the bodies are farther apart.
         """
-        raise NotImplementedError
 
+    @abstractmethod
     def contacts(self, body_a: int, body_b: int | None = None) -> dict[str, np.ndarray]:
         """Contact points of ``body_a`` (with ``body_b`` if given), in SI.
 
@@ -255,30 +250,29 @@ class World:
             Arrays ``link_a``, ``link_b`` (link indices, :class:`Body`), ``position_on_a_m``
             (n×3), ``normal_b_to_a`` (n×3), ``normal_force_n`` (n).
         """
-        raise NotImplementedError
 
     def contact_count(self, body_a: int, body_b: int) -> int:
         """Number of contact points between two bodies in the last step (as :meth:`contacts` finds)."""
         return len(self.contacts(body_a, body_b)["link_a"])
 
+    @abstractmethod
     def render(self, camera: Camera) -> np.ndarray:
         """An RGB image of the scene (height, width, 3), uint8, headless."""
-        raise NotImplementedError
 
     @property
+    @abstractmethod
     def engine_time_s(self) -> float:
         """Wall time spent inside the engine's own step so far, s."""
-        raise NotImplementedError
 
     @property
+    @abstractmethod
     def is_open(self) -> bool:
         """Whether the world is still open (not yet closed)."""
-        raise NotImplementedError
 
     # ------------------------------------------------------------ shared
     def add_rigid_body(self, body: RigidBody) -> Body:
         """Load a rigid body of a scene (a box to grasp, a fixture) at its pose."""
-        return self.load_plan(plan_rigid_body(body, self.scale))
+        return self.load_plan(plan_rigid_body(body))
 
     def point_on_link(self, body: Body, link: str, local_m: Sequence[float]) -> np.ndarray:
         """World position (m) of a point given in a link's frame (m)."""

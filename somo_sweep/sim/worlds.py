@@ -1,19 +1,29 @@
-"""Open a world on the engine its settings name.
+"""Open a world, or a chain's kinematics, on the engine a caller names.
 
 :func:`open_world` is how tasks, the bench and the numerics get a :class:`~somo_sweep.sim.world.World`:
-``with open_world(settings) as world:``. It imports the engine it opens, and only that one:
-PyBullet (:class:`~somo_sweep.sim.pybullet.world.PyBulletWorld`, the default) or MuJoCo
-(:class:`~somo_sweep.sim.mujoco.world.MujocoWorld`, optional extra; without it the error says
-how to install it).
+``with open_world(settings) as world:``; :func:`open_chain_kinematics` is how the bench statics
+get a body's :class:`~somo_sweep.sim.kinematics.ChainKinematics`. Each imports the engine it
+opens, and only that one: PyBullet (the default) or MuJoCo (optional extra; without it the error
+says how to install it).
 """
 
 from __future__ import annotations
 
 from somo_sweep.errors import SimulationError
+from somo_sweep.model.description import Pose
+from somo_sweep.sim.kinematics import ChainKinematics
+from somo_sweep.sim.plan import BodyPlan
 from somo_sweep.sim.settings import WorldSettings
 from somo_sweep.sim.world import World
 
-__all__ = ["open_world", "prepare_engine"]
+__all__ = ["open_chain_kinematics", "open_world", "prepare_engine"]
+
+
+def _check_mujoco() -> None:
+    from somo_sweep.sim.mujoco.support import missing
+
+    if (why := missing()) is not None:
+        raise SimulationError(why)
 
 
 def open_world(settings: WorldSettings | None = None) -> World:
@@ -27,16 +37,38 @@ def open_world(settings: WorldSettings | None = None) -> World:
     """
     engine = (settings or WorldSettings()).engine
     if engine == "mujoco":
-        from somo_sweep.sim.mujoco.support import missing
-
-        if (why := missing()) is not None:
-            raise SimulationError(why)
+        _check_mujoco()
         from somo_sweep.sim.mujoco.world import MujocoWorld
 
         return MujocoWorld(settings)
     from somo_sweep.sim.pybullet.world import PyBulletWorld
 
     return PyBulletWorld(settings)
+
+
+def open_chain_kinematics(
+    plan: BodyPlan, pose: Pose, engine: str = "pybullet", scale: float = 20.0
+) -> ChainKinematics:
+    """The kinematics of ``plan`` loaded at ``pose`` on ``engine``, in a world of its own.
+
+    Args:
+        plan: The body's plan (its spring joints must be its only movable joints).
+        pose: Where its base sits, SI (it fixes gravity's direction in the body's frame).
+        engine: ``pybullet`` or ``mujoco``.
+        scale: PyBullet's world scale (MuJoCo runs in SI).
+
+    Raises:
+        SimulationError: The body has movable joints that are not spring joints, or the engine
+            is MuJoCo and MuJoCo is not installed.
+    """
+    if engine == "mujoco":
+        _check_mujoco()
+        from somo_sweep.sim.mujoco.kinematics import MujocoChainKinematics
+
+        return MujocoChainKinematics(plan, pose)
+    from somo_sweep.sim.pybullet.kinematics import PyBulletChainKinematics
+
+    return PyBulletChainKinematics(plan, pose, scale)
 
 
 def prepare_engine(engine: str) -> None:

@@ -133,15 +133,18 @@ def test_a_setup_names_its_body_layout() -> None:
     assert parse_setup("5e-4,50,0") == CHOSEN
     assert parse_setup("4e-3,50,3e-5,friction-every-2") == BEFORE
     one = parse_setup("2e-3, 50, 3e-5, 0.01, one-body")
-    assert split.settings().body_per_manipulator is True
+    assert split.settings().pybullet.body_per_manipulator is True
     assert (one.time_step_s, one.numerics.damping_n_m_s_per_rad) == (2e-3, 0.01)
-    assert one.settings().body_per_manipulator is False
+    assert one.settings().pybullet.body_per_manipulator is False
     assert one.describe().endswith("the hand as one body") and "one body" not in split.describe()
     every = parse_setup("4e-3,50,3e-5,one-body,friction-every-2")
     assert parse_setup("4e-3,50,3e-5,friction-every-2,one-body") == every
-    assert every.settings().friction_rows_every == 2 and every.settings().body_per_manipulator is False
+    assert (
+        every.settings().pybullet.friction_rows_every == 2
+        and every.settings().pybullet.body_per_manipulator is False
+    )
     assert every.describe().endswith("friction solved every 2 steps")
-    assert split.settings().friction_rows_every == 1 and "friction solved" not in split.describe()
+    assert split.settings().pybullet.friction_rows_every == 1 and "friction solved" not in split.describe()
 
 
 def test_the_quick_comparison_runs_the_quick_studys_cells_at_the_ablations_numerics() -> None:

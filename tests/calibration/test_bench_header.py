@@ -25,7 +25,7 @@ from somo_sweep.calibration.synthetic import (
 )
 from somo_sweep.cli.app import app
 from somo_sweep.errors import MeasurementError
-from somo_sweep.sim.bench import BenchSettings
+from somo_sweep.statics.bench import BenchSettings
 
 runner = CliRunner()
 FINGER = "finger: {length_mm: 100, segments: 20, mass_g: 20, width_mm: 20, thickness_mm: 15}"

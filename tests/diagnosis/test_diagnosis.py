@@ -30,7 +30,7 @@ from somo_sweep.errors import SomoError
 from somo_sweep.model.builders import planar_finger
 from somo_sweep.model.description import Actuation
 from somo_sweep.model.load import load_model
-from somo_sweep.sim.bench import BenchSettings, run_bench
+from somo_sweep.statics.bench import BenchSettings, run_bench
 
 runner = CliRunner()
 SETTINGS = CALIBRATION_SETTINGS

@@ -13,12 +13,12 @@ from conftest import MODELS, load_yaml
 from somo_sweep.errors import DescriptionError, MeasurementError, Problem, UnstableSimulation
 from somo_sweep.model.description import Actuator, Link
 from somo_sweep.model.load import load_model, model_from_dict
-from somo_sweep.sim.urdf import plan_assembly
+from somo_sweep.sim.planner import plan_assembly
 
 
 def test_gripper_assembly_has_expected_links_and_joints() -> None:
     model = load_model(MODELS / "pinch_gripper.yaml")
-    plans = plan_assembly(model.as_assembly(), 20.0)
+    plans = plan_assembly(model.as_assembly())
     assert len(plans) == 1  # palm + two fingers form one multibody
     plan = plans[0]
     # palm + 2 x (finger base + 20 segments + fingertip)
@@ -212,7 +212,7 @@ def test_stadium_inertia_and_extent() -> None:
 def test_stiffness_profile_scales_joints() -> None:
     data = load_yaml("ihm_finger.yaml")
     data["manipulator"]["actuators"][0]["stiffness_profile"] = [1.0 + 0.1 * i for i in range(10)]
-    plan = plan_assembly(model_from_dict(data).as_assembly(), 1.0)[0]
+    plan = plan_assembly(model_from_dict(data).as_assembly())[0]
     assert plan.joints[4].stiffness == pytest.approx(0.2186 * 1.4)
     bad = yaml.safe_load(yaml.safe_dump(data))
     bad["manipulator"]["actuators"][0]["stiffness_profile"] = [1.0] * 3
@@ -222,7 +222,7 @@ def test_stiffness_profile_scales_joints() -> None:
 
 def test_four_finger_hand_with_palm_loads() -> None:
     model = load_model(MODELS / "ihm_hand.yaml")
-    plans = plan_assembly(model.as_assembly(), 20.0)
+    plans = plan_assembly(model.as_assembly())
     assert [p.name for p in plans] == ["ihm_hand", "palm"]  # hand body + the fixed palm the cube rests on
     hand = plans[0]
     assert len(hand.joints) == 4 * 10 and len(hand.inputs) == 8
@@ -236,7 +236,7 @@ def test_rigid_arm_carries_soft_fingers_at_its_tip() -> None:
     from somo_sweep.sim.worlds import open_world
 
     model = load_model(MODELS / "arm_with_fingers.yaml")
-    plan = plan_assembly(model.as_assembly(), 20.0)[0]
+    plan = plan_assembly(model.as_assembly())[0]
     assert plan.inputs[:2] == ["arm/shoulder/pitch", "arm/elbow/pitch"] and len(plan.joints) == 2 + 2 * 10
     with open_world(WorldSettings(gravity_m_s2=(0, 0, 0))) as world:
         handle = world.add_model(model)

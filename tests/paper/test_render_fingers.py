@@ -15,7 +15,7 @@ from typer.testing import CliRunner
 from somo_sweep.cli.app import app
 from somo_sweep.model.load import load_model
 from somo_sweep.model.tables import bundled_path
-from somo_sweep.sim.settings import WorldSettings
+from somo_sweep.sim.settings import MujocoSettings, WorldSettings
 from somo_sweep.tasks.pinch_grasp.gripper import FINGER_COLORS_RGBA, fingers_colored
 from somo_sweep.tasks.pinch_grasp.params import PinchGraspParams
 
@@ -60,7 +60,7 @@ def test_colours_change_no_physics() -> None:
     colours = [m.manipulator.actuators[0].link.color_rgba for m in painted.as_assembly().manipulators]
     assert colours == list(FINGER_COLORS_RGBA[:2])
     params = PinchGraspParams(object_width_m=0.04, centering_position_m=0.100)
-    settings = WorldSettings(time_step_s=4e-3, engine="mujoco")
+    settings = WorldSettings(time_step_s=4e-3, engine_settings=MujocoSettings())
     plain, coloured = run_pinch_grasp(hand, params, settings), run_pinch_grasp(painted, params, settings)
     assert repr(plain) == repr(coloured)
     assert np.isfinite(float(plain.metrics["hold_normal_force_n"]))  # type: ignore[arg-type]

@@ -15,10 +15,10 @@ import pybullet as p
 import pytest
 
 from somo_sweep.model.builders import planar_finger
-from somo_sweep.sim.bench_rig import bench_frame
+from somo_sweep.sim.planner import plan_manipulator
 from somo_sweep.sim.settings import WorldSettings
-from somo_sweep.sim.urdf import plan_manipulator
 from somo_sweep.sim.worlds import open_world
+from somo_sweep.statics.bench_rig import bench_frame
 
 LENGTH_M, PHI_RAD = 0.100, np.radians(100.0)
 
@@ -31,7 +31,7 @@ def tip_error_mm(placement: str, n: int) -> float:
     manip = manip.model_copy(update={"actuators": acts})
     world = open_world(WorldSettings(gravity_m_s2=(0.0, 0.0, 0.0)))
     try:
-        body = world.load_plan(plan_manipulator(manip, world.scale), bench_frame(manip))
+        body = world.load_plan(plan_manipulator(manip), bench_frame(manip))
         for j in body.drive.indices:
             p.resetJointState(body.id, j, PHI_RAD / n, physicsClientId=world.client)
         assert manip.base.link is not None

@@ -106,3 +106,53 @@ def test_every_mount_of_an_assembly_is_a_chain() -> None:
     gripper = load_model(bundled_path("models", "pinch_gripper.yaml"))
     assert [m.name for m, _ in model_chains(gripper)] == ["left", "right"]
     assert isinstance(gripper, Model)
+
+
+def _without_anisotropy(manip: Manipulator) -> Manipulator:
+    """The snake as MuJoCo can express it: its scales' anisotropic friction dropped (no mass change)."""
+    acts = []
+    for act in manip.actuators:
+        friction = act.link.friction.model_copy(update={"anisotropic": None})
+        acts.append(act.model_copy(update={"link": act.link.model_copy(update={"friction": friction})}))
+    return manip.model_copy(update={"actuators": acts})
+
+
+def test_both_engines_give_the_bundled_finger_one_mass_matrix() -> None:
+    """PyBullet's ``calculateMassMatrix`` and MuJoCo's ``mj_fullM`` of one SI plan agree to 1e-9 of
+    the largest entry (measured: 2e-12; PyBullet reads the plan's ten-digit URDF), so a study's
+    modes are the same whichever engine it runs on."""
+    pytest.importorskip("mujoco")
+    finger = load_model(bundled_path("models", "pinch_finger.yaml"))
+    ((manip, floating),) = model_chains(finger)
+    bullet, mujoco = chain_matrices(manip, floating, "pybullet"), chain_matrices(manip, floating, "mujoco")
+    assert bullet.joints == mujoco.joints and mujoco.mass.shape == (20, 20)
+    assert np.abs(bullet.mass - mujoco.mass).max() < 1e-9 * np.abs(bullet.mass).max()
+    assert mujoco.frequencies_rad_s() == pytest.approx(bullet.frequencies_rad_s(), rel=1e-8)
+
+
+def test_mujoco_modes_leave_inertia_shaping_out_as_its_scenes_do() -> None:
+    """The IHM finger carries 2e-6 kg·m² of shaping: PyBullet's matrix holds it, MuJoCo's does not
+    (its implicit springs need none), so MuJoCo's equals PyBullet's with the shaping taken out."""
+    pytest.importorskip("mujoco")
+    finger = load_model(bundled_path("models", "ihm_finger.yaml"))
+    ((manip, floating),) = model_chains(finger)
+    added = manip.actuators[0].link.added_inertia_kg_m2
+    assert added > 0
+    bullet, mujoco = chain_matrices(manip, floating, "pybullet"), chain_matrices(manip, floating, "mujoco")
+    unshaped = bullet.mass - added * bullet.inertia_gain
+    assert np.abs(unshaped - mujoco.mass).max() < 1e-9 * np.abs(unshaped).max()
+    assert np.abs(mujoco.inertia_gain).max() < 1e-9 * np.abs(bullet.inertia_gain).max()
+
+
+def test_both_engines_give_a_free_chain_the_same_elastic_modes() -> None:
+    """A floating base's six coordinates differ between the engines (PyBullet's base frame is its
+    centre of mass); the spring joints' block and every elastic frequency do not."""
+    pytest.importorskip("mujoco")
+    snake = load_model(bundled_path("models", "snake.yaml"))
+    ((manip, floating),) = model_chains(snake)
+    manip = _without_anisotropy(manip)
+    bullet, mujoco = chain_matrices(manip, floating, "pybullet"), chain_matrices(manip, floating, "mujoco")
+    assert floating and bullet.mass.shape == mujoco.mass.shape == (6 + len(bullet.joints),) * 2
+    block = np.abs(bullet.mass[6:, 6:] - mujoco.mass[6:, 6:]).max()
+    assert block < 1e-9 * np.abs(bullet.mass[6:, 6:]).max()
+    assert mujoco.frequencies_rad_s() == pytest.approx(bullet.frequencies_rad_s(), rel=1e-7)

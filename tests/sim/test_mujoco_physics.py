@@ -16,10 +16,10 @@ from somo_sweep.errors import SimulationError, UnstableSimulation
 from somo_sweep.model.description import Link, Pose, RigidBody
 from somo_sweep.model.load import load_model, model_from_dict
 from somo_sweep.model.tables import bundled_path
-from somo_sweep.sim.bench import BenchSettings, run_bench
 from somo_sweep.sim.rotations import matrix_from_quat, quat_from_rpy
-from somo_sweep.sim.settings import WorldSettings
+from somo_sweep.sim.settings import MujocoSettings, PyBulletSettings, WorldSettings
 from somo_sweep.sim.worlds import open_world
+from somo_sweep.statics.bench import BenchSettings, run_bench
 
 pytest.importorskip("mujoco")
 
@@ -28,8 +28,12 @@ SEGMENT_M = 0.010
 TIP_SPHERE_M = 0.030
 
 
-def _mj(time_step_s: float = 1e-3, **kw: object) -> WorldSettings:
-    return WorldSettings(time_step_s=time_step_s, engine="mujoco", **kw)  # type: ignore[arg-type]
+def _mj(
+    time_step_s: float = 1e-3, gravity_m_s2: tuple[float, float, float] = (0.0, 0.0, -9.81), **own: object
+) -> WorldSettings:
+    return WorldSettings(
+        time_step_s=time_step_s, gravity_m_s2=gravity_m_s2, engine_settings=MujocoSettings(**own)
+    )  # type: ignore[arg-type]
 
 
 def _rotor(stiffness: float, motor_limit: float, inertia: float) -> dict[str, object]:
@@ -219,15 +223,32 @@ def test_a_field_mujoco_cannot_express_is_refused_naming_it_and_the_engine() -> 
         world.add_model(original)
 
 
-def test_the_other_engines_options_are_refused() -> None:
-    with pytest.raises(ValueError, match="friction_rows_every is not read by engine mujoco"):
-        WorldSettings(engine="mujoco", friction_rows_every=2)
-    with pytest.raises(ValueError, match="impratio is not read by engine pybullet"):
-        WorldSettings(impratio=5.0)
-    with pytest.raises(ValueError, match="noslip_iterations is not read by engine pybullet"):
-        WorldSettings(noslip_iterations=5)
+def test_each_engine_reads_only_its_own_settings() -> None:
+    """World settings hold one engine's own settings: the other engine's cannot be given, and an
+    engine's world refuses settings made for the other."""
+    mj = WorldSettings(engine_settings=MujocoSettings(impratio=5.0))
+    assert mj.engine == "mujoco" and mj.mujoco.impratio == 5.0
+    with pytest.raises(ValueError, match="engine mujoco's, not pybullet's"):
+        mj.pybullet  # noqa: B018
+    with pytest.raises(ValueError, match="engine pybullet's, not mujoco's"):
+        WorldSettings().mujoco  # noqa: B018
+    from somo_sweep.sim.mujoco.world import MujocoWorld
+    from somo_sweep.sim.pybullet.world import PyBulletWorld
+
+    with pytest.raises(ValueError, match="not mujoco's"):
+        MujocoWorld(WorldSettings())
+    with pytest.raises(ValueError, match="not pybullet's"):
+        PyBulletWorld(mj)
+    with pytest.raises(TypeError):
+        WorldSettings(engine="mujoco")  # type: ignore[call-arg]
+    with pytest.raises(TypeError):
+        MujocoSettings(friction_rows_every=2)  # type: ignore[call-arg]
     with pytest.raises(ValueError, match="noslip_iterations must be a whole number >= 0"):
-        WorldSettings(engine="mujoco", noslip_iterations=-1)
+        MujocoSettings(noslip_iterations=-1)
+    with pytest.raises(ValueError, match="friction_rows_every must be 1 or 2"):
+        PyBulletSettings(friction_rows_every=3)
+    with pytest.raises(ValueError, match="engine_settings must be PyBulletSettings or MujocoSettings"):
+        WorldSettings(engine_settings="mujoco")  # type: ignore[arg-type]
 
 
 def test_the_bench_task_runs_on_the_engine_its_settings_name(monkeypatch: pytest.MonkeyPatch) -> None:
@@ -275,7 +296,7 @@ def test_bench_rows_of_the_20_link_finger_agree_with_pybullet_within_half_a_perc
         assert result.status == "ok", result.message
         values.append(float(result.metrics[metric]))
     if test == "blocked_force":  # a row the rigid model decides (the finger on its tip)
-        from somo_sweep.sim.plate_force_range import plate_force_range
+        from somo_sweep.statics.plate_force_range import plate_force_range
 
         assert plate_force_range(finger, pressure_kpa).width_n < 1e-9
     assert abs(values[0] - values[1]) < 0.005 * range_, values
@@ -284,12 +305,12 @@ def test_bench_rows_of_the_20_link_finger_agree_with_pybullet_within_half_a_perc
 def test_the_flat_fingers_blocked_force_lies_where_the_rigid_model_leaves_it_on_both_engines() -> None:
     """At 0 kPa the pinch finger lies flat: its side joints pair the links into rigid bodies on three
     corner lines, and rigid statics admits any plate force in an interval 1.3 % of the bench study's
-    range wide (tests/sim/test_plate_force_range.py). Each engine's contacts pick a point: MuJoCo's
+    range wide (tests/statics/test_plate_force_range.py). Each engine's contacts pick a point: MuJoCo's
     soft constraints one inside it; Bullet one just below its least, the finger resting its contact
     slop (0.5 µm) into the plate so the stiff joints hang a little more on the clamp (0.8 % below
     at 0.5 ms, 1.2 % at 0.125 ms; docs/engines.md, "Agreement"). The two differ by 0.504 % of range,
     which is a difference of contact regularisation, not of the model."""
-    from somo_sweep.sim.plate_force_range import plate_force_range
+    from somo_sweep.statics.plate_force_range import plate_force_range
 
     finger = load_model(bundled_path("models", "pinch_finger.yaml"))
     open_ = plate_force_range(finger, 0.0)

@@ -23,7 +23,7 @@ def _box(name: str, x_m: float) -> RigidBody:
 def _run(late_box: bool) -> np.ndarray:
     """Hand, box and ground; the hand placed, driven and stepped; optionally a box added late."""
     gripper = load_model(bundled_path("models", "pinch_gripper.yaml"))
-    with open_world(WorldSettings(time_step_s=4e-3, engine="mujoco")) as world:
+    with open_world(WorldSettings.on("mujoco", time_step_s=4e-3)) as world:
         world.add_ground(friction=0.8)
         world.add_rigid_body(_box("box", 0.0))
         hand = world.add_model(gripper, Pose(position_m=(1.0, 0.0, 0.1)))

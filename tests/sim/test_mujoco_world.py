@@ -37,7 +37,7 @@ def _box(name: str, z_m: float, lateral: float, spinning: float) -> RigidBody:
 def test_every_contact_gets_bullets_combined_friction(order: tuple[int, ...]) -> None:
     """Boxes stacked on the ground: MuJoCo's own contacts carry Bullet's product (sliding) and
     s_a·μ_b + s_b·μ_a (torsion), read back from MuJoCo, for every pair in the stack."""
-    with open_world(WorldSettings(time_step_s=2e-3, engine="mujoco")) as world:
+    with open_world(WorldSettings.on("mujoco", time_step_s=2e-3)) as world:
         ground_friction = 1.0
         ground = world.add_ground(friction=ground_friction)
         bodies = [
@@ -80,7 +80,7 @@ def test_the_contact_plan_keeps_mujocos_own_detection_where_it_can() -> None:
 
 def test_links_never_touch_their_ancestors_but_two_fingers_touch_each_other() -> None:
     gripper = load_model(bundled_path("models", "pinch_gripper.yaml"))
-    with open_world(WorldSettings(engine="mujoco")) as world:
+    with open_world(WorldSettings.on("mujoco")) as world:
         hand = world.add_model(gripper)
         world._ready()
         body = hand.bodies[0]
@@ -103,7 +103,7 @@ def test_contacts_report_links_forces_and_normals_in_si() -> None:
         link=Link(shape="box", size_m=(0.04, 0.04, 0.04), mass_kg=0.1),
         pose=Pose(position_m=(0.0, 0.0, 0.0201)),
     )
-    with open_world(WorldSettings(time_step_s=2e-3, engine="mujoco")) as world:
+    with open_world(WorldSettings.on("mujoco", time_step_s=2e-3)) as world:
         ground = world.add_ground()
         body = world.add_rigid_body(box)
         world.step(100)
@@ -128,7 +128,7 @@ def test_a_snapshot_of_each_engine_shows_the_scene_from_the_same_eye() -> None:
     camera = Camera(target_m=(0.0, 0.0, 0.02), distance_m=0.3, width_px=160, height_px=120)
     red = {}
     for engine in ("pybullet", "mujoco"):
-        with open_world(WorldSettings(engine=engine)) as world:
+        with open_world(WorldSettings.on(engine)) as world:
             world.add_ground()
             world.add_rigid_body(box)
             try:

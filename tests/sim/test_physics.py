@@ -11,10 +11,10 @@ from somo_sweep.calibration.formulas import chain_tip_stiffness
 from somo_sweep.errors import UnstableSimulation
 from somo_sweep.model.description import Link, Pose, RigidBody
 from somo_sweep.model.load import model_from_dict
-from somo_sweep.sim.bench import BenchSettings, run_bench
-from somo_sweep.sim.settings import WorldSettings
-from somo_sweep.sim.urdf import plan_rigid_body
+from somo_sweep.sim.planner import plan_rigid_body
+from somo_sweep.sim.settings import PyBulletSettings, WorldSettings
 from somo_sweep.sim.worlds import open_world
+from somo_sweep.statics.bench import BenchSettings, run_bench
 
 K_GRASP = 0.2186  # N·m/rad, IHM finger grasp axis
 SEGMENT_M = 0.010
@@ -41,7 +41,11 @@ def _settle_uniform_input(
     """Run the damped IHM finger (no gravity) under a uniform grasp input; joint angles and tip."""
     model = model_from_dict(ihm_finger_dict(motor_limit=0.0, damping=0.01, added_inertia=1e-5))
     with open_world(
-        WorldSettings(time_step_s=time_step_s, scale=scale, gravity_m_s2=(0.0, 0.0, 0.0))
+        WorldSettings(
+            time_step_s=time_step_s,
+            gravity_m_s2=(0.0, 0.0, 0.0),
+            engine_settings=PyBulletSettings(scale=scale),
+        )
     ) as world:
         handle = world.add_model(model)
         handle.set_inputs([u_n_m, 0.0])
@@ -110,7 +114,9 @@ def test_each_torque_is_applied_exactly_once_per_step() -> None:
         }
     }
     dt, u, steps = 1e-3, 0.01, 50
-    with open_world(WorldSettings(time_step_s=dt, scale=20.0, gravity_m_s2=(0, 0, 0))) as world:
+    with open_world(
+        WorldSettings(time_step_s=dt, gravity_m_s2=(0, 0, 0), engine_settings=PyBulletSettings(scale=20.0))
+    ) as world:
         handle = world.add_model(model_from_dict(data))
         handle.set_inputs([u])
         world.step(steps)
@@ -135,7 +141,7 @@ def test_blow_up_is_detected_not_reported() -> None:
 def test_thrown_or_capped_body_is_detected(speed_m_s: float, reason: str) -> None:
     box = RigidBody(name="b", link=Link(shape="box", size_m=(0.01, 0.01, 0.01), mass_kg=0.01))
     with open_world(WorldSettings(time_step_s=1e-3, gravity_m_s2=(0, 0, 0))) as world:
-        body = world.load_plan(plan_rigid_body(box, world.scale), Pose())
+        body = world.load_plan(plan_rigid_body(box), Pose())
         p.resetBaseVelocity(body.id, [speed_m_s * world.scale, 0, 0], physicsClientId=world.client)
         with pytest.raises(UnstableSimulation) as err:
             world.step(4000)
@@ -186,7 +192,7 @@ def test_coulomb_joint_friction_decays_an_oscillation_by_two_f_over_k_per_swing(
     settings = WorldSettings(
         time_step_s=time_step_s,
         gravity_m_s2=(0, 0, 0),
-        friction_rows_every=every,
+        engine_settings=PyBulletSettings(friction_rows_every=every),
     )
     with open_world(settings) as world:
         handle = world.add_model(model_from_dict(_rotor(k, f, inertia)))
@@ -210,7 +216,11 @@ def test_a_load_below_the_friction_limit_never_moves_the_joint(every: int) -> No
     and lets it slide at (u − F)/I above it."""
     f, inertia, dt, steps = 0.005, 2e-4, 1e-3, 200
     for u, expected in ((0.004, 0.0), (0.008, 0.5 * (0.008 - f) / inertia * (dt * steps) ** 2)):
-        settings = WorldSettings(time_step_s=dt, gravity_m_s2=(0, 0, 0), friction_rows_every=every)
+        settings = WorldSettings(
+            time_step_s=dt,
+            gravity_m_s2=(0, 0, 0),
+            engine_settings=PyBulletSettings(friction_rows_every=every),
+        )
         with open_world(settings) as world:
             handle = world.add_model(model_from_dict(_rotor(0.0, f, inertia)))
             handle.set_inputs([u])
@@ -225,4 +235,4 @@ def test_a_load_below_the_friction_limit_never_moves_the_joint(every: int) -> No
 @pytest.mark.parametrize("every", [0, 3])
 def test_friction_solved_other_than_every_step_or_every_other_is_refused(every: int) -> None:
     with pytest.raises(ValueError, match="friction_rows_every must be 1 or 2"):
-        WorldSettings(friction_rows_every=every)
+        WorldSettings(engine_settings=PyBulletSettings(friction_rows_every=every))

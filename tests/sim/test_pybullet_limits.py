@@ -11,7 +11,7 @@ import pytest
 from conftest import MODELS, load_yaml
 
 from somo_sweep.model.load import MAX_BODY_LINKS, body_links, load_model, model_from_dict
-from somo_sweep.sim.urdf import plan_assembly
+from somo_sweep.sim.planner import plan_assembly
 from somo_sweep.sim.worlds import open_world
 
 CLI = Path(sys.executable).parent / "somo-sweep"
@@ -31,14 +31,14 @@ def _variants() -> list[dict]:
 @pytest.mark.parametrize("name", sorted(p.name for p in MODELS.glob("*.yaml")))
 def test_link_count_of_every_bundled_model_matches_its_plan(name: str) -> None:
     assembly = load_model(MODELS / name).as_assembly()
-    planned = {p.name: len(p.links) for p in plan_assembly(assembly, 1.0) if p.joints}
+    planned = {p.name: len(p.links) for p in plan_assembly(assembly) if p.joints}
     assert {k: v for k, v in body_links(assembly).items() if k in planned} == planned
 
 
 @pytest.mark.parametrize("data", _variants(), ids=["free_base", "start_placement", "hand_without_base_link"])
 def test_link_count_of_variants_matches_their_plan(data: dict) -> None:
     assembly = model_from_dict(data, "m.yaml", MODELS).as_assembly()
-    planned = {p.name: len(p.links) for p in plan_assembly(assembly, 1.0) if p.joints}
+    planned = {p.name: len(p.links) for p in plan_assembly(assembly) if p.joints}
     assert body_links(assembly) == planned
 
 

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import importlib.util
 import os
 import pickle
 from collections.abc import Callable
@@ -16,9 +17,11 @@ from somo_sweep.errors import SimulationError
 from somo_sweep.model.description import Pose
 from somo_sweep.model.load import load_model, model_from_dict
 from somo_sweep.model.setpoints import SetpointTable
+from somo_sweep.sim.planner import plan_assembly
 from somo_sweep.sim.pybullet import clients
-from somo_sweep.sim.settings import WorldSettings
-from somo_sweep.sim.urdf import cache_dir, plan_assembly, write_urdf
+from somo_sweep.sim.pybullet.urdf import urdf_file
+from somo_sweep.sim.settings import PyBulletSettings, WorldSettings
+from somo_sweep.sim.urdf_cache import cache_dir
 from somo_sweep.sim.worlds import open_world
 
 
@@ -43,7 +46,7 @@ def _snake(n: int = 8) -> dict:
 
 def test_free_chain_without_base_link_rests_on_the_ground() -> None:
     model = model_from_dict(_snake())
-    plan = plan_assembly(model.as_assembly(), 20.0)[0]
+    plan = plan_assembly(model.as_assembly())[0]
     # The midpoint layout's first half link is the floating root; every segment has its joint.
     assert len(plan.links) == 9 and len(plan.joints) == 8
     with open_world(WorldSettings(time_step_s=5e-4)) as world:
@@ -129,23 +132,31 @@ def test_follow_rejects_tables_of_the_wrong_width() -> None:
 
 def test_urdf_cache_is_keyed_by_content_outside_the_project(tmp_path: Path) -> None:
     model = model_from_dict(load_yaml("ihm_finger.yaml"))
-    text = plan_assembly(model.as_assembly(), 20.0)[0].urdf
-    first, second = write_urdf(text), write_urdf(text)
+    plan = plan_assembly(model.as_assembly())[0]
+    first, second = urdf_file(plan, 20.0), urdf_file(plan, 20.0)
     assert first == second and first.parent == cache_dir()
     assert Path(__file__).resolve().parents[2] not in first.resolve().parents
-    other = write_urdf(plan_assembly(model.as_assembly(), 10.0)[0].urdf)
+    other = urdf_file(plan, 10.0)
     assert other != first
 
 
-def test_world_rejects_plans_of_another_scale() -> None:
+def test_one_plan_in_si_loads_the_same_at_any_scale() -> None:
+    """A plan is SI: PyBullet writes its URDF at the world's own scale, so the links sit alike."""
     model = model_from_dict(load_yaml("ihm_finger.yaml"))
-    plan = plan_assembly(model.as_assembly(), 10.0)[0]
-    with open_world(WorldSettings(scale=20.0)) as world, pytest.raises(SimulationError, match="scale"):
-        world.load_plan(plan)
+    plan = plan_assembly(model.as_assembly())[0]
+    frames = []
+    for scale in (10.0, 20.0):
+        with open_world(WorldSettings(engine_settings=PyBulletSettings(scale=scale))) as world:
+            body = world.load_plan(plan)
+            frames.append(np.array([world.link_frame(body, info.name)[0] for info in plan.links[1:]]))
+    assert np.abs(frames[0] - frames[1]).max() < 1e-9
+    assert np.ptp(frames[0][:, 2]) > 0.05  # the links spread along the finger
 
 
 def _tips(model_path: Path, split: bool, inputs: list[float]) -> tuple[list[str], np.ndarray, int]:
-    with open_world(WorldSettings(time_step_s=1e-3, body_per_manipulator=split)) as world:
+    with open_world(
+        WorldSettings(time_step_s=1e-3, engine_settings=PyBulletSettings(body_per_manipulator=split))
+    ) as world:
         hand = world.add_model(load_model(model_path))
         n = len(hand.input_names)
         world.follow(hand, inputs=SetpointTable([0.0, 0.5], [[0.0] * n, inputs[:n]]))
@@ -171,8 +182,8 @@ def test_a_fixed_hand_split_into_bodies_moves_like_one_body() -> None:
 
 def test_split_plans_keep_inputs_and_only_split_what_qualifies() -> None:
     gripper = load_model(MODELS / "pinch_gripper.yaml").as_assembly()
-    one = plan_assembly(gripper, 20.0)
-    split = plan_assembly(gripper, 20.0, split=True)
+    one = plan_assembly(gripper)
+    split = plan_assembly(gripper, split=True)
     assert [p.name for p in one] == ["pinch_gripper"]
     assert [(p.name, p.mode, p.part_of) for p in split] == [
         ("pinch_gripper", "driven", None),
@@ -183,14 +194,16 @@ def test_split_plans_keep_inputs_and_only_split_what_qualifies() -> None:
     assert {j.name for p in split for j in p.joints} == {j.name for j in one[0].joints}
     # A free base couples the fingers through the palm's motion; a tip-mounted hand needs its arm.
     free = gripper.model_copy(update={"base": gripper.base.model_copy(update={"mode": "free"})})
-    assert len(plan_assembly(free, 20.0, split=True)) == 1
+    assert len(plan_assembly(free, split=True)) == 1
     arm = load_model(MODELS / "arm_with_fingers.yaml").as_assembly()
-    assert len([p for p in plan_assembly(arm, 20.0, split=True) if p.joints]) == 1
+    assert len([p for p in plan_assembly(arm, split=True) if p.joints]) == 1
 
 
 def test_split_fingers_never_touch_their_palm() -> None:
     """The finger base boxes overlap the palm box; as parts they must not collide with it."""
-    settings = WorldSettings(time_step_s=5e-4, gravity_m_s2=(0, 0, 0), body_per_manipulator=True)
+    settings = WorldSettings(
+        time_step_s=5e-4, gravity_m_s2=(0, 0, 0), engine_settings=PyBulletSettings(body_per_manipulator=True)
+    )
     with open_world(settings) as world:
         hand = world.add_model(load_model(MODELS / "pinch_gripper.yaml"), Pose(position_m=(0.1, 0, 0.1)))
         palm, *fingers = hand.bodies
@@ -208,7 +221,7 @@ def test_by_default_no_assembly_is_split() -> None:
         fixed = world.add_model(load_model(MODELS / "ihm_hand.yaml"))
         driven = world.add_model(load_model(MODELS / "pinch_gripper.yaml"), Pose(position_m=(1, 0, 0)))
         assert [len(fixed.bodies), len(driven.bodies)] == [2, 1]  # the IHM hand's palm is a rigid body
-    with open_world(WorldSettings(body_per_manipulator=True)) as world:
+    with open_world(WorldSettings(engine_settings=PyBulletSettings(body_per_manipulator=True))) as world:
         assert len(world.add_model(load_model(MODELS / "ihm_hand.yaml")).bodies) == 6
 
 
@@ -326,15 +339,38 @@ def test_a_body_at_bullets_speed_cap_is_named_with_the_cap_in_si() -> None:
     """A free fall reaches 100 scaled units per second: at scale 100 that is 1 m/s, after 0.1 s."""
     from somo_sweep.errors import UnstableSimulation
     from somo_sweep.model.description import Link, RigidBody
-    from somo_sweep.sim.urdf import plan_rigid_body
+    from somo_sweep.sim.planner import plan_rigid_body
 
-    with open_world(WorldSettings(time_step_s=1e-3, scale=100.0, check_every=10)) as world:
+    with open_world(
+        WorldSettings(time_step_s=1e-3, check_every=10, engine_settings=PyBulletSettings(scale=100.0))
+    ) as world:
         ball = RigidBody(
             name="ball",
             link=Link(shape="sphere", radius_m=0.01, mass_kg=0.01),
             pose=Pose(position_m=(0, 0, 1)),
         )
-        world.load_plan(plan_rigid_body(ball, world.scale))
+        world.load_plan(plan_rigid_body(ball))
         with pytest.raises(UnstableSimulation) as err:
             world.step(1000)
     assert "body 'ball' at Bullet's speed cap, 1 m/s" in str(err.value) and 0.09 <= world.time_s <= 0.12
+
+
+def test_the_world_interface_is_abstract_and_both_engines_implement_all_of_it() -> None:
+    """``World`` is an ABC: neither it nor an engine's world missing a method can be made."""
+    from somo_sweep.sim.pybullet.world import PyBulletWorld
+    from somo_sweep.sim.world import World
+
+    with pytest.raises(TypeError, match="abstract"):
+        World()  # type: ignore[abstract]
+
+    class Partial(World):
+        def close(self) -> None:
+            pass
+
+    with pytest.raises(TypeError, match="load_plan"):
+        Partial()  # type: ignore[abstract]
+    assert not PyBulletWorld.__abstractmethods__
+    if importlib.util.find_spec("mujoco") is not None:
+        from somo_sweep.sim.mujoco.world import MujocoWorld
+
+        assert not MujocoWorld.__abstractmethods__

@@ -209,7 +209,7 @@ def test_a_mujoco_run_without_mujoco_installed_says_how_to_install_it_and_writes
     assert 'pip install "somo-sweep[mujoco]"' in res.output and "Traceback" not in res.output
     assert not out.exists()
     with pytest.raises(SimulationError, match=r"somo-sweep\[mujoco\]"):
-        open_world(WorldSettings(engine="mujoco"))
+        open_world(WorldSettings.on("mujoco"))
 
 
 def test_compare_without_labels_gives_each_metric_per_cell_as_a_share_of_its_range() -> None:

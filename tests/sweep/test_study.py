@@ -249,7 +249,7 @@ def test_friction_solved_other_than_every_step_or_every_other_is_refused_with_it
 def test_friction_every_other_step_reaches_the_world_settings(tmp_path: Path) -> None:
     path = write_study(tmp_path, HEAD + "simulation: {time_step_s: 4.0e-3, friction_rows_every: 2}\n")
     settings = load_study(path).simulation.world_settings()  # type: ignore[union-attr]
-    assert (settings.friction_rows_every, settings.time_step_s) == (2, 4e-3)
+    assert (settings.pybullet.friction_rows_every, settings.time_step_s) == (2, 4e-3)
 
 
 def test_an_engine_option_no_study_needs_is_not_taken(tmp_path: Path) -> None:

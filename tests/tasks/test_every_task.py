@@ -42,7 +42,7 @@ def _trial(name: str, seed: int, engine: str = "pybullet") -> TaskResult:
     model = load_model(bundled_path("models", model_file or "ihm_finger.yaml"))
     if engine == "mujoco":
         params = {**params, **ON_MUJOCO.get(name, {})}
-    settings = WorldSettings(time_step_s=dt, engine=engine)
+    settings = WorldSettings.on(engine, time_step_s=dt)
     return spec.run(model, spec.params_model(**params), settings, seed)
 
 

@@ -90,7 +90,7 @@ def test_a_finger_count_the_starter_cannot_lay_out_is_refused(tmp_path: Path, co
 
 def test_a_three_finger_grasp_stores_each_fingers_force_and_proximal_share(tmp_path: Path) -> None:
     pytest.importorskip("mujoco")
-    from somo_sweep.sim.settings import WorldSettings
+    from somo_sweep.sim.settings import MujocoSettings, WorldSettings
     from somo_sweep.tasks.pinch_grasp.task import run_pinch_grasp
 
     result = CliRunner().invoke(app, ["new", "grasp-study", str(tmp_path / "mine"), "--fingers", "3"])
@@ -104,7 +104,7 @@ def test_a_three_finger_grasp_stores_each_fingers_force_and_proximal_share(tmp_p
         pressure_kpa=150,
         hand_height_m=height,
     )
-    out = run_pinch_grasp(hand, params, WorldSettings(time_step_s=4e-3, engine="mujoco"))
+    out = run_pinch_grasp(hand, params, WorldSettings(time_step_s=4e-3, engine_settings=MujocoSettings()))
     assert out.status == "ok", out.message
     m = out.metrics
     forces = [float(m[f"hold_normal_force_finger{k}_n"]) for k in (1, 2, 3)]  # type: ignore[arg-type]

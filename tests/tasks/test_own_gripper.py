@@ -237,7 +237,7 @@ def test_a_three_finger_gripper_of_two_actuator_fingers_runs_as_written() -> Non
     ]
     hand = model_from_dict(_gripper([finger, finger, finger]))
     params = PinchGraspParams(distal_segment_ratio=None, pressure_kpa=100, centering_position_m=0.15)
-    result = run_pinch_grasp(hand, params, WorldSettings(time_step_s=4e-3, engine="mujoco"))
+    result = run_pinch_grasp(hand, params, WorldSettings.on("mujoco", time_step_s=4e-3))
     assert result.status == "ok", result.message
     m = result.metrics
     assert m["n_finger_links"] == 8 and m["n_distal_links"] == 4  # the last actuator, as written

@@ -10,7 +10,7 @@ from conftest import MODELS
 
 from benchmarks.setups import CHOSEN
 from somo_sweep.model.load import load_model
-from somo_sweep.sim.settings import WorldSettings
+from somo_sweep.sim.settings import PyBulletSettings, WorldSettings
 from somo_sweep.tasks import get_task
 from somo_sweep.tasks.pinch_grasp.gripper import distal_zone_links, split_finger
 from somo_sweep.tasks.pinch_grasp.original import Original
@@ -81,7 +81,9 @@ def run(
         centering_position_m=centering_position_m,
         numerics=numerics,
     )
-    settings = WorldSettings(time_step_s=time_step_s, body_per_manipulator=True)
+    settings = WorldSettings(
+        time_step_s=time_step_s, engine_settings=PyBulletSettings(body_per_manipulator=True)
+    )
     return run_pinch_grasp(load_model(GRIPPER), params, settings, seed=0)
 
 

@@ -14,7 +14,7 @@ from test_own_gripper import ROOT
 
 from somo_sweep.errors import DescriptionError
 from somo_sweep.model.load import load_model, model_from_dict
-from somo_sweep.sim.settings import WorldSettings
+from somo_sweep.sim.settings import MujocoSettings, WorldSettings
 from somo_sweep.sweep.study import load_study
 from somo_sweep.tasks.pinch_grasp.closing import closing_problems
 
@@ -85,7 +85,7 @@ def _tips_toward_centre(data: dict[str, Any]) -> dict[str, tuple[float, float]]:
     data["assembly"]["base"]["mode"] = "fixed"
     model = model_from_dict(data, "g")
     names = [m.name for m in model.as_assembly().manipulators]
-    settings = WorldSettings(engine="mujoco", time_step_s=2e-3, gravity_m_s2=(0.0, 0.0, 0.0))
+    settings = WorldSettings(engine_settings=MujocoSettings(), time_step_s=2e-3, gravity_m_s2=(0.0, 0.0, 0.0))
     with open_world(settings) as world:
         hand = world.add_model(model)
         before = {n: world.tip_position(hand.body_of_manipulator(n), n) for n in names}

@@ -16,8 +16,8 @@ from conftest import MODELS
 
 from somo_sweep.model.load import load_model
 from somo_sweep.model.tables import bundled_path
-from somo_sweep.sim.settings import WorldSettings
-from somo_sweep.sim.urdf import plan_rigid_body
+from somo_sweep.sim.planner import plan_rigid_body
+from somo_sweep.sim.settings import PyBulletSettings, WorldSettings
 from somo_sweep.sim.worlds import open_world
 from somo_sweep.sweep.jobs.table import build_jobs
 from somo_sweep.sweep.study import derive_study, load_study
@@ -46,9 +46,9 @@ def build(spring_scale: float = 1.0, **original: float | None) -> Built:
     params = PinchGraspParams(
         distal_segment_ratio=0.2, spring_scale=spring_scale, original=Original(**original)
     )
-    with open_world(WorldSettings(time_step_s=4e-3, scale=SCALE)) as world:
+    with open_world(WorldSettings(time_step_s=4e-3, engine_settings=PyBulletSettings(scale=SCALE))) as world:
         hand = world.add_model(gripper(load_model(MODELS / "pinch_gripper.yaml"), params))
-        box = world.load_plan(plan_rigid_body(object_body(params), world.scale))
+        box = world.load_plan(plan_rigid_body(object_body(params)))
         # The palm and each finger are bodies of their own (WorldSettings.body_per_manipulator).
         links = [
             (body.id, i)

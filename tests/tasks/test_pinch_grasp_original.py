@@ -21,8 +21,8 @@ from conftest import MODELS, ROOT
 from somo_sweep.errors import UnstableSimulation
 from somo_sweep.model.description import Pose, RigidBody
 from somo_sweep.model.load import load_model
-from somo_sweep.sim.settings import WorldSettings
-from somo_sweep.sim.urdf import plan_rigid_body
+from somo_sweep.sim.planner import plan_rigid_body
+from somo_sweep.sim.settings import PyBulletSettings, WorldSettings
 from somo_sweep.sim.world import World
 from somo_sweep.sim.worlds import open_world
 from somo_sweep.sweep.study import load_study
@@ -80,7 +80,7 @@ def _finger_boxes(world: World, body_id: int) -> list[tuple[float, float, float,
 def test_the_original_finger_has_the_original_codes_collision_boxes() -> None:
     params = PinchGraspParams(distal_segment_ratio=0.2)
     model = gripper(load_model(ORIGINAL_GRIPPER), params)
-    with open_world(WorldSettings(body_per_manipulator=True)) as world:
+    with open_world(WorldSettings(engine_settings=PyBulletSettings(body_per_manipulator=True))) as world:
         hand = world.add_model(model)
         right = hand.body_of_manipulator("right")
         boxes = sorted(_finger_boxes(world, right.id), key=lambda b: b[1])
@@ -101,7 +101,7 @@ def test_the_bundled_finger_is_different_where_the_original_differs() -> None:
     # The fingertip of our own finger is centred (2.25 mm off the original's) and its links start
     # at the base box (joints at 10, 15 ... mm instead of 12.5, 17.5 ...).
     model = gripper(load_model(MODELS / "pinch_gripper.yaml"), PinchGraspParams(distal_segment_ratio=0.2))
-    with open_world(WorldSettings(body_per_manipulator=True)) as world:
+    with open_world(WorldSettings(engine_settings=PyBulletSettings(body_per_manipulator=True))) as world:
         hand = world.add_model(model)
         boxes = sorted(_finger_boxes(world, hand.body_of_manipulator("right").id), key=lambda b: b[1])
     assert boxes[-1][1:3] == pytest.approx((117.5, 0.0), abs=1e-6)
@@ -128,7 +128,7 @@ def test_lift_profile_moves_the_hand_through_its_breakpoints() -> None:
     run_pinch_grasp(
         load_model(ORIGINAL_GRIPPER),
         params,
-        WorldSettings(time_step_s=4e-3, body_per_manipulator=True),
+        WorldSettings(time_step_s=4e-3, engine_settings=PyBulletSettings(body_per_manipulator=True)),
         observe=observe,
         observe_at_s=times,
     )
@@ -161,7 +161,7 @@ def test_clamp_speed_cap_lets_a_body_run_on_at_bullets_cap() -> None:
     ball = RigidBody(name="ball", link={"shape": "sphere", "radius_m": 0.01, "mass_kg": 0.01}, pose=Pose())
     for clamp in (False, True):
         with open_world(WorldSettings(clamp_speed_cap=clamp, check_every=1)) as world:
-            body = world.load_plan(plan_rigid_body(ball, world.scale))
+            body = world.load_plan(plan_rigid_body(ball))
             p.resetBaseVelocity(body.id, [0, 0, 0], [0, 0, 500.0], physicsClientId=world.client)
             if clamp:
                 world.step(3)
@@ -182,7 +182,9 @@ def _original_cell(model_dir: str, dsr: float, width_m: float, c_m: float, dt_s:
         centering_position_m=c_m,
     )
     assert study.simulation is not None
-    settings = replace(study.simulation.world_settings(), time_step_s=dt_s, friction_rows_every=1)
+    settings = study.simulation.world_settings()
+    own = replace(settings.pybullet, friction_rows_every=1)
+    settings = replace(settings, time_step_s=dt_s, engine_settings=own)
     model = load_model(f"{model_dir}/pinch_gripper_original.yaml")
     return run_pinch_grasp(model, PinchGraspParams(**params), settings).labels["grasp_paper"]
 

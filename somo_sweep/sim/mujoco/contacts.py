@@ -1,18 +1,22 @@
-"""The last MuJoCo step's contacts, as :meth:`~somo_sweep.sim.world.World.contacts` reports them.
+"""The last MuJoCo step's contacts, as :meth:`~somo_sweep.sim.world.World.contacts` reports them,
+and the gap between two bodies.
 
 :class:`StepContacts` groups the step's contacts by the world bodies their geoms belong to (once
 per step) and counts a pair's without building arrays; :meth:`StepContacts.select` reads one
 body's (or one pair's), turned round where the body is MuJoCo's second geom, in SI: links, point
-on the body, normal from the other body to it, and the normal force.
+on the body, normal from the other body to it, and the normal force. :func:`closest_distance_m`
+is the gap between two bodies' geoms (``mj_geomDistance``).
 """
 
 from __future__ import annotations
 
+import math
 from typing import Any
 
+import mujoco
 import numpy as np
 
-__all__ = ["StepContacts", "no_contacts"]
+__all__ = ["StepContacts", "closest_distance_m", "no_contacts"]
 
 _EMPTY = {
     "link_a": np.zeros(0, int),
@@ -88,3 +92,24 @@ class StepContacts:
             parts.append((links[r, 1], links[r, 0], pos[r] + half[r], frame[r], force[r]))
         cols = parts[0] if len(parts) == 1 else tuple(np.concatenate(c) for c in zip(*parts, strict=True))
         return dict(zip(_EMPTY, cols, strict=True))
+
+
+def closest_distance_m(
+    model: Any, data: Any, geom_owner: np.ndarray, body_a: int, body_b: int, within_m: float
+) -> float:
+    """Smallest gap between two world bodies' geoms, m (negative: overlap); ``inf`` beyond ``within_m``.
+
+    Args:
+        model, data: The compiled model and its data, kinematics current.
+        geom_owner: The world body id of each geom.
+        body_a, body_b: The two world bodies.
+        within_m: Largest gap searched, m.
+    """
+    ga = np.flatnonzero(geom_owner == body_a)
+    gb = np.flatnonzero(geom_owner == body_b)
+    reach = within_m + 1.0
+    best = min(
+        (mujoco.mj_geomDistance(model, data, int(a), int(b), reach, None) for a in ga for b in gb),
+        default=math.inf,
+    )
+    return float(best) if best <= within_m else math.inf

@@ -3,7 +3,8 @@
 A driven root has six joints (three slides, then yaw, pitch, roll:
 :data:`~somo_sweep.sim.mujoco.scene.DRIVEN_AXES`), so a pose is their values. Before each step
 their speeds are set to (target − pose)/dt; their very large armature keeps the fingers'
-reactions from moving the root within the step.
+reactions from moving the root within the step. :func:`place_root` teleports any root (driven,
+free or welded) to a pose, at rest.
 """
 
 from __future__ import annotations
@@ -17,7 +18,7 @@ import numpy as np
 from somo_sweep.sim.rotations import matrix_from_quat, multiply_transforms, quat_from_rpy, rpy_from_quat
 from somo_sweep.sim.world import Body
 
-__all__ = ["DrivenRoots"]
+__all__ = ["DrivenRoots", "place_root"]
 
 
 class DrivenRoots:
@@ -83,3 +84,33 @@ class DrivenRoots:
         for target, pose, speed in self._views:  # views into the data: no copies
             np.subtract(target, pose, out=speed)
             speed *= rate
+
+
+def place_root(
+    model: Any,
+    data: Any,
+    mode: str,
+    root: tuple[Any, Any, int],
+    position_m: Sequence[float] | np.ndarray,
+    quat_xyzw: Sequence[float],
+) -> None:
+    """Teleport a body's root to a world pose, at rest.
+
+    Args:
+        model, data: The compiled model and its data.
+        mode: The body's base mode: ``driven`` (its six joints), ``free`` (its free joint) or
+            ``fixed`` (the welded root's own frame in the model).
+        root: The root's ``qpos`` addresses, ``qvel`` addresses and MuJoCo body id.
+        position_m, quat_xyzw: The pose, m and quaternion (x, y, z, w).
+    """
+    qpos_adr, dof_adr, body = root
+    wxyz = [quat_xyzw[3], quat_xyzw[0], quat_xyzw[1], quat_xyzw[2]]
+    if mode == "driven":
+        data.qpos[qpos_adr] = np.concatenate([position_m, rpy_from_quat(tuple(quat_xyzw))[::-1]])
+        data.qvel[dof_adr] = 0.0
+    elif mode == "free":
+        data.qpos[qpos_adr] = np.concatenate([position_m, wxyz])
+        data.qvel[dof_adr] = 0.0
+    else:
+        model.body_pos[body] = position_m
+        model.body_quat[body] = wxyz

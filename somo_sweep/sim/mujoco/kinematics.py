@@ -1,10 +1,10 @@
-"""The bench body's kinematics on MuJoCo, for the statics solver.
+"""A chain's kinematics on MuJoCo (:class:`~somo_sweep.sim.kinematics.ChainKinematics`).
 
-The body is the one the dynamic bench loads on MuJoCo (same URDF read into the same MuJoCo
-bodies, :mod:`somo_sweep.sim.mujoco.scene`); joint angles go into ``qpos`` and every link frame
-comes back from one ``mj_kinematics`` call, in double precision; no time step is ever taken.
-Used by :mod:`somo_sweep.sim.statics` through
-:func:`somo_sweep.sim.bench_bodies.open_bench_body`.
+The body is the one a world loads from the plan on MuJoCo (the same MuJoCo bodies,
+:mod:`somo_sweep.sim.mujoco.scene`); joint angles go into ``qpos`` and every link frame comes
+back from one ``mj_kinematics`` call, in double precision; no time step is ever taken. Opened by
+:func:`somo_sweep.sim.worlds.open_chain_kinematics` (the bench statics' bodies,
+:mod:`somo_sweep.statics.bench_bodies`).
 """
 
 from __future__ import annotations
@@ -13,34 +13,39 @@ import mujoco
 import numpy as np
 
 from somo_sweep.errors import SimulationError
-from somo_sweep.model.description import Manipulator
-from somo_sweep.sim.bench_rig import bench_frame
-from somo_sweep.sim.chain_kinematics import BenchBody, Kin
+from somo_sweep.model.description import Pose
+from somo_sweep.sim.kinematics import ChainKinematics, Kin
 from somo_sweep.sim.mujoco.world import MujocoWorld
 from somo_sweep.sim.plan import BodyPlan
-from somo_sweep.sim.settings import WorldSettings
+from somo_sweep.sim.settings import MujocoSettings, WorldSettings
 
-__all__ = ["MujocoBenchBody"]
+__all__ = ["MujocoChainKinematics"]
 
 
-class MujocoBenchBody(BenchBody):
-    """The bench body on MuJoCo: its structure from the MuJoCo model of the plan (made at scale 1)."""
+class MujocoChainKinematics(ChainKinematics):
+    """A chain on MuJoCo: its structure from the MuJoCo model of the plan.
+
+    Args:
+        plan: The body's plan.
+        pose: Its base pose, SI.
+    """
 
     world: MujocoWorld
 
-    def __init__(self, manip: Manipulator, plan: BodyPlan):
+    def __init__(self, plan: BodyPlan, pose: Pose):
         self.scale = 1.0
         # Gravity is the solver's business (any magnitude, per row); the world never steps.
-        self.world = MujocoWorld(WorldSettings(gravity_m_s2=(0.0, 0.0, 0.0), engine="mujoco"))
+        settings = WorldSettings(gravity_m_s2=(0.0, 0.0, 0.0), engine_settings=MujocoSettings())
+        self.world = MujocoWorld(settings)
         try:
-            self._setup(manip, plan)
+            self._setup(plan, pose)
         except BaseException:
             self.world.close()
             raise
 
-    def _setup(self, manip: Manipulator, plan: BodyPlan) -> None:
+    def _setup(self, plan: BodyPlan, pose: Pose) -> None:
         world = self.world
-        self.body = world.load_plan(plan, bench_frame(manip))
+        self.body = world.load_plan(plan, pose)
         world.link_rotations(self.body)  # compiles the model
         m = world.model
         bodies = world.link_bodies(self.body)  # MuJoCo body id of the base and of each link
@@ -74,7 +79,6 @@ class MujocoBenchBody(BenchBody):
         self._ipos = np.array([m.body_ipos[b] for b in bodies[1:]]).reshape(-1, 3)
         self._joint_adr = np.array([int(m.jnt_qposadr[j]) for j in joint_ids], dtype=int)
         self.base_rot = world.data.xmat[bodies[0]].reshape(3, 3).copy()
-        self._finish(manip, plan)
 
     def kinematics(self, q: np.ndarray) -> Kin:
         """Set the joints to ``q`` (SI) and read every link frame back (one ``mj_kinematics``)."""

@@ -1,7 +1,7 @@
 """Body plans as MuJoCo bodies, joints and geoms (an ``MjSpec``), in SI.
 
-A plan's URDF tree (:mod:`somo_sweep.sim.mujoco.urdf_tree`) becomes nested MuJoCo bodies: a
-fixed joint nests the child without a joint (MuJoCo welds it), a spring joint becomes a hinge
+A plan (SI, :mod:`somo_sweep.sim.plan`) becomes nested MuJoCo bodies: a fixed joint nests
+the child without a joint (MuJoCo welds it), a spring joint becomes a hinge
 or slide with the spring inside MuJoCo (``stiffness`` k and k·a for the cubic term,
 ``springref`` q0, ``damping`` c) and the Coulomb motor as ``frictionloss``, so that the
 ``discrete`` integrator treats springs, damping and friction implicitly. Link inertias leave
@@ -25,8 +25,7 @@ import numpy as np
 from somo_sweep.errors import SimulationError
 from somo_sweep.sim.mujoco.support import ANCHOR_WHY
 from somo_sweep.sim.mujoco.surfaces import Surface
-from somo_sweep.sim.mujoco.urdf_tree import Shape, TreeJoint, TreeLink, read_tree, unit
-from somo_sweep.sim.plan import BodyPlan, LinkInfo, SpringJoint
+from somo_sweep.sim.plan import BodyPlan, LinkInfo, PlanJoint, Shape, SpringJoint
 from somo_sweep.sim.rotations import quat_from_rpy, wxyz
 from somo_sweep.sim.settings import WorldSettings
 
@@ -132,17 +131,8 @@ def unsupported_link(info: LinkInfo) -> list[str]:
     return out
 
 
-def _inertia(info: LinkInfo, tree: TreeLink) -> np.ndarray:
-    """Principal moments without inertia shaping, kg·m²."""
-    if info.link is None:
-        return np.asarray(tree.inertia_kg_m2, dtype=float)
-    return info.link.principal_inertia_kg_m2() - info.link.added_inertia_kg_m2
-
-
 def check_plan(plan: BodyPlan) -> None:
-    """Raise :class:`SimulationError` if the mujoco engine cannot load ``plan`` (scale, links)."""
-    if plan.scale != 1.0:
-        raise SimulationError(f"the mujoco engine takes plans made at scale 1 (SI), got {plan.scale}")
+    """Raise :class:`SimulationError` if the mujoco engine cannot load ``plan`` (its links)."""
     problems = [p for info in plan.links for p in unsupported_link(info)]
     if problems:
         raise SimulationError("; ".join(problems))
@@ -150,7 +140,7 @@ def check_plan(plan: BodyPlan) -> None:
 
 def plan_key(plan: BodyPlan) -> str:
     """Everything of a plan that :func:`add_plan` reads, as text (a key for compiled scenes)."""
-    return repr((plan.name, plan.urdf, plan.scale, plan.mode, plan.links, plan.joints, plan.part_of))
+    return repr((plan.name, plan.mode, plan.links, plan.tree, plan.joints, plan.part_of))
 
 
 def add_plan(
@@ -165,21 +155,20 @@ def add_plan(
 
     Args:
         spec: The scene's spec.
-        plan: The body plan (made at scale 1: SI).
+        plan: The body plan.
         body_id: The world's id of the body (names are prefixed with it).
         position_m, quat_xyzw: Where the root goes (a driven root's joints are set there later).
         contact_time_constant_s: The contacts' time constant (``solref``), s.
     """
     check_plan(plan)
-    tree_links, tree_joints = read_tree(plan)
     prefix = f"b{body_id}/"
-    total = sum(t.mass_kg for t in tree_links.values())
+    total = sum(info.mass_kg for info in plan.links)
     root, root_joints = _add_root(spec, plan, prefix, position_m, quat_xyzw, total)
-    tree = _add_tree(plan, tree_joints, root, prefix)
-    geoms = _add_links(plan, tree_links, tree, body_id, prefix, contact_time_constant_s)
+    tree = _add_tree(plan, root, prefix)
+    geoms = _add_links(plan, tree, body_id, prefix, contact_time_constant_s)
     index = {info.name: i - 1 for i, info in enumerate(plan.links)}
     ancestors: dict[int, set[int]] = {}
-    for name in tree_links:
+    for name in index:
         chain, up = set(), tree.parent_of.get(name)
         while up is not None:
             chain.add(index[up])
@@ -234,12 +223,12 @@ class _Tree:
     moves_with_root: dict[str, bool]
 
 
-def _add_tree(plan: BodyPlan, tree_joints: list[TreeJoint], root: Any, prefix: str) -> _Tree:
+def _add_tree(plan: BodyPlan, root: Any, prefix: str) -> _Tree:
     """Nest every link's body under its parent's, with a hinge or slide for each spring joint."""
     root_name = plan.links[0].name
     tree = _Tree({root_name: root}, {}, {root_name: plan.mode != "fixed"})
     spring_by_name = {sj.name: sj for sj in plan.joints}
-    for tj in tree_joints:
+    for tj in plan.tree:
         tree.parent_of[tj.child] = tj.parent
         body = tree.bodies[tj.parent].add_body(
             name=prefix + tj.child, pos=list(tj.xyz_m), quat=list(wxyz(quat_from_rpy(tj.rpy_rad)))
@@ -251,12 +240,13 @@ def _add_tree(plan: BodyPlan, tree_joints: list[TreeJoint], root: Any, prefix: s
     return tree
 
 
-def _add_spring_joint(body: Any, prefix: str, tj: TreeJoint, sj: SpringJoint) -> None:
+def _add_spring_joint(body: Any, prefix: str, tj: PlanJoint, sj: SpringJoint) -> None:
     """A spring joint as a hinge or slide with MuJoCo's own spring, damping and friction."""
+    axis = np.asarray(tj.axis, dtype=float)
     joint = body.add_joint(
         name=prefix + tj.name,
         type=mujoco.mjtJoint.mjJNT_HINGE if tj.kind == "revolute" else mujoco.mjtJoint.mjJNT_SLIDE,
-        axis=list(unit(tj.axis)),
+        axis=list(axis / np.linalg.norm(axis)),
     )
     joint.stiffness = [sj.stiffness, 0.0, sj.stiffness * sj.stiffening]
     joint.springref = sj.neutral
@@ -273,44 +263,51 @@ def _add_spring_joint(body: Any, prefix: str, tj: TreeJoint, sj: SpringJoint) ->
 
 def _add_links(
     plan: BodyPlan,
-    tree_links: dict[str, TreeLink],
     tree: _Tree,
     body_id: int,
     prefix: str,
     contact_time_constant_s: float,
 ) -> list[GeomInfo]:
-    """Every link's inertia and collision geoms (with its friction and colour)."""
-    infos = {info.name: info for info in plan.links}
-    index = {info.name: i - 1 for i, info in enumerate(plan.links)}
+    """Every link's inertia (without inertia shaping) and collision geoms (with its friction and colour)."""
     geoms: list[GeomInfo] = []
-    for name, link_tree in tree_links.items():
-        body, info = tree.bodies[name], infos[name]
-        if link_tree.mass_kg > 0:
+    for i, info in enumerate(plan.links):
+        name, body = info.name, tree.bodies[info.name]
+        if info.mass_kg > 0:
             body.explicitinertial = True
-            body.mass = link_tree.mass_kg
-            body.ipos = list(link_tree.com_m)
+            body.mass = info.mass_kg
+            body.ipos = list(info.com_m)
             body.iquat = [1.0, 0.0, 0.0, 0.0]
-            body.inertia = list(_inertia(info, link_tree))
+            body.inertia = list(np.asarray(info.inertia_kg_m2, dtype=float) - info.added_inertia_kg_m2)
         link = info.link
         surface = Surface(
             link.friction.lateral if link else 1.0,
             link.friction.spinning if link else 0.0,
             link.friction.rolling if link else 0.0,
         )
-        rgba = list(link.color_rgba) if link else [0.55, 0.6, 0.7, 1.0]
+        rgba = list(info.rgba)
         static = not tree.moves_with_root[name]
-        for k, shape in enumerate(link_tree.shapes):
+        for k, shape in enumerate(info.shapes):
             geom_name = f"{prefix}{name}#{k}"
             geom = _add_geom(body, geom_name, shape, rgba, surface, contact_time_constant_s)
-            geoms.append(GeomInfo(geom_name, body_id, index[name], surface, static, geom))
+            geoms.append(GeomInfo(geom_name, body_id, i - 1, surface, static, geom))
     return geoms
+
+
+def _mujoco_size(shape: Shape) -> list[float]:
+    """MuJoCo's size of a shape: half extents (box), radius (sphere), radius and half length."""
+    if shape.kind == "box":
+        return [v / 2 for v in shape.size_m]
+    if shape.kind == "sphere":
+        return [shape.size_m[0], 0.0, 0.0]
+    return [shape.size_m[0], shape.size_m[1] / 2, 0.0]
 
 
 def _add_geom(
     body: Any, name: str, shape: Shape, rgba: list[float], surface: Surface, time_constant_s: float
 ) -> Any:
-    size = list(shape.size_m) + [0.0] * (3 - len(shape.size_m))
-    geom = body.add_geom(name=name, type=_GEOM[shape.kind], size=size, pos=list(shape.offset_m))
+    geom = body.add_geom(
+        name=name, type=_GEOM[shape.kind], size=_mujoco_size(shape), pos=list(shape.centre_m)
+    )
     geom.rgba = rgba
     geom.friction = list(surface.own())
     geom.solref = [time_constant_s, 1.0]
@@ -327,17 +324,17 @@ JACOBIAN = "dense"
 
 def set_options(spec: Any, settings: WorldSettings) -> None:
     """The scene's options from the world's settings (step, gravity, integrator, solver, contacts)."""
-    s, opt = settings, spec.option
+    s, own, opt = settings, settings.mujoco, spec.option
     opt.timestep = s.time_step_s
     opt.gravity = list(s.gravity_m_s2)
     opt.integrator = (
         mujoco.mjtIntegrator.mjINT_DISCRETE
-        if s.integrator == "discrete"
+        if own.integrator == "discrete"
         else mujoco.mjtIntegrator.mjINT_IMPLICITFAST
     )
     opt.cone = mujoco.mjtCone.mjCONE_ELLIPTIC
-    opt.impratio = s.impratio
-    opt.noslip_iterations = s.noslip_iterations
+    opt.impratio = own.impratio
+    opt.noslip_iterations = own.noslip_iterations
     opt.solver = mujoco.mjtSolver.mjSOL_NEWTON
     opt.iterations = s.solver_iterations
     opt.disableflags |= mujoco.mjtDisableBit.mjDSBL_AUTORESET

@@ -63,11 +63,11 @@ class SpecScene:
         self._unbuilt: list[_Change] = []  # stood for by a cached model, not in the spec
 
     def add_plan(self, plan: BodyPlan, body_id: int, position_m: Any, quat: tuple[float, ...]) -> None:
-        """Add one plan (made at scale 1) with world id ``body_id`` at a pose (m, quaternion x, y, z, w)."""
+        """Add one plan with world id ``body_id`` at a pose (m, quaternion x, y, z, w)."""
         check_plan(plan)
 
         def build() -> None:
-            tc = self.settings.contact_time_constant_s
+            tc = self.settings.mujoco.contact_time_constant_s
             self.planned[body_id], geoms = add_plan(self.spec, plan, body_id, position_m, quat, tc)
             self.geoms.extend(geoms)
 
@@ -83,7 +83,7 @@ class SpecScene:
             name = f"b{body_id}/static"
             geom = self.spec.worldbody.add_geom(name=name, type=kind, size=size, pos=pos)
             geom.friction = list(surface.own())
-            geom.solref = [self.settings.contact_time_constant_s, 1.0]
+            geom.solref = [self.settings.mujoco.contact_time_constant_s, 1.0]
             geom.rgba = [0.8, 0.8, 0.78, 1.0]
             self.geoms.append(GeomInfo(name, body_id, -1, surface, True, geom))
             if drawn:
@@ -130,7 +130,7 @@ class SpecScene:
             build()
         self._pending = []
         old = self._pairs + self._excludes
-        tc = self.settings.contact_time_constant_s
+        tc = self.settings.mujoco.contact_time_constant_s
         self._pairs, self._excludes = filter_contacts(self.spec, self.geoms, self.planned, tc, old)
 
 

@@ -2,20 +2,20 @@
 
 Bodies are added to an ``MjSpec`` (:mod:`.spec_scene`, :mod:`.scene`); the model is compiled
 when it is first needed (or copied from the process's compiled scenes, :mod:`.scene_cache`) and
-recompiled, state kept, when bodies are added after that. Contacts
-are soft (``solref`` time constant ``contact_time_constant_s``, critically damped), frictional
-with elliptic cones and ``impratio``, and with Bullet's pair friction (:mod:`.surfaces`); links
-of one body never touch their ancestors, as in PyBullet's self-collision rule.
+recompiled, state kept, when bodies are added after that. Contacts are soft (``solref`` time
+constant ``contact_time_constant_s``, critically damped), frictional with elliptic cones and
+``impratio``, and with Bullet's pair friction (:mod:`.surfaces`); links of one body never touch
+their ancestors, as in PyBullet's self-collision rule.
 
 A driven root reaches the target set by :meth:`MujocoWorld.drive_base` at the end of each step:
 its six joints' speeds are set to (target − pose)/dt before the step, and their very large
 armature keeps the fingers' reactions from moving it within the step. Run without MuJoCo's
-automatic reset, so a blow-up shows as NaN (or speeds past :data:`MAX_JOINT_SPEED_RAD_S`).
+automatic reset, so a blow-up shows as NaN (or speeds past :data:`MAX_JOINT_SPEED_RAD_S`):
+:mod:`.unstable` names it.
 """
 
 from __future__ import annotations
 
-import math
 from collections.abc import Callable, Sequence
 from time import perf_counter
 from typing import Any
@@ -24,42 +24,27 @@ import mujoco
 import numpy as np
 import numpy.typing as npt
 
-from somo_sweep.errors import SimulationError, UnstableSimulation
+from somo_sweep.errors import SimulationError
 from somo_sweep.model.description import Pose
 from somo_sweep.model.load import Model
 from somo_sweep.sim.camera import Camera
 from somo_sweep.sim.follow import PlannedSends
 from somo_sweep.sim.mujoco.compiled import read_addresses
-from somo_sweep.sim.mujoco.contacts import StepContacts
+from somo_sweep.sim.mujoco.contacts import StepContacts, closest_distance_m
 from somo_sweep.sim.mujoco.drive import MujocoDrive
-from somo_sweep.sim.mujoco.driven import DrivenRoots
+from somo_sweep.sim.mujoco.driven import DrivenRoots, place_root
 from somo_sweep.sim.mujoco.free_joint import check_free_body, free_base_pose, free_base_velocity
 from somo_sweep.sim.mujoco.render import mujoco_image
 from somo_sweep.sim.mujoco.spec_scene import SpecScene
 from somo_sweep.sim.mujoco.surfaces import Surface
+from somo_sweep.sim.mujoco.unstable import SPEED_CHECK_EVERY, bad_accelerations, check_spring_speeds
 from somo_sweep.sim.plan import BodyPlan
-from somo_sweep.sim.rotations import multiply_transforms, quat_from_rpy, rpy_from_quat, xyzw
-from somo_sweep.sim.settings import WorldSettings
-from somo_sweep.sim.urdf import plan_assembly
+from somo_sweep.sim.planner import plan_assembly
+from somo_sweep.sim.rotations import multiply_transforms, quat_from_rpy, xyzw
+from somo_sweep.sim.settings import MujocoSettings, WorldSettings
 from somo_sweep.sim.world import MAX_JOINT_SPEED_RAD_S, Body, ModelHandle, World
 
 __all__ = ["MujocoWorld"]
-
-#: MuJoCo's last warnings (an unstable step names them). Its default handler writes
-#: MUJOCO_LOG.TXT into the current folder: never outside the folder a user named.
-_WARNINGS: list[str] = []
-
-
-def _keep_warning(text: str) -> None:
-    _WARNINGS.append(str(text).strip())
-    del _WARNINGS[:-5]
-
-
-mujoco.set_mju_user_warning(_keep_warning)
-
-
-#: Steps between checks of the spring joints' speeds (a blow-up persists: NaN or ever faster).
-SPEED_CHECK_EVERY = 10
 
 
 class MujocoWorld(World):
@@ -68,14 +53,15 @@ class MujocoWorld(World):
     Opened by :func:`~somo_sweep.sim.worlds.open_world` for ``settings.engine == "mujoco"``.
 
     Args:
-        settings: Time step, gravity, solver and contact settings (Bullet's scale is not read).
+        settings: Time step, gravity and solver settings, and MuJoCo's own (contacts, integrator).
     """
 
     def __init__(self, settings: WorldSettings | None = None):
-        self.settings = settings or WorldSettings(engine="mujoco")
+        self.settings = settings or WorldSettings(engine_settings=MujocoSettings())
         s = self.settings
         if s.time_step_s <= 0:
             raise SimulationError("time_step_s must be > 0")
+        self.options = s.mujoco  # another engine's settings are refused here
         self.scale = 1.0
         self.time_s = 0.0
         self.step_count = 0
@@ -123,7 +109,7 @@ class MujocoWorld(World):
 
     # ----------------------------------------------------------------- loading
     def load_plan(self, plan: BodyPlan, pose: Pose | None = None) -> Body:
-        """Load one planned body (made at scale 1) at ``pose`` (default: the plan's pose)."""
+        """Load one planned body at ``pose`` (default: the plan's pose)."""
         pose = pose or plan.pose
         return self._load(plan, np.asarray(pose.position_m, float), quat_from_rpy(pose.rpy_rad))
 
@@ -145,7 +131,7 @@ class MujocoWorld(World):
         root = pose or Pose()
         root_q = quat_from_rpy(root.rpy_rad)
         bodies: list[Body] = []
-        for plan in plan_assembly(assembly, 1.0):
+        for plan in plan_assembly(assembly):
             local_q = quat_from_rpy(plan.pose.rpy_rad)
             pos, quat = multiply_transforms(root.position_m, root_q, plan.pose.position_m, local_q)
             body = self._load(plan, pos, quat)
@@ -239,21 +225,12 @@ class MujocoWorld(World):
     ) -> None:
         """Teleport every body of a model to the model pose (mount offsets kept), at rest."""
         self._ready()
-        d = self.data
         for body in handle.bodies:
             pos, quat = multiply_transforms(
                 [float(c) for c in position_m], quat_from_rpy(rpy_rad), body.offset[0], body.offset[1]
             )
-            if body.plan.mode == "driven":
-                d.qpos[self._root_qpos[body.id]] = np.concatenate([pos, rpy_from_quat(quat)[::-1]])
-                d.qvel[self._root_dof[body.id]] = 0.0
-            elif body.plan.mode == "free":
-                d.qpos[self._root_qpos[body.id]] = np.concatenate([pos, [quat[3], quat[0], quat[1], quat[2]]])
-                d.qvel[self._root_dof[body.id]] = 0.0
-            else:
-                root = self._link_bodies[body.id][0]
-                self.model.body_pos[root] = pos
-                self.model.body_quat[root] = [quat[3], quat[0], quat[1], quat[2]]
+            root = (self._root_qpos.get(body.id), self._root_dof.get(body.id), self._link_bodies[body.id][0])
+            place_root(self.model, self.data, body.plan.mode, root, pos, quat)
         self._kinematics_stale = True
 
     # ----------------------------------------------------------------- stepping
@@ -305,14 +282,9 @@ class MujocoWorld(World):
             if self._contact_memo:
                 self._contact_memo = {}
             if dofs is not None and count % SPEED_CHECK_EVERY == 0:
-                speeds = qvel[dofs]
-                if not (speeds.max() < cap and speeds.min() > -cap):  # also catches NaN
-                    reason = "speed_cap" if np.isfinite(speeds).all() else "nan"
-                    if reason == "nan" or capped:
-                        raise UnstableSimulation(reason, self.time_s, "in a spring joint")
+                check_spring_speeds(qvel[dofs], cap, capped, self.time_s)
             if bad_acc.number:
-                said = f": {_WARNINGS[-1]}" if _WARNINGS else ""
-                raise UnstableSimulation("nan", self.time_s, f"MuJoCo's accelerations are not finite{said}")
+                raise bad_accelerations(self.time_s)
             if count % every == 0:
                 self.check_thrown()
 
@@ -398,15 +370,7 @@ class MujocoWorld(World):
     def closest_distance_m(self, body_a: int, body_b: int, within_m: float = 0.0) -> float:
         """Smallest gap between two bodies' collision shapes, m (negative: they overlap by that much)."""
         self._kinematics()
-        m, d = self.model, self.data
-        ga = np.flatnonzero(self._geom_owner == body_a)
-        gb = np.flatnonzero(self._geom_owner == body_b)
-        reach = within_m + 1.0
-        best = min(
-            (mujoco.mj_geomDistance(m, d, int(a), int(b), reach, None) for a in ga for b in gb),
-            default=math.inf,
-        )
-        return float(best) if best <= within_m else math.inf
+        return closest_distance_m(self.model, self.data, self._geom_owner, body_a, body_b, within_m)
 
     def contacts(self, body_a: int, body_b: int | None = None) -> dict[str, np.ndarray]:
         """Contact points of ``body_a`` (with ``body_b`` if given) from the last step, in SI."""
@@ -415,16 +379,13 @@ class MujocoWorld(World):
         memo = self._contact_memo
         if key in memo:
             return memo[key]
-        memo[key] = found = self._find_contacts(body_a, body_b)
+        memo[key] = found = self._read_contacts().select(body_a, body_b)
         return found
 
     def contact_count(self, body_a: int, body_b: int) -> int:
         """Number of contact points between two bodies in the last step (no arrays built)."""
         self._ready()
         return self._read_contacts().count(body_a, body_b)
-
-    def _find_contacts(self, body_a: int, body_b: int | None) -> dict[str, np.ndarray]:
-        return self._read_contacts().select(body_a, body_b)
 
     def _read_contacts(self) -> StepContacts:
         if self._step_contacts is None:  # the step's, grouped once

@@ -11,13 +11,14 @@ import pybullet as p
 
 from somo_sweep.model.description import Link
 from somo_sweep.sim.plan import BodyPlan
-from somo_sweep.sim.urdf import write_urdf
+from somo_sweep.sim.pybullet.urdf import urdf_file
 
 __all__ = ["apply_dynamics", "body_indices", "hold_base", "load_urdf"]
 
 
-def load_urdf(client: int, plan: BodyPlan, pos: Sequence[float], orn: Sequence[float]) -> int:
-    """Load the plan's URDF at a base position (scaled world) and quaternion; returns the body id."""
+def load_urdf(client: int, plan: BodyPlan, scale: float, pos: Sequence[float], orn: Sequence[float]) -> int:
+    """Load the plan's URDF (in the world scaled by ``scale``) at a base position (scaled world) and
+    quaternion; returns the body id."""
     # Branches of one body (two fingers on a palm) collide; a chain never with its ancestors.
     flags = (
         p.URDF_USE_INERTIA_FROM_FILE
@@ -27,7 +28,7 @@ def load_urdf(client: int, plan: BodyPlan, pos: Sequence[float], orn: Sequence[f
     )
     return int(
         p.loadURDF(
-            str(write_urdf(plan.urdf)),
+            str(urdf_file(plan, scale)),
             pos,
             orn,
             useFixedBase=plan.mode == "fixed",

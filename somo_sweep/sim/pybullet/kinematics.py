@@ -1,10 +1,10 @@
-"""The bench body's kinematics on PyBullet, for the statics solver.
+"""A chain's kinematics on PyBullet (:class:`~somo_sweep.sim.kinematics.ChainKinematics`).
 
-Kinematics are PyBullet's own, on the very body the dynamic bench loads (same URDF, link
-frames, masses, centres of mass, tip point and world scale): joint states are set with
+Kinematics are PyBullet's own, on the body a world loads from the plan (same URDF, link
+frames, masses, centres of mass and world scale): joint states are set with
 ``resetJointStatesMultiDof`` and read back with one ``getLinkStates`` call; no time step is
-ever taken. Used by :mod:`somo_sweep.sim.statics` through
-:func:`somo_sweep.sim.bench_bodies.open_bench_body`.
+ever taken. Opened by :func:`somo_sweep.sim.worlds.open_chain_kinematics` (the bench
+statics' bodies, :mod:`somo_sweep.statics.bench_bodies`).
 """
 
 from __future__ import annotations
@@ -13,34 +13,40 @@ import numpy as np
 import pybullet as p
 
 from somo_sweep.errors import SimulationError
-from somo_sweep.model.description import Manipulator
-from somo_sweep.sim.bench_rig import bench_frame
-from somo_sweep.sim.chain_kinematics import BenchBody, Kin
+from somo_sweep.model.description import Pose
+from somo_sweep.sim.kinematics import ChainKinematics, Kin
 from somo_sweep.sim.plan import BodyPlan
 from somo_sweep.sim.pybullet.world import PyBulletWorld
 from somo_sweep.sim.rotations import matrices_from_quats
-from somo_sweep.sim.settings import WorldSettings
+from somo_sweep.sim.settings import PyBulletSettings, WorldSettings
 
-__all__ = ["PyBulletBenchBody"]
+__all__ = ["PyBulletChainKinematics"]
 
 
-class PyBulletBenchBody(BenchBody):
-    """The bench body on PyBullet: its structure from PyBullet's joint and dynamics info."""
+class PyBulletChainKinematics(ChainKinematics):
+    """A chain on PyBullet: its structure from PyBullet's joint and dynamics info.
+
+    Args:
+        plan: The body's plan.
+        pose: Its base pose, SI.
+        scale: The world's scale Y.
+    """
 
     world: PyBulletWorld
 
-    def __init__(self, manip: Manipulator, plan: BodyPlan, scale: float):
+    def __init__(self, plan: BodyPlan, pose: Pose, scale: float):
         self.scale = scale
         # Gravity is the solver's business (any magnitude, per row); the world never steps.
-        self.world = PyBulletWorld(WorldSettings(scale=scale, gravity_m_s2=(0.0, 0.0, 0.0)))
+        settings = WorldSettings(gravity_m_s2=(0.0, 0.0, 0.0), engine_settings=PyBulletSettings(scale=scale))
+        self.world = PyBulletWorld(settings)
         try:
-            self._setup(manip, plan)
+            self._setup(plan, pose)
         except BaseException:
             self.world.close()
             raise
 
-    def _setup(self, manip: Manipulator, plan: BodyPlan) -> None:
-        self.body = self.world.load_plan(plan, bench_frame(manip))
+    def _setup(self, plan: BodyPlan, pose: Pose) -> None:
+        self.body = self.world.load_plan(plan, pose)
         cid, bid, s = self.world.client, self.body.id, self.scale
         self.cid, self.bid = cid, bid
         n = p.getNumJoints(bid, physicsClientId=cid)
@@ -82,7 +88,6 @@ class PyBulletBenchBody(BenchBody):
         self.limits = (lim_lo, lim_hi)
         base_orn = p.getBasePositionAndOrientation(bid, physicsClientId=cid)[1]
         self.base_rot = matrices_from_quats(np.array([base_orn]))[0]
-        self._finish(manip, plan)
 
     def kinematics(self, q: np.ndarray) -> Kin:
         """Set the joints to ``q`` (SI) and read every link frame back (one PyBullet call each).

@@ -43,8 +43,9 @@ class SpringDrive:
         n_inputs: Number of control inputs of the body.
         scale: World scale factor Y.
         friction_every: Steps between solves of the joints' Coulomb motors, 1 or 2
-            (:attr:`WorldSettings.friction_rows_every`); with 2, the step between gets a fixed
-            friction torque from the solved one (:meth:`_torques_with_held_friction`).
+            (:attr:`~somo_sweep.sim.settings.PyBulletSettings.friction_rows_every`); with 2, the
+            step between gets a fixed friction torque from the solved one
+            (:meth:`_torques_with_held_friction`).
         time_step_s: The world's time step, s (needed with ``friction_every`` 2).
     """
 

@@ -20,12 +20,12 @@ from somo_sweep.model.description import Pose
 from somo_sweep.model.load import Model
 from somo_sweep.sim.camera import Camera
 from somo_sweep.sim.plan import BodyPlan
+from somo_sweep.sim.planner import plan_assembly
 from somo_sweep.sim.pybullet.bodies import apply_dynamics, body_indices, hold_base, load_urdf
 from somo_sweep.sim.pybullet.clients import connect, keep_spare_client
 from somo_sweep.sim.pybullet.render import tiny_renderer_image
 from somo_sweep.sim.pybullet.springs import SpringDrive
 from somo_sweep.sim.settings import WorldSettings
-from somo_sweep.sim.urdf import plan_assembly
 from somo_sweep.sim.world import MAX_JOINT_SPEED_RAD_S, THROWN_DISTANCE_M, Body, ModelHandle, World
 
 __all__ = ["PyBulletWorld", "keep_spare_client"]
@@ -37,15 +37,16 @@ class PyBulletWorld(World):
     Opened by :func:`~somo_sweep.sim.worlds.open_world` for ``settings.engine == "pybullet"``.
 
     Args:
-        settings: Time step, scale, gravity and solver settings.
+        settings: Time step, gravity and solver settings, and PyBullet's own (scale, ...).
     """
 
     def __init__(self, settings: WorldSettings | None = None):
         self.settings = settings or WorldSettings()
         s = self.settings
-        if s.time_step_s <= 0 or s.scale <= 0:
-            raise SimulationError("time_step_s and scale must be > 0")
-        self.scale = float(s.scale)
+        if s.time_step_s <= 0:
+            raise SimulationError("time_step_s must be > 0")
+        self.options = s.pybullet
+        self.scale = float(self.options.scale)
         self.client = connect()
         p.resetSimulation(physicsClientId=self.client)
         p.setPhysicsEngineParameter(
@@ -82,12 +83,10 @@ class PyBulletWorld(World):
 
     def load_plan(self, plan: BodyPlan, pose: Pose | None = None) -> Body:
         """Load one planned body at ``pose`` (default: the plan's pose)."""
-        if abs(plan.scale - self.scale) > 1e-12:
-            raise SimulationError(f"plan made for scale {plan.scale}, world has {self.scale}")
         pose = pose or plan.pose
         pos = [c * self.scale for c in pose.position_m]
         orn = p.getQuaternionFromEuler(pose.rpy_rad)
-        body_id = load_urdf(self.client, plan, pos, orn)
+        body_id = load_urdf(self.client, plan, self.scale, pos, orn)
         link_index, joint_index = body_indices(self.client, body_id, plan.links[0].name)
         for info_l in plan.links:
             if info_l.link is not None:
@@ -99,7 +98,7 @@ class PyBulletWorld(World):
             plan.joints,
             len(plan.inputs),
             self.scale,
-            friction_every=self.settings.friction_rows_every,
+            friction_every=self.options.friction_rows_every,
             time_step_s=self.settings.time_step_s,
         )
         # Every non-spring joint motor is switched off; spring joints get their Coulomb motor.
@@ -118,7 +117,7 @@ class PyBulletWorld(World):
         root = pose or Pose()
         bodies: list[Body] = []
         root_tf = ([c for c in root.position_m], p.getQuaternionFromEuler(root.rpy_rad))
-        for plan in plan_assembly(assembly, self.scale, split=self.settings.body_per_manipulator):
+        for plan in plan_assembly(assembly, split=self.options.body_per_manipulator):
             local = (plan.pose.position_m, p.getQuaternionFromEuler(plan.pose.rpy_rad))
             pos, orn = p.multiplyTransforms(root_tf[0], root_tf[1], local[0], local[1])
             world_pose = Pose(position_m=tuple(pos), rpy_rad=tuple(p.getEulerFromQuaternion(orn)))

@@ -8,9 +8,10 @@ the same code and simulator always gives the same ids, which is what resume reli
 :class:`~somo_sweep.sweep.study.resolve.TrialPlan` alone.
 
 A study without a ``simulation:`` block gets its numerics from each model's modes
-(:func:`~somo_sweep.sim.numerics.choose_numerics`, which loads the chains in PyBullet): the
-job's model carries the chosen inertia shaping and its settings the chosen step, both
-before hashing, so the id is still a function of what the trial actually runs.
+(:func:`~somo_sweep.sim.numerics.choose_numerics`, which loads the chains in PyBullet, the
+engine such a study runs on): the job's model carries the chosen inertia shaping and its
+settings the chosen step, both before hashing, so the id is still a function of what the trial
+actually runs.
 """
 
 from __future__ import annotations
@@ -28,7 +29,7 @@ import numpy as np
 from pydantic import BaseModel
 
 from somo_sweep.model.load import Model
-from somo_sweep.sim.settings import MUJOCO_ONLY, WorldSettings
+from somo_sweep.sim.settings import WorldSettings
 from somo_sweep.sim.settings import engine_version as _read_engine_version
 from somo_sweep.sweep.jobs.code import code_version, pybullet_version
 from somo_sweep.sweep.study.resolve import MODEL_CACHE, PARAMS_CACHE, RecentCache, TrialPlan
@@ -254,12 +255,12 @@ def _identity(
 
 
 def _settings_fields(settings: WorldSettings) -> dict[str, Any]:
-    """The settings as a job id hashes them: PyBullet's without the engine's name and MuJoCo's
-    own fields, so a PyBullet job's id depends on nothing MuJoCo adds."""
+    """The settings as a job id hashes them, flat: the shared ones and the engine's own, and the
+    engine's name unless it is PyBullet (a PyBullet job's id depends on nothing MuJoCo adds)."""
     fields = asdict(settings)
-    if settings.engine == "pybullet":
-        for name in ("engine", *MUJOCO_ONLY):
-            fields.pop(name)
+    fields.update(fields.pop("engine_settings"))
+    if settings.engine != "pybullet":
+        fields["engine"] = settings.engine
     return fields
 
 
@@ -308,9 +309,14 @@ def _prepare(
     (the step chosen by convergence with the least shaping it needs, else the modal choice)."""
     if fixed is not None:
         return model, model.content_hash(), fixed, None
-    from somo_sweep.sim.numerics import choose_numerics, numerics_for_step  # loads PyBullet
+    from somo_sweep.sim.numerics import choose_numerics, numerics_for_step  # loads the engine
 
-    chosen = choose_numerics(model) if auto_step_s is None else numerics_for_step(model, auto_step_s)
+    # A study without simulation: runs on the default engine (PyBullet): its modes are that engine's.
+    engine = WorldSettings().engine
+    if auto_step_s is None:
+        chosen = choose_numerics(model, engine=engine)
+    else:
+        chosen = numerics_for_step(model, auto_step_s, engine)
     shaped = chosen.apply(model)
     return shaped, shaped.content_hash(), WorldSettings(time_step_s=chosen.time_step_s), chosen
 

@@ -53,10 +53,11 @@ from pydantic import Field, field_validator, model_validator
 
 from somo_sweep.model.description import Spec
 from somo_sweep.sim.settings import (
+    ENGINE_SETTINGS,
     MUJOCO_DEFAULT_STEP_S,
-    MUJOCO_ONLY,
-    PYBULLET_ONLY,
+    MujocoSettings,
     WorldSettings,
+    option_names,
     step_problem,
 )
 from somo_sweep.sweep.store.schema import MAX_REPLICAS
@@ -74,13 +75,13 @@ class Simulation(Spec):
 
     ``body_per_manipulator: true`` loads a hand with a fixed or driven palm as one PyBullet
     body per finger plus the palm, at a lower cost per step
-    (:func:`somo_sweep.sim.urdf.plan_assembly`). The hand moves the same, but knife-edge
+    (:func:`somo_sweep.sim.planner.plan_assembly`). The hand moves the same, but knife-edge
     contact outcomes can come out the other way, so check a study's results before opting
     in (docs/model.md, "Simulation settings").
 
     ``friction_rows_every: 2`` solves the joints' Coulomb friction every other step; on the step
     between, a sliding joint keeps its friction torque and a stuck one gets its static demand
-    (:attr:`~somo_sweep.sim.settings.WorldSettings.friction_rows_every`). 1 (default) solves it
+    (:attr:`~somo_sweep.sim.settings.PyBulletSettings.friction_rows_every`). 1 (default) solves it
     every step.
 
     ``engine: mujoco`` runs every trial on MuJoCo (optional extra ``somo-sweep[mujoco]``; docs/engines.md):
@@ -101,9 +102,9 @@ class Simulation(Spec):
     friction_rows_every: int = Field(1, ge=1, le=2)
     engine: Literal["pybullet", "mujoco"] = "pybullet"
     integrator: Literal["discrete", "implicitfast"] = "discrete"
-    contact_time_constant_s: float = Field(WorldSettings.contact_time_constant_s, gt=0, le=1.0)
-    impratio: float = Field(WorldSettings.impratio, gt=0, le=1e4)
-    noslip_iterations: int = Field(WorldSettings.noslip_iterations, ge=0, le=1000)
+    contact_time_constant_s: float = Field(MujocoSettings.contact_time_constant_s, gt=0, le=1.0)
+    impratio: float = Field(MujocoSettings.impratio, gt=0, le=1e4)
+    noslip_iterations: int = Field(MujocoSettings.noslip_iterations, ge=0, le=1000)
 
     @field_validator("time_step_s")
     @classmethod
@@ -116,11 +117,10 @@ class Simulation(Spec):
     @model_validator(mode="after")
     def _options_of_the_engine(self) -> Simulation:
         """An option of the other engine, set to anything but its default, is refused by name."""
-        others = PYBULLET_ONLY if self.engine == "mujoco" else MUJOCO_ONLY
-        foreign = [f for f in self.model_fields_set if f in others]
+        other = "pybullet" if self.engine == "mujoco" else "mujoco"
+        foreign = [f for f in self.model_fields_set if f in option_names(other)]
         unread = [f for f in foreign if getattr(self, f) != type(self).model_fields[f].default]
         if unread:
-            other = "pybullet" if self.engine == "mujoco" else "mujoco"
             raise ValueError(
                 f"{', '.join(sorted(unread))}: engine {self.engine} does not read "
                 f"{'it' if len(unread) == 1 else 'them'} ({'its' if len(unread) == 1 else 'their'} engine is "
@@ -137,18 +137,12 @@ class Simulation(Spec):
 
     def world_settings(self) -> WorldSettings:
         """The :class:`~somo_sweep.sim.world.WorldSettings` these settings describe."""
+        own = ENGINE_SETTINGS[self.engine]
         return WorldSettings(
             time_step_s=self.step_s,
-            scale=self.scale,
             gravity_m_s2=self.gravity_m_s2,
             solver_iterations=self.solver_iterations,
-            body_per_manipulator=self.body_per_manipulator,
-            friction_rows_every=self.friction_rows_every,
-            engine=self.engine,
-            integrator=self.integrator,
-            contact_time_constant_s=self.contact_time_constant_s,
-            impratio=self.impratio,
-            noslip_iterations=self.noslip_iterations,
+            engine_settings=own(**{name: getattr(self, name) for name in option_names(self.engine)}),
         )
 
 

@@ -20,7 +20,7 @@ class BenchParams(TaskParams):
         pressure_kpa: Actuation pressure in kPa.
         tip_load_n: Downward tip force in N (``tip_load`` only), ≥ 0.
         statics: ``solve`` (equilibrium solved directly) or ``dynamic`` (relaxation at the
-            study's time step); see :class:`~somo_sweep.sim.bench.BenchSettings`.
+            study's time step); see :class:`~somo_sweep.statics.bench.BenchSettings`.
     """
 
     test: Literal["tip_load", "blocked_force", "free_bending"] = "free_bending"

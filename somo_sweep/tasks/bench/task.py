@@ -1,4 +1,4 @@
-"""The bench protocols (:mod:`somo_sweep.sim.bench`) as sweepable tasks.
+"""The bench protocols (:mod:`somo_sweep.statics.bench`) as sweepable tasks.
 
 Task ``bench``: one static bench measurement of a manipulator model. Its metrics
 use the measurement CSV's names and units (:mod:`somo_sweep.calibration.measurements`), so a
@@ -9,8 +9,8 @@ from __future__ import annotations
 
 from somo_sweep.errors import SimulationError, UnstableSimulation
 from somo_sweep.model.load import Model
-from somo_sweep.sim.bench import BenchSettings, run_bench
 from somo_sweep.sim.settings import WorldSettings
+from somo_sweep.statics.bench import BenchSettings, run_bench
 from somo_sweep.tasks.bench.params import BenchParams
 from somo_sweep.tasks.registry import TaskResult
 
@@ -26,7 +26,7 @@ def run_bench_task(model: Model, params: BenchParams, settings: WorldSettings, s
     """
     bench = BenchSettings(
         time_step_s=settings.time_step_s,
-        scale=settings.scale,
+        scale=settings.pybullet.scale if settings.engine == "pybullet" else BenchSettings.scale,
         gravity_m_s2=abs(settings.gravity_m_s2[2]),
         statics=params.statics,
         engine=settings.engine,

@@ -7,7 +7,7 @@ import numpy as np
 import pytest
 from scipy.optimize import minimize
 
-from somo_sweep.sim.active_set_qp import positive_definite, solve_qp
+from somo_sweep.statics.active_set_qp import positive_definite, solve_qp
 
 
 def random_qp(seed: int, n: int, m: int) -> tuple[np.ndarray, ...]:

@@ -1,6 +1,6 @@
 """Continuation: follow an equilibrium from one load to another in adaptive steps.
 
-When Newton's method (:func:`~somo_sweep.sim.static_newton.newton`) fails on the full load at
+When Newton's method (:func:`~somo_sweep.statics.static_newton.newton`) fails on the full load at
 once, the load (joint torques, tip load, gravity: a :class:`Load`) is moved along the straight
 line from a load whose equilibrium is known to the target, one Newton solve per stage; a stage
 that fails halves the step (down to :data:`MIN_STEP`), one that converges doubles it.
@@ -13,8 +13,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from somo_sweep.sim.chain_energy import ChainEnergy
-from somo_sweep.sim.static_newton import Equilibrium, newton
+from somo_sweep.statics.chain_energy import ChainEnergy
+from somo_sweep.statics.static_newton import Equilibrium, newton
 
 __all__ = ["FIRST_STEP", "MIN_STEP", "STAGE_ITERATIONS", "Load", "follow_load"]
 

@@ -16,8 +16,8 @@ from somo_sweep.errors import SimulationError
 from somo_sweep.model.builders import planar_finger
 from somo_sweep.model.load import Model, load_model, model_from_dict
 from somo_sweep.model.tables import bundled_path
-from somo_sweep.sim.bench import run_bench
-from somo_sweep.sim.plate_force_range import plate_force_range
+from somo_sweep.statics.bench import run_bench
+from somo_sweep.statics.plate_force_range import plate_force_range
 
 LINK_KG = 0.010
 G_M_S2 = 9.81
@@ -116,7 +116,7 @@ def test_a_finger_hinged_toward_the_plate_at_every_joint_has_one_plate_force(
 ) -> None:
     """Joints at the segments' midpoints, all bending toward the plate: one corner line per joint,
     so the flat finger's plate force is unique, W·(1 − 1/N) (the clamp holds its half link and
-    half the first link; tests/sim/test_statics.py). At 2 kPa HiGHS's presolve once called
+    half the first link; tests/statics/test_statics.py). At 2 kPa HiGHS's presolve once called
     the 10-link programme infeasible."""
     finger = planar_finger(0.100, segments, 0.020, stiffness_n_m_per_rad=0.0665 * segments)
     found = plate_force_range(finger, pressure_kpa)

@@ -1,11 +1,11 @@
 """A manipulator clamped on the bench, ready for static solves: its equilibria and bench rows.
 
 :class:`StaticChain` holds one spring set on a bench body (shared per URDF,
-:mod:`somo_sweep.sim.bench_bodies`) and finds equilibria in stages
+:mod:`somo_sweep.statics.bench_bodies`) and finds equilibria in stages
 (:meth:`StaticChain.equilibrium`): Newton on the full load
-(:func:`~somo_sweep.sim.static_newton.newton`), then continuation from known equilibria
-(:func:`~somo_sweep.sim.continuation.follow_load`), and when all fail, a proof that no stable
-equilibrium exists (:mod:`somo_sweep.sim.no_equilibrium`) or what the solver tried.
+(:func:`~somo_sweep.statics.static_newton.newton`), then continuation from known equilibria
+(:func:`~somo_sweep.statics.continuation.follow_load`), and when all fail, a proof that no stable
+equilibrium exists (:mod:`somo_sweep.statics.no_equilibrium`) or what the solver tried.
 :meth:`StaticChain.solve` answers one bench row with a :class:`RowSolution`.
 """
 
@@ -19,13 +19,13 @@ from dataclasses import replace as dataclass_replace
 import numpy as np
 
 from somo_sweep.model.description import Manipulator
-from somo_sweep.sim.bench_bodies import bench_body_for
-from somo_sweep.sim.bench_rig import bench_inputs, check_stop, static_rig
-from somo_sweep.sim.chain_energy import ChainEnergy
-from somo_sweep.sim.continuation import Load, follow_load
-from somo_sweep.sim.no_equilibrium import existence_proven, largest_moments_n_m, proof_of_no_equilibrium
-from somo_sweep.sim.static_newton import DIVERGED_RAD, Equilibrium, newton
-from somo_sweep.sim.urdf import plan_manipulator
+from somo_sweep.sim.planner import plan_manipulator
+from somo_sweep.statics.bench_bodies import bench_body_for
+from somo_sweep.statics.bench_rig import bench_inputs, check_stop, static_rig
+from somo_sweep.statics.chain_energy import ChainEnergy
+from somo_sweep.statics.continuation import Load, follow_load
+from somo_sweep.statics.no_equilibrium import existence_proven, largest_moments_n_m, proof_of_no_equilibrium
+from somo_sweep.statics.static_newton import DIVERGED_RAD, Equilibrium, newton
 
 __all__ = ["MAX_ITERATIONS", "MAX_ITERATIONS_TOTAL", "RowSolution", "SolveStatus", "StaticChain"]
 
@@ -51,7 +51,7 @@ class SolveStatus:
         cause: Why it failed (empty when converged).
         contacts: Active plate contacts at the end (``blocked_force``).
         proven_absent: The row has no stable equilibrium, proven: the cause gives the proof
-            (:func:`~somo_sweep.sim.no_equilibrium.proof_of_no_equilibrium`), after the state it
+            (:func:`~somo_sweep.statics.no_equilibrium.proof_of_no_equilibrium`), after the state it
             concerns for a ``tip_load`` row. False when the solver found none without a proof.
     """
 
@@ -84,7 +84,7 @@ class StaticChain:
         scale: World scale factor (the dynamic bench's ``BenchSettings.scale``; PyBullet only).
         added_inertia_kg_m2: The bench's inertia shaping (kept so the body is the dynamic one's).
         stop_z_m: Height of the blocked-force stop's top relative to the straight finger's centre
-            line, m (None: its underside; :func:`~somo_sweep.sim.bench_rig.stop_geometry`).
+            line, m (None: its underside; :func:`~somo_sweep.statics.bench_rig.stop_geometry`).
         engine: The engine whose kinematics the solver reads (``pybullet`` or ``mujoco``).
         stop: ``plate`` (every link's lowest points may touch the stop) or ``fingertip`` (only
             those on the end face of the last link; ``BenchSettings.stop``).
@@ -101,7 +101,7 @@ class StaticChain:
     ):
         self.manip = manip
         scale = scale if engine == "pybullet" else 1.0  # MuJoCo runs in SI
-        plan = plan_manipulator(static_rig(manip, added_inertia_kg_m2), scale)
+        plan = plan_manipulator(static_rig(manip, added_inertia_kg_m2))
         self.body = bench_body_for(manip, plan, scale, engine)
         check_stop(manip, stop_z_m)
         self.plate = (
@@ -138,7 +138,7 @@ class StaticChain:
     ) -> tuple[np.ndarray, np.ndarray, int]:
         """What the plate and the joint limits must balance at ``q`` (N·m), the rows of every
         constraint that can push there, and how many of those are plate corners
-        (:meth:`~somo_sweep.sim.chain_energy.ChainEnergy.holding_terms`)."""
+        (:meth:`~somo_sweep.statics.chain_energy.ChainEnergy.holding_terms`)."""
         return self.energy.holding_terms(q, u, tip_n, gravity, gap_tol_m)
 
     # ----------------------------------------------------------------- solver
@@ -159,13 +159,13 @@ class StaticChain:
         2. continuation from ``q_start``, an equilibrium of ``start_load`` (u, tip load,
            gravity; default: the straight finger, which is one of no load at all): the load
            moves along the straight line to the target in steps that halve when a stage fails
-           and double when it converges (:func:`~somo_sweep.sim.continuation.follow_load`);
+           and double when it converges (:func:`~somo_sweep.statics.continuation.follow_load`);
         3. the same from the straight, unloaded finger (when ``q_start`` was another start);
         4. the same from the equilibrium of the nearest load this chain has solved before
            (the last rows).
 
         A failure is "no equilibrium" only with a proof
-        (:func:`~somo_sweep.sim.no_equilibrium.proof_of_no_equilibrium`); otherwise the cause
+        (:func:`~somo_sweep.statics.no_equilibrium.proof_of_no_equilibrium`); otherwise the cause
         says the solver found none. Iterations are bounded by ``MAX_ITERATIONS_TOTAL``.
         """
         n = len(self.k)
@@ -311,7 +311,7 @@ class StaticChain:
         direction: str | None = None,
         gravity_m_s2: float = 9.81,
     ) -> RowSolution:
-        """One bench row, as :func:`somo_sweep.sim.bench.run_bench` defines it."""
+        """One bench row, as :func:`somo_sweep.statics.bench.run_bench` defines it."""
         approach = {"loading": 1.0, "unloading": -1.0}.get(direction or "", 0.0)
         if test == "free_bending":
             return self._free_bending(pressure_kpa, approach, gravity_m_s2)

@@ -21,7 +21,7 @@ from somo_sweep.cli.app import app
 from somo_sweep.errors import MeasurementError, SimulationError
 from somo_sweep.model.builders import planar_finger
 from somo_sweep.model.load import load_model, model_from_dict
-from somo_sweep.sim.bench import BenchSettings, run_bench
+from somo_sweep.statics.bench import BenchSettings, run_bench
 
 runner = CliRunner()
 

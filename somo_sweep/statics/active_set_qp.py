@@ -2,7 +2,7 @@
 
 min ½xᵀhx + cᵀx subject to a·x ≥ b, solved by the Goldfarb–Idnani dual active-set method
 (few constraints ever become active: a finger touches the plate with a handful of corners).
-Pure NumPy / SciPy; used by :mod:`somo_sweep.sim.statics`.
+Pure NumPy / SciPy; used by :mod:`somo_sweep.statics.solve`.
 """
 
 from __future__ import annotations

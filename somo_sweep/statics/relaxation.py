@@ -1,7 +1,7 @@
 """Bench rows found by dynamic relaxation (``statics: dynamic``): the original protocol.
 
 Each row is its own simulation on the engine the settings name: the finger, clamped as the
-bench rig says (:mod:`somo_sweep.sim.bench_rig`), starts straight and unloaded, the load is
+bench rig says (:mod:`somo_sweep.statics.bench_rig`), starts straight and unloaded, the load is
 applied at once and the equilibrium is found by dynamic relaxation (kinetic damping: joint
 velocities are zeroed whenever the kinetic energy peaks). The rig's added link inertia (MuJoCo:
 joint armature) changes the path, not the equilibrium, which is all a static protocol reports.
@@ -13,7 +13,11 @@ import numpy as np
 
 from somo_sweep.errors import SimulationError, UnstableSimulation
 from somo_sweep.model.description import Manipulator
-from somo_sweep.sim.bench_rig import (
+from somo_sweep.sim.planner import plan_manipulator
+from somo_sweep.sim.settings import MujocoSettings, PyBulletSettings, WorldSettings
+from somo_sweep.sim.world import Body, World
+from somo_sweep.sim.worlds import open_world
+from somo_sweep.statics.bench_rig import (
     BenchResult,
     BenchSettings,
     bench_frame,
@@ -21,10 +25,6 @@ from somo_sweep.sim.bench_rig import (
     static_rig,
     stop_geometry,
 )
-from somo_sweep.sim.settings import WorldSettings
-from somo_sweep.sim.urdf import plan_manipulator
-from somo_sweep.sim.world import Body, World
-from somo_sweep.sim.worlds import open_world
 
 __all__ = ["BULLET_CONTACT_SLOP", "PLATE_RAISE", "RelaxationRig", "relaxed_row"]
 
@@ -56,18 +56,20 @@ class RelaxationRig:
         pybullet = settings.engine == "pybullet"
         # On MuJoCo the stop is as stiff as the step resolves (its contacts are soft): a blocked force
         # within 0.15 % of the rigid statics' at 0.5-1 ms (docs/physics.md, "MuJoCo").
-        soft = {} if pybullet else {"contact_time_constant_s": 2 * settings.time_step_s}
+        engine: PyBulletSettings | MujocoSettings = (
+            PyBulletSettings(scale=settings.scale)
+            if pybullet
+            else MujocoSettings(contact_time_constant_s=2 * settings.time_step_s)
+        )
         self.world = open_world(
             WorldSettings(
                 time_step_s=settings.time_step_s,
-                scale=settings.scale if pybullet else WorldSettings.scale,
                 gravity_m_s2=(0.0, 0.0, -settings.gravity_m_s2),
-                engine=settings.engine,
-                **soft,  # type: ignore[arg-type]
+                engine_settings=engine,
             )
         )
         rig = static_rig(manip, settings.added_inertia_kg_m2)
-        self.body: Body = self.world.load_plan(plan_manipulator(rig, self.world.scale), bench_frame(manip))
+        self.body: Body = self.world.load_plan(plan_manipulator(rig), bench_frame(manip))
         if not pybullet:  # MuJoCo leaves link inertia shaping out: the relaxation's inertia is armature
             self.world.set_joint_armature(self.body, settings.added_inertia_kg_m2)
         base = manip.base.link
@@ -154,7 +156,7 @@ def relaxed_row(
     settings: BenchSettings,
     direction: str | None = None,
 ) -> BenchResult:
-    """One bench row by dynamic relaxation, as :func:`somo_sweep.sim.bench.run_bench` defines it.
+    """One bench row by dynamic relaxation, as :func:`somo_sweep.statics.bench.run_bench` defines it.
 
     Args:
         manip: The manipulator (clamped whatever its base mode).

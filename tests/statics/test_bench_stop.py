@@ -19,8 +19,8 @@ from reference.heavy_beam import HeavyBeam, blocked_force_n
 from somo_sweep.errors import SimulationError, SomoError
 from somo_sweep.model.builders import planar_finger
 from somo_sweep.model.description import Manipulator
-from somo_sweep.sim.bench import BenchSettings, run_bench
-from somo_sweep.sim.statics import solve_row
+from somo_sweep.statics.bench import BenchSettings, run_bench
+from somo_sweep.statics.solve import solve_row
 
 THICKNESS_M = 2e-4
 WEIGHTLESS = BenchSettings(gravity_m_s2=0.0)

@@ -21,8 +21,8 @@ from scipy.optimize import linprog
 from somo_sweep.errors import SimulationError
 from somo_sweep.model.description import Manipulator
 from somo_sweep.model.load import Model
-from somo_sweep.sim.bench_rig import BenchSettings, bench_manipulator
-from somo_sweep.sim.statics import static_chain
+from somo_sweep.statics.bench_rig import BenchSettings, bench_manipulator
+from somo_sweep.statics.solve import static_chain
 
 __all__ = ["PlateForceRange", "plate_force_range"]
 

@@ -1,31 +1,24 @@
-"""URDF text of one body in the scaled world: links, spring joints and the chains they form.
+"""The plan of one body, link by link, in SI: links, joints and the chains they form.
 
-:class:`UrdfBuilder` accumulates a body's URDF elements and the metadata the worlds need
-(:class:`~somo_sweep.sim.plan.LinkInfo`, :class:`~somo_sweep.sim.plan.SpringJoint`, input
-names, tips); :meth:`UrdfBuilder.add_manipulator` walks a manipulator's chain: the base link or
-mount, each actuator's segments (with a rigid half link at its start in the midpoint layout)
-and the tip links. Scaling by ``Y`` (paper Sec. III-B.4): lengths ×Y, inertias ×Y², masses ×1.
-:mod:`somo_sweep.sim.urdf` plans whole bodies with it.
+:class:`PlanBuilder` accumulates a body's links (:class:`~somo_sweep.sim.plan.LinkInfo`, with
+their inertia and shapes), its joints (:class:`~somo_sweep.sim.plan.PlanJoint`) and the
+metadata the worlds need (:class:`~somo_sweep.sim.plan.SpringJoint`, input names, tips);
+:meth:`PlanBuilder.add_manipulator` walks a manipulator's chain: the base link or mount, each
+actuator's segments (with a rigid half link at its start in the midpoint layout) and the tip
+links. :mod:`somo_sweep.sim.planner` plans whole bodies with it.
 """
 
 from __future__ import annotations
 
+import dataclasses
 from dataclasses import dataclass, field
 
 import numpy as np
 
 from somo_sweep.model.description import Actuator, Link, Manipulator
-from somo_sweep.sim.plan import LinkInfo, SpringJoint
+from somo_sweep.sim.plan import LinkInfo, PlanJoint, Shape, SpringJoint
 
-__all__ = ["UrdfBuilder"]
-
-
-def _f(v: float) -> str:
-    return f"{v:.10g}"
-
-
-def _v(vec: np.ndarray | tuple[float, ...]) -> str:
-    return " ".join(_f(float(x)) for x in vec)
+__all__ = ["PlanBuilder", "link_shapes"]
 
 
 def _half(link: Link) -> Link:
@@ -41,35 +34,32 @@ def _half(link: Link) -> Link:
     )
 
 
-def _geometry(link: Link, s: float) -> list[tuple[np.ndarray, str]]:
-    """(origin offset, geometry XML) pairs of a link, scaled; the link is centred at 0."""
-    z = (link.length_z_m or 0.0) * s
+def _vec(values: np.ndarray | tuple[float, ...]) -> tuple[float, float, float]:
+    return (float(values[0]), float(values[1]), float(values[2]))
+
+
+def link_shapes(link: Link, centre_m: np.ndarray) -> tuple[Shape, ...]:
+    """The collision shapes of a link centred at ``centre_m`` in its frame (m): one primitive,
+    or a stadium's box between two half-round ends (cylinders)."""
+    z = link.length_z_m or 0.0
+    at = _vec(centre_m)
     if link.shape == "box":
         assert link.size_m is not None
-        return [
-            (
-                np.zeros(3),
-                f'<box size="{_f(link.size_m[0] * s)} {_f(link.size_m[1] * s)} {_f(z)}"/>',
-            )
-        ]
+        return (Shape("box", (link.size_m[0], link.size_m[1], z), at),)
     if link.shape == "sphere":
-        return [(np.zeros(3), f'<sphere radius="{_f((link.radius_m or 0) * s)}"/>')]
-    r = (link.radius_m or 0.0) * s
+        return (Shape("sphere", (link.radius_m or 0.0,), at),)
+    r = link.radius_m or 0.0
     if link.shape == "cylinder":
-        return [(np.zeros(3), f'<cylinder radius="{_f(r)}" length="{_f(z)}"/>')]
+        return (Shape("cylinder", (r, z), at),)
     if link.shape == "capsule":
-        return [(np.zeros(3), f'<capsule radius="{_f(r)}" length="{_f(max(z - 2 * r, 0.0))}"/>')]
+        return (Shape("capsule", (r, max(z - 2 * r, 0.0)), at),)
     assert link.size_m is not None  # stadium: a box between two half-round ends
-    w, t = link.size_m[0] * s, link.size_m[1] * s
-    parts = [(np.zeros(3), f'<box size="{_f(w - t)} {_f(t)} {_f(z)}"/>')] if w > t else []
+    w, t = link.size_m[0], link.size_m[1]
+    parts = [Shape("box", (w - t, t, z), at)] if w > t else []
     for sign in (-1.0, 1.0):
-        parts.append(
-            (
-                np.array([sign * (w - t) / 2, 0, 0]),
-                f'<cylinder radius="{_f(t / 2)}" length="{_f(z)}"/>',
-            )
-        )
-    return parts
+        end = np.asarray(centre_m, float) + np.array([sign * (w - t) / 2, 0.0, 0.0])
+        parts.append(Shape("cylinder", (t / 2, z), _vec(end)))
+    return tuple(parts)
 
 
 @dataclass
@@ -100,47 +90,33 @@ class _Cursor:
 
 
 @dataclass
-class UrdfBuilder:
-    """Accumulates URDF elements and metadata for one body (in the world scaled by ``scale``)."""
+class PlanBuilder:
+    """Accumulates the links, joints and metadata of one body, in SI."""
 
-    scale: float
-    parts: list[str] = field(default_factory=list)
     links: list[LinkInfo] = field(default_factory=list)
+    tree: list[PlanJoint] = field(default_factory=list)
     joints: list[SpringJoint] = field(default_factory=list)
     inputs: list[str] = field(default_factory=list)
     tip: dict[str, tuple[str, tuple[float, float, float]]] = field(default_factory=dict)
 
     def link(self, info: LinkInfo, centre_m: np.ndarray) -> None:
         """Add a link whose centre is at ``centre_m`` in its frame (m); a massless one without a link."""
-        s = self.scale
         link = info.link
         if link is None:
-            # Massless, said explicitly: a link without inertial data gets 1 kg and 1 kg·m² in Bullet.
-            self.parts.append(
-                f'<link name="{info.name}"><inertial><mass value="0"/>'
-                '<inertia ixx="0" iyy="0" izz="0" ixy="0" ixz="0" iyz="0"/></inertial></link>'
-            )
             self.links.append(info)
             return
-        c = (np.asarray(centre_m, float) + np.asarray(link.offset_m, float)) * s
-        inertia = link.principal_inertia_kg_m2() * s * s
-        rgba = _v(link.color_rgba)
-        xml = [
-            f'<link name="{info.name}">',
-            f'<inertial><origin xyz="{_v(c)}"/><mass value="{_f(link.mass_kg)}"/>'
-            f'<inertia ixx="{_f(inertia[0])}" iyy="{_f(inertia[1])}" izz="{_f(inertia[2])}" '
-            'ixy="0" ixz="0" iyz="0"/></inertial>',
-        ]
-        for offset, geom in _geometry(link, s):
-            o = _v(c + offset)
-            xml.append(
-                f'<visual><origin xyz="{o}"/><geometry>{geom}</geometry>'
-                f'<material name="m_{info.name}"><color rgba="{rgba}"/></material></visual>'
+        com = np.asarray(centre_m, float) + np.asarray(link.offset_m, float)
+        self.links.append(
+            dataclasses.replace(
+                info,
+                mass_kg=link.mass_kg,
+                com_m=_vec(com),
+                inertia_kg_m2=_vec(link.principal_inertia_kg_m2()),
+                added_inertia_kg_m2=link.added_inertia_kg_m2,
+                shapes=link_shapes(link, com),
+                rgba=link.color_rgba,
             )
-            xml.append(f'<collision><origin xyz="{o}"/><geometry>{geom}</geometry></collision>')
-        xml.append("</link>")
-        self.parts.append("".join(xml))
-        self.links.append(info)
+        )
 
     def fixed(
         self,
@@ -151,10 +127,7 @@ class UrdfBuilder:
         rpy: tuple[float, ...] = (0, 0, 0),
     ) -> None:
         """Add a fixed joint at ``xyz_m`` (m) and ``rpy`` (rad) in the parent's frame."""
-        self.parts.append(
-            f'<joint name="{name}" type="fixed"><parent link="{parent}"/><child link="{child}"/>'
-            f'<origin xyz="{_v(xyz_m * self.scale)}" rpy="{_v(rpy)}"/></joint>'
-        )
+        self.tree.append(PlanJoint(name, "fixed", parent, child, _vec(xyz_m), _vec(rpy)))
 
     def spring(
         self,
@@ -166,21 +139,9 @@ class UrdfBuilder:
         limits: tuple[float, float] | None,
     ) -> None:
         """Add a spring joint at ``xyz_m`` (m) in the parent's frame, about (along) ``axis``."""
-        s = self.scale
-        if sj.kind == "revolute":
-            kind = "revolute" if limits else "continuous"
-            lim = (
-                f'<limit lower="{_f(limits[0])}" upper="{_f(limits[1])}" effort="0" velocity="0"/>'
-                if limits
-                else ""
-            )
-        else:
-            kind = "prismatic"
-            lo, hi = (limits[0] * s, limits[1] * s) if limits else (-1e3 * s, 1e3 * s)
-            lim = f'<limit lower="{_f(lo)}" upper="{_f(hi)}" effort="0" velocity="0"/>'
-        self.parts.append(
-            f'<joint name="{sj.name}" type="{kind}"><parent link="{parent}"/><child link="{child}"/>'
-            f'<origin xyz="{_v(xyz_m * s)}"/><axis xyz="{_v(axis)}"/>{lim}</joint>'
+        bounds = None if limits is None else (float(limits[0]), float(limits[1]))
+        self.tree.append(
+            PlanJoint(sj.name, sj.kind, parent, child, _vec(xyz_m), axis=_vec(axis), limits=bounds)
         )
         self.joints.append(sj)
 
@@ -365,7 +326,3 @@ class UrdfBuilder:
             c.prev = tip_name
             c.chain_index += 1
             c.along += 2 * h
-
-    def text(self, robot: str) -> str:
-        """The URDF document of the body."""
-        return f'<?xml version="1.0"?>\n<robot name="{robot}">\n' + "\n".join(self.parts) + "\n</robot>\n"

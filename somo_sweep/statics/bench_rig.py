@@ -6,8 +6,8 @@ shaping and no Coulomb motor (:func:`static_rig`); pressure becomes control inpu
 model's actuation map (:func:`bench_inputs`); the blocked-force stop is a frictionless plate
 under the straight finger (:func:`stop_geometry`). :class:`BenchSettings` holds the protocols'
 numerics and :class:`BenchResult` one simulated row. Both ways of finding a row's equilibrium
-use this module: the solved statics (:mod:`somo_sweep.sim.statics`) and dynamic relaxation
-(:mod:`somo_sweep.sim.relaxation`); :func:`somo_sweep.sim.bench.run_bench` runs a row.
+use this module: the solved statics (:mod:`somo_sweep.statics.solve`) and dynamic relaxation
+(:mod:`somo_sweep.statics.relaxation`); :func:`somo_sweep.statics.bench.run_bench` runs a row.
 """
 
 from __future__ import annotations
@@ -64,7 +64,7 @@ class BenchSettings:
         tolerance_m: Converged when the tip moves less than this between energy peaks, in m.
         max_steps: Give up (error) after this many steps.
         gravity_m_s2: Magnitude of gravity (along −z), m/s².
-        statics: ``solve`` (static equilibrium solved directly, :mod:`somo_sweep.sim.statics`) or
+        statics: ``solve`` (static equilibrium solved directly, :mod:`somo_sweep.statics.solve`) or
             ``dynamic`` (dynamic relaxation; ``time_step_s``, ``tolerance_m``, ``max_steps``).
         stop_z_m: Height of the blocked-force stop's top face relative to the straight finger's
             centre line, m (z up; negative below it); None: the straight finger's underside.

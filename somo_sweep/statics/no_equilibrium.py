@@ -1,6 +1,6 @@
 """When a bench row has no equilibrium, and how that is proven rather than assumed.
 
-The statics solver (:mod:`somo_sweep.sim.statics`) reports "no equilibrium" only with a
+The statics solver (:mod:`somo_sweep.statics.solve`) reports "no equilibrium" only with a
 proof; any other failure is the solver's and is reported as such. Two facts decide it:
 
 * **Springs that never soften** (every cubic coefficient a ≥ 0, k > 0): the energy

@@ -1,4 +1,4 @@
-"""Bench statics solved directly (somo_sweep.sim.statics) against dynamic relaxation and closed forms.
+"""Bench statics solved directly (somo_sweep.statics.solve) against dynamic relaxation and closed forms.
 
 Run as a script for the agreement table and the timings over a larger sample, or for the
 failure count of random rows of the always-finds-its-equilibrium family::
@@ -26,9 +26,9 @@ from somo_sweep.errors import SimulationError
 from somo_sweep.model.builders import planar_finger
 from somo_sweep.model.description import Actuation, Manipulator
 from somo_sweep.model.load import model_from_dict
-from somo_sweep.sim import relaxation
-from somo_sweep.sim.bench import BenchSettings, run_bench
-from somo_sweep.sim.statics import MAX_ITERATIONS_TOTAL, RowSolution, solve_row, static_chain
+from somo_sweep.statics import relaxation
+from somo_sweep.statics.bench import BenchSettings, run_bench
+from somo_sweep.statics.solve import MAX_ITERATIONS_TOTAL, RowSolution, solve_row, static_chain
 
 #: Highest pressure of the family's rows, kPa.
 P_MAX = 200.0

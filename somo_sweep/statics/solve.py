@@ -1,6 +1,6 @@
 """Bench statics solved directly: the clamped chain's equilibrium as an energy minimum.
 
-The bench protocols (:mod:`somo_sweep.sim.bench`) report static equilibria only. Instead
+The bench protocols (:mod:`somo_sweep.statics.bench`) report static equilibria only. Instead
 of relaxing the dynamics to rest, this module finds them as the minimum of the
 chain's potential energy over its joint coordinates q,
 
@@ -17,21 +17,21 @@ of their multipliers (the plate's vertical reactions).
 Kinematics are the engine's own, on the very body the dynamic bench loads (same
 URDF, link frames, masses, centres of mass and tip point: PyBullet's
 ``resetJointStatesMultiDof`` and one ``getLinkStates`` call, or MuJoCo's
-``mj_kinematics``; :mod:`somo_sweep.sim.chain_kinematics`); no time step is ever
+``mj_kinematics``; :mod:`somo_sweep.statics.chain_kinematics`); no time step is ever
 taken. From the joint axes,
 joint origins and force points of that one call the generalized forces and
 their exact Hessian are computed in closed form (every bench force is vertical
 and constant: weights, tip load, plate reactions), so every iteration is a full
 Newton step. The pipeline, one module each:
 
-* :mod:`somo_sweep.sim.chain_energy`: the energy's terms (springs, weights, tip load, plate);
-* :mod:`somo_sweep.sim.static_newton`: Newton's method, each QP subproblem
+* :mod:`somo_sweep.statics.chain_energy`: the energy's terms (springs, weights, tip load, plate);
+* :mod:`somo_sweep.statics.static_newton`: Newton's method, each QP subproblem
   min ½dᵀKd − Rᵀd s.t. z(q) + J_z·d ≥ z_plate solved by the Goldfarb–Idnani dual active-set
   method (no contact: a Cholesky solve), steps globalised by a backtracking line search on
   the ℓ1 merit E + ρ·Σ max(0, −gap), with a per-joint step cap;
-* :mod:`somo_sweep.sim.continuation`: when the full load fails, the load (pressure torque and
+* :mod:`somo_sweep.statics.continuation`: when the full load fails, the load (pressure torque and
   tip load) is ramped in steps from a known equilibrium;
-* :mod:`somo_sweep.sim.static_chain`: the chain, its equilibria and its bench rows;
+* :mod:`somo_sweep.statics.static_chain`: the chain, its equilibria and its bench rows;
 * this module: the rows (:func:`solve_row`) and the chains kept planned.
 
 Candidate plate contacts are the lowest points of every link's collision shape
@@ -39,14 +39,14 @@ Candidate plate contacts are the lowest points of every link's collision shape
 is at the straight chain's underside, as in the continuum, unless
 ``BenchSettings.stop_z_m`` puts it lower (the simulated bench's contacts rest Bullet's
 contact slop deeper, see
-:data:`somo_sweep.sim.relaxation.BULLET_CONTACT_SLOP`). URDF joint limits are constraints
+:data:`somo_sweep.statics.relaxation.BULLET_CONTACT_SLOP`). URDF joint limits are constraints
 too. An equilibrium is only reported if the energy's Hessian is positive definite on the active contacts'
 tangent space (a stable one, as relaxation would find).
 
 A solved row never raises: :func:`solve_row` returns the value with a
 :class:`SolveStatus` (converged, iterations, residual, cause). Bodies are loaded
 once per body plan (URDF) and reused across rows and candidate parameter values
-(:mod:`somo_sweep.sim.bench_bodies`).
+(:mod:`somo_sweep.statics.bench_bodies`).
 """
 
 from __future__ import annotations
@@ -57,10 +57,10 @@ from collections import OrderedDict
 from somo_sweep.errors import SimulationError
 from somo_sweep.model.description import Manipulator
 from somo_sweep.model.load import Model
-from somo_sweep.sim.bench_bodies import close_bench_bodies
-from somo_sweep.sim.bench_rig import TESTS, BenchSettings, bench_manipulator
-from somo_sweep.sim.static_chain import MAX_ITERATIONS_TOTAL, RowSolution, SolveStatus, StaticChain
 from somo_sweep.sim.urdf_cache import CacheUnwritable
+from somo_sweep.statics.bench_bodies import close_bench_bodies
+from somo_sweep.statics.bench_rig import TESTS, BenchSettings, bench_manipulator
+from somo_sweep.statics.static_chain import MAX_ITERATIONS_TOTAL, RowSolution, SolveStatus, StaticChain
 
 __all__ = [
     "MAX_ITERATIONS_TOTAL",
@@ -120,7 +120,7 @@ def solve_row(
         test: ``tip_load``, ``blocked_force`` or ``free_bending``.
         pressure_kpa: Actuation pressure, kPa.
         tip_load_n: Downward tip force (``tip_load``), N.
-        settings: :class:`~somo_sweep.sim.bench_rig.BenchSettings` (scale, gravity).
+        settings: :class:`~somo_sweep.statics.bench_rig.BenchSettings` (scale, gravity).
         direction: ``loading`` / ``unloading`` (hysteresis), or None.
 
     Returns:

@@ -1,10 +1,10 @@
-"""Descriptions → body plans (URDF text in the scaled world, and metadata) → cached files.
+"""Descriptions → body plans, in SI.
 
 A manipulator, a rigid body or a whole assembly becomes one or more
-:class:`~somo_sweep.sim.plan.BodyPlan` (the URDF itself is written by
-:class:`~somo_sweep.sim.urdf_builder.UrdfBuilder`). Scaling by ``Y`` (paper Sec. III-B.4):
-lengths ×Y, inertias ×Y², masses ×1. URDF files are written once per content hash into a
-bounded user cache (:mod:`somo_sweep.sim.urdf_cache`), never into the user's folders.
+:class:`~somo_sweep.sim.plan.BodyPlan` (built link by link by
+:class:`~somo_sweep.sim.plan_builder.PlanBuilder`). Each engine builds its own world from the
+plans: PyBullet writes them as URDF files in its scaled world (:mod:`somo_sweep.sim.pybullet.urdf`),
+MuJoCo adds them to an ``MjSpec`` (:mod:`somo_sweep.sim.mujoco.scene`).
 """
 
 from __future__ import annotations
@@ -15,31 +15,33 @@ import numpy as np
 
 from somo_sweep.model.description import Assembly, Base, Manipulator, Pose, RigidBody
 from somo_sweep.sim.plan import BodyPlan, LinkInfo
-from somo_sweep.sim.urdf_builder import UrdfBuilder
-from somo_sweep.sim.urdf_cache import cache_dir, write_urdf
+from somo_sweep.sim.plan_builder import PlanBuilder
 
-__all__ = [
-    "cache_dir",
-    "plan_assembly",
-    "plan_manipulator",
-    "plan_rigid_body",
-    "splits_into_bodies",
-    "write_urdf",
-]
+__all__ = ["plan_assembly", "plan_manipulator", "plan_rigid_body", "splits_into_bodies"]
 
 
-def plan_manipulator(
-    manip: Manipulator, scale: float, pose: Pose | None = None, mode: str | None = None
-) -> BodyPlan:
+def _plan(b: PlanBuilder, name: str, mode: str, pose: Pose | None) -> BodyPlan:
+    return BodyPlan(
+        name,
+        mode,  # type: ignore[arg-type]
+        pose or Pose(),
+        b.links,
+        b.tree,
+        b.joints,
+        b.inputs,
+        b.tip,
+    )
+
+
+def plan_manipulator(manip: Manipulator, pose: Pose | None = None, mode: str | None = None) -> BodyPlan:
     """Plan one manipulator as its own body.
 
     Args:
         manip: The manipulator description.
-        scale: World scale factor Y.
         pose: Base pose in the world (SI); default identity.
         mode: Override of ``manip.base.mode``.
     """
-    b = UrdfBuilder(scale)
+    b = PlanBuilder()
     mode = mode or manip.base.mode
     parent = None
     if manip.base.link is None and mode == "fixed":
@@ -47,25 +49,14 @@ def plan_manipulator(
         parent = f"{manip.name}__anchor"
         b.link(LinkInfo(parent, None, "root", manip.name), np.zeros(3))
     b.add_manipulator(manip, manip.name, parent, np.zeros(3), (0.0, 0.0, 0.0))
-    return BodyPlan(
-        manip.name,
-        b.text(manip.name),
-        scale,
-        mode,  # type: ignore[arg-type]
-        pose or Pose(),
-        b.links,
-        b.joints,
-        b.inputs,
-        b.tip,
-    )
+    return _plan(b, manip.name, mode, pose)
 
 
-def plan_rigid_body(body: RigidBody, scale: float) -> BodyPlan:
+def plan_rigid_body(body: RigidBody) -> BodyPlan:
     """Plan a rigid body (one link, centred on its frame)."""
-    b = UrdfBuilder(scale)
+    b = PlanBuilder()
     b.link(LinkInfo(body.name, body.link, "body"), np.zeros(3))
-    mode = "fixed" if body.fixed else "free"
-    return BodyPlan(body.name, b.text(body.name), scale, mode, body.pose, b.links, [])  # type: ignore[arg-type]
+    return _plan(b, body.name, "fixed" if body.fixed else "free", body.pose)
 
 
 def splits_into_bodies(assembly: Assembly) -> bool:
@@ -84,9 +75,7 @@ def splits_into_bodies(assembly: Assembly) -> bool:
     return base.mode == "fixed" or all(m.manipulator.base.link is not None for m in assembly.manipulators)
 
 
-def plan_assembly(
-    assembly: Assembly, scale: float, pose: Pose | None = None, *, split: bool = False
-) -> list[BodyPlan]:
+def plan_assembly(assembly: Assembly, pose: Pose | None = None, *, split: bool = False) -> list[BodyPlan]:
     """Plan an assembly: one body with a base link, else one body per manipulator.
 
     Rigid bodies of the assembly are always separate bodies. Without a base
@@ -104,40 +93,37 @@ def plan_assembly(
     """
     base: Base = assembly.base
     if split and splits_into_bodies(assembly):
-        plans = _split_plans(assembly, scale, pose)
+        plans = _split_plans(assembly, pose)
     elif base.link is not None:
-        plans = [_one_body_plan(assembly, scale, pose)]
+        plans = [_one_body_plan(assembly, pose)]
     else:
         plans = [
-            plan_manipulator(
-                mount.manipulator.model_copy(update={"name": mount.name}), scale, mount.pose, base.mode
-            )
+            plan_manipulator(mount.manipulator.model_copy(update={"name": mount.name}), mount.pose, base.mode)
             for mount in assembly.manipulators
         ]
-    plans.extend(plan_rigid_body(body, scale) for body in assembly.bodies)
+    plans.extend(plan_rigid_body(body) for body in assembly.bodies)
     return plans
 
 
-def _split_plans(assembly: Assembly, scale: float, pose: Pose | None) -> list[BodyPlan]:
+def _split_plans(assembly: Assembly, pose: Pose | None) -> list[BodyPlan]:
     """The base link as a body of its own, then every manipulator as another at its mount pose."""
     base: Base = assembly.base
     assert base.link is not None
-    root = f"{assembly.name}__base"
-    b = UrdfBuilder(scale)
-    b.link(LinkInfo(root, base.link, "root"), np.zeros(3))
-    plans = [BodyPlan(assembly.name, b.text(assembly.name), scale, base.mode, pose or Pose(), b.links, [])]
+    b = PlanBuilder()
+    b.link(LinkInfo(f"{assembly.name}__base", base.link, "root"), np.zeros(3))
+    plans = [_plan(b, assembly.name, base.mode, pose)]
     for mount in assembly.manipulators:
         manip = mount.manipulator.model_copy(update={"name": mount.name})
-        part = plan_manipulator(manip, scale, mount.pose, base.mode)
+        part = plan_manipulator(manip, mount.pose, base.mode)
         plans.append(dataclasses.replace(part, part_of=assembly.name))
     return plans
 
 
-def _one_body_plan(assembly: Assembly, scale: float, pose: Pose | None) -> BodyPlan:
+def _one_body_plan(assembly: Assembly, pose: Pose | None) -> BodyPlan:
     """The whole assembly as one body on its base link (a manipulator may sit on another's tip)."""
     base: Base = assembly.base
     assert base.link is not None
-    b = UrdfBuilder(scale)
+    b = PlanBuilder()
     root = f"{assembly.name}__base"
     b.link(LinkInfo(root, base.link, "root"), np.zeros(3))
     for mount in assembly.manipulators:
@@ -149,14 +135,4 @@ def _one_body_plan(assembly: Assembly, scale: float, pose: Pose | None) -> BodyP
         b.add_manipulator(
             manip, mount.name, parent, offset + np.asarray(mount.pose.position_m), mount.pose.rpy_rad
         )
-    return BodyPlan(
-        assembly.name,
-        b.text(assembly.name),
-        scale,
-        base.mode,
-        pose or Pose(),
-        b.links,
-        b.joints,
-        b.inputs,
-        b.tip,
-    )
+    return _plan(b, assembly.name, base.mode, pose)

@@ -1,6 +1,6 @@
 """The clamped chain's potential energy on its bench body, and the terms the statics solver needs.
 
-Over the joint coordinates q of the chain (:mod:`somo_sweep.sim.chain_kinematics`),
+Over the joint coordinates q of the chain (:mod:`somo_sweep.statics.chain_kinematics`),
 
     E(q) = Σ_i [½·k_i·Δq_i² + ¼·k_i·a_i·Δq_i⁴] − u·q + Σ_links m·g·z_com(q) + F·z_tip(q),
 
@@ -15,7 +15,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from somo_sweep.sim.chain_kinematics import BenchBody, Kin, Plate
+from somo_sweep.statics.chain_kinematics import BenchBody, Kin, Plate
 
 __all__ = ["ChainEnergy"]
 

@@ -16,15 +16,15 @@ positive pressure curls the tip toward −z:
 
 By default (``statics="solve"``) each row's equilibrium is solved directly as
 the minimum of the chain's potential energy on the same body, with the engine's own
-kinematics (:mod:`somo_sweep.sim.statics`): no time step, nothing to blow up, a few ms per row.
+kinematics (:mod:`somo_sweep.statics.solve`): no time step, nothing to blow up, a few ms per row.
 ``statics="dynamic"`` keeps the original protocol: each row is its own
 simulation, started straight and unloaded, with the load applied at once and
-the equilibrium found by dynamic relaxation (:mod:`somo_sweep.sim.relaxation`). The joints'
+the equilibrium found by dynamic relaxation (:mod:`somo_sweep.statics.relaxation`). The joints'
 Coulomb motor limit is switched off on the bench: in SoMo it is a numerical damper,
 and PyBullet's velocity motor lets a loaded joint creep rather than stick, so
 with it the reported equilibrium would depend on how long one waits. Both
 protocols run on either engine (``BenchSettings.engine``). The rig itself (frame, stop,
-settings) is :mod:`somo_sweep.sim.bench_rig`, whose public names this module re-exports.
+settings) is :mod:`somo_sweep.statics.bench_rig`, whose public names this module re-exports.
 """
 
 from __future__ import annotations
@@ -32,7 +32,7 @@ from __future__ import annotations
 from somo_sweep.errors import SimulationError
 from somo_sweep.model.description import Manipulator
 from somo_sweep.model.load import Model
-from somo_sweep.sim.bench_rig import (
+from somo_sweep.statics.bench_rig import (
     STATICS,
     TESTS,
     BenchResult,
@@ -41,7 +41,7 @@ from somo_sweep.sim.bench_rig import (
     bench_inputs,
     bench_manipulator,
 )
-from somo_sweep.sim.relaxation import relaxed_row
+from somo_sweep.statics.relaxation import relaxed_row
 
 __all__ = ["STATICS", "TESTS", "BenchResult", "BenchSettings", "run_bench"]
 
@@ -74,7 +74,7 @@ def run_bench(
 
     Raises:
         SimulationError: Unknown test, no equilibrium, or a blow-up. (For a status instead of
-            an exception use :func:`somo_sweep.sim.statics.solve_row`.)
+            an exception use :func:`somo_sweep.statics.solve.solve_row`.)
     """
     if test not in TESTS:
         raise SimulationError(f"unknown test '{test}'; allowed: {', '.join(TESTS)}")
@@ -101,7 +101,7 @@ def _solved_row(
     direction: str | None,
 ) -> BenchResult:
     """One row by the solved statics; a row without equilibrium raises, naming the cause."""
-    from somo_sweep.sim.statics import solve_row  # SciPy: only the solved protocol pays for it
+    from somo_sweep.statics.solve import solve_row  # SciPy: only the solved protocol pays for it
 
     bench_inputs(manip, pressure_kpa)  # a pressure without an actuation map is an error, as below
     bench_frame(manip)  # so is a chain the bench cannot hold (not "no static equilibrium")

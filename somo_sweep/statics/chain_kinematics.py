@@ -1,12 +1,13 @@
-"""The bench body's kinematics for the statics solver: one forward-kinematics call, candidate
-plate contacts and the generalized forces and Hessians of vertical forces, all in SI.
+"""The bench body for the statics solver: candidate plate contacts and the generalized forces and
+Hessians of vertical forces, all in SI, on one forward-kinematics call of the engine's own.
 
-Kinematics are the engine's own, on the very body the dynamic bench loads (same URDF, link
-frames, masses, centres of mass and tip point): each engine's :class:`BenchBody` sets the joint
-angles and reads every link frame back (PyBullet: :mod:`somo_sweep.sim.pybullet.kinematics`;
-MuJoCo: :mod:`somo_sweep.sim.mujoco.kinematics`); no time step is ever taken. This module holds
-what does not depend on the engine; :func:`somo_sweep.sim.bench_bodies.open_bench_body` opens the
-body on the engine a bench names. Used by :mod:`somo_sweep.sim.statics`.
+Kinematics are the engine's own, on the very body the dynamic bench loads (same plan, link
+frames, masses, centres of mass and tip point): a :class:`~somo_sweep.sim.kinematics.ChainKinematics`
+sets the joint angles and reads every link frame back (PyBullet or MuJoCo); no time step is ever
+taken. This module holds what does not depend on the engine: :class:`BenchBody` adds to a
+chain's kinematics its tip, its candidate contacts with the bench's plate and the forces;
+:func:`somo_sweep.statics.bench_bodies.open_bench_body` opens one on the engine a bench names.
+Used by :mod:`somo_sweep.statics.solve`.
 """
 
 from __future__ import annotations
@@ -17,23 +18,12 @@ import numpy as np
 
 from somo_sweep.errors import SimulationError
 from somo_sweep.model.description import Link, Manipulator
-from somo_sweep.sim.bench_rig import stop_geometry
+from somo_sweep.sim.kinematics import ChainKinematics, Kin
 from somo_sweep.sim.plan import BodyPlan
 from somo_sweep.sim.world import Body, World
+from somo_sweep.statics.bench_rig import stop_geometry
 
 __all__ = ["BenchBody", "ContactFeatures", "Kin", "Plate"]
-
-
-@dataclass
-class Kin:
-    """One forward-kinematics evaluation, SI, world frame."""
-
-    com: np.ndarray  # (L, 3) link centres of mass
-    frame: np.ndarray  # (L, 3) link (joint) frame origins
-    rot: np.ndarray  # (L, 3, 3) link frame orientations
-    omega: np.ndarray  # (N, 3) revolute joint axes (0 for prismatic)
-    vel: np.ndarray  # (N, 3) prismatic joint axes (0 for revolute)
-    origin: np.ndarray  # (N, 3) joint origins
 
 
 @dataclass
@@ -138,58 +128,39 @@ class Plate:
 
 
 class BenchBody:
-    """One loaded bench body and its fixed kinematic structure (shared by all spring sets).
+    """One loaded bench body: a chain's kinematics on its engine, its tip and the bench's plate
+    (shared by all spring sets of one plan).
 
-    Each engine's subclass loads the body in a world of its own (gravity off: gravity is the
-    solver's business, any magnitude, per row; the world never steps), sets the structural
-    arrays below and implements :meth:`kinematics`; :meth:`_finish` then adds what the
-    structure implies.
+    Args:
+        chain: The clamped chain's kinematics, loaded at the bench frame.
+        manip: The manipulator the chain is of (its base, tip and plate).
+        plan: The chain's plan.
 
     Attributes:
-        world: The world holding the body.
-        body: The loaded body.
-        n_links: Links besides the base (link indices 0 … n_links − 1).
-        indices: Link (= joint) index of each spring joint.
-        mass: Mass of each link, kg; ``heavy`` the links with mass.
-        subtree: (joints, links) 1 where the link moves with the joint.
-        joint_below: (joints, joints) 1 where joint j is i or below it.
-        revolute: Per spring joint, revolute (else prismatic); ``all_revolute``.
-        pos_scale: Per spring joint, the engine's position unit per SI unit (rad: 1; m: the scale).
-        limited, limits: Spring joints with limits, and the (lower, upper) limits in SI.
-        base_rot: Rotation of the base frame.
+        chain: The chain's kinematics; its structural arrays are this body's (see
+            :class:`~somo_sweep.sim.kinematics.ChainKinematics`): ``world``, ``body``, ``scale``,
+            ``n_links``, ``indices``, ``mass``, ``subtree``, ``joint_below``, ``revolute``,
+            ``all_revolute``, ``zero_axes``, ``axis_local``, ``pos_scale``, ``limited``,
+            ``limits``, ``base_rot``.
+        heavy: The links with mass.
+        origin: The chain's start in the bench frame, m.
+        tip_link, tip_local: The tip's link and its point in that link's frame, m.
+        features: The candidate plate contacts.
+        plate: The plate under the straight chain.
     """
 
     world: World
     body: Body
-    scale: float
-    n_links: int
-    indices: list[int]
-    mass: np.ndarray
-    heavy: np.ndarray
-    subtree: np.ndarray
-    joint_below: np.ndarray
-    revolute: np.ndarray
-    all_revolute: bool
-    zero_axes: np.ndarray
-    axis_local: np.ndarray
-    pos_scale: np.ndarray
-    limited: np.ndarray
-    limits: tuple[np.ndarray, np.ndarray]
-    base_rot: np.ndarray
 
-    def _set_tree(self, parent: np.ndarray) -> None:
-        """``subtree`` and ``joint_below`` from each link's parent link (−1: the base)."""
-        n = len(parent)
-        # subtree[j, l]: link l moves with joint j (l is j's child link or below it).
-        sub = np.zeros((n, n), bool)
-        for link in range(n):
-            a = link
-            while a >= 0:
-                sub[a, link] = True
-                a = parent[a]
-        idx = np.array(self.indices, int)
-        self.subtree = sub[idx].astype(float)  # (N joints, L links)
-        self.joint_below = sub[np.ix_(idx, idx)].astype(float)  # (N, N): joint j is i or below it
+    def __init__(self, chain: ChainKinematics, manip: Manipulator, plan: BodyPlan):
+        self.chain = chain
+        self.world, self.body, self.scale = chain.world, chain.body, chain.scale
+        self.n_links, self.indices, self.mass = chain.n_links, chain.indices, chain.mass
+        self.subtree, self.joint_below = chain.subtree, chain.joint_below
+        self.revolute, self.all_revolute = chain.revolute, chain.all_revolute
+        self.zero_axes, self.axis_local, self.pos_scale = chain.zero_axes, chain.axis_local, chain.pos_scale
+        self.limited, self.limits, self.base_rot = chain.limited, chain.limits, chain.base_rot
+        self._finish(manip, plan)
 
     def _finish(self, manip: Manipulator, plan: BodyPlan) -> None:
         """Tip, candidate contacts and the plate, once the structure is known."""
@@ -221,14 +192,15 @@ class BenchBody:
     @property
     def is_open(self) -> bool:
         """Whether the body's world is still open (a closed one is loaded again)."""
-        return self.world.is_open
+        return self.chain.is_open
 
     def close(self) -> None:
-        self.world.close()
+        """Close the body's world."""
+        self.chain.close()
 
     def kinematics(self, q: np.ndarray) -> Kin:
         """Set the joints to ``q`` (SI) and read every link frame back (SI, world frame)."""
-        raise NotImplementedError
+        return self.chain.kinematics(q)
 
     def reach_m(self) -> np.ndarray:
         """(joints, points) longest distance from each joint's axis to each weight and the tip, m.

@@ -1,6 +1,6 @@
 """Newton's method on the chain's energy: one equilibrium under one load, from one start.
 
-Each iteration is a full Newton step of the energy (:class:`~somo_sweep.sim.chain_energy.ChainEnergy`),
+Each iteration is a full Newton step of the energy (:class:`~somo_sweep.statics.chain_energy.ChainEnergy`),
 an SQP step with the plate and the joint limits as constraints:
 
 1. the balance: generalized forces (springs, actuation, weights, tip load) and their exact
@@ -10,7 +10,7 @@ an SQP step with the plate and the joint limits as constraints:
 3. the Newton matrix: the Hessian, with a penalty on leaving the contacts held last time, made
    positive definite;
 4. the QP subproblem min ½dᵀKd − Rᵀd s.t. z(q) + J_z·d ≥ z_plate, by the Goldfarb–Idnani dual
-   active-set method (:mod:`somo_sweep.sim.active_set_qp`; no contact: a Cholesky solve);
+   active-set method (:mod:`somo_sweep.statics.active_set_qp`; no contact: a Cholesky solve);
 5. convergence: a small imbalance and no penetration, and then a stable equilibrium (the
    energy's Hessian positive definite on the active constraints' tangent space);
 6. the step: capped per joint, then a backtracking line search on the ℓ1 merit
@@ -25,9 +25,9 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from somo_sweep.sim.active_set_qp import positive_definite, solve_qp
-from somo_sweep.sim.chain_energy import ChainEnergy
-from somo_sweep.sim.chain_kinematics import Kin
+from somo_sweep.statics.active_set_qp import positive_definite, solve_qp
+from somo_sweep.statics.chain_energy import ChainEnergy
+from somo_sweep.statics.chain_kinematics import Kin
 
 __all__ = ["DIVERGED_RAD", "Equilibrium", "Merit", "newton", "stability_cause"]
 
