@@ -100,7 +100,7 @@ def test_a_bench_row_lets_an_unwritable_cache_through_instead_of_storing_a_faile
     tmp_path: Path, monkeypatch: pytest.MonkeyPatch
 ) -> None:
     from somo_sweep.model.load import load_model
-    from somo_sweep.sim.statics import clear_cache, solve_row
+    from somo_sweep.statics.solve import clear_cache, solve_row
 
     (tmp_path / "a_file").write_text("")
     monkeypatch.setenv("SOMO_SWEEP_CACHE", str(tmp_path / "a_file"))
