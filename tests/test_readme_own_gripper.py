@@ -1,10 +1,10 @@
 """The README's "Your own gripper" lines, run literally in a fresh folder: a finger of one's own
 (85 mm, 17 links), a three-finger starter, its bench CSV filled with rows measured on an
-independent elastica (not on our chain), calibration in place, the robust map, its plots.
+independent elastica (not on our chain), calibration in place, the robust map, its plots and
+the answer per stiffness.
 
 The default suite runs the map on a tiny grid (the study's axes cut to one cell per stiffness);
-the slow test runs the study as written. The last line (``paper fig6``, the answer per stiffness)
-is checked by the tests of that command, not here.
+the slow test runs the study as written.
 """
 
 from __future__ import annotations
@@ -49,8 +49,6 @@ TRUTH = {
     "half_thickness_m": 0.0075,
     "gain_n_m_per_kpa": 8e-4,
 }
-#: The README's last line: the answer per stiffness, read by `paper fig6` (tested with it).
-ANSWER = ("somo-sweep", "paper", "fig6")
 
 
 def readme_lines() -> list[list[str]]:
@@ -89,8 +87,9 @@ def _tiny_grid(study: Path) -> None:
     study.write_text(yaml.safe_dump(data, sort_keys=False), encoding="utf-8")
 
 
-def _chain(folder: Path, tiny: bool) -> pd.DataFrame:
-    """Run the README's lines in ``folder`` as typed; returns the map's trials."""
+def _chain(folder: Path, tiny: bool) -> tuple[pd.DataFrame, str]:
+    """Run the README's lines in ``folder`` as typed; returns the map's trials and what the last
+    line (the answer) printed."""
     (folder / "my_finger.yaml").write_text(MY_FINGER, encoding="utf-8")
     lines = readme_lines()
     assert [argv[:2] for argv in lines] == [
@@ -98,11 +97,9 @@ def _chain(folder: Path, tiny: bool) -> pd.DataFrame:
         ["somo-sweep", "calibrate"],
         ["somo-sweep", "run"],
         ["somo-sweep", "plot"],
-        ["somo-sweep", "paper"],
+        ["somo-sweep", "answer"],
     ]
     for argv in lines:
-        if tuple(argv[:3]) == ANSWER:
-            continue
         if argv[1] == "calibrate":
             _fill_bench(folder / "mine" / "bench.csv")
         if argv[1] == "run" and tiny:
@@ -110,7 +107,7 @@ def _chain(folder: Path, tiny: bool) -> pd.DataFrame:
         command = [str(SOMO), *argv[1:]]
         done = subprocess.run(command, cwd=folder, capture_output=True, text=True, timeout=3000)
         assert done.returncode == 0, f"{shlex.join(argv)}\n{done.stdout}\n{done.stderr}"
-    return pd.read_parquet(folder / "results" / "my_grasp_study" / "trials")
+    return pd.read_parquet(folder / "results" / "my_grasp_study" / "trials"), done.stdout
 
 
 def _check_calibrated_three_finger_map(folder: Path, table: pd.DataFrame) -> None:
@@ -126,10 +123,28 @@ def _check_calibrated_three_finger_map(folder: Path, table: pd.DataFrame) -> Non
     assert (folder / "results" / "my_grasp_study" / "plots" / "label_map_grasp.png").stat().st_size > 0
 
 
+def _check_an_answer_per_stiffness(answer: str, table: pd.DataFrame) -> None:
+    """The last line answers once per stiffness scale, each answer a ratio of the map or none."""
+    print(answer)
+    ratios = {f"{v:g}" for v in table["task_distal_segment_ratio"]}
+    for scale in ("0.5", "1", "2"):
+        line = next(
+            (
+                ln
+                for ln in answer.splitlines()
+                if f"spring_scale {scale}" in ln or f"spring_scale={scale}" in ln
+            ),
+            None,
+        )
+        assert line is not None, answer
+        assert any(r in line for r in ratios) or "none" in line, line
+
+
 def test_the_readmes_own_gripper_lines_run_as_typed_on_a_tiny_grid(tmp_path: Path) -> None:
     pytest.importorskip("mujoco")
-    table = _chain(tmp_path, tiny=True)
+    table, answer = _chain(tmp_path, tiny=True)
     _check_calibrated_three_finger_map(tmp_path, table)
+    _check_an_answer_per_stiffness(answer, table)
     assert len(table[table["replica"] == 0]) == 3  # one cell per stiffness
 
 
@@ -137,8 +152,9 @@ def test_the_readmes_own_gripper_lines_run_as_typed_on_a_tiny_grid(tmp_path: Pat
 @pytest.mark.timeout(3600)
 def test_the_readmes_own_gripper_chain_runs_whole(tmp_path: Path) -> None:
     pytest.importorskip("mujoco")
-    table = _chain(tmp_path, tiny=False)
+    table, answer = _chain(tmp_path, tiny=False)
     _check_calibrated_three_finger_map(tmp_path, table)
+    _check_an_answer_per_stiffness(answer, table)
     trials = table[table["replica"] == 0]
     assert len(trials) == 180  # 3 ratios x 3 stiffness scales x 4 widths x 5 centering positions
     pinched = trials[trials["label_grasp"] == "pinch"]
