@@ -37,12 +37,14 @@ def grasp_study(
         ),
     ] = 2,
 ) -> None:
-    """Write finger.yaml, gripper.yaml, bench.csv and study.yaml: a grasp study that runs as written.
+    """Write finger.yaml, gripper.yaml, bench.csv, study.yaml and design.yaml: a grasp study and a
+    design study that run as written.
 
     Then: fill bench.csv with your measurements, `somo-sweep calibrate FOLDER/bench.csv --model
     FOLDER/finger.yaml -o FOLDER/finger.yaml` (calibrates the finger in place), `somo-sweep run
-    FOLDER/study.yaml`. Existing files are never replaced: nothing is written if any of the four
-    is there; a finger the study's checks would refuse is refused here, with `run`'s words.
+    FOLDER/study.yaml` (its grasp map), `somo-sweep design FOLDER/design.yaml` (which finger to
+    build). Existing files are never replaced: nothing is written if any of them is there; a
+    finger the study's checks would refuse is refused here, with `run`'s words.
     """
     from somo_sweep.sim.mujoco.support import unsupported  # the starter's engine; no MuJoCo import
     from somo_sweep.tasks.pinch_grasp.starter import STARTER_FILES, grasp_study_files
@@ -63,8 +65,9 @@ def grasp_study(
         fail(exc)
     for path in written:
         typer.echo(f"wrote {path}")
-    study = shlex.quote(str(folder / "study.yaml"))
+    study, design = (shlex.quote(str(folder / name)) for name in ("study.yaml", "design.yaml"))
     typer.echo(f"next: somo-sweep run {study}   (then somo-sweep plot on its results folder)")
+    typer.echo(f"  or: somo-sweep design {design}   (which distal segment ratio and stiffness to build)")
 
 
 def _check_folder(folder: Path, names: tuple[str, ...]) -> None:

@@ -1,4 +1,4 @@
-"""A grasp study to start from: finger, gripper, bench CSV template and study, as text.
+"""A grasp study to start from: finger, gripper, bench CSV template, study and design study, as text.
 
 ``somo-sweep new grasp-study DIR`` writes these files (the command line alone writes);
 here they are built from the bundled templates (``somo_sweep/data/starters/grasp_study``),
@@ -50,7 +50,7 @@ from somo_sweep.tasks.pinch_grasp.params import PAPER_OBJECT_SPAN_M, PinchGraspP
 __all__ = ["MAX_FINGERS", "STARTER_FILES", "grasp_study_files"]
 
 #: The files a grasp-study starter holds, in the order they are written.
-STARTER_FILES = ("finger.yaml", "gripper.yaml", "bench.csv", "study.yaml")
+STARTER_FILES = ("finger.yaml", "gripper.yaml", "bench.csv", "study.yaml", "design.yaml")
 #: Most fingers a starter's gripper may have.
 MAX_FINGERS = 8
 #: The centering positions put the box's centre between these multiples of the finger's reach
@@ -270,6 +270,7 @@ def grasp_study_files(
         "gripper.yaml": _gripper_text(n_fingers, layout),
         "bench.csv": Template(_template("bench.csv")).substitute(_fields(f, n_fingers, layout)),
         "study.yaml": Template(_template("study.yaml")).substitute(_fields(f, n_fingers, layout)),
+        "design.yaml": Template(_template("design.yaml")).substitute(_fields(f, n_fingers, layout)),
     }
 
 
@@ -285,6 +286,7 @@ def _fields(f: _Finger, n_fingers: int, layout: _Layout) -> dict[str, Any]:
         )
     return {
         "n_links": f.n_links,
+        "pressure_kpa": PRESSURE_KPA,
         "n_fingers": n_fingers,
         "dsr_values": ", ".join(f"{r:.12g}" for r in _dsr_values(f.n_links)),
         "hand_height": height,
