@@ -138,6 +138,16 @@ def test_code_version_covers_the_code_a_trial_runs_and_nothing_else() -> None:
     assert "somo_sweep.sim.world" not in trial_modules("somo_sweep.tasks.selftest")
 
 
+@pytest.mark.parametrize("engine,other", [("pybullet", "mujoco"), ("mujoco", "pybullet")])
+def test_a_trial_hashes_its_own_engine_and_not_the_other(engine: str, other: str) -> None:
+    """The sim layer imports both engines by name, lazily: a scan of its imports finds both, but a
+    trial runs one, so editing MuJoCo must keep a PyBullet study's job ids, and the reverse."""
+    for task in ("somo_sweep.tasks.pinch_grasp.task", "somo_sweep.tasks.bench.task"):
+        modules = trial_modules(task, engine)
+        assert f"somo_sweep.sim.{engine}.world" in modules
+        assert not [m for m in modules if m.startswith(f"somo_sweep.sim.{other}")], task
+
+
 def test_resume_runs_only_missing_trials_and_gives_the_same_table(tmp_path: Path) -> None:
     path = selftest_study(tmp_path, extra="repeats: 2")
     full = load_study(path, tmp_path / "full")

@@ -64,6 +64,12 @@ def _imports(path: Path) -> set[str]:
     return found
 
 
+def _engine_packages() -> tuple[str, ...]:
+    """The engines' packages (``somo_sweep.sim.<engine>``: the folders of sim/ that are packages)."""
+    sim = Path(__file__).resolve().parents[2] / "sim"
+    return tuple(f"somo_sweep.sim.{p.name}" for p in sorted(sim.iterdir()) if (p / "__init__.py").is_file())
+
+
 def _engine_modules(engine: str) -> list[str]:
     """Every module of an engine's package (``somo_sweep.sim.<engine>``)."""
     folder = Path(__file__).resolve().parents[2] / "sim" / engine
@@ -73,21 +79,28 @@ def _engine_modules(engine: str) -> list[str]:
 def trial_modules(task_module: str, engine: str = "pybullet") -> list[str]:
     """The task's module and every somo_sweep module it imports, transitively (sorted).
 
-    A task that opens a world (imports :mod:`somo_sweep.sim.world`) runs the modules of the
-    engine its settings name, which the world imports by name: they are added, those of the
-    other engine are not (editing one engine keeps the other's job ids).
+    The engines' packages are not followed: the sim layer imports each engine by name, inside the
+    function that opens it (:mod:`somo_sweep.sim.worlds`), so a scan of its imports finds both.
+    A trial runs the modules of the engine its settings name: a trial that reaches the sim layer
+    (opens a world, or a chain's kinematics) gets every module of that engine's package, and none
+    of the other's (editing one engine keeps the other's job ids).
     """
-    todo, seen = [task_module], set()
+    engines = _engine_packages()
+    todo, seen, uses_engine = [task_module], set(), False
     while todo:
         name = todo.pop()
         path = _module_file(name)
         if name in seen or path is None:
             continue
+        if name.startswith(engines):
+            uses_engine = True
+            continue
         seen.add(name)
         if name not in _NOT_FOLLOWED:
             todo.extend(sorted(_imports(path) - seen))
-        if name == "somo_sweep.sim.world":
-            todo.extend(_engine_modules(engine))
+        uses_engine = uses_engine or name == "somo_sweep.sim.world"
+    if uses_engine:
+        seen.update(_engine_modules(engine))
     return sorted(seen)
 
 
