@@ -103,14 +103,13 @@ def save_plots(folder: Path) -> None:
 def show(results: Annotated[Path, typer.Argument(help="Results folder, e.g. results/<study>.")]) -> None:
     """Print a results folder's summary: counts by status and label, per-axis breakdown."""
     from somo_sweep.cli.summary import print_results
-    from somo_sweep.sweep.store.folder import pending_journal_rows, read_manifest, read_results
+    from somo_sweep.sweep.store.folder import open_folder
     from somo_sweep.sweep.store.lock import holder_now
 
     try:
-        df, manifest = read_results(results, damaged), read_manifest(results)
-        pending = pending_journal_rows(results, manifest["study_hash"], set(df["job_id"]))
-        say_notes(_old_columns(results, df.columns, manifest))
-        print_results(_out(), df, manifest, holder_now(results), pending)
+        opened = open_folder(results, damaged)
+        say_notes(_old_columns(results, opened.trials.columns, opened.manifest))
+        print_results(_out(), opened.trials, opened.manifest, holder_now(results), opened.pending)
     except SomoError as exc:
         fail(exc)
 
