@@ -71,13 +71,14 @@ def damaged(path: Path, reason: Damage) -> None:
 
 def save_plots(folder: Path) -> None:
     """The summary figure and, for a study with labels, a label map per label column."""
-    from somo_sweep.sweep.store.folder import SKIPPED, read_manifest, read_results
+    from somo_sweep.sweep.store.folder import SKIPPED
     from somo_sweep.sweep.store.manifest import record_files
     from somo_sweep.sweep.views.plots import label_maps, summary_figure
+    from somo_sweep.sweep.views.results import open_results
 
-    df, manifest = read_results(folder, damaged), read_manifest(folder)
-    if df.empty:
-        left_out = int(df.attrs.get(SKIPPED, 0))
+    results = open_results(folder, damaged)
+    if results.trials.empty:
+        left_out = int(results.trials.attrs.get(SKIPPED, 0))
         why = f": {left_out} damaged file(s) were left out (the warnings above name them)" if left_out else ""
         raise SomoError(
             f"{folder}: no trial stored that can be read{why}; nothing to plot, nothing was written"
@@ -86,12 +87,10 @@ def save_plots(folder: Path) -> None:
     if target.is_symlink():
         raise SomoError(f"{target} is a symbolic link; the plots go in the results folder itself: remove it")
     files = [
-        (target / "summary.png", figure_bytes(summary_figure(df, manifest), "png", 120)),
-        (target / "summary.svg", figure_bytes(summary_figure(df, manifest), "svg", 120)),
+        (target / "summary.png", figure_bytes(summary_figure(results), "png", 120)),
+        (target / "summary.svg", figure_bytes(summary_figure(results), "svg", 120)),
     ]
-    files += [
-        (target / f"{name}.png", figure_bytes(fig, "png", 120)) for name, fig in label_maps(df, manifest)
-    ]
+    files += [(target / f"{name}.png", figure_bytes(fig, "png", 120)) for name, fig in label_maps(results)]
     written = write_outputs(files)
     record_files(folder, written)
     maps = [path.name for path, _ in files[2:]]
@@ -103,13 +102,13 @@ def save_plots(folder: Path) -> None:
 def show(results: Annotated[Path, typer.Argument(help="Results folder, e.g. results/<study>.")]) -> None:
     """Print a results folder's summary: counts by status and label, per-axis breakdown."""
     from somo_sweep.cli.summary import print_results
-    from somo_sweep.sweep.store.folder import open_folder
     from somo_sweep.sweep.store.lock import holder_now
+    from somo_sweep.sweep.views.results import open_results
 
     try:
-        opened = open_folder(results, damaged)
+        opened = open_results(results, damaged)
         say_notes(_old_columns(results, opened.trials.columns, opened.manifest))
-        print_results(_out(), opened.trials, opened.manifest, holder_now(results), opened.pending)
+        print_results(_out(), opened, holder_now(results))
     except SomoError as exc:
         fail(exc)
 

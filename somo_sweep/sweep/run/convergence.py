@@ -263,13 +263,18 @@ def stored_choice(manifest: dict[str, Any], study: Study) -> StepChoice | None:
     return choice if math.isfinite(choice.step_s) and choice.step_s > 0 else None
 
 
-def with_stored_step(study: Study) -> Study:
+def with_stored_step(study: Study, manifest: dict[str, Any] | None = None) -> Study:
     """``study`` with the step its results folder recorded, if it has no ``simulation:`` and the
-    folder holds a choice for it (else unchanged: its jobs then show the modal starting guess)."""
+    folder holds a choice for it (else unchanged: its jobs then show the modal starting guess).
+
+    Args:
+        study: The study.
+        manifest: Its results folder's manifest, if read already (else it is read here).
+    """
     if study.simulation is not None or study.auto_step_s is not None:
         return study
     try:
-        choice = stored_choice(read_manifest(study.output), study)
+        choice = stored_choice(manifest if manifest is not None else read_manifest(study.output), study)
     except (SomoError, OSError):
         return study
     if choice is None:

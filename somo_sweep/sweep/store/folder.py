@@ -268,6 +268,12 @@ class OpenedFolder:
     left_out: tuple[tuple[Path, Damage], ...] = ()
     pending: dict[str, int] = field(default_factory=dict)
 
+    def tell(self, on_damaged: OnDamaged | None = None) -> None:
+        """Tell ``on_damaged`` (default: a warning) of each file, or rows of one, left out or counted
+        once (for a reader that opened the folder quietly, and decides later to say so)."""
+        for path, reason in self.left_out:
+            (on_damaged or _warn)(path, reason)
+
     def nothing_stored(self) -> str:
         """What a reader says when no trial is stored: the finished trials waiting in a killed run's
         journal, if any, and how to store them (the next run of the study does, first)."""

@@ -1,0 +1,115 @@
+"""A study's swept axes as its readers see them: values compared without float noise, names and
+units in words, lengths in mm.
+
+:func:`grid_keys` rounds an axis's values to :data:`DIGITS` significant digits, so that a 1e-9
+offset from arithmetic is one value; :func:`axis_name` and :func:`axis_text` name a swept column
+and one of its values as a designer reads them. :class:`Swept` holds what a figure needs of a
+table's swept axes, worked out once: which of them vary, their short names, titles and values as
+drawn (:func:`swept`).
+"""
+
+from __future__ import annotations
+
+import re
+import textwrap
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+import pandas as pd
+
+from somo_sweep.sweep.store.schema import split_unit, unit_of
+
+__all__ = ["DIGITS", "Swept", "axis_name", "axis_text", "column_title", "drawn_scale", "grid_keys", "swept"]
+
+#: Significant digits grid values are compared at (a 1e-9 offset from arithmetic is one value).
+DIGITS = 9
+
+
+def grid_keys(cells: pd.DataFrame, axes: Sequence[str]) -> pd.DataFrame:
+    """The axes' values, numbers rounded to :data:`DIGITS` significant digits (float noise is one value)."""
+    out = pd.DataFrame(index=cells.index)
+    for a in axes:
+        values = cells[a]
+        if pd.api.types.is_float_dtype(values):
+            out[a] = values.map(lambda v: float(f"{v:.{DIGITS}g}") if pd.notna(v) else v)
+        else:
+            out[a] = values.astype(object)
+    return out
+
+
+def axis_name(column: str) -> tuple[str, str]:
+    """A swept column as a reader names it, and its unit: ``task_pressure_kpa`` → (``pressure``,
+    ``kPa``); a model path keeps its last field (``…_joints_0_stiffness_n_m_per_rad`` →
+    ``stiffness``); lengths in mm."""
+    name, unit = split_unit(column.removeprefix("task_").removeprefix("model_"))
+    name = re.split(r"_\d+_", name)[-1] or name
+    return name, "mm" if unit == "m" else unit
+
+
+def axis_text(column: str, value: Any) -> str:
+    """One value of a swept column in words: ``pressure 40 kPa``, ``object_width 20 mm``."""
+    name, unit = axis_name(column)
+    if isinstance(value, float | int | np.number) and not isinstance(value, bool):
+        number = float(value) * (1e3 if unit == "mm" and unit_of(column) == "m" else 1.0)
+        return f"{name} {number:g}{' ' + unit if unit else ''}"
+    return f"{name} {value}"
+
+
+def drawn_scale(column: str) -> float:
+    """What a column's values are multiplied by where they are drawn: lengths in mm."""
+    return 1e3 if unit_of(column) == "m" else 1.0
+
+
+def column_title(column: str, unit_given: str = "") -> str:
+    """An axis title: the name (a swept column's :func:`axis_name`, else the name without its
+    unit) and its unit (lengths in mm), or the unit a metric's guide gives in words
+    (``unit_given``), on a line of its own."""
+    name = axis_name(column)[0] if column.startswith(("task_", "model_")) else split_unit(column)[0]
+    unit = "mm" if unit_of(column) == "m" else unit_of(column)
+    if unit_given:
+        return f"{name}\n({unit_given})"
+    return f"{name} ({unit})" if unit else name
+
+
+@dataclass(frozen=True)
+class Swept:
+    """The swept axes of a table that vary (:func:`swept`), worked out once for its figures.
+
+    Attributes:
+        short: Each varying swept column → its short name (its key path's last field), in the
+            study's order.
+        keys: Their values, row by row, without float noise (:func:`grid_keys`).
+        titles: Each one's axis title (:func:`column_title`).
+    """
+
+    short: dict[str, str]
+    keys: pd.DataFrame
+    titles: dict[str, str]
+
+    @property
+    def axes(self) -> list[str]:
+        """The varying swept columns, in the study's order."""
+        return list(self.short)
+
+    def drawn(self, column: str) -> pd.Series:
+        """A varying swept column's values as drawn: without float noise, lengths in mm."""
+        keys = self.keys[column]
+        return keys * drawn_scale(column) if pd.api.types.is_numeric_dtype(keys) else keys
+
+    def mean_over(self, axes: Sequence[str]) -> str:
+        """What a point averaged over ``axes`` is, in words (empty when nothing)."""
+        if not axes:
+            return ""
+        parts = [f"{axis_name(a)[0]} ({self.keys[a].nunique()} values)" for a in axes]
+        return textwrap.fill(f"each point: the mean over {', '.join(parts)}; band: min to max", 60)
+
+
+def swept(table: pd.DataFrame, axes: Mapping[Any, Any]) -> Swept:
+    """The swept columns of ``table`` (``axes``: a manifest's key path → column) with more than one
+    value (within float noise; a null is a value of its own: ``distal_segment_ratio: null``)."""
+    short = {c: str(k).rsplit(".", 1)[-1] for k, c in axes.items() if isinstance(c, str) and c in table}
+    keys = grid_keys(table, list(short))
+    varying = {c: n for c, n in short.items() if keys[c].nunique(dropna=False) > 1}
+    return Swept(varying, keys[list(varying)], {c: column_title(c) for c in varying})
