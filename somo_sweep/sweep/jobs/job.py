@@ -90,6 +90,8 @@ class Job:
             study gives its own ``simulation:``).
         replica: 0 for the study's own trial; 1, 2, … for its robustness replicas
             (:func:`replica_jobs`), which share its ``trial`` and grid values.
+        code: The version of the code it runs (:func:`~somo_sweep.sweep.jobs.code.code_version`),
+            hashed into its id.
     """
 
     job_id: str
@@ -103,6 +105,7 @@ class Job:
     columns: dict[str, Any]
     numerics: ChosenNumerics | None = None
     replica: int = 0
+    code: str = ""
 
 
 @dataclass(frozen=True)
@@ -127,14 +130,15 @@ class JobMaker:
 
     Args:
         plan: What the study's jobs are built from (:meth:`~somo_sweep.sweep.study.loaded.Study.trial_plan`).
+        code: The version of the code its trials run, if known (else read from the plan's task).
     """
 
-    def __init__(self, plan: TrialPlan):
+    def __init__(self, plan: TrialPlan, code: str | None = None):
         self.plan = plan
         self.resolver = plan.resolver
         #: The engine every job of the study runs on (PyBullet without ``simulation:``).
         self.engine_name = plan.engine
-        self.code = code_version(plan.task_module, plan.engine)
+        self.code = code or code_version(plan.task_module, plan.engine)
         self.engine = pybullet_version()
         self.model_columns = [(k, param_column(k)) for k in plan.model_overrides]
         self._head = f'{{"code":{_json(self.code)},"model":'
@@ -143,6 +147,15 @@ class JobMaker:
         self.models: dict[str, _ModelInfo] = {}
         self._built: dict[str, Model] = RecentCache(MODEL_CACHE)  # with their numerics applied
         self._params: dict[str, tuple[BaseModel, str, dict[str, Any]]] = RecentCache(PARAMS_CACHE)
+
+    def at_step(self, step_s: float) -> JobMaker:
+        """The maker of the same study's jobs at another automatic time step, s (its candidates,
+        while the step is chosen: :mod:`somo_sweep.sweep.run.convergence`)."""
+        return JobMaker(replace(self.plan, auto_step_s=step_s), self.code)
+
+    def first_model(self) -> Model:
+        """The model of the first grid point, as its file and overrides give it (before any numerics)."""
+        return self.resolver.model(self.point(0))[1]
 
     def point(self, number: int) -> dict[str, Any]:
         """The grid point of number ``number`` (:meth:`~somo_sweep.sweep.study.loaded.Study.points` order)."""
@@ -199,8 +212,7 @@ class JobMaker:
             )
             job_id = hashlib.sha256(text.encode()).hexdigest()[:16]
         else:
-            identity = _identity(plan.task, params, info.model_hash, info.settings, seed, plan.task_module)
-            job_id = _hash(identity)
+            job_id = _hash(_identity(plan.task, params, info.model_hash, info.settings, seed, self.code))
         return Job(
             job_id,
             trial,
@@ -212,6 +224,7 @@ class JobMaker:
             settings=info.settings,
             columns=columns,
             numerics=info.numerics,
+            code=self.code,
         )
 
 
@@ -227,7 +240,7 @@ def _identity(
     model_hash: str,
     settings: WorldSettings,
     seed: int,
-    task_module: str,
+    code: str,
     replica: int = 0,
 ) -> dict[str, Any]:
     """What a job id hashes: the trial's inputs, the code it runs and its engine's version (and a
@@ -243,7 +256,7 @@ def _identity(
         "model": model_hash,
         "settings": _settings_fields(settings),
         "seed": seed,
-        "code": code_version(task_module, engine),
+        "code": code,
         "pybullet": pybullet_version(),
     }
     if engine != "pybullet":
@@ -277,7 +290,6 @@ def replica_jobs(job: Job, n: int, perturb: Any) -> list[Job]:
         n: Number of replicas.
         perturb: The task's ``perturb(params, rng)``.
     """
-    task_module = _run_module(job.task)
     out = []
     for r in range(1, n + 1):
         rng = np.random.default_rng([job.seed, r])
@@ -289,17 +301,11 @@ def replica_jobs(job: Job, n: int, perturb: Any) -> list[Job]:
         _flatten("task", params.model_dump(mode="json"), flat)
         columns = {**flat, **columns}
         identity = _identity(
-            job.task, params, str(job.columns["model_hash"]), settings, job.seed, task_module, r
+            job.task, params, str(job.columns["model_hash"]), settings, job.seed, job.code, r
         )
         job_id = _hash(identity)
         out.append(replace(job, job_id=job_id, params=params, settings=settings, columns=columns, replica=r))
     return out
-
-
-def _run_module(task: str) -> str:
-    from somo_sweep.tasks.registry import get_task
-
-    return get_task(task).run_path.partition(":")[0]
 
 
 def _prepare(

@@ -14,7 +14,7 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass
 
-from somo_sweep.sweep.jobs.table import first_jobs
+from somo_sweep.sweep.jobs.job import Job
 from somo_sweep.sweep.run.trial import run_isolated
 from somo_sweep.sweep.study.loaded import Study
 
@@ -104,15 +104,14 @@ def _duration(seconds: float) -> str:
     return f"{seconds / 3600:.1f} h"
 
 
-def estimate_run(study: Study, workers: int, time_trial: bool = True) -> RunEstimate:
-    """The estimate of a run of ``study`` on ``workers`` processes, its first trial timed (unless
-    ``time_trial`` is False)."""
+def estimate_run(study: Study, job: Job, workers: int, time_trial: bool = True) -> RunEstimate:
+    """The estimate of a run of ``study`` on ``workers`` processes, its first trial (``job``) timed
+    (unless ``time_trial`` is False)."""
     low, high = replica_range(study)
     cost = _replica_cost(study.robustness.replicas)
     adaptive = study.sampling == "adaptive"
     if not time_trial:
         return RunEstimate(study.n_trials, (low, high), cost, None, "--no-estimate", workers, adaptive)
-    (job,) = first_jobs(study, 1)
     outcome = run_isolated(job)
     if outcome.status != "ok":
         why = f"trial 0 ended {outcome.status}: {outcome.message}"

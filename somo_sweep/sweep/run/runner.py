@@ -4,35 +4,43 @@
 run's options to the study (sampling, replicas), chooses the time step of a study without
 ``simulation:`` (:func:`~somo_sweep.sweep.run.convergence.auto_step`), builds the job table, and runs
 the trials missing from the results folder in rounds (:mod:`somo_sweep.sweep.run.session`), on local
-worker processes or a Dask cluster. It is resumable, and reports what it does through
-:class:`~somo_sweep.sweep.run.options.RunEvents`; it prints nothing.
+worker processes or a Dask cluster. The study's job maker is built once: the step's sample trials
+and the job table come from it. It is resumable, and reports what it does through
+:class:`~somo_sweep.sweep.run.options.RunEvents`; it prints nothing. :func:`dry_run` says what a run
+would do, without running it (``--dry-run``).
 """
 
 from __future__ import annotations
 
+import itertools
 import signal
 from collections.abc import Iterator
+from dataclasses import dataclass
 
 from somo_sweep.errors import Interrupted
 from somo_sweep.sim.urdf_cache import check_cache
-from somo_sweep.sweep.jobs.job import Job
-from somo_sweep.sweep.jobs.table import JobTable, build_jobs
-from somo_sweep.sweep.run.convergence import StepEvents, auto_step, outcomes_of
+from somo_sweep.sweep.jobs.job import Job, JobMaker
+from somo_sweep.sweep.jobs.table import JobTable, iter_jobs, table_of
+from somo_sweep.sweep.run.convergence import StepEvents, auto_step, ladder, outcomes_of
+from somo_sweep.sweep.run.estimate import RunEstimate, estimate_run
 from somo_sweep.sweep.run.execution import execute, start_workers
 from somo_sweep.sweep.run.options import RoundSummary, RunEvents, RunOptions, RunSummary
 from somo_sweep.sweep.run.rows import outcome_row
+from somo_sweep.sweep.run.sampling import describe
 from somo_sweep.sweep.run.session import run_rounds
 from somo_sweep.sweep.run.signals import term_as_interrupt
-from somo_sweep.sweep.study.derive import with_replicas, with_sampling
+from somo_sweep.sweep.study.derive import with_auto_step, with_replicas, with_sampling
 from somo_sweep.sweep.study.loaded import Study
 
 __all__ = [
+    "DryRun",
     "RoundSummary",
     "RunEvents",
     "RunOptions",
     "RunSummary",
     "apply_options",
     "choose_auto_step",
+    "dry_run",
     "outcome_row",
     "run_sweep",
 ]
@@ -58,11 +66,56 @@ def choose_auto_step(study: Study, options: RunOptions, events: StepEvents | Non
     Raises:
         SomoError: The results folder's name is one no folder can have; the sample could not run.
     """
+    return _stepped(study, JobMaker(study.trial_plan()), options, events)[0]
+
+
+def _stepped(
+    study: Study, maker: JobMaker, options: RunOptions, events: StepEvents | None
+) -> tuple[Study, JobMaker]:
+    """``study`` with its automatic step, and its job maker at that step."""
 
     def run_jobs(batch: list[Job]) -> Iterator[tuple[str, str, dict[str, str]]]:
         return outcomes_of(execute(batch, options))
 
-    return auto_step(study, run_jobs, events)
+    choice = auto_step(study, maker, run_jobs, events)
+    return with_auto_step(study, choice.step_s, choice.as_dict()), maker.at_step(choice.step_s)
+
+
+@dataclass(frozen=True)
+class DryRun:
+    """What :func:`run_sweep` would do with a study and its options, worked out without running it.
+
+    Attributes:
+        study: The study as the options run it (their sampling and replicas).
+        jobs: Its first jobs (the others are not built).
+        sampling: What adaptive sampling does, in words (None: the study runs its whole grid).
+        steps: Without ``simulation:``: the candidate steps, s, largest first, and what set the
+            first (:func:`~somo_sweep.sweep.run.convergence.ladder`); the jobs show the first.
+    """
+
+    study: Study
+    jobs: list[Job]
+    sampling: str | None
+    steps: tuple[list[float], str] | None
+
+    def estimate(self, workers: int, time_trial: bool = True) -> RunEstimate:
+        """The run's size and, with ``time_trial``, its wall time on ``workers`` processes, from the
+        first trial timed (:func:`~somo_sweep.sweep.run.estimate.estimate_run`)."""
+        return estimate_run(self.study, self.jobs[0], workers, time_trial)
+
+
+def dry_run(study: Study, options: RunOptions, rows: int = 10) -> DryRun:
+    """What a run of ``study`` with ``options`` would do (its first ``rows`` jobs built, no others).
+
+    Raises:
+        DescriptionError: The replica count does not fit the study, or two trials are identical.
+    """
+    study = apply_options(study, options)
+    maker = JobMaker(study.trial_plan())
+    jobs = list(itertools.islice(iter_jobs(maker), max(rows, 1)))
+    sampling = describe(study) if study.sampling == "adaptive" else None
+    steps = ladder(maker) if study.simulation is None else None
+    return DryRun(study, jobs, sampling, steps)
 
 
 def run_sweep(
@@ -108,8 +161,7 @@ def run_sweep(
         warm = start_workers(min(options.workers, study.n_trials), study.task.name)
     try:
         if table is None:
-            study = _with_step(study, options, events.step)
-            table = _table(study)
+            study, table = _table(study, options, events.step)
         try:
             return run_rounds(study, table, options, events, warm=warm)
         except Interrupted:
@@ -121,19 +173,21 @@ def run_sweep(
             warm.close()
 
 
-def _with_step(study: Study, options: RunOptions, events: StepEvents | None) -> Study:
-    """``study`` with its automatic step, when it has no ``simulation:`` and no step yet."""
-    if study.simulation is not None or study.auto_step_s is not None:
-        return study
-    with term_as_interrupt() as caught:
-        try:
-            return choose_auto_step(study, options, events)
-        except KeyboardInterrupt:
-            raise Interrupted("step", caught[0] if caught else signal.SIGINT) from None
+def _table(study: Study, options: RunOptions, events: StepEvents | None) -> tuple[Study, JobTable]:
+    """``study`` with its automatic step (when it has no ``simulation:`` and no step yet), and its
+    job table: one job maker builds the step's sample trials and the table.
 
-
-def _table(study: Study) -> JobTable:
+    Raises:
+        Interrupted: SIGINT or SIGTERM while the step is chosen, SIGINT while the table is built.
+    """
+    maker = JobMaker(study.trial_plan())
+    if study.simulation is None and study.auto_step_s is None:
+        with term_as_interrupt() as caught:
+            try:
+                study, maker = _stepped(study, maker, options, events)
+            except KeyboardInterrupt:
+                raise Interrupted("step", caught[0] if caught else signal.SIGINT) from None
     try:
-        return build_jobs(study)
+        return study, table_of(study, maker)
     except KeyboardInterrupt:
         raise Interrupted("jobs", signal.SIGINT) from None
