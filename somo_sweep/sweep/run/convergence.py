@@ -179,12 +179,11 @@ def choose_step(
         sample_cells: Cells sampled.
         on_rung: Called with (candidate step, runs to do) before each candidate's runs.
     """
-    code, model = maker.code, maker.first_model()
     from somo_sweep.sim.numerics import step_ladder
 
+    trials, perturb = _sample(study, sample_cells), study.task.perturb
+    code, model = maker.code, maker.first_model()
     steps, why = step_ladder(model)
-    trials = _sample(study, sample_cells)
-    perturb = study.task.perturb
     done: dict[str, Outcome] = {}
 
     def outcomes(jobs: list[Job]) -> list[Outcome]:

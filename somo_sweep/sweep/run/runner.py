@@ -14,7 +14,7 @@ from __future__ import annotations
 
 import itertools
 import signal
-from collections.abc import Iterator
+from collections.abc import Callable, Iterator
 from dataclasses import dataclass
 
 from somo_sweep.errors import Interrupted
@@ -66,19 +66,14 @@ def choose_auto_step(study: Study, options: RunOptions, events: StepEvents | Non
     Raises:
         SomoError: The results folder's name is one no folder can have; the sample could not run.
     """
-    return _stepped(study, JobMaker(study.trial_plan()), options, events)[0]
+    choice = auto_step(study, JobMaker(study.trial_plan()), _sample_runs(options), events)
+    return with_auto_step(study, choice.step_s, choice.as_dict())
 
 
-def _stepped(
-    study: Study, maker: JobMaker, options: RunOptions, events: StepEvents | None
-) -> tuple[Study, JobMaker]:
-    """``study`` with its automatic step, and its job maker at that step."""
-
-    def run_jobs(batch: list[Job]) -> Iterator[tuple[str, str, dict[str, str]]]:
-        return outcomes_of(execute(batch, options))
-
-    choice = auto_step(study, maker, run_jobs, events)
-    return with_auto_step(study, choice.step_s, choice.as_dict()), maker.at_step(choice.step_s)
+def _sample_runs(options: RunOptions) -> Callable[[list[Job]], Iterator[tuple[str, str, dict[str, str]]]]:
+    """How the step's sample trials run: as ``options`` run trials, each outcome as (job id, status,
+    labels)."""
+    return lambda batch: outcomes_of(execute(batch, options))
 
 
 @dataclass(frozen=True)
@@ -184,9 +179,10 @@ def _table(study: Study, options: RunOptions, events: StepEvents | None) -> tupl
     if study.simulation is None and study.auto_step_s is None:
         with term_as_interrupt() as caught:
             try:
-                study, maker = _stepped(study, maker, options, events)
+                choice = auto_step(study, maker, _sample_runs(options), events)
             except KeyboardInterrupt:
                 raise Interrupted("step", caught[0] if caught else signal.SIGINT) from None
+        study, maker = with_auto_step(study, choice.step_s, choice.as_dict()), maker.at_step(choice.step_s)
     try:
         return study, table_of(study, maker)
     except KeyboardInterrupt:

@@ -16,6 +16,7 @@ import json
 import warnings
 from collections.abc import Iterator
 from dataclasses import dataclass, field
+from functools import cached_property
 from pathlib import Path
 from typing import Any
 
@@ -183,14 +184,20 @@ class FolderState:
     def pending(self, study_hash: str, stored: set[str]) -> dict[str, list[dict[str, Any]]]:
         """The journals' finished trials of ``study_hash`` whose job is not in ``stored``, each job
         once, by run id: what the next run of the study recovers."""
-        out: dict[str, list[dict[str, Any]]] = {}
-        seen = set(stored)
-        for journal in self.journals:
-            for row in journal.rows:
-                if row.get("study_hash") == study_hash and row["job_id"] not in seen:
-                    seen.add(row["job_id"])
-                    out.setdefault(journal.run_id, []).append(row)
-        return out
+        return _pending(self.journals, study_hash, stored)
+
+
+def _pending(
+    journals: tuple[Journal, ...], study_hash: str, stored: set[str]
+) -> dict[str, list[dict[str, Any]]]:
+    out: dict[str, list[dict[str, Any]]] = {}
+    seen = set(stored)
+    for journal in journals:
+        for row in journal.rows:
+            if row.get("study_hash") == study_hash and row["job_id"] not in seen:
+                seen.add(row["job_id"])
+                out.setdefault(journal.run_id, []).append(row)
+    return out
 
 
 def read_state(folder: str | Path, reader: bool = False) -> FolderState:
@@ -258,15 +265,24 @@ class OpenedFolder:
             an adaptive run did not simulate follow the simulated trials); its ``attrs`` carry the
             record of :mod:`~somo_sweep.sweep.store.table_record`.
         left_out: Each file, or rows of one, left out or counted once, and why.
-        pending: Finished trials of the study waiting in the journals of runs that ended without
-            storing them (killed), by run id: what the next run of the study stores first.
+        journals: The journals runs left behind, as read (:attr:`pending` counts what they hold).
     """
 
     folder: Path
     manifest: dict[str, Any]
     trials: pd.DataFrame = field(repr=False)
     left_out: tuple[tuple[Path, Damage], ...] = ()
-    pending: dict[str, int] = field(default_factory=dict)
+    journals: tuple[Journal, ...] = field(default=(), repr=False)
+
+    @cached_property
+    def pending(self) -> dict[str, int]:
+        """Finished trials of the study waiting in the journals of runs that ended without storing
+        them (killed), by run id: what the next run of the study stores first."""
+        if not self.journals:
+            return {}
+        stored = set(self.trials["job_id"].dropna()) if "job_id" in self.trials else set()
+        rows = _pending(self.journals, self.manifest["study_hash"], stored)
+        return {run_id: len(found) for run_id, found in rows.items()}
 
     def tell(self, on_damaged: OnDamaged | None = None) -> None:
         """Tell ``on_damaged`` (default: a warning) of each file, or rows of one, left out or counted
@@ -316,10 +332,8 @@ def open_folder(folder: str | Path, on_damaged: OnDamaged | None = None) -> Open
         report(path, reason)
     trials = trials_table(state.folder, manifest, list(state.parts), report)
     skipped = [path for path, reason in left_out if reason.kind != "repeats"]  # not counted once
-    pending = state.pending(manifest["study_hash"], set(trials["job_id"].dropna()))
-    counts = {run_id: len(rows) for run_id, rows in pending.items()}
     trials = with_record(trials, manifest, skipped)
-    return OpenedFolder(state.folder, manifest, trials, tuple(left_out), counts)
+    return OpenedFolder(state.folder, manifest, trials, tuple(left_out), state.journals)
 
 
 def read_results(folder: str | Path, on_damaged: OnDamaged | None = None) -> pd.DataFrame:

@@ -47,7 +47,7 @@ from somo_sweep.sweep.store.lock import FolderLock
 from somo_sweep.sweep.store.manifest import now_utc, record_files, versions, write_atomically, write_json
 from somo_sweep.sweep.store.opening import open_for_run
 from somo_sweep.sweep.store.parts import stored_ids, stored_labels, stored_statuses, stored_values
-from somo_sweep.sweep.store.schema import COLUMNS, merge_types, table_schema, widened
+from somo_sweep.sweep.store.schema import folder_schema, table_schema, widened
 
 __all__ = ["ResultStore", "read_manifest", "read_results", "record_files"]
 
@@ -103,7 +103,7 @@ class ResultStore:
         self.run_id = f"{datetime.now(UTC):%Y%m%dT%H%M%S}-{uuid.uuid4().hex[:8]}"
         self.seq = 0
         try:
-            self.schema = self._first_schema(param_types, column_types or {})
+            self.schema = folder_schema(self.manifest["columns"], column_types or {}, param_types)
             self._heal_schemas(opening.schemas)
             if opening.recovered:
                 self.write(opening.recovered)
@@ -115,16 +115,6 @@ class ResultStore:
             self._lock = None  # released by the opening
             opening.abandon(exc)
             raise
-
-    def _first_schema(self, param_types: dict[str, list[Any]], declared: dict[str, str]) -> pa.Schema:
-        """The schema the run starts from, every column's type: the manifest's, the fixed columns',
-        the task's declared metrics' and the study's parameters' (widened where they differ)."""
-        types = {name: pa.type_for_alias(info["type"]) for name, info in self.manifest["columns"].items()}
-        for c in COLUMNS:
-            types.setdefault(c.name, pa.type_for_alias(c.type))
-        for name, alias in declared.items():
-            types[name] = merge_types(types.get(name, pa.null()), pa.type_for_alias(alias))
-        return table_schema(widened(types, param_types))
 
     def _heal_schemas(self, schemas: dict[Path, pa.Schema]) -> None:
         """Give every part the current schema (a rewrite cut short by a full disk leaves mixed ones);

@@ -21,6 +21,7 @@ __all__ = [
     "MAX_REPLICAS",
     "Column",
     "arrow_type",
+    "folder_schema",
     "merge_types",
     "split_unit",
     "table_schema",
@@ -148,3 +149,18 @@ def table_schema(types: Mapping[str, pa.DataType]) -> pa.Schema:
     the others by name, each with its unit (:func:`unit_of`) in its field's metadata."""
     order = [c.name for c in COLUMNS] + sorted(n for n in types if n not in FIXED)
     return pa.schema([pa.field(n, types[n], metadata={"unit": unit_of(n)}) for n in order])
+
+
+def folder_schema(
+    recorded: Mapping[str, Mapping[str, Any]], declared: Mapping[str, str], examples: Mapping[str, list[Any]]
+) -> pa.Schema:
+    """The schema a run of a results folder starts from (:func:`table_schema`): every column's type
+    as the folder's manifest records it (``recorded``: its ``columns``), the fixed columns', the
+    task's declared metrics' (``declared``: column → Arrow type alias) and the study's parameters'
+    (``examples``: column → example values), widened where they differ."""
+    types = {name: pa.type_for_alias(info["type"]) for name, info in recorded.items()}
+    for c in COLUMNS:
+        types.setdefault(c.name, pa.type_for_alias(c.type))
+    for name, alias in declared.items():
+        types[name] = merge_types(types.get(name, pa.null()), pa.type_for_alias(alias))
+    return table_schema(widened(types, examples))

@@ -11,7 +11,6 @@ drawn (:func:`swept`).
 from __future__ import annotations
 
 import re
-import textwrap
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 from typing import Any
@@ -81,29 +80,21 @@ class Swept:
         short: Each varying swept column → its short name (its key path's last field), in the
             study's order.
         keys: Their values, row by row, without float noise (:func:`grid_keys`).
+        drawn: Each one's values, row by row, as drawn: without float noise, lengths in mm.
+        names: Each one's name as a reader says it (:func:`axis_name`).
         titles: Each one's axis title (:func:`column_title`).
     """
 
     short: dict[str, str]
     keys: pd.DataFrame
+    drawn: dict[str, pd.Series]
+    names: dict[str, str]
     titles: dict[str, str]
 
     @property
     def axes(self) -> list[str]:
         """The varying swept columns, in the study's order."""
         return list(self.short)
-
-    def drawn(self, column: str) -> pd.Series:
-        """A varying swept column's values as drawn: without float noise, lengths in mm."""
-        keys = self.keys[column]
-        return keys * drawn_scale(column) if pd.api.types.is_numeric_dtype(keys) else keys
-
-    def mean_over(self, axes: Sequence[str]) -> str:
-        """What a point averaged over ``axes`` is, in words (empty when nothing)."""
-        if not axes:
-            return ""
-        parts = [f"{axis_name(a)[0]} ({self.keys[a].nunique()} values)" for a in axes]
-        return textwrap.fill(f"each point: the mean over {', '.join(parts)}; band: min to max", 60)
 
 
 def swept(table: pd.DataFrame, axes: Mapping[Any, Any]) -> Swept:
@@ -112,4 +103,8 @@ def swept(table: pd.DataFrame, axes: Mapping[Any, Any]) -> Swept:
     short = {c: str(k).rsplit(".", 1)[-1] for k, c in axes.items() if isinstance(c, str) and c in table}
     keys = grid_keys(table, list(short))
     varying = {c: n for c, n in short.items() if keys[c].nunique(dropna=False) > 1}
-    return Swept(varying, keys[list(varying)], {c: column_title(c) for c in varying})
+    drawn = {
+        c: keys[c] * drawn_scale(c) if pd.api.types.is_numeric_dtype(keys[c]) else keys[c] for c in varying
+    }
+    names = {c: axis_name(c)[0] for c in varying}
+    return Swept(varying, keys[list(varying)], drawn, names, {c: column_title(c) for c in varying})

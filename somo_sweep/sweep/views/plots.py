@@ -21,9 +21,9 @@ import pandas as pd
 from matplotlib.axes import Axes
 from matplotlib.figure import Figure
 
-from somo_sweep.sweep.run.robustness import AWAITED, ROBUST, label_names
+from somo_sweep.sweep.run.robustness import AWAITED, ROBUST
 from somo_sweep.sweep.store.schema import FIXED
-from somo_sweep.sweep.views.axes import column_title, drawn_scale, swept
+from somo_sweep.sweep.views.axes import Swept, column_title, drawn_scale
 from somo_sweep.sweep.views.results import Results
 from somo_sweep.tasks.registry import MetricGuide
 
@@ -238,18 +238,17 @@ def label_maps(results: Results) -> list[tuple[str, Figure]]:
     label of more than :data:`MAX_MAP_LABELS` values."""
     from somo_sweep.sweep.views.label_maps import folded_cells, label_map_figure
 
-    folded, manifest = results.cells, results.manifest
-    short = swept(folded, manifest.get("axes", {})).short
+    folded, short = results.cells, results.swept.short
     axes = list(short)
     if not axes or folded.empty:
         return []
-    title = str(manifest.get("study_name") or "study")
+    title = str(results.manifest.get("study_name") or "study")
     return [
         (
             f"label_map_{label.removeprefix('label_')}",
             label_map_figure(folded_cells(folded, label), label, axes, short, title),
         )
-        for label in label_names(folded)
+        for label in results.labels
         if folded[label].nunique(dropna=False) <= MAX_MAP_LABELS
     ]
 
@@ -262,8 +261,7 @@ def summary_figure(results: Results) -> Figure:
     (:attr:`~somo_sweep.sweep.views.results.Results.cells`): metrics are the cells' own trials',
     labels their majority.
     """
-    df, manifest = results.cells, results.manifest
-    axes = swept(df, manifest.get("axes", {}))
+    df, manifest, axes = results.cells, results.manifest, results.swept
     numeric = [c for c in axes.axes if pd.api.types.is_numeric_dtype(df[c])]
     x = numeric[0] if numeric else (axes.axes[0] if axes.axes else None)
     others = [c for c in axes.axes if c != x]
@@ -271,21 +269,21 @@ def summary_figure(results: Results) -> Figure:
     first, guides = _first_metrics(manifest)
     by = [c for c in (x, hue) if c is not None]
     metrics = summary_metrics(df, first, axes.keys[by]) if x is not None else []
-    labels = label_names(df)[:MAX_METRICS]
+    labels = results.labels[:MAX_METRICS]
     n = 1 + len(labels) + len(metrics)
     cols = min(n, 3)
     rows = (n + cols - 1) // cols
     fig, grid = plt.subplots(rows, cols, figsize=(4.8 * cols, 3.9 * rows), squeeze=False)
     flat = list(grid.ravel())
-    xs, x_title = (axes.drawn(x), axes.titles[x]) if x is not None else (None, "")
+    xs, x_title = (axes.drawn[x], axes.titles[x]) if x is not None else (None, "")
     plot_status(flat[0], df, xs, x_title)
     flat[0].set_title("trials by status")
     for ax, label in zip(flat[1:], labels, strict=False):
         plot_labels(ax, df, label, xs, x_title)
-    over = axes.mean_over([c for c in axes.axes if c not in by])
+    over = _mean_over(axes, [c for c in axes.axes if c not in by])
     for ax, metric in zip(flat[1 + len(labels) :], metrics, strict=False):
         assert xs is not None
-        hues = axes.drawn(hue) if hue is not None else None
+        hues = axes.drawn[hue] if hue is not None else None
         plot_metric(ax, df, metric, xs, x_title, hues, axes.titles[hue] if hue else None, guides)
         if over:
             ax.set_title(over, fontsize="x-small")
@@ -299,3 +297,11 @@ def summary_figure(results: Results) -> Figure:
     fig.suptitle(title)
     fig.tight_layout()
     return fig
+
+
+def _mean_over(axes: Swept, over: list[str]) -> str:
+    """What each metric point averages over, in words (empty when nothing)."""
+    if not over:
+        return ""
+    parts = [f"{axes.names[a]} ({axes.keys[a].nunique()} values)" for a in over]
+    return textwrap.fill(f"each point: the mean over {', '.join(parts)}; band: min to max", 60)

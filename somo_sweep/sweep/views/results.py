@@ -17,8 +17,10 @@ from typing import Any
 import pandas as pd
 
 from somo_sweep.sweep.run.replica_state import ReplicaState, fold_cells, replica_state, unfinished
+from somo_sweep.sweep.run.robustness import label_names
 from somo_sweep.sweep.store.folder import OpenedFolder, missing_trials, open_folder
 from somo_sweep.sweep.store.parts import OnDamaged
+from somo_sweep.sweep.views.axes import Swept, swept
 
 __all__ = ["Results", "open_results"]
 
@@ -28,7 +30,7 @@ class Results(OpenedFolder):
     """A results folder opened for its readers (:func:`open_results`).
 
     Besides what :class:`~somo_sweep.sweep.store.folder.OpenedFolder` holds (``folder``,
-    ``manifest``, ``trials``, ``left_out``, ``pending``):
+    ``manifest``, ``trials``, ``left_out``, the ``journals`` whose rows wait: ``pending``):
 
     Attributes:
         replicas: Where its robustness replicas stand (the plan of its latest run with replicas,
@@ -45,7 +47,7 @@ class Results(OpenedFolder):
             opened.manifest,
             opened.trials,
             opened.left_out,
-            opened.pending,
+            opened.journals,
             replica_state(opened.trials),
         )
 
@@ -60,6 +62,16 @@ class Results(OpenedFolder):
         (:func:`~somo_sweep.sweep.run.replica_state.fold_cells`), every cell the plan chose counted
         as awaiting the replicas it lacks."""
         return fold_cells(self.trials, state=self.replicas)
+
+    @cached_property
+    def labels(self) -> list[str]:
+        """The label columns of its cells (``label_*``, not the robustness columns)."""
+        return label_names(self.cells)
+
+    @cached_property
+    def swept(self) -> Swept:
+        """The swept axes of its cells that vary, worked out once for every figure."""
+        return swept(self.cells, self.manifest.get("axes", {}))
 
     @property
     def unfinished(self) -> str | None:
