@@ -86,9 +86,10 @@ def save_plots(folder: Path) -> None:
     target = folder / "plots"
     if target.is_symlink():
         raise SomoError(f"{target} is a symbolic link; the plots go in the results folder itself: remove it")
+    summary = summary_figure(results)  # drawn once, rendered in both formats
     files = [
-        (target / "summary.png", figure_bytes(summary_figure(results), "png", 120)),
-        (target / "summary.svg", figure_bytes(summary_figure(results), "svg", 120)),
+        (target / "summary.png", figure_bytes(summary, "png", 120, close=False)),
+        (target / "summary.svg", figure_bytes(summary, "svg", 120)),
     ]
     files += [(target / f"{name}.png", figure_bytes(fig, "png", 120)) for name, fig in label_maps(results)]
     written = write_outputs(files)

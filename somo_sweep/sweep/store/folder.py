@@ -222,7 +222,6 @@ def read_state(folder: str | Path, reader: bool = False) -> FolderState:
         if reader:
             raise
         error = exc
-    parts, damaged = split_parts(folder, manifest)
     journals = []
     trials = folder / "trials"
     for path in sorted(trials.glob(JOURNAL_GLOB)) if trials.is_dir() else []:
@@ -231,6 +230,7 @@ def read_state(folder: str | Path, reader: bool = False) -> FolderState:
             journals.append(Journal(run_id, path, tuple(journal_rows(path))))
         except OSError as exc:
             journals.append(Journal(run_id, path, error=exc))
+    parts, damaged = split_parts(folder, manifest)
     return FolderState(folder, manifest, error, tuple(parts), tuple(damaged), tuple(journals))
 
 

@@ -20,7 +20,7 @@ import pandas as pd
 
 from somo_sweep.sweep.store.schema import split_unit, unit_of
 
-__all__ = ["DIGITS", "Swept", "axis_name", "axis_text", "column_title", "drawn_scale", "grid_keys", "swept"]
+__all__ = ["DIGITS", "Swept", "axis_name", "axis_text", "column_axis", "grid_keys", "swept"]
 
 #: Significant digits grid values are compared at (a 1e-9 offset from arithmetic is one value).
 DIGITS = 9
@@ -56,20 +56,21 @@ def axis_text(column: str, value: Any) -> str:
     return f"{name} {value}"
 
 
-def drawn_scale(column: str) -> float:
-    """What a column's values are multiplied by where they are drawn: lengths in mm."""
-    return 1e3 if unit_of(column) == "m" else 1.0
+def column_axis(column: str, unit_given: str = "") -> tuple[str, float]:
+    """How a column is drawn along an axis: its title and the factor its values are drawn at.
 
-
-def column_title(column: str, unit_given: str = "") -> str:
-    """An axis title: the name (a swept column's :func:`axis_name`, else the name without its
-    unit) and its unit (lengths in mm), or the unit a metric's guide gives in words
-    (``unit_given``), on a line of its own."""
-    name = axis_name(column)[0] if column.startswith(("task_", "model_")) else split_unit(column)[0]
-    unit = "mm" if unit_of(column) == "m" else unit_of(column)
-    if unit_given:
-        return f"{name}\n({unit_given})"
-    return f"{name} ({unit})" if unit else name
+    The title is the name (a swept column's :func:`axis_name`, else the name without its unit)
+    and the unit, lengths in mm; or, on a line of its own, the unit a metric's guide gives in words
+    (``unit_given``). Lengths are drawn in mm (factor 1e3), everything else as stored (1).
+    """
+    swept = column.startswith(("task_", "model_"))
+    name = split_unit(column.removeprefix("task_").removeprefix("model_") if swept else column)[0]
+    unit = unit_of(column)
+    if swept:
+        name = re.split(r"_\d+_", name)[-1] or name
+    shown = "mm" if unit == "m" else unit
+    title = f"{name}\n({unit_given})" if unit_given else f"{name} ({shown})" if shown else name
+    return title, 1e3 if unit == "m" else 1.0
 
 
 @dataclass(frozen=True)
@@ -82,7 +83,7 @@ class Swept:
         keys: Their values, row by row, without float noise (:func:`grid_keys`).
         drawn: Each one's values, row by row, as drawn: without float noise, lengths in mm.
         names: Each one's name as a reader says it (:func:`axis_name`).
-        titles: Each one's axis title (:func:`column_title`).
+        titles: Each one's axis title (:func:`column_axis`).
     """
 
     short: dict[str, str]
@@ -103,8 +104,7 @@ def swept(table: pd.DataFrame, axes: Mapping[Any, Any]) -> Swept:
     short = {c: str(k).rsplit(".", 1)[-1] for k, c in axes.items() if isinstance(c, str) and c in table}
     keys = grid_keys(table, list(short))
     varying = {c: n for c, n in short.items() if keys[c].nunique(dropna=False) > 1}
-    drawn = {
-        c: keys[c] * drawn_scale(c) if pd.api.types.is_numeric_dtype(keys[c]) else keys[c] for c in varying
-    }
+    axis = {c: column_axis(c) for c in varying}
+    drawn = {c: keys[c] * axis[c][1] if pd.api.types.is_numeric_dtype(keys[c]) else keys[c] for c in varying}
     names = {c: axis_name(c)[0] for c in varying}
-    return Swept(varying, keys[list(varying)], drawn, names, {c: column_title(c) for c in varying})
+    return Swept(varying, keys[list(varying)], drawn, names, {c: title for c, (title, _) in axis.items()})

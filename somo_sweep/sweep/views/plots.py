@@ -23,7 +23,7 @@ from matplotlib.figure import Figure
 
 from somo_sweep.sweep.run.robustness import AWAITED, ROBUST
 from somo_sweep.sweep.store.schema import FIXED
-from somo_sweep.sweep.views.axes import Swept, column_title, drawn_scale
+from somo_sweep.sweep.views.axes import Swept, column_axis
 from somo_sweep.sweep.views.results import Results
 from somo_sweep.tasks.registry import MetricGuide
 
@@ -167,7 +167,8 @@ def plot_metric(
     drawn), one line per value of ``hue`` (another axis's), the range (min to max) over the trials
     of each point as a band; the guide's thresholds as lines."""
     ok = df[df["status"] == "ok"]
-    xs, scale = x[ok.index], drawn_scale(y)
+    guide = (guides or {}).get(y, MetricGuide())
+    (y_title, scale), xs = column_axis(y, guide.unit), x[ok.index]
     groups = [(None, ok.index)] if hue is None else list(ok.groupby(hue[ok.index], sort=True).groups.items())
     for i, (value, index) in enumerate(groups):
         points = (ok.loc[index, y].astype(float) * scale).groupby(xs[index], sort=True)
@@ -176,11 +177,11 @@ def plot_metric(
         ax.plot(mean.index, mean.to_numpy(), marker="o", ms=3, label=name, color=f"C{i % 10}")
         if (high > low).any():
             ax.fill_between(mean.index, low.to_numpy(), high.to_numpy(), alpha=0.15, color=f"C{i % 10}", lw=0)
-    for level, meaning in (guides or {}).get(y, MetricGuide()).lines:
+    for level, meaning in guide.lines:
         ax.axhline(level * scale, color="0.3", ls="--", lw=0.8, label=meaning)
     ax.set_xlabel(x_title)
-    ax.set_ylabel(column_title(y, (guides or {}).get(y, MetricGuide()).unit), fontsize="small")
-    if (hue is not None and groups) or (guides or {}).get(y, MetricGuide()).lines:
+    ax.set_ylabel(y_title, fontsize="small")
+    if (hue is not None and groups) or guide.lines:
         ax.legend(title=hue_title, fontsize="x-small", title_fontsize="x-small")
     ax.grid(alpha=0.3)
 
