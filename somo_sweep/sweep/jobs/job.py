@@ -32,7 +32,7 @@ from somo_sweep.model.load import Model
 from somo_sweep.sim.settings import WorldSettings
 from somo_sweep.sim.settings import engine_version as _read_engine_version
 from somo_sweep.sweep.jobs.code import code_version, pybullet_version
-from somo_sweep.sweep.study.resolve import MODEL_CACHE, PARAMS_CACHE, RecentCache, TrialPlan
+from somo_sweep.sweep.study.resolve import MODEL_CACHE, PARAMS_CACHE, PointInputs, RecentCache, TrialPlan
 
 if TYPE_CHECKING:
     from somo_sweep.sim.numerics import ChosenNumerics
@@ -138,15 +138,20 @@ class JobMaker:
         self.resolver = plan.resolver
         #: The engine every job of the study runs on (PyBullet without ``simulation:``).
         self.engine_name = plan.engine
+        self.pybullet_version = pybullet_version()
+        #: The installed version of the study's engine (named in every non-PyBullet job's id).
+        self.engine_version = (
+            self.pybullet_version if plan.engine == "pybullet" else engine_version(plan.engine)
+        )
+        #: The version of the code every trial runs (hashed into every job's id).
         self.code = code or code_version(plan.task_module, plan.engine)
-        self.engine = pybullet_version()
         self.model_columns = [(k, param_column(k)) for k in plan.model_overrides]
         self._head = f'{{"code":{_json(self.code)},"model":'
         self._tail = f',"task":{_json(plan.task)}}}'
         #: Model key → what its jobs share, for every distinct model met.
         self.models: dict[str, _ModelInfo] = {}
         self._built: dict[str, Model] = RecentCache(MODEL_CACHE)  # with their numerics applied
-        self._params: dict[str, tuple[BaseModel, str, dict[str, Any]]] = RecentCache(PARAMS_CACHE)
+        self._params: dict[str, tuple[str, dict[str, Any]]] = RecentCache(PARAMS_CACHE)
 
     def at_step(self, step_s: float) -> JobMaker:
         """The maker of the same study's jobs at another automatic time step, s (its candidates,
@@ -161,32 +166,32 @@ class JobMaker:
         """The grid point of number ``number`` (:meth:`~somo_sweep.sweep.study.loaded.Study.points` order)."""
         return self.plan.point(number)
 
-    def _model(self, point: dict[str, Any]) -> tuple[Model, _ModelInfo]:
-        key = self.resolver.model_key(point)
+    def _model(self, got: PointInputs) -> tuple[Model, _ModelInfo]:
+        """The point's model with its numerics applied, and what the jobs of that model share."""
+        key = got.model_key
         if key in self._built:
             return self._built[key], self.models[key]
-        model_path, given = self.resolver.model(point, keep=False)
         info = self.models.get(key)
         if info is None:
             shaped, model_hash, settings, numerics = _prepare(
-                given, self.plan.settings, self.plan.auto_step_s
+                got.model, self.plan.settings, self.plan.auto_step_s
             )
-            model_file = os.path.relpath(model_path, self.plan.source.parent)
+            model_file = os.path.relpath(got.model_path, self.plan.source.parent)
             info = _ModelInfo(model_file, model_hash, settings, _json(_settings_fields(settings)), numerics)
             self.models[key] = info
         else:
-            shaped = given if info.numerics is None else info.numerics.apply(given)
+            shaped = got.model if info.numerics is None else info.numerics.apply(got.model)
         self._built[key] = shaped
         return shaped, info
 
-    def _task(self, point: dict[str, Any]) -> tuple[BaseModel, str, dict[str, Any]]:
-        key = self.resolver.params_key(point)
+    def _task(self, got: PointInputs) -> tuple[str, dict[str, Any]]:
+        """The point's task parameters as a job id hashes them (JSON) and as columns."""
+        key = got.params_key
         if key not in self._params:
-            params = self.resolver.params(point, keep=False)
-            dumped = params.model_dump(mode="json")
+            dumped = got.params.model_dump(mode="json")
             columns: dict[str, Any] = {}
             _flatten("task", dumped, columns)
-            self._params[key] = (params, _json(dumped), columns)
+            self._params[key] = (_json(dumped), columns)
         return self._params[key]
 
     def job(self, trial: int) -> Job:
@@ -194,8 +199,9 @@ class JobMaker:
         plan = self.plan
         point_number, repeat = divmod(trial, plan.repeats)
         point = self.point(point_number)
-        model, info = self._model(point)
-        params, params_json, task_columns = self._task(point)
+        got = self.resolver.inputs_of(point)
+        params, (params_json, task_columns) = got.params, self._task(got)
+        model, info = self._model(got)
         values = {**plan.fixed, **point}
         columns = dict(task_columns)
         for key, column in self.model_columns:
@@ -207,7 +213,7 @@ class JobMaker:
             # _hash(_identity(...)) = {task, params, model, settings, seed, code, pybullet}, keys
             # sorted, written from the parts made once per model and parameter set.
             text = (
-                f'{self._head}{_json(info.model_hash)},"params":{params_json},"pybullet":{_json(self.engine)},'
+                f'{self._head}{_json(info.model_hash)},"params":{params_json},"pybullet":{_json(self.pybullet_version)},'
                 f'"seed":{seed},"settings":{info.settings_json}{self._tail}'
             )
             job_id = hashlib.sha256(text.encode()).hexdigest()[:16]

@@ -21,7 +21,7 @@ import numpy as np
 
 from somo_sweep.errors import DescriptionError, Problem
 from somo_sweep.sweep.jobs.code import code_version, pybullet_version, trial_modules
-from somo_sweep.sweep.jobs.job import Job, JobMaker, auto_numerics, engine_version, param_column, replica_jobs
+from somo_sweep.sweep.jobs.job import Job, JobMaker, auto_numerics, param_column, replica_jobs
 from somo_sweep.sweep.study.loaded import Study
 from somo_sweep.sweep.study.resolve import TrialPlan
 
@@ -245,5 +245,5 @@ def table_of(study: Study, maker: JobMaker) -> JobTable:
         "n_trials": n,
     }
     if maker.engine_name != "pybullet":
-        resolved[maker.engine_name] = engine_version(maker.engine_name)
+        resolved[maker.engine_name] = maker.engine_version
     return JobTable(ids, study_hash, axes, resolved, columns, maker)

@@ -182,7 +182,8 @@ def _table(study: Study, options: RunOptions, events: StepEvents | None) -> tupl
                 choice = auto_step(study, maker, _sample_runs(options), events)
             except KeyboardInterrupt:
                 raise Interrupted("step", caught[0] if caught else signal.SIGINT) from None
-        study, maker = with_auto_step(study, choice.step_s, choice.as_dict()), maker.at_step(choice.step_s)
+        maker = maker.at_step(choice.step_s)
+        study = with_auto_step(study, choice.step_s, choice.as_dict())
     try:
         return study, table_of(study, maker)
     except KeyboardInterrupt:
