@@ -73,7 +73,8 @@ def save_plots(folder: Path) -> None:
     """The summary figure and, for a study with labels, a label map per label column."""
     from somo_sweep.sweep.store.folder import SKIPPED
     from somo_sweep.sweep.store.manifest import record_files
-    from somo_sweep.sweep.views.plots import label_maps, summary_figure
+    from somo_sweep.sweep.views.label_maps import label_maps
+    from somo_sweep.sweep.views.plots import summary_figure
     from somo_sweep.sweep.views.results import open_results
 
     results = open_results(folder, damaged)

@@ -24,9 +24,10 @@ from somo_sweep.errors import Interrupted, SomoError
 
 if TYPE_CHECKING:  # the heavy modules are imported when a command runs
     from somo_sweep.sweep.run.convergence import StepChoice, StepEvents
+    from somo_sweep.sweep.run.estimate import DryRun
     from somo_sweep.sweep.run.execution import Backend
     from somo_sweep.sweep.run.options import RunEvents, RunOptions, RunSummary
-    from somo_sweep.sweep.run.runner import DryRun
+    from somo_sweep.sweep.run.runner import RunPlan
     from somo_sweep.sweep.run.sampling import Batch
     from somo_sweep.sweep.study import Study
 
@@ -148,52 +149,54 @@ def run(
             raise SomoError(f"--out {out} is a file, not a folder")
     except SomoError as exc:
         fail(exc)
-    st = _loaded(study, out, max_trials, allow_outside, options if dry_run else None, estimate)
-    if st is None:  # a dry run: printed
+    plan = _planned(study, out, max_trials, allow_outside, options, dry_run, estimate)
+    if plan is None:  # a dry run: printed
         return
-    summary = _run(st, options)
+    summary = _run(plan)
     _report(summary, plots, allow_errors)
 
 
-def _loaded(
+def _planned(
     path: Path,
     out: Path | None,
     max_trials: int,
     allow_outside: bool,
-    dry: RunOptions | None,
+    options: RunOptions,
+    dry: bool = False,
     estimate: bool = True,
-) -> Study | None:
-    """The study, or None once its dry run (with the options ``dry``) is printed."""
-    from somo_sweep.sweep.run.runner import dry_run
+) -> RunPlan | None:
+    """The study's run as ``options`` make it, or None once its dry run (``dry``) is printed."""
+    from somo_sweep.sweep.run.runner import dry_run, plan_run
     from somo_sweep.sweep.study import load_study
 
     try:
         study = load_study(path, out, max_trials, allow_outside)
         say_notes(study.notices)
-        if dry is not None:
-            _print_dry_run(dry_run(study, dry, DRY_ROWS), dry.workers, estimate)
+        plan = plan_run(study, options)
+        if dry:
+            _print_dry_run(dry_run(plan, DRY_ROWS), options.workers, estimate)
             return None
-        return study
+        return plan
     except SomoError as exc:
         fail(exc)
     except KeyboardInterrupt:
         _interrupted("jobs", 2)
 
 
-def _run(st: Study, options: RunOptions) -> RunSummary:
-    """Run the study with a progress bar per round; an error or an interrupt ends the command."""
-    from somo_sweep.sweep.run.runner import run_sweep
+def _run(plan: RunPlan) -> RunSummary:
+    """Run the plan with a progress bar per round; an error or an interrupt ends the command."""
+    from somo_sweep.sweep.run.runner import run_plan
 
-    view = _RunView(st)
+    view = _RunView(plan.study)
     try:
-        return run_sweep(st, options, view.events())
+        return run_plan(plan, view.events())
     except SomoError as exc:
         view.stop()
         fail(exc)
     except Interrupted as exc:
         view.stop()
         _interrupted(exc.stage, exc.signum)
-    except KeyboardInterrupt:  # before the run's own stages (its options applied, workers starting)
+    except KeyboardInterrupt:  # before the run's own stages (the URDF cache checked, workers starting)
         view.stop()
         _interrupted("jobs", 2)
     finally:

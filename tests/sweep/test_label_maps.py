@@ -17,9 +17,10 @@ from somo_sweep.sweep.views.label_maps import (
     MAX_PANELS,
     NOT_ROBUST_HATCH,
     label_map_figure,
+    label_maps,
     map_axes,
 )
-from somo_sweep.sweep.views.plots import label_maps, summary_metrics
+from somo_sweep.sweep.views.plots import summary_metrics
 from somo_sweep.sweep.views.results import Results
 
 

@@ -18,7 +18,7 @@ from somo_sweep.sweep.run.runner import RunOptions, run_sweep
 from somo_sweep.sweep.store.folder import read_manifest
 from somo_sweep.sweep.store.folder import read_results as read_trials
 from somo_sweep.sweep.study import load_study
-from somo_sweep.sweep.views.plots import label_maps
+from somo_sweep.sweep.views.label_maps import label_maps
 from somo_sweep.sweep.views.results import Results, open_results
 
 MODEL = ROOT / "somo_sweep" / "data" / "models" / "pinch_gripper.yaml"

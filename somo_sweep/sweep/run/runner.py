@@ -22,7 +22,7 @@ from somo_sweep.sim.urdf_cache import check_cache
 from somo_sweep.sweep.jobs.job import Job, JobMaker
 from somo_sweep.sweep.jobs.table import JobTable, iter_jobs, table_of
 from somo_sweep.sweep.run.convergence import StepEvents, auto_step, ladder, outcomes_of
-from somo_sweep.sweep.run.estimate import RunEstimate, estimate_run
+from somo_sweep.sweep.run.estimate import DryRun
 from somo_sweep.sweep.run.execution import execute, start_workers
 from somo_sweep.sweep.run.options import RoundSummary, RunEvents, RunOptions, RunSummary
 from somo_sweep.sweep.run.rows import outcome_row
@@ -33,15 +33,17 @@ from somo_sweep.sweep.study.derive import with_auto_step, with_replicas, with_sa
 from somo_sweep.sweep.study.loaded import Study
 
 __all__ = [
-    "DryRun",
     "RoundSummary",
     "RunEvents",
     "RunOptions",
+    "RunPlan",
     "RunSummary",
     "apply_options",
     "choose_auto_step",
     "dry_run",
     "outcome_row",
+    "plan_run",
+    "run_plan",
     "run_sweep",
 ]
 
@@ -77,36 +79,42 @@ def _sample_runs(options: RunOptions) -> Callable[[list[Job]], Iterator[tuple[st
 
 
 @dataclass(frozen=True)
-class DryRun:
-    """What :func:`run_sweep` would do with a study and its options, worked out without running it.
+class RunPlan:
+    """A run as its options make it, before it runs (:func:`plan_run`).
 
     Attributes:
-        study: The study as the options run it (their sampling and replicas).
-        jobs: Its first jobs (the others are not built).
-        sampling: What adaptive sampling does, in words (None: the study runs its whole grid).
-        steps: Without ``simulation:``: the candidate steps, s, largest first, and what set the
-            first (:func:`~somo_sweep.sweep.run.convergence.ladder`); the jobs show the first.
+        study: The study as the options run it (their sampling and replica count).
+        options: How it runs.
+        maker: Its job maker, made once: the step's sample trials, the job table and a dry run's
+            first jobs all come from it.
     """
 
     study: Study
-    jobs: list[Job]
-    sampling: str | None
-    steps: tuple[list[float], str] | None
-
-    def estimate(self, workers: int, time_trial: bool = True) -> RunEstimate:
-        """The run's size and, with ``time_trial``, its wall time on ``workers`` processes, from the
-        first trial timed (:func:`~somo_sweep.sweep.run.estimate.estimate_run`)."""
-        return estimate_run(self.study, self.jobs[0], workers, time_trial)
+    options: RunOptions
+    maker: JobMaker
 
 
-def dry_run(study: Study, options: RunOptions, rows: int = 10) -> DryRun:
-    """What a run of ``study`` with ``options`` would do (its first ``rows`` jobs built, no others).
+def plan_run(study: Study, options: RunOptions | None = None) -> RunPlan:
+    """``study`` as ``options`` run it (default: every CPU of this machine, the study's own
+    sampling and replicas), and its job maker.
 
     Raises:
-        DescriptionError: The replica count does not fit the study, or two trials are identical.
+        SomoError: Bad options.
+        DescriptionError: The replica count is out of range, or the task cannot be replicated.
     """
+    options = options or RunOptions()
+    options.check()
     study = apply_options(study, options)
-    maker = JobMaker(study.trial_plan())
+    return RunPlan(study, options, JobMaker(study.trial_plan()))
+
+
+def dry_run(plan: RunPlan, rows: int = 10) -> DryRun:
+    """What the run ``plan`` would do (its first ``rows`` jobs built, no others), without running it.
+
+    Raises:
+        DescriptionError: Two trials are identical.
+    """
+    study, maker = plan.study, plan.maker
     jobs = list(itertools.islice(iter_jobs(maker), max(rows, 1)))
     sampling = describe(study) if study.sampling == "adaptive" else None
     steps = ladder(maker) if study.simulation is None else None
@@ -119,7 +127,8 @@ def run_sweep(
     events: RunEvents | None = None,
     table: JobTable | None = None,
 ) -> RunSummary:
-    """Run the trials of ``study`` missing from its results folder, and say what the run did.
+    """Run the trials of ``study`` missing from its results folder, and say what the run did
+    (:func:`run_plan` of :func:`plan_run`).
 
     Args:
         study: The loaded study (its ``output`` is the results folder).
@@ -130,6 +139,20 @@ def run_sweep(
             step is taken as it is: a study without ``simulation:`` runs its modal numerics
             unless its ``auto_step_s`` says otherwise).
 
+    Raises:
+        As :func:`plan_run` and :func:`run_plan`.
+    """
+    return run_plan(plan_run(study, options), events, table)
+
+
+def run_plan(plan: RunPlan, events: RunEvents | None = None, table: JobTable | None = None) -> RunSummary:
+    """Run the trials of a planned run (:func:`plan_run`) missing from its results folder.
+
+    Args:
+        plan: The run.
+        events: What to report as it goes (default: nothing).
+        table: Its job table, if already built (:func:`run_sweep`).
+
     Returns:
         What the run did; ``interrupted`` is set when SIGINT / SIGTERM stopped it (every finished
         trial is kept).
@@ -139,16 +162,14 @@ def run_sweep(
             ``stage`` says what it stopped (nothing of the study was written).
         StorageError: The results could not be written (e.g. disk full); the run stopped, what
             it wrote is intact and the manifest counts only rows in part files.
-        SomoError: Bad options, folder locked, different study in the folder, Dask unreachable,
-            the engine (MuJoCo) not installed, the URDF cache folder of a PyBullet study cannot be
-            written (:func:`~somo_sweep.sim.urdf_cache.check_cache`).
-        DescriptionError: The replica count does not fit the study, two trials are identical, or
-            ``adaptive.labels`` names a label the task does not give.
+        SomoError: Folder locked, different study in the folder, Dask unreachable, the engine
+            (MuJoCo) not installed, the URDF cache folder of a PyBullet study cannot be written
+            (:func:`~somo_sweep.sim.urdf_cache.check_cache`).
+        DescriptionError: Two trials are identical, or ``adaptive.labels`` names a label the task
+            does not give.
     """
-    options = options or RunOptions()
     events = events or RunEvents()
-    options.check()
-    study = apply_options(study, options)
+    study, options = plan.study, plan.options
     if options.backend == "loky" and (study.simulation is None or study.simulation.engine == "pybullet"):
         check_cache()  # every PyBullet trial loads its bodies from there: one error, not one per trial
     warm = None
@@ -156,7 +177,7 @@ def run_sweep(
         warm = start_workers(min(options.workers, study.n_trials), study.task.name)
     try:
         if table is None:
-            study, table = _table(study, options, events.step)
+            study, table = _table(study, plan.maker, options, events.step)
         try:
             return run_rounds(study, table, options, events, warm=warm)
         except Interrupted:
@@ -168,14 +189,15 @@ def run_sweep(
             warm.close()
 
 
-def _table(study: Study, options: RunOptions, events: StepEvents | None) -> tuple[Study, JobTable]:
+def _table(
+    study: Study, maker: JobMaker, options: RunOptions, events: StepEvents | None
+) -> tuple[Study, JobTable]:
     """``study`` with its automatic step (when it has no ``simulation:`` and no step yet), and its
-    job table: one job maker builds the step's sample trials and the table.
+    job table: its job maker builds the step's sample trials and the table.
 
     Raises:
         Interrupted: SIGINT or SIGTERM while the step is chosen, SIGINT while the table is built.
     """
-    maker = JobMaker(study.trial_plan())
     if study.simulation is None and study.auto_step_s is None:
         with term_as_interrupt() as caught:
             try:

@@ -28,7 +28,6 @@ from somo_sweep.sweep.views.results import Results
 from somo_sweep.tasks.registry import MetricGuide
 
 __all__ = [
-    "label_maps",
     "metric_columns",
     "plot_labels",
     "plot_metric",
@@ -38,8 +37,6 @@ __all__ = [
 ]
 
 STATUS_COLOURS = {"ok": "tab:green", "unstable": "tab:orange", "error": "tab:red", "inferred": "0.75"}
-#: A label column with more values than this gets no map (its colours could not be told apart).
-MAX_MAP_LABELS = 12
 #: At most this many metric panels in the summary figure.
 MAX_METRICS = 6
 #: Relative spread below which values are one value (float noise: 1e-9 of 85 mm is not a result).
@@ -233,27 +230,6 @@ def summary_metrics(
     return [c for c in ordered if _informative(df, c, by)][:MAX_METRICS]
 
 
-def label_maps(results: Results) -> list[tuple[str, Figure]]:
-    """``(file stem, figure)`` of each label column's map over the study's swept axes
-    (:mod:`somo_sweep.sweep.views.label_maps`); none for a study without labels or axes, nor for a
-    label of more than :data:`MAX_MAP_LABELS` values."""
-    from somo_sweep.sweep.views.label_maps import folded_cells, label_map_figure
-
-    folded, short = results.cells, results.swept.short
-    axes = list(short)
-    if not axes or folded.empty:
-        return []
-    title = str(results.manifest.get("study_name") or "study")
-    return [
-        (
-            f"label_map_{label.removeprefix('label_')}",
-            label_map_figure(folded_cells(folded, label), label, axes, short, title),
-        )
-        for label in results.labels
-        if folded[label].nunique(dropna=False) <= MAX_MAP_LABELS
-    ]
-
-
 def summary_figure(results: Results) -> Figure:
     """Trials by status, by each label, then each metric against the first numeric axis.
 
@@ -267,6 +243,7 @@ def summary_figure(results: Results) -> Figure:
     x = numeric[0] if numeric else (axes.axes[0] if axes.axes else None)
     others = [c for c in axes.axes if c != x]
     hue = others[0] if others else None
+    n_inferred = int(_inferred(df).sum())
     first, guides = _first_metrics(manifest)
     by = [c for c in (x, hue) if c is not None]
     metrics = summary_metrics(df, first, axes.keys[by]) if x is not None else []
@@ -290,7 +267,6 @@ def summary_figure(results: Results) -> Figure:
             ax.set_title(over, fontsize="x-small")
     for ax in flat[n:]:
         ax.set_visible(False)
-    n_inferred = int(_inferred(df).sum())
     extra = f", {n_inferred} of them inferred" if n_inferred else ""
     title = f"{manifest.get('study_name')} ({len(df)} cells{extra})"
     if results.unfinished:
