@@ -2,7 +2,7 @@
 
 A run opens a folder only if it is new, empty or a results folder (:func:`check_target`); it takes
 the folder's lock, reads the folder once (:func:`~somo_sweep.sweep.store.folder.read_state`) and
-decides everything from that state before it moves a file: damaged part files go to
+decides everything from that state, reading no file of it again: damaged part files go to
 ``trials/quarantine/``; the manifest is the folder's own when it holds this study (part files of
 another study copied in are set aside too), rebuilt when it is missing or damaged, and a different
 study is refused unless ``--overwrite`` deletes it; runs that were killed or stopped themselves are
