@@ -49,21 +49,21 @@ def answer(
     has its label); says when the answer is provisional (cells awaiting replicas, trials missing).
     """
     from somo_sweep.cli.results import damaged
-    from somo_sweep.sweep.store.folder import read_results
     from somo_sweep.sweep.views.answers import ask
     from somo_sweep.sweep.views.questions import question_for
+    from somo_sweep.sweep.views.results import open_results
 
     if (smallest is None) == (largest is None):
         fail(SomoError("give one of --smallest AXIS or --largest AXIS"))
     target = file_target(csv, "answers.csv")
     try:
-        trials = read_results(results, damaged)
-        if trials.empty:
+        opened = open_results(results, damaged)
+        if opened.trials.empty:
             raise SomoError(f"{results}: no finished trials yet; nothing to answer from")
         axis = smallest if smallest is not None else largest
         assert axis is not None
-        question = question_for(trials, axis, every or [], some or [], label, largest is not None)
-        result = ask(trials, question)
+        question = question_for(opened.trials, axis, every or [], some or [], label, largest is not None)
+        result = ask(opened, question)
         if target is not None:
             (path,) = write_outputs([(target, result.table.to_csv(index=False))], inputs=[results])
             record_in_results([path])

@@ -262,13 +262,15 @@ def write_atomic(path: Path, data: str | bytes) -> Path:
     return path
 
 
-def figure_bytes(fig: Figure, fmt: str = "png", dpi: int = 120) -> bytes:
-    """A figure rendered to bytes (PNG, SVG, …); the figure is closed."""
+def figure_bytes(fig: Figure, fmt: str = "png", dpi: int = 120, close: bool = True) -> bytes:
+    """A figure rendered to bytes (PNG, SVG, …); the figure is closed unless ``close`` is False
+    (it is rendered again, in another format)."""
     import matplotlib.pyplot as plt
 
     buf = io.BytesIO()
     fig.savefig(buf, format=fmt, dpi=dpi)
-    plt.close(fig)
+    if close:
+        plt.close(fig)
     return buf.getvalue()
 
 

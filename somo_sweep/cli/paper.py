@@ -112,18 +112,15 @@ def fig6(
 ) -> None:
     """Fig. 6: pinch / power / no grasp over centering and width per DSR; the smallest all-width pinch DSR."""
     from somo_sweep.paper.fig6 import build, grasp_table
-    from somo_sweep.paper.grasp_trials import read_results
-    from somo_sweep.sweep.run.replica_state import replica_state
-    from somo_sweep.sweep.store.folder import missing_trials, read_manifest
+    from somo_sweep.paper.grasp_trials import open_grasp_results
 
     stem = f"fig6_{rule}"
     try:
-        trials = read_results(results)
-        expected = read_manifest(results).get("n_trials")
+        opened = open_grasp_results(results)
     except SomoError as exc:
         fail(exc)
+    trials, state, expected = opened.trials, opened.replicas, opened.manifest.get("n_trials")
     try:
-        state = replica_state(trials)
         table = grasp_table(trials, rule, state)
         n_trials = expected if isinstance(expected, int) else None
         artifacts = build(table, stem=stem, max_dsr=max_dsr, state=state, expected=n_trials)
@@ -134,7 +131,7 @@ def fig6(
         artifacts.json[f"{stem}.json"]["engine_audit"] = info
         for line in _audit_lines(info):
             typer.echo(line)
-    if (missing := missing_trials(trials, len(table))) is not None:
+    if (missing := opened.missing(len(table))) is not None:
         typer.echo(f"note: {missing}: the figure and its headlines are of those only")
     target = out or results
     if target.resolve() != results.resolve():

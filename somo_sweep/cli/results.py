@@ -71,13 +71,15 @@ def damaged(path: Path, reason: Damage) -> None:
 
 def save_plots(folder: Path) -> None:
     """The summary figure and, for a study with labels, a label map per label column."""
-    from somo_sweep.sweep.store.folder import SKIPPED, read_manifest, read_results
+    from somo_sweep.sweep.store.folder import SKIPPED
     from somo_sweep.sweep.store.manifest import record_files
-    from somo_sweep.sweep.views.plots import label_maps, summary_figure
+    from somo_sweep.sweep.views.label_maps import label_maps
+    from somo_sweep.sweep.views.plots import summary_figure
+    from somo_sweep.sweep.views.results import open_results
 
-    df, manifest = read_results(folder, damaged), read_manifest(folder)
-    if df.empty:
-        left_out = int(df.attrs.get(SKIPPED, 0))
+    results = open_results(folder, damaged)
+    if results.trials.empty:
+        left_out = int(results.trials.attrs.get(SKIPPED, 0))
         why = f": {left_out} damaged file(s) were left out (the warnings above name them)" if left_out else ""
         raise SomoError(
             f"{folder}: no trial stored that can be read{why}; nothing to plot, nothing was written"
@@ -85,13 +87,12 @@ def save_plots(folder: Path) -> None:
     target = folder / "plots"
     if target.is_symlink():
         raise SomoError(f"{target} is a symbolic link; the plots go in the results folder itself: remove it")
+    summary = summary_figure(results)  # drawn once, rendered in both formats
     files = [
-        (target / "summary.png", figure_bytes(summary_figure(df, manifest), "png", 120)),
-        (target / "summary.svg", figure_bytes(summary_figure(df, manifest), "svg", 120)),
+        (target / "summary.png", figure_bytes(summary, "png", 120, close=False)),
+        (target / "summary.svg", figure_bytes(summary, "svg", 120)),
     ]
-    files += [
-        (target / f"{name}.png", figure_bytes(fig, "png", 120)) for name, fig in label_maps(df, manifest)
-    ]
+    files += [(target / f"{name}.png", figure_bytes(fig, "png", 120)) for name, fig in label_maps(results)]
     written = write_outputs(files)
     record_files(folder, written)
     maps = [path.name for path, _ in files[2:]]
@@ -103,14 +104,13 @@ def save_plots(folder: Path) -> None:
 def show(results: Annotated[Path, typer.Argument(help="Results folder, e.g. results/<study>.")]) -> None:
     """Print a results folder's summary: counts by status and label, per-axis breakdown."""
     from somo_sweep.cli.summary import print_results
-    from somo_sweep.sweep.store.folder import pending_journal_rows, read_manifest, read_results
     from somo_sweep.sweep.store.lock import holder_now
+    from somo_sweep.sweep.views.results import open_results
 
     try:
-        df, manifest = read_results(results, damaged), read_manifest(results)
-        pending = pending_journal_rows(results, manifest["study_hash"], set(df["job_id"]))
-        say_notes(_old_columns(results, df.columns, manifest))
-        print_results(_out(), df, manifest, holder_now(results), pending)
+        opened = open_results(results, damaged)
+        say_notes(_old_columns(results, opened.trials.columns, opened.manifest))
+        print_results(_out(), opened, holder_now(results))
     except SomoError as exc:
         fail(exc)
 

@@ -11,9 +11,10 @@ from rich.table import Table
 
 from somo_sweep.errors import printable, shown
 from somo_sweep.sweep.run.options import RunSummary
-from somo_sweep.sweep.run.replica_state import ReplicaState, fold_cells, replica_state, unfinished
+from somo_sweep.sweep.run.replica_state import ReplicaState, unfinished
 from somo_sweep.sweep.run.robustness import AWAITED, ROBUST, label_names
 from somo_sweep.sweep.store.folder import MANIFEST, planned_replicas
+from somo_sweep.sweep.views.results import Results
 
 __all__ = ["breakdown", "inferred_mask", "label_columns", "print_results", "print_run_summary"]
 
@@ -201,29 +202,20 @@ def _run_line(run: dict[str, Any], holder: str | None, pending: int) -> str:
     return f"run {start} → {_text(run.get('end_utc'))}: {_text(status)}{why}, {_text(n)} trial(s), {backend}"
 
 
-def print_results(
-    console: Console,
-    df: pd.DataFrame,
-    manifest: dict[str, Any],
-    holder: str | None = None,
-    pending: dict[str, int] | None = None,
-) -> None:
+def print_results(console: Console, results: Results, holder: str | None = None) -> None:
     """Header (study, hash, completeness, runs), counts by status and label, per-axis tables.
 
     Args:
         console: Where to print.
-        df: The folder's trials (:func:`~somo_sweep.sweep.store.folder.read_results`).
-        manifest: Its manifest.
+        results: The results folder, opened (its trials, manifest, the finished trials waiting in
+            the journals of killed runs, where its replicas stand).
         holder: Who holds the folder's lock now (a run in progress), or None.
-        pending: Finished trials waiting in the journals of killed runs, by run id
-            (:func:`~somo_sweep.sweep.store.folder.pending_journal_rows`).
     """
-    pending = pending or {}
+    df, manifest, pending, state = results.trials, results.manifest, results.pending, results.replicas
     replica_runs = beyond = 0
-    state = replica_state(df)
     if not df.empty:
         n_rows = len(df)
-        df = fold_cells(df, state=state)
+        df = results.cells
         replica_runs = int(df["replicas"].sum())
         beyond = n_rows - len(df) - replica_runs
     inferred = inferred_mask(df)

@@ -24,8 +24,10 @@ from somo_sweep.errors import Interrupted, SomoError
 
 if TYPE_CHECKING:  # the heavy modules are imported when a command runs
     from somo_sweep.sweep.run.convergence import StepChoice, StepEvents
+    from somo_sweep.sweep.run.estimate import DryRun
     from somo_sweep.sweep.run.execution import Backend
     from somo_sweep.sweep.run.options import RunEvents, RunOptions, RunSummary
+    from somo_sweep.sweep.run.runner import RunPlan
     from somo_sweep.sweep.run.sampling import Batch
     from somo_sweep.sweep.study import Study
 
@@ -147,52 +149,54 @@ def run(
             raise SomoError(f"--out {out} is a file, not a folder")
     except SomoError as exc:
         fail(exc)
-    st = _loaded(study, out, max_trials, allow_outside, options if dry_run else None, estimate)
-    if st is None:  # a dry run: printed
+    plan = _planned(study, out, max_trials, allow_outside, options, dry_run, estimate)
+    if plan is None:  # a dry run: printed
         return
-    summary = _run(st, options)
+    summary = _run(plan)
     _report(summary, plots, allow_errors)
 
 
-def _loaded(
+def _planned(
     path: Path,
     out: Path | None,
     max_trials: int,
     allow_outside: bool,
-    dry_run: RunOptions | None,
+    options: RunOptions,
+    dry: bool = False,
     estimate: bool = True,
-) -> Study | None:
-    """The study, or None once its dry run (with these options) is printed."""
-    from somo_sweep.sweep.run.runner import apply_options
+) -> RunPlan | None:
+    """The study's run as ``options`` make it, or None once its dry run (``dry``) is printed."""
+    from somo_sweep.sweep.run.runner import dry_run, plan_run
     from somo_sweep.sweep.study import load_study
 
     try:
         study = load_study(path, out, max_trials, allow_outside)
         say_notes(study.notices)
-        if dry_run is not None:
-            _print_dry_run(apply_options(study, dry_run), dry_run.workers, estimate)
+        plan = plan_run(study, options)
+        if dry:
+            _print_dry_run(dry_run(plan, DRY_ROWS), options.workers, estimate)
             return None
-        return study
+        return plan
     except SomoError as exc:
         fail(exc)
     except KeyboardInterrupt:
         _interrupted("jobs", 2)
 
 
-def _run(st: Study, options: RunOptions) -> RunSummary:
-    """Run the study with a progress bar per round; an error or an interrupt ends the command."""
-    from somo_sweep.sweep.run.runner import run_sweep
+def _run(plan: RunPlan) -> RunSummary:
+    """Run the plan with a progress bar per round; an error or an interrupt ends the command."""
+    from somo_sweep.sweep.run.runner import run_plan
 
-    view = _RunView(st)
+    view = _RunView(plan.study)
     try:
-        return run_sweep(st, options, view.events())
+        return run_plan(plan, view.events())
     except SomoError as exc:
         view.stop()
         fail(exc)
     except Interrupted as exc:
         view.stop()
         _interrupted(exc.stage, exc.signum)
-    except KeyboardInterrupt:  # before the run's own stages (its options applied, workers starting)
+    except KeyboardInterrupt:  # before the run's own stages (the URDF cache checked, workers starting)
         view.stop()
         _interrupted("jobs", 2)
     finally:
@@ -339,13 +343,12 @@ def _progress() -> Progress:
     )
 
 
-def _print_dry_run(st: Study, workers: int, estimate: bool = True) -> None:
-    """Count, then the first rows, without building the other jobs; then the runs and (with
+def _print_dry_run(plan: DryRun, workers: int, estimate: bool = True) -> None:
+    """Count, then the first rows (the other jobs are not built); then the runs and (with
     ``estimate``) their time, from one trial timed."""
-    from somo_sweep.sweep.jobs.table import first_jobs, jobs_frame
-    from somo_sweep.sweep.run.estimate import estimate_run
-    from somo_sweep.sweep.run.sampling import describe
+    from somo_sweep.sweep.jobs.table import jobs_frame
 
+    st = plan.study
     typer.echo(
         f"{st.name}: task {st.task.name}, {st.n_trials} trials "
         f"({st.n_points} grid points x {st.repeats} repeat(s)), output {st.output}"
@@ -358,20 +361,17 @@ def _print_dry_run(st: Study, workers: int, estimate: bool = True) -> None:
             else (f"the cells on a label boundary, and an audit of {spec.audit_fraction:.0%} of the others")
         )
         typer.echo(f"robustness: {spec.replicas} replicas of {chosen}")
-    if st.sampling == "adaptive":
-        typer.echo(describe(st))
-    jobs = first_jobs(st, DRY_ROWS)
-    if st.simulation is None:
-        from somo_sweep.sweep.run.convergence import ladder
-
-        steps, why = ladder(st)
+    if plan.sampling is not None:
+        typer.echo(plan.sampling)
+    if plan.steps is not None:
+        steps, why = plan.steps
         typer.echo(
             "automatic numerics (no simulation: block): the run chooses the step by label convergence "
             f"on a sample of these cells, trying {', '.join(f'{h * 1e3:g}' for h in steps)} ms (starting "
             f"guess set by {why}); the jobs below show the starting (modal) choice:"
         )
         shown: set[str] = set()
-        for job in jobs:
+        for job in plan.jobs:
             if job.numerics is not None and job.columns["model_hash"] not in shown:
                 shown.add(job.columns["model_hash"])
                 typer.echo(f"  model {job.columns['model_file']}:")
@@ -379,15 +379,15 @@ def _print_dry_run(st: Study, workers: int, estimate: bool = True) -> None:
                     typer.echo(f"    {line}")
     else:
         sim = st.simulation
+        assert sim is not None
         given = "from the study file" if sim.time_step_s is not None else f"the {sim.engine} default"
         typer.echo(f"simulation: engine {sim.engine}, time step {sim.step_s * 1e3:g} ms ({given})")
-    frame = jobs_frame(jobs)
-    typer.echo(frame.to_string(index=False))
+    typer.echo(jobs_frame(plan.jobs).to_string(index=False))
     if st.n_trials > DRY_ROWS:
         typer.echo(f"... {st.n_trials - DRY_ROWS} more")
     if estimate:
         typer.echo("timing trial 0 of the study (no result is written) ...", err=True)
-    for line in estimate_run(st, workers, estimate).lines():
+    for line in plan.estimate(workers, estimate).lines():
         typer.echo(line)
 
 

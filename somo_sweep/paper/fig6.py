@@ -43,7 +43,8 @@ from somo_sweep.paper.fig6_table import (
 )
 from somo_sweep.sweep.run.replica_state import ReplicaState
 from somo_sweep.sweep.run.robustness import AWAITED
-from somo_sweep.sweep.views.answers import answer, axis_name, grid_keys
+from somo_sweep.sweep.views.answers import answer
+from somo_sweep.sweep.views.axes import axis_name, grid_keys
 from somo_sweep.tasks.pinch_grasp.params import BASE_DISTANCE_AT_ZERO_CENTERING_M
 
 if TYPE_CHECKING:

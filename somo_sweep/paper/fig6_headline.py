@@ -15,7 +15,8 @@ from typing import Any
 import pandas as pd
 
 from somo_sweep.paper.fig6_table import deciding_cells, extra_axes
-from somo_sweep.sweep.views.answers import Answer, axis_text
+from somo_sweep.sweep.views.answers import Answer
+from somo_sweep.sweep.views.axes import axis_text
 from somo_sweep.tasks.pinch_grasp.classify import LABELS
 
 __all__ = ["group_title", "headline", "info", "lines"]

@@ -23,8 +23,9 @@ from somo_sweep.paper.grasp_trials import grasp_labels, inferred_rows
 from somo_sweep.sweep.run.replica_state import ReplicaState, replica_state
 from somo_sweep.sweep.run.robustness import AWAITED, fold
 from somo_sweep.sweep.store.folder import REPLICAS_PLANNED, SWEPT_AXES
-from somo_sweep.sweep.views.answers import Question, grid_keys
+from somo_sweep.sweep.views.answers import Question
 from somo_sweep.sweep.views.answers import counted_cells as counted_on
+from somo_sweep.sweep.views.axes import grid_keys
 from somo_sweep.tasks.pinch_grasp.classify import LABELS, find_column
 
 __all__ = [

@@ -16,32 +16,52 @@ from somo_sweep.paper.artifacts import Artifacts
 from somo_sweep.tasks.pinch_grasp.classify import find_column, reclassify
 
 if TYPE_CHECKING:
+    from somo_sweep.sweep.views.results import Results
     from somo_sweep.tasks.registry import TaskResult
 
-__all__ = ["MAX_SNAPSHOTS", "find_trial", "grasp_labels", "read_results", "relabel", "render_trial"]
+__all__ = [
+    "MAX_SNAPSHOTS",
+    "find_trial",
+    "grasp_labels",
+    "open_grasp_results",
+    "read_results",
+    "relabel",
+    "render_trial",
+]
 
 #: The label column the pinch_grasp task stores for each rule (with its default options).
 STORED_LABEL = {"contacts": "label_grasp", "paper": "label_grasp_paper"}
 
 
 def read_results(folder: str | Path) -> pd.DataFrame:
-    """The trials table of a results folder (:func:`somo_sweep.sweep.store.result_store.read_results`).
+    """The trials table of a results folder (:attr:`Results.trials` of :func:`open_grasp_results`).
+
+    Raises:
+        SomoError: Not a results folder, no trials stored in it yet, or damaged rows.
+    """
+    return open_grasp_results(folder).trials
+
+
+def open_grasp_results(folder: str | Path) -> Results:
+    """A results folder opened (:func:`~somo_sweep.sweep.views.results.open_results`), its trials
+    checked for what the pinch-grasp figures read: the swept values finite, every simulated row
+    with a status.
 
     Raises:
         SomoError: Not a results folder, or no trials stored in it yet (saying what a killed run's
-            journal holds).
+            journal holds), or damaged rows.
     """
-    from somo_sweep.sweep.store.folder import nothing_stored
-    from somo_sweep.sweep.store.result_store import read_results as read_trials
+    from somo_sweep.sweep.views.results import open_results
 
     folder = Path(folder)
     if folder.is_file():
         raise SomoError(f"{folder} is a file; give the results folder (results/<study>)")
     if not folder.is_dir():
         raise SomoError(f"{folder}: no such results folder (run `somo-sweep run STUDY.yaml` first)")
-    table = read_trials(folder)
+    results = open_results(folder)
+    table = results.trials
     if table.empty:
-        raise SomoError(nothing_stored(folder))
+        raise SomoError(results.nothing_stored())
     cols = [str(c) for c in table.columns]
     simulated = ~inferred_rows(table)
     for name in ("distal_segment_ratio", "object_width_m", "centering_position_m", "centering_m"):
@@ -50,7 +70,7 @@ def read_results(folder: str | Path) -> pd.DataFrame:
             continue
         values = pd.to_numeric(table[column], errors="coerce")
         finite = np.isfinite(values.to_numpy(dtype=float))
-        if name == "distal_segment_ratio" and _gives_null(folder, name):  # the fingers as written
+        if name == "distal_segment_ratio" and _gives_null(results.manifest, name):  # the fingers as written
             finite |= table[column].isna().to_numpy()
         bad = table.loc[~finite, "trial"]
         if len(bad):
@@ -58,18 +78,17 @@ def read_results(folder: str | Path) -> pd.DataFrame:
     bad = table.loc[simulated & table["status"].isna(), "trial"]
     if len(bad):
         raise SomoError(f"{folder}: {_trials(bad)} no status: damaged rows; {_REDO}")
-    return table
+    return results
 
 
 _REDO = "move the part file(s) holding them away and run the study again to replace them"
 
 
-def _gives_null(folder: Path, name: str) -> bool:
-    """Whether the study of ``folder`` gives task parameter ``name`` as null anywhere (``params``,
-    ``set``, a sweep axis, or a ``cells:`` table, whose values the manifest does not keep)."""
-    from somo_sweep.sweep.store.folder import read_manifest
-
-    study = read_manifest(folder).get("study")
+def _gives_null(manifest: dict[str, Any], name: str) -> bool:
+    """Whether the study of a results folder (its ``manifest``) gives task parameter ``name`` as null
+    anywhere (``params``, ``set``, a sweep axis, or a ``cells:`` table, whose values the manifest
+    does not keep)."""
+    study = manifest.get("study")
     if not isinstance(study, dict):
         return False
     key = f"task.{name}"
@@ -131,15 +150,14 @@ def relabel(
         distance before the paper's centering position, is kept under its own name.
     """
     folder = Path(folder)
-    table = read_results(folder)
+    results = open_grasp_results(folder)
+    table = results.trials
     try:
         labels = grasp_labels(table, rule, **options)
     except SomoError as exc:
         if "lacks the columns needed to classify grasps" not in str(exc):
             raise
-        from somo_sweep.sweep.store.result_store import read_manifest
-
-        study = read_manifest(folder).get("study")
+        study = results.manifest.get("study")
         task = study.get("task") if isinstance(study, dict) else None
         raise SomoError(
             f"{folder} holds trials of task '{shown(str(task))}', not pinch_grasp: there are no grasps to "
@@ -155,10 +173,10 @@ def relabel(
     runs["status"] = "ok"  # a run that is not ok carries its status as its label already
     runs[name] = labels
     runs["inferred"] = inferred_rows(table)
-    from somo_sweep.sweep.run.replica_state import replica_state, unfinished
-    from somo_sweep.sweep.store.folder import REPLICAS_PLANNED, missing_trials
+    from somo_sweep.sweep.run.replica_state import unfinished
+    from somo_sweep.sweep.store.folder import REPLICAS_PLANNED
 
-    state = replica_state(table)
+    state = results.replicas
     cells = fold(runs, [name], planned=table.attrs.get(REPLICAS_PLANNED), chosen=state.chosen)
     out = cells[[*keep, name, "inferred"]].copy()
     out.attrs["replicas_unfinished"] = unfinished(state, cells)
@@ -171,7 +189,7 @@ def relabel(
         counted = out[f"{name}_majority"]
     else:
         counted = out[name]
-    if (missing := missing_trials(table, len(out))) is not None:
+    if (missing := results.missing(len(out))) is not None:
         out.attrs["trials_missing"] = f"{missing}: the labels are of those only"
     if rule == "paper":
         out.attrs["rows_without_final_counts"] = rows_without_final_counts(table)

@@ -16,7 +16,8 @@ from somo_sweep.errors import SomoError
 from somo_sweep.sweep.run.replica_state import ReplicaState
 from somo_sweep.sweep.run.runner import RunOptions, run_sweep
 from somo_sweep.sweep.study import load_study
-from somo_sweep.sweep.views.answers import Question, answer, axis_text
+from somo_sweep.sweep.views.answers import Question, answer
+from somo_sweep.sweep.views.axes import axis_text
 
 
 def cells(grid: dict[tuple[float, float], list[str]], **columns: list[object]) -> pd.DataFrame:

@@ -21,12 +21,25 @@ from somo_sweep.cli.app import app
 from somo_sweep.model.load import load_model
 from somo_sweep.model.tables import bundled_path
 from somo_sweep.sim.numerics import numerics_for_step, step_ladder
+from somo_sweep.sweep.jobs.job import JobMaker
 from somo_sweep.sweep.jobs.table import build_jobs
 from somo_sweep.sweep.run.convergence import choose_step, outcomes_of, stored_choice
 from somo_sweep.sweep.run.execution import execute
 from somo_sweep.sweep.run.options import RunOptions
 from somo_sweep.sweep.store.result_store import read_manifest
 from somo_sweep.sweep.study import load_study
+from somo_sweep.sweep.study.loaded import Study
+
+
+def _made(study: Study) -> tuple[Study, JobMaker]:
+    """A study and its job maker, as a run hands them to the step's choice."""
+    return study, JobMaker(study.trial_plan())
+
+
+def _coded(study: Study) -> tuple[Study, str]:
+    """A study and its code version, as a run compares a stored choice with."""
+    return study, JobMaker(study.trial_plan()).code
+
 
 LADDER = [4e-3, 2e-3, 1.5e-3]
 
@@ -53,7 +66,7 @@ def test_the_ladder_starts_at_the_modal_guess_and_ends_where_no_shaping_is_neede
 
 def test_the_largest_step_whose_labels_hold_at_half_of_it_is_chosen(tmp_path: Path) -> None:
     study = load_study(study_file(tmp_path, "coarse_above_s: 0.0025"), tmp_path / "out")
-    choice = choose_step(study, run_here)  # type: ignore[arg-type]
+    choice = choose_step(*_made(study), run_here)  # type: ignore[arg-type]
     assert choice.step_s == 2e-3 and choice.guess_s == 4e-3
     first, second = choice.rungs
     assert not first.passed and first.robust == 6 and first.agree == 0 and len(first.differing) == 6
@@ -63,7 +76,7 @@ def test_the_largest_step_whose_labels_hold_at_half_of_it_is_chosen(tmp_path: Pa
 
 def test_a_step_that_blows_up_is_not_chosen(tmp_path: Path) -> None:
     path = study_file(tmp_path, "unstable_x: [2], unstable_above_step_s: 0.003", "selftest_unstable")
-    choice = choose_step(load_study(path, tmp_path / "out"), run_here)  # type: ignore[arg-type]
+    choice = choose_step(*_made(load_study(path, tmp_path / "out")), run_here)  # type: ignore[arg-type]
     assert [r.passed for r in choice.rungs] == [False, True] and choice.rungs[0].not_ok == 1
     assert choice.step_s == 2e-3
 
@@ -81,14 +94,14 @@ def test_cells_a_perturbation_flips_are_not_counted(tmp_path: Path) -> None:
                 label = "coarse" if step > 2.5e-3 else "fine"
             yield job.job_id, "ok", {"grasp": label}
 
-    choice = choose_step(study, fake)  # type: ignore[arg-type]
+    choice = choose_step(*_made(study), fake)  # type: ignore[arg-type]
     assert [(r.robust, r.passed) for r in choice.rungs] == [(5, False), (5, True)]
     assert choice.step_s == 2e-3 and flippy not in choice.rungs[0].differing
 
 
 def test_labels_that_never_converge_end_at_the_unshaped_step_and_say_so(tmp_path: Path) -> None:
     study = load_study(study_file(tmp_path, "label_the_step: true"), tmp_path / "out")
-    choice = choose_step(study, run_here)  # type: ignore[arg-type]
+    choice = choose_step(*_made(study), run_here)  # type: ignore[arg-type]
     assert choice.step_s == 1.5e-3 and not any(r.passed for r in choice.rungs)
     assert choice.reason.startswith("no candidate converged")
 
@@ -112,7 +125,7 @@ def test_run_chooses_the_step_records_it_and_a_resume_reuses_it(tmp_path: Path) 
     assert "chosen: 2 ms" in res.output and "trying 4 ms: 18 sample run(s)" in res.output
     record = read_manifest(out)["study"]["simulation"]["convergence"]
     assert record["step_s"] == 2e-3 and [r["passed"] for r in record["rungs"]] == [False, True]
-    assert stored_choice(read_manifest(out), load_study(path, out)) is not None
+    assert stored_choice(read_manifest(out), *_coded(load_study(path, out))) is not None
     again = CliRunner().invoke(app, ["run", str(path), "--out", str(out), "-j", "1", "--no-plots"])
     assert again.exit_code == 0, again.output
     assert "automatic step 2 ms (chosen earlier" in again.output and "trying" not in again.output
@@ -129,7 +142,7 @@ def test_a_stored_choice_of_other_code_or_damaged_is_not_reused(tmp_path: Path, 
     )
     manifest = read_manifest(out)
     manifest["study"]["simulation"]["convergence"][damage] = "x" if damage != "sample" else [0]
-    assert stored_choice(manifest, load_study(path, out)) is None
+    assert stored_choice(manifest, *_coded(load_study(path, out))) is None
 
 
 def test_a_task_without_labels_takes_the_modal_step_after_one_sample_run(tmp_path: Path) -> None:
@@ -144,7 +157,7 @@ def test_a_task_without_labels_takes_the_modal_step_after_one_sample_run(tmp_pat
         runs.append(len(jobs))
         return run_here(jobs)
 
-    choice = choose_step(study, counted)  # type: ignore[arg-type]
+    choice = choose_step(*_made(study), counted)  # type: ignore[arg-type]
     assert runs == [3] and choice.rungs == [] and choice.step_s == 1.5e-3
     assert choice.reason.startswith("the task gives no labels to converge; the modal rule")
 

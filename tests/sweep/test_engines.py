@@ -56,16 +56,18 @@ def test_engines_give_their_jobs_different_ids_and_pybullet_ids_ignore_mujoco_se
 def test_a_jobs_id_is_the_hash_of_its_identity_on_either_engine(tmp_path: Path, engine: str) -> None:
     """The job table writes a PyBullet id from parts made once per model and parameter set; it
     must be the hash of the same identity a MuJoCo job (and every replica) is hashed from."""
+    from somo_sweep.sweep.jobs.code import code_version
     from somo_sweep.sweep.jobs.job import _hash, _identity
 
     sweep = "sweep:\n  task.object_width_m: [0.01, 0.04]\n"
     study = load_study(_study(tmp_path, f"{{time_step_s: 4.0e-3, engine: {engine}}}", extra=sweep))
     module = study.task.run_path.partition(":")[0]
     for job in build_jobs(study).jobs:
+        code = code_version(module, job.settings.engine)  # the trial code, found apart from the job's
         identity = _identity(
-            job.task, job.params, str(job.columns["model_hash"]), job.settings, job.seed, module
+            job.task, job.params, str(job.columns["model_hash"]), job.settings, job.seed, code
         )
-        assert job.job_id == _hash(identity)
+        assert job.job_id == _hash(identity) and job.code == code
 
 
 @pytest.mark.parametrize(

@@ -17,9 +17,11 @@ from somo_sweep.sweep.views.label_maps import (
     MAX_PANELS,
     NOT_ROBUST_HATCH,
     label_map_figure,
+    label_maps,
     map_axes,
 )
-from somo_sweep.sweep.views.plots import label_maps, summary_metrics
+from somo_sweep.sweep.views.plots import summary_metrics
+from somo_sweep.sweep.views.results import Results
 
 
 def _cells(shape: dict[str, list[float]], robust: bool | None = True) -> pd.DataFrame:
@@ -80,14 +82,17 @@ def test_every_label_column_gets_a_map_and_a_study_without_axes_none() -> None:
     cells["trial"] = range(len(cells))
     cells["label_grasp_paper"] = "pinch"
     manifest = {"study_name": "s", "axes": {"task.c_m": "task_c_m", "task.dsr": "task_dsr"}}
-    assert [name for name, _ in label_maps(cells, manifest)] == ["label_map_grasp", "label_map_grasp_paper"]
-    assert label_maps(cells, {"study_name": "s", "axes": {}}) == []
+    assert [name for name, _ in label_maps(Results.of_table(cells, manifest))] == [
+        "label_map_grasp",
+        "label_map_grasp_paper",
+    ]
+    assert label_maps(Results.of_table(cells, {"study_name": "s", "axes": {}})) == []
     cells["label_dt"] = [f"{v:g}" for v in range(len(cells))]  # a label of its own per cell: drawn
-    assert "label_map_dt" in [name for name, _ in label_maps(cells, manifest)]
+    assert "label_map_dt" in [name for name, _ in label_maps(Results.of_table(cells, manifest))]
     many = pd.concat([cells] * 4, ignore_index=True)
     many["trial"] = range(len(many))
     many["label_dt"] = [f"{v:g}" for v in range(len(many))]  # 16 values: no map
-    assert "label_map_dt" not in [name for name, _ in label_maps(many, manifest)]
+    assert "label_map_dt" not in [name for name, _ in label_maps(Results.of_table(many, manifest))]
 
 
 def test_the_summary_draws_the_tasks_metrics_first_and_none_without_a_spread() -> None:

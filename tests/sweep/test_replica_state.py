@@ -20,9 +20,10 @@ from typer.testing import CliRunner
 from somo_sweep.cli.app import app
 from somo_sweep.sweep.run.replica_state import fold_cells, replica_state
 from somo_sweep.sweep.run.runner import RunEvents, RunOptions, run_sweep
-from somo_sweep.sweep.store.result_store import read_manifest, read_results
+from somo_sweep.sweep.store.result_store import read_results
 from somo_sweep.sweep.study import load_study
 from somo_sweep.sweep.views.plots import summary_figure
+from somo_sweep.sweep.views.results import open_results
 
 
 def _stopped(tmp_path: Path, extra: str, outcomes: int, jitter: float = 0.0001) -> Path:
@@ -59,7 +60,7 @@ def test_where_all_cut_short_counts_every_cell_without_its_replicas_as_awaiting(
     text = _show(tmp_path / "out")
     assert "5 cell(s) await some of their 2 replicas (5 with none stored yet)" in text
     assert "is robust" not in text and "run the same command again to finish" in text
-    figure = summary_figure(trials, read_manifest(tmp_path / "out"))
+    figure = summary_figure(open_results(tmp_path / "out"))
     assert "5 cell(s) await some of their 2 replicas" in " ".join(figure._suptitle.get_text().split())
     bars = [t.get_text() for ax in figure.axes for t in [ax.title] if t.get_text().startswith("sign")]
     assert bars == ["sign (5 awaiting replicas)"]

@@ -9,6 +9,7 @@ import pytest
 from rich.console import Console
 
 from somo_sweep.cli.summary import print_results
+from somo_sweep.sweep.views.results import Results
 
 
 def test_a_two_rule_grasp_study_is_shown_in_80_columns_with_every_header_whole() -> None:
@@ -37,7 +38,7 @@ def test_a_two_rule_grasp_study_is_shown_in_80_columns_with_every_header_whole()
         },
     }
     out = io.StringIO()
-    print_results(Console(file=out, width=80), df, manifest)
+    print_results(Console(file=out, width=80), Results.of_table(df, manifest))
     text = out.getvalue()
     assert max(len(line) for line in text.splitlines()) <= 80
     assert "…" not in text
@@ -62,7 +63,7 @@ def test_a_long_star_key_path_is_named_once_whole_and_no_title_wraps() -> None:
     )
     manifest = {"study_name": "g", "study_hash": "0" * 16, "n_trials": 4, "runs": [], "axes": {key: column}}
     out = io.StringIO()
-    print_results(Console(file=out, width=80), df, manifest)
+    print_results(Console(file=out, width=80), Results.of_table(df, manifest))
     lines = out.getvalue().splitlines()
     assert f"stiffness_n_m_per_rad: the axis {key}" in lines  # once, whole, on one line
     assert any(line.strip() == "by stiffness_n_m_per_rad: grasp" for line in lines)

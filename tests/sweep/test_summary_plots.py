@@ -16,6 +16,7 @@ import pandas as pd
 
 from somo_sweep.sweep.views.label_maps import AWAITING_HATCH, UNCHECKED_ALPHA, draw_label_panel
 from somo_sweep.sweep.views.plots import summary_figure
+from somo_sweep.sweep.views.results import Results
 
 AXES = {
     "task.distal_segment_ratio": "task_distal_segment_ratio",
@@ -50,7 +51,7 @@ def _panels(fig: matplotlib.figure.Figure) -> dict[str, matplotlib.axes.Axes]:
 
 
 def test_metric_panels_say_what_they_average_over_and_draw_the_rules_thresholds() -> None:
-    fig = summary_figure(_trials(), MANIFEST)
+    fig = summary_figure(Results.of_table(_trials(), MANIFEST))
     panels = _panels(fig)
     share = panels["hold_force_fraction_proximal"]
     assert "share of the hold force" in share.get_ylabel()
@@ -66,7 +67,7 @@ def test_metric_panels_say_what_they_average_over_and_draw_the_rules_thresholds(
 
 
 def test_lengths_are_in_mm_and_float_noise_is_no_panel() -> None:
-    fig = summary_figure(_trials(), MANIFEST)
+    fig = summary_figure(Results.of_table(_trials(), MANIFEST))
     panels = _panels(fig)
     assert "base_distance_m" not in panels  # its means per DSR and width differ by 1e-10 only
     share = panels["hold_force_fraction_proximal"]
@@ -80,7 +81,7 @@ def test_an_axis_of_one_value_within_float_noise_is_not_an_axis() -> None:
     trials = _trials()
     trials = trials[trials["task_distal_segment_ratio"] == 0.1].copy()
     trials["task_distal_segment_ratio"] += np.arange(len(trials)) * 1e-12
-    fig = summary_figure(trials, MANIFEST)
+    fig = summary_figure(Results.of_table(trials, MANIFEST))
     assert fig.axes[0].get_xlabel() == "object_width (mm)"  # DSR is one value: not the x axis
     plt.close(fig)
 

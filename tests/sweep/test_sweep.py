@@ -28,6 +28,7 @@ from somo_sweep.sweep.run.runner import RunOptions, run_sweep
 from somo_sweep.sweep.store.result_store import ResultStore, read_manifest, read_results
 from somo_sweep.sweep.study import load_study
 from somo_sweep.sweep.views.plots import summary_figure
+from somo_sweep.sweep.views.results import Results
 
 #: Columns that legitimately differ between runs of the same study.
 RUN_COLUMNS = ["wall_time_s", "host"]
@@ -387,4 +388,4 @@ def test_plots_of_a_folder_without_one_ok_trial_draw_without_warnings(tmp_path: 
     df = pd.read_parquet(tmp_path / "out" / "trials")
     with warnings.catch_warnings():
         warnings.simplefilter("error")
-        summary_figure(df, read_manifest(tmp_path / "out"))
+        summary_figure(Results.of_table(df, read_manifest(tmp_path / "out")))

@@ -18,7 +18,8 @@ from somo_sweep.sweep.run.runner import RunOptions, run_sweep
 from somo_sweep.sweep.store.folder import read_manifest
 from somo_sweep.sweep.store.folder import read_results as read_trials
 from somo_sweep.sweep.study import load_study
-from somo_sweep.sweep.views.plots import label_maps
+from somo_sweep.sweep.views.label_maps import label_maps
+from somo_sweep.sweep.views.results import Results, open_results
 
 MODEL = ROOT / "somo_sweep" / "data" / "models" / "pinch_gripper.yaml"
 LEFT_OUT = (
@@ -62,7 +63,7 @@ def test_classify_relabels_the_null_cells_and_writes_them(folder: Path) -> None:
 def test_plot_maps_null_as_a_column_of_its_own(folder: Path) -> None:
     res = CliRunner().invoke(app, ["plot", str(folder)])
     assert res.exit_code == 0, res.output
-    maps = dict(label_maps(read_trials(folder), read_manifest(folder)))
+    maps = dict(label_maps(open_results(folder)))
     ticks = {
         tuple(t.get_text() for t in ax.get_xticklabels() + ax.get_yticklabels())
         for ax in maps["label_map_grasp"].axes
@@ -71,7 +72,7 @@ def test_plot_maps_null_as_a_column_of_its_own(folder: Path) -> None:
     assert any("null" in labels and "0.2" in labels for labels in ticks), ticks
     trials = read_trials(folder)
     only_null = trials[trials["task_distal_segment_ratio"].isna()]  # an axis of null alone: no TypeError
-    assert [name for name, _ in label_maps(only_null, read_manifest(folder))] == [
+    assert [name for name, _ in label_maps(Results.of_table(only_null, read_manifest(folder)))] == [
         "label_map_grasp",
         "label_map_grasp_paper",
     ]

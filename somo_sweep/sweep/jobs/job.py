@@ -32,7 +32,7 @@ from somo_sweep.model.load import Model
 from somo_sweep.sim.settings import WorldSettings
 from somo_sweep.sim.settings import engine_version as _read_engine_version
 from somo_sweep.sweep.jobs.code import code_version, pybullet_version
-from somo_sweep.sweep.study.resolve import MODEL_CACHE, PARAMS_CACHE, RecentCache, TrialPlan
+from somo_sweep.sweep.study.resolve import MODEL_CACHE, PARAMS_CACHE, PointInputs, RecentCache, TrialPlan
 
 if TYPE_CHECKING:
     from somo_sweep.sim.numerics import ChosenNumerics
@@ -90,6 +90,8 @@ class Job:
             study gives its own ``simulation:``).
         replica: 0 for the study's own trial; 1, 2, … for its robustness replicas
             (:func:`replica_jobs`), which share its ``trial`` and grid values.
+        code: The version of the code it runs (:func:`~somo_sweep.sweep.jobs.code.code_version`),
+            hashed into its id.
     """
 
     job_id: str
@@ -103,6 +105,7 @@ class Job:
     columns: dict[str, Any]
     numerics: ChosenNumerics | None = None
     replica: int = 0
+    code: str = ""
 
 
 @dataclass(frozen=True)
@@ -127,53 +130,68 @@ class JobMaker:
 
     Args:
         plan: What the study's jobs are built from (:meth:`~somo_sweep.sweep.study.loaded.Study.trial_plan`).
+        code: The version of the code its trials run, if known (else read from the plan's task).
     """
 
-    def __init__(self, plan: TrialPlan):
+    def __init__(self, plan: TrialPlan, code: str | None = None):
         self.plan = plan
         self.resolver = plan.resolver
         #: The engine every job of the study runs on (PyBullet without ``simulation:``).
         self.engine_name = plan.engine
-        self.code = code_version(plan.task_module, plan.engine)
-        self.engine = pybullet_version()
+        self.pybullet_version = pybullet_version()
+        #: The installed version of the study's engine (named in every non-PyBullet job's id).
+        self.engine_version = (
+            self.pybullet_version if plan.engine == "pybullet" else engine_version(plan.engine)
+        )
+        #: The version of the code every trial runs (hashed into every job's id).
+        self.code = code or code_version(plan.task_module, plan.engine)
         self.model_columns = [(k, param_column(k)) for k in plan.model_overrides]
         self._head = f'{{"code":{_json(self.code)},"model":'
         self._tail = f',"task":{_json(plan.task)}}}'
         #: Model key → what its jobs share, for every distinct model met.
         self.models: dict[str, _ModelInfo] = {}
         self._built: dict[str, Model] = RecentCache(MODEL_CACHE)  # with their numerics applied
-        self._params: dict[str, tuple[BaseModel, str, dict[str, Any]]] = RecentCache(PARAMS_CACHE)
+        self._params: dict[str, tuple[str, dict[str, Any]]] = RecentCache(PARAMS_CACHE)
+
+    def at_step(self, step_s: float) -> JobMaker:
+        """The maker of the same study's jobs at another automatic time step, s (its candidates,
+        while the step is chosen: :mod:`somo_sweep.sweep.run.convergence`)."""
+        return JobMaker(replace(self.plan, auto_step_s=step_s), self.code)
+
+    def first_model(self) -> Model:
+        """The model of the first grid point, as its file and overrides give it (before any numerics)."""
+        return self.resolver.model(self.point(0))[1]
 
     def point(self, number: int) -> dict[str, Any]:
         """The grid point of number ``number`` (:meth:`~somo_sweep.sweep.study.loaded.Study.points` order)."""
         return self.plan.point(number)
 
-    def _model(self, point: dict[str, Any]) -> tuple[Model, _ModelInfo]:
-        key = self.resolver.model_key(point)
+    def _model(self, got: PointInputs) -> tuple[Model, _ModelInfo]:
+        """The point's model with its numerics applied, and what the jobs of that model share."""
+        key = got.model_key
         if key in self._built:
             return self._built[key], self.models[key]
-        model_path, given = self.resolver.model(point, keep=False)
         info = self.models.get(key)
         if info is None:
             shaped, model_hash, settings, numerics = _prepare(
-                given, self.plan.settings, self.plan.auto_step_s
+                got.model, self.plan.settings, self.plan.auto_step_s
             )
-            model_file = os.path.relpath(model_path, self.plan.source.parent)
+            model_file = os.path.relpath(got.model_path, self.plan.source.parent)
             info = _ModelInfo(model_file, model_hash, settings, _json(_settings_fields(settings)), numerics)
             self.models[key] = info
         else:
-            shaped = given if info.numerics is None else info.numerics.apply(given)
+            shaped = got.model if info.numerics is None else info.numerics.apply(got.model)
         self._built[key] = shaped
         return shaped, info
 
-    def _task(self, point: dict[str, Any]) -> tuple[BaseModel, str, dict[str, Any]]:
-        key = self.resolver.params_key(point)
+    def _task(self, got: PointInputs) -> tuple[str, dict[str, Any]]:
+        """The point's task parameters as a job id hashes them (JSON) and as columns."""
+        key = got.params_key
         if key not in self._params:
-            params = self.resolver.params(point, keep=False)
-            dumped = params.model_dump(mode="json")
+            dumped = got.params.model_dump(mode="json")
             columns: dict[str, Any] = {}
             _flatten("task", dumped, columns)
-            self._params[key] = (params, _json(dumped), columns)
+            self._params[key] = (_json(dumped), columns)
         return self._params[key]
 
     def job(self, trial: int) -> Job:
@@ -181,8 +199,9 @@ class JobMaker:
         plan = self.plan
         point_number, repeat = divmod(trial, plan.repeats)
         point = self.point(point_number)
-        model, info = self._model(point)
-        params, params_json, task_columns = self._task(point)
+        got = self.resolver.inputs_of(point)
+        params, (params_json, task_columns) = got.params, self._task(got)
+        model, info = self._model(got)
         values = {**plan.fixed, **point}
         columns = dict(task_columns)
         for key, column in self.model_columns:
@@ -194,13 +213,12 @@ class JobMaker:
             # _hash(_identity(...)) = {task, params, model, settings, seed, code, pybullet}, keys
             # sorted, written from the parts made once per model and parameter set.
             text = (
-                f'{self._head}{_json(info.model_hash)},"params":{params_json},"pybullet":{_json(self.engine)},'
+                f'{self._head}{_json(info.model_hash)},"params":{params_json},"pybullet":{_json(self.pybullet_version)},'
                 f'"seed":{seed},"settings":{info.settings_json}{self._tail}'
             )
             job_id = hashlib.sha256(text.encode()).hexdigest()[:16]
         else:
-            identity = _identity(plan.task, params, info.model_hash, info.settings, seed, plan.task_module)
-            job_id = _hash(identity)
+            job_id = _hash(_identity(plan.task, params, info.model_hash, info.settings, seed, self.code))
         return Job(
             job_id,
             trial,
@@ -212,6 +230,7 @@ class JobMaker:
             settings=info.settings,
             columns=columns,
             numerics=info.numerics,
+            code=self.code,
         )
 
 
@@ -227,7 +246,7 @@ def _identity(
     model_hash: str,
     settings: WorldSettings,
     seed: int,
-    task_module: str,
+    code: str,
     replica: int = 0,
 ) -> dict[str, Any]:
     """What a job id hashes: the trial's inputs, the code it runs and its engine's version (and a
@@ -243,7 +262,7 @@ def _identity(
         "model": model_hash,
         "settings": _settings_fields(settings),
         "seed": seed,
-        "code": code_version(task_module, engine),
+        "code": code,
         "pybullet": pybullet_version(),
     }
     if engine != "pybullet":
@@ -277,7 +296,6 @@ def replica_jobs(job: Job, n: int, perturb: Any) -> list[Job]:
         n: Number of replicas.
         perturb: The task's ``perturb(params, rng)``.
     """
-    task_module = _run_module(job.task)
     out = []
     for r in range(1, n + 1):
         rng = np.random.default_rng([job.seed, r])
@@ -289,17 +307,11 @@ def replica_jobs(job: Job, n: int, perturb: Any) -> list[Job]:
         _flatten("task", params.model_dump(mode="json"), flat)
         columns = {**flat, **columns}
         identity = _identity(
-            job.task, params, str(job.columns["model_hash"]), settings, job.seed, task_module, r
+            job.task, params, str(job.columns["model_hash"]), settings, job.seed, job.code, r
         )
         job_id = _hash(identity)
         out.append(replace(job, job_id=job_id, params=params, settings=settings, columns=columns, replica=r))
     return out
-
-
-def _run_module(task: str) -> str:
-    from somo_sweep.tasks.registry import get_task
-
-    return get_task(task).run_path.partition(":")[0]
 
 
 def _prepare(

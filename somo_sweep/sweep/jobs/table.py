@@ -2,9 +2,10 @@
 
 :func:`build_jobs` expands a study into its :class:`JobTable`: every trial's id (16 bytes a
 trial), the hash of them all, and what the results folder's manifest records of the study; the
-jobs themselves (:class:`~somo_sweep.sweep.jobs.job.Job`) are built when asked for.
-:func:`iter_jobs` yields them one by one (a dry run prints the first ones without building the
-rest).
+jobs themselves (:class:`~somo_sweep.sweep.jobs.job.Job`) are built when asked for, by the
+study's one :class:`~somo_sweep.sweep.jobs.job.JobMaker` (a run builds it once, and hands it
+here). :func:`iter_jobs` yields them one by one (a dry run prints the first ones without building
+the rest).
 """
 
 from __future__ import annotations
@@ -20,7 +21,7 @@ import numpy as np
 
 from somo_sweep.errors import DescriptionError, Problem
 from somo_sweep.sweep.jobs.code import code_version, pybullet_version, trial_modules
-from somo_sweep.sweep.jobs.job import Job, JobMaker, auto_numerics, engine_version, param_column, replica_jobs
+from somo_sweep.sweep.jobs.job import Job, JobMaker, auto_numerics, param_column, replica_jobs
 from somo_sweep.sweep.study.loaded import Study
 from somo_sweep.sweep.study.resolve import TrialPlan
 
@@ -41,6 +42,7 @@ __all__ = [
     "param_column",
     "pybullet_version",
     "replica_jobs",
+    "table_of",
     "trial_modules",
 ]
 
@@ -161,14 +163,13 @@ def _identical(plan: TrialPlan, first: int, second: int) -> DescriptionError:
     )
 
 
-def iter_jobs(study: Study) -> Iterator[Job]:
-    """The jobs of a study one by one, in grid order.
+def iter_jobs(maker: JobMaker) -> Iterator[Job]:
+    """The jobs of a study (whose job maker is ``maker``) one by one, in grid order.
 
     Raises:
         DescriptionError: Two trials are identical (e.g. a value repeated in an axis).
     """
-    plan = study.trial_plan()
-    maker = JobMaker(plan)
+    plan = maker.plan
     seen: dict[str, int] = {}
     for trial in range(plan.n_trials):
         job = maker.job(trial)
@@ -180,7 +181,7 @@ def iter_jobs(study: Study) -> Iterator[Job]:
 
 def first_jobs(study: Study, n: int) -> list[Job]:
     """The first ``n`` jobs of a study, without building the others."""
-    return list(itertools.islice(iter_jobs(study), n))
+    return list(itertools.islice(iter_jobs(JobMaker(study.trial_plan())), n))
 
 
 def _kind(value: Any) -> type:
@@ -217,7 +218,15 @@ def build_jobs(study: Study) -> JobTable:
     Raises:
         DescriptionError: Two trials are identical (e.g. a value repeated in an axis).
     """
-    maker = JobMaker(study.trial_plan())
+    return table_of(study, JobMaker(study.trial_plan()))
+
+
+def table_of(study: Study, maker: JobMaker) -> JobTable:
+    """The job table of ``study``, its jobs built by ``maker`` (its job maker, built once by a run).
+
+    Raises:
+        DescriptionError: Two trials are identical (e.g. a value repeated in an axis).
+    """
     n = maker.plan.n_trials
     ids, study_hash, columns = _ids(maker, n)
     axes = {a.key: ("model_file" if a.key == "model" else param_column(a.key)) for a in study.axes}
@@ -236,5 +245,5 @@ def build_jobs(study: Study) -> JobTable:
         "n_trials": n,
     }
     if maker.engine_name != "pybullet":
-        resolved[maker.engine_name] = engine_version(maker.engine_name)
+        resolved[maker.engine_name] = maker.engine_version
     return JobTable(ids, study_hash, axes, resolved, columns, maker)

@@ -17,7 +17,9 @@ the lowest modes moved by at most 1 %), after one sample run at the guess shows 
 
 The choice is a pure function of the study and the code: the sample and every trial are seeded,
 so a resumed run makes the same choice, and :func:`stored_choice` finds it in the results folder
-instead of simulating the sample again.
+instead of simulating the sample again. The study's job maker (its code version, its resolved
+grid points) is built once and gives every candidate's jobs (:meth:`JobMaker.at_step
+<somo_sweep.sweep.jobs.job.JobMaker.at_step>`); the folder's manifest is read once.
 """
 
 from __future__ import annotations
@@ -25,15 +27,14 @@ from __future__ import annotations
 import json
 import math
 from collections.abc import Callable, Iterable, Iterator
-from dataclasses import asdict, dataclass, field, replace
+from dataclasses import asdict, dataclass, field
 from typing import Any
 
 import numpy as np
 
 from somo_sweep.errors import ManifestError, SomoError, os_cause, shown
 from somo_sweep.sweep.jobs.code import code_version
-from somo_sweep.sweep.jobs.job import Job, replica_jobs
-from somo_sweep.sweep.jobs.table import iter_jobs
+from somo_sweep.sweep.jobs.job import Job, JobMaker, replica_jobs
 from somo_sweep.sweep.store.folder import MANIFEST, read_manifest
 from somo_sweep.sweep.study.derive import with_auto_step
 from somo_sweep.sweep.study.loaded import Study
@@ -135,28 +136,13 @@ def _sample(study: Study, n: int) -> list[int]:
     return sorted(int(t) for t in rng.choice(total, size=min(n, total), replace=False))
 
 
-def _jobs_at(study: Study, step_s: float, trials: list[int]) -> list[Job]:
-    """The sample's jobs at ``step_s`` (with the shaping that step needs)."""
-    wanted, out = set(trials), []
-    for job in iter_jobs(replace(study, auto_step_s=step_s)):
-        if job.trial in wanted:
-            out.append(job)
-            if len(out) == len(wanted):
-                break
-    return out
-
-
-def _first_model(study: Study) -> Any:
-    """The model of the study's first grid point (what the step ladder is read from)."""
-    return study.resolve_model(next(iter(study.points())))[1]
-
-
-def ladder(study: Study) -> tuple[list[float], str]:
+def ladder(maker: JobMaker) -> tuple[list[float], str]:
     """The candidate steps of a study without ``simulation:``, s, largest first, and what set the
-    first (:func:`~somo_sweep.sim.numerics.step_ladder` of its first grid point's model)."""
+    first (:func:`~somo_sweep.sim.numerics.step_ladder` of the first grid point's model of the
+    study whose job maker is ``maker``)."""
     from somo_sweep.sim.numerics import step_ladder
 
-    return step_ladder(_first_model(study))
+    return step_ladder(maker.first_model())
 
 
 def _rung(
@@ -179,6 +165,7 @@ def _key(outcome: Outcome) -> str:
 
 def choose_step(
     study: Study,
+    maker: JobMaker,
     run_jobs: RunJobs,
     sample_cells: int = SAMPLE_CELLS,
     on_rung: Callable[[float, int], None] | None = None,
@@ -187,14 +174,16 @@ def choose_step(
 
     Args:
         study: The study.
+        maker: Its job maker (:meth:`Study.trial_plan <somo_sweep.sweep.study.loaded.Study.trial_plan>`).
         run_jobs: Runs a list of jobs and yields (job id, status, labels) as each finishes.
         sample_cells: Cells sampled.
         on_rung: Called with (candidate step, runs to do) before each candidate's runs.
     """
-    code = code_version(study.task.run_path.partition(":")[0])
-    steps, why = ladder(study)
-    trials = _sample(study, sample_cells)
-    perturb = study.task.perturb
+    from somo_sweep.sim.numerics import step_ladder
+
+    trials, perturb = _sample(study, sample_cells), study.task.perturb
+    code, model = maker.code, maker.first_model()
+    steps, why = step_ladder(model)
     done: dict[str, Outcome] = {}
 
     def outcomes(jobs: list[Job]) -> list[Outcome]:
@@ -206,8 +195,8 @@ def choose_step(
     rungs: list[Rung] = []
     labelled = False
     for step in steps:
-        full = _jobs_at(study, step, trials)
-        half = _jobs_at(study, step / 2, trials)
+        at_step, at_half = maker.at_step(step), maker.at_step(step / 2)
+        full, half = [at_step.job(t) for t in trials], [at_half.job(t) for t in trials]
         shaken = [replica_jobs(j, 2, perturb)[1] for j in half] if perturb is not None else []
         if on_rung:
             wanted = [j for j in full + half + shaken if j.job_id not in done]
@@ -225,7 +214,7 @@ def choose_step(
         # Nothing to converge: the modal rule (lowest modes moved by at most 1 %) decides.
         from somo_sweep.sim.numerics import choose_numerics
 
-        modal = choose_numerics(_first_model(study))
+        modal = choose_numerics(model)
         reason = f"the task gives no labels to converge; the modal rule: {modal.reason}"
         return StepChoice(modal.time_step_s, steps[0], why, rungs, reason, code, trials)
     last = steps[-1]
@@ -236,11 +225,12 @@ def choose_step(
     return StepChoice(last, steps[0], why, rungs, reason, code, trials)
 
 
-def stored_choice(manifest: dict[str, Any], study: Study) -> StepChoice | None:
+def stored_choice(manifest: dict[str, Any], study: Study, code: str) -> StepChoice | None:
     """The choice recorded in a results folder's manifest for this study, or None.
 
-    Taken only when it was made by the same trial code on the same sample of cells (a changed
-    study is refused by the results folder anyway: its trials have other ids).
+    Taken only when it was made by the same trial code (``code``, the study's code version:
+    :attr:`JobMaker.code <somo_sweep.sweep.jobs.job.JobMaker.code>`) on the same sample of cells (a
+    changed study is refused by the results folder anyway: its trials have other ids).
     """
     try:
         record = manifest["study"]["simulation"]["convergence"]
@@ -256,20 +246,26 @@ def stored_choice(manifest: dict[str, Any], study: Study) -> StepChoice | None:
         )
     except (KeyError, TypeError, ValueError):
         return None
-    if choice.code_version != code_version(study.task.run_path.partition(":")[0]):
+    if choice.code_version != code:
         return None
     if not choice.sample or choice.sample != _sample(study, len(choice.sample)):
         return None
     return choice if math.isfinite(choice.step_s) and choice.step_s > 0 else None
 
 
-def with_stored_step(study: Study) -> Study:
+def with_stored_step(study: Study, manifest: dict[str, Any] | None = None) -> Study:
     """``study`` with the step its results folder recorded, if it has no ``simulation:`` and the
-    folder holds a choice for it (else unchanged: its jobs then show the modal starting guess)."""
+    folder holds a choice for it (else unchanged: its jobs then show the modal starting guess).
+
+    Args:
+        study: The study.
+        manifest: Its results folder's manifest, if read already (else it is read here).
+    """
     if study.simulation is not None or study.auto_step_s is not None:
         return study
+    code = code_version(study.task.run_path.partition(":")[0])
     try:
-        choice = stored_choice(read_manifest(study.output), study)
+        choice = stored_choice(manifest if manifest is not None else read_manifest(study.output), study, code)
     except (SomoError, OSError):
         return study
     if choice is None:
@@ -294,8 +290,9 @@ class StepEvents:
     chosen: Callable[[StepChoice], None] | None = None
 
 
-def folder_choice(study: Study) -> StepChoice | None:
-    """The choice the study's results folder recorded for it (:func:`stored_choice`), or None.
+def folder_choice(study: Study, code: str) -> StepChoice | None:
+    """The choice the study's results folder recorded for it (:func:`stored_choice`; ``code``: the
+    study's code version), or None.
 
     A damaged manifest holds none (the run rebuilds it, and the step is chosen again).
 
@@ -314,19 +311,22 @@ def folder_choice(study: Study) -> StepChoice | None:
     if not stored:
         return None
     try:
-        return stored_choice(read_manifest(study.output), study)
+        return stored_choice(read_manifest(study.output), study, code)
     except ManifestError:
         return None
 
 
-def auto_step(study: Study, run_jobs: RunJobs, events: StepEvents | None = None) -> Study:
-    """``study`` (without ``simulation:``) with its step: the one its results folder recorded, else
+def auto_step(
+    study: Study, maker: JobMaker, run_jobs: RunJobs, events: StepEvents | None = None
+) -> StepChoice:
+    """The step of ``study`` (without ``simulation:``): the one its results folder recorded, else
     chosen now by label convergence on a sample of its cells (:func:`choose_step`).
 
     This is the one place a run's automatic step is chosen.
 
     Args:
         study: The study.
+        maker: Its job maker (its code version, its grid points).
         run_jobs: Runs a list of jobs and yields (job id, status, labels) as each finishes.
         events: What to tell the caller as it goes.
 
@@ -334,17 +334,17 @@ def auto_step(study: Study, run_jobs: RunJobs, events: StepEvents | None = None)
         SomoError: The results folder's name is one no folder can have.
     """
     events = events or StepEvents()
-    choice = folder_choice(study)
+    choice = folder_choice(study, maker.code)
     if choice is not None:
         if events.reused:
             events.reused(choice)
-    else:
-        if events.choosing:
-            events.choosing()
-        choice = choose_step(study, run_jobs, on_rung=events.rung)
-        if events.chosen:
-            events.chosen(choice)
-    return with_auto_step(study, choice.step_s, choice.as_dict())
+        return choice
+    if events.choosing:
+        events.choosing()
+    choice = choose_step(study, maker, run_jobs, on_rung=events.rung)
+    if events.chosen:
+        events.chosen(choice)
+    return choice
 
 
 def outcomes_of(results: Iterator[Any]) -> Iterator[tuple[str, str, dict[str, str]]]:

@@ -1,5 +1,5 @@
-"""What a run of a study will cost before it runs (``somo-sweep run --dry-run``): its trials, the
-robustness replicas it may add, and the wall time from one trial of the study, timed.
+"""What a run of a study will do and cost before it runs (``somo-sweep run --dry-run``): its first
+jobs, its trials, the robustness replicas it may add, and the wall time from one trial, timed.
 
 The replicas a ``boundary`` plan runs depend on labels no trial has given yet: the estimate gives
 the range, from the audit alone (no label boundary at all) to every simulated cell. A replica
@@ -14,11 +14,11 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass
 
-from somo_sweep.sweep.jobs.table import first_jobs
+from somo_sweep.sweep.jobs.job import Job
 from somo_sweep.sweep.run.trial import run_isolated
 from somo_sweep.sweep.study.loaded import Study
 
-__all__ = ["RunEstimate", "estimate_run", "replica_range"]
+__all__ = ["DryRun", "RunEstimate", "estimate_run", "replica_range"]
 
 
 def replica_range(study: Study, simulated: int | None = None) -> tuple[int, int]:
@@ -104,15 +104,14 @@ def _duration(seconds: float) -> str:
     return f"{seconds / 3600:.1f} h"
 
 
-def estimate_run(study: Study, workers: int, time_trial: bool = True) -> RunEstimate:
-    """The estimate of a run of ``study`` on ``workers`` processes, its first trial timed (unless
-    ``time_trial`` is False)."""
+def estimate_run(study: Study, job: Job, workers: int, time_trial: bool = True) -> RunEstimate:
+    """The estimate of a run of ``study`` on ``workers`` processes, its first trial (``job``) timed
+    (unless ``time_trial`` is False)."""
     low, high = replica_range(study)
     cost = _replica_cost(study.robustness.replicas)
     adaptive = study.sampling == "adaptive"
     if not time_trial:
         return RunEstimate(study.n_trials, (low, high), cost, None, "--no-estimate", workers, adaptive)
-    (job,) = first_jobs(study, 1)
     outcome = run_isolated(job)
     if outcome.status != "ok":
         why = f"trial 0 ended {outcome.status}: {outcome.message}"
@@ -122,3 +121,27 @@ def estimate_run(study: Study, workers: int, time_trial: bool = True) -> RunEsti
         step += ", the starting guess of the automatic step; choosing it runs sample trials first"
     timed = f"trial 0 timed (step {step})"
     return RunEstimate(study.n_trials, (low, high), cost, outcome.wall_time_s, timed, workers, adaptive)
+
+
+@dataclass(frozen=True)
+class DryRun:
+    """What a run would do, worked out without running it (``--dry-run``:
+    :func:`~somo_sweep.sweep.run.runner.dry_run`).
+
+    Attributes:
+        study: The study as the options run it (their sampling and replicas).
+        jobs: Its first jobs (the others are not built).
+        sampling: What adaptive sampling does, in words (None: the study runs its whole grid).
+        steps: Without ``simulation:``: the candidate steps, s, largest first, and what set the
+            first (:func:`~somo_sweep.sweep.run.convergence.ladder`); the jobs show the first.
+    """
+
+    study: Study
+    jobs: list[Job]
+    sampling: str | None
+    steps: tuple[list[float], str] | None
+
+    def estimate(self, workers: int, time_trial: bool = True) -> RunEstimate:
+        """The run's size and, with ``time_trial``, its wall time on ``workers`` processes, from the
+        first trial timed (:func:`estimate_run`)."""
+        return estimate_run(self.study, self.jobs[0], workers, time_trial)

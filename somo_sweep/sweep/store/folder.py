@@ -1,40 +1,31 @@
-"""A results folder as it lies on disk, read-only: manifest, trials (damaged parts left out), journals.
+"""A results folder as it lies on disk, read once: its manifest, its part files judged, its journals.
 
-:class:`~somo_sweep.sweep.store.result_store.ResultStore` writes a results folder; this module reads
-one without changing it, so ``show``, ``plot`` and ``recheck`` never crash on a damaged
-part file: they skip it and say so (the next ``run`` moves it to ``trials/quarantine/``
-and runs its trials again). Which part files are damaged, and why, is
-:mod:`somo_sweep.sweep.store.parts`.
+Every command that opens a results folder reads it here, once (:func:`read_state`): a run decides
+from that state what to set aside, continue, rebuild, refuse or recover
+(:mod:`somo_sweep.sweep.store.opening`), and every reader gets one :class:`OpenedFolder` from it
+(:func:`open_folder`): the trials, the manifest, the files left out and why, the finished trials
+waiting in a killed run's journal. Nothing here writes: ``show``, ``plot`` and ``recheck`` never
+crash on a damaged part file, they skip it and say so (the next ``run`` moves it to
+``trials/quarantine/`` and runs its trials again). Which part files are damaged, and why, is
+:mod:`somo_sweep.sweep.store.parts`; how the trials become one table, :mod:`somo_sweep.sweep.store.trials`.
 """
 
 from __future__ import annotations
 
-import contextlib
 import json
 import warnings
-from collections.abc import Collection, Iterator
+from collections.abc import Iterator
+from dataclasses import dataclass, field
+from functools import cached_property
 from pathlib import Path
 from typing import Any
 
 import pandas as pd
 import pyarrow as pa
-import pyarrow.compute as pc
-import pyarrow.parquet as pq
 
 from somo_sweep.errors import ManifestError, SomoError, shown
-from somo_sweep.sweep.store.parts import (
-    PART_COLUMN,
-    REPEATS,
-    UNREADABLE,
-    Damage,
-    OnDamaged,
-    damage_of,
-    declared_types,
-    max_part_rows,
-    part_files,
-    split_parts,
-)
-from somo_sweep.sweep.store.schema import COLUMNS
+from somo_sweep.sweep.store.layout import INFERRED, JOURNAL_GLOB, MANIFEST, PART_GLOB, QUARANTINE
+from somo_sweep.sweep.store.parts import REPEATS, UNREADABLE, Damage, OnDamaged, PartFile, split_parts
 from somo_sweep.sweep.store.table_record import (
     LATEST_RUN,
     REPLICA_RUN,
@@ -47,6 +38,7 @@ from somo_sweep.sweep.store.table_record import (
     replica_run,
     with_record,
 )
+from somo_sweep.sweep.store.trials import trials_table
 
 __all__ = [
     "INFERRED",
@@ -64,32 +56,21 @@ __all__ = [
     "UNREADABLE",
     "Damage",
     "DamagedPartWarning",
-    "declared_types",
-    "journal_rows",
-    "max_part_rows",
+    "FolderState",
+    "Journal",
+    "OpenedFolder",
     "missing_trials",
     "nothing_stored",
-    "part_files",
-    "pending_journal_rows",
+    "open_folder",
     "planned_replicas",
     "read_manifest",
     "read_results",
+    "read_state",
     "replica_run",
-    "split_parts",
 ]
 
-MANIFEST = "manifest.json"
 #: Largest manifest read; a larger one is damaged (thousands of resumed runs take well under 1 MiB).
 MAX_MANIFEST_BYTES = 64 * 1024 * 1024
-#: The cells an adaptive run inferred instead of simulating (outside ``trials/``: never resumed from).
-INFERRED = "inferred.parquet"
-#: Part files of the trials table, in ``trials/``.
-PART_GLOB = "part-*.parquet"
-#: Rows of a run appended one by one as trials finish (hidden: Parquet readers skip them).
-JOURNAL_GLOB = ".journal-*.jsonl"
-#: Where damaged part files go, inside ``trials/``; their names get a ``_`` prefix so that
-#: ``pd.read_parquet("…/trials")`` (which reads sub-folders) skips them.
-QUARANTINE = "quarantine"
 
 
 #: The type of each manifest key the commands read (:func:`~somo_sweep.sweep.store.manifest.new_manifest`).
@@ -163,223 +144,94 @@ def read_manifest(folder: str | Path) -> dict[str, Any]:
     return data
 
 
-class DamagedPartWarning(UserWarning):
-    """A part file of a results folder was skipped (the command line prints it as one line)."""
+@dataclass(frozen=True)
+class Journal:
+    """The journal of a run that ended before storing its rows (killed, or stopped by a full disk).
+
+    Attributes:
+        run_id: The run's id (its manifest entry's ``run_id``).
+        path: The file.
+        rows: Its rows (a line cut short by a killed process left out); empty if it cannot be read.
+        error: Why it cannot be read, or None.
+    """
+
+    run_id: str
+    path: Path
+    rows: tuple[dict[str, Any], ...] = ()
+    error: OSError | None = None
 
 
-def _warn(path: Path, reason: Damage) -> None:
-    warnings.warn(f"skipped damaged part file {path} ({reason})", DamagedPartWarning, stacklevel=3)
+@dataclass(frozen=True)
+class FolderState:
+    """A results folder as read once (:func:`read_state`): what a run decides from, and readers read.
+
+    Attributes:
+        folder: The results folder.
+        manifest: Its manifest, or None (see ``manifest_error``).
+        manifest_error: Why it has none that reads (missing, or damaged), or None.
+        parts: The part files that read as a run wrote them, the manifest's first.
+        damaged: The part files left out, and why (:class:`~somo_sweep.sweep.store.parts.Damage`).
+        journals: The journals runs left behind.
+    """
+
+    folder: Path
+    manifest: dict[str, Any] | None
+    manifest_error: ManifestError | None
+    parts: tuple[PartFile, ...]
+    damaged: tuple[tuple[Path, Damage], ...]
+    journals: tuple[Journal, ...]
+
+    def pending(self, study_hash: str, stored: set[str]) -> dict[str, list[dict[str, Any]]]:
+        """The journals' finished trials of ``study_hash`` whose job is not in ``stored``, each job
+        once, by run id: what the next run of the study recovers."""
+        return _pending(self.journals, study_hash, stored)
 
 
-def read_results(folder: str | Path, on_damaged: OnDamaged | None = None) -> pd.DataFrame:
-    """Every readable trial of a results folder, in grid order, with a boolean ``inferred`` column.
+def _pending(
+    journals: tuple[Journal, ...], study_hash: str, stored: set[str]
+) -> dict[str, list[dict[str, Any]]]:
+    out: dict[str, list[dict[str, Any]]] = {}
+    seen = set(stored)
+    for journal in journals:
+        for row in journal.rows:
+            if row.get("study_hash") == study_hash and row["job_id"] not in seen:
+                seen.add(row["job_id"])
+                out.setdefault(journal.run_id, []).append(row)
+    return out
 
-    Simulated trials have ``inferred`` false; the cells an adaptive run did not simulate
-    (``inferred.parquet``) follow with ``inferred`` true, their metrics missing. A cell stored
-    as simulated is never also returned as inferred.
+
+def read_state(folder: str | Path, reader: bool = False) -> FolderState:
+    """Read a results folder once: its manifest, its part files (each judged as every reader judges
+    it: :func:`~somo_sweep.sweep.store.parts.split_parts`) and its journals.
 
     Args:
         folder: The results folder.
-        on_damaged: Called with (file, why) for each file, or rows of one, left out or counted
-            once (default: a warning).
+        reader: Refuse a folder without a manifest that reads, before reading anything else (a
+            reader has nothing to read there; a run rebuilds it).
 
     Raises:
-        SomoError: Not a results folder, or rows of another study in it.
+        ManifestError: ``reader``, and the folder has no manifest, or a damaged one.
+        SomoError: Its ``trials`` is not a folder, or one we may not read.
     """
     folder = Path(folder)
-    manifest = read_manifest(folder)
-    told = on_damaged or _warn
-    skipped: list[Path] = []
-
-    def report(path: Path, reason: Damage) -> None:
-        if reason.kind != "repeats":  # its rows are left out, not counted once
-            skipped.append(path)
-        told(path, reason)
-
-    # The parts the manifest lists as written by a run first: a row repeated in a copy is the copy's.
-    good, bad = split_parts(
-        folder, {str(f) for f in manifest.get("files", [])}, declared_types(manifest), max_part_rows(manifest)
-    )
-    for path, reason in bad:
-        report(path, reason)
-    tables, names = _part_tables(good, report)
-    inferred = _read_inferred(folder, report)
-    if inferred is not None:
-        inferred = _inferred_cells(inferred, tables, manifest, folder / INFERRED, report)
-    if not tables and inferred is None:
-        empty = pd.DataFrame(columns=[*(c.name for c in COLUMNS), "inferred"])
-        return with_record(empty, manifest, skipped)
-    df = _together(folder, tables, inferred, report)
-    if PART_COLUMN not in df.columns:
-        df[PART_COLUMN] = pd.Series(pd.NA, index=df.index, dtype="Int64")
-    _refuse_foreign(folder, df, manifest, names)
-    df = _counted_once(df, names, report)
-    missing = {c.name: None for c in COLUMNS if c.name not in df.columns}  # parts from an older version
-    df = df.drop(columns=[PART_COLUMN]).assign(**missing)
-    df = df.sort_values("trial", kind="stable").reset_index(drop=True)
-    return with_record(df, manifest, skipped)
-
-
-def _part_tables(parts: list[Path], report: OnDamaged) -> tuple[list[pa.Table], list[Path]]:
-    """The readable parts' tables, each row marked with its part's number, and those parts."""
-    tables: list[pa.Table] = []
-    names: list[Path] = []
-    for part in parts:
+    manifest: dict[str, Any] | None = None
+    error: ManifestError | None = None
+    try:
+        manifest = read_manifest(folder)
+    except ManifestError as exc:
+        if reader:
+            raise
+        error = exc
+    journals = []
+    trials = folder / "trials"
+    for path in sorted(trials.glob(JOURNAL_GLOB)) if trials.is_dir() else []:
+        run_id = path.name.removeprefix(".journal-").removesuffix(".jsonl")
         try:
-            table = pq.read_table(part)
-        except (pa.ArrowException, OSError) as exc:  # a footer that reads, pages that do not
-            report(part, Damage(str(exc).split("\n")[0]))
-            continue
-        tables.append(table.append_column(PART_COLUMN, pa.array([len(names)] * table.num_rows, pa.int64())))
-        names.append(part)
-    return tables, names
-
-
-def _together(
-    folder: Path, tables: list[pa.Table], inferred: pa.Table | None, report: OnDamaged
-) -> pd.DataFrame:
-    """The simulated trials (``inferred`` false), then the inferred cells not simulated since.
-
-    Raises:
-        SomoError: The simulated trials cannot be read together.
-    """
-    if tables:
-        simulated = pa.concat_tables(tables, promote_options="permissive")
-        tables = [simulated.append_column("inferred", pa.array([False] * simulated.num_rows))]
-    if inferred is not None:
-        done = pa.array(tables[0].column("job_id").to_pylist() if tables else [], type=pa.string())
-        tables.append(inferred.filter(pc.invert(pc.is_in(inferred.column("job_id"), value_set=done))))
-    try:
-        return pa.concat_tables(tables, promote_options="permissive").to_pandas()
-    except (pa.ArrowException, ValueError) as exc:
-        if inferred is None or len(tables) < 2:
-            raise SomoError(
-                f"{folder}: the trials cannot be read together ({str(exc).splitlines()[0]})"
-            ) from None
-        # The inferred cells do not fit the simulated trials: set them aside, keep the trials.
-        report(folder / INFERRED, Damage(f"does not fit the part files ({str(exc).splitlines()[0]})"))
-        return tables[0].to_pandas()
-
-
-def _refuse_foreign(folder: Path, df: pd.DataFrame, manifest: dict[str, Any], names: list[Path]) -> None:
-    """Refuse rows of another study.
-
-    Rows of another study are looked for first: one that shares cells with this one has the
-    same job ids, and its part is foreign, not a copy of ours.
-
-    Raises:
-        SomoError: Naming the file that holds them, or the manifest when every row disagrees
-            with it alone.
-    """
-    foreign = df[df["study_hash"] != manifest["study_hash"]]
-    if len(foreign) and len(foreign) == len(df) and foreign["study_hash"].nunique() == 1:
-        # Every row agrees with every other and none with the manifest: the manifest is the odd one.
-        raise SomoError(
-            f"{folder / MANIFEST} records study hash {shown(str(manifest['study_hash']))}, but every "
-            f"trial in the folder holds {shown(str(foreign['study_hash'].iloc[0]))} (a manifest copied "
-            "from another folder?); move the manifest away and run the study again with --out "
-            f"{folder}: it is rebuilt from the trials"
-        )
-    if len(foreign):
-        parts = sorted({names[int(i)].name for i in foreign[PART_COLUMN].dropna()}) or [INFERRED]
-        raise SomoError(
-            f"{folder}: {len(foreign)} row(s) belong to another study "
-            f"(hash {foreign['study_hash'].iloc[0]}), in {', '.join(parts)}; move that file away"
-        )
-
-
-def _counted_once(df: pd.DataFrame, names: list[Path], report: OnDamaged) -> pd.DataFrame:
-    """``df`` with each simulated job's row once: the first part's (a later part repeating it is a copy)."""
-    repeated = df["job_id"].duplicated(keep="first") & df[PART_COLUMN].notna()
-    for index, rows in df[repeated].groupby(PART_COLUMN):
-        first = df.loc[df["job_id"].isin(rows["job_id"]) & ~repeated, PART_COLUMN]
-        where = ", ".join(sorted({names[int(i)].name for i in first.dropna()}))
-        report(
-            names[int(index)], Damage.repeats(f"{len(rows)} row(s) stored in {where}: counted once (a copy?)")
-        )
-    return df[~repeated]
-
-
-def _read_inferred(folder: Path, report: OnDamaged) -> pa.Table | None:
-    path = folder / INFERRED
-    if not (path.exists() or path.is_symlink()):
-        return None
-    if not path.is_file():  # a folder, a FIFO, a dangling link: its cells are missing, say so
-        report(path, Damage("not a regular file"))
-        return None
-    try:
-        table = pq.read_table(path)
-    except (pa.ArrowException, OSError) as exc:
-        report(path, Damage(str(exc).split("\n")[0]))
-        return None
-    if "inferred" not in table.column_names:
-        report(path, Damage("no 'inferred' column: not the inferred cells of an adaptive run"))
-        return None
-    why = damage_of(path, part=False)
-    if why is not None:  # readable, but not what an adaptive run writes
-        report(path, Damage(why))
-        return None
-    # Every row of this file is inferred, whatever its column says (a hand edit must not pass
-    # an inferred cell off as simulated); rows without a job, trial or status are not cells;
-    # a job is counted once.
-    table = table.set_column(
-        table.column_names.index("inferred"), "inferred", pa.array([True] * table.num_rows, pa.bool_())
-    )
-    whole = pc.and_(
-        pc.and_(pc.is_valid(table.column("job_id")), pc.is_valid(table.column("trial"))),
-        pc.is_valid(table.column("status")),
-    )
-    if not pc.all(whole).as_py() and table.num_rows:
-        broken = table.num_rows - pc.sum(whole).as_py()
-        report(path, Damage.repeats(f"{broken} row(s) without a job, trial or status: left out"))
-        table = table.filter(whole)
-    ids = table.column("job_id").to_pylist()
-    first_of: dict[str, int] = {}
-    for i, job in enumerate(ids):
-        first_of.setdefault(job, i)
-    first = sorted(first_of.values())
-    if len(first) < table.num_rows:
-        report(path, Damage.repeats(f"{table.num_rows - len(first)} repeated row(s): counted once"))
-        table = table.take(pa.array(first, pa.int64()))
-    return table
-
-
-def _inferred_cells(
-    inferred: pa.Table, simulated: list[pa.Table], manifest: dict[str, Any], path: Path, report: OnDamaged
-) -> pa.Table:
-    """The inferred rows that are cells of the study and not simulated under another job id.
-
-    An adaptive run writes one row per grid cell it did not simulate, numbered as the study's
-    trials. A row numbered outside the study (0 … ``n_trials`` − 1), or numbered as a trial
-    that is stored simulated under another job id (an edit, or a file of another run of the
-    study), is not such a cell: it is left out and reported.
-    """
-    trials = inferred.column("trial")
-    n_trials = manifest.get("n_trials")
-    keep = pc.is_valid(trials)
-    if isinstance(n_trials, int) and not isinstance(n_trials, bool):
-        inside = pc.and_(pc.greater_equal(trials, 0), pc.less(trials, n_trials))
-        outside = inferred.num_rows - pc.sum(pc.cast(inside, pa.int64())).as_py()
-        if outside:
-            last = n_trials - 1
-            why = f"{outside} row(s) numbered outside the study's trials 0 … {last}: left out"
-            report(path, Damage.repeats(why))
-            keep = pc.and_(keep, inside)
-    done_ids: set[str] = set()
-    done_trials: set[int] = set()
-    for table in simulated:
-        done_ids.update(table.column("job_id").to_pylist())
-        done_trials.update(table.column("trial").to_pylist())
-    ids, numbers = inferred.column("job_id").to_pylist(), trials.to_pylist()
-    clash = pa.array([n in done_trials and j not in done_ids for j, n in zip(ids, numbers, strict=True)])
-    n_clash = pc.sum(pc.cast(clash, pa.int64())).as_py() or 0
-    if n_clash:
-        report(
-            path,
-            Damage.repeats(f"{n_clash} row(s) numbered as simulated trials with another job id: left out"),
-        )
-        keep = pc.and_(keep, pc.invert(clash))
-    return inferred.filter(keep)
+            journals.append(Journal(run_id, path, tuple(journal_rows(path))))
+        except OSError as exc:
+            journals.append(Journal(run_id, path, error=exc))
+    parts, damaged = split_parts(folder, manifest)
+    return FolderState(folder, manifest, error, tuple(parts), tuple(damaged), tuple(journals))
 
 
 def journal_rows(path: Path) -> Iterator[dict[str, Any]]:
@@ -394,37 +246,108 @@ def journal_rows(path: Path) -> Iterator[dict[str, Any]]:
                 yield row
 
 
-def pending_journal_rows(folder: str | Path, study_hash: str, stored: Collection[str]) -> dict[str, int]:
-    """Finished trials in the journals of runs that ended without storing them (killed), by run id.
+class DamagedPartWarning(UserWarning):
+    """A part file of a results folder was skipped (the command line prints it as one line)."""
 
-    Only rows of ``study_hash`` whose job is not in ``stored`` count, each job once: what the
-    next run of the study recovers.
+
+def _warn(path: Path, reason: Damage) -> None:
+    warnings.warn(f"skipped damaged part file {path} ({reason})", DamagedPartWarning, stacklevel=3)
+
+
+@dataclass(frozen=True)
+class OpenedFolder:
+    """A results folder opened for reading, once (:func:`open_folder`): what every reader needs of it.
+
+    Attributes:
+        folder: The results folder.
+        manifest: Its manifest.
+        trials: Every readable trial, in grid order, with a boolean ``inferred`` column (the cells
+            an adaptive run did not simulate follow the simulated trials); its ``attrs`` carry the
+            record of :mod:`~somo_sweep.sweep.store.table_record`.
+        left_out: Each file, or rows of one, left out or counted once, and why.
+        journals: The journals runs left behind, as read (:attr:`pending` counts what they hold).
     """
-    counts: dict[str, int] = {}
-    seen = set(stored)
-    with contextlib.suppress(OSError):
-        for journal in sorted((Path(folder) / "trials").glob(JOURNAL_GLOB)):
-            run_id = journal.name.removeprefix(".journal-").removesuffix(".jsonl")
-            with contextlib.suppress(OSError):
-                for row in journal_rows(journal):
-                    if row.get("study_hash") == study_hash and row["job_id"] not in seen:
-                        seen.add(row["job_id"])
-                        counts[run_id] = counts.get(run_id, 0) + 1
-    return counts
+
+    folder: Path
+    manifest: dict[str, Any]
+    trials: pd.DataFrame = field(repr=False)
+    left_out: tuple[tuple[Path, Damage], ...] = ()
+    journals: tuple[Journal, ...] = field(default=(), repr=False)
+
+    @cached_property
+    def pending(self) -> dict[str, int]:
+        """Finished trials of the study waiting in the journals of runs that ended without storing
+        them (killed), by run id: what the next run of the study stores first."""
+        if not self.journals:
+            return {}
+        stored = set(self.trials["job_id"].dropna()) if "job_id" in self.trials else set()
+        rows = _pending(self.journals, self.manifest["study_hash"], stored)
+        return {run_id: len(found) for run_id, found in rows.items()}
+
+    def tell(self, on_damaged: OnDamaged | None = None) -> None:
+        """Tell ``on_damaged`` (default: a warning) of each file, or rows of one, left out or counted
+        once (for a reader that opened the folder quietly, and decides later to say so)."""
+        for path, reason in self.left_out:
+            (on_damaged or _warn)(path, reason)
+
+    def nothing_stored(self) -> str:
+        """What a reader says when no trial is stored: the finished trials waiting in a killed run's
+        journal, if any, and how to store them (the next run of the study does, first)."""
+        pending = sum(self.pending.values())
+        if not pending:
+            return (
+                f"{self.folder}: no finished trials stored yet (of {self.manifest.get('n_trials', '?')} "
+                "in the study)"
+            )
+        return (
+            f"{self.folder}: no trials stored yet, but {pending} finished trial(s) wait in the journal of "
+            "a run that was killed before storing them; run the study into this folder again (somo-sweep "
+            "run STUDY.yaml, with the same --out if it had one): it stores them before anything else runs"
+        )
+
+
+def open_folder(folder: str | Path, on_damaged: OnDamaged | None = None) -> OpenedFolder:
+    """A results folder, read once, for its readers.
+
+    Args:
+        folder: The results folder.
+        on_damaged: Called with (file, why) for each file, or rows of one, left out or counted
+            once (default: a warning).
+
+    Raises:
+        SomoError: Not a results folder (a :class:`~somo_sweep.errors.ManifestError`), or rows of
+            another study in it.
+    """
+    state = read_state(folder, reader=True)
+    manifest = state.manifest
+    assert manifest is not None
+    told = on_damaged or _warn
+    left_out: list[tuple[Path, Damage]] = []
+
+    def report(path: Path, reason: Damage) -> None:
+        left_out.append((path, reason))
+        told(path, reason)
+
+    for path, reason in state.damaged:
+        report(path, reason)
+    trials = trials_table(state.folder, manifest, list(state.parts), report)
+    skipped = [path for path, reason in left_out if reason.kind != "repeats"]  # not counted once
+    trials = with_record(trials, manifest, skipped)
+    return OpenedFolder(state.folder, manifest, trials, tuple(left_out), state.journals)
+
+
+def read_results(folder: str | Path, on_damaged: OnDamaged | None = None) -> pd.DataFrame:
+    """Every readable trial of a results folder (:attr:`OpenedFolder.trials` of :func:`open_folder`).
+
+    Raises:
+        SomoError: Not a results folder, or rows of another study in it.
+    """
+    return open_folder(folder, on_damaged).trials
 
 
 def nothing_stored(folder: str | Path) -> str:
-    """What a reader says of a results folder with no stored trial: the finished trials waiting in a
-    killed run's journal, if any, and how to store them (the next run of the study does, first)."""
+    """What a reader says of a results folder with no stored trial (:meth:`OpenedFolder.nothing_stored`)."""
     try:
-        manifest = read_manifest(folder)
+        return open_folder(folder, lambda path, reason: None).nothing_stored()
     except SomoError:
         return f"{folder}: no finished trials stored yet"
-    pending = sum(pending_journal_rows(folder, manifest["study_hash"], ()).values())
-    if not pending:
-        return f"{folder}: no finished trials stored yet (of {manifest.get('n_trials', '?')} in the study)"
-    return (
-        f"{folder}: no trials stored yet, but {pending} finished trial(s) wait in the journal of a run "
-        "that was killed before storing them; run the study into this folder again (somo-sweep run "
-        "STUDY.yaml, with the same --out if it had one): it stores them before anything else runs"
-    )

@@ -80,6 +80,17 @@ class FolderLock:
         except OSError:
             return False
 
+    def __enter__(self) -> FolderLock:
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        """Release the lock taken for a short write that is not a run's (``plot`` listing its files):
+        a stop record the file held stays in it, for the next run to report."""
+        stop = self.stop_record
+        if stop is not None:
+            self.record_stop(stop)
+        self.release(remove=stop is None)
+
     def release(self, remove: bool = True) -> None:
         """Release the lock; the file is removed first (still locked) unless ``remove`` is False.
 

@@ -124,18 +124,12 @@ def record_files(folder: Path, paths: list[Path]) -> None:
         lock = acquire(folder / LOCK_NAME)
     except (SomoError, OSError):  # held by a run, or not a lock file (a folder): the files stay unlisted
         return
-    try:
+    with lock, contextlib.suppress(SomoError, OSError, ValueError):
         manifest = read_manifest(folder)
         listed = set(manifest.get("files", []))
         listed.update(p.relative_to(folder).as_posix() for p in paths)
         manifest["files"] = sorted(listed)
         write_json(folder / MANIFEST, manifest)
-    except (SomoError, OSError, ValueError):
-        pass
-    finally:
-        if lock.stop_record is not None:  # the next run reports the run that stopped itself
-            lock.record_stop(lock.stop_record)
-        lock.release(remove=lock.stop_record is None)
 
 
 def describe_changes(old: dict[str, Any], new: dict[str, Any]) -> str:

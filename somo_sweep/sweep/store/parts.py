@@ -12,7 +12,8 @@ from __future__ import annotations
 import contextlib
 import os
 from collections import Counter
-from collections.abc import Callable, Collection, Mapping
+from collections.abc import Callable, Mapping
+from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
@@ -30,9 +31,8 @@ __all__ = [
     "UNREADABLE",
     "Damage",
     "OnDamaged",
+    "PartFile",
     "damage_of",
-    "declared_types",
-    "max_part_rows",
     "part_files",
     "read_columns",
     "split_parts",
@@ -40,7 +40,6 @@ __all__ = [
     "stored_labels",
     "stored_statuses",
     "stored_values",
-    "study_hashes",
 ]
 
 #: How the reason given for a readable part repeating another's rows starts.
@@ -137,27 +136,41 @@ _CORE: dict[str, tuple[Callable[[pa.DataType], bool], str]] = {
 }
 
 
+@dataclass(frozen=True)
+class PartFile:
+    """A part file that reads as one a run wrote.
+
+    Attributes:
+        path: The file.
+        schema: Its columns and their types.
+        study_hashes: The study hashes its rows hold (from its row groups' statistics when every
+            one has them, null-free and one value, as a run writes them; else from the column).
+    """
+
+    path: Path
+    schema: pa.Schema
+    study_hashes: frozenset[str]
+
+
 def split_parts(
-    folder: Path,
-    listed: Collection[str] = (),
-    declared: Mapping[str, str] | None = None,
-    max_rows: int | None = None,
-    schemas: dict[Path, pa.Schema] | None = None,
-) -> tuple[list[Path], list[tuple[Path, Damage]]]:
-    """(readable part files, [(damaged part file, why)]) of a results folder.
+    folder: Path, manifest: Mapping[str, Any] | None = None
+) -> tuple[list[PartFile], list[tuple[Path, Damage]]]:
+    """(readable part files, [(damaged part file, why)]) of a results folder whose manifest is
+    ``manifest`` (None: it has none that reads).
 
     A part is damaged when it is not a regular file, when its footer or schema does not read,
     when it lacks a column every part has (or holds it as another kind), when it holds more
-    rows than the study has trials (``max_rows``), or when a column holds another type than
-    the folder's: the type the manifest records for it (``declared``: column → Arrow type
-    alias), else the type most parts give it. So one edited part is set aside, never the
-    parts that agree with each other, whatever their names. Parts the manifest lists
-    (``listed``: its ``trials/NAME`` files) come first, so on a tie a stray file never
-    displaces one a run wrote. ``schemas``, if given, receives the schema of each readable part.
+    rows than the study has trials (and their replicas), or when a column holds another type
+    than the folder's: the type the manifest records for it, else the type most parts give it.
+    So one edited part is set aside, never the parts that agree with each other, whatever their
+    names. Parts the manifest lists (its ``trials/NAME`` files) come first, so on a tie a stray
+    file never displaces one a run wrote.
     """
-    good: list[Path] = []
+    manifest = manifest or {}
+    listed = {str(f) for f in manifest.get("files", [])}
+    max_rows = _max_part_rows(manifest)
     bad: list[tuple[Path, Damage]] = []
-    found: dict[Path, pa.Schema] = {}
+    found: dict[Path, tuple[pa.Schema, frozenset[str]]] = {}
     for part in sorted(part_files(folder), key=lambda p: f"trials/{p.name}" not in listed):
         reason: str | None = None if part.is_file() else "not a regular file"
         if reason is None and not os.access(part, os.R_OK):  # not damaged: never set aside for it
@@ -165,20 +178,21 @@ def split_parts(
         reason = reason or damage_of(part)
         if reason is None:
             try:
-                rows = pq.read_metadata(part).num_rows
-                if max_rows is not None and rows > max_rows:
-                    reason = f"{rows} rows, more than the study's {max_rows} trials"
+                with pq.ParquetFile(part) as file:
+                    meta, schema = file.metadata, file.schema_arrow
+                if max_rows is not None and meta.num_rows > max_rows:
+                    reason = f"{meta.num_rows} rows, more than the study's {max_rows} trials"
                 else:
-                    found[part] = pq.read_schema(part)
+                    found[part] = (schema, _study_hashes(part, meta))
             except (pa.ArrowException, OSError) as exc:
                 reason = str(exc).split("\n")[0]
         if reason is not None:
             bad.append((part, reason if isinstance(reason, Damage) else Damage(reason)))
-    if schemas is not None:
-        schemas.update(found)
-    for part, reason in _typed(found, _reference_types(list(found.values()), declared or {})):
+    schemas = {part: schema for part, (schema, _) in found.items()}
+    good: list[PartFile] = []
+    for part, reason in _typed(schemas, _reference_types(list(schemas.values()), _declared_types(manifest))):
         if reason is None:
-            good.append(part)
+            good.append(PartFile(part, *found[part]))
         else:
             bad.append((part, Damage(reason)))
     return good, bad
@@ -233,7 +247,7 @@ def _fits(kind: pa.DataType, want: pa.DataType) -> bool:
     return True
 
 
-def declared_types(manifest: Mapping[str, Any]) -> dict[str, str]:
+def _declared_types(manifest: Mapping[str, Any]) -> dict[str, str]:
     """Column → Arrow type alias, as a results folder's manifest records them."""
     columns = manifest.get("columns")
     if not isinstance(columns, dict):
@@ -245,7 +259,7 @@ def declared_types(manifest: Mapping[str, Any]) -> dict[str, str]:
     }
 
 
-def max_part_rows(manifest: Mapping[str, Any]) -> int | None:
+def _max_part_rows(manifest: Mapping[str, Any]) -> int | None:
     """The most rows one part file of the folder's study can hold: its trials, and their
     robustness replicas if a run asked for some (each run records its ``replicas`` at its start)."""
     n = manifest.get("n_trials")
@@ -273,19 +287,18 @@ def read_columns(parts: list[Path], columns: list[str]) -> pa.Table:
     )
 
 
-def study_hashes(part: Path) -> set[str]:
+def _study_hashes(part: Path, meta: pq.FileMetaData) -> frozenset[str]:
     """The study hashes in a part file: from its row groups' statistics when every one has them,
     null-free and one value (a part a run wrote), else from the column itself."""
-    meta = pq.read_metadata(part)
     index = meta.schema.to_arrow_schema().get_field_index("study_hash")
     found: set[str] = set()
     for i in range(meta.num_row_groups):
         stats = meta.row_group(i).column(index).statistics if index >= 0 else None
         if stats is None or not stats.has_min_max or stats.null_count != 0 or stats.min != stats.max:
             column = read_columns([part], ["study_hash"]).column("study_hash")
-            return {str(h) for h in pc.unique(column).to_pylist()}
+            return frozenset(str(h) for h in pc.unique(column).to_pylist())
         found.add(str(stats.min))
-    return found
+    return frozenset(found)
 
 
 def stored_statuses(parts: list[Path]) -> dict[str, str]:

@@ -28,7 +28,6 @@ from __future__ import annotations
 
 import contextlib
 import json
-import os
 import sys
 import uuid
 from collections.abc import Sequence
@@ -41,28 +40,14 @@ import pyarrow as pa
 import pyarrow.compute as pc
 import pyarrow.parquet as pq
 
-from somo_sweep.errors import SomoError, StorageError, os_cause, os_error_for, shown
-from somo_sweep.sweep.store.folder import (
-    INFERRED,
-    JOURNAL_GLOB,
-    MANIFEST,
-    journal_rows,
-    read_manifest,
-    read_results,
-)
-from somo_sweep.sweep.store.lock import LOCK_NAME, FolderLock, acquire
+from somo_sweep.errors import StorageError, os_error_for
+from somo_sweep.sweep.store.folder import read_manifest, read_results
+from somo_sweep.sweep.store.layout import INFERRED, MANIFEST
+from somo_sweep.sweep.store.lock import FolderLock
 from somo_sweep.sweep.store.manifest import now_utc, record_files, versions, write_atomically, write_json
-from somo_sweep.sweep.store.opening import (
-    NAME_ERRORS,
-    OWN,
-    check_target,
-    credit,
-    mark_aborted,
-    open_manifest,
-    quarantine,
-)
+from somo_sweep.sweep.store.opening import open_for_run
 from somo_sweep.sweep.store.parts import stored_ids, stored_labels, stored_statuses, stored_values
-from somo_sweep.sweep.store.schema import COLUMNS, FIXED, arrow_type, merge_types, unit_of
+from somo_sweep.sweep.store.schema import folder_schema, table_schema, widened
 
 __all__ = ["ResultStore", "read_manifest", "read_results", "record_files"]
 
@@ -70,9 +55,10 @@ __all__ = ["ResultStore", "read_manifest", "read_results", "record_files"]
 class ResultStore:
     """Write access to a results folder for one run: lock, resume, parts, journal, manifest.
 
-    Opening it sets the folder in order (:mod:`somo_sweep.sweep.store.opening`): a folder that is not a
-    results folder is refused, damaged parts are set aside, the manifest is continued or rebuilt,
-    killed runs are marked and their journalled rows recovered.
+    Opening it sets the folder in order, decided from one read of it
+    (:func:`~somo_sweep.sweep.store.opening.open_for_run`): a folder that is not a results folder is
+    refused, damaged parts are set aside, the manifest is continued or rebuilt, killed runs are
+    marked and their journalled rows recovered (the store writes them first).
 
     Args:
         folder: The results folder (created if missing).
@@ -107,140 +93,37 @@ class ResultStore:
     ):
         self.folder = Path(folder)
         self.trials = self.folder / "trials"
-        self.notes: list[str] = []
         self.rows_written = 0
         self._journal: IO[str] | None = None
-        self._schemas: dict[Path, pa.Schema] = {}  # of the part files, read once on opening
         self._keep_lock_file = False
-        created = not os.path.lexists(self.folder)
-        self._create()
-        try:
-            self._lock: FolderLock | None = acquire(self.folder / LOCK_NAME)
-        except BaseException:
-            if created:  # leave no empty folder behind a start that failed
-                with contextlib.suppress(OSError):
-                    self.folder.rmdir()
-            raise
+        opening = open_for_run(self.folder, study_hash, resolved, axes, overwrite)
+        self._lock: FolderLock | None = opening.lock
+        self.manifest, self.notes = opening.manifest, opening.notes
         # Unique per run, so that a resumed run never overwrites an earlier part file.
         self.run_id = f"{datetime.now(UTC):%Y%m%dT%H%M%S}-{uuid.uuid4().hex[:8]}"
         self.seq = 0
         try:
-            self.manifest = self._set_in_order(study_hash, resolved, axes, overwrite)
-            self.types = self._column_types(param_types, column_types or {})
-            mark_aborted(self.manifest, self._lock, self.notes)
-            self._heal_schemas()
-            self._recover(study_hash)
+            self.schema = folder_schema(self.manifest["columns"], column_types or {}, param_types)
+            self._heal_schemas(opening.schemas)
+            if opening.recovered:
+                self.write(opening.recovered)
+                self.rows_written = 0  # written now, but finished by the killed run
+            for journal in opening.journals:
+                journal.unlink()
             self._write_manifest()
         except BaseException as exc:
-            self._abandon(exc, created)
+            self._lock = None  # released by the opening
+            opening.abandon(exc)
             raise
 
-    # -- opening ---------------------------------------------------------------------------
-
-    def _create(self) -> None:
-        """Create the folder (after checking what is there).
-
-        Raises:
-            SomoError: A name no folder can have (bad input, exit 2), or what is there is refused.
-            StorageError: A full or read-only disk (a failed run, exit 1).
-        """
-        try:
-            check_target(self.folder)
-            self.folder.mkdir(parents=True, exist_ok=True)
-        except OSError as exc:  # a name too long, no permission, a file in the way, ...
-            where = shown(str(self.folder), 200)
-            cause, advice = os_cause(exc)
-            kind = SomoError if exc.errno in NAME_ERRORS else StorageError
-            raise kind(
-                f"cannot create the results folder {where}: {cause}; nothing was written: {advice}, "
-                "then run the same command again"
-            ) from None
-
-    def _set_in_order(
-        self, study_hash: str, resolved: dict[str, Any], axes: dict[str, str], overwrite: bool
-    ) -> dict[str, Any]:
-        """Remove a killed run's temporary files, set damaged parts aside; the manifest, opened."""
-        self.trials.mkdir(exist_ok=True)
-        for tmp in self.trials.glob(".*.tmp"):
-            tmp.unlink()
-        for tmp in self.folder.glob(".*.tmp"):  # a killed run's manifest or study copy
-            if OWN.fullmatch(tmp.name):
-                tmp.unlink()
-        quarantine(self.folder, self._schemas, self.notes)
-        return open_manifest(self.folder, study_hash, resolved, axes, overwrite, self.notes)
-
-    def _abandon(self, exc: BaseException, created: bool) -> None:
-        """Release the folder after an opening that failed; a full disk becomes a StorageError.
-
-        Raises:
-            StorageError: ``exc`` was an operating-system error (what the folder holds is intact).
-        """
-        stop = self._lock.stop_record if self._lock is not None else None
-        if stop is not None and self._lock is not None:  # not yet in the manifest: keep it for the next run
-            self._keep_lock_file = self._lock.record_stop(stop)
-        self.close()
-        if created:  # a start that failed on a new folder leaves no empty folder behind
-            with contextlib.suppress(OSError):
-                self.trials.rmdir()
-                self.folder.rmdir()
-        if isinstance(exc, OSError):  # a full disk while setting the folder in order
-            cause, advice = os_cause(exc)
-            where = f"cannot write {exc.filename}" if exc.filename else "cannot write in it"
-            raise StorageError(
-                f"cannot open the results folder {self.folder}: {where}: {cause}; what it holds is "
-                f"intact (finished trials of a killed run stay in its journal): {advice}, then run "
-                "the same command again"
-            ) from None
-
-    def _column_types(
-        self, param_types: dict[str, list[Any]], declared: dict[str, str]
-    ) -> dict[str, pa.DataType]:
-        """Every column's type: the manifest's, the fixed columns', the task's declared metrics'
-        and the study's parameters' (widened where they differ)."""
-        types = {name: pa.type_for_alias(info["type"]) for name, info in self.manifest["columns"].items()}
-        for c in COLUMNS:
-            types.setdefault(c.name, pa.type_for_alias(c.type))
-        for name, alias in declared.items():
-            types[name] = merge_types(types.get(name, pa.null()), pa.type_for_alias(alias))
-        for name, values in param_types.items():
-            types[name] = merge_types(types.get(name, pa.null()), arrow_type(values))
-        return types
-
-    def _heal_schemas(self) -> None:
-        """Give every part the current schema (a rewrite cut short by a full disk leaves mixed ones)."""
+    def _heal_schemas(self, schemas: dict[Path, pa.Schema]) -> None:
+        """Give every part the current schema (a rewrite cut short by a full disk leaves mixed ones);
+        ``schemas``: those of the parts, as read on opening."""
         parts = self._parts()
-        schema = self._schema()
-        read = [self._schemas.get(p) or pq.read_schema(p) for p in parts]
-        if any(s.remove_metadata() != schema.remove_metadata() for s in read):
+        read = [schemas.get(p) or pq.read_schema(p) for p in parts]
+        if any(s.remove_metadata() != self.schema.remove_metadata() for s in read):
             for part in parts:
-                self._atomic(pq.read_table(part), part, schema)
-
-    def _recover(self, study_hash: str) -> None:
-        """Rows of killed runs, kept in their journals, go into a part file (once each)."""
-        journals = sorted(self.trials.glob(JOURNAL_GLOB))
-        if not journals:
-            return
-        done = self.done_ids()
-        rows: dict[str, dict[str, Any]] = {}
-        by_run: dict[str, int] = {}
-        for journal in journals:
-            run_id = journal.name.removeprefix(".journal-").removesuffix(".jsonl")
-            for row in journal_rows(journal):
-                if (
-                    row.get("study_hash") == study_hash
-                    and row["job_id"] not in done
-                    and row["job_id"] not in rows
-                ):
-                    rows[row["job_id"]] = row
-                    by_run[run_id] = by_run.get(run_id, 0) + 1
-        if rows:
-            self.write(list(rows.values()))
-            self.rows_written = 0  # written now, but finished by the killed run
-            whose = credit(self.manifest, by_run)
-            source = "their journals" if len(by_run) > 1 else "its journal"
-            self.notes.append(f"recovered {len(rows)} finished trial(s) of {whose} from {source}")
-        for journal in journals:
-            journal.unlink()
+                self._atomic(pq.read_table(part), part, self.schema)
 
     # -- reading -----------------------------------------------------------------------------
 
@@ -253,7 +136,7 @@ class ResultStore:
 
     def stored_labels(self) -> dict[str, tuple[str, dict[str, str]]]:
         """Status and labels (names without ``label_``) of every trial already stored, by job id."""
-        return stored_labels(self._parts(), [n for n in self._schema().names if n.startswith("label_")])
+        return stored_labels(self._parts(), [n for n in self.schema.names if n.startswith("label_")])
 
     def stored_values(self, columns: Sequence[str]) -> dict[str, dict[str, Any]]:
         """Values of ``columns`` (a column no part holds reads as None) of every trial already
@@ -280,7 +163,7 @@ class ResultStore:
                 part.unlink()
                 self._forget(part)
             else:
-                self._atomic(table.filter(keep), part, self._schema())
+                self._atomic(table.filter(keep), part, self.schema)
         return dropped
 
     def copy_study(self, source: Path) -> None:
@@ -364,15 +247,12 @@ class ResultStore:
         if not rows:
             return
         names = list(dict.fromkeys(k for r in rows for k in r))
-        types = dict(self.types)
-        for name in names:
-            types[name] = merge_types(types.get(name, pa.null()), arrow_type([r.get(name) for r in rows]))
-        widened = types != self.types
-        schema = self._schema(types)
-        if widened:
+        types = {f.name: f.type for f in self.schema}
+        schema = table_schema(widened(types, {n: [r.get(n) for r in rows] for n in names}))
+        if schema != self.schema:  # a column widened (or new): every part takes the new schema
             for part in self._parts():
                 self._atomic(pq.read_table(part), part, schema)
-        self.types = types
+        self.schema = schema
         table = pa.table({n: _column([r.get(n) for r in rows], schema.field(n).type) for n in schema.names})
         path = self.trials / f"part-{self.run_id}-{self.seq:05d}.parquet"
         self._atomic(table, path, schema)
@@ -418,7 +298,7 @@ class ResultStore:
         """
         if not rows:
             return
-        schema = self._schema().append(pa.field("inferred", pa.bool_()))
+        schema = self.schema.append(pa.field("inferred", pa.bool_()))
         names = [n for n in schema.names if any(n in r for r in rows)]
         table = pa.table({n: _column([r.get(n) for r in rows], schema.field(n).type) for n in names})
         path = self.folder / INFERRED
@@ -435,11 +315,6 @@ class ResultStore:
         rel = path.relative_to(self.folder).as_posix()
         self.manifest["files"] = [f for f in self.manifest["files"] if f != rel]
 
-    def _schema(self, types: dict[str, pa.DataType] | None = None) -> pa.Schema:
-        types = self.types if types is None else types
-        order = [c.name for c in COLUMNS] + sorted(n for n in types if n not in FIXED)
-        return pa.schema([pa.field(n, types[n], metadata={"unit": unit_of(n)}) for n in order])
-
     def _atomic(self, table: pa.Table, path: Path, schema: pa.Schema) -> None:
         """Write ``table`` as ``path`` (in ``schema``) through a temporary file; an error names ``path``."""
         for name in schema.names:
@@ -449,8 +324,9 @@ class ResultStore:
         write_atomically(path, lambda tmp: pq.write_table(table, tmp))
 
     def _write_manifest(self) -> None:
-        schema = self._schema()
-        self.manifest["columns"] = {f.name: {"type": str(f.type), "unit": unit_of(f.name)} for f in schema}
+        self.manifest["columns"] = {
+            f.name: {"type": str(f.type), "unit": f.metadata[b"unit"].decode()} for f in self.schema
+        }
         self.manifest["python"] = sys.version.split()[0]
         self.manifest["files"] = sorted(set(self.manifest["files"]))
         try:

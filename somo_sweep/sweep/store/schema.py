@@ -3,17 +3,31 @@
 :data:`COLUMNS` is the one definition of the fixed columns. Parameter columns
 (``task_*``, ``model_*``), metrics and ``label_*`` columns depend on the study and
 the task; their unit is read from their name suffix (:func:`unit_of`), and their
-Arrow type from their values (:func:`arrow_type`, widened with :func:`merge_types`).
+Arrow type from their values (:func:`arrow_type`, widened with :func:`merge_types`): a results
+folder's schema is :func:`table_schema` of those types.
 """
 
 from __future__ import annotations
 
+from collections.abc import Mapping
 from dataclasses import dataclass
 from typing import Any
 
 import pyarrow as pa
 
-__all__ = ["COLUMNS", "FIXED", "MAX_REPLICAS", "Column", "arrow_type", "merge_types", "split_unit", "unit_of"]
+__all__ = [
+    "COLUMNS",
+    "FIXED",
+    "MAX_REPLICAS",
+    "Column",
+    "arrow_type",
+    "folder_schema",
+    "merge_types",
+    "split_unit",
+    "table_schema",
+    "unit_of",
+    "widened",
+]
 
 #: Most robustness replicas a trial may have (each one is a full trial; ``robustness.replicas``).
 MAX_REPLICAS = 16
@@ -120,3 +134,33 @@ def merge_types(a: pa.DataType, b: pa.DataType) -> pa.DataType:
     if {a, b} <= {pa.bool_(), pa.int64(), pa.float64()}:
         return pa.float64()
     return pa.string()
+
+
+def widened(types: Mapping[str, pa.DataType], values: Mapping[str, list[Any]]) -> dict[str, pa.DataType]:
+    """``types`` (column → type), each column widened as needed to hold ``values`` (column → values)."""
+    out = dict(types)
+    for name, given in values.items():
+        out[name] = merge_types(out.get(name, pa.null()), arrow_type(given))
+    return out
+
+
+def table_schema(types: Mapping[str, pa.DataType]) -> pa.Schema:
+    """The trials table's schema for column types: the fixed columns first (:data:`COLUMNS`), then
+    the others by name, each with its unit (:func:`unit_of`) in its field's metadata."""
+    order = [c.name for c in COLUMNS] + sorted(n for n in types if n not in FIXED)
+    return pa.schema([pa.field(n, types[n], metadata={"unit": unit_of(n)}) for n in order])
+
+
+def folder_schema(
+    recorded: Mapping[str, Mapping[str, Any]], declared: Mapping[str, str], examples: Mapping[str, list[Any]]
+) -> pa.Schema:
+    """The schema a run of a results folder starts from (:func:`table_schema`): every column's type
+    as the folder's manifest records it (``recorded``: its ``columns``), the fixed columns', the
+    task's declared metrics' (``declared``: column → Arrow type alias) and the study's parameters'
+    (``examples``: column → example values), widened where they differ."""
+    types = {name: pa.type_for_alias(info["type"]) for name, info in recorded.items()}
+    for c in COLUMNS:
+        types.setdefault(c.name, pa.type_for_alias(c.type))
+    for name, alias in declared.items():
+        types[name] = merge_types(types.get(name, pa.null()), pa.type_for_alias(alias))
+    return table_schema(widened(types, examples))

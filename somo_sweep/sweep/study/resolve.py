@@ -33,6 +33,7 @@ from somo_sweep.tasks.registry import TaskSpec
 __all__ = [
     "MODEL_CACHE",
     "PARAMS_CACHE",
+    "PointInputs",
     "RecentCache",
     "Resolver",
     "StudyInputs",
@@ -101,6 +102,26 @@ class StudyInputs:
     bases: Mapping[str, Mapping[str, Any]] = field(default_factory=dict)
 
 
+@dataclass(frozen=True)
+class PointInputs:
+    """What one grid point runs (:meth:`Resolver.inputs_of`).
+
+    Attributes:
+        model_key: What identifies its model: the file and the overrides, as text.
+        model_path: The model file.
+        model: The model, the point's overrides applied.
+        params_key: What identifies its task parameters: their overrides, as text.
+        params: The task parameters (an instance of the task's ``params_model``), tables referenced
+            by content.
+    """
+
+    model_key: str
+    model_path: Path
+    model: Model
+    params_key: str
+    params: BaseModel
+
+
 class Resolver:
     """Builds the model and the task parameters of grid points (the most recently used kept).
 
@@ -126,6 +147,18 @@ class Resolver:
             self._bases[key] = load_model_dict(path, self.inputs.allow_outside)
         return self._bases[key]
 
+    def inputs_of(self, point: Mapping[str, Any]) -> PointInputs:
+        """The model and the task parameters of one grid point, with the keys that identify them
+        (each built once while it is among the most recently used).
+
+        Raises:
+            DescriptionError: An override does not fit the model or the task.
+        """
+        model_key, params_key = self.model_key(point), self.params_key(point)
+        model_path, model = self._built_model(point, model_key, keep=True)
+        params = self._built_params(point, params_key, keep=True)
+        return PointInputs(model_key, model_path, model, params_key, params)
+
     def model_key(self, point: Mapping[str, Any]) -> str:
         """What identifies the model of one grid point: its file and its overrides, as text."""
         values = {**self.inputs.fixed, **point}
@@ -145,10 +178,12 @@ class Resolver:
         Raises:
             DescriptionError: An override does not fit the model (against the study file).
         """
+        return self._built_model(point, self.model_key(point), keep)
+
+    def _built_model(self, point: Mapping[str, Any], key: str, keep: bool) -> tuple[Path, Model]:
         source = self.inputs.source
         values = {**self.inputs.fixed, **point}
         model_path = Path(values.get("model", self.inputs.model_path))
-        key = self.model_key(point)
         if key in self._models:
             return model_path, self._models[key]
         data = copy.deepcopy(dict(self.base(model_path)))
@@ -181,8 +216,10 @@ class Resolver:
         Raises:
             DescriptionError: An override does not fit the task's parameters.
         """
+        return self._built_params(point, self.params_key(point), keep)
+
+    def _built_params(self, point: Mapping[str, Any], key: str, keep: bool) -> BaseModel:
         source, task = self.inputs.source, self.inputs.task
-        key = self.params_key(point)
         if key in self._params:
             return self._params[key]
         data = copy.deepcopy(dict(self.inputs.params))
@@ -193,21 +230,18 @@ class Resolver:
                 set_path(data, parse_key_path(path)[1], value, "task")
             except ValueError as exc:
                 raise DescriptionError(source, [Problem(path, str(exc))]) from None
-        params = self._tables(validate(task.params_model, data, str(source), prefix="task"))
+        params = validate(task.params_model, data, str(source), prefix="task")
+        # Table fields (the task's TABLE_FIELDS) are named by content: LOCATION#sha256=DIGEST.
+        tables: dict[str, str] = {}
+        for name in getattr(type(params), "TABLE_FIELDS", ()):
+            try:
+                tables[name] = resolve_table(getattr(params, name), source.parent)
+            except SomoError as exc:
+                raise DescriptionError(source, [Problem(f"task.{name}", str(exc))]) from None
+        params = params.model_copy(update=tables) if tables else params
         if keep:
             self._params[key] = params
         return params
-
-    def _tables(self, params: BaseModel) -> BaseModel:
-        """Table fields (the task's ``TABLE_FIELDS``) as ``LOCATION#sha256=DIGEST`` references."""
-        fields: tuple[str, ...] = getattr(type(params), "TABLE_FIELDS", ())
-        update: dict[str, str] = {}
-        for name in fields:
-            try:
-                update[name] = resolve_table(getattr(params, name), self.inputs.source.parent)
-            except SomoError as exc:
-                raise DescriptionError(self.inputs.source, [Problem(f"task.{name}", str(exc))]) from None
-        return params.model_copy(update=update) if update else params
 
 
 #: The sections of a model file: one of them describes the model.

@@ -20,21 +20,20 @@ held. Nothing here reads or writes files but :func:`ask_folder`, which reads a r
 
 From Python (a design search calls it the same way)::
 
-    from somo_sweep.sweep.store.folder import read_results
     from somo_sweep.sweep.views.answers import ask
     from somo_sweep.sweep.views.questions import question_for
+    from somo_sweep.sweep.views.results import open_results
 
-    trials = read_results("results/my_grasp")
-    question = question_for(trials, "distal_segment_ratio", every=["object_width_m"],
+    results = open_results("results/my_grasp")
+    question = question_for(results.trials, "distal_segment_ratio", every=["object_width_m"],
                             some=["centering_position_m"], label="grasp=pinch")
-    table = ask(trials, question).table   # one row per value of the other axes:
+    table = ask(results, question).table   # one row per value of the other axes:
     # their values, answer (NaN: none), complete, checked, answer_every_cell, ...
 """
 
 from __future__ import annotations
 
 import math
-import re
 from collections.abc import Sequence
 from dataclasses import dataclass, field, replace
 from pathlib import Path
@@ -44,10 +43,10 @@ import numpy as np
 import pandas as pd
 
 from somo_sweep.errors import SomoError
-from somo_sweep.sweep.run.replica_state import ReplicaState, fold_cells, replica_state, unfinished
+from somo_sweep.sweep.run.replica_state import ReplicaState, unfinished
 from somo_sweep.sweep.run.robustness import AWAITED, ROBUST, label_names
-from somo_sweep.sweep.store.folder import STUDY_TRIALS, missing_trials
-from somo_sweep.sweep.store.schema import split_unit, unit_of
+from somo_sweep.sweep.views.axes import axis_name, axis_text, grid_keys
+from somo_sweep.sweep.views.results import Results, open_results
 
 __all__ = [
     "Answer",
@@ -55,17 +54,12 @@ __all__ = [
     "answer",
     "ask",
     "ask_folder",
-    "axis_name",
-    "axis_text",
     "cell_labels",
     "counted_cells",
-    "grid_keys",
 ]
 
 #: Statuses a trial that gave no outcome carries instead of a label.
 NO_OUTCOME = ("unstable", "error")
-#: Significant digits grid values are compared at (a 1e-9 offset from arithmetic is one value).
-DIGITS = 9
 
 
 @dataclass(frozen=True)
@@ -184,24 +178,6 @@ def _value(column: str, value: Any) -> str:
     return axis_text(column, value).split(" ", 1)[1]
 
 
-def axis_name(column: str) -> tuple[str, str]:
-    """A swept column as a reader names it, and its unit: ``task_pressure_kpa`` → (``pressure``,
-    ``kPa``); a model path keeps its last field (``…_joints_0_stiffness_n_m_per_rad`` →
-    ``stiffness``); lengths in mm."""
-    name, unit = split_unit(column.removeprefix("task_").removeprefix("model_"))
-    name = re.split(r"_\d+_", name)[-1] or name
-    return name, "mm" if unit == "m" else unit
-
-
-def axis_text(column: str, value: Any) -> str:
-    """One value of a swept column in words: ``pressure 40 kPa``, ``object_width 20 mm``."""
-    name, unit = axis_name(column)
-    if isinstance(value, float | int | np.number) and not isinstance(value, bool):
-        number = float(value) * (1e3 if unit == "mm" and unit_of(column) == "m" else 1.0)
-        return f"{name} {number:g}{' ' + unit if unit else ''}"
-    return f"{name} {value}"
-
-
 def _none(value: Any) -> bool:
     return value is None or (isinstance(value, float) and math.isnan(value))
 
@@ -213,18 +189,6 @@ def _pending(row: pd.Series) -> str:
     if row["missing"]:
         parts.append(f"{row['missing']} trial(s) of the study not stored yet")
     return ", ".join(parts) or "the replica plan may choose more cells"
-
-
-def grid_keys(cells: pd.DataFrame, axes: Sequence[str]) -> pd.DataFrame:
-    """The axes' values, numbers rounded to :data:`DIGITS` significant digits (float noise is one value)."""
-    out = pd.DataFrame(index=cells.index)
-    for a in axes:
-        values = cells[a]
-        if pd.api.types.is_float_dtype(values):
-            out[a] = values.map(lambda v: float(f"{v:.{DIGITS}g}") if pd.notna(v) else v)
-        else:
-            out[a] = values.astype(object)
-    return out
 
 
 def _interior(keys: pd.DataFrame, labels: pd.Series) -> pd.Series:
@@ -335,25 +299,27 @@ def _extreme(keys: pd.DataFrame, hit: pd.Series, question: Question) -> float:
     return math.nan
 
 
-def cell_labels(trials: pd.DataFrame, state: ReplicaState | None = None) -> pd.DataFrame:
-    """One row per cell of a results table (:func:`~somo_sweep.sweep.store.folder.read_results`):
+def cell_labels(results: Results) -> pd.DataFrame:
+    """One row per cell of a results folder (:attr:`~somo_sweep.sweep.views.results.Results.cells`):
     replicas folded, each ``label_*`` column holding the cell's majority (a run not ``ok`` counts
     as its status), with ``label_*_agreement``, ``replicas``, ``replicas_awaited`` and ``robust``."""
-    state = state if state is not None else replica_state(trials)
-    cells = fold_cells(trials, state=state)
+    cells = results.cells.copy()
     for name in label_names(cells):
         if f"{name}_majority" in cells:
             cells[name] = cells[f"{name}_majority"]
     return cells
 
 
-def ask(trials: pd.DataFrame, question: Question) -> Answer:
-    """Answer ``question`` on a results table (:func:`cell_labels`, :func:`answer`)."""
-    state = replica_state(trials)
-    expected = trials.attrs.get(STUDY_TRIALS)
-    cells = cell_labels(trials, state)
-    result = answer(cells, question, state, expected if isinstance(expected, int) else None)
-    missing = missing_trials(trials, len(cells))
+def ask(results: Results, question: Question) -> Answer:
+    """Answer ``question`` on a results folder (:func:`cell_labels`, :func:`answer`).
+
+    Raises:
+        SomoError: The question does not fit the cells.
+    """
+    cells = cell_labels(results)
+    expected = results.manifest.get("n_trials")
+    result = answer(cells, question, results.replicas, expected if isinstance(expected, int) else None)
+    missing = results.missing(len(cells))
     if missing is None:
         return result
     return replace(result, note="; ".join(n for n in (result.note, missing) if n))
@@ -365,9 +331,7 @@ def ask_folder(folder: str | Path, question: Question) -> Answer:
     Raises:
         SomoError: Not a results folder, no trial stored, or a question that does not fit.
     """
-    from somo_sweep.sweep.store.folder import read_results
-
-    trials = read_results(folder)
-    if trials.empty:
+    results = open_results(folder)
+    if results.trials.empty:
         raise SomoError(f"{folder}: no finished trials yet")
-    return ask(trials, question)
+    return ask(results, question)

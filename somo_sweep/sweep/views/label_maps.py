@@ -22,11 +22,23 @@ from matplotlib.figure import Figure
 
 from somo_sweep.sweep.run.robustness import AWAITED, ROBUST
 from somo_sweep.sweep.store.schema import split_unit, unit_of
+from somo_sweep.sweep.views.results import Results
 
-__all__ = ["MAX_PANELS", "draw_label_panel", "folded_cells", "label_colours", "label_map_figure", "map_axes"]
+__all__ = [
+    "MAX_MAP_LABELS",
+    "MAX_PANELS",
+    "draw_label_panel",
+    "folded_cells",
+    "label_colours",
+    "label_map_figure",
+    "label_maps",
+    "map_axes",
+]
 
 #: At most this many panels in one map (combinations of the axes beyond the first two).
 MAX_PANELS = 24
+#: A label column with more values than this gets no map (its colours could not be told apart).
+MAX_MAP_LABELS = 12
 #: Colours of labels every study may show (a trial's status stands in for its label).
 FIXED_COLOURS = {
     "pinch": "#1b9e77",
@@ -225,3 +237,22 @@ def label_map_figure(
     more = f"; {left_out} more panels left out" if left_out else ""
     fig.suptitle(f"{title}: {label.removeprefix('label_')} ({len(cells)} cells{more})")
     return fig
+
+
+def label_maps(results: Results) -> list[tuple[str, Figure]]:
+    """``(file stem, figure)`` of each label column's map over the study's swept axes
+    (:func:`label_map_figure`); none for a study without labels or axes, nor for a
+    label of more than :data:`MAX_MAP_LABELS` values."""
+    folded, short = results.cells, results.swept.short
+    axes = list(short)
+    if not axes or folded.empty:
+        return []
+    title = str(results.manifest.get("study_name") or "study")
+    return [
+        (
+            f"label_map_{label.removeprefix('label_')}",
+            label_map_figure(folded_cells(folded, label), label, axes, short, title),
+        )
+        for label in results.labels
+        if folded[label].nunique(dropna=False) <= MAX_MAP_LABELS
+    ]

@@ -17,7 +17,8 @@ import pandas as pd
 from somo_sweep.errors import SomoError, did_you_mean, shown
 from somo_sweep.sweep.run.robustness import label_names
 from somo_sweep.sweep.store.folder import SWEPT_AXES
-from somo_sweep.sweep.views.answers import Question, grid_keys
+from somo_sweep.sweep.views.answers import Question
+from somo_sweep.sweep.views.axes import grid_keys
 
 __all__ = ["label_of", "question_for", "swept_axes"]
 

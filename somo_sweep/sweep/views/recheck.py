@@ -23,7 +23,7 @@ from somo_sweep.sweep.jobs.table import build_jobs
 from somo_sweep.sweep.run.convergence import with_stored_step
 from somo_sweep.sweep.run.rows import outcome_row
 from somo_sweep.sweep.run.trial import run_job
-from somo_sweep.sweep.store.folder import nothing_stored, read_manifest, read_results
+from somo_sweep.sweep.store.folder import open_folder
 from somo_sweep.sweep.store.parts import OnDamaged
 from somo_sweep.sweep.study.loaded import Study
 
@@ -99,19 +99,21 @@ def recheck(
         SomoError: No results, or results of another version of the study (re-run it first).
     """
     folder = study.output
-    manifest = read_manifest(folder)
-    study = with_stored_step(study)  # the step the run chose by convergence, as it recorded it
+    opened = open_folder(folder, lambda path, why: None)  # told once the study is known to match
+    manifest = opened.manifest
+    study = with_stored_step(study, manifest)  # the step the run chose by convergence, as it recorded it
     table = build_jobs(study)
     if manifest["study_hash"] != table.study_hash:
         raise SomoError(
             f"{folder} holds results of another version of {study.name} (hash {manifest['study_hash']}, "
             f"the study now gives {table.study_hash}): run it again before rechecking"
         )
-    stored = read_results(folder, on_damaged)
+    opened.tell(on_damaged)
+    stored = opened.trials
     if not stored.empty:  # inferred cells have nothing to rerun
         stored = stored[~stored["inferred"].astype(bool)].drop(columns="inferred")
     if stored.empty:
-        raise SomoError(nothing_stored(folder))
+        raise SomoError(opened.nothing_stored())
     if n_trials < 1:
         raise SomoError(f"the number of trials to recheck must be >= 1, got {n_trials}")
     rng = np.random.default_rng(seed)
