@@ -62,7 +62,7 @@ from somo_sweep.sweep.store.opening import (
     quarantine,
 )
 from somo_sweep.sweep.store.parts import stored_ids, stored_labels, stored_statuses, stored_values
-from somo_sweep.sweep.store.schema import COLUMNS, FIXED, arrow_type, merge_types, unit_of
+from somo_sweep.sweep.store.schema import COLUMNS, FIXED, INFERRED_COLUMNS, arrow_type, merge_types, unit_of
 
 __all__ = ["ResultStore", "read_manifest", "read_results", "record_files"]
 
@@ -418,7 +418,12 @@ class ResultStore:
         """
         if not rows:
             return
-        schema = self._schema().append(pa.field("inferred", pa.bool_()))
+        schema = self._schema()
+        for column in INFERRED_COLUMNS:  # ``confidence`` only where the sampler gives one
+            if column.name == "inferred" or any(column.name in r for r in rows):
+                schema = schema.append(
+                    pa.field(column.name, pa.bool_() if column.type == "bool" else pa.float64())
+                )
         names = [n for n in schema.names if any(n in r for r in rows)]
         table = pa.table({n: _column([r.get(n) for r in rows], schema.field(n).type) for n in names})
         path = self.folder / INFERRED
