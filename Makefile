@@ -82,8 +82,8 @@ fig6: $(STAMP) ## Paper Fig. 6: pinch-grasp study, 2310 trials (resumable), figu
 	$(BIN)/somo-sweep paper fig6 results/pinch_grasp_dsr --out results/figures
 	$(BIN)/somo-sweep paper fig6 results/pinch_grasp_dsr --out results/figures --rule paper
 
-fig6-fast: $(STAMP) ## Fig. 6 on MuJoCo (4 ms) with robust labels: 2310 cells, 4 replicas on boundary cells + 10 % audit (resumable) -> results/figures/mujoco
-	$(BIN)/somo-sweep run studies/pinch_grasp_dsr_mujoco.yaml --exhaustive --robust 4
+fig6-fast: $(STAMP) ## Fig. 6 on MuJoCo (4 ms) with robust labels: 2310 cells sampled actively, trials and 4 replicas where labels are undecided, to 98 % estimated agreement (resumable) -> results/figures/mujoco
+	$(BIN)/somo-sweep run studies/pinch_grasp_dsr_mujoco.yaml
 	$(BIN)/somo-sweep paper fig6 results/pinch_grasp_dsr_mujoco --out results/figures/mujoco
 	$(BIN)/somo-sweep paper fig6 results/pinch_grasp_dsr_mujoco --out results/figures/mujoco --rule paper
 
