@@ -41,6 +41,7 @@ from somo_sweep.paper.fig6_table import AXES, headline_question
 from somo_sweep.sweep.run.active import NOT_ROBUST as SAMPLER_NOT_ROBUST
 from somo_sweep.sweep.run.active import Sampler, SamplerSettings
 from somo_sweep.sweep.run.replica_rule import Verdict
+from somo_sweep.sweep.run.robustness import fold
 from somo_sweep.sweep.views.answers import answer
 
 __all__ = ["CONFIGS", "Oracle", "Replay", "main", "replay"]
@@ -60,19 +61,18 @@ class Config:
     follow: tuple[str, ...] = ("contacts",)
 
 
-BASE = SamplerSettings(replicas=REPLICAS)
 BOTH = ("contacts", "paper")
+#: ``studies/pinch_grasp_dsr_mujoco.yaml``'s settings (``make fig6-fast``): both rules, batches of 80.
+FIG6_FAST = SamplerSettings(replicas=REPLICAS, batch=80)
 CONFIGS = (
-    Config("trees", BASE, BOTH),
-    Config("trees_batch40", replace(BASE, batch=40), BOTH),
-    Config("trees_batch80", replace(BASE, batch=80), BOTH),
-    Config("neighbours", replace(BASE, model="neighbours"), BOTH),
-    Config("trees_no_exploration", replace(BASE, exploration=0.0), BOTH),
-    Config("trees_initial_120", replace(BASE, initial=120), BOTH),
-    Config("trees_target_0.97", replace(BASE, target_agreement=0.97), BOTH),
-    Config("trees_target_0.99", replace(BASE, target_agreement=0.99), BOTH),
-    Config("trees_replicate_all", replace(BASE, replicate="all"), BOTH),
-    Config("trees_contacts_only", BASE),
+    Config("fig6_fast", FIG6_FAST, BOTH),
+    Config("neighbours", replace(FIG6_FAST, model="neighbours"), BOTH),
+    Config("batch_20", replace(FIG6_FAST, batch=20), BOTH),
+    Config("no_exploration", replace(FIG6_FAST, exploration=0.0), BOTH),
+    Config("target_0.97", replace(FIG6_FAST, target_agreement=0.97), BOTH),
+    Config("target_0.99", replace(FIG6_FAST, target_agreement=0.99), BOTH),
+    Config("replicate_all", replace(FIG6_FAST, replicate="all"), BOTH),
+    Config("contacts_only", FIG6_FAST),
 )
 
 
@@ -85,7 +85,8 @@ class Oracle:
 
     def __init__(self, runs: pd.DataFrame):
         self.runs = runs
-        self.shape = tuple(runs.loc[runs["replica"] == 0, a].nunique() for a in AXES_IN_GRID_ORDER)
+        # The study's grid, then its repeats (one), as the run's sampler sees it.
+        self.shape = (*(runs.loc[runs["replica"] == 0, a].nunique() for a in AXES_IN_GRID_ORDER), 1)
         self.n = int(np.prod(self.shape))
         self.labels: dict[tuple[int, int], dict[str, str]] = {}
         self.time_s: dict[tuple[int, int], float] = {}
@@ -167,13 +168,28 @@ def _majority(sampler: Sampler, oracle: Oracle, follow: Sequence[str], rule: str
     return out
 
 
-def _headline(claims: list[str], reference: pd.DataFrame) -> float | None:
-    """The headline on a map: a cell counts where its label is robust (a map label of its own)."""
-    table = reference[["trial", *AXES]].copy()
-    table["label"] = claims
-    table["replicas"] = 1  # every cell checked: its map label says robust or not
-    table["replicas_awaited"] = 0
-    table["robust"] = [c not in (NOT_ROBUST, UNCHECKED, UNKNOWN, "open") for c in claims]
+def _headline(
+    sampler: Sampler, oracle: Oracle, follow: Sequence[str], rule: str, reference: pd.DataFrame
+) -> float | None:
+    """The headline as ``paper fig6`` reads it off the run's folder: the runs the sampler asked
+    for and its inferred cells, folded (a cell whose replicas stopped at disagreements awaits
+    none), counted on robust cells and on interior cells without replicas."""
+    classes = sampler.claims()
+    rows = []
+    for cell in range(sampler.n):
+        if cell in sampler.own:
+            ran = [0, *(n for n, r in enumerate(sampler.replicas.get(cell, []), start=1) if r is not None)]
+            rows += [(cell, n, oracle.labels[(cell, n)][rule], False) for n in ran]
+        else:
+            value = classes[cell][follow.index(rule)] if rule in follow else UNKNOWN
+            rows.append((cell, 0, UNKNOWN if value == SAMPLER_NOT_ROBUST else value, True))
+    runs = pd.DataFrame(rows, columns=["trial", "replica", "label", "inferred"])
+    runs["status"] = "ok"
+    stopped = [c for c in sampler.chosen if all(v is Verdict.BROKEN for v in sampler.verdicts(c))]
+    folded = fold(runs, ["label"], planned=sampler.settings.replicas, chosen=sampler.chosen, stopped=stopped)
+    table = reference[["trial", *AXES]].merge(folded.drop(columns=["label"]), on="trial")
+    table["label"] = table["label_majority"]
+    table = table[["trial", *AXES, "label", "inferred", "replicas", "replicas_awaited", "robust"]]
     value = answer(table, headline_question(table)).table.iloc[0]["answer"]
     return None if pd.isna(value) else round(float(value), 6)
 
@@ -195,7 +211,7 @@ def replay(oracle: Oracle, config: Config, seed: int, reference: dict[str, pd.Da
         agreement[rule] = round(float(same.mean()), 4)
         robust = truth != NOT_ROBUST
         robust_share[rule] = round(float(same[robust].mean()), 4)
-        headline[rule] = _headline(claims, reference[rule])
+        headline[rule] = _headline(sampler, oracle, config.follow, rule, reference[rule])
         labels = np.asarray(_majority(sampler, oracle, config.follow, rule))
         majority[rule] = round(float((labels == reference[rule]["label"].to_numpy()).mean()), 4)
     return Replay(

@@ -11,6 +11,7 @@ from __future__ import annotations
 
 import subprocess
 import sys
+from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
@@ -193,3 +194,31 @@ def test_dry_run_says_how_the_study_is_sampled(tmp_path: Path) -> None:
     text = " ".join(result.output.split())
     assert "active sampling of a 17 x 17 grid (289 trials)" in text
     assert "stops when the estimated agreement reaches 0.97" in text
+
+
+@pytest.mark.slow
+def test_the_sampler_replayed_on_an_exhaustive_run_asks_for_what_the_real_run_ran(tmp_path: Path) -> None:
+    """What the benchmark relies on (benchmarks/active_sampling.py): the sampler answered from a
+    stored exhaustive run (every cell, every replica) asks for exactly the runs a real run runs."""
+    from somo_sweep.sweep.run.active import Sampler
+    from somo_sweep.sweep.run.active_plan import run_value, sampler_settings
+
+    path = disc_study(tmp_path)
+    run(path, tmp_path / "active")
+    study = load_study(path, tmp_path / "all")
+    exhaustive = replace(
+        study, sampling="grid", robustness=study.robustness.model_copy(update={"where": "all"})
+    )
+    run_sweep(exhaustive, RunOptions(n_jobs=2))
+    every = read_results(tmp_path / "all")
+    names = ["region", "sign"]
+    outcome = {
+        (int(r["trial"]), int(r["replica"])): run_value(
+            r["status"], {n: r[f"label_{n}"] for n in names}, names
+        )
+        for r in every.to_dict("records")
+    }
+    sampler = Sampler((17, 17, 1), sampler_settings(study))
+    asked = {a for batch in sampler.batches(lambda c, n: outcome[(c, n)]) for a in batch}
+    ran = simulated(tmp_path / "active")
+    assert asked == {(int(t), int(r)) for t, r in zip(ran["trial"], ran["replica"], strict=True)}

@@ -30,7 +30,7 @@ from somo_sweep.sweep.run.sampling import Batch, Known
 from somo_sweep.sweep.study.checks import unknown_labels
 from somo_sweep.sweep.study.loaded import Study
 
-__all__ = ["INFERRED_MESSAGE", "ActivePlan", "describe", "run_value"]
+__all__ = ["INFERRED_MESSAGE", "ActivePlan", "describe", "run_value", "sampler_settings"]
 
 #: The ``message`` of a cell the active sampler inferred.
 INFERRED_MESSAGE = (
@@ -53,6 +53,21 @@ def _shape(study: Study) -> tuple[int, ...]:
     return (*(len(values[g[0]]) for g in study.groups), study.repeats)
 
 
+def sampler_settings(study: Study) -> SamplerSettings:
+    """The sampler's settings a study gives (``active:``, ``robustness:``, ``seed``)."""
+    spec, robustness = study.active, study.robustness
+    return SamplerSettings(
+        replicas=robustness.replicas,
+        target_agreement=spec.target_agreement,
+        batch=spec.batch,
+        initial=spec.initial,
+        exploration=spec.exploration,
+        model=spec.model,
+        replicate="all" if robustness.where == "all" else "edges",
+        seed=study.seed,
+    )
+
+
 class ActivePlan:
     """The active batches of one study and the rows of the cells it does not simulate.
 
@@ -62,18 +77,9 @@ class ActivePlan:
     """
 
     def __init__(self, study: Study, table: JobTable):
-        spec, robustness = study.active, study.robustness
+        spec = study.active
         self.study, self.table = study, table
-        self.settings = SamplerSettings(
-            replicas=robustness.replicas,
-            target_agreement=spec.target_agreement,
-            batch=spec.batch,
-            initial=spec.initial,
-            exploration=spec.exploration,
-            model=spec.model,
-            replicate="all" if robustness.where == "all" else "edges",
-            seed=study.seed,
-        )
+        self.settings = sampler_settings(study)
         self.sampler = Sampler(_shape(study), self.settings)
         self.names = [n.removeprefix("label_") for n in spec.labels]
         self._replicas: dict[int, list[Job]] = {}
