@@ -11,7 +11,8 @@ a sampler's settings are compared in seconds per seed instead of minutes of simu
   is its label where its replicas all agree, *not robust* where one disagrees, its own trial's
   where it had none (its neighbours all agree with it), *unchecked* where its replicas stopped at
   a disagreement of a label of the other rule; a cell never simulated has the model's likeliest
-  label (none for a rule the sampler does not follow);
+  label, as the run stores it (none where the likeliest class is not robust, none for a rule the
+  sampler does not follow);
 * **estimate**: the sampler's own estimated agreement when it stopped, against the true one;
 * **headline**: the smallest DSR with a robust pinch of every width, counted on the map as the
   readers count it (:func:`somo_sweep.sweep.views.answers.answer`), against the reference's.
@@ -129,9 +130,9 @@ def _claims(sampler: Sampler, oracle: Oracle, follow: Sequence[str], rule: str) 
     out = []
     classes = sampler.claims()
     for cell in range(sampler.n):
-        if cell not in sampler.own:
+        if cell not in sampler.own:  # as stored: no label where the likeliest class is not robust
             value = classes[cell][follow.index(rule)] if rule in follow else UNKNOWN
-            out.append(NOT_ROBUST if value == SAMPLER_NOT_ROBUST else value)
+            out.append(UNKNOWN if value == SAMPLER_NOT_ROBUST else value)
             continue
         own = oracle.labels[(cell, 0)][rule]
         if cell not in sampler.chosen:

@@ -24,7 +24,7 @@ from typer.testing import CliRunner
 from somo_sweep.cli.app import app
 from somo_sweep.errors import DescriptionError
 from somo_sweep.sweep.run.replica_state import fold_cells, replica_state
-from somo_sweep.sweep.run.runner import RunEvents, RunOptions, run_sweep
+from somo_sweep.sweep.run.runner import RunEvents, RunOptions, RunSummary, run_sweep
 from somo_sweep.sweep.store.result_store import read_manifest, read_results
 from somo_sweep.sweep.study import load_study
 from somo_sweep.sweep.views.answers import Question, ask
@@ -63,11 +63,20 @@ def simulated(folder: Path) -> pd.DataFrame:
     return keep[["job_id", "trial", "replica", "label_region", "label_sign"]].sort_values("job_id")
 
 
-def test_an_active_run_simulates_a_part_and_infers_the_rest_with_its_confidence(tmp_path: Path) -> None:
-    path = disc_study(tmp_path)
-    summary = run_sweep(load_study(path, tmp_path / "out"), RunOptions(n_jobs=1))
+@pytest.fixture(scope="module")
+def whole(tmp_path_factory: pytest.TempPathFactory) -> tuple[Path, RunSummary]:
+    """The disc study run once, uninterrupted, on one worker: (its results folder, its summary)."""
+    folder = tmp_path_factory.mktemp("whole")
+    summary = run_sweep(load_study(disc_study(folder), folder / "out"), RunOptions(n_jobs=1))
+    return folder / "out", summary
+
+
+def test_an_active_run_simulates_a_part_and_infers_the_rest_with_its_confidence(
+    whole: tuple[Path, RunSummary],
+) -> None:
+    folder, summary = whole
     assert summary.sampling == "active" and summary.active is not None
-    trials = read_results(tmp_path / "out")
+    trials = read_results(folder)
     state = replica_state(trials)
     cells = fold_cells(trials, state=state)
     inferred = cells[cells["inferred"]]
@@ -81,7 +90,7 @@ def test_an_active_run_simulates_a_part_and_infers_the_rest_with_its_confidence(
     assert (inferred["message"].str.startswith("inferred, not simulated")).all()
     label = cells["label_region_majority"].astype(str).to_numpy()
     assert (label == exhaustive(cells["task_x"].to_numpy(), cells["task_u"].to_numpy())).mean() >= 0.95
-    runs = read_manifest(tmp_path / "out")["runs"][-1]
+    runs = read_manifest(folder)["runs"][-1]
     assert runs["replica_plan"]["kind"] == "active" and runs["active"]["estimated_agreement"] >= 0.97
 
 
@@ -99,13 +108,15 @@ def test_replicas_stop_at_the_first_disagreement_and_such_a_cell_awaits_none(tmp
     assert bool(answer.table["complete"].iloc[0]) and answer.note is None
 
 
-def test_the_same_runs_and_labels_with_one_worker_and_with_two(tmp_path: Path) -> None:
-    path = disc_study(tmp_path)
-    run(path, tmp_path / "one", jobs=1)
-    run(path, tmp_path / "two", jobs=2)
-    one, two = simulated(tmp_path / "one"), simulated(tmp_path / "two")
+def test_the_same_runs_and_labels_with_one_worker_and_with_two(
+    tmp_path: Path, whole: tuple[Path, RunSummary]
+) -> None:
+    run(disc_study(tmp_path), tmp_path / "two", jobs=2)
+    one, two = simulated(whole[0]), simulated(tmp_path / "two")
     assert one.to_numpy().tolist() == two.to_numpy().tolist()
-    a, b = (pd.read_parquet(tmp_path / f / "inferred.parquet").sort_values("trial") for f in ("one", "two"))
+    a, b = (
+        pd.read_parquet(f / "inferred.parquet").sort_values("trial") for f in (whole[0], tmp_path / "two")
+    )
     assert a[["trial", "label_region", "label_sign", "confidence"]].equals(
         b[["trial", "label_region", "label_sign", "confidence"]]
     )
@@ -113,7 +124,7 @@ def test_the_same_runs_and_labels_with_one_worker_and_with_two(tmp_path: Path) -
 
 KILL = (
     "import os, signal, sys\n"
-    "from somo_sweep.sweep.run.runner import RunEvents, RunOptions, run_sweep\n"
+    "from somo_sweep.sweep.run.runner import RunEvents, RunOptions, RunSummary, run_sweep\n"
     "from somo_sweep.sweep.study import load_study\n"
     "seen = []\n"
     "def stop(outcome):\n"
@@ -126,9 +137,10 @@ KILL = (
 
 
 @pytest.mark.parametrize("after", [25, 57], ids=["in batch 1", "among replicas"])
-def test_a_killed_run_resumes_its_batches_and_simulates_nothing_twice(tmp_path: Path, after: int) -> None:
+def test_a_killed_run_resumes_its_batches_and_simulates_nothing_twice(
+    tmp_path: Path, after: int, whole: tuple[Path, RunSummary]
+) -> None:
     path = disc_study(tmp_path)
-    run(path, tmp_path / "whole")
     done = subprocess.run(
         [sys.executable, "-c", KILL, str(path), str(tmp_path / "out"), str(after)], check=False
     )
@@ -142,7 +154,7 @@ def test_a_killed_run_resumes_its_batches_and_simulates_nothing_twice(tmp_path: 
     # Every run stored before (and the one its journal kept, if any) is not run again.
     assert len(resumed) - (summary.run + summary.replicas_run) in (len(stored), len(stored) + 1)
     assert resumed["job_id"].is_unique
-    assert resumed.to_numpy().tolist() == simulated(tmp_path / "whole").to_numpy().tolist()
+    assert resumed.to_numpy().tolist() == simulated(whole[0]).to_numpy().tolist()
     written = [
         job_id
         for part in (tmp_path / "out" / "trials").glob("*.parquet")
