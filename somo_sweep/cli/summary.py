@@ -284,10 +284,9 @@ def _header(
     total = manifest.get("n_trials") or 0
     stored = f"{len(df)} of {total} trials stored"
     if inferred.any():
-        stored = (
-            f"{(~inferred).sum()} simulated and {inferred.sum()} inferred (adaptive sampling) "
-            f"of {total} trials"
-        )
+        runs = [r for r in manifest.get("runs", []) if isinstance(r, dict) and r.get("sampling")]
+        how = f"{runs[-1]['sampling']} sampling" if runs else "sampled"
+        stored = f"{(~inferred).sum()} simulated and {inferred.sum()} inferred ({how}) of {total} trials"
     folded, beyond = replica_runs
     if folded:
         stored += f", and {folded} robustness replica run(s)"

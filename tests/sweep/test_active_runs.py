@@ -90,6 +90,11 @@ def test_an_active_run_simulates_a_part_and_infers_the_rest_with_its_confidence(
     assert (inferred["message"].str.startswith("inferred, not simulated")).all()
     label = cells["label_region_majority"].astype(str).to_numpy()
     assert (label == exhaustive(cells["task_x"].to_numpy(), cells["task_u"].to_numpy())).mean() >= 0.95
+    shown = CliRunner().invoke(app, ["show", str(folder)], terminal_width=300)
+    assert (
+        f"{len(cells) - len(inferred)} simulated and {len(inferred)} inferred (active sampling)"
+        in shown.output
+    )
     runs = read_manifest(folder)["runs"][-1]
     assert runs["replica_plan"]["kind"] == "active" and runs["active"]["estimated_agreement"] >= 0.97
 
