@@ -211,6 +211,7 @@ def test_dry_run_says_how_the_study_is_sampled(tmp_path: Path) -> None:
     text = " ".join(result.output.split())
     assert "active sampling of a 17 x 17 grid (289 trials)" in text
     assert "stops when the estimated agreement reaches 0.97" in text
+    assert "runs: 289 trial(s) at most (active sampling simulates fewer) + 0 to 578 robustness replica" in text
 
 
 @pytest.mark.slow

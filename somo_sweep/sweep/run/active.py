@@ -21,8 +21,10 @@ label it follows (a run that did not end ``ok``: its status, for every label).
 * **Stop**: when no replicated cell is open and the estimated agreement reaches the target:
   the mean over cells of the chance that a cell's class is right, 1 for a simulated cell (its
   replicas ran, or none of its neighbours differs), the model's probability of its likeliest
-  class for the others. The run then stores the cells never simulated as *inferred*, with that
-  probability as their confidence.
+  class for the others; and no cell left to infer has a likeliest class that is not robust (those
+  are simulated first, the least sure first: a cell is inferred with labels, never as not
+  robust). The run then stores the cells never simulated as *inferred*, with that probability as
+  their confidence.
 
 Decisions read only the outcomes of the runs the sampler asked for, and every draw is seeded, so
 the runs and the classes are a function of the seed and the outcomes: the same whatever the
@@ -154,9 +156,17 @@ class Sampler:
         replicas = [
             (c, next_replica(self.replicas.get(c, []), k)) for c in sorted(self.chosen) if self.is_open(c)
         ]
-        reached = self.estimate >= settings.target_agreement
-        wanted = 0 if reached else max(settings.batch - len(replicas), 0)
-        return replicas + [(c, 0) for c in self._new_cells(wanted)]
+        if self.estimate < settings.target_agreement:
+            return replicas + [(c, 0) for c in self._new_cells(max(settings.batch - len(replicas), 0))]
+        # The target is reached: simulate still the cells whose likeliest class is not robust on
+        # some label (an inferred cell stores labels, never "not robust"), the least sure first.
+        doubtful = [c for c in range(self.n) if c not in self.own and self._doubtful(c)]
+        doubtful.sort(key=lambda c: (-self.margin[c], c))
+        return replicas + [(c, 0) for c in sorted(doubtful[: max(settings.batch - len(replicas), 0)])]
+
+    def _doubtful(self, cell: int) -> bool:
+        code = int(self.likeliest[cell])
+        return code >= 0 and NOT_ROBUST in self.classes[code]
 
     def _new_cells(self, wanted: int) -> list[int]:
         """``wanted`` cells not simulated: the least sure, a share of them drawn at random."""
