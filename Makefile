@@ -5,7 +5,7 @@ BIN    := $(VENV)/bin
 STAMP  := $(VENV)/.installed-stamp
 
 .DEFAULT_GOAL := help
-.PHONY: help install demo test test-slow lint format bench bench-statics bench-scaling bench-scale bench-engines bench-mujoco bench-robust bench-numerics bench-auto-numerics bench-zero-kpa bench-design bench-original fig6 fig6-fast fig6-audit fig6-quick fig6-original fig6-ablation fig6-ablation-quick fig3 fig5 fig5-quick palm palm-quick fig7 fig7-quick fig8 fig8-quick diagnose-demo sweep-demo example-gripper example-gripper-pybullet example-design figures clean
+.PHONY: help install demo test test-slow lint format bench bench-statics bench-scaling bench-scale bench-engines bench-mujoco bench-robust bench-numerics bench-auto-numerics bench-zero-kpa bench-design bench-fig6-reference bench-active bench-original fig6 fig6-fast fig6-audit fig6-quick fig6-original fig6-ablation fig6-ablation-quick fig3 fig5 fig5-quick palm palm-quick fig7 fig7-quick fig8 fig8-quick diagnose-demo sweep-demo example-gripper example-gripper-pybullet example-design figures clean
 
 help: ## List the targets
 	@grep -E '^[a-zA-Z0-9_-]+:.*?## ' $(MAKEFILE_LIST) | awk 'BEGIN {FS = ":.*?## "}; {printf "  make %-20s %s\n", $$1, $$2}'
@@ -71,6 +71,12 @@ bench-zero-kpa: $(STAMP) ## The 0-kPa blocked-force row on both engines over a s
 bench-design: $(STAMP) ## Does the design search pay? The worked example's exhaustive robust grid (7200 MuJoCo runs, about 40 min on 2 shared cores, resumable) against design and random search over 10 seeds -> results/reference/design_bench.json
 	nice -n 10 $(BIN)/python -m benchmarks.design_search --jobs 2 --out results/reference
 
+bench-fig6-reference: $(STAMP) ## The robust Fig. 6 reference: every MuJoCo cell with all 4 replicas (11 550 runs, about 20 min on 2 idle cores, resumable) -> results/reference/fig6_robust/
+	nice -n 10 $(BIN)/python -m benchmarks.fig6_reference --jobs 2
+
+bench-active: $(STAMP) ## The active sampler replayed against the robust Fig. 6 reference, 10 seeds per configuration (a few minutes, no simulation) -> results/reference/active_sampling.json
+	$(BIN)/python -m benchmarks.active_sampling --out results/reference
+
 # The original SoMo code's checkout and the Python of its own environment (benchmarks/original_fig6/README.md).
 ORIGINAL_SOMO   ?= ../somo_orig
 ORIGINAL_PYTHON ?= ../venv_orig/bin/python
@@ -82,8 +88,8 @@ fig6: $(STAMP) ## Paper Fig. 6: pinch-grasp study, 2310 trials (resumable), figu
 	$(BIN)/somo-sweep paper fig6 results/pinch_grasp_dsr --out results/figures
 	$(BIN)/somo-sweep paper fig6 results/pinch_grasp_dsr --out results/figures --rule paper
 
-fig6-fast: $(STAMP) ## Fig. 6 on MuJoCo (4 ms) with robust labels: 2310 cells, 4 replicas on boundary cells + 10 % audit (resumable) -> results/figures/mujoco
-	$(BIN)/somo-sweep run studies/pinch_grasp_dsr_mujoco.yaml --exhaustive --robust 4
+fig6-fast: $(STAMP) ## Fig. 6 on MuJoCo (4 ms) with robust labels: 2310 cells sampled actively, trials and 4 replicas where labels are undecided, to 98 % estimated agreement (resumable) -> results/figures/mujoco
+	$(BIN)/somo-sweep run studies/pinch_grasp_dsr_mujoco.yaml
 	$(BIN)/somo-sweep paper fig6 results/pinch_grasp_dsr_mujoco --out results/figures/mujoco
 	$(BIN)/somo-sweep paper fig6 results/pinch_grasp_dsr_mujoco --out results/figures/mujoco --rule paper
 

@@ -156,6 +156,8 @@ def print_run_summary(console: Console, summary: RunSummary) -> None:
             )
         for note in summary.sampling_notes:
             console.print(f"adaptive: note: {_text(note, 2000)}")
+    if summary.sampling == "active":
+        _print_active(console, summary)
     if summary.by_label:
         console.print("labels: " + ", ".join(f"{_text(k)} {v}" for k, v in sorted(summary.by_label.items())))
     if summary.robustness is not None and summary.interrupted is None:
@@ -174,6 +176,24 @@ def print_run_summary(console: Console, summary: RunSummary) -> None:
         f"wall time {summary.wall_time_s:.1f} s, {summary.trials_per_s:.2f} trials/s; "
         f"results in {_text(summary.folder, 2000)}"
     )
+
+
+def _print_active(console: Console, summary: RunSummary) -> None:
+    """What an active run did: its batches, the cells it simulated and replicated, its estimate."""
+    a = summary.active or {}
+    batches = sum(1 for r in summary.rounds if r.kind == "active")
+    console.print(
+        f"active: {batches} batch(es) run now; {a.get('cells_simulated', 0)} cells simulated, "
+        f"{a.get('cells_replicated', 0)} replicated, {a.get('runs', 0)} runs asked for in all"
+    )
+    if summary.interrupted is None:
+        console.print(
+            f"active: estimated agreement {a.get('estimated_agreement', 0.0):.3f} (target "
+            f"{a.get('target_agreement', 0.0):g}); {summary.inferred} trial(s) inferred (stored with "
+            "inferred = true and their confidence)"
+        )
+    for note in summary.sampling_notes:
+        console.print(f"active: note: {_text(note, 2000)}")
 
 
 def _run_line(run: dict[str, Any], holder: str | None, pending: int) -> str:
@@ -256,10 +276,9 @@ def _header(
     total = manifest.get("n_trials") or 0
     stored = f"{len(df)} of {total} trials stored"
     if inferred.any():
-        stored = (
-            f"{(~inferred).sum()} simulated and {inferred.sum()} inferred (adaptive sampling) "
-            f"of {total} trials"
-        )
+        runs = [r for r in manifest.get("runs", []) if isinstance(r, dict) and r.get("sampling")]
+        how = f"{runs[-1]['sampling']} sampling" if runs else "sampled"
+        stored = f"{(~inferred).sum()} simulated and {inferred.sum()} inferred ({how}) of {total} trials"
     folded, beyond = replica_runs
     if folded:
         stored += f", and {folded} robustness replica run(s)"

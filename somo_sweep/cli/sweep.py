@@ -279,6 +279,13 @@ class _RunView:
         self.live.append(progress)
 
     def new_round(self, batch: Batch) -> None:
+        if batch.kind == "active":  # one bar for every batch: its total grows batch after batch
+            progress = self.live[0]
+            if not progress.tasks:
+                progress.add_task("active sampling", total=0, rate=0.0)
+            task = progress.tasks[-1]
+            progress.update(task.id, total=(task.total or 0) + len(batch.jobs))
+            return
         if batch.kind == "replicas":
             name = f"replicas {batch.number}: {batch.cells} cells x {batch.replicas}"
         else:
@@ -353,7 +360,7 @@ def _print_dry_run(plan: DryRun, workers: int, estimate: bool = True) -> None:
         f"{st.name}: task {st.task.name}, {st.n_trials} trials "
         f"({st.n_points} grid points x {st.repeats} repeat(s)), output {st.output}"
     )
-    if st.robustness.replicas:
+    if st.robustness.replicas and st.sampling != "active":  # an active plan says where its replicas go
         spec = st.robustness
         chosen = (
             "every simulated cell"

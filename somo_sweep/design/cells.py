@@ -4,9 +4,11 @@ A cell counts toward a design's objective only when its label is robust: its own
 objective's label value (e.g. ``grasp`` = ``pinch``) and so does every one of its K replicas
 (:mod:`somo_sweep.sweep.run.robustness`; a run that is not ``ok`` counts as its status). So a cell
 whose own trial gives another label cannot count, and needs no replica; a cell's replicas stop at
-the first that disagrees. :func:`cell_state` reads a cell from its runs (the search reads them as
-they arrive, the ranking from the stored trials: the same function), and :class:`Tally` sums a
-design's cells into the bounds of its share (what it has for sure, what it could still reach).
+the first that disagrees: the rule the sweep's active sampler follows too
+(:mod:`somo_sweep.sweep.run.replica_rule`, the one code both use). :func:`cell_state` reads a cell
+from its runs (the search reads them as they arrive, the ranking from the stored trials: the same
+function), and :class:`Tally` sums a design's cells into the bounds of its share (what it has for
+sure, what it could still reach).
 """
 
 from __future__ import annotations
@@ -15,6 +17,8 @@ import statistics
 from collections.abc import Callable, Iterable, Sequence
 from dataclasses import dataclass
 from enum import Enum
+
+from somo_sweep.sweep.run.replica_rule import Verdict, next_replica, verdict
 
 __all__ = ["CellState", "Outcome", "Tally", "cell_state", "hits", "next_replica", "reduced"]
 
@@ -37,27 +41,19 @@ def hits(outcome: Outcome, label: str, value: str) -> bool:
     return outcome is not None and outcome[0] == "ok" and outcome[1].get(label) == value
 
 
+#: A replica verdict as a cell state (:mod:`somo_sweep.sweep.run.replica_rule`).
+_STATE = {Verdict.OPEN: CellState.OPEN, Verdict.ROBUST: CellState.ROBUST, Verdict.BROKEN: CellState.BROKEN}
+
+
 def cell_state(plain: Outcome, replicas: Sequence[Outcome], k: int, label: str, value: str) -> CellState:
     """The state of a cell from its own trial's outcome and its replicas' (replica 1 first; None
-    where one has not run), for K replicas and the objective ``label`` = ``value``."""
+    where one has not run), for K replicas and the objective ``label`` = ``value``: the sweep's
+    replica rule (:func:`~somo_sweep.sweep.run.replica_rule.verdict`) once the trial hits."""
     if plain is None:
         return CellState.UNKNOWN
     if not hits(plain, label, value):
         return CellState.MISS
-    runs = list(replicas[:k])
-    if any(r is not None and not hits(r, label, value) for r in runs):
-        return CellState.BROKEN
-    if len(runs) == k and all(r is not None for r in runs):
-        return CellState.ROBUST
-    return CellState.OPEN
-
-
-def next_replica(replicas: Sequence[Outcome], k: int) -> int:
-    """The number (1 … k) of an open cell's first replica that has not run."""
-    for number, outcome in enumerate(list(replicas[:k]) + [None] * (k - len(replicas)), start=1):
-        if outcome is None:
-            return number
-    raise ValueError("every replica of the cell has run")
+    return _STATE[verdict(replicas, k, lambda run: hits(run, label, value))]
 
 
 @dataclass(frozen=True)

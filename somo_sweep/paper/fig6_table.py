@@ -121,7 +121,13 @@ def grasp_table(
         }
     )
     state = state if state is not None else replica_state(results)
-    cells = fold(runs, ["label"], planned=results.attrs.get(REPLICAS_PLANNED), chosen=state.chosen)
+    cells = fold(
+        runs,
+        ["label"],
+        planned=results.attrs.get(REPLICAS_PLANNED),
+        chosen=state.chosen,
+        stopped=state.stopped,
+    )
     out = cells[["trial", *columns, *extras, "inferred", "replicas", AWAITED]].copy()
     out["distal_segment_ratio"] = out["distal_segment_ratio"].round(DSR_DECIMALS)
     out["label"] = cells["label_majority"].to_numpy()

@@ -177,7 +177,9 @@ def relabel(
     from somo_sweep.sweep.store.folder import REPLICAS_PLANNED
 
     state = results.replicas
-    cells = fold(runs, [name], planned=table.attrs.get(REPLICAS_PLANNED), chosen=state.chosen)
+    cells = fold(
+        runs, [name], planned=table.attrs.get(REPLICAS_PLANNED), chosen=state.chosen, stopped=state.stopped
+    )
     out = cells[[*keep, name, "inferred"]].copy()
     out.attrs["replicas_unfinished"] = unfinished(state, cells)
     if ((cells["replicas"] > 0) | (cells["replicas_awaited"] > 0)).any():

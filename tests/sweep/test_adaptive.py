@@ -249,7 +249,7 @@ def test_an_unknown_sampling_names_the_file_the_key_and_the_choices(tmp_path: Pa
     res = CliRunner().invoke(app, ["run", str(path), "--out", str(tmp_path / "out")])
     assert res.exit_code == 2
     assert f"{path}: 1 problem(s)" in res.output
-    assert "line 8: sampling: Input should be 'grid' or 'adaptive', got 'adaptve'" in res.output
+    assert "line 8: sampling: Input should be 'grid', 'adaptive' or 'active', got 'adaptve'" in res.output
 
 
 def test_dry_run_describes_the_coarse_grid_and_the_bound_and_writes_nothing(tmp_path: Path) -> None:

@@ -311,7 +311,7 @@ def test_an_interrupted_run_counts_the_replicas_it_kept(
 
     said = io.StringIO()
     err, out = Console(file=said, width=200), Console(file=io.StringIO(), width=200)
-    monkeypatch.setattr(cli_sweep, "_err", lambda: err)
+    monkeypatch.setattr(cli_sweep, "_err", lambda: err)  # the consoles are made at each use
     monkeypatch.setattr(cli_sweep, "_out", lambda: out)
     summary = RunSummary(folder=tmp_path, total=48, skipped=0, run=24, interrupted=2, replicas_run=6)
     with pytest.raises(typer.Exit):

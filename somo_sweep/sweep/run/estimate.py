@@ -30,8 +30,10 @@ def replica_range(study: Study, simulated: int | None = None) -> tuple[int, int]
     if spec.replicas <= 0 or n <= 0:
         return 0, 0
     most = spec.replicas * n
-    if spec.where == "all":
+    if spec.where == "all" and study.sampling != "active":
         return most, most
+    if study.sampling == "active":  # it replicates only the cells it finds on an edge: none, or all
+        return 0, most
     return spec.replicas * math.ceil(spec.audit_fraction * n), most
 
 
@@ -51,7 +53,8 @@ class RunEstimate:
         trial_s: The wall time of the trial timed, s (None: not timed).
         timed: Which trial was timed, and how it ended.
         workers: Worker processes the run uses.
-        adaptive: The study samples adaptively (it may simulate fewer trials).
+        adaptive: The study samples adaptively or actively (it may simulate fewer trials).
+        sampling: How it samples (``adaptive``, ``active``), for the words.
     """
 
     trials: int
@@ -61,6 +64,7 @@ class RunEstimate:
     timed: str
     workers: int
     adaptive: bool = False
+    sampling: str = "adaptive"
 
     def wall_s(self) -> tuple[float, float]:
         """The wall time, s, from the fewest to the most runs (0 when no trial was timed)."""
@@ -73,7 +77,7 @@ class RunEstimate:
         """The estimate in words."""
         low, high = self.replicas
         runs = f"{self.trials} trial(s)" + (
-            " at most (adaptive sampling simulates fewer)" if self.adaptive else ""
+            f" at most ({self.sampling} sampling simulates fewer)" if self.adaptive else ""
         )
         if high:
             more = f"{low}" if low == high else f"{low} to {high}"
@@ -109,18 +113,22 @@ def estimate_run(study: Study, job: Job, workers: int, time_trial: bool = True) 
     (unless ``time_trial`` is False)."""
     low, high = replica_range(study)
     cost = _replica_cost(study.robustness.replicas)
-    adaptive = study.sampling == "adaptive"
+    adaptive = study.sampling in ("adaptive", "active")
     if not time_trial:
-        return RunEstimate(study.n_trials, (low, high), cost, None, "--no-estimate", workers, adaptive)
+        return RunEstimate(
+            study.n_trials, (low, high), cost, None, "--no-estimate", workers, adaptive, study.sampling
+        )
     outcome = run_isolated(job)
     if outcome.status != "ok":
         why = f"trial 0 ended {outcome.status}: {outcome.message}"
-        return RunEstimate(study.n_trials, (low, high), cost, None, why, workers, adaptive)
+        return RunEstimate(study.n_trials, (low, high), cost, None, why, workers, adaptive, study.sampling)
     step = f"{job.settings.time_step_s * 1e3:g} ms"
     if study.simulation is None:
         step += ", the starting guess of the automatic step; choosing it runs sample trials first"
     timed = f"trial 0 timed (step {step})"
-    return RunEstimate(study.n_trials, (low, high), cost, outcome.wall_time_s, timed, workers, adaptive)
+    return RunEstimate(
+        study.n_trials, (low, high), cost, outcome.wall_time_s, timed, workers, adaptive, study.sampling
+    )
 
 
 @dataclass(frozen=True)

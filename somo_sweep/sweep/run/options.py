@@ -167,7 +167,7 @@ class RunSummary:
         stored_errors: Trials already in the folder (skipped) whose status is ``error``.
         notes: What the results folder needed on opening (damaged parts set aside, manifest
             rebuilt, rows recovered, runs marked aborted), for the user.
-        sampling: ``grid`` or ``adaptive``.
+        sampling: ``grid``, ``adaptive`` or ``active``.
         rounds: Adaptive rounds that ran trials in this run.
         simulated_cells: Adaptive: grid cells simulated when the run ended (earlier runs included).
         inferred: Adaptive: trials written as inferred (0 until the last round completes).
@@ -176,6 +176,8 @@ class RunSummary:
         sampling_notes: Adaptive: what the refinement could not do as asked (for the user).
         replicas_run: Robustness replicas run now (not counted in :attr:`run`).
         robustness: What the replica plan did (:meth:`ReplicaPlan.summary`), or None.
+        active: Active sampling: what the sampler did (runs, cells simulated and replicated, the
+            estimated agreement; :meth:`ActivePlan.summary`), or None.
     """
 
     folder: Path
@@ -196,6 +198,7 @@ class RunSummary:
     sampling_notes: list[str] = field(default_factory=list)
     replicas_run: int = 0
     robustness: dict[str, Any] | None = None
+    active: dict[str, Any] | None = None
 
     @property
     def trials_per_s(self) -> float:

@@ -8,6 +8,12 @@ for one that was never chosen, and count it as checked by its neighbours, or as 
 :func:`replica_state` replays the choice from the stored outcomes, exactly as the resumed run will,
 so the readers (``show``, ``plot``, ``classify``, ``paper fig6``, ``answer``) know every cell
 that awaits replicas, and whether the plan could still choose more.
+
+An active run (:mod:`somo_sweep.sweep.run.active_plan`) chooses its cells as it samples, so its
+choice is known from what it stored: a cell with replicas stored was chosen, and its replicas
+stopped when every label it follows has a replica that disagrees
+(:mod:`somo_sweep.sweep.run.replica_rule`): such a cell awaits nothing. Until the run completes,
+it may still choose more cells.
 """
 
 from __future__ import annotations
@@ -21,7 +27,7 @@ import pandas as pd
 from somo_sweep.sweep.run.robustness import AWAITED, Outcome, ReplicaChoice, fold, label_names
 from somo_sweep.sweep.store.folder import REPLICA_RUN, REPLICAS_PLANNED
 
-__all__ = ["ReplicaState", "fold_cells", "replica_state", "unfinished"]
+__all__ = ["ReplicaState", "fold_cells", "replica_state", "stopped_cells", "unfinished"]
 
 
 @dataclass(frozen=True)
@@ -37,6 +43,8 @@ class ReplicaState:
             awaited replicas run (their majorities may move).
         trials_missing: Trials of the study's grid not stored (the replicas are chosen after them).
         run_start_utc: When the run with replicas started (how the user finds it in ``show``).
+        stopped: The cells whose replicas stopped early at disagreements (an active run): they
+            await none.
     """
 
     replicas: int = 0
@@ -45,6 +53,7 @@ class ReplicaState:
     more_to_choose: bool = False
     trials_missing: int = 0
     run_start_utc: str = ""
+    stopped: frozenset[int] = frozenset()
 
 
 def _outcomes(table: pd.DataFrame) -> tuple[dict[int, Outcome], dict[int, Outcome], dict[int, list[Any]]]:
@@ -74,6 +83,27 @@ def _outcomes(table: pd.DataFrame) -> tuple[dict[int, Outcome], dict[int, Outcom
     return own, guessed, replicas
 
 
+def stopped_cells(table: pd.DataFrame, labels: Sequence[str]) -> tuple[frozenset[int], frozenset[int]]:
+    """The cells (trial numbers) with replicas stored, and those of them whose replicas stopped:
+    every label of ``labels`` (without ``label_``; empty: every label column) has a replica whose
+    outcome differs from the cell's own trial's (a run not ``ok`` counts as its status)."""
+    own, _, stored = _outcomes(table)
+    names = list(labels) or [n.removeprefix("label_") for n in label_names(table)]
+    chosen, stopped = set(stored), set()
+    for trial, runs in stored.items():
+        mine = own.get(trial)
+        if mine is None or not names:
+            continue
+        if all(any(_value(out, n) != _value(mine, n) for _, out in runs) for n in names):
+            stopped.add(trial)
+    return frozenset(chosen), frozenset(stopped)
+
+
+def _value(outcome: Outcome, name: str) -> Any:
+    status, labels = outcome
+    return labels.get(name) if status == "ok" else status
+
+
 def _given(value: Any) -> bool:
     return value is not None and not (isinstance(value, float) and value != value)
 
@@ -89,6 +119,9 @@ def replica_state(table: pd.DataFrame) -> ReplicaState:
     finished = run.get("status") == "completed"
     if not isinstance(plan, dict):  # an older version's run: its choice is not recorded
         return ReplicaState(k, None, finished, False, 0, start)
+    if plan.get("kind") == "active":
+        picked, stopped = stopped_cells(table, [str(n) for n in plan.get("labels", [])])
+        return ReplicaState(k, picked, finished, not finished, 0, start, stopped)
     own, guessed, stored = _outcomes(table)
     shape = tuple(int(n) for n in plan["shape"])
     size = 1
@@ -120,7 +153,9 @@ def fold_cells(
     """:func:`~somo_sweep.sweep.run.robustness.fold` of a folder's table, every cell the plan chose
     counted as awaiting the replicas it lacks (:func:`replica_state`)."""
     state = state if state is not None else replica_state(table)
-    return fold(table, labels, planned=table.attrs.get(REPLICAS_PLANNED), chosen=state.chosen)
+    return fold(
+        table, labels, planned=table.attrs.get(REPLICAS_PLANNED), chosen=state.chosen, stopped=state.stopped
+    )
 
 
 def unfinished(state: ReplicaState, cells: pd.DataFrame) -> str | None:

@@ -297,6 +297,7 @@ def fold(
     labels: Sequence[str] | None = None,
     planned: int | None = None,
     chosen: Collection[int] | None = None,
+    stopped: Collection[int] = (),
 ) -> pd.DataFrame:
     """One row per cell: its own trial's row plus, for every label, the majority, the agreement
     and the number of runs, and ``robust`` (module docstring).
@@ -312,6 +313,8 @@ def fold(
             (:func:`~somo_sweep.sweep.run.replica_state.replica_state`): one of them with fewer
             replicas stored than planned awaits the rest, even with none stored yet. None: only
             the cells with some replicas stored are known to be chosen.
+        stopped: Cells whose replicas stopped at disagreements (an active run,
+            :mod:`somo_sweep.sweep.run.replica_rule`): they await no replica.
 
     Returns:
         The cells' own rows, in grid order, with ``replicas`` (replica runs stored and folded),
@@ -339,7 +342,8 @@ def fold(
     picked = own["replicas"] > 0
     if chosen is not None:
         picked |= own["trial"].isin(list(chosen))
-    own[AWAITED] = np.where(picked, (planned - own["replicas"]).clip(lower=0), 0)
+    awaits = picked & ~own["trial"].isin(list(stopped))
+    own[AWAITED] = np.where(awaits, (planned - own["replicas"]).clip(lower=0), 0)
     if not names:
         own[ROBUST] = pd.array([pd.NA] * len(own), dtype="boolean")
         return own.reset_index(drop=True)

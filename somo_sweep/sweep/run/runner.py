@@ -116,7 +116,13 @@ def dry_run(plan: RunPlan, rows: int = 10) -> DryRun:
     """
     study, maker = plan.study, plan.maker
     jobs = list(itertools.islice(iter_jobs(maker), max(rows, 1)))
-    sampling = describe(study) if study.sampling == "adaptive" else None
+    sampling = None
+    if study.sampling == "adaptive":
+        sampling = describe(study)
+    elif study.sampling == "active":
+        from somo_sweep.sweep.run.active_plan import describe as describe_active
+
+        sampling = describe_active(study)
     steps = ladder(maker) if study.simulation is None else None
     return DryRun(study, jobs, sampling, steps)
 

@@ -4,7 +4,9 @@
 (resume). A grid run is one batch; an adaptive study runs in rounds
 (:mod:`somo_sweep.sweep.run.sampling`), each chosen from the labels of the rounds before, and when the
 last round completes the cells never simulated are written as inferred rows; robustness replicas
-(:mod:`somo_sweep.sweep.run.robustness`) follow in rounds of their own. Every finished trial is
+(:mod:`somo_sweep.sweep.run.robustness`) follow in rounds of their own. An active study
+(:mod:`somo_sweep.sweep.run.active_plan`) runs in batches of trials and replicas together, and
+writes its inferred rows (with their confidence) when its last batch completes. Every finished trial is
 appended to the run's journal at once (so a SIGKILL loses only the trials in flight) and written
 into part files in chunks; on SIGINT / SIGTERM every finished trial is written before returning,
 and when the disk fills up the run stops with what it wrote intact.
@@ -23,6 +25,7 @@ import numpy as np
 from somo_sweep.errors import SomoError, StorageError, os_cause
 from somo_sweep.sweep.jobs.job import Job
 from somo_sweep.sweep.jobs.table import JobTable
+from somo_sweep.sweep.run.active_plan import ActivePlan
 from somo_sweep.sweep.run.dask_backend import threads
 from somo_sweep.sweep.run.execution import WarmWorkers, dask_client, run_jobs
 from somo_sweep.sweep.run.options import RoundSummary, RunEvents, RunOptions, RunSummary
@@ -84,7 +87,7 @@ def run_rounds(
             (MuJoCo) not installed.
         DescriptionError: ``adaptive.labels`` names a label the task does not give.
     """
-    plan = AdaptivePlan(study, table) if study.sampling == "adaptive" else None  # refused before any write
+    plan = _plan(study, table)  # refused before any write
     _engines_installed(study)  # fail before writing anything
     client = dask_client(options.scheduler) if options.backend == "dask" else None
     try:
@@ -113,6 +116,13 @@ def run_rounds(
         run.close()
     run.raise_failure()
     return run.summary
+
+
+def _plan(study: Study, table: JobTable) -> AdaptivePlan | ActivePlan | None:
+    """The plan of a study's rounds: adaptive, active, or None (the grid: one batch)."""
+    if study.sampling == "adaptive":
+        return AdaptivePlan(study, table)
+    return ActivePlan(study, table) if study.sampling == "active" else None
 
 
 def _engines_installed(study: Study) -> None:
@@ -145,7 +155,7 @@ class _Session:
         events: RunEvents,
         store: ResultStore,
         client: Any,
-        plan: AdaptivePlan | None,
+        plan: AdaptivePlan | ActivePlan | None,
         source: BatchSource | None = None,
         warm: WarmWorkers | None = None,
     ):
@@ -153,8 +163,10 @@ class _Session:
         self.store, self.client, self.plan, self.source, self.warm = store, client, plan, source, warm
         self.start = time.perf_counter()
         self.summary = RunSummary(study.output, len(table.ids), 0, notes=list(store.notes))
-        self.summary.sampling = "adaptive" if plan else "grid"
-        self.replicas = ReplicaPlan(study, table) if study.robustness.replicas > 0 else None
+        self.summary.sampling = study.sampling if plan else "grid"
+        # An active plan places its replicas itself, in its batches.
+        active = isinstance(plan, ActivePlan)
+        self.replicas = ReplicaPlan(study, table) if study.robustness.replicas > 0 and not active else None
         self.buffer: list[dict[str, Any]] = []
         self.known: Known = {}
         self.values: Values = {}
@@ -195,17 +207,22 @@ class _Session:
                 "n_jobs": self.options.workers if backend == "loky" else None,
                 **planned,
                 "sampling": summary.sampling,
-                **(
-                    {"replicas": self.replicas.k, "replica_plan": self.replicas.choice.record()}
-                    if self.replicas
-                    else {}
-                ),
+                **self._replica_record(),
             }
         )
         self.started = True
         if self.events.started:
             self.events.started(summary)
         self.last_flush = time.perf_counter()
+
+    def _replica_record(self) -> dict[str, Any]:
+        """What the manifest records of the run's replicas, for the readers to replay."""
+        if self.replicas is not None:
+            return {"replicas": self.replicas.k, "replica_plan": self.replicas.choice.record()}
+        k = self.study.robustness.replicas
+        if isinstance(self.plan, ActivePlan) and k > 0:
+            return {"replicas": k, "replica_plan": self.plan.record()}
+        return {}
 
     def _batches(self) -> Iterator[Batch]:
         """The study's own batches, then (once they are all done) the replica rounds."""
@@ -236,7 +253,7 @@ class _Session:
                 outcomes = run_jobs(batch.jobs, options, self.client, self.cut_short.append, self.warm)
                 for job, out in outcomes:
                     with guard.protect():
-                        self._record(job, out, batch.kind == "replicas")
+                        self._record(job, out, job.replica > 0)
         except KeyboardInterrupt as exc:
             summary.interrupted = exc.signum if isinstance(exc, Stop) else int(signal.SIGINT)
             self.status = "interrupted"
@@ -308,6 +325,8 @@ class _Session:
         summary.wall_time_s = time.perf_counter() - self.start
         summary.simulated_cells = plan.simulated_cells if plan else 0
         summary.sampling_notes = list(plan.notes) if plan else []
+        if isinstance(plan, ActivePlan):
+            summary.active = plan.summary()
         extra: dict[str, Any] = (
             {
                 "rounds": [vars(r) for r in summary.rounds],
@@ -318,6 +337,8 @@ class _Session:
             if plan
             else {}
         )
+        if summary.active is not None:
+            extra["active"] = summary.active
         if self.source is not None:
             extra[summary.sampling] = self.source.record()
         if self.replicas is not None:

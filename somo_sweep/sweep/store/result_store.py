@@ -47,7 +47,7 @@ from somo_sweep.sweep.store.lock import FolderLock
 from somo_sweep.sweep.store.manifest import now_utc, record_files, versions, write_atomically, write_json
 from somo_sweep.sweep.store.opening import open_for_run
 from somo_sweep.sweep.store.parts import stored_ids, stored_labels, stored_statuses, stored_values
-from somo_sweep.sweep.store.schema import folder_schema, table_schema, widened
+from somo_sweep.sweep.store.schema import INFERRED_COLUMNS, folder_schema, table_schema, widened
 
 __all__ = ["ResultStore", "read_manifest", "read_results", "record_files"]
 
@@ -298,7 +298,12 @@ class ResultStore:
         """
         if not rows:
             return
-        schema = self.schema.append(pa.field("inferred", pa.bool_()))
+        schema = self.schema
+        for column in INFERRED_COLUMNS:  # ``confidence`` only where the sampler gives one
+            if column.name == "inferred" or any(column.name in r for r in rows):
+                schema = schema.append(
+                    pa.field(column.name, pa.bool_() if column.type == "bool" else pa.float64())
+                )
         names = [n for n in schema.names if any(n in r for r in rows)]
         table = pa.table({n: _column([r.get(n) for r in rows], schema.field(n).type) for n in names})
         path = self.folder / INFERRED

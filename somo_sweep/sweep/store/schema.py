@@ -18,6 +18,7 @@ import pyarrow as pa
 __all__ = [
     "COLUMNS",
     "FIXED",
+    "INFERRED_COLUMNS",
     "MAX_REPLICAS",
     "Column",
     "arrow_type",
@@ -66,6 +67,17 @@ COLUMNS: tuple[Column, ...] = (
     Column("study_hash", "string", "", "hash of the study the row belongs to"),
 )
 FIXED = {c.name for c in COLUMNS}
+#: The columns of the cells a sampling run inferred instead of simulating (``inferred.parquet``;
+#: a reader adds ``inferred`` = false to the simulated trials, whose ``confidence`` is empty).
+INFERRED_COLUMNS: tuple[Column, ...] = (
+    Column("inferred", "bool", "", "true: never simulated; labels inferred from simulated cells, no metrics"),
+    Column(
+        "confidence",
+        "double",
+        "",
+        "active sampling: the label model's probability that the inferred cell's labels are right (0 … 1)",
+    ),
+)
 
 _UNITS = {
     "n_m_s_per_rad": "N·m·s/rad",

@@ -24,7 +24,9 @@ A study file (YAML or JSON) looks like this; paths are relative to the study fil
                                          # each model's modes (somo_sweep.sim.numerics);
                                          # {engine: mujoco}: MuJoCo instead of PyBullet (its step: 4 ms)
     output: results/finger_pressure_sweep   # a folder inside results/ of the current directory
-    sampling: grid                       # or adaptive: a coarse sub-grid, refined where labels change
+    sampling: grid                       # or active: batches where a model of the labels is unsure;
+                                         # or adaptive: a coarse sub-grid, refined where labels change
+    active: {target_agreement: 0.98}     # optional: the active sampler's settings (:class:`Active`)
     adaptive: {labels: [grasp], coarse_step: 4}   # optional: labels to follow (default: all), stride
 
 In YAML flow style (``{...}``) quote keys holding ``[i]``; block style needs no quotes.
@@ -62,7 +64,16 @@ from somo_sweep.sim.settings import (
 )
 from somo_sweep.sweep.store.schema import MAX_REPLICAS
 
-__all__ = ["MAX_REPLICAS", "MAX_TRIALS", "RESULTS_ROOT", "Adaptive", "Robustness", "Simulation", "StudyFile"]
+__all__ = [
+    "MAX_REPLICAS",
+    "MAX_TRIALS",
+    "RESULTS_ROOT",
+    "Active",
+    "Adaptive",
+    "Robustness",
+    "Simulation",
+    "StudyFile",
+]
 
 #: Most trials a study may have unless the caller allows more (``--max-trials``).
 MAX_TRIALS = 1_000_000
@@ -162,6 +173,34 @@ class Adaptive(Spec):
     coarse_step: int | None = Field(None, ge=1)
 
 
+class Active(Spec):
+    """Settings of active sampling (``sampling: active``; :mod:`somo_sweep.sweep.run.active`).
+
+    Trials and robustness replicas go, batch after batch, where a model of the labels over the
+    swept axes is unsure; the run stops when the estimated share of cells whose label is right
+    reaches ``target_agreement``, and stores the cells it never simulated as inferred, each with
+    its ``confidence``. Replicas (``robustness.replicas``) run one at a time and a label's stop at
+    its first disagreement.
+
+    Attributes:
+        target_agreement: The estimated agreement at which the run stops (0 … 1].
+        labels: Labels the model follows and the replicas check (default: every label).
+        batch: Runs per batch (the open cells' next replicas, then new cells).
+        initial: Cells of the first batch, drawn at random.
+        exploration: Share of a batch's new cells drawn at random instead of the least sure.
+        model: ``trees`` (extra trees, scikit-learn) or ``neighbours`` (the nearest simulated cells).
+    """
+
+    text_numbers: ClassVar[bool] = False
+
+    target_agreement: float = Field(0.98, gt=0.0, le=1.0)
+    labels: list[Annotated[str, Field(pattern=r"^[A-Za-z0-9_]+$")]] = Field(default_factory=list)
+    batch: int = Field(20, ge=1, le=100_000)
+    initial: int = Field(60, ge=1, le=1_000_000)
+    exploration: float = Field(0.1, ge=0.0, le=1.0)
+    model: Literal["trees", "neighbours"] = "trees"
+
+
 class Robustness(Spec):
     """Robustness replicas (``robustness:`` or ``somo-sweep run --robust K``).
 
@@ -176,7 +215,8 @@ class Robustness(Spec):
         where: ``boundary`` (default): the cells whose label differs from a grid neighbour's, then
             the neighbours of any cell whose majority differs from its own trial, plus a seeded
             random audit of ``audit_fraction`` of the other simulated cells; ``all``: every
-            simulated cell.
+            simulated cell. With ``sampling: active``, ``boundary`` replicates the simulated cells
+            whose class differs from a grid neighbour's, as the sampler goes.
         audit_fraction: Share of the non-boundary cells audited (at least one cell when > 0).
         labels: Labels that decide boundaries and robustness (default: every label).
     """
@@ -206,6 +246,17 @@ class StudyFile(Spec):
     seed: int = Field(0, ge=0)
     simulation: Simulation | None = None
     output: str | None = None
-    sampling: Literal["grid", "adaptive"] = "grid"
+    sampling: Literal["grid", "adaptive", "active"] = "grid"
     adaptive: Adaptive = Adaptive()
+    active: Active = Active()
     robustness: Robustness = Robustness()
+
+    @model_validator(mode="after")
+    def _no_audit_when_active(self) -> StudyFile:
+        """``sampling: active`` draws its own random cells: an audit share would be ignored."""
+        if self.sampling == "active" and "audit_fraction" in self.robustness.model_fields_set:
+            raise ValueError(
+                "robustness.audit_fraction: sampling: active audits no cell at random; its exploration "
+                "share (active.exploration) draws new cells instead; allowed: leave audit_fraction out"
+            )
+        return self

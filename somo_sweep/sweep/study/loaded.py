@@ -21,7 +21,7 @@ from pydantic import BaseModel
 from somo_sweep.model.load import Model
 from somo_sweep.sweep.study.axes import Axis
 from somo_sweep.sweep.study.cells import Cells
-from somo_sweep.sweep.study.file import Adaptive, Robustness, Simulation
+from somo_sweep.sweep.study.file import Active, Adaptive, Robustness, Simulation
 from somo_sweep.sweep.study.resolve import Resolver, StudyInputs, TrialPlan
 from somo_sweep.tasks.registry import TaskSpec
 
@@ -47,8 +47,10 @@ class Study:
             (:func:`~somo_sweep.sim.numerics.choose_numerics`).
         output: Output folder.
         allow_outside: Model includes may name files outside the model's folder.
-        sampling: ``grid`` (every trial) or ``adaptive`` (see :mod:`somo_sweep.sweep.run.adaptive`).
+        sampling: ``grid`` (every trial), ``active`` (see :mod:`somo_sweep.sweep.run.active`) or
+            ``adaptive`` (see :mod:`somo_sweep.sweep.run.adaptive`).
         adaptive: Settings of adaptive sampling.
+        active: Settings of active sampling.
         cells: The study's ``cells:`` table, or None. Its keys are axes too (``axes``), zipped
             as the first group of ``groups``.
         robustness: Robustness replicas (:class:`~somo_sweep.sweep.study.file.Robustness`).
@@ -77,6 +79,7 @@ class Study:
     allow_outside: bool = False
     sampling: str = "grid"
     adaptive: Adaptive = field(default_factory=Adaptive)
+    active: Active = field(default_factory=Active)
     cells: Cells | None = None
     robustness: Robustness = field(default_factory=Robustness)
     auto_step_s: float | None = None

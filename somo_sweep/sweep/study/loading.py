@@ -179,6 +179,7 @@ def _new_study(
         allow_outside=allow_outside,
         sampling=raw.sampling,
         adaptive=raw.adaptive,
+        active=raw.active,
         cells=cells,
         robustness=raw.robustness,
     )
@@ -214,6 +215,7 @@ def _cells(raw: StudyFile, task: TaskSpec, found: _Found) -> Cells | None:
     if task.labels is not None:
         for key, names in (
             ("adaptive.labels", raw.adaptive.labels),
+            ("active.labels", raw.active.labels),
             ("robustness.labels", raw.robustness.labels),
         ):
             for problem in unknown_labels(task, key, names, task.labels):
