@@ -180,7 +180,7 @@ BIG = "z" * 1_000_000
 @pytest.mark.parametrize(
     ("body", "message"),
     [
-        (f"sampling: {BIG}\n", "line 3: sampling: Input should be 'grid' or 'adaptive', got 'zzz"),
+        (f"sampling: {BIG}\n", "line 3: sampling: Input should be 'grid', 'adaptive' or 'active', got 'zzz"),
         (f"params: {{sleep_s: {BIG}}}\n", "line 3: params.sleep_s: expected a number >= 0, not text"),
         (f"? {BIG}\n: 1\n", "line 3: zzz"),
         (f"name: {BIG}\n", "line 3: name: String should have at most 100 characters"),
