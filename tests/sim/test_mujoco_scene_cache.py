@@ -27,6 +27,7 @@ def _run(late_box: bool) -> np.ndarray:
         world.add_ground(friction=0.8)
         world.add_rigid_body(_box("box", 0.0))
         hand = world.add_model(gripper, Pose(position_m=(1.0, 0.0, 0.1)))
+        world.drive_model(hand, (0.1, 0.0, 0.1), (0.0, 0.0, 0.0))  # held where it is placed
         world.place_model(hand, (0.1, 0.0, 0.1), (0.0, 0.0, 0.0))
         hand.set_inputs(np.full(len(hand.input_names), 0.05))
         world.step(20)

@@ -10,8 +10,11 @@ and MuJoCo's implicit springs need none.
 
 The root is welded to the world (``fixed``), free (a free joint) or ``driven``: three slides and
 three hinges (yaw, pitch, roll, so a pose is the joints' values) with a very large armature
-and gravity compensation, whose speeds the world sets every step so that the root reaches its
-target at the end of the step (:class:`~somo_sweep.sim.mujoco.world.MujocoWorld`).
+and gravity compensation. Under the ``discrete`` integrator each of them is held on its target by a
+position servo (an actuator whose control is the target, :data:`DRIVEN_SERVO`), stiff enough that
+the step ends with the root on its target: the targets are then a control table MuJoCo steps
+through on its own. Under ``implicitfast`` (explicit stiffness) the world sets the joints' speeds
+before every step instead (:class:`~somo_sweep.sim.mujoco.world.MujocoWorld`).
 """
 
 from __future__ import annotations
@@ -31,6 +34,7 @@ from somo_sweep.sim.settings import WorldSettings
 
 __all__ = [
     "DRIVEN_ARMATURE",
+    "DRIVEN_SERVO",
     "GeomInfo",
     "PlannedBody",
     "add_plan",
@@ -51,6 +55,11 @@ FRICTION_SOLIMP = (0.99, 0.999, 0.001, 0.5, 2.0)
 #: Armature of a driven root's joints, per kg of the whole body (kg, kg·m² per kg): the root
 #: then barely feels what its links do within one step (its speed is set every step).
 DRIVEN_ARMATURE = 1e4
+#: Stiffness of a driven root's position servos (``discrete`` integrator) over armature / dt²: the
+#: discrete integrator takes a servo's stiffness into its metric (M + dt²·k), so one step closes
+#: all but 1/(1 + this) of the gap to the target, and the fingers' reactions move the root this
+#: many times less than the armature alone would.
+DRIVEN_SERVO = 1e8
 #: The driven root's joints: three slides along the world axes, then yaw, pitch, roll.
 DRIVEN_AXES = (
     ("x", mujoco.mjtJoint.mjJNT_SLIDE, (1.0, 0.0, 0.0)),
@@ -97,6 +106,8 @@ class PlannedBody:
         body_names: MuJoCo body name of each link, in link-index order (root first).
         spring_joints: MuJoCo joint name of each spring joint, in the plan's order.
         root_joints: The root's joints (one free joint, six driven ones, or none).
+        root_servos: The driven root's position servos (actuators, one per root joint; none
+            under ``implicitfast``).
         ancestors: Per link index, the link indices it hangs from.
         total_mass_kg: The body's mass.
     """
@@ -104,6 +115,7 @@ class PlannedBody:
     body_names: list[str]
     spring_joints: list[str]
     root_joints: list[str]
+    root_servos: list[str] = field(default_factory=list)
     ancestors: dict[int, set[int]] = field(default_factory=dict)
     total_mass_kg: float = 0.0
 
@@ -150,6 +162,7 @@ def add_plan(
     position_m: np.ndarray,
     quat_xyzw: tuple[float, ...],
     contact_time_constant_s: float,
+    servo_step_s: float | None = None,
 ) -> tuple[PlannedBody, list[GeomInfo]]:
     """Add one plan under the world body; returns its names and its geoms (not yet filtered).
 
@@ -159,11 +172,14 @@ def add_plan(
         body_id: The world's id of the body (names are prefixed with it).
         position_m, quat_xyzw: Where the root goes (a driven root's joints are set there later).
         contact_time_constant_s: The contacts' time constant (``solref``), s.
+        servo_step_s: The time step a driven root's position servos are tuned to, s (None: no
+            servos, the world sets the root's speeds).
     """
     check_plan(plan)
     prefix = f"b{body_id}/"
     total = sum(info.mass_kg for info in plan.links)
     root, root_joints = _add_root(spec, plan, prefix, position_m, quat_xyzw, total)
+    servos = _add_servos(spec, root_joints, total, servo_step_s) if plan.mode == "driven" else []
     tree = _add_tree(plan, root, prefix)
     geoms = _add_links(plan, tree, body_id, prefix, contact_time_constant_s)
     index = {info.name: i - 1 for i, info in enumerate(plan.links)}
@@ -178,6 +194,7 @@ def add_plan(
         body_names=[prefix + info.name for info in plan.links],
         spring_joints=[prefix + sj.name for sj in plan.joints],
         root_joints=root_joints,
+        root_servos=servos,
         ancestors=ancestors,
         total_mass_kg=total,
     )
@@ -212,6 +229,26 @@ def _add_root(
             joint.armature = DRIVEN_ARMATURE * max(total_mass_kg, 1e-3)
             root_joints.append(prefix + name)
     return root, root_joints
+
+
+def _add_servos(
+    spec: mujoco.MjSpec, joints: list[str], total_mass_kg: float, step_s: float | None
+) -> list[str]:
+    """A position servo on each driven root joint, tuned to the step ``step_s`` (s); their names."""
+    if step_s is None:
+        return []
+    armature = DRIVEN_ARMATURE * max(total_mass_kg, 1e-3)
+    kp = DRIVEN_SERVO * armature / step_s**2
+    names = []
+    for joint in joints:
+        actuator = spec.add_actuator(name=joint + "/servo", target=joint)
+        actuator.trntype = mujoco.mjtTrn.mjTRN_JOINT
+        actuator.gaintype = mujoco.mjtGain.mjGAIN_FIXED
+        actuator.biastype = mujoco.mjtBias.mjBIAS_AFFINE
+        actuator.gainprm[0] = kp
+        actuator.biasprm[:3] = [0.0, -kp, 0.0]
+        names.append(actuator.name)
+    return names
 
 
 @dataclass

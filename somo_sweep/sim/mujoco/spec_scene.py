@@ -67,8 +67,11 @@ class SpecScene:
         check_plan(plan)
 
         def build() -> None:
-            tc = self.settings.mujoco.contact_time_constant_s
-            self.planned[body_id], geoms = add_plan(self.spec, plan, body_id, position_m, quat, tc)
+            own = self.settings.mujoco
+            servo_s = self.settings.time_step_s if own.integrator == "discrete" else None
+            self.planned[body_id], geoms = add_plan(
+                self.spec, plan, body_id, position_m, quat, own.contact_time_constant_s, servo_s
+            )
             self.geoms.extend(geoms)
 
         where = (np.asarray(position_m, float).tobytes(), tuple(quat))

@@ -209,10 +209,11 @@ class _Steps:
         _, t2, t3, t4 = _phase_ends_s(p)
         n_steps = round(t4 / dt)
         sample_every = max(1, round(p.sample_period_s / dt))
+        check_every = max(1, round(p.check_period_s / dt))
         i_lift, i_hold = round(t2 / dt), round(t3 / dt)
         observe_steps = {min(round(t / dt), n_steps - 1) for t in observe_at_s}
-        # From the end of the squeeze to the end of the lift, every sample period.
-        checks = set(range(i_lift, i_hold + 1, sample_every)) if p.early_stop else set()
+        # From the end of the squeeze to the end of the lift, every check period.
+        checks = set(range(i_lift, i_hold + 1, check_every)) if p.early_stop else set()
         # Hold-phase samples follow the steps counted back from the last, so the last comes last.
         samples = {i + 1 for i in range(i_hold, n_steps) if (n_steps - 1 - i) % sample_every == 0}
         return cls(dt, n_steps, i_lift, i_hold, observe_steps, checks, samples)
