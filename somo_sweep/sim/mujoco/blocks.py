@@ -156,17 +156,18 @@ def first_failure(
         bad_at_end: MuJoCo's accelerations went bad at the last step, which the loop raises
             after that step's speed check and before its thrown-body check.
     """
-    counts = first_step + 1 + np.arange(len(states))
+    n, first = len(states), first_step + 1
     qpos, qvel = states[:, 1 : 1 + nq], states[:, 1 + nq :]
-    rows = set(np.flatnonzero(counts % checks.thrown_every == 0).tolist())
-    spring = np.flatnonzero(counts % checks.spring_every == 0)
-    if checks.spring_dofs is not None and len(spring):
+    rows = np.arange((-first) % checks.thrown_every, n, checks.thrown_every)
+    if checks.spring_dofs is not None:
+        spring = np.arange((-first) % checks.spring_every, n, checks.spring_every)
         speeds, cap = qvel[spring][:, checks.spring_dofs], checks.speed_cap_rad_s
-        if not (speeds.max() < cap and speeds.min() > -cap):  # also NaN: look step by step
-            rows |= set(spring.tolist())
-    for row in sorted(rows):
-        count, time_s = int(counts[row]), int(counts[row]) * dt
+        if len(spring) and not (speeds.max() < cap and speeds.min() > -cap):  # or NaN: step by step
+            rows = np.union1d(rows, spring)
+    for row in rows.tolist():
+        count = first + row
+        time_s = count * dt
         if checks.spring_dofs is not None and count % checks.spring_every == 0:
             checks.spring_check(qvel[row, checks.spring_dofs], time_s)
-        if count % checks.thrown_every == 0 and not (bad_at_end and row == len(states) - 1):
+        if count % checks.thrown_every == 0 and not (bad_at_end and row == n - 1):
             checks.thrown_check(qpos[row], qvel[row], time_s)

@@ -357,6 +357,10 @@ def _add_geom(
 #: less CPU per trial than sparse, and moves no label (docs/engines.md). One island is cheaper
 #: than islands on this model. A module setting, so the engine benchmark can time the old layout.
 JACOBIAN = "dense"
+#: Whether driven roots get position servos under the ``discrete`` integrator (else their speeds
+#: are set before every step, as under ``implicitfast``). A module setting, so the step benchmark
+#: can time the loop as it was.
+SERVOS = True
 
 
 def set_options(spec: Any, settings: WorldSettings) -> None:

@@ -12,13 +12,15 @@ from time import perf_counter
 from typing import Any
 
 import mujoco
+import numpy as np
 
 from somo_sweep.sim.follow import PlannedSends
 from somo_sweep.sim.mujoco.blocks import Checks
+from somo_sweep.sim.mujoco.free_joint import check_free_body
 from somo_sweep.sim.mujoco.unstable import SPEED_CHECK_EVERY, bad_accelerations, check_spring_speeds
 from somo_sweep.sim.world import MAX_JOINT_SPEED_RAD_S
 
-__all__ = ["block_checks", "step_loop"]
+__all__ = ["block_checks", "check_thrown_in", "step_loop"]
 
 
 def step_loop(world: Any, n: int) -> None:
@@ -83,5 +85,15 @@ def block_checks(world: Any) -> Checks:
         speed_cap_rad_s=cap,
         spring_check=lambda speeds, t: check_spring_speeds(speeds, cap, capped, t),
         thrown_every=world.settings.check_every,
-        thrown_check=world._check_thrown_in,
+        thrown_check=lambda qpos, qvel, t: check_thrown_in(world, qpos, qvel, t),
     )
+
+
+def check_thrown_in(world: Any, qpos: np.ndarray, qvel: np.ndarray, time_s: float) -> None:
+    """Raise if a free body of ``world`` left the scene, moves implausibly fast, or is not finite,
+    in the state ``qpos``, ``qvel`` (at ``time_s``, s)."""
+    names = {b.id: b.plan.name for b in world.bodies}
+    capped = not world.settings.clamp_speed_cap
+    for body_id in world._free:
+        pos, vel = qpos[world._root_qpos[body_id]], qvel[world._root_dof[body_id]]
+        check_free_body(f"body '{names[body_id]}'", pos, vel, time_s, capped)

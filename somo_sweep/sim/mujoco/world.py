@@ -34,10 +34,10 @@ from somo_sweep.sim.mujoco.compiled import read_addresses
 from somo_sweep.sim.mujoco.contacts import StepContacts, closest_distance_m
 from somo_sweep.sim.mujoco.drive import MujocoDrive
 from somo_sweep.sim.mujoco.driven import DrivenRoots, place_root
-from somo_sweep.sim.mujoco.free_joint import check_free_body, free_base_pose, free_base_velocity
+from somo_sweep.sim.mujoco.free_joint import free_base_pose, free_base_velocity
 from somo_sweep.sim.mujoco.render import mujoco_image
 from somo_sweep.sim.mujoco.spec_scene import SpecScene
-from somo_sweep.sim.mujoco.step_loop import block_checks, step_loop
+from somo_sweep.sim.mujoco.step_loop import block_checks, check_thrown_in, step_loop
 from somo_sweep.sim.mujoco.surfaces import Surface
 from somo_sweep.sim.mujoco.unstable import bad_accelerations
 from somo_sweep.sim.plan import BodyPlan
@@ -249,17 +249,35 @@ class MujocoWorld(World):
         """
         if self._dirty:
             self._ready()
-        hooks = self.pre_step
-        plannable = blocks.BLOCKS and n > 1 and not self._external and not self._driven.needs_drive
-        if plannable and all(type(h) is Follow for h in hooks):
-            self._step_block([h for h in hooks if isinstance(h, Follow)], n)
+        table = self.planned_controls(n) if blocks.BLOCKS and n > 1 else None
+        if table is not None:
+            self._step_block(table, n)
         else:
-            self._step_loop(n)
+            step_loop(self, n)  # one step at a time, the hooks called before each
 
-    def _step_block(self, follows: list[Follow], n: int) -> None:
-        """``n`` steps in C with the controls the hooks plan for them, checked afterwards."""
+    def planned_controls(self, n: int) -> np.ndarray | None:
+        """The control table of the next ``n`` steps (:func:`.blocks.control_table`) when they are
+        all planned: the hooks are setpoint tables, the driven roots have servos, no force is
+        pending. The hooks are then left as after those steps. None otherwise (nothing changed)."""
+        if self._dirty:
+            self._ready()
+        hooks = self.pre_step
+        if self._external or self._driven.needs_drive or not all(type(h) is Follow for h in hooks):
+            return None
+        follows = [h for h in hooks if isinstance(h, Follow)]
+        dt = self.settings.time_step_s
+        return blocks.control_table(self.model, self.data, follows, self._driven, self.step_count, n, dt)
+
+    def stepped(self, n: int) -> None:
+        """Count ``n`` steps its data took elsewhere (rolled out, or on another engine)."""
+        self.step_count += n
+        self.time_s = self.step_count * self.settings.time_step_s
+        self._kinematics_stale = True
+        self._step_contacts, self._contact_memo = None, {}
+
+    def _step_block(self, table: np.ndarray, n: int) -> None:
+        """``n`` steps in C with the controls the hooks planned for them, checked afterwards."""
         m, d, dt = self.model, self.data, self.settings.time_step_s
-        table = blocks.control_table(m, d, follows, self._driven, self.step_count, n, dt)
         done = 0
         while done < n:
             t0 = perf_counter()
@@ -267,28 +285,14 @@ class MujocoWorld(World):
             self._engine_time_s += perf_counter() - t0
             taken, bad = blocks.steps_taken(states), bool(self._bad_acc.number)
             blocks.first_failure(states[:taken], m.nq, self.step_count, dt, block_checks(self), bad)
-            self.step_count += taken
-            self.time_s = self.step_count * dt
+            self.stepped(taken)
             done += taken
             if bad:  # at the last step taken (it stopped the rollout)
                 raise bad_accelerations(self.time_s)
-        self._kinematics_stale = True
-        self._step_contacts, self._contact_memo = None, {}
-
-    def _step_loop(self, n: int) -> None:
-        """``n`` steps one at a time, the hooks called before each (:func:`.step_loop.step_loop`)."""
-        step_loop(self, n)
 
     def check_thrown(self) -> None:
         """Raise if a free body left the scene, moves implausibly fast, or is not finite."""
-        self._check_thrown_in(self.data.qpos, self.data.qvel, self.time_s)
-
-    def _check_thrown_in(self, qpos: np.ndarray, qvel: np.ndarray, time_s: float) -> None:
-        names = {b.id: b.plan.name for b in self.bodies}
-        capped = not self.settings.clamp_speed_cap
-        for body_id in self._free:
-            pos, vel = qpos[self._root_qpos[body_id]], qvel[self._root_dof[body_id]]
-            check_free_body(f"body '{names[body_id]}'", pos, vel, time_s, capped)
+        check_thrown_in(self, self.data.qpos, self.data.qvel, self.time_s)
 
     # ----------------------------------------------------------------- reading
     def _kinematics(self) -> None:
