@@ -2,12 +2,13 @@
 
 A :class:`WorldBatch` holds worlds that a task builds and reads one by one, as it would a single
 :class:`~somo_sweep.sim.world.World`, and steps every world still running in one call
-(:meth:`WorldBatch.step`): a trial batch is the cells of a study whose scenes share one compiled
-structure (the same finger link count and DSR split), differing in positions, sizes, masses,
-friction or time step. The engines that step one world at a time (PyBullet, MuJoCo) serve it
-with :class:`SerialBatch`, each world its own steps; ``mujoco_warp`` (optional extra) steps
-them all in one call on Warp (:class:`~somo_sweep.sim.mujoco.warp_batch.WarpBatch`). A world
-that failed, or that a task stopped early, leaves its slot idle.
+(:meth:`WorldBatch.step`; :func:`~somo_sweep.sim.worlds.open_batch` opens one). A trial batch
+is the cells of a study whose scenes share one compiled structure (the same finger link count
+and DSR split), differing in positions, sizes, masses, friction or time step. The engines that
+step one world at a time (PyBullet, MuJoCo) serve it with :class:`SerialBatch`, each world its
+own steps; ``mujoco_warp`` (optional extra) steps them all in one call on Warp
+(:class:`~somo_sweep.sim.mujoco.warp_batch.WarpBatch`). A world that failed, or that a task
+stopped early, leaves its slot idle.
 """
 
 from __future__ import annotations
@@ -16,11 +17,9 @@ from abc import ABC, abstractmethod
 from collections.abc import Sequence
 
 from somo_sweep.errors import SimulationError
-from somo_sweep.sim.settings import WorldSettings
 from somo_sweep.sim.world import World
-from somo_sweep.sim.worlds import open_world
 
-__all__ = ["SerialBatch", "WorldBatch", "open_batch"]
+__all__ = ["SerialBatch", "WorldBatch"]
 
 
 class WorldBatch(ABC):
@@ -73,22 +72,3 @@ class SerialBatch(WorldBatch):
             except SimulationError as exc:
                 failed[i] = exc
         return failed
-
-
-def open_batch(settings: Sequence[WorldSettings]) -> WorldBatch:
-    """A batch of new, empty worlds, one per settings, all on one engine.
-
-    Raises:
-        SimulationError: The settings name more than one engine, or the engine is not installed.
-    """
-    engines = sorted({s.engine for s in settings})
-    if len(engines) > 1:
-        raise SimulationError(f"a batch runs on one engine, got {', '.join(engines)}")
-    if engines == ["mujoco_warp"]:
-        from somo_sweep.sim.worlds import check_warp
-
-        check_warp()
-        from somo_sweep.sim.mujoco.warp_batch import WarpBatch
-
-        return WarpBatch(settings)
-    return SerialBatch([open_world(s) for s in settings])

@@ -9,14 +9,17 @@ says how to install it).
 
 from __future__ import annotations
 
+from collections.abc import Sequence
+
 from somo_sweep.errors import SimulationError
 from somo_sweep.model.description import Pose
+from somo_sweep.sim.batch import SerialBatch, WorldBatch
 from somo_sweep.sim.kinematics import ChainKinematics
 from somo_sweep.sim.plan import BodyPlan
 from somo_sweep.sim.settings import WorldSettings
 from somo_sweep.sim.world import World
 
-__all__ = ["check_warp", "open_chain_kinematics", "open_world", "prepare_engine"]
+__all__ = ["check_warp", "open_batch", "open_chain_kinematics", "open_world", "prepare_engine"]
 
 
 def _check_mujoco() -> None:
@@ -57,6 +60,24 @@ def open_world(settings: WorldSettings | None = None) -> World:
     from somo_sweep.sim.pybullet.world import PyBulletWorld
 
     return PyBulletWorld(settings)
+
+
+def open_batch(settings: Sequence[WorldSettings]) -> WorldBatch:
+    """A batch of new, empty worlds (:mod:`somo_sweep.sim.batch`), one per settings, on one engine:
+    ``mujoco_warp`` steps them together on Warp, the others one world at a time.
+
+    Raises:
+        SimulationError: The settings name more than one engine, or the engine is not installed.
+    """
+    engines = sorted({s.engine for s in settings})
+    if len(engines) > 1:
+        raise SimulationError(f"a batch runs on one engine, got {', '.join(engines)}")
+    if engines == ["mujoco_warp"]:
+        check_warp()
+        from somo_sweep.sim.mujoco.warp_batch import WarpBatch
+
+        return WarpBatch(settings)
+    return SerialBatch([open_world(s) for s in settings])
 
 
 def open_chain_kinematics(

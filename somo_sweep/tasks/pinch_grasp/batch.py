@@ -16,8 +16,8 @@ from collections.abc import Sequence
 
 from somo_sweep.errors import UnstableSimulation
 from somo_sweep.model.load import Model
-from somo_sweep.sim.batch import open_batch
 from somo_sweep.sim.settings import WorldSettings
+from somo_sweep.sim.worlds import open_batch
 from somo_sweep.tasks.pinch_grasp.params import PinchGraspParams
 from somo_sweep.tasks.pinch_grasp.task import Trial, trial_settings
 from somo_sweep.tasks.registry import TaskResult
