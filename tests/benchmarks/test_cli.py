@@ -23,6 +23,7 @@ COMMANDS = (
     "auto_numerics",
     "zero_kpa",
     "link_count",
+    "warp_batch",
     "original_fig6.__main__",
     "original_fig6.run_original_cells",
     "original_fig6.compare_cells",
