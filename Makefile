@@ -53,7 +53,7 @@ bench-scale: $(STAMP) ## Sweep memory at 2 000 and 20 000 trials, and a resume's
 bench-engines: $(STAMP) ## The engine benchmark: one pinch trial on PyBullet and on MuJoCo side by side, MuJoCo's 4 ms vs 2 ms -> results/figures/engine_speed.json
 	$(BIN)/python -m benchmarks.engines --convergence --out results/figures
 
-bench-mujoco: $(STAMP) ## A MuJoCo pinch trial before and after the step's cuts, side by side: CPU per trial and the share inside mj_step -> results/reference/mujoco_step_speed.json
+bench-mujoco: $(STAMP) ## MuJoCo pinch trials with the loop step by step and as data (control tables stepped in C), side by side: CPU per trial and the share inside mj_step -> results/reference/mujoco_step_speed.json
 	$(BIN)/python -m benchmarks.mujoco_step --out results/reference
 
 # The GPU benchmark's options (python -m benchmarks.warp_batch --help); a slow check on the CPU:

@@ -199,8 +199,9 @@ def build(
         "columns_every": columns_every,
         "per_column": per_column,
         "step_s": step_s,
-        "before": "root speeds set every step, mj_step one step at a time, checks and samples every 10 ms",
-        "after": "root on servos, runs between stops stepped in C from control tables, checks and "
+        "before_path": "root speeds set every step, mj_step one step at a time, checks and samples "
+        "every 10 ms",
+        "after_path": "root on servos, runs between stops stepped in C from control tables, checks and "
         f"samples every {'the task default' if period_s is None else f'{period_s * 1e3:g} ms'}",
         "period_s_after": period_s,
         **paths,
