@@ -5,7 +5,7 @@ BIN    := $(VENV)/bin
 STAMP  := $(VENV)/.installed-stamp
 
 .DEFAULT_GOAL := help
-.PHONY: help install demo test test-slow lint format bench bench-statics bench-scaling bench-scale bench-engines bench-mujoco bench-robust bench-numerics bench-auto-numerics bench-zero-kpa bench-design bench-fig6-reference bench-active bench-original fig6 fig6-fast fig6-audit fig6-quick fig6-original fig6-ablation fig6-ablation-quick fig3 fig5 fig5-quick palm palm-quick fig7 fig7-quick fig8 fig8-quick diagnose-demo sweep-demo example-gripper example-gripper-pybullet example-design figures clean
+.PHONY: help install demo test test-slow lint format bench bench-statics bench-scaling bench-scale bench-engines bench-mujoco bench-warp bench-robust bench-numerics bench-auto-numerics bench-zero-kpa bench-design bench-fig6-reference bench-active bench-original fig6 fig6-fast fig6-audit fig6-quick fig6-original fig6-ablation fig6-ablation-quick fig3 fig5 fig5-quick palm palm-quick fig7 fig7-quick fig8 fig8-quick diagnose-demo sweep-demo example-gripper example-gripper-pybullet example-design figures clean
 
 help: ## List the targets
 	@grep -E '^[a-zA-Z0-9_-]+:.*?## ' $(MAKEFILE_LIST) | awk 'BEGIN {FS = ":.*?## "}; {printf "  make %-20s %s\n", $$1, $$2}'
@@ -53,8 +53,14 @@ bench-scale: $(STAMP) ## Sweep memory at 2 000 and 20 000 trials, and a resume's
 bench-engines: $(STAMP) ## The engine benchmark: one pinch trial on PyBullet and on MuJoCo side by side, MuJoCo's 4 ms vs 2 ms -> results/figures/engine_speed.json
 	$(BIN)/python -m benchmarks.engines --convergence --out results/figures
 
-bench-mujoco: $(STAMP) ## A MuJoCo pinch trial before and after the step's cuts, side by side: CPU per trial and the share inside mj_step -> results/reference/mujoco_step_speed.json
+bench-mujoco: $(STAMP) ## MuJoCo pinch trials with the loop step by step and as data (control tables stepped in C), side by side: CPU per trial and the share inside mj_step -> results/reference/mujoco_step_speed.json
 	$(BIN)/python -m benchmarks.mujoco_step --out results/reference
+
+# The GPU benchmark's options (python -m benchmarks.warp_batch --help); a slow check on the CPU:
+# make bench-warp BENCH_WARP_ARGS="--device cpu --cells 4 --batch-size 4 --time-limit-s 300 --out results/warp_check"
+BENCH_WARP_ARGS ?= --device cuda --time-limit-s 3600
+bench-warp: $(STAMP) ## Many worlds in one call: the 150-cell audit on MuJoCo Warp in batches on a GPU (no batch launched after 1 h): steps/s, trials/s, labels vs C MuJoCo -> results/reference/warp_batch.json
+	$(BIN)/python -m benchmarks.warp_batch --out results/reference $(BENCH_WARP_ARGS)
 
 bench-robust: $(STAMP) ## What robust labels cost: one trial and the quick study, plain before vs robust now (~40 min on 2 idle cores) -> results/reference/robust_cost.json
 	$(BIN)/python -m benchmarks.robust_cost --out results/reference

@@ -1,11 +1,14 @@
-"""A MuJoCo pinch trial before and after the cuts of its step, side by side (``make bench-mujoco``).
+"""A MuJoCo pinch trial's loop before and after it became data, side by side (``make bench-mujoco``).
 
-*Before* is the trial as it ran without the cuts, selected by their switches: a sparse
-constraint Jacobian (``somo_sweep.sim.mujoco.scene.JACOBIAN``), the setpoint hooks called
-before every step (``somo_sweep.sim.follow.PLAN_RUNS``) and every trial's scene built and
-compiled (``SCENES.enabled``). *After* is the default: a dense Jacobian, the setpoint sends
-planned for each run of steps, compiled scenes kept per process. (The contact reads and the base
-drive were cut bit for bit and have no switch: both columns have them.)
+*Before* is the trial loop as it ran step by step, selected by switches: the driven root's
+speeds set from Python before every step (``somo_sweep.sim.mujoco.scene.SERVOS`` off), every
+step a call of ``mj_step`` with Python between (``somo_sweep.sim.mujoco.blocks.BLOCKS`` off), and
+the task's early-stop checks and hold-phase contact samples every 10 ms (its ``check_period_s``
+and ``sample_period_s``). *After* is the default: the root on its position servos, the runs of
+steps between the task's stops computed ahead as control tables and stepped in C
+(``mujoco.rollout``), checks and samples at the task's default periods (``--period-s`` to try
+others). The two differ in the root's drive, so labels may move where replicas disagree: the
+summary counts the cells whose labels are equal.
 
 The sample is the first ``per_column`` centring positions of every ``columns_every``-th
 (DSR, width) column of the quick grid on MuJoCo, so the scene cache sees what a sweep's worker
@@ -13,7 +16,7 @@ sees: a column's cells one after the other. Each cell runs both ways in this one
 alternating order; CPU per trial is this process's CPU time, the time inside ``mj_step`` its
 thread's CPU time around each call. Ratios measured so hold under load; absolute times do not.
 
-``python -m benchmarks.mujoco_step [--columns-every 3] [--per-column 4] [--out DIR]`` writes
+``python -m benchmarks.mujoco_step [--columns-every 3] [--per-column 4] [--period-s S] [--out DIR]`` writes
 ``mujoco_step_speed.json`` and ``mujoco_step_trials.csv`` into ``--out`` (results/reference).
 """
 
@@ -45,14 +48,19 @@ PATHS = ("before", "after")
 
 
 class _StepClock:
-    """Wraps ``mujoco.mj_step`` to add up this thread's CPU time inside it, s."""
+    """Wraps ``mujoco.mj_step`` and the blocks' rollouts to add up this thread's CPU time inside
+    them, s (a rollout's time is its steps' in C, with the control rows set and states copied)."""
 
     def __init__(self) -> None:
         import mujoco
+        from mujoco import rollout
+
+        from somo_sweep.sim.mujoco import blocks
 
         self.inside_s = 0.0
         self.steps = 0
-        self._mujoco, self._step = mujoco, mujoco.mj_step
+        self._mujoco, self._step, self._blocks = mujoco, mujoco.mj_step, blocks
+        inner = rollout.Rollout(nthread=0)
 
         def timed(m: Any, d: Any) -> None:
             t0 = time.thread_time()
@@ -60,25 +68,46 @@ class _StepClock:
             self.inside_s += time.thread_time() - t0
             self.steps += 1
 
+        clock = self
+
+        class _TimedRollout:
+            def rollout(self, *args: Any, **kwargs: Any) -> Any:
+                t0 = time.thread_time()
+                out = inner.rollout(*args, **kwargs)
+                clock.inside_s += time.thread_time() - t0
+                clock.steps += int(kwargs["nstep"])
+                return out
+
         mujoco.mj_step = timed
+        blocks._ROLLOUT[:] = [_TimedRollout()]
 
     def close(self) -> None:
         self._mujoco.mj_step = self._step
+        self._blocks._ROLLOUT.clear()
+
+
+#: The task's periods of checks and samples before the loop became data, s.
+BEFORE_PERIOD_S = 0.01
 
 
 @contextmanager
 def code_path(before: bool) -> Iterator[None]:
-    """Run MuJoCo trials the way they ran before the cuts (``before``) or as they run now."""
-    from somo_sweep.sim import follow
-    from somo_sweep.sim.mujoco import scene
-    from somo_sweep.sim.mujoco.scene_cache import SCENES
+    """Run MuJoCo trials the way their loop ran step by step (``before``) or as it runs now."""
+    from somo_sweep.sim.mujoco import blocks, scene
 
-    saved = (scene.JACOBIAN, follow.PLAN_RUNS, SCENES.enabled)
-    scene.JACOBIAN, follow.PLAN_RUNS, SCENES.enabled = ("sparse", False, False) if before else saved
+    saved = (scene.SERVOS, blocks.BLOCKS)
+    scene.SERVOS, blocks.BLOCKS = (False, False) if before else saved
     try:
         yield
     finally:
-        scene.JACOBIAN, follow.PLAN_RUNS, SCENES.enabled = saved
+        scene.SERVOS, blocks.BLOCKS = saved
+
+
+def _with_periods(job: Job, period_s: float | None) -> Any:
+    """The job's task parameters with both periods set (None: as the task's defaults leave them)."""
+    if period_s is None:
+        return job.params
+    return job.params.model_copy(update={"sample_period_s": period_s, "check_period_s": period_s})
 
 
 def _sample(jobs: list[Job], columns_every: int, per_column: int) -> list[int]:
@@ -87,16 +116,23 @@ def _sample(jobs: list[Job], columns_every: int, per_column: int) -> list[int]:
 
 
 def timed_cells(
-    columns_every: int = 3, per_column: int = 4, step_s: float = MUJOCO_DEFAULT_STEP_S
+    columns_every: int = 3,
+    per_column: int = 4,
+    step_s: float = MUJOCO_DEFAULT_STEP_S,
+    period_s: float | None = None,
 ) -> tuple[pd.DataFrame, dict[str, int]]:
-    """Every sampled cell run both ways in turn: one row per cell and path; the cache's hits."""
+    """Every sampled cell run both ways in turn: one row per cell and path; the cache's hits.
+
+    ``period_s``: the after path's periods of checks and samples, s (None: the task's defaults).
+    """
     from somo_sweep.sim.mujoco.scene_cache import SCENES
 
     jobs = _jobs("mujoco", step_s)
     run = get_task("pinch_grasp").run
-    for before in (True, False):  # imports and first-trial costs, before timing
-        with code_path(before):
-            run(jobs[-1].model, jobs[-1].params, jobs[-1].settings, jobs[-1].seed)
+    periods = {"before": BEFORE_PERIOD_S, "after": period_s}
+    for path in PATHS:  # imports and first-trial costs, before timing
+        with code_path(path == "before"):
+            run(jobs[-1].model, _with_periods(jobs[-1], periods[path]), jobs[-1].settings, jobs[-1].seed)
     SCENES.clear()
     hits, misses = SCENES.hits, SCENES.misses
     clock = _StepClock()
@@ -105,10 +141,11 @@ def timed_cells(
         for n, cell in enumerate(_sample(jobs, columns_every, per_column)):
             job = jobs[cell]
             for path in PATHS if n % 2 == 0 else PATHS[::-1]:
+                params = _with_periods(job, periods[path])
                 with code_path(path == "before"):
                     inside, steps = clock.inside_s, clock.steps
                     start = time.process_time()
-                    result = run(job.model, job.params, job.settings, job.seed)
+                    result = run(job.model, params, job.settings, job.seed)
                     cpu = time.process_time() - start
                 rows.append(
                     {
@@ -130,10 +167,15 @@ def _load() -> float:
     return os.getloadavg()[0] if hasattr(os, "getloadavg") else float("nan")
 
 
-def build(columns_every: int = 3, per_column: int = 4, step_s: float = MUJOCO_DEFAULT_STEP_S) -> Artifacts:
+def build(
+    columns_every: int = 3,
+    per_column: int = 4,
+    step_s: float = MUJOCO_DEFAULT_STEP_S,
+    period_s: float | None = None,
+) -> Artifacts:
     """Time the sample both ways and summarise: CPU per trial, the share inside ``mj_step``."""
     load_before = _load()
-    table, cache = timed_cells(columns_every, per_column, step_s)
+    table, cache = timed_cells(columns_every, per_column, step_s, period_s)
     load_after = _load()
     sums = table.groupby("path")[["cpu_s", "mj_step_cpu_s", "steps"]].sum()
     n = table["cell"].nunique()
@@ -157,8 +199,11 @@ def build(columns_every: int = 3, per_column: int = 4, step_s: float = MUJOCO_DE
         "columns_every": columns_every,
         "per_column": per_column,
         "step_s": step_s,
-        "before": "sparse Jacobian, setpoint hooks every step, every scene compiled",
-        "after": "dense Jacobian, setpoint sends planned per run, compiled scenes kept per process",
+        "before_path": "root speeds set every step, mj_step one step at a time, checks and samples "
+        "every 10 ms",
+        "after_path": "root on servos, runs between stops stepped in C from control tables, checks and "
+        f"samples every {'the task default' if period_s is None else f'{period_s * 1e3:g} ms'}",
+        "period_s_after": period_s,
         **paths,
         "after_over_before_totals": paths["after"]["cpu_s_per_trial"] / paths["before"]["cpu_s_per_trial"],
         "after_over_before_per_cell": {
@@ -196,13 +241,19 @@ def parser() -> argparse.ArgumentParser:
     """The command line of ``python -m benchmarks.mujoco_step``."""
     ap = argparse.ArgumentParser(
         prog="python -m benchmarks.mujoco_step",
-        description="A MuJoCo pinch trial before and after the cuts of its step, side by side.",
+        description="A MuJoCo pinch trial's loop before and after it became data, side by side.",
     )
     ap.add_argument(
         "--columns-every", type=int_in(1), default=3, help="every N-th (DSR, width) column (24; default 3)"
     )
     ap.add_argument(
         "--per-column", type=int_in(1, COLUMN), default=4, help="centring positions per column (default 4)"
+    )
+    ap.add_argument(
+        "--period-s",
+        type=float,
+        default=None,
+        help="the after path's periods of early-stop checks and hold samples, s (default: the task's)",
     )
     ap.add_argument(
         "--out",
@@ -221,7 +272,9 @@ def main(argv: list[str] | None = None) -> None:
     with user_errors():
         if (why := missing()) is not None:
             raise SomoError(why)
-        finish(build(args.columns_every, args.per_column), args.out)
+        if args.period_s is not None and not args.period_s > 0:
+            raise SomoError(f"--period-s must be > 0, got {args.period_s}")
+        finish(build(args.columns_every, args.per_column, period_s=args.period_s), args.out)
 
 
 if __name__ == "__main__":

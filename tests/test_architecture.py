@@ -118,7 +118,12 @@ def test_test_modules_have_unique_names() -> None:
 
 
 #: Each engine's own package, the only place that may import it.
-ENGINE_PACKAGES = {"pybullet": "sim/pybullet", "mujoco": "sim/mujoco"}
+ENGINE_PACKAGES = {
+    "pybullet": "sim/pybullet",
+    "mujoco": "sim/mujoco",
+    "mujoco_warp": "sim/mujoco",
+    "warp": "sim/mujoco",
+}
 
 
 def _third_party_imports(path: Path) -> set[str]:
@@ -141,6 +146,20 @@ def test_each_engine_is_imported_only_in_its_own_package(engine: str) -> None:
         if engine in _third_party_imports(path) and home not in path.parents
     ]
     assert offenders == []
+
+
+def test_only_the_warp_modules_import_warp_so_mujoco_runs_without_the_extra() -> None:
+    """MuJoCo Warp is an extra of its own: the MuJoCo engine never imports it, only the
+    ``mujoco_warp`` engine's modules (loaded when a study names that engine) do."""
+    importers = sorted(
+        str(path.relative_to(PACKAGE))
+        for path in PACKAGE.rglob("*.py")
+        if _third_party_imports(path) & {"warp", "mujoco_warp"}
+    )
+    assert importers == ["sim/mujoco/warp_batch.py", "sim/mujoco/warp_model.py"]
+    for path in (PACKAGE / "sim" / "mujoco").glob("*.py"):
+        if not path.name.startswith("warp_"):
+            assert not any(m.startswith("somo_sweep.sim.mujoco.warp") for m in _imports(path)), path.name
 
 
 #: Stages that reach an engine only through the engine-neutral interfaces of ``sim``.
@@ -177,8 +196,8 @@ def test_the_bench_statics_are_a_stage_of_their_own_above_the_engines_kinematics
     assert statics == STATICS_MODULES
     assert not {p.stem for p in (PACKAGE / "sim").glob("*.py")} & (STATICS_MODULES | {"statics"})
     # Each engine's chain kinematics stays in sim, below the statics, and needs nothing of them.
-    for engine in ENGINE_PACKAGES:
-        kinematics = PACKAGE / "sim" / engine / "kinematics.py"
+    for home in set(ENGINE_PACKAGES.values()):
+        kinematics = PACKAGE / home / "kinematics.py"
         assert not {m for m in _imports(kinematics) if m.startswith("somo_sweep.statics")}
 
 

@@ -64,6 +64,10 @@ class Follow:
             world.drive_base(body, pose[:3], pose[3:], self.max_force_n)
         self._last["base"] = pose.tobytes()
 
+    def mark_base_sent(self, pose: np.ndarray) -> None:
+        """Record a base pose row as sent (its targets were set another way: a control table)."""
+        self._last["base"] = pose.tobytes()
+
     def __call__(self, world: Any) -> None:
         # Not even looked up while a table holds still in the stretch of the last value sent.
         t = world.time_s

@@ -125,7 +125,7 @@ def model_chains(model: Model) -> list[tuple[Manipulator, bool]]:
 def neutral_mass_matrix(plan: BodyPlan, engine: str = "pybullet") -> np.ndarray:
     """The mass matrix of ``plan`` at its neutral pose on ``engine`` (SI; a free base's six DoFs
     first, then the spring joints in plan order). Imports that engine, and only that one."""
-    if engine == "mujoco":
+    if engine in ("mujoco", "mujoco_warp"):  # MuJoCo Warp's model is MuJoCo's
         from somo_sweep.sim.mujoco.mass_matrix import neutral_mass_matrix as mujoco_matrix
 
         return mujoco_matrix(plan)

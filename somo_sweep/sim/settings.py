@@ -16,6 +16,7 @@ from importlib.metadata import PackageNotFoundError, version
 from typing import ClassVar
 
 __all__ = [
+    "ACCELERATED_ENGINES",
     "ENGINES",
     "ENGINE_SETTINGS",
     "MAX_TIME_STEP_S",
@@ -23,6 +24,7 @@ __all__ = [
     "MUJOCO_INTEGRATORS",
     "EngineSettings",
     "MujocoSettings",
+    "MujocoWarpSettings",
     "PyBulletSettings",
     "WorldSettings",
     "engine_version",
@@ -30,8 +32,10 @@ __all__ = [
     "step_problem",
 ]
 
-#: The engines a world can run on.
+#: The engines a world can run on, one at a time (each serves every task, the bench included).
 ENGINES = ("pybullet", "mujoco")
+#: Engines that step many MuJoCo worlds in one call (optional extras): trials only, no bench.
+ACCELERATED_ENGINES = ("mujoco_warp",)
 #: MuJoCo's integrators we allow: ``discrete`` treats the joint springs implicitly (stable at any
 #: step), ``implicitfast`` only their damping (docs/physics.md, "MuJoCo").
 MUJOCO_INTEGRATORS = ("discrete", "implicitfast")
@@ -133,12 +137,41 @@ class MujocoSettings:
             raise ValueError(f"noslip_iterations must be a whole number >= 0, got {self.noslip_iterations!r}")
 
 
+@dataclass(frozen=True)
+class MujocoWarpSettings(MujocoSettings):
+    """MuJoCo's settings run on MuJoCo Warp (optional extra ``somo-sweep[warp]``), which steps
+    many worlds in one call (:class:`~somo_sweep.sim.batch.WorldBatch`), in float32.
+
+    Attributes:
+        device: Warp's device: ``cpu`` (slow: for checks) or ``cuda`` (``cuda:N`` for a GPU).
+        contacts_per_world: Contacts Warp makes room for per world (MuJoCo's grow as needed).
+        constraints_per_world: Constraint rows Warp makes room for per world.
+    """
+
+    name: ClassVar[str] = "mujoco_warp"
+
+    device: str = "cpu"
+    contacts_per_world: int = 128
+    constraints_per_world: int = 512
+
+    def __post_init__(self) -> None:
+        super().__post_init__()
+        if not (self.device == "cpu" or self.device == "cuda" or self.device.startswith("cuda:")):
+            raise ValueError(f"device must be cpu, cuda or cuda:N, got {self.device!r}")
+        for name in ("contacts_per_world", "constraints_per_world"):
+            value = getattr(self, name)
+            if not (isinstance(value, int) and value >= 1):
+                raise ValueError(f"{name} must be a whole number >= 1, got {value!r}")
+
+
 #: One engine's own settings.
 EngineSettings = PyBulletSettings | MujocoSettings
-#: Each engine's settings model, by engine name (in :data:`ENGINES` order).
+#: Each engine's settings model, by engine name (in :data:`ENGINES` order, then the accelerated
+#: engines, :data:`ACCELERATED_ENGINES`).
 ENGINE_SETTINGS: dict[str, type[PyBulletSettings] | type[MujocoSettings]] = {
     PyBulletSettings.name: PyBulletSettings,
     MujocoSettings.name: MujocoSettings,
+    MujocoWarpSettings.name: MujocoWarpSettings,
 }
 
 
@@ -183,7 +216,7 @@ class WorldSettings:
 
     @property
     def engine(self) -> str:
-        """The engine's name: ``pybullet`` or ``mujoco``."""
+        """The engine's name: ``pybullet``, ``mujoco`` or ``mujoco_warp``."""
         return self.engine_settings.name
 
     @property
@@ -212,5 +245,5 @@ class WorldSettings:
     def on(cls, engine: str, **shared: object) -> WorldSettings:
         """Settings on ``engine`` with that engine's defaults and the shared settings given."""
         if engine not in ENGINE_SETTINGS:
-            raise ValueError(f"engine must be one of {', '.join(ENGINES)}, got {engine!r}")
+            raise ValueError(f"engine must be one of {', '.join(ENGINE_SETTINGS)}, got {engine!r}")
         return cls(engine_settings=ENGINE_SETTINGS[engine](), **shared)  # type: ignore[arg-type]

@@ -9,20 +9,31 @@ says how to install it).
 
 from __future__ import annotations
 
+from collections.abc import Sequence
+
 from somo_sweep.errors import SimulationError
 from somo_sweep.model.description import Pose
+from somo_sweep.sim.batch import SerialBatch, WorldBatch
 from somo_sweep.sim.kinematics import ChainKinematics
 from somo_sweep.sim.plan import BodyPlan
 from somo_sweep.sim.settings import WorldSettings
 from somo_sweep.sim.world import World
 
-__all__ = ["open_chain_kinematics", "open_world", "prepare_engine"]
+__all__ = ["check_warp", "open_batch", "open_chain_kinematics", "open_world", "prepare_engine"]
 
 
 def _check_mujoco() -> None:
     from somo_sweep.sim.mujoco.support import missing
 
     if (why := missing()) is not None:
+        raise SimulationError(why)
+
+
+def check_warp() -> None:
+    """Raise :class:`SimulationError` saying how to install MuJoCo Warp if it is missing."""
+    from somo_sweep.sim.mujoco.support import warp_missing
+
+    if (why := warp_missing()) is not None:
         raise SimulationError(why)
 
 
@@ -33,9 +44,14 @@ def open_world(settings: WorldSettings | None = None) -> World:
         settings: Time step, gravity, solver and engine settings (default: ``WorldSettings()``).
 
     Raises:
-        SimulationError: The engine is MuJoCo and MuJoCo is not installed.
+        SimulationError: The engine is MuJoCo (or MuJoCo Warp) and it is not installed.
     """
     engine = (settings or WorldSettings()).engine
+    if engine == "mujoco_warp":  # a batch of one world (:mod:`somo_sweep.sim.batch`)
+        check_warp()
+        from somo_sweep.sim.mujoco.warp_batch import WarpWorld
+
+        return WarpWorld(settings)
     if engine == "mujoco":
         _check_mujoco()
         from somo_sweep.sim.mujoco.world import MujocoWorld
@@ -44,6 +60,24 @@ def open_world(settings: WorldSettings | None = None) -> World:
     from somo_sweep.sim.pybullet.world import PyBulletWorld
 
     return PyBulletWorld(settings)
+
+
+def open_batch(settings: Sequence[WorldSettings]) -> WorldBatch:
+    """A batch of new, empty worlds (:mod:`somo_sweep.sim.batch`), one per settings, on one engine:
+    ``mujoco_warp`` steps them together on Warp, the others one world at a time.
+
+    Raises:
+        SimulationError: The settings name more than one engine, or the engine is not installed.
+    """
+    engines = sorted({s.engine for s in settings})
+    if len(engines) > 1:
+        raise SimulationError(f"a batch runs on one engine, got {', '.join(engines)}")
+    if engines == ["mujoco_warp"]:
+        check_warp()
+        from somo_sweep.sim.mujoco.warp_batch import WarpBatch
+
+        return WarpBatch(settings)
+    return SerialBatch([open_world(s) for s in settings])
 
 
 def open_chain_kinematics(
@@ -61,7 +95,7 @@ def open_chain_kinematics(
         SimulationError: The body has movable joints that are not spring joints, or the engine
             is MuJoCo and MuJoCo is not installed.
     """
-    if engine == "mujoco":
+    if engine in ("mujoco", "mujoco_warp"):  # the kinematics of MuJoCo Warp are MuJoCo's
         _check_mujoco()
         from somo_sweep.sim.mujoco.kinematics import MujocoChainKinematics
 
@@ -81,7 +115,7 @@ def prepare_engine(engine: str) -> None:
     Raises:
         ImportError: The engine is not installed.
     """
-    if engine == "mujoco":
+    if engine in ("mujoco", "mujoco_warp"):
         import somo_sweep.sim.mujoco.world  # noqa: F401  (its import, not each trial's, pays)
 
         return

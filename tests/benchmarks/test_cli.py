@@ -24,6 +24,7 @@ COMMANDS = (
     "zero_kpa",
     "link_count",
     "room_returns",
+    "warp_batch",
     "original_fig6.__main__",
     "original_fig6.run_original_cells",
     "original_fig6.compare_cells",

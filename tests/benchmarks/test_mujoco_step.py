@@ -7,15 +7,13 @@ import pytest
 pytest.importorskip("mujoco")
 
 from benchmarks.mujoco_step import build, code_path
-from somo_sweep.sim import follow
-from somo_sweep.sim.mujoco import scene
-from somo_sweep.sim.mujoco.scene_cache import SCENES
+from somo_sweep.sim.mujoco import blocks, scene
 
 
-def test_the_before_path_switches_every_cut_off_and_back() -> None:
+def test_the_before_path_switches_the_servos_and_the_blocks_off_and_back() -> None:
     with code_path(before=True):
-        assert (scene.JACOBIAN, follow.PLAN_RUNS, SCENES.enabled) == ("sparse", False, False)
-    assert (scene.JACOBIAN, follow.PLAN_RUNS, SCENES.enabled) == ("dense", True, True)
+        assert (scene.SERVOS, blocks.BLOCKS) == (False, False)
+    assert (scene.SERVOS, blocks.BLOCKS) == (True, True)
 
 
 def test_one_cell_both_ways_gives_the_same_labels_and_the_share_inside_mj_step() -> None:
@@ -24,5 +22,9 @@ def test_one_cell_both_ways_gives_the_same_labels_and_the_share_inside_mj_step()
     assert summary["cells"] == 2 and summary["cells_with_equal_labels"] == 2
     for path in ("before", "after"):
         assert 0.0 < summary[path]["share_inside_mj_step"] < 1.0
-    assert summary["scene_cache"] == {"hits": 1, "misses": 1}  # the column's second cell
+        assert summary[f"{path}_path"].startswith("root")  # what the path is, beside its numbers
+    # each path compiles its own scene (with or without the root's servos) once for the column
+    assert summary["scene_cache"] == {"hits": 2, "misses": 2}
+    # early stops checked every 10 ms before, every 40 ms after: the after path may step a little longer
+    assert 0 < summary["before"]["steps"] <= summary["after"]["steps"] <= 1.05 * summary["before"]["steps"]
     assert any(line.lstrip().startswith("after/before") for line in out.lines)

@@ -85,6 +85,7 @@ class SceneAddresses:
         link_bodies: Per world body, the MuJoCo body ids of its base and links (link-index order).
         root_qpos, root_dof: Per body with root joints, their qpos and dof addresses (slices, or
             index arrays where not contiguous).
+        root_servos: Per driven body with position servos, their slice of ``ctrl``.
         com_offset: Per free body, its centre of mass in its frame (None: at its origin).
         free: Ids of the bodies on a free joint.
         spring_dofs: Dof addresses of every spring joint (a slice where contiguous).
@@ -95,6 +96,7 @@ class SceneAddresses:
     link_bodies: dict[int, np.ndarray]
     root_qpos: dict[int, Any]
     root_dof: dict[int, Any]
+    root_servos: dict[int, slice]
     com_offset: dict[int, np.ndarray | None]
     free: set[int]
     spring_dofs: Any
@@ -111,6 +113,7 @@ def read_addresses(
     link_bodies: dict[int, np.ndarray] = {}
     root_qpos: dict[int, Any] = {}
     root_dof: dict[int, Any] = {}
+    root_servos: dict[int, slice] = {}
     com_offset: dict[int, np.ndarray | None] = {}
     free: set[int] = set()
     spring_dofs: list[int] = []
@@ -135,13 +138,25 @@ def read_addresses(
             else:
                 root_qpos[body.id] = span([int(j.qposadr[0]) for j in roots])
                 root_dof[body.id] = span([int(j.dofadr[0]) for j in roots])
+            if plan.root_servos:  # added one after the other: consecutive
+                first = m.actuator(plan.root_servos[0]).id
+                root_servos[body.id] = slice(first, first + len(plan.root_servos))
     owner = np.full(m.ngeom, -1)
     link = np.full(m.ngeom, -2)
     for g in geoms:
         gid = m.geom(g.name).id
         owner[gid], link[gid] = g.owner, g.link
     return SceneAddresses(
-        link_bodies, root_qpos, root_dof, com_offset, free, span(spring_dofs), len(spring_dofs), owner, link
+        link_bodies,
+        root_qpos,
+        root_dof,
+        root_servos,
+        com_offset,
+        free,
+        span(spring_dofs),
+        len(spring_dofs),
+        owner,
+        link,
     )
 
 

@@ -45,10 +45,9 @@ class MujocoDrive:
         #: Each spring joint's dof address and qpos address (set by the world when it compiles).
         self.indices: list[int] = []
         self.qpos_adr: list[int] = []
-        self._b = np.zeros((len(joints), n_inputs))
-        for row, sj in enumerate(joints):
-            if sj.input_index >= 0:
-                self._b[row, sj.input_index] = 1.0
+        # Each joint's input (a gather, the same bits one row or many at a time).
+        self._driven_rows = np.array([r for r, sj in enumerate(joints) if sj.input_index >= 0], dtype=int)
+        self._input_of = np.array([sj.input_index for sj in joints if sj.input_index >= 0], dtype=int)
         self.hysteresis = np.array([j.hysteresis for j in joints], dtype=float)
         self._u_inputs = np.zeros(len(joints))
         self._bias = np.zeros(len(joints))
@@ -67,8 +66,18 @@ class MujocoDrive:
         """Set the control inputs (N·m for revolute axes, N for prismatic ones)."""
         if len(inputs_si) != self.n_inputs:
             raise ValueError(f"expected {self.n_inputs} inputs, got {len(inputs_si)}")
-        self._u_inputs = self._b @ np.asarray(inputs_si, dtype=float)
+        self._u_inputs = self._joint_inputs(np.asarray(inputs_si, dtype=float)[None])[0]
         self._send()
+
+    def _joint_inputs(self, inputs_si: np.ndarray) -> np.ndarray:
+        out = np.zeros((len(inputs_si), len(self.joints)))
+        out[:, self._driven_rows] = inputs_si[:, self._input_of]
+        return out
+
+    def efforts_of(self, inputs_si: np.ndarray) -> np.ndarray:
+        """The joint efforts (rows) that rows of control inputs would give, N·m / N; as
+        :meth:`set_inputs` then :attr:`efforts`, bit for bit."""
+        return self._joint_inputs(np.asarray(inputs_si, dtype=float)) + self._bias
 
     def set_joint_inputs(self, inputs_si: Sequence[float] | np.ndarray) -> None:
         """Set one input per spring joint (N·m / N), bypassing the actuator axes."""

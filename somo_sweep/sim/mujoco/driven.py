@@ -1,10 +1,13 @@
 """Driven roots on MuJoCo: each reaches the target base pose it was given at the end of the step.
 
 A driven root has six joints (three slides, then yaw, pitch, roll:
-:data:`~somo_sweep.sim.mujoco.scene.DRIVEN_AXES`), so a pose is their values. Before each step
-their speeds are set to (target − pose)/dt; their very large armature keeps the fingers'
-reactions from moving the root within the step. :func:`place_root` teleports any root (driven,
-free or welded) to a pose, at rest.
+:data:`~somo_sweep.sim.mujoco.scene.DRIVEN_AXES`), so a pose is their values. Under the
+``discrete`` integrator each joint has a stiff position servo whose control is its target
+(:data:`~somo_sweep.sim.mujoco.scene.DRIVEN_SERVO`): a target is written into ``ctrl``, and a
+run of targets is a control table (:meth:`DrivenRoots.target_rows`). Otherwise, before each step
+their speeds are set to (target − pose)/dt (:meth:`DrivenRoots.drive`). Either way their very
+large armature keeps the fingers' reactions from moving the root within the step.
+:func:`place_root` teleports any root (driven, free or welded) to a pose, at rest.
 """
 
 from __future__ import annotations
@@ -25,11 +28,14 @@ class DrivenRoots:
     """The targets of a world's driven roots and the root speeds that reach them in one step.
 
     Attributes:
-        targets: Per driven body id, its root's target (x, y, z in m, yaw, pitch, roll in rad).
+        targets: Per driven body id, its root's target (x, y, z in m, yaw, pitch, roll in rad);
+            for a root with servos, a view of its controls.
+        servo_columns: Per driven body id with servos, its controls' slice of ``ctrl``.
     """
 
     def __init__(self) -> None:
         self.targets: dict[int, np.ndarray] = {}
+        self.servo_columns: dict[int, slice] = {}
         self._views: list[tuple[np.ndarray, np.ndarray, np.ndarray]] = []  # target, qpos and qvel views
         self._turns: dict[tuple[int, bytes], tuple[np.ndarray, np.ndarray]] = {}
         self._angles_at: dict[int, tuple[int, bytes]] = {}  # driven body id → rpy its angles reached
@@ -69,21 +75,64 @@ class DrivenRoots:
             self._angles_at[body.id] = key
 
     def bind(
-        self, qpos: np.ndarray, qvel: np.ndarray, root_qpos: dict[int, Any], root_dof: dict[int, Any]
+        self, data: Any, root_qpos: dict[int, Any], root_dof: dict[int, Any], servos: dict[int, slice]
     ) -> None:
-        """After a compile: put the roots loaded since the last one at their poses, and keep views
-        of every root's joint positions and speeds in the new data."""
+        """After a compile: put the roots loaded since the last one at their poses; a root with
+        servos (``servos``: its slice of ``ctrl``) keeps its target in ``ctrl``, the others views
+        of their joint positions and speeds in the new data."""
+        qpos, qvel, ctrl = data.qpos, data.qvel, data.ctrl
         for body_id, pose in self._initial.items():
             qpos[root_qpos[body_id]] = pose
         self._initial.clear()
-        self._views = [(target, qpos[root_qpos[i]], qvel[root_dof[i]]) for i, target in self.targets.items()]
+        self.servo_columns = dict(servos)
+        for body_id, columns in servos.items():
+            ctrl[columns] = self.targets[body_id]
+            self.targets[body_id] = ctrl[columns]
+        self._views = [
+            (target, qpos[root_qpos[i]], qvel[root_dof[i]])
+            for i, target in self.targets.items()
+            if i not in servos
+        ]
+
+    @property
+    def needs_drive(self) -> bool:
+        """Whether some root's speed must be set before each step (:meth:`drive`)."""
+        return bool(self._views)
 
     def drive(self, time_step_s: float) -> None:
-        """Set each driven root's speed so it reaches its target at the end of the step."""
+        """Set the speed of each root without servos so it reaches its target at the end of the step."""
         rate = 1.0 / time_step_s
         for target, pose, speed in self._views:  # views into the data: no copies
             np.subtract(target, pose, out=speed)
             speed *= rate
+
+    def target_rows(self, body: Body, rows: np.ndarray) -> np.ndarray:
+        """The targets of :meth:`set_target` called with each base pose row in turn (x, y, z in m,
+        roll, pitch, yaw in rad), bit for bit; the body's target is left at the last.
+
+        A run of rows with the orientation the angles already have is one vectorised sum.
+        """
+        rows = np.ascontiguousarray(rows, dtype=float)
+        bits = rows.view(np.uint64)  # orientations compared as set_target keys them: by their bytes
+        out = np.empty((len(rows), 6))
+        target = self.targets[body.id]
+        k = 0
+        while k < len(rows):
+            self.set_target(body, rows[k, :3], rows[k, 3:])
+            out[k] = target
+            k += 1
+            key = self._angles_at.get(body.id)
+            if key is None:
+                continue
+            same = np.flatnonzero((bits[k:, 3:] != bits[k - 1, 3:]).any(axis=1))
+            end = k + (int(same[0]) if len(same) else len(rows) - k)
+            if end > k:  # the same orientation: positions move, angles stay (as set_target does)
+                turn = self._turns[key]
+                np.add(turn[0], rows[k:end, :3], out=out[k:end, :3])
+                out[k:end, 3:] = target[3:]
+                target[:3] = out[end - 1, :3]
+                k = end
+        return out
 
 
 def place_root(

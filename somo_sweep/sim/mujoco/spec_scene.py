@@ -19,6 +19,7 @@ import mujoco
 import numpy as np
 
 from somo_sweep.errors import SimulationError
+from somo_sweep.sim.mujoco import scene
 from somo_sweep.sim.mujoco.compiled import filter_contacts
 from somo_sweep.sim.mujoco.scene import (
     GeomInfo,
@@ -61,14 +62,18 @@ class SpecScene:
         self._excludes: list[Any] = []
         self._pending: list[_Change] = []  # not yet made in the spec
         self._unbuilt: list[_Change] = []  # stood for by a cached model, not in the spec
+        self._servos = scene.SERVOS and settings.mujoco.integrator == "discrete"  # driven roots'
 
     def add_plan(self, plan: BodyPlan, body_id: int, position_m: Any, quat: tuple[float, ...]) -> None:
         """Add one plan with world id ``body_id`` at a pose (m, quaternion x, y, z, w)."""
         check_plan(plan)
 
         def build() -> None:
-            tc = self.settings.mujoco.contact_time_constant_s
-            self.planned[body_id], geoms = add_plan(self.spec, plan, body_id, position_m, quat, tc)
+            own = self.settings.mujoco
+            servo_s = self.settings.time_step_s if self._servos else None
+            self.planned[body_id], geoms = add_plan(
+                self.spec, plan, body_id, position_m, quat, own.contact_time_constant_s, servo_s
+            )
             self.geoms.extend(geoms)
 
         where = (np.asarray(position_m, float).tobytes(), tuple(quat))
@@ -102,7 +107,12 @@ class SpecScene:
 
     def compile(self) -> Any:
         """The first compile's model: a copy of the cached one if this process compiled the same scene."""
-        key = (self.settings, int(self.spec.option.jacobian), tuple(k for k, _ in self._pending))
+        key = (
+            self.settings,
+            int(self.spec.option.jacobian),
+            self._servos,
+            tuple(k for k, _ in self._pending),
+        )
         hit = SCENES.get(key)
         if hit is not None:
             model, self.planned, self.geoms = hit

@@ -23,11 +23,13 @@ from collections.abc import Iterator
 from somo_sweep.model.description import Link, Manipulator
 from somo_sweep.model.load import Model
 
-__all__ = ["ANCHOR_WHY", "ENGINE", "INSTALL", "missing", "unsupported"]
+__all__ = ["ANCHOR_WHY", "ENGINE", "INSTALL", "WARP_INSTALL", "missing", "unsupported", "warp_missing"]
 
 ENGINE = "mujoco"
 #: How a user gets the engine.
 INSTALL = 'pip install "somo-sweep[mujoco]"'
+#: How a user gets the mujoco_warp engine.
+WARP_INSTALL = 'pip install "somo-sweep[warp]"'
 #: Why ``friction.anchor: true`` is refused (after the value, in every message that names it).
 ANCHOR_WHY = (
     f"cannot be expressed on engine {ENGINE} (it solves friction afresh each step from the contact "
@@ -42,6 +44,18 @@ def missing() -> str | None:
     return (
         f"engine {ENGINE} needs MuJoCo, which is not installed in this Python; install the optional "
         f"extra ({INSTALL}), or use engine: pybullet"
+    )
+
+
+def warp_missing() -> str | None:
+    """Why the mujoco_warp engine cannot run in this Python (MuJoCo Warp or MuJoCo not
+    installed), or None if it can."""
+    absent = [name for name in ("mujoco", "mujoco_warp", "warp") if importlib.util.find_spec(name) is None]
+    if not absent:
+        return None
+    return (
+        f"engine mujoco_warp needs MuJoCo Warp, which is not installed in this Python (missing: "
+        f"{', '.join(absent)}); install the optional extra ({WARP_INSTALL}), or use engine: mujoco"
     )
 
 

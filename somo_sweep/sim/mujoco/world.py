@@ -28,21 +28,23 @@ from somo_sweep.errors import SimulationError
 from somo_sweep.model.description import Pose
 from somo_sweep.model.load import Model
 from somo_sweep.sim.camera import Camera
-from somo_sweep.sim.follow import PlannedSends
+from somo_sweep.sim.follow import Follow
+from somo_sweep.sim.mujoco import blocks
 from somo_sweep.sim.mujoco.compiled import read_addresses
 from somo_sweep.sim.mujoco.contacts import StepContacts, closest_distance_m
 from somo_sweep.sim.mujoco.drive import MujocoDrive
 from somo_sweep.sim.mujoco.driven import DrivenRoots, place_root
-from somo_sweep.sim.mujoco.free_joint import check_free_body, free_base_pose, free_base_velocity
+from somo_sweep.sim.mujoco.free_joint import free_base_pose, free_base_velocity
 from somo_sweep.sim.mujoco.render import mujoco_image
 from somo_sweep.sim.mujoco.spec_scene import SpecScene
+from somo_sweep.sim.mujoco.step_loop import block_checks, check_thrown_in, step_loop
 from somo_sweep.sim.mujoco.surfaces import Surface
-from somo_sweep.sim.mujoco.unstable import SPEED_CHECK_EVERY, bad_accelerations, check_spring_speeds
+from somo_sweep.sim.mujoco.unstable import bad_accelerations
 from somo_sweep.sim.plan import BodyPlan
 from somo_sweep.sim.planner import plan_assembly
 from somo_sweep.sim.rotations import multiply_transforms, quat_from_rpy, xyzw
 from somo_sweep.sim.settings import MujocoSettings, WorldSettings
-from somo_sweep.sim.world import MAX_JOINT_SPEED_RAD_S, Body, ModelHandle, World
+from somo_sweep.sim.world import Body, ModelHandle, World
 
 __all__ = ["MujocoWorld"]
 
@@ -185,8 +187,9 @@ class MujocoWorld(World):
         self._dirty = False
         self._step_contacts, self._contact_memo = None, {}
         self._qpos, self._qvel = self.data.qpos, self.data.qvel
+        self._bad_acc = self.data.warning[int(mujoco.mjtWarning.mjWARN_BADQACC)]
         self._addresses()
-        self._driven.bind(self._qpos, self._qvel, self._root_qpos, self._root_dof)
+        self._driven.bind(self.data, self._root_qpos, self._root_dof, self._root_servos)
         for body in self.bodies:
             self.push_efforts(body.drive)  # type: ignore[arg-type]
         mujoco.mj_kinematics(self.model, self.data)
@@ -195,6 +198,7 @@ class MujocoWorld(World):
     def _addresses(self) -> None:
         a = read_addresses(self.model, self.bodies, self._scene.planned, self._scene.geoms)
         self._link_bodies, self._root_qpos, self._root_dof = a.link_bodies, a.root_qpos, a.root_dof
+        self._root_servos = a.root_servos
         self._com_offset, self._free = a.com_offset, a.free
         self._spring_dofs, self._n_springs = a.spring_dofs, a.n_springs
         self._geom_owner, self._geom_link = a.geom_owner, a.geom_link
@@ -237,65 +241,58 @@ class MujocoWorld(World):
     def step(self, n: int = 1) -> None:
         """Advance ``n`` steps: pre-step hooks, driven roots, MuJoCo (springs inside).
 
+        A run whose controls are all planned (setpoint tables, driven roots with servos) is
+        stepped in C, its controls computed ahead (:mod:`.blocks`); any other, step by step.
+
         Raises:
             UnstableSimulation: Joint speeds at :data:`MAX_JOINT_SPEED_RAD_S`, NaN, or a body thrown.
         """
         if self._dirty:
             self._ready()
-        m, d = self.model, self.data
-        cap = 0.99 * MAX_JOINT_SPEED_RAD_S
+        table = self.planned_controls(n) if blocks.BLOCKS and n > 1 else None
+        if table is not None:
+            self._step_block(table, n)
+        else:
+            step_loop(self, n)  # one step at a time, the hooks called before each
+
+    def planned_controls(self, n: int) -> np.ndarray | None:
+        """The control table of the next ``n`` steps (:func:`.blocks.control_table`) when they are
+        all planned: the hooks are setpoint tables, the driven roots have servos, no force is
+        pending. The hooks are then left as after those steps. None otherwise (nothing changed)."""
+        if self._dirty:
+            self._ready()
+        hooks = self.pre_step
+        if self._external or self._driven.needs_drive or not all(type(h) is Follow for h in hooks):
+            return None
+        follows = [h for h in hooks if isinstance(h, Follow)]
         dt = self.settings.time_step_s
-        every = self.settings.check_every
-        capped = not self.settings.clamp_speed_cap
-        dofs = self._spring_dofs if self._n_springs else None
-        bad_acc = d.warning[int(mujoco.mjtWarning.mjWARN_BADQACC)]
-        qvel = self._qvel  # views kept from the compile: reading d.qvel builds a new one each time
-        step, hooks, clock, driven = mujoco.mj_step, self.pre_step, perf_counter, self._driven
-        # Setpoint tables alone: their sends planned for the whole run, no Python call per step.
-        planned = PlannedSends.for_run(hooks, self.step_count, n, dt)
-        due = planned.due if planned is not None else []
-        next_due = 0
-        for k in range(n):
-            if planned is None:
-                for hook in hooks:
-                    hook(self)
-                if self._dirty:  # a hook added a body
-                    self._ready()
-                    m, d, qvel = self.model, self.data, self._qvel
-                    dofs = self._spring_dofs if self._n_springs else None
-                    bad_acc = d.warning[int(mujoco.mjtWarning.mjWARN_BADQACC)]
-            elif k == due[next_due]:
-                planned.send(self, k)
-                next_due += 1
-            if driven.targets:
-                driven.drive(dt)
-            t0 = clock()
-            step(m, d)
-            self._engine_time_s += clock() - t0
-            if self._external:
-                d.xfrc_applied[:] = 0.0
-                self._external = False
-            self.step_count = count = self.step_count + 1
-            self.time_s = count * dt
-            self._kinematics_stale = True
-            self._step_contacts = None
-            if self._contact_memo:
-                self._contact_memo = {}
-            if dofs is not None and count % SPEED_CHECK_EVERY == 0:
-                check_spring_speeds(qvel[dofs], cap, capped, self.time_s)
-            if bad_acc.number:
+        return blocks.control_table(self.model, self.data, follows, self._driven, self.step_count, n, dt)
+
+    def stepped(self, n: int) -> None:
+        """Count ``n`` steps its data took elsewhere (rolled out, or on another engine)."""
+        self.step_count += n
+        self.time_s = self.step_count * self.settings.time_step_s
+        self._kinematics_stale = True
+        self._step_contacts, self._contact_memo = None, {}
+
+    def _step_block(self, table: np.ndarray, n: int) -> None:
+        """``n`` steps in C with the controls the hooks planned for them, checked afterwards."""
+        m, d, dt = self.model, self.data, self.settings.time_step_s
+        done = 0
+        while done < n:
+            t0 = perf_counter()
+            states = blocks.roll(m, d, table[done:])
+            self._engine_time_s += perf_counter() - t0
+            taken, bad = blocks.steps_taken(states), bool(self._bad_acc.number)
+            blocks.first_failure(states[:taken], m.nq, self.step_count, dt, block_checks(self), bad)
+            self.stepped(taken)
+            done += taken
+            if bad:  # at the last step taken (it stopped the rollout)
                 raise bad_accelerations(self.time_s)
-            if count % every == 0:
-                self.check_thrown()
 
     def check_thrown(self) -> None:
         """Raise if a free body left the scene, moves implausibly fast, or is not finite."""
-        d = self.data
-        names = {b.id: b.plan.name for b in self.bodies}
-        capped = not self.settings.clamp_speed_cap
-        for body_id in self._free:
-            qpos, qvel = d.qpos[self._root_qpos[body_id]], d.qvel[self._root_dof[body_id]]
-            check_free_body(f"body '{names[body_id]}'", qpos, qvel, self.time_s, capped)
+        check_thrown_in(self, self.data.qpos, self.data.qvel, self.time_s)
 
     # ----------------------------------------------------------------- reading
     def _kinematics(self) -> None:

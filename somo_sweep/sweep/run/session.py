@@ -131,10 +131,10 @@ def _engines_installed(study: Study) -> None:
     Raises:
         SomoError: A job runs on ``mujoco`` and MuJoCo is not installed (how to install it).
     """
-    if study.simulation is not None and study.simulation.engine == "mujoco":
-        from somo_sweep.sim.mujoco.support import missing  # no MuJoCo import: is it there?
+    if study.simulation is not None and study.simulation.engine != "pybullet":
+        from somo_sweep.sim.mujoco.support import missing, warp_missing  # no import: are they there?
 
-        if (why := missing()) is not None:
+        if (why := missing() if study.simulation.engine == "mujoco" else warp_missing()) is not None:
             raise SomoError(f"simulation.engine: {why}")
 
 

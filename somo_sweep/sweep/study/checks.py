@@ -192,7 +192,7 @@ def check_points(study: Study, lines: Mapping[str, int], problems: list[Problem]
         _check_pairs(study, resolver, study.task.check_params, lines, problems)
     if study.task.check_grid is not None and all_built:
         _check_grid(study, resolver, study.task.check_grid, lines, problems)
-    if study.simulation is not None and study.simulation.engine == "mujoco" and not problems:
+    if study.simulation is not None and study.simulation.engine != "pybullet" and not problems:
         _check_pairs(study, resolver, _mujoco_needs(study.task), lines, problems, where="model")
 
 

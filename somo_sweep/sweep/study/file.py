@@ -58,6 +58,7 @@ from somo_sweep.sim.settings import (
     ENGINE_SETTINGS,
     MUJOCO_DEFAULT_STEP_S,
     MujocoSettings,
+    MujocoWarpSettings,
     WorldSettings,
     option_names,
     step_problem,
@@ -101,6 +102,10 @@ class Simulation(Spec):
     ``contact_time_constant_s``, ``impratio`` and ``noslip_iterations`` tune it. Each engine
     refuses the other's own options set to anything but their defaults (``scale``,
     ``body_per_manipulator`` and ``friction_rows_every`` are PyBullet's).
+
+    ``engine: mujoco_warp`` runs MuJoCo's scenes on MuJoCo Warp (optional extra
+    ``somo-sweep[warp]``; docs/engines.md), with MuJoCo's options and its own: ``device``
+    (``cpu`` or ``cuda``), ``contacts_per_world`` and ``constraints_per_world``.
     """
 
     text_numbers: ClassVar[bool] = False
@@ -111,11 +116,14 @@ class Simulation(Spec):
     gravity_m_s2: tuple[float, float, float] = (0.0, 0.0, -9.81)
     body_per_manipulator: bool = False
     friction_rows_every: int = Field(1, ge=1, le=2)
-    engine: Literal["pybullet", "mujoco"] = "pybullet"
+    engine: Literal["pybullet", "mujoco", "mujoco_warp"] = "pybullet"
     integrator: Literal["discrete", "implicitfast"] = "discrete"
     contact_time_constant_s: float = Field(MujocoSettings.contact_time_constant_s, gt=0, le=1.0)
     impratio: float = Field(MujocoSettings.impratio, gt=0, le=1e4)
     noslip_iterations: int = Field(MujocoSettings.noslip_iterations, ge=0, le=1000)
+    device: str = Field(MujocoWarpSettings.device, pattern=r"^(cpu|cuda|cuda:\d+)$")
+    contacts_per_world: int = Field(MujocoWarpSettings.contacts_per_world, ge=1, le=100_000)
+    constraints_per_world: int = Field(MujocoWarpSettings.constraints_per_world, ge=1, le=1_000_000)
 
     @field_validator("time_step_s")
     @classmethod
@@ -128,10 +136,12 @@ class Simulation(Spec):
     @model_validator(mode="after")
     def _options_of_the_engine(self) -> Simulation:
         """An option of the other engine, set to anything but its default, is refused by name."""
-        other = "pybullet" if self.engine == "mujoco" else "mujoco"
-        foreign = [f for f in self.model_fields_set if f in option_names(other)]
-        unread = [f for f in foreign if getattr(self, f) != type(self).model_fields[f].default]
+        own = option_names(self.engine)
+        owners = {f: e for e in reversed(ENGINE_SETTINGS) for f in option_names(e) if f not in own}
+        foreign = [f for f in self.model_fields_set if f in owners]
+        unread = sorted(f for f in foreign if getattr(self, f) != type(self).model_fields[f].default)
         if unread:
+            other = owners[unread[0]]
             raise ValueError(
                 f"{', '.join(sorted(unread))}: engine {self.engine} does not read "
                 f"{'it' if len(unread) == 1 else 'them'} ({'its' if len(unread) == 1 else 'their'} engine is "
@@ -144,7 +154,7 @@ class Simulation(Spec):
         """The step: as given, else the engine's default (PyBullet 0.5 ms, MuJoCo 4 ms)."""
         if self.time_step_s is not None:
             return self.time_step_s
-        return MUJOCO_DEFAULT_STEP_S if self.engine == "mujoco" else WorldSettings.time_step_s
+        return WorldSettings.time_step_s if self.engine == "pybullet" else MUJOCO_DEFAULT_STEP_S
 
     def world_settings(self) -> WorldSettings:
         """The :class:`~somo_sweep.sim.world.WorldSettings` these settings describe."""

@@ -1,8 +1,8 @@
 """When a pinch-grasp trial's outcome is settled before its end: the early-stop rule.
 
 A trial may stop as soon as no later phase can change its label under either rule
-(:mod:`somo_sweep.tasks.pinch_grasp.classify`). The rule is checked every sample
-period (10 ms) from the end of the squeeze to the end of the lift: the outcome is
+(:mod:`somo_sweep.tasks.pinch_grasp.classify`). The rule is checked every
+``check_period_s`` (40 ms) from the end of the squeeze to the end of the lift: the outcome is
 settled when the object
 
 * touches no part of the hand (fingers, palm, base boxes),

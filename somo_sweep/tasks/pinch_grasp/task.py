@@ -52,7 +52,7 @@ from somo_sweep.tasks.pinch_grasp.positions import (
 from somo_sweep.tasks.pinch_grasp.settled import Snapshot, settled_reason
 from somo_sweep.tasks.registry import TaskResult
 
-__all__ = ["drive_n_m", "run_pinch_grasp"]
+__all__ = ["Trial", "drive_n_m", "run_pinch_grasp", "trial_settings"]
 
 Metrics = dict[str, float | int | bool | str]
 
@@ -78,21 +78,58 @@ def run_pinch_grasp(
         observe_at_s: Times of the observations, s.
     """
     del seed
-    hand_model = gripper(model, params)
-    n_distal = distal_zone_links(model.as_assembly().manipulators[0].manipulator, params.distal_segment_ratio)
-    if params.original.clamp_speed_cap:
-        settings = replace(settings, clamp_speed_cap=True)
-    with open_world(settings) as world:
-        scene = _build_scene(world, hand_model, params)
-        _plan_path(scene, params, drive_n_m(hand_model, params, scene.hand.input_names))
-        steps = _Steps.plan(params, settings.time_step_s, observe_at_s)
-        metrics: Metrics = {"n_distal_links": n_distal, "finger_length_m": finger_length_m(hand_model)}
+    with open_world(trial_settings(params, settings)) as world:
+        trial = Trial.start(world, model, params, observe_at_s)
         try:
-            ending = _step_through(scene, steps, metrics, observe)
+            ending = _step_through(trial.scene, trial.steps, trial.metrics, observe)
         except UnstableSimulation as exc:
             return TaskResult(status="unstable", message=str(exc))
-        _collect_metrics(scene, steps, ending, params, metrics)
-    return _classified(metrics, params)
+        return trial.finish(ending)
+
+
+def trial_settings(params: PinchGraspParams, settings: WorldSettings) -> WorldSettings:
+    """The world settings a trial runs with (the original's speed cap let through if it asks)."""
+    return replace(settings, clamp_speed_cap=True) if params.original.clamp_speed_cap else settings
+
+
+@dataclass(frozen=True)
+class Trial:
+    """One trial set up in its world, ready to step: its scene, stops, parameters and metrics.
+
+    Attributes:
+        scene: The world and its bodies (the hand following its path and torque ramp).
+        steps: The stops of its step loop.
+        params: Its parameters.
+        metrics: Its metrics so far.
+    """
+
+    scene: _Scene
+    steps: _Steps
+    params: PinchGraspParams
+    metrics: Metrics
+
+    @classmethod
+    def start(
+        cls, world: World, model: Model, params: PinchGraspParams, observe_at_s: Sequence[float] = ()
+    ) -> Trial:
+        """Build the trial's scene in ``world`` and give the hand its path and torque ramp."""
+        hand_model = gripper(model, params)
+        finger = model.as_assembly().manipulators[0].manipulator
+        n_distal = distal_zone_links(finger, params.distal_segment_ratio)
+        scene = _build_scene(world, hand_model, params)
+        _plan_path(scene, params, drive_n_m(hand_model, params, scene.hand.input_names))
+        steps = _Steps.plan(params, world.settings.time_step_s, observe_at_s)
+        metrics: Metrics = {"n_distal_links": n_distal, "finger_length_m": finger_length_m(hand_model)}
+        return cls(scene, steps, params, metrics)
+
+    def progress(self, observe: Callable[[World, float], None] | None = None) -> _Progress:
+        """The trial's work at its stops (:class:`_Progress`)."""
+        return _Progress(self.scene, self.steps, self.metrics, observe)
+
+    def finish(self, ending: _Ending) -> TaskResult:
+        """The trial's result once its step loop has ended."""
+        _collect_metrics(self.scene, self.steps, ending, self.params, self.metrics)
+        return _classified(self.metrics, self.params)
 
 
 def drive_n_m(hand_model: Model, params: PinchGraspParams, input_names: Sequence[str]) -> list[float]:
@@ -209,10 +246,11 @@ class _Steps:
         _, t2, t3, t4 = _phase_ends_s(p)
         n_steps = round(t4 / dt)
         sample_every = max(1, round(p.sample_period_s / dt))
+        check_every = max(1, round(p.check_period_s / dt))
         i_lift, i_hold = round(t2 / dt), round(t3 / dt)
         observe_steps = {min(round(t / dt), n_steps - 1) for t in observe_at_s}
-        # From the end of the squeeze to the end of the lift, every sample period.
-        checks = set(range(i_lift, i_hold + 1, sample_every)) if p.early_stop else set()
+        # From the end of the squeeze to the end of the lift, every check period.
+        checks = set(range(i_lift, i_hold + 1, check_every)) if p.early_stop else set()
         # Hold-phase samples follow the steps counted back from the last, so the last comes last.
         samples = {i + 1 for i in range(i_hold, n_steps) if (n_steps - 1 - i) % sample_every == 0}
         return cls(dt, n_steps, i_lift, i_hold, observe_steps, checks, samples)
@@ -238,36 +276,64 @@ class _Ending:
     reason: str
 
 
-def _step_through(
-    scene: _Scene, steps: _Steps, metrics: Metrics, observe: Callable[[World, float], None] | None
-) -> _Ending:
-    """Step the trial from stop to stop: sample contacts, observe, record the box's height and the
-    squeeze-end metrics, and end early once the outcome is settled."""
-    world, probe = scene.world, scene.probe
-    z_obj: dict[int, float] = {}
-    ended_early_s, reason, touched = float("nan"), "", False
-    done = 0
-    for i in steps.stops:
-        world.step(i - done)
-        done = i
+class _Progress:
+    """What one trial does at each stop of its step loop: sample contacts, observe, record the
+    box's height and the squeeze-end metrics, and end early once the outcome is settled.
+
+    Args:
+        scene: The trial's world and bodies.
+        steps: Its stops.
+        metrics: Its metrics so far (the squeeze-end ones are added).
+        observe: The observer, or None.
+    """
+
+    def __init__(
+        self, scene: _Scene, steps: _Steps, metrics: Metrics, observe: Callable[[World, float], None] | None
+    ):
+        self.scene, self.steps, self.metrics, self.observe = scene, steps, metrics, observe
+        self.z_obj: dict[int, float] = {}
+        self.ended_early_s, self.reason, self.touched = float("nan"), "", False
+
+    def at(self, i: int) -> bool:
+        """The trial's work at stop ``i`` (its world just stepped there); False: it has ended."""
+        scene, steps, probe, world = self.scene, self.steps, self.scene.probe, self.scene.world
         if i in steps.samples:
             probe.sample()  # after step i − 1
         if i == steps.n_steps:
-            break
+            return False
         t = i * steps.dt
-        if observe is not None and i in steps.observe:
-            observe(world, t)
+        if self.observe is not None and i in steps.observe:
+            self.observe(world, t)
         if i in (steps.i_lift, steps.i_hold):
-            z_obj[i] = float(world.base_pose(scene.object_id)[0][2])
+            self.z_obj[i] = float(world.base_pose(scene.object_id)[0][2])
         if i == steps.i_lift:
-            metrics["base_distance_m"] = float(probe.finger_mounts_m()[:, 0].mean() - scene.object_start_m[0])
-            metrics["squeeze_end_hand_contact"] = touched = probe.touching_now()
+            mounts_x = probe.finger_mounts_m()[:, 0].mean()
+            self.metrics["base_distance_m"] = float(mounts_x - scene.object_start_m[0])
+            self.metrics["squeeze_end_hand_contact"] = self.touched = probe.touching_now()
         if i in steps.checks:
-            reason = settled_reason(_snapshot(world, probe, scene.object_id), touched)
-            if reason:
-                ended_early_s = t
-                break
-    return _Ending(z_obj, ended_early_s, reason)
+            self.reason = settled_reason(_snapshot(world, probe, scene.object_id), self.touched)
+            if self.reason:
+                self.ended_early_s = t
+                return False
+        return True
+
+    def ending(self) -> _Ending:
+        """How the step loop ended."""
+        return _Ending(self.z_obj, self.ended_early_s, self.reason)
+
+
+def _step_through(
+    scene: _Scene, steps: _Steps, metrics: Metrics, observe: Callable[[World, float], None] | None
+) -> _Ending:
+    """Step the trial from stop to stop (the steps between in one call), doing each stop's work."""
+    progress = _Progress(scene, steps, metrics, observe)
+    done = 0
+    for i in steps.stops:
+        scene.world.step(i - done)
+        done = i
+        if not progress.at(i):
+            break
+    return progress.ending()
 
 
 def _collect_metrics(
