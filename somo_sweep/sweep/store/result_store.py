@@ -334,10 +334,7 @@ class ResultStore:
         }
         self.manifest["python"] = sys.version.split()[0]
         self.manifest["files"] = sorted(set(self.manifest["files"]))
-        try:
-            write_json(self.folder / MANIFEST, self.manifest)
-        except OSError as exc:
-            raise os_error_for(exc, self.folder / MANIFEST) from None
+        write_json(self.folder / MANIFEST, self.manifest)
 
     def _close_journal(self, delete: bool) -> None:
         if self._journal is not None:
