@@ -143,9 +143,10 @@ def chain_matrices(manip: Manipulator, floating: bool = False, engine: str = "py
         engine: The engine whose mass matrix is read: ``pybullet`` or ``mujoco``.
     """
     mode = "free" if floating else "fixed"
+    # Both plans first (the chain as it is, and probed with added inertia), then their matrices.
     plan = plan_manipulator(manip, mode=mode)
-    m0 = neutral_mass_matrix(plan, engine)
-    m1 = neutral_mass_matrix(plan_manipulator(shaped(manip, _PROBE_KG_M2), mode=mode), engine)
+    probe = plan_manipulator(shaped(manip, _PROBE_KG_M2), mode=mode)
+    m0, m1 = neutral_mass_matrix(plan, engine), neutral_mass_matrix(probe, engine)
     k = [sj.stiffness for sj in plan.joints]
     rigid = _BASE_DOFS if floating else 0
     stiffness = np.concatenate([np.zeros(m0.shape[0] - len(k)), np.asarray(k, dtype=float)])

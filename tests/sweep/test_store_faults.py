@@ -888,3 +888,21 @@ def test_readers_of_a_folder_with_nothing_finished_say_how_many_trials_the_study
     holder.start_run({"backend": "loky"})
     said = nothing_stored(study.output)
     assert said == f"{study.output}: no finished trials stored yet (of 8 in the study)"
+
+
+def test_a_manifest_that_cannot_be_written_is_named_and_leaves_no_temporary_file(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """A full disk while the manifest's temporary file was written named that temporary file
+    (``.manifest.json.….tmp``), not the manifest the user knows of."""
+    from somo_sweep.sweep.store.manifest import write_json
+
+    def full(self: Path, *args: object, **kwargs: object) -> int:
+        raise OSError(errno.ENOSPC, os.strerror(errno.ENOSPC), str(self))
+
+    monkeypatch.setattr(Path, "write_text", full)
+    with pytest.raises(OSError) as info:
+        write_json(tmp_path / "manifest.json", {"runs": []})
+    assert info.value.errno == errno.ENOSPC
+    assert info.value.filename == str(tmp_path / "manifest.json")
+    assert list(tmp_path.iterdir()) == []

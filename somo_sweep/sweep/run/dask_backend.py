@@ -33,6 +33,7 @@ __all__ = [
     "IN_FLIGHT_PER_THREAD",
     "dask_client",
     "dask_environment",
+    "on_cluster",
     "run_on_dask",
     "run_remote",
     "threads",
@@ -237,6 +238,30 @@ def run_on_dask(
                 client.cancel(futures)
             if on_stop is not None:
                 on_stop(len(futures))
+
+
+def on_cluster(
+    jobs: Iterable[Job],
+    scheduler: str | None,
+    client: Any = None,
+    timeout_s: float | None = None,
+    on_stop: Callable[[int], None] | None = None,
+) -> Iterator[tuple[Job, Outcome]]:
+    """:func:`run_on_dask` with Dask's loggers quiet, on ``client``, or (None) on a client connected
+    to ``scheduler`` for these jobs alone and discarded after them.
+
+    Raises:
+        SomoError: The scheduler cannot be reached (:func:`dask_client`).
+        ClusterError: As :func:`run_on_dask`.
+    """
+    own = client is None
+    client = dask_client(scheduler) if own else client
+    try:
+        with quiet_dask():
+            yield from run_on_dask(jobs, client, timeout_s, on_stop)
+    finally:
+        if own:
+            discard_client(client)
 
 
 class _DaskRun:

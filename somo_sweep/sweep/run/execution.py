@@ -25,9 +25,7 @@ from somo_sweep.sweep.run.dask_backend import (
     DASK_WORKER_CONFIG,
     dask_client,
     dask_environment,
-    discard_client,
-    quiet_dask,
-    run_on_dask,
+    on_cluster,
 )
 from somo_sweep.sweep.run.options import Backend, RunOptions
 from somo_sweep.sweep.run.trial import (
@@ -119,7 +117,7 @@ def run_jobs(
     Args:
         jobs: The jobs to run.
         options: Where and how: ``backend`` (``loky``: processes on this machine; ``dask``: a
-            cluster, :func:`~somo_sweep.sweep.run.dask_backend.run_on_dask`), the worker count,
+            cluster, :func:`~somo_sweep.sweep.run.dask_backend.on_cluster`), the worker count,
             the Dask ``scheduler`` and the per-trial ``timeout_s``.
         client: A connected Dask client (``dask`` only; default: connect to ``options.scheduler``).
         on_stop: Called with the number of trials cut short when the iterator is closed early.
@@ -128,19 +126,12 @@ def run_jobs(
     Raises:
         SomoError: The Dask scheduler cannot be reached or is lost, or workers keep dying.
     """
-    if options.backend == "dask":
-        own = client is None
-        client = dask_client(options.scheduler) if own else client
-        try:
-            with quiet_dask():
-                yield from run_on_dask(jobs, client, options.timeout_s, on_stop)
-        finally:
-            if own:
-                discard_client(client)
-        return
-    if warm is not None:
-        warm.ready()
-    yield from _run_local(jobs, options.workers, options.timeout_s, on_stop)
+    if options.backend == "loky":
+        if warm is not None:
+            warm.ready()
+        yield from _run_local(jobs, options.workers, options.timeout_s, on_stop)
+    else:
+        yield from on_cluster(jobs, options.scheduler, client, options.timeout_s, on_stop)
 
 
 @dataclass

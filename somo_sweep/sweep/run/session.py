@@ -87,8 +87,9 @@ def run_rounds(
             (MuJoCo) not installed.
         DescriptionError: ``adaptive.labels`` names a label the task does not give.
     """
-    plan = _plan(study, table)  # refused before any write
     _engines_installed(study)  # fail before writing anything
+    declared = _declared_types(study, table)
+    plans = _plans(study, table)  # refused before any write
     client = dask_client(options.scheduler) if options.backend == "dask" else None
     try:
         store = ResultStore(
@@ -98,13 +99,13 @@ def run_rounds(
             table.axes,
             table.column_examples,
             options.overwrite,
-            _declared_types(study, table),
+            declared,
         )
     except BaseException:
         if client is not None:
             client.close()
         raise
-    run = _Session(study, table, options, events, store, client, plan, source, warm)
+    run = _Session(study, table, options, events, store, client, plans, source, warm)
     try:
         run.begin()
         with SignalGuard() as guard:
@@ -118,11 +119,15 @@ def run_rounds(
     return run.summary
 
 
-def _plan(study: Study, table: JobTable) -> AdaptivePlan | ActivePlan | None:
-    """The plan of a study's rounds: adaptive, active, or None (the grid: one batch)."""
+def _plans(study: Study, table: JobTable) -> tuple[AdaptivePlan | ActivePlan | None, ReplicaPlan | None]:
+    """The plans of a study's rounds: its trials' (adaptive, active, or None: the grid, one batch)
+    and its replicas' (None without replicas, or when an active plan places them in its batches)."""
     if study.sampling == "adaptive":
-        return AdaptivePlan(study, table)
-    return ActivePlan(study, table) if study.sampling == "active" else None
+        plan: AdaptivePlan | ActivePlan | None = AdaptivePlan(study, table)
+    else:
+        plan = ActivePlan(study, table) if study.sampling == "active" else None
+    separate = study.robustness.replicas > 0 and not isinstance(plan, ActivePlan)
+    return plan, ReplicaPlan(study, table) if separate else None
 
 
 def _engines_installed(study: Study) -> None:
@@ -155,18 +160,17 @@ class _Session:
         events: RunEvents,
         store: ResultStore,
         client: Any,
-        plan: AdaptivePlan | ActivePlan | None,
+        plans: tuple[AdaptivePlan | ActivePlan | None, ReplicaPlan | None],
         source: BatchSource | None = None,
         warm: WarmWorkers | None = None,
     ):
         self.study, self.table, self.options, self.events = study, table, options, events
-        self.store, self.client, self.plan, self.source, self.warm = store, client, plan, source, warm
+        self.store, self.client, self.source, self.warm = store, client, source, warm
+        #: The plans of the trials' rounds and of the replicas' (:func:`_plans`).
+        self.plan, self.replicas = plans
         self.start = time.perf_counter()
         self.summary = RunSummary(study.output, len(table.ids), 0, notes=list(store.notes))
-        self.summary.sampling = study.sampling if plan else "grid"
-        # An active plan places its replicas itself, in its batches.
-        active = isinstance(plan, ActivePlan)
-        self.replicas = ReplicaPlan(study, table) if study.robustness.replicas > 0 and not active else None
+        self.summary.sampling = study.sampling if self.plan else "grid"
         self.buffer: list[dict[str, Any]] = []
         self.known: Known = {}
         self.values: Values = {}

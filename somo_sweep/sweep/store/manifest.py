@@ -103,14 +103,13 @@ def write_atomically(path: Path, write: Callable[[Path], object]) -> None:
 
 
 def write_json(path: Path, data: dict[str, Any]) -> None:
-    """Write JSON atomically (a fresh temporary file in the same folder, then a rename)."""
-    tmp = fresh_tmp(path)
-    try:
-        tmp.write_text(json.dumps(data, indent=2, default=str) + "\n", encoding="utf-8")
-        os.replace(tmp, path)
-    except BaseException:
-        tmp.unlink(missing_ok=True)
-        raise
+    """Write JSON atomically (:func:`write_atomically`).
+
+    Raises:
+        OSError: As raised for ``path`` (the errno kept); the temporary file is removed.
+    """
+    text = json.dumps(data, indent=2, default=str) + "\n"
+    write_atomically(path, lambda tmp: tmp.write_text(text, encoding="utf-8"))
 
 
 def record_files(folder: Path, paths: list[Path]) -> None:

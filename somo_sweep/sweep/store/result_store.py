@@ -119,11 +119,9 @@ class ResultStore:
     def _heal_schemas(self, schemas: dict[Path, pa.Schema]) -> None:
         """Give every part the current schema (a rewrite cut short by a full disk leaves mixed ones);
         ``schemas``: those of the parts, as read on opening."""
-        parts = self._parts()
-        read = [schemas.get(p) or pq.read_schema(p) for p in parts]
+        read = [schemas.get(p) or pq.read_schema(p) for p in self._parts()]
         if any(s.remove_metadata() != self.schema.remove_metadata() for s in read):
-            for part in parts:
-                self._atomic(pq.read_table(part), part, self.schema)
+            self._rewrite_parts(self.schema)
 
     # -- reading -----------------------------------------------------------------------------
 
@@ -250,8 +248,7 @@ class ResultStore:
         types = {f.name: f.type for f in self.schema}
         schema = table_schema(widened(types, {n: [r.get(n) for r in rows] for n in names}))
         if schema != self.schema:  # a column widened (or new): every part takes the new schema
-            for part in self._parts():
-                self._atomic(pq.read_table(part), part, schema)
+            self._rewrite_parts(schema)
         self.schema = schema
         table = pa.table({n: _column([r.get(n) for r in rows], schema.field(n).type) for n in schema.names})
         path = self.trials / f"part-{self.run_id}-{self.seq:05d}.parquet"
@@ -320,6 +317,11 @@ class ResultStore:
         rel = path.relative_to(self.folder).as_posix()
         self.manifest["files"] = [f for f in self.manifest["files"] if f != rel]
 
+    def _rewrite_parts(self, schema: pa.Schema) -> None:
+        """Rewrite every part file in ``schema`` (atomically, one at a time)."""
+        for part in self._parts():
+            self._atomic(pq.read_table(part), part, schema)
+
     def _atomic(self, table: pa.Table, path: Path, schema: pa.Schema) -> None:
         """Write ``table`` as ``path`` (in ``schema``) through a temporary file; an error names ``path``."""
         for name in schema.names:
@@ -334,10 +336,7 @@ class ResultStore:
         }
         self.manifest["python"] = sys.version.split()[0]
         self.manifest["files"] = sorted(set(self.manifest["files"]))
-        try:
-            write_json(self.folder / MANIFEST, self.manifest)
-        except OSError as exc:
-            raise os_error_for(exc, self.folder / MANIFEST) from None
+        write_json(self.folder / MANIFEST, self.manifest)
 
     def _close_journal(self, delete: bool) -> None:
         if self._journal is not None:
