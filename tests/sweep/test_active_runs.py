@@ -28,6 +28,7 @@ from somo_sweep.sweep.run.runner import RunEvents, RunOptions, RunSummary, run_s
 from somo_sweep.sweep.store.result_store import read_manifest, read_results
 from somo_sweep.sweep.study import load_study
 from somo_sweep.sweep.views.answers import Question, ask
+from somo_sweep.sweep.views.results import open_results
 
 DISC = """\
 name: disc
@@ -109,7 +110,9 @@ def test_replicas_stop_at_the_first_disagreement_and_such_a_cell_awaits_none(tmp
     assert len(broken) and (broken["replicas"] < 2).any()  # stopped after a replica that disagreed
     assert set(broken.loc[broken["replicas"] < 2, "trial"]) <= state.stopped
     assert (cells["replicas_awaited"] == 0).all()
-    answer = ask(trials, Question("task_x", "label_sign", "positive", every=("task_u",)))
+    answer = ask(
+        open_results(tmp_path / "out"), Question("task_x", "label_sign", "positive", every=("task_u",))
+    )
     assert bool(answer.table["complete"].iloc[0]) and answer.note is None
 
 
@@ -178,8 +181,9 @@ def test_an_interrupted_run_is_provisional_for_the_readers(tmp_path: Path) -> No
             raise KeyboardInterrupt
 
     run_sweep(load_study(path, tmp_path / "out"), RunOptions(n_jobs=1), RunEvents(outcome=stop))
-    trials = read_results(tmp_path / "out")
-    answer = ask(trials, Question("task_x", "label_region", "inside", every=("task_u",)))
+    answer = ask(
+        open_results(tmp_path / "out"), Question("task_x", "label_region", "inside", every=("task_u",))
+    )
     assert not answer.table["complete"].any()
     assert "trials are stored (the last run was interrupted)" in (answer.note or "")
 
