@@ -12,7 +12,14 @@ ROOT = Path(__file__).resolve().parents[1]
 TOML = tomllib.loads((ROOT / "pyproject.toml").read_text())
 PYPROJECT = TOML["project"]
 #: Import name → distribution name, where they differ.
-DISTRIBUTIONS = {"PIL": "pillow", "yaml": "pyyaml", "distributed": "dask"}
+DISTRIBUTIONS = {
+    "PIL": "pillow",
+    "yaml": "pyyaml",
+    "distributed": "dask",
+    "sklearn": "scikit-learn",
+    "mujoco_warp": "mujoco-warp",
+    "warp": "warp-lang",
+}
 
 
 def _names(requirements: list[str]) -> set[str]:
@@ -32,7 +39,9 @@ def _imported() -> set[str]:
 
 def test_every_imported_distribution_is_declared() -> None:
     extras = PYPROJECT["optional-dependencies"]
-    declared = _names(PYPROJECT["dependencies"]) | _names(extras["dask"]) | _names(extras["mujoco"])
+    declared = _names(PYPROJECT["dependencies"]) | set().union(
+        *(_names(extras[e]) for e in ("dask", "mujoco", "warp"))
+    )
     missing = {DISTRIBUTIONS.get(n, n).lower() for n in _imported()} - declared
     assert missing == set()
 

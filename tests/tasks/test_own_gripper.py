@@ -161,9 +161,8 @@ def test_the_starter_folder_loads_refuses_to_overwrite_and_names_its_finger(tmp_
     before = {p.name: p.read_bytes() for p in out.iterdir()}
     again = runner.invoke(app, ["new", "grasp-study", str(out)])
     assert again.exit_code == 2
-    assert (
-        "already holds finger.yaml, gripper.yaml, bench.csv, study.yaml; nothing was written" in again.output
-    )
+    held = "finger.yaml, gripper.yaml, bench.csv, study.yaml, design.yaml"
+    assert f"already holds {held}; nothing was written" in again.output
     assert {p.name: p.read_bytes() for p in out.iterdir()} == before
 
 
