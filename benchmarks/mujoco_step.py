@@ -1,14 +1,13 @@
 """A MuJoCo pinch trial's loop before and after it became data, side by side (``make bench-mujoco``).
 
-*Before* is the trial loop as it ran step by step, selected by switches: the driven root's
-speeds set from Python before every step (``somo_sweep.sim.mujoco.scene.SERVOS`` off), every
-step a call of ``mj_step`` with Python between (``somo_sweep.sim.mujoco.blocks.BLOCKS`` off), and
-the task's early-stop checks and hold-phase contact samples every 10 ms (its ``check_period_s``
-and ``sample_period_s``). *After* is the default: the root on its position servos, the runs of
-steps between the task's stops computed ahead as control tables and stepped in C
-(``mujoco.rollout``), checks and samples at the task's default periods (``--period-s`` to try
-others). The two differ in the root's drive, so labels may move where replicas disagree: the
-summary counts the cells whose labels are equal.
+*Before* is the trial loop as it ran step by step, selected by switches: every step a call of
+``mj_step`` with Python between (``somo_sweep.sim.mujoco.blocks.BLOCKS`` off), and the task's
+early-stop checks and hold-phase contact samples every 10 ms (its ``check_period_s`` and
+``sample_period_s``). *After* is the default: the runs of steps between the task's stops whose
+inputs are all planned (the driven root standing still) computed ahead as control tables and
+stepped in C (``mujoco.rollout``), checks and samples at the task's default periods
+(``--period-s`` to try others). Both drive the root by its speeds (``scene.SERVOS`` off, its
+default: position servos move labels); the summary counts the cells whose labels are equal.
 
 The sample is the first ``per_column`` centring positions of every ``columns_every``-th
 (DSR, width) column of the quick grid on MuJoCo, so the scene cache sees what a sweep's worker
@@ -201,7 +200,8 @@ def build(
         "step_s": step_s,
         "before_path": "root speeds set every step, mj_step one step at a time, checks and samples "
         "every 10 ms",
-        "after_path": "root on servos, runs between stops stepped in C from control tables, checks and "
+        "after_path": "root speeds set every step, planned runs between stops stepped in C from control "
+        "tables, checks and "
         f"samples every {'the task default' if period_s is None else f'{period_s * 1e3:g} ms'}",
         "period_s_after": period_s,
         **paths,

@@ -57,6 +57,7 @@ def test_a_wheel_install_runs_the_bundled_example_and_figures_from_an_empty_fold
     cli("new", "grasp-study", "mine")  # the starter's templates are package data
     assert sorted(p.name for p in (empty / "mine").iterdir()) == [
         "bench.csv",
+        "design.yaml",
         "finger.yaml",
         "gripper.yaml",
         "study.yaml",

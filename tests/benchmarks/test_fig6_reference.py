@@ -57,6 +57,7 @@ def test_the_stored_replay_of_seed_0_is_what_the_replay_gives(runs: pd.DataFrame
 
 
 @pytest.mark.slow
+@pytest.mark.timeout(1800)  # the whole benchmark: 8 configurations x 10 seeds, 5-10 min
 def test_the_stored_replay_is_what_the_benchmark_computes(runs: pd.DataFrame) -> None:
     stored = json.loads(REPLAY.read_text())
     oracle, reference = Oracle(runs), {r: cells(runs, r) for r in RULES}

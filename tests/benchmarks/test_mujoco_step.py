@@ -11,9 +11,11 @@ from somo_sweep.sim.mujoco import blocks, scene
 
 
 def test_the_before_path_switches_the_servos_and_the_blocks_off_and_back() -> None:
+    saved = (scene.SERVOS, blocks.BLOCKS)
+    assert saved == (False, True)  # the defaults: roots driven by their speeds, runs of steps in C
     with code_path(before=True):
         assert (scene.SERVOS, blocks.BLOCKS) == (False, False)
-    assert (scene.SERVOS, blocks.BLOCKS) == (True, True)
+    assert saved == (scene.SERVOS, blocks.BLOCKS)
 
 
 def test_one_cell_both_ways_gives_the_same_labels_and_the_share_inside_mj_step() -> None:
@@ -23,8 +25,8 @@ def test_one_cell_both_ways_gives_the_same_labels_and_the_share_inside_mj_step()
     for path in ("before", "after"):
         assert 0.0 < summary[path]["share_inside_mj_step"] < 1.0
         assert summary[f"{path}_path"].startswith("root")  # what the path is, beside its numbers
-    # each path compiles its own scene (with or without the root's servos) once for the column
-    assert summary["scene_cache"] == {"hits": 2, "misses": 2}
+    # both paths drive the root by its speeds: one scene, compiled once for the column
+    assert summary["scene_cache"] == {"hits": 3, "misses": 1}
     # early stops checked every 10 ms before, every 40 ms after: the after path may step a little longer
     assert 0 < summary["before"]["steps"] <= summary["after"]["steps"] <= 1.05 * summary["before"]["steps"]
     assert any(line.lstrip().startswith("after/before") for line in out.lines)

@@ -15,7 +15,7 @@ from somo_sweep.model.description import Link, Pose, RigidBody
 from somo_sweep.model.load import load_model, model_from_dict
 from somo_sweep.model.setpoints import SetpointTable
 from somo_sweep.model.tables import bundled_path
-from somo_sweep.sim.mujoco import blocks
+from somo_sweep.sim.mujoco import blocks, scene
 from somo_sweep.sim.rotations import matrix_from_quat, quat_from_rpy
 from somo_sweep.sim.settings import MujocoSettings, WorldSettings
 from somo_sweep.sim.worlds import open_world
@@ -79,7 +79,8 @@ def test_a_run_stepped_in_c_ends_bit_for_bit_where_the_steps_one_by_one_do() -> 
     assert one_by_one[1].tobytes() == in_blocks[1].tobytes()
 
 
-def test_a_driven_base_on_its_servos_follows_its_path_in_a_block() -> None:
+def test_a_driven_base_on_its_servos_follows_its_path_in_a_block(monkeypatch: pytest.MonkeyPatch) -> None:
+    monkeypatch.setattr(scene, "SERVOS", True)  # an option, off by default (it moves labels)
     gripper = load_model(bundled_path("models", "pinch_gripper.yaml"))
     with open_world(SETTINGS) as world:
         hand = world.add_model(gripper, Pose(position_m=(0.2, 0.0, 0.1)))

@@ -95,6 +95,9 @@ def test_a_twelve_link_finger_from_its_bench_csv_to_a_robust_grasp_map(tmp_path:
     assert set(trials["label_grasp"]) <= {"pinch", "power", "no_grasp"}
     assert set(trials["label_grasp_paper"]) <= {"pinch", "power", "no_grasp"}
     plots = out / "plots"
-    assert (plots / "label_map_grasp.png").stat().st_size > 0
-    assert (plots / "label_map_grasp_paper.png").stat().st_size > 0
-    assert (plots / "summary.png").stat().st_size > 0
+    assert (plots / "summary.png").stat().st_size > 0  # every trial's labels, whatever the grid
+    maps = {p.name for p in plots.glob("label_map_*.png")}
+    if len(CENTERING_M[engine]) > 1:  # a map needs an axis that varies: one cell has none
+        assert maps == {"label_map_grasp.png", "label_map_grasp_paper.png"}
+    else:
+        assert maps == set()

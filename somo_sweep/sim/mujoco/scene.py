@@ -366,7 +366,7 @@ JACOBIAN = "dense"
 #: Whether driven roots get position servos under the ``discrete`` integrator (else their speeds
 #: are set before every step, as under ``implicitfast``). A module setting, so the step benchmark
 #: can time the loop as it was.
-SERVOS = True
+SERVOS = False
 
 
 def set_options(spec: Any, settings: WorldSettings) -> None:

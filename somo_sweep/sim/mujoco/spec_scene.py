@@ -62,7 +62,11 @@ class SpecScene:
         self._excludes: list[Any] = []
         self._pending: list[_Change] = []  # not yet made in the spec
         self._unbuilt: list[_Change] = []  # stood for by a cached model, not in the spec
-        self._servos = scene.SERVOS and settings.mujoco.integrator == "discrete"  # driven roots'
+        # Driven roots on position servos: Warp steps only runs planned ahead, so its worlds have
+        # them; C MuJoCo sets the roots' speeds before each step unless scene.SERVOS says otherwise
+        # (the servos move 7 of the quick grid's 192 MuJoCo labels: docs/engines.md).
+        servos = scene.SERVOS or settings.engine == "mujoco_warp"
+        self._servos = servos and settings.mujoco.integrator == "discrete"
 
     def add_plan(self, plan: BodyPlan, body_id: int, position_m: Any, quat: tuple[float, ...]) -> None:
         """Add one plan with world id ``body_id`` at a pose (m, quaternion x, y, z, w)."""
