@@ -11,7 +11,7 @@ CPU is the whole process tree's (this process, its workers, their trial processe
 alive), wall the pass's; both per trial, with the ratio kept / fork. Every pass's outcomes are
 compared with the first's, bit for bit. Prints only.
 
-``python -m benchmarks.trial_process [--cells 64] [--jobs 2] [--repeats 2]``
+``python -m benchmarks.trial_process [--cells 64] [--jobs 2] [--repeats 2] [--per-process N]``
 """
 
 from __future__ import annotations
@@ -57,11 +57,14 @@ def tree_cpu_s() -> float:
 
 
 @contextmanager
-def _way(name: str) -> Iterator[None]:
-    """``fork``: one trial per forked process; ``kept``: the package's default."""
+def _way(name: str, per_process: int | None = None) -> Iterator[None]:
+    """``fork``: one trial per forked process; ``kept``: up to ``per_process`` MuJoCo trials
+    (None: the package's default)."""
     saved = dict(trial_process.TRIALS_PER_PROCESS)
     if name == "fork":
         trial_process.TRIALS_PER_PROCESS.clear()
+    elif per_process is not None:
+        trial_process.TRIALS_PER_PROCESS["mujoco"] = per_process
     try:
         yield
     finally:
@@ -73,8 +76,11 @@ def _outcome_key(out: Any) -> tuple[Any, ...]:
     return (out.status, out.message, tuple(sorted(out.labels.items())), repr(sorted(out.metrics.items())))
 
 
-def passes(jobs: list[Job], workers: int, repeats: int) -> list[dict[str, Any]]:
-    """Run ``jobs`` both ways ``repeats`` times in alternating order; one row per pass."""
+def passes(
+    jobs: list[Job], workers: int, repeats: int, per_process: int | None = None
+) -> list[dict[str, Any]]:
+    """Run ``jobs`` both ways ``repeats`` times in alternating order; one row per pass (``kept``:
+    up to ``per_process`` trials a process, None: the package's default)."""
     rows: list[dict[str, Any]] = []
     first: dict[str, tuple[Any, ...]] = {}
     for _ in run_jobs(jobs, RunOptions(n_jobs=workers)):  # workers started, scenes compiled: untimed
@@ -82,7 +88,7 @@ def passes(jobs: list[Job], workers: int, repeats: int) -> list[dict[str, Any]]:
     order = [WAYS if r % 2 == 0 else WAYS[::-1] for r in range(repeats)]
     for r, ways in enumerate(order):
         for name in ways:
-            with _way(name):
+            with _way(name, per_process):
                 cpu, wall = tree_cpu_s(), time.perf_counter()
                 outs = {job.job_id: out for job, out in run_jobs(jobs, RunOptions(n_jobs=workers))}
                 wall, cpu = time.perf_counter() - wall, tree_cpu_s() - cpu
@@ -101,9 +107,9 @@ def passes(jobs: list[Job], workers: int, repeats: int) -> list[dict[str, Any]]:
     return rows
 
 
-def lines(rows: list[dict[str, Any]], n: int, workers: int) -> Iterator[str]:
-    """The passes, then the medians and the ratios kept / fork."""
-    most = trial_process.trials_per_process("mujoco")
+def lines(rows: list[dict[str, Any]], n: int, workers: int, most: int) -> Iterator[str]:
+    """The passes, then the medians and the ratios kept / fork (``most``: trials a kept process ran
+    at most)."""
     yield f"{n} MuJoCo quick-grid cells, {workers} worker(s); kept: up to {most} trials per forked process"
     for row in rows:
         yield (
@@ -134,6 +140,12 @@ def parser() -> argparse.ArgumentParser:
     )
     ap.add_argument("--jobs", type=jobs_option(), default=2, help="local workers (default 2)")
     ap.add_argument("--repeats", type=int_in(1), default=2, help="passes each way, alternating (default 2)")
+    ap.add_argument(
+        "--per-process",
+        type=int_in(2),
+        default=None,
+        help="MuJoCo trials a kept process runs at most (default: the package's)",
+    )
     return ap
 
 
@@ -146,7 +158,8 @@ def main(argv: list[str] | None = None) -> None:
         if (why := missing()) is not None:
             raise SomoError(why)
         jobs = _jobs("mujoco", MUJOCO_DEFAULT_STEP_S)[: args.cells]
-        echo(lines(passes(jobs, args.jobs, args.repeats), len(jobs), args.jobs))
+        most = args.per_process or trial_process.trials_per_process("mujoco")
+        echo(lines(passes(jobs, args.jobs, args.repeats, most), len(jobs), args.jobs, most))
 
 
 if __name__ == "__main__":

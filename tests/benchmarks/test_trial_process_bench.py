@@ -29,6 +29,8 @@ def test_the_fork_way_runs_a_trial_per_fork_and_puts_the_counts_back() -> None:
         assert trial_process.trials_per_process("mujoco") == 1
     with bench._way("kept"):
         assert trial_process.trials_per_process("mujoco") == saved["mujoco"] > 1
+    with bench._way("kept", 4):
+        assert trial_process.trials_per_process("mujoco") == 4
     assert saved == trial_process.TRIALS_PER_PROCESS
 
 
@@ -38,7 +40,7 @@ def test_both_ways_alternate_and_give_the_same_outcomes() -> None:
     rows = bench.passes(jobs, workers=1, repeats=2)
     assert [r["way"] for r in rows] == ["fork", "kept", "kept", "fork"]
     assert all(r["same_as_first"] == 3 and r["cpu_per_trial_s"] > 0 for r in rows)
-    text = "\n".join(bench.lines(rows, 3, 1))
+    text = "\n".join(bench.lines(rows, 3, 1, 16))
     assert "kept / fork" in text and text.count("ms/trial") == 8
 
 

@@ -18,7 +18,7 @@ from somo_sweep.model.tables import bundled_path
 from somo_sweep.sim import shared_caches
 from somo_sweep.sweep.jobs.job import Job
 from somo_sweep.sweep.jobs.table import build_jobs
-from somo_sweep.sweep.run import trial_process
+from somo_sweep.sweep.run import trial, trial_process
 from somo_sweep.sweep.run.execution import run_jobs
 from somo_sweep.sweep.run.options import RunOptions
 from somo_sweep.sweep.run.trial import Outcome, run_isolated, warm_up
@@ -53,12 +53,15 @@ def forks(monkeypatch: pytest.MonkeyPatch) -> list[int]:
     return made
 
 
-def _no_child_left() -> bool:
-    try:
-        os.waitpid(-1, os.WNOHANG)
-    except ChildProcessError:
-        return True
-    return False
+def _all_reaped(pids: list[int]) -> bool:
+    """Whether every process in ``pids`` (forked here) has ended and been reaped."""
+    for pid in pids:
+        try:
+            os.waitpid(pid, os.WNOHANG)
+        except ChildProcessError:
+            continue
+        return False
+    return True
 
 
 def _selftest_jobs(tmp_path: Path, task: str, extra: str, n: int) -> list[Job]:
@@ -107,7 +110,7 @@ def test_trials_run_one_after_another_in_one_process_give_what_a_fork_each_gives
         assert len(forks) == 1, "one child ran them all"
         for job, out in zip(order, outs, strict=True):
             assert _same(out, alone[job.job_id]), (job.task, job.settings.engine, job.trial)
-    assert _no_child_left()
+    assert _all_reaped(forks)
 
 
 def test_a_trial_that_dies_costs_only_itself_and_the_rest_run_in_a_fresh_child(
@@ -121,7 +124,7 @@ def test_a_trial_that_dies_costs_only_itself_and_the_rest_run_in_a_fresh_child(
     assert outs[2].message == died.message == "the process running this trial died (exit code 3)"
     assert len(forks) == 2  # the first child ran trials 1-3, a fresh one 4-6
     close_trial_process()
-    assert _no_child_left()
+    assert _all_reaped(forks)
 
 
 @pytest.mark.parametrize("how", ["segfault", "kill", "raise"])
@@ -146,7 +149,7 @@ def test_the_time_limit_is_per_trial_and_a_trial_over_it_costs_only_itself(
     assert outs[2].message == "timed out after 1.0 s"
     assert len(forks) == 2
     close_trial_process()
-    assert _no_child_left()
+    assert _all_reaped(forks)
 
 
 def test_a_child_runs_at_most_its_count_then_a_fresh_one_starts(tmp_path: Path, forks: list[int]) -> None:
@@ -155,12 +158,13 @@ def test_a_child_runs_at_most_its_count_then_a_fresh_one_starts(tmp_path: Path, 
     assert [o.status for o in outs] == ["ok"] * 5
     assert len(forks) == 3  # 2 + 2 + 1
     other = _selftest_jobs(tmp_path / "other", "selftest_unstable", "", 2)
+    trial._warmed.discard((other[0].task, other[0].settings.engine))  # as in a new worker
     run_trial(other[0], None, None, per_process=3)
     assert len(forks) == 4  # a task the worker had not warmed up for: a child forked after it did
     run_trial(jobs[0], None, None, per_process=3)
     assert len(forks) == 4  # that child serves both tasks
     close_trial_process()
-    assert _no_child_left()
+    assert _all_reaped(forks)
 
 
 def test_one_trial_per_fork_is_the_rule_but_on_mujoco() -> None:
@@ -184,22 +188,24 @@ def test_a_kept_childs_learned_scene_reaches_its_worker_at_each_outcome(tmp_path
 
 
 def test_a_one_worker_run_leaves_no_kept_child_behind(
-    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch, forks: list[int]
 ) -> None:
     monkeypatch.setitem(trial_process.TRIALS_PER_PROCESS, "pybullet", 4)
     jobs = _selftest_jobs(tmp_path, "selftest_sleep", "", 6)
     got = [out.status for _, out in run_jobs(jobs, RunOptions(n_jobs=1))]
     assert got == ["ok"] * 6
-    assert _no_child_left()
+    assert _all_reaped(forks)
 
 
-def test_a_run_stopped_early_ends_the_kept_child(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+def test_a_run_stopped_early_ends_the_kept_child(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch, forks: list[int]
+) -> None:
     monkeypatch.setitem(trial_process.TRIALS_PER_PROCESS, "pybullet", 4)
     jobs = _selftest_jobs(tmp_path, "selftest_sleep", "", 6)
     outcomes = run_jobs(jobs, RunOptions(n_jobs=1))
     next(outcomes)
     outcomes.close()
-    assert _no_child_left()
+    assert _all_reaped(forks)
 
 
 def test_an_earlier_trials_state_is_reset_as_each_trial_starts() -> None:
