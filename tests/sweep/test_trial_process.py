@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import os
 import random
+from collections.abc import Iterator
 from pathlib import Path
 
 import pytest
@@ -35,6 +36,14 @@ sweep:
   task.pressure_kpa: [0, 120]
   model.manipulator.actuators[0].joints[0].stiffness_n_m_per_rad: [0.15, 0.30]
 """
+
+
+@pytest.fixture(autouse=True)
+def _no_kept_child_across_tests() -> Iterator[None]:
+    """Each test starts without a kept child and ends its own, even when it fails."""
+    close_trial_process()
+    yield
+    close_trial_process()
 
 
 @pytest.fixture
@@ -154,11 +163,11 @@ def test_the_time_limit_is_per_trial_and_a_trial_over_it_costs_only_itself(
 
 def test_a_child_runs_at_most_its_count_then_a_fresh_one_starts(tmp_path: Path, forks: list[int]) -> None:
     jobs = _selftest_jobs(tmp_path, "selftest_sleep", "", 5)
+    other = _selftest_jobs(tmp_path / "other", "selftest_unstable", "", 2)
+    trial._warmed.discard((other[0].task, other[0].settings.engine))  # as in a new worker
     outs = [run_trial(job, None, None, per_process=2) for job in jobs]
     assert [o.status for o in outs] == ["ok"] * 5
     assert len(forks) == 3  # 2 + 2 + 1
-    other = _selftest_jobs(tmp_path / "other", "selftest_unstable", "", 2)
-    trial._warmed.discard((other[0].task, other[0].settings.engine))  # as in a new worker
     run_trial(other[0], None, None, per_process=3)
     assert len(forks) == 4  # a task the worker had not warmed up for: a child forked after it did
     run_trial(jobs[0], None, None, per_process=3)
@@ -215,3 +224,25 @@ def test_an_earlier_trials_state_is_reset_as_each_trial_starts() -> None:
     unstable._keep_warning("Nan, Inf or huge value in QACC at DOF 3. The simulation is unstable.")
     shared_caches.mark()
     assert str(unstable.bad_accelerations(0.1)).endswith("MuJoCo's accelerations are not finite")
+
+
+def test_an_outcome_this_process_cannot_read_is_that_trials_error_and_the_next_gets_a_fresh_child(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch, forks: list[int]
+) -> None:
+    jobs = _selftest_jobs(tmp_path, "selftest_sleep", "", 3)
+    assert run_trial(jobs[0], None, None, per_process=3).status == "ok"  # the child is forked
+
+    def unreadable(data: bytes) -> object:
+        raise ModuleNotFoundError("No module named 'elsewhere'")
+
+    with monkeypatch.context() as patch:  # in this process only: the child was forked before
+        patch.setattr(trial_process.pickle, "loads", unreadable)
+        out = run_trial(jobs[1], None, None, per_process=3)
+    assert out.status == "error"
+    assert out.message == (
+        "the outcome of this trial could not be read: ModuleNotFoundError: No module named 'elsewhere'"
+    )
+    assert run_trial(jobs[2], None, None, per_process=3).status == "ok"
+    assert len(forks) == 2
+    close_trial_process()
+    assert _all_reaped(forks)

@@ -116,15 +116,23 @@ def run_trial(
     except BaseException:  # interrupted while it ran: the trial goes with its process
         _end(child)
         raise
-    wall = time.perf_counter() - start
+    return _outcome(job, child, data, per_process, time.perf_counter() - start, host)
+
+
+def _outcome(
+    job: Job, child: _Child, data: bytes | None, per_process: int, wall: float, host: str
+) -> Outcome:
+    """The outcome of ``job`` from what ``child`` sent (None: it died), the child ended when it
+    has run ``per_process`` trials; what it learned adopted here."""
     if data is None:  # the process died running this trial
-        return Outcome.failed(
-            job.job_id,
-            f"the process running this trial died ({exit_text(_end(child, kill=False))})",
-            wall,
-            host,
-        )
-    out: Outcome = pickle.loads(data)
+        status = exit_text(_end(child, kill=False))
+        return Outcome.failed(job.job_id, f"the process running this trial died ({status})", wall, host)
+    try:
+        out: Outcome = pickle.loads(data)
+    except Exception as exc:  # e.g. a metric of a type this process cannot import
+        _end(child)
+        why = f"{type(exc).__name__}: {exc}"
+        return Outcome.failed(job.job_id, f"the outcome of this trial could not be read: {why}", wall, host)
     child.trials += 1
     if child.trials >= per_process:
         _end(child)
