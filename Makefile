@@ -5,7 +5,7 @@ BIN    := $(VENV)/bin
 STAMP  := $(VENV)/.installed-stamp
 
 .DEFAULT_GOAL := help
-.PHONY: help install demo test test-slow lint format bench bench-statics bench-scaling bench-scale bench-engines bench-mujoco bench-warp bench-robust bench-numerics bench-auto-numerics bench-zero-kpa bench-design bench-fig6-reference bench-active bench-original fig6 fig6-fast fig6-audit fig6-quick fig6-original fig6-ablation fig6-ablation-quick fig3 fig5 fig5-quick palm palm-quick fig7 fig7-quick fig8 fig8-quick diagnose-demo sweep-demo example-gripper example-gripper-pybullet example-design figures clean
+.PHONY: help install demo test test-slow lint format bench bench-statics bench-scaling bench-scale bench-engines bench-mujoco bench-warp bench-trial-process bench-robust bench-numerics bench-auto-numerics bench-zero-kpa bench-design bench-fig6-reference bench-active bench-original fig6 fig6-fast fig6-audit fig6-quick fig6-original fig6-ablation fig6-ablation-quick fig3 fig5 fig5-quick palm palm-quick fig7 fig7-quick fig8 fig8-quick diagnose-demo sweep-demo example-gripper example-gripper-pybullet example-design figures clean
 
 help: ## List the targets
 	@grep -E '^[a-zA-Z0-9_-]+:.*?## ' $(MAKEFILE_LIST) | awk 'BEGIN {FS = ":.*?## "}; {printf "  make %-20s %s\n", $$1, $$2}'
@@ -61,6 +61,9 @@ bench-mujoco: $(STAMP) ## MuJoCo pinch trials with the loop step by step and as 
 BENCH_WARP_ARGS ?= --device cuda --time-limit-s 3600
 bench-warp: $(STAMP) ## Many worlds in one call: the 150-cell audit on MuJoCo Warp in batches on a GPU (no batch launched after 1 h): steps/s, trials/s, labels vs C MuJoCo -> results/reference/warp_batch.json
 	$(BIN)/python -m benchmarks.warp_batch --out results/reference $(BENCH_WARP_ARGS)
+
+bench-trial-process: $(STAMP) ## A sweep's MuJoCo trials with a fork each and with a kept forked process, in turn (64 quick cells, 2 workers): CPU and wall per trial, the ratio
+	$(BIN)/python -m benchmarks.trial_process
 
 bench-robust: $(STAMP) ## What robust labels cost: one trial and the quick study, plain before vs robust now (~40 min on 2 idle cores) -> results/reference/robust_cost.json
 	$(BIN)/python -m benchmarks.robust_cost --out results/reference

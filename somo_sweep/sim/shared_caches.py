@@ -9,10 +9,10 @@ give bit for bit what computing them again would.
 
 from __future__ import annotations
 
-from collections.abc import Hashable
+from collections.abc import Callable, Hashable
 from typing import Any, Protocol
 
-__all__ = ["HandedBack", "adopt", "learned", "mark", "register"]
+__all__ = ["HandedBack", "adopt", "learned", "mark", "on_trial_start", "register"]
 
 
 class HandedBack(Protocol):
@@ -29,6 +29,7 @@ class HandedBack(Protocol):
 
 
 _CACHES: dict[str, HandedBack] = {}
+_RESETS: list[Callable[[], None]] = []
 
 
 def register(name: str, cache: HandedBack) -> None:
@@ -36,8 +37,18 @@ def register(name: str, cache: HandedBack) -> None:
     _CACHES[name] = cache
 
 
+def on_trial_start(reset: Callable[[], None]) -> None:
+    """Call ``reset`` as every trial starts (:func:`mark`): per-process state a trial may leave
+    behind that is not a cache giving the same values (one process may run several trials)."""
+    if reset not in _RESETS:
+        _RESETS.append(reset)
+
+
 def mark() -> None:
-    """In a trial's forked process, before the trial: nothing learned yet."""
+    """In a trial's forked process, before each trial: nothing learned yet, and the state an
+    earlier trial in the same process left (:func:`on_trial_start`) reset."""
+    for reset in _RESETS:
+        reset()
     for cache in _CACHES.values():
         cache.mark()
 

@@ -14,6 +14,7 @@ import mujoco
 import numpy as np
 
 from somo_sweep.errors import UnstableSimulation
+from somo_sweep.sim import shared_caches
 
 __all__ = ["SPEED_CHECK_EVERY", "bad_accelerations", "check_spring_speeds"]
 
@@ -30,6 +31,7 @@ def _keep_warning(text: str) -> None:
 
 
 mujoco.set_mju_user_warning(_keep_warning)
+shared_caches.on_trial_start(_WARNINGS.clear)  # an earlier trial's warning never names this one's
 
 
 def check_spring_speeds(speeds: np.ndarray, cap_rad_s: float, capped: bool, time_s: float) -> None:

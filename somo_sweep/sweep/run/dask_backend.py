@@ -1,7 +1,11 @@
 """Run trials on a Dask cluster: connect to its scheduler, keep its workers fed, survive worker loss.
 
 Every trial is one Dask task (:func:`~somo_sweep.sweep.run.trial.run_isolated`, which forks the
-trial in the worker), submitted straight to the scheduler with the job in it. At most
+trial in the worker), submitted straight to the scheduler with the job in it. Unlike local
+workers, a Dask worker forks a fresh process for every trial, MuJoCo's too
+(:mod:`~somo_sweep.sweep.run.trial_process` is not used): a Dask worker may run trials on several
+threads, and a process one thread forks inherits every descriptor of the worker, the pipes of
+another thread's kept trial process among them, which would hide that process's death. At most
 :data:`IN_FLIGHT_PER_THREAD` tasks per worker thread are out at a time, so that a worker
 always has its next trial at hand (it starts the moment the last one ends) while the sweep
 holds only a few jobs, whatever the study's size; the count follows the cluster as workers

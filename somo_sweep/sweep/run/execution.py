@@ -1,9 +1,13 @@
 """Run jobs in parallel (joblib's loky locally, Dask on a cluster) and stream outcomes back.
 
-Each trial runs in a process of its own (:func:`~somo_sweep.sweep.run.trial.run_isolated`), on a
-pool of local worker processes (``loky``) or on the workers of a Dask cluster
-(:mod:`somo_sweep.sweep.run.dask_backend`). Only the jobs in flight are held, so a study of any size
-runs in the same memory; a local worker process that dies is replaced and its trials run again.
+Each trial runs in a process forked from a worker, on a pool of local worker processes (``loky``)
+or on the workers of a Dask cluster (:mod:`somo_sweep.sweep.run.dask_backend`). Locally a forked
+process runs up to :func:`~somo_sweep.sweep.run.trial_process.trials_per_process` of its worker's
+trials in turn (several on MuJoCo, whose fork costs a third of a trial), with a fork per trial's
+guarantees (:mod:`somo_sweep.sweep.run.trial_process`); trials are still handed out one by one,
+and each outcome comes back, and is journalled, as its trial ends. Only the jobs in flight are
+held, so a study of any size runs in the same memory; a local worker process that dies is replaced
+and its trials run again.
 """
 
 from __future__ import annotations
@@ -35,6 +39,7 @@ from somo_sweep.sweep.run.trial import (
     start_local_worker,
     warm_up,
 )
+from somo_sweep.sweep.run.trial_process import close_trial_process, run_trial, trials_per_process
 
 __all__ = [
     "DASK_WORKER_CONFIG",
@@ -187,7 +192,6 @@ def _run_local(
     source = iter(jobs)
     in_flight: dict[str, Job] = {}  # handed to the workers, outcome not back yet
     again: list[Job] = []  # in flight when a worker process died: run first after the restart
-    restarts = 0
     owner = os.getpid()
     size = len(jobs) if isinstance(jobs, Sized) else n_jobs
 
@@ -197,8 +201,26 @@ def _run_local(
             if job is None:
                 return
             in_flight[job.job_id] = job
-            yield delayed(run_isolated)(job, timeout_s, owner)
+            yield delayed(run_trial)(job, timeout_s, owner, trials_per_process(job.settings.engine))
 
+    try:
+        yield from _pool_runs(feed, in_flight, again, n_jobs, size, on_stop)
+    finally:  # with one worker, trials run from this process: its kept trial process ends here
+        close_trial_process()
+
+
+def _pool_runs(
+    feed: Callable[[], Iterator[Any]],
+    in_flight: dict[str, Job],
+    again: list[Job],
+    n_jobs: int,
+    size: int,
+    on_stop: Callable[[int], None] | None,
+) -> Iterator[tuple[Job, Outcome]]:
+    """The jobs of ``feed`` on a loky pool, restarted (up to :data:`MAX_POOL_RESTARTS` times) when a
+    worker process dies; the jobs in flight then run again first."""
+    restarts = 0
+    owner = os.getpid()
     while True:
         try:
             # Local workers watch for the sweep's death from their start, not from their first

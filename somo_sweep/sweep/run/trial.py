@@ -35,7 +35,18 @@ from somo_sweep.sweep.jobs.code import trial_modules
 from somo_sweep.sweep.jobs.job import Job
 from somo_sweep.tasks.registry import TaskResult, get_task
 
-__all__ = ["Outcome", "run_isolated", "run_job", "start_local_worker", "warm_up"]
+__all__ = [
+    "Outcome",
+    "die_with_parent",
+    "exit_text",
+    "failed_in_child",
+    "run_isolated",
+    "run_job",
+    "start_local_worker",
+    "warm_up",
+    "warmed",
+    "watch_owner",
+]
 
 _PR_SET_PDEATHSIG = 1
 
@@ -93,7 +104,8 @@ class Outcome:
         return self.result.labels
 
 
-def _die_with_parent() -> None:
+def die_with_parent() -> None:
+    """In a forked trial process: be killed (SIGKILL) when the thread that forked it ends (Linux)."""
     try:
         libc = ctypes.CDLL(None, use_errno=True)
         libc.prctl(_PR_SET_PDEATHSIG, signal.SIGKILL)
@@ -104,7 +116,7 @@ def _die_with_parent() -> None:
 _watching: list[int] = []
 
 
-def _watch_owner(owner_pid: int) -> None:
+def watch_owner(owner_pid: int) -> None:
     """In a local worker process, exit as soon as the process that started the sweep is gone.
 
     A killed ``somo-sweep run`` (SIGKILL, OOM) then leaves no idle workers behind; their
@@ -128,10 +140,15 @@ def start_local_worker(owner_pid: int) -> None:
     that process is already gone (killed while this worker was still importing), else watch it."""
     if os.getppid() != owner_pid:
         os._exit(1)
-    _watch_owner(owner_pid)
+    watch_owner(owner_pid)
 
 
 _warmed: set[tuple[str, str]] = set()
+
+
+def warmed() -> set[tuple[str, str]]:
+    """The (task, engine) pairs this process has warmed up for (:func:`warm_up`)."""
+    return set(_warmed)
 
 
 def warm_up(task: str, engine: str = "pybullet") -> None:
@@ -178,7 +195,8 @@ def run_job(job: Job) -> Outcome:
     return Outcome(job.job_id, replace(retry, message=message), True, step / 2)
 
 
-def _exit_text(status: int) -> str:
+def exit_text(status: int) -> str:
+    """How a process ended, from its wait status: ``killed by signal 11 (SIGSEGV)``, ``exit code 3``."""
     if os.WIFSIGNALED(status):
         sig = os.WTERMSIG(status)
         return f"killed by signal {sig} ({signal.Signals(sig).name})"
@@ -194,7 +212,7 @@ def run_isolated(job: Job, timeout_s: float | None = None, owner_pid: int | None
         owner_pid: Process id of the sweep; a local worker exits when that process is gone.
     """
     if owner_pid is not None:
-        _watch_owner(owner_pid)
+        watch_owner(owner_pid)
     warm_up(job.task, job.settings.engine)
     start = time.perf_counter()
     host = socket.gethostname()
@@ -212,7 +230,7 @@ def run_isolated(job: Job, timeout_s: float | None = None, owner_pid: int | None
         out: Outcome = pickle.loads(data)
     except Exception:
         return Outcome.failed(
-            job.job_id, f"the process running this trial died ({_exit_text(status)})", wall, host
+            job.job_id, f"the process running this trial died ({exit_text(status)})", wall, host
         )
     with contextlib.suppress(Exception):  # a cache is a saving, never a trial's failure
         shared_caches.adopt(out.learned)
@@ -223,7 +241,7 @@ def _child(job: Job, write_fd: int) -> None:
     """In the forked child: run the job, send the pickled result, leave without cleanup handlers."""
     signal.signal(signal.SIGINT, signal.SIG_IGN)
     signal.signal(signal.SIGTERM, signal.SIG_DFL)
-    _die_with_parent()
+    die_with_parent()
     code = 1
     try:
         try:
@@ -233,13 +251,17 @@ def _child(job: Job, write_fd: int) -> None:
             with contextlib.suppress(Exception):  # what the worker may keep, when it pickles
                 data = pickle.dumps(replace(out, learned=shared_caches.learned()))
         except BaseException as exc:  # SystemExit in a task, or metrics that cannot be pickled
-            failed = TaskResult(status="error", message=f"{type(exc).__name__}: {exc}")
-            data = pickle.dumps(Outcome(job.job_id, failed, False, job.settings.time_step_s))
+            data = failed_in_child(job, TaskResult(status="error", message=f"{type(exc).__name__}: {exc}"))
         with os.fdopen(write_fd, "wb") as fh:
             fh.write(data)
         code = 0
     finally:
         os._exit(code)
+
+
+def failed_in_child(job: Job, failed: TaskResult) -> bytes:
+    """The pickled outcome a trial's process sends when the trial raised past :func:`run_job`."""
+    return pickle.dumps(Outcome(job.job_id, failed, False, job.settings.time_step_s))
 
 
 def _collect(pid: int, read_fd: int, deadline: float | None) -> tuple[bytes, bool, int]:
