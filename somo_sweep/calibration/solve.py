@@ -259,6 +259,30 @@ def _relative_stderr(problem: CalibrationProblem, sol: Any) -> dict[str, float]:
     return {name: float(math.sqrt(max(cov[i, i], 0.0)) / sol.x[i]) for i, name in enumerate(names)}
 
 
+class _Residuals:
+    """The fit's residual function of the parameters' multipliers ``x`` (relative residuals of the
+    calibration rows), counting the simulations and keeping each point's rows and failures (so
+    the result does not simulate them again).
+
+    Attributes:
+        simulations: Bench simulations run so far.
+        memo: Simulated rows and their failures, by the bytes of ``x``.
+    """
+
+    def __init__(self, problem: CalibrationProblem, initial: np.ndarray, n_jobs: int):
+        self.problem, self.initial, self.n_jobs = problem, initial, n_jobs
+        self.simulations = 0
+        self.memo: dict[bytes, tuple[np.ndarray, list[RowFailure]]] = {}
+
+    def __call__(self, x: np.ndarray) -> np.ndarray:
+        rows = self.problem.calibration_rows
+        self.simulations += len(rows)
+        failed: list[RowFailure] = []
+        simulated = self.problem.simulate(x * self.initial, rows, self.n_jobs, failed)
+        self.memo[x.tobytes()] = (simulated, failed)
+        return self.problem.residuals_of(simulated)
+
+
 def solve_fit(problem: CalibrationProblem, n_jobs: int = 1, max_evaluations: int = 40) -> CalibrationResult:
     """Least squares of the relative residuals of the calibration rows, simulator in the loop.
 
@@ -276,17 +300,7 @@ def solve_fit(problem: CalibrationProblem, n_jobs: int = 1, max_evaluations: int
     """
     start = time.perf_counter()
     initial = np.array([p.initial for p in problem.parameters])
-    sims = [0]
-
-    memo: dict[bytes, tuple[np.ndarray, list[RowFailure]]] = {}
-
-    def fun(x: np.ndarray) -> np.ndarray:
-        sims[0] += len(problem.calibration_rows)
-        failed: list[RowFailure] = []
-        simulated = problem.simulate(x * initial, problem.calibration_rows, n_jobs, failed)
-        memo[x.tobytes()] = (simulated, failed)
-        return problem.residuals_of(simulated)
-
+    fun = _Residuals(problem, initial, n_jobs)
     n_cal, n_val = len(problem.calibration_rows), len(problem.validation_rows)
     starts = [np.ones_like(initial)] + [np.asarray(o, float) / initial for o in problem.other_starts]
     # At most, per start: the start, one probe per parameter, the evaluations; then the validation rows.
@@ -300,22 +314,22 @@ def solve_fit(problem: CalibrationProblem, n_jobs: int = 1, max_evaluations: int
             "fit",
             initial.tolist(),
             start,
-            sims[0],
+            fun.simulations,
             n_jobs,
-            known=memo[x0.tobytes()][0],
-            known_failures=memo[x0.tobytes()][1],
+            known=fun.memo[x0.tobytes()][0],
+            known_failures=fun.memo[x0.tobytes()][1],
             message="not fitted: calibration rows without equilibrium at the starting values",
             fitted=False,
         )
     sol = _best_fit(fun, starts, r0, max_evaluations)
     meter.expect(len(problem.rows))  # the fit is done: at most every row once more
-    known, known_failures = memo.get(sol.x.tobytes(), (None, []))
+    known, known_failures = fun.memo.get(sol.x.tobytes(), (None, []))
     return _finish(
         problem,
         "fit",
         sol.x * initial,
         start,
-        sims[0],
+        fun.simulations,
         n_jobs,
         known=known,
         known_failures=known_failures,

@@ -27,6 +27,7 @@ from somo_sweep.cli import (
     paper,
     results,
     sweep,
+    tasks,
 )
 from somo_sweep.cli.help import HelpGroup, plain_help
 from somo_sweep.cli.output import state
@@ -75,7 +76,7 @@ app.command()(design.design)
 app.command()(results.show)
 app.command()(results.plot)
 app.command()(answer.answer)
-app.command()(sweep.tasks)
+app.command()(tasks.tasks)
 app.command()(results.recheck)
 app.command()(engines.compare_engines)
 app.command()(calibrate.calibrate)

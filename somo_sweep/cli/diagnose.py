@@ -25,7 +25,7 @@ from somo_sweep.errors import SomoError
 __all__ = ["DIAGNOSIS_KEYS", "diagnose"]
 
 if TYPE_CHECKING:
-    from somo_sweep.diagnosis.diagnose import DiagnosisResult
+    from somo_sweep.diagnosis.result import DiagnosisResult
     from somo_sweep.diagnosis.workflow import DiagnosisRun
 
 #: Keys of every ``diagnosis.json`` (earlier versions wrote it without the JSON mark).

@@ -1,6 +1,6 @@
 """The command line's shared ways to end and to show work: print an error and exit, a spinner, the
-``--jobs`` check; and (from :mod:`somo_sweep.cli.files`) the checked, atomic writes of every file it
-makes outside a sweep's result store.
+``--jobs`` check; and (from :mod:`somo_sweep.cli.replaceable` and :mod:`somo_sweep.cli.files`) the
+checked, atomic writes of every file it makes outside a sweep's result store.
 """
 
 from __future__ import annotations
@@ -13,18 +13,20 @@ from typing import Any, NoReturn
 import typer
 
 from somo_sweep.cli.files import (
-    JSON_MARKER,
-    MARKER,
-    check_output,
-    check_replaceable,
     figure_bytes,
     file_target,
-    json_report,
-    plain,
     write_artifacts,
     write_atomic,
     write_checked,
     write_outputs,
+)
+from somo_sweep.cli.replaceable import (
+    JSON_MARKER,
+    MARKER,
+    check_output,
+    check_replaceable,
+    json_report,
+    plain,
 )
 from somo_sweep.errors import StorageError
 from somo_sweep.sweep.run.options import MAX_JOBS_PER_CPU

@@ -1,5 +1,5 @@
-"""``somo-sweep run`` and ``tasks``: run a study (:func:`~somo_sweep.sweep.run.runner.run_sweep`) and
-show what it does; list the tasks a study may name."""
+"""``somo-sweep run``: run a study (:func:`~somo_sweep.sweep.run.runner.run_sweep`) and show it as it
+goes: the step's choice, a bar per round, the summary (a dry run prints :mod:`somo_sweep.cli.dry_run`)."""
 
 from __future__ import annotations
 
@@ -18,20 +18,20 @@ from rich.progress import (
     TimeRemainingColumn,
 )
 
+from somo_sweep.cli.dry_run import DRY_ROWS, print_dry_run
 from somo_sweep.cli.output import fail, say_notes
 from somo_sweep.cli.results import ALLOW_OUTSIDE, MAX_TRIALS, save_plots
 from somo_sweep.errors import Interrupted, SomoError
 
 if TYPE_CHECKING:  # the heavy modules are imported when a command runs
     from somo_sweep.sweep.run.convergence import StepChoice, StepEvents
-    from somo_sweep.sweep.run.estimate import DryRun
     from somo_sweep.sweep.run.execution import Backend
     from somo_sweep.sweep.run.options import RunEvents, RunOptions, RunSummary
     from somo_sweep.sweep.run.runner import RunPlan
     from somo_sweep.sweep.run.sampling import Batch
     from somo_sweep.sweep.study import Study
 
-__all__ = ["JOBS", "MAX_TRIALS", "run", "step_events", "tasks"]
+__all__ = ["JOBS", "MAX_TRIALS", "run", "step_events"]
 
 
 def _err() -> Console:
@@ -43,10 +43,6 @@ def _out() -> Console:
     """The standard output's console, made at each use: its width follows the terminal (or
     ``COLUMNS``) as it is now, not as it was when this module was imported."""
     return Console()
-
-
-#: Rows a dry run prints.
-DRY_ROWS = 10
 
 
 #: ``--jobs``, as ``run`` and ``compare-engines`` take it.
@@ -174,7 +170,7 @@ def _planned(
         say_notes(study.notices)
         plan = plan_run(study, options)
         if dry:
-            _print_dry_run(dry_run(plan, DRY_ROWS), options.workers, estimate)
+            print_dry_run(dry_run(plan, DRY_ROWS), options.workers, estimate)
             return None
         return plan
     except SomoError as exc:
@@ -348,100 +344,3 @@ def _progress() -> Progress:
         TimeRemainingColumn(),
         console=_err(),
     )
-
-
-def _print_dry_run(plan: DryRun, workers: int, estimate: bool = True) -> None:
-    """Count, then the first rows (the other jobs are not built); then the runs and (with
-    ``estimate``) their time, from one trial timed."""
-    from somo_sweep.sweep.jobs.table import jobs_frame
-
-    st = plan.study
-    typer.echo(
-        f"{st.name}: task {st.task.name}, {st.n_trials} trials "
-        f"({st.n_points} grid points x {st.repeats} repeat(s)), output {st.output}"
-    )
-    if st.robustness.replicas and st.sampling != "active":  # an active plan says where its replicas go
-        spec = st.robustness
-        chosen = (
-            "every simulated cell"
-            if spec.where == "all"
-            else (f"the cells on a label boundary, and an audit of {spec.audit_fraction:.0%} of the others")
-        )
-        typer.echo(f"robustness: {spec.replicas} replicas of {chosen}")
-    if plan.sampling is not None:
-        typer.echo(plan.sampling)
-    if plan.steps is not None:
-        steps, why = plan.steps
-        typer.echo(
-            "automatic numerics (no simulation: block): the run chooses the step by label convergence "
-            f"on a sample of these cells, trying {', '.join(f'{h * 1e3:g}' for h in steps)} ms (starting "
-            f"guess set by {why}); the jobs below show the starting (modal) choice:"
-        )
-        shown: set[str] = set()
-        for job in plan.jobs:
-            if job.numerics is not None and job.columns["model_hash"] not in shown:
-                shown.add(job.columns["model_hash"])
-                typer.echo(f"  model {job.columns['model_file']}:")
-                for line in job.numerics.describe():
-                    typer.echo(f"    {line}")
-    else:
-        sim = st.simulation
-        assert sim is not None
-        given = "from the study file" if sim.time_step_s is not None else f"the {sim.engine} default"
-        typer.echo(f"simulation: engine {sim.engine}, time step {sim.step_s * 1e3:g} ms ({given})")
-    typer.echo(jobs_frame(plan.jobs).to_string(index=False))
-    if st.n_trials > DRY_ROWS:
-        typer.echo(f"... {st.n_trials - DRY_ROWS} more")
-    if estimate:
-        typer.echo("timing trial 0 of the study (no result is written) ...", err=True)
-    for line in plan.estimate(workers, estimate).lines():
-        typer.echo(line)
-
-
-def tasks(
-    name: Annotated[
-        str | None, typer.Argument(help="A task: list its parameters (defaults, meanings) and metrics.")
-    ] = None,
-    show_all: Annotated[bool, typer.Option("--all", help="Also list the engine's selftest tasks.")] = False,
-) -> None:
-    """List the registered tasks (study files name them in task:), or one task's parameters."""
-    from somo_sweep.tasks import all_tasks
-
-    if name is not None:
-        _describe_task(name)
-        return
-    for name, spec in all_tasks().items():
-        if "selftest" in spec.tags and not show_all:
-            continue
-        tags = f" [{', '.join(spec.tags)}]" if spec.tags else ""
-        typer.echo(f"{name}{tags}: {spec.description}")
-
-
-def _describe_task(name: str) -> None:
-    """Print one task's parameters (``task.<key> = default``, then the meaning) and metric columns."""
-    import textwrap
-
-    from somo_sweep.errors import did_you_mean
-    from somo_sweep.tasks import all_tasks
-    from somo_sweep.tasks.describe import parameters
-
-    known = all_tasks()
-    if name not in known:
-        fail(
-            SomoError(f"unknown task '{name}'{did_you_mean(name, list(known))}; allowed: {', '.join(known)}")
-        )
-    spec = known[name]
-    typer.echo("\n".join(textwrap.wrap(f"{name}: {spec.description}", 80)))
-    typer.echo("parameters (task.<key>: default; set them in params: or sweep them):")
-    section = ""
-    for p in parameters(spec):
-        if p.section != section:
-            section = p.section
-            typer.echo("\n" + "\n".join(textwrap.wrap(f"task.{section.replace('``', '')}", 80)))
-        typer.echo(f"  {p.key}: {p.default}")
-        for line in textwrap.wrap(p.meaning.replace("``", ""), 74):
-            typer.echo(f"      {line}")
-    if spec.metrics:
-        typer.echo("metrics (one column each; docs/outputs.md says what each means):")
-        for line in textwrap.wrap(", ".join([*spec.metrics, *spec.numbered_metrics]), 76):
-            typer.echo(f"  {line}")

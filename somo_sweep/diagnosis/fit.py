@@ -168,20 +168,13 @@ def fit_candidate(
             break
         trial = z + step
         evaluations += 1
-        try:
-            sim = problem.simulate(trial, n_jobs)
-        except SimulationError:  # a step into an unstable corner: treat as no improvement
+        reached = _simulated_at(problem, trial, n_jobs)
+        if reached is None:  # a failed step: treat as no improvement
             damping *= 0.5
             continue
-        if not np.all(np.isfinite(problem.normalised(sim, failed=None))):
-            damping *= 0.5  # rows without equilibrium there: a failed step
-            continue
-        r_trial = problem.normalised(sim)
+        sim, r_trial = reached
         chi2_trial = float(r_trial @ r_trial)
-        # Broyden: make the Jacobian reproduce the residual change along the step just taken.
-        s = step[list(cols)]
-        miss = r_trial - r - matrix[:, list(cols)] @ s
-        matrix[:, list(cols)] += np.outer(miss, s) / float(s @ s)
+        _broyden_update(matrix, cols, step, r_trial - r)
         if chi2_trial < chi2:
             improved = (chi2 - chi2_trial) / max(chi2, 1e-12)
             z, r, chi2, simulated = trial, r_trial, chi2_trial, sim
@@ -192,6 +185,28 @@ def fit_candidate(
     return CandidateFit(
         name, cols, z, chi2, bic(problem, r, len(cols)), simulated, True, done + evaluations, matrix
     )
+
+
+def _simulated_at(
+    problem: DiagnosisProblem, z: np.ndarray, n_jobs: int
+) -> tuple[np.ndarray, np.ndarray] | None:
+    """The rows simulated at ``z`` and their normalised residuals, or None where the step failed:
+    into an unstable corner, or to rows without equilibrium."""
+    try:
+        sim = problem.simulate(z, n_jobs)
+    except SimulationError:
+        return None
+    if not np.all(np.isfinite(problem.normalised(sim, failed=None))):
+        return None
+    return sim, problem.normalised(sim)
+
+
+def _broyden_update(matrix: np.ndarray, cols: tuple[int, ...], step: np.ndarray, change: np.ndarray) -> None:
+    """Broyden: make the Jacobian's ``cols`` (in ``matrix``) reproduce the residuals' ``change``
+    along the ``step`` just taken."""
+    s = step[list(cols)]
+    miss = change - matrix[:, list(cols)] @ s
+    matrix[:, list(cols)] += np.outer(miss, s) / float(s @ s)
 
 
 def _retake_columns(

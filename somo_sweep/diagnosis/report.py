@@ -6,8 +6,8 @@ import numpy as np
 from matplotlib.axes import Axes
 
 from somo_sweep.calibration.metrics import ANGLE, ANGLE_LABEL, measured_array, row_labels
-from somo_sweep.diagnosis.diagnose import DiagnosisResult
 from somo_sweep.diagnosis.effects import EFFECTS
+from somo_sweep.diagnosis.result import DiagnosisResult
 
 __all__ = ["plot_diagnosis", "report_markdown", "test_labels", "verdict_lines"]
 

@@ -19,8 +19,9 @@ from somo_sweep.calibration.bench_file import BenchFile, read_bench_file
 from somo_sweep.calibration.measurements import parse_measurements
 from somo_sweep.calibration.solve import CALIBRATION_SETTINGS, CalibrationResult, build_problem, solve_fit
 from somo_sweep.calibration.workflow import FingerSize, Reporter, base_model, bench_settings, counted_rows
-from somo_sweep.diagnosis.diagnose import DiagnosisResult, build_diagnosis, diagnose
+from somo_sweep.diagnosis.diagnose import build_diagnosis, diagnose
 from somo_sweep.diagnosis.effects import EFFECTS, get_effect
+from somo_sweep.diagnosis.result import DiagnosisResult
 from somo_sweep.errors import SomoError
 from somo_sweep.model.load import Model, load_model
 from somo_sweep.statics.bench import BenchSettings

@@ -50,6 +50,8 @@ from somo_sweep.tasks.pinch_grasp.params import BASE_DISTANCE_AT_ZERO_CENTERING_
 if TYPE_CHECKING:
     from matplotlib.figure import Figure, SubFigure
 
+    from somo_sweep.sweep.views.answers import Answer
+
 __all__ = [
     "COLORS",
     "DSR_DECIMALS",
@@ -295,6 +297,29 @@ def _groups(table: pd.DataFrame, rows: pd.DataFrame) -> list[pd.DataFrame]:
     return out
 
 
+def _answer_figure(table: pd.DataFrame, result: Answer, max_dsr: float, n_failed: int) -> Figure:
+    """The figure of an answer, titled with its headline: one set of panels, or one row of
+    panels per value of the extra axes; a legend below."""
+    axes = extra_axes(table)
+    note = (
+        f"c: the paper's centering position; the finger bases end the approach "
+        f"d = {BASE_DISTANCE_AT_ZERO_CENTERING_M * 1e3:g} mm − c from the object's centre"
+    )
+    if axes:
+        titles = [
+            (f"{fig6_headline.group_title(row, axes)}: {fig6_headline.headline(row, 0)}", part)
+            for (_, row), part in zip(result.table.iterrows(), _groups(table, result.table), strict=True)
+        ]
+        fig = _rows_figure(table, max_dsr, titles)
+        rows = ", ".join(axis_name(a)[0] for a in axes)
+        fig.suptitle(f"smallest all-width pinch DSR, one row of panels per {rows}\n{note}", fontsize="medium")
+    else:
+        fig = _figure(table, max_dsr)
+        fig.suptitle(f"{fig6_headline.headline(result.table.iloc[0], n_failed)}\n{note}", fontsize="medium")
+    _add_legend(fig, table)
+    return fig
+
+
 def build(
     table: pd.DataFrame,
     stem: str = "fig6",
@@ -333,25 +358,10 @@ def build(
     data = fig6_headline.info(table, result)
     lines = fig6_headline.lines(table, result, data)
     n_failed = data.get("trials_without_outcome", 0)
-    note = (
-        f"c: the paper's centering position; the finger bases end the approach "
-        f"d = {BASE_DISTANCE_AT_ZERO_CENTERING_M * 1e3:g} mm − c from the object's centre"
-    )
     if as_written:
         data["cells_as_written"] = as_written
         lines.insert(1, f"{as_written} cell(s) left out, {AS_WRITTEN}: {ELSEWHERE}")
-    if axes:
-        titles = [
-            (f"{fig6_headline.group_title(row, axes)}: {fig6_headline.headline(row, 0)}", part)
-            for (_, row), part in zip(result.table.iterrows(), _groups(table, result.table), strict=True)
-        ]
-        fig = _rows_figure(table, max_dsr, titles)
-        rows = ", ".join(axis_name(a)[0] for a in axes)
-        fig.suptitle(f"smallest all-width pinch DSR, one row of panels per {rows}\n{note}", fontsize="medium")
-    else:
-        fig = _figure(table, max_dsr)
-        fig.suptitle(f"{fig6_headline.headline(result.table.iloc[0], n_failed)}\n{note}", fontsize="medium")
-    _add_legend(fig, table)
+    fig = _answer_figure(table, result, max_dsr, n_failed)
     return Artifacts(
         figures={stem: fig},
         dpi=150,

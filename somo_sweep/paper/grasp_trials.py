@@ -16,6 +16,7 @@ from somo_sweep.paper.artifacts import Artifacts
 from somo_sweep.tasks.pinch_grasp.classify import find_column, reclassify
 
 if TYPE_CHECKING:
+    from somo_sweep.sweep.study import Study
     from somo_sweep.sweep.views.results import Results
     from somo_sweep.tasks.registry import TaskResult
 
@@ -152,17 +153,7 @@ def relabel(
     folder = Path(folder)
     results = open_grasp_results(folder)
     table = results.trials
-    try:
-        labels = grasp_labels(table, rule, **options)
-    except SomoError as exc:
-        if "lacks the columns needed to classify grasps" not in str(exc):
-            raise
-        study = results.manifest.get("study")
-        task = study.get("task") if isinstance(study, dict) else None
-        raise SomoError(
-            f"{folder} holds trials of task '{shown(str(task))}', not pinch_grasp: there are no grasps to "
-            "classify; allowed: a results folder of a pinch_grasp study"
-        ) from None
+    labels = _folder_labels(results, folder, rule, options)
     from somo_sweep.sweep.run.robustness import fold
 
     cols = [str(c) for c in table.columns]
@@ -196,6 +187,25 @@ def relabel(
     if rule == "paper":
         out.attrs["rows_without_final_counts"] = rows_without_final_counts(table)
     return dict(sorted(Counter(str(v) for v in counted).items())), out
+
+
+def _folder_labels(results: Results, folder: Path, rule: str, options: dict[str, float]) -> pd.Series:
+    """The labels of every trial of an opened results folder (:func:`grasp_labels`).
+
+    Raises:
+        SomoError: The folder holds trials of another task (named) than pinch_grasp.
+    """
+    try:
+        return grasp_labels(results.trials, rule, **options)
+    except SomoError as exc:
+        if "lacks the columns needed to classify grasps" not in str(exc):
+            raise
+        study = results.manifest.get("study")
+        task = study.get("task") if isinstance(study, dict) else None
+        raise SomoError(
+            f"{folder} holds trials of task '{shown(str(task))}', not pinch_grasp: there are no grasps to "
+            "classify; allowed: a results folder of a pinch_grasp study"
+        ) from None
 
 
 def rows_without_final_counts(table: pd.DataFrame) -> int:
@@ -272,6 +282,30 @@ def _trial_label(result: TaskResult, step_s: float, step_chosen: bool, times_s: 
     return label
 
 
+def _study_to_render(
+    study_path: str | Path, engine: str | None, notes: Callable[[Sequence[str]], None] | None
+) -> Study:
+    """The pinch_grasp study a render reruns a trial of: loaded with its stored step, its notices
+    given to ``notes``, moved to ``engine`` with that engine's numerics when one is named.
+
+    Raises:
+        SomoError: The study runs another task.
+    """
+    from somo_sweep.sweep.run.convergence import with_stored_step
+    from somo_sweep.sweep.study import load_study
+
+    study = with_stored_step(load_study(study_path))
+    if notes is not None:
+        notes(study.notices)
+    if study.task.name != "pinch_grasp":
+        raise SomoError(f"{study_path}: render needs a pinch_grasp study, this one runs '{study.task.name}'")
+    if engine is not None:
+        from somo_sweep.sweep.views.compare_engines import on_engine
+
+        study = on_engine(study, engine, study.output)
+    return study
+
+
 def render_trial(
     study_path: str | Path,
     trial: str,
@@ -295,21 +329,11 @@ def render_trial(
     from somo_sweep.sim.render import Camera, snapshot
     from somo_sweep.sim.world import World
     from somo_sweep.sweep.jobs.table import build_jobs
-    from somo_sweep.sweep.run.convergence import with_stored_step
-    from somo_sweep.sweep.study import load_study
     from somo_sweep.tasks.pinch_grasp.gripper import fingers_colored
     from somo_sweep.tasks.pinch_grasp.params import PinchGraspParams
     from somo_sweep.tasks.pinch_grasp.task import run_pinch_grasp
 
-    study = with_stored_step(load_study(study_path))
-    if notes is not None:
-        notes(study.notices)
-    if study.task.name != "pinch_grasp":
-        raise SomoError(f"{study_path}: render needs a pinch_grasp study, this one runs '{study.task.name}'")
-    if engine is not None:
-        from somo_sweep.sweep.views.compare_engines import on_engine
-
-        study = on_engine(study, engine, study.output)
+    study = _study_to_render(study_path, engine, notes)
     job = find_trial(build_jobs(study).jobs, trial)
     params = job.params
     assert isinstance(params, PinchGraspParams)

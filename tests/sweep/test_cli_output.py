@@ -58,7 +58,7 @@ def test_a_folder_we_cannot_write_in_is_found_before_the_work(
         f"cannot write {tmp_path}/sub/m.yaml: {tmp_path} is read-only to us: permission denied (Permission "
         "denied); nothing was written: give yourself write access there, or give a folder of yours"
     )
-    monkeypatch.setattr("somo_sweep.cli.files._read_only_disk", lambda folder: folder == tmp_path)
+    monkeypatch.setattr("somo_sweep.cli.replaceable._read_only_disk", lambda folder: folder == tmp_path)
     with pytest.raises(SomoError) as info:  # a read-only mount is no matter of permissions
         check_replaceable(tmp_path / "sub" / "m.yaml")
     assert ": the file system is read-only (Read-only file system); nothing was written: remount it" in str(

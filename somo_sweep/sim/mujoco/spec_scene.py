@@ -26,11 +26,10 @@ from somo_sweep.sim.mujoco.scene import (
     PlannedBody,
     add_plan,
     check_plan,
-    decorate_ground,
     plan_key,
-    set_options,
 )
 from somo_sweep.sim.mujoco.scene_cache import SCENES
+from somo_sweep.sim.mujoco.scene_options import decorate_ground, set_options
 from somo_sweep.sim.mujoco.surfaces import Surface
 from somo_sweep.sim.plan import BodyPlan
 from somo_sweep.sim.settings import WorldSettings

@@ -324,15 +324,7 @@ def fold(
         replica ran or the cell awaits replicas).
     """
     names = list(labels) if labels is not None else label_names(table)
-    replica = (
-        pd.to_numeric(table["replica"], errors="coerce").fillna(0).astype(int)
-        if "replica" in table.columns
-        else pd.Series(0, index=table.index)
-    )
-    if planned is None:
-        planned = table.attrs.get(REPLICAS_PLANNED)
-    if planned is None:
-        planned = int(replica.max()) if len(replica) else 0
+    replica, planned = _replica_numbers(table, planned)
     kept = replica <= planned
     table, replica = table[kept], replica[kept]
     own = table[replica == 0].copy()
@@ -353,6 +345,22 @@ def fold(
     robust[unchecked] = pd.NA
     own[ROBUST] = robust
     return own.reset_index(drop=True)
+
+
+def _replica_numbers(table: pd.DataFrame, planned: int | None) -> tuple[pd.Series, int]:
+    """Each row's replica number (0: a cell's own trial, also where the ``replica`` column or value
+    is missing) and the replicas planned per cell: ``planned``, else the table's
+    ``attrs[REPLICAS_PLANNED]``, else the most replicas stored for one cell."""
+    replica = (
+        pd.to_numeric(table["replica"], errors="coerce").fillna(0).astype(int)
+        if "replica" in table.columns
+        else pd.Series(0, index=table.index)
+    )
+    if planned is None:
+        planned = table.attrs.get(REPLICAS_PLANNED)
+    if planned is None:
+        planned = int(replica.max()) if len(replica) else 0
+    return replica, planned
 
 
 def _agreement(own: pd.DataFrame, table: pd.DataFrame, replica: pd.Series, names: Sequence[str]) -> pd.Series:
