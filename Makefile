@@ -97,7 +97,7 @@ fig6: $(STAMP) ## Paper Fig. 6: pinch-grasp study, 2310 trials (resumable), figu
 	$(BIN)/somo-sweep paper fig6 results/pinch_grasp_dsr --out results/figures
 	$(BIN)/somo-sweep paper fig6 results/pinch_grasp_dsr --out results/figures --rule paper
 
-fig6-fast: $(STAMP) ## Fig. 6 on MuJoCo (4 ms) with robust labels: 2310 cells sampled actively, trials and 4 replicas where labels are undecided, to 98 % estimated agreement (resumable) -> results/figures/mujoco
+fig6-fast: $(STAMP) ## Fig. 6 on MuJoCo (4 ms) with robust labels: 2310 cells sampled actively, trials and 4 replicas where labels are undecided, to 97 % estimated agreement (resumable; about 5 min on 2 cores) -> results/figures/mujoco
 	$(BIN)/somo-sweep run studies/pinch_grasp_dsr_mujoco.yaml
 	$(BIN)/somo-sweep paper fig6 results/pinch_grasp_dsr_mujoco --out results/figures/mujoco
 	$(BIN)/somo-sweep paper fig6 results/pinch_grasp_dsr_mujoco --out results/figures/mujoco --rule paper
