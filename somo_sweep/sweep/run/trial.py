@@ -33,7 +33,7 @@ from somo_sweep.sim import shared_caches
 from somo_sweep.sim.worlds import prepare_engine
 from somo_sweep.sweep.jobs.code import trial_modules
 from somo_sweep.sweep.jobs.job import Job
-from somo_sweep.tasks.registry import TaskResult, get_task
+from somo_sweep.tasks.registry import TaskFn, TaskResult, get_task
 
 __all__ = [
     "Outcome",
@@ -173,23 +173,29 @@ def warm_up(task: str, engine: str = "pybullet") -> None:
             prepare_engine(engine)
 
 
-def _call(job: Job, time_step_s: float) -> TaskResult:
-    spec = get_task(job.task)
+def _call(job: Job, time_step_s: float, run: TaskFn | None) -> TaskResult:
+    fn = run if run is not None else get_task(job.task).run
     try:
-        return spec.run(job.model, job.params, replace(job.settings, time_step_s=time_step_s), job.seed)
+        return fn(job.model, job.params, replace(job.settings, time_step_s=time_step_s), job.seed)
     except UnstableSimulation as exc:
         return TaskResult(status="unstable", message=str(exc))
     except Exception as exc:
         return TaskResult(status="error", message=f"{type(exc).__name__}: {exc}")
 
 
-def run_job(job: Job) -> Outcome:
-    """Run one job in this process; a blow-up is retried once at half the step (never raises)."""
+def run_job(job: Job, run: TaskFn | None = None) -> Outcome:
+    """Run one job in this process; a blow-up is retried once at half the step (never raises).
+
+    Args:
+        job: The job.
+        run: Called instead of the job's task, with the same arguments (a render observing the
+            trial on its way), so that it runs the trial exactly as the sweep does; None: the task.
+    """
     step = job.settings.time_step_s
-    first = _call(job, step)
+    first = _call(job, step, run)
     if first.status != "unstable":
         return Outcome(job.job_id, first, False, step)
-    retry = _call(job, step / 2)
+    retry = _call(job, step / 2, run)
     note = f"first run at {step:g} s blew up ({first.message}); retried at {step / 2:g} s"
     message = note if retry.status == "ok" else f"{note}: {retry.message}"
     return Outcome(job.job_id, replace(retry, message=message), True, step / 2)
