@@ -77,8 +77,10 @@ def render(
     ] = None,
 ) -> None:
     """Render finger-shape snapshots of one trial headless as PNG files (PyBullet: TinyRenderer;
-    MuJoCo: its renderer on EGL or OSMesa)."""
-    from somo_sweep.paper.grasp_trials import render_trial
+    MuJoCo: its renderer on EGL or OSMesa). The trial runs as its sweep ran it (a blow-up is rerun
+    at half the step). Exits 1 when the trial blew up or failed before any snapshot, 2 when it
+    ended early before every time asked (nothing is written then)."""
+    from somo_sweep.paper.grasp_render import render_trial
 
     try:
         times = [float(v) for v in at_s.split(",") if v.strip()]
@@ -87,10 +89,13 @@ def render(
     if out.exists() and not out.is_dir():  # before the trial is simulated
         fail(SomoError(f"--out {out} is a file, not a folder"))
     try:
-        images, label = render_trial(study, trial, times, engine, say_notes)
-        paths = write_artifacts(images, out)
+        rendered = render_trial(study, trial, times, engine, say_notes)
+        if not rendered.images.images:
+            code = 2 if rendered.status == "ok" else 1  # times past an early end; a failed simulation
+            fail(SomoError(f"trial {trial}: {rendered.label}; no image written"), code)
+        paths = write_artifacts(rendered.images, out)
     except SomoError as exc:
         fail(exc)
-    typer.echo(f"trial {trial}: {label}")
+    typer.echo(f"trial {trial}: {rendered.label}")
     for path in paths:
         typer.echo(f"wrote {path}")

@@ -1,10 +1,10 @@
-"""Pinch-grasp studies after (or outside) a sweep: read results, relabel them, render one trial."""
+"""Pinch-grasp studies after (or outside) a sweep: read results, relabel them, find one trial
+(:mod:`somo_sweep.paper.grasp_render` renders it)."""
 
 from __future__ import annotations
 
-import math
 from collections import Counter
-from collections.abc import Callable, Sequence
+from collections.abc import Sequence
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
@@ -12,22 +12,17 @@ import numpy as np
 import pandas as pd
 
 from somo_sweep.errors import SomoError, shown
-from somo_sweep.paper.artifacts import Artifacts
 from somo_sweep.tasks.pinch_grasp.classify import find_column, reclassify
 
 if TYPE_CHECKING:
-    from somo_sweep.sweep.study import Study
     from somo_sweep.sweep.views.results import Results
-    from somo_sweep.tasks.registry import TaskResult
 
 __all__ = [
-    "MAX_SNAPSHOTS",
     "find_trial",
     "grasp_labels",
     "open_grasp_results",
     "read_results",
     "relabel",
-    "render_trial",
 ]
 
 #: The label column the pinch_grasp task stores for each rule (with its default options).
@@ -242,122 +237,3 @@ def find_trial(jobs: Sequence[Any], trial: str) -> Any:
         what = "no trial" if not hits else f"{len(hits)} trials"
         raise SomoError(f"--trial '{trial}': {what} with this id; give a job id or a 0-based index")
     return hits[0]
-
-
-#: Most snapshots one ``render`` call takes (each is a PNG of the scene).
-MAX_SNAPSHOTS = 100
-#: Size of a rendered snapshot (width, height), px: twice the camera's default, so that the
-#: fingers and their links read (TinyRenderer takes about 0.3 s more per snapshot).
-RENDER_SIZE_PX = (960, 800)
-#: The camera's distance from the point between the object and the finger mounts it looks at, m
-#: (its view is 0.29 m tall there: the fingers and the lifted object fill the frame).
-RENDER_DISTANCE_M = 0.40
-
-
-def _check_times(times_s: list[float], duration_s: float) -> None:
-    """Refuse no snapshot, too many, or one outside the trial's ``duration_s``."""
-    if not 1 <= len(times_s) <= MAX_SNAPSHOTS:
-        raise SomoError(f"--at-s: give 1 to {MAX_SNAPSHOTS} snapshot times, got {len(times_s)}")
-    outside = [t for t in times_s if not (math.isfinite(t) and 0.0 <= t <= duration_s)]
-    if outside:
-        raise SomoError(
-            f"--at-s {outside[0]:g}: a snapshot time must be from 0 to {duration_s:g} s (the trial's length)"
-        )
-
-
-def _trial_label(result: TaskResult, step_s: float, step_chosen: bool, times_s: list[float]) -> str:
-    """The trial's grasp label, whether it ended before a snapshot, and its step (``step_s``)."""
-    label = str(result.labels.get("grasp", result.status))
-    ended = result.metrics.get("ended_early_s")
-    if isinstance(ended, float) and math.isfinite(ended) and any(t > ended for t in times_s):
-        why = result.metrics.get("ended_early_reason", "")
-        label += f" (ended early at {ended:.2f} s: {why}; no snapshot after it)"
-    label += f"; step {step_s * 1e3:g} ms"
-    if not step_chosen:
-        # No step chosen yet: the jobs carry the modal starting guess, which a sweep may reject.
-        label += (
-            " (the automatic step's starting guess: this study has not chosen its step yet; "
-            "`somo-sweep check STUDY.yaml` or a run chooses it, then render uses that)"
-        )
-    return label
-
-
-def _study_to_render(
-    study_path: str | Path, engine: str | None, notes: Callable[[Sequence[str]], None] | None
-) -> Study:
-    """The pinch_grasp study a render reruns a trial of: loaded with its stored step, its notices
-    given to ``notes``, moved to ``engine`` with that engine's numerics when one is named.
-
-    Raises:
-        SomoError: The study runs another task.
-    """
-    from somo_sweep.sweep.run.convergence import with_stored_step
-    from somo_sweep.sweep.study import load_study
-
-    study = with_stored_step(load_study(study_path))
-    if notes is not None:
-        notes(study.notices)
-    if study.task.name != "pinch_grasp":
-        raise SomoError(f"{study_path}: render needs a pinch_grasp study, this one runs '{study.task.name}'")
-    if engine is not None:
-        from somo_sweep.sweep.views.compare_engines import on_engine
-
-        study = on_engine(study, engine, study.output)
-    return study
-
-
-def render_trial(
-    study_path: str | Path,
-    trial: str,
-    times_s: list[float],
-    engine: str | None = None,
-    notes: Callable[[Sequence[str]], None] | None = None,
-) -> tuple[Artifacts, str]:
-    """Rerun one trial of a pinch_grasp study with a top-view snapshot at each time.
-
-    Args:
-        study_path: The study file.
-        trial: Its job id, or its 0-based index in the study's grid.
-        times_s: Snapshot times, s.
-        engine: Run the trial on this engine (``pybullet`` or ``mujoco``) with its numerics
-            (:func:`~somo_sweep.sweep.views.compare_engines.on_engine`); None: the study's own.
-        notes: Given the study's notices once it loads (before the trial runs).
-
-    Returns:
-        The images (one PNG each) and the trial's label.
-    """
-    from somo_sweep.sim.render import Camera, snapshot
-    from somo_sweep.sim.world import World
-    from somo_sweep.sweep.jobs.table import build_jobs
-    from somo_sweep.tasks.pinch_grasp.gripper import fingers_colored
-    from somo_sweep.tasks.pinch_grasp.params import PinchGraspParams
-    from somo_sweep.tasks.pinch_grasp.task import run_pinch_grasp
-
-    study = _study_to_render(study_path, engine, notes)
-    job = find_trial(build_jobs(study).jobs, trial)
-    params = job.params
-    assert isinstance(params, PinchGraspParams)
-    _check_times(times_s, params.approach_s + params.ramp_s + params.lift_s + params.hold_s)
-    images: dict[float, Any] = {}
-    camera = Camera(
-        target_m=(params.base_distance_m * 0.5, 0.0, params.hand_height_m),
-        distance_m=RENDER_DISTANCE_M,
-        width_px=RENDER_SIZE_PX[0],
-        height_px=RENDER_SIZE_PX[1],
-    )
-
-    def observe(world: World, time_s: float) -> None:
-        images[time_s] = snapshot(world, camera)
-
-    # Each finger in its own colour (no physics changes: the label is the trial's).
-    model = fingers_colored(job.model)
-    result = run_pinch_grasp(model, params, job.settings, job.seed, observe=observe, observe_at_s=times_s)
-    name = (
-        f"{study.name}_dsr{params.distal_segment_ratio:.2f}_w{params.object_width_m * 1e3:g}mm"
-        f"_c{params.centering_position_m * 1e3:g}mm"
-    )
-    # Two decimals, or as many more as keep snapshots a step apart from sharing a file name.
-    digits = next(d for d in range(2, 10) if len({f"{t:.{d}f}" for t in images}) == len(images))
-    out = Artifacts(images={f"{name}_t{t:.{digits}f}s.png": img for t, img in sorted(images.items())})
-    step_chosen = not (study.simulation is None and study.auto_step_s is None)
-    return out, _trial_label(result, job.settings.time_step_s, step_chosen, times_s)
