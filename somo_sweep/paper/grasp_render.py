@@ -195,8 +195,9 @@ def _missed(times_s: list[float], images: dict[float, Any], step_s: float) -> li
 
 def _named(study_name: str, params: Any, images: dict[float, Any]) -> Artifacts:
     """The snapshots (time, s → image) as PNG files named by the study, the cell and the time."""
+    dsr = params.distal_segment_ratio  # null: the finger's own split (no re-split)
     name = (
-        f"{study_name}_dsr{params.distal_segment_ratio:.2f}_w{params.object_width_m * 1e3:g}mm"
+        f"{study_name}_dsr{'null' if dsr is None else f'{dsr:.2f}'}_w{params.object_width_m * 1e3:g}mm"
         f"_c{params.centering_position_m * 1e3:g}mm"
     )
     # Two decimals, or as many more as keep snapshots a step apart from sharing a file name.

@@ -171,3 +171,13 @@ def test_the_demo_trial_the_sweep_retried_renders_as_stored(tmp_path: Path) -> N
     assert res.exit_code == 0, res.output
     assert res.output.startswith(f"trial 0: {row['label_grasp']}; step 0.25 ms (the run at 0.5 ms blew up")
     assert not pd.isna(row["label_grasp"])
+
+
+def test_snapshots_of_a_cell_without_a_dsr_are_named_null() -> None:
+    from types import SimpleNamespace
+
+    from somo_sweep.paper.grasp_render import _named
+
+    params = SimpleNamespace(distal_segment_ratio=None, object_width_m=0.04, centering_position_m=0.1)
+    names = set(_named("mine", params, {1.0: b"png"}).images)
+    assert names == {"mine_dsrnull_w40mm_c100mm_t1.00s.png"}
