@@ -75,6 +75,12 @@ def render(
             help="Run the trial on pybullet or mujoco (with its own numerics); default: the study's."
         ),
     ] = None,
+    results: Annotated[
+        Path | None,
+        typer.Option(
+            help="Results folder the sweep ran into (its --out), for the step it chose; default: the study's."
+        ),
+    ] = None,
 ) -> None:
     """Render finger-shape snapshots of one trial headless as PNG files (PyBullet: TinyRenderer;
     MuJoCo: its renderer on EGL or OSMesa). The trial runs as its sweep ran it (a blow-up is rerun
@@ -89,7 +95,7 @@ def render(
     if out.exists() and not out.is_dir():  # before the trial is simulated
         fail(SomoError(f"--out {out} is a file, not a folder"))
     try:
-        rendered = render_trial(study, trial, times, engine, say_notes)
+        rendered = render_trial(study, trial, times, engine, say_notes, results)
         if not rendered.images.images:
             code = 2 if rendered.status == "ok" else 1  # times past an early end; a failed simulation
             fail(SomoError(f"trial {trial}: {rendered.label}; no image written"), code)

@@ -88,18 +88,24 @@ def _trial_label(outcome: Outcome, missed_s: list[float], study_step_s: float, s
 
 
 def _study_to_render(
-    study_path: str | Path, engine: str | None, notes: Callable[[Sequence[str]], None] | None
+    study_path: str | Path,
+    engine: str | None,
+    notes: Callable[[Sequence[str]], None] | None,
+    results: str | Path | None = None,
 ) -> Study:
-    """The pinch_grasp study a render reruns a trial of: loaded with its stored step, its notices
-    given to ``notes``, moved to ``engine`` with that engine's numerics when one is named.
+    """The pinch_grasp study a render reruns a trial of: loaded with the step its results folder
+    (``results``, else the study's own output) stored, its notices given to ``notes``, moved to
+    ``engine`` with that engine's numerics when one is named.
 
     Raises:
-        SomoError: The study runs another task.
+        SomoError: The study runs another task, or ``results`` is not a folder.
     """
     from somo_sweep.sweep.run.convergence import with_stored_step
     from somo_sweep.sweep.study import load_study
 
-    study = with_stored_step(load_study(study_path))
+    if results is not None and not Path(results).is_dir():
+        raise SomoError(f"--results {results}: no such results folder (give the folder the sweep ran into)")
+    study = with_stored_step(load_study(study_path, results))
     if notes is not None:
         notes(study.notices)
     if study.task.name != "pinch_grasp":
@@ -117,6 +123,7 @@ def render_trial(
     times_s: list[float],
     engine: str | None = None,
     notes: Callable[[Sequence[str]], None] | None = None,
+    results: str | Path | None = None,
 ) -> TrialRender:
     """Rerun one trial of a pinch_grasp study as its sweep runs it, with a snapshot at each time.
 
@@ -127,6 +134,8 @@ def render_trial(
         engine: Run the trial on this engine (``pybullet`` or ``mujoco``) with its numerics
             (:func:`~somo_sweep.sweep.views.compare_engines.on_engine`); None: the study's own.
         notes: Given the study's notices once it loads (before the trial runs).
+        results: The results folder its sweep ran into, for the step it chose (None: the study's
+            own output folder).
 
     Returns:
         The snapshots the trial reached, its status and its label.
@@ -142,7 +151,7 @@ def render_trial(
     from somo_sweep.tasks.pinch_grasp.params import PinchGraspParams
     from somo_sweep.tasks.pinch_grasp.task import run_pinch_grasp
 
-    study = _study_to_render(study_path, engine, notes)
+    study = _study_to_render(study_path, engine, notes, results)
     job = find_trial(build_jobs(study).jobs, trial)
     params = job.params
     assert isinstance(params, PinchGraspParams)
@@ -167,10 +176,18 @@ def render_trial(
     outcome = run_job(job, run)
     if broken:
         raise broken[0]
+    return _rendered(study, job, outcome, images, times_s)
+
+
+def _rendered(
+    study: Study, job: Any, outcome: Any, images: dict[float, Any], times_s: list[float]
+) -> TrialRender:
+    """The render of a trial that ran: its snapshots named, its status, and its line (the step it
+    ran at, the snapshots it missed)."""
     missed = _missed(times_s, images, outcome.time_step_used_s)
     step_chosen = not (study.simulation is None and study.auto_step_s is None)
     label = _trial_label(outcome, missed, job.settings.time_step_s, step_chosen)
-    return TrialRender(_named(study.name, params, images), outcome.status, label)
+    return TrialRender(_named(study.name, job.params, images), outcome.status, label)
 
 
 def _camera(params: Any) -> Camera:

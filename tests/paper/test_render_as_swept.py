@@ -181,3 +181,37 @@ def test_snapshots_of_a_cell_without_a_dsr_are_named_null() -> None:
     params = SimpleNamespace(distal_segment_ratio=None, object_width_m=0.04, centering_position_m=0.1)
     names = set(_named("mine", params, {1.0: b"png"}).images)
     assert names == {"mine_dsrnull_w40mm_c100mm_t1.00s.png"}
+
+
+def test_a_render_reads_the_chosen_step_from_the_folder_the_sweep_ran_into(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    from somo_sweep.paper import grasp_render
+    from somo_sweep.sweep.run import convergence
+
+    path = tmp_path / "automatic.yaml"  # no simulation: block, so its step is chosen by its sweep
+    shutil.copytree(MODELS, tmp_path / "models")
+    path.write_text(
+        "name: automatic\ntask: pinch_grasp\nmodel: models/pinch_gripper.yaml\n"
+        "sweep:\n  task.distal_segment_ratio: [0.1]\n"
+    )
+    read: list[Path] = []
+    monkeypatch.setattr(convergence, "read_manifest", lambda folder: read.append(Path(folder)) or {})
+    elsewhere = tmp_path / "elsewhere"
+    elsewhere.mkdir()
+    study = grasp_render._study_to_render(path, None, None, elsewhere)
+    assert read == [elsewhere] and study.output == elsewhere
+    read.clear()
+    grasp_render._study_to_render(path, None, None)
+    assert read and read[0] != elsewhere  # the study's own output folder
+
+
+def test_a_render_refuses_a_results_folder_that_is_not_there(tmp_path: Path) -> None:
+    path = _study(tmp_path, "duration_s: 1.0")
+    missing = tmp_path / "not_here"
+    result = CliRunner().invoke(
+        app, ["render", str(path), "--trial", "0", "--results", str(missing), "--out", str(tmp_path / "r")]
+    )
+    assert result.exit_code == 2
+    assert f"--results {missing}: no such results folder" in result.output
+    assert not (tmp_path / "r").exists()
